@@ -1,0 +1,46 @@
+# mmstab: every target sets up what it needs from nothing (virtualenv + editable install).
+# `make demo` runs the main job on the default problem; `make test` runs the tests.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+MMSTAB := $(VENV)/bin/mmstab
+STAMP := $(VENV)/.installed-stamp
+PROBLEM ?= problems/ramp.yaml
+export MPLBACKEND ?= Agg
+
+.PHONY: setup demo test lint format clean fig5 fig6 figures
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet --editable '.[dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+## the main job on the default problem
+demo: setup fig5 fig6
+
+test: setup
+	$(PY) -m pytest -q
+
+lint: setup
+	$(VENV)/bin/ruff check mmstab tests
+	$(VENV)/bin/ruff format --check mmstab tests
+	$(VENV)/bin/mypy mmstab
+
+format: setup
+	$(VENV)/bin/ruff format mmstab tests
+	$(VENV)/bin/ruff check --fix mmstab tests
+
+## paper experiments: one target each, results in results/<name>/
+fig5: setup
+	$(MMSTAB) fig5 $(PROBLEM)
+
+fig6: setup
+	$(MMSTAB) fig6 $(PROBLEM)
+
+figures: fig5 fig6
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache *.egg-info

@@ -1,0 +1,8 @@
+"""mmstab: stability-aware planning and control of tracked mobile manipulators on slopes.
+
+Pipeline (one module per stage): ``robot``/``problem`` (validated inputs) ->
+``kinematics`` (CasADi + NumPy) -> ``stability`` (force-angle) -> ``workspace`` ->
+``planner`` (CMA-ES) -> ``controller`` (QP diff-IK) -> ``codegen``.
+"""
+
+__version__ = "0.1.0"

@@ -1,0 +1,5 @@
+import sys
+
+from mmstab.cli import main
+
+sys.exit(main())

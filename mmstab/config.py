@@ -1,0 +1,173 @@
+"""Loading and validating YAML inputs, and writing results atomically.
+
+Inputs are checked once, here, at the boundary: every later stage trusts what it is
+handed. A bad file raises :class:`ConfigError` whose message names the file and the
+field; the command line turns it into one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import numpy as np
+import yaml
+
+
+class MmstabError(Exception):
+    """An error the user can fix; reported as one line, without a traceback."""
+
+
+class ConfigError(MmstabError):
+    """A problem or robot file is invalid.
+
+    Args:
+        path: the file at fault.
+        field: dotted path of the field at fault (``arm.links[2].mass``), or "" for the file.
+        message: what is wrong.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], field: str, message: str):
+        self.path = str(path)
+        self.field = field
+        self.message = message
+        where = f"{self.path}: {field}" if field else self.path
+        super().__init__(f"{where}: {message}")
+
+
+def _field_path(parts: Iterator[Any] | list[Any]) -> str:
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a YAML mapping from ``path``, or raise :class:`ConfigError`."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise ConfigError(p, "", f"cannot read file ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else "YAML"
+        raise ConfigError(p, "", f"{where}: not valid YAML") from None
+    if not isinstance(data, dict):
+        raise ConfigError(p, "", "expected a mapping at the top level")
+    return data
+
+
+def _check_finite(path: Path, node: Any, trail: list[Any]) -> None:
+    if isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(path, _field_path(trail), f"must be a finite number, got {node}")
+    if isinstance(node, dict):
+        for k, v in node.items():
+            _check_finite(path, v, [*trail, k])
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            _check_finite(path, v, [*trail, i])
+
+
+def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[str, Any]) -> None:
+    """Validate ``data`` (read from ``path``) against a JSON schema; NaN/inf are rejected.
+
+    Raises:
+        ConfigError: naming the first offending field (the deepest error jsonschema reports).
+    """
+    p = Path(path)
+    _check_finite(p, data, [])
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(data), key=lambda e: (-len(e.path), str(e.path)))
+    if not errors:
+        return
+    err = jsonschema.exceptions.best_match(errors) or errors[0]
+    field = _field_path(list(err.absolute_path))
+    if err.validator == "additionalProperties":
+        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
+        field = _field_path([*err.absolute_path, extra[0]]) if extra else field
+        msg = "unknown key"
+    elif err.validator == "required":
+        missing = [r for r in err.validator_value if r not in err.instance]
+        field = _field_path([*err.absolute_path, missing[0]])
+        msg = "missing required key"
+    else:
+        msg = err.message
+    raise ConfigError(p, field, msg)
+
+
+def check_order(path: Path, field: str, lower: float, upper: float) -> None:
+    """Raise :class:`ConfigError` unless ``lower < upper`` (an inverted or empty limit)."""
+    if not lower < upper:
+        raise ConfigError(path, field, f"lower limit {lower} must be below upper limit {upper}")
+
+
+# ---------------------------------------------------------------------------- writing results
+def _atomic(path: Path, write: Callable[[Path], None]) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _write_text(path: Path, text: str) -> None:
+    path.write_text(text)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj)}")
+
+
+def write_json(path: str | os.PathLike[str], data: Any) -> Path:
+    """Write ``data`` as indented JSON, atomically (temp file + rename)."""
+    text = json.dumps(data, indent=2, default=_jsonable, allow_nan=False) + "\n"
+    return _atomic(Path(path), lambda t: _write_text(t, text))
+
+
+def write_npz(path: str | os.PathLike[str], **arrays: Any) -> Path:
+    """Write arrays to a compressed ``.npz``, atomically."""
+
+    def _w(t: Path) -> None:
+        with open(t, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+
+    return _atomic(Path(path), _w)
+
+
+def write_figure(path: str | os.PathLike[str], fig: Any, dpi: int = 110) -> Path:
+    """Save a matplotlib figure as PNG, atomically, and close it."""
+    import matplotlib.pyplot as plt
+
+    def _w(t: Path) -> None:
+        fig.savefig(t, dpi=dpi, format="png", bbox_inches="tight")
+
+    try:
+        return _atomic(Path(path), _w)
+    finally:
+        plt.close(fig)
+
+
+def write_yaml(path: str | os.PathLike[str], data: Any) -> Path:
+    """Write ``data`` as YAML, atomically (used to save the settings beside results)."""
+    text = yaml.safe_dump(data, sort_keys=False)
+    return _atomic(Path(path), lambda t: _write_text(t, text))

@@ -1,0 +1,1 @@
+"""Experiments of the paper, one function per ``make`` target, each writing ``results/<name>/``."""

@@ -1,0 +1,49 @@
+"""What every experiment shares: its output folder, saved settings and local extrema."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.config import write_yaml
+from mmstab.problem import Problem
+
+
+def output_dir(out: str | Path | None, name: str) -> Path:
+    """``out`` if given, else ``results/<name>``; created."""
+    d = Path(out) if out is not None else Path("results") / name
+    d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def save_settings(out_dir: Path, problem: Problem, **extra: Any) -> None:
+    """Save everything the run depended on beside its results (``problem.yaml``)."""
+    write_yaml(
+        out_dir / "problem.yaml", {"source": str(problem.path), **problem.to_dict(), **extra}
+    )
+
+
+def circular_extrema(values: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the strict-or-plateau local maxima and minima of a periodic sequence.
+
+    A plateau counts once, at its first sample.
+
+    Returns:
+        (maxima, minima) index arrays.
+    """
+    v = np.asarray(values, dtype=float)
+    prev, nxt = np.roll(v, 1), np.roll(v, -1)
+    # find the next different value for plateaus so a flat top is one maximum
+    n = len(v)
+    nxt_diff = np.empty(n)
+    for i in range(n):
+        j = (i + 1) % n
+        while v[j] == v[i] and j != i:
+            j = (j + 1) % n
+        nxt_diff[i] = v[j]
+    maxima = np.flatnonzero((v > prev) & (v > nxt_diff) & (v >= nxt))
+    minima = np.flatnonzero((v < prev) & (v < nxt_diff) & (v <= nxt))
+    return maxima, minima

@@ -1,0 +1,167 @@
+"""Paper Fig. 5 and Fig. 6: stability while link0 sweeps a full turn, the arm stretched.
+
+Fig. 5: one base pose with roll and no pitch. Fig. 6: poses along the circle on the ramp.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from mmstab.config import write_figure, write_json, write_npz
+from mmstab.experiments.common import circular_extrema, output_dir, save_settings
+from mmstab.plotting import draw_base_topview, draw_circle, new_figure
+from mmstab.problem import Problem
+from mmstab.robot import FloatArray, Robot
+from mmstab.stability import robot_force_angle
+from mmstab.terrain import Ramp
+
+
+class Sweep(NamedTuple):
+    """Stability of link0 sweeps at several base poses.
+
+    Attributes:
+        link0: link0 angles (S,) [rad], 0 .. 2 pi (exclusive).
+        poses: base poses (P, 3) in S [m, m, rad].
+        mu: force-angle measure (P, S) [N rad].
+        mu_arm_removed: mu of the base alone at each pose (P,) [N rad].
+        mu_stowed: mu with the arm stowed at each pose (P,) [N rad].
+    """
+
+    link0: FloatArray
+    poses: FloatArray
+    mu: FloatArray
+    mu_arm_removed: FloatArray
+    mu_stowed: FloatArray
+
+
+def link0_sweep(robot: Robot, ramp: Ramp, poses: FloatArray, samples: int) -> Sweep:
+    """Sweep link0 over a full turn (joints 1-3 at zero) at each base pose.
+
+    Args:
+        robot: the robot.
+        ramp: the ramp.
+        poses: base poses (P, 3) in S [m, m, rad].
+        samples: number of link0 samples; step 2 pi / samples [rad].
+    """
+    link0 = np.arange(samples) * 2 * np.pi / samples
+    q = np.zeros((samples, 4))
+    q[:, 0] = link0
+    com = robot.arm_com(q)
+    gravity = ramp.gravity_body(poses[:, 2])  # (P, 3)
+    mu = np.stack(
+        [robot_force_angle(robot, np.broadcast_to(g, (samples, 3)), com).mu for g in gravity]
+    )
+    return Sweep(
+        link0=link0,
+        poses=poses,
+        mu=mu,
+        mu_arm_removed=robot_force_angle(robot, gravity, None).mu,
+        mu_stowed=robot_force_angle(
+            robot, gravity, np.broadcast_to(robot.arm_com(robot.stowed), (len(poses), 3))
+        ).mu,
+    )
+
+
+def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
+    """Paper Fig. 5: base with roll and zero pitch, link0 swept; writes ``results/fig5``."""
+    cfg = problem.section("sweep")
+    pose = np.array([cfg["roll_pose"]], dtype=float)
+    sw = link0_sweep(problem.robot, problem.ramp, pose, cfg["samples"])
+    mu = sw.mu[0]
+    maxima, minima = circular_extrema(mu)
+    roll, pitch = problem.ramp.roll_pitch(float(pose[0, 2]))
+    d = output_dir(out, "fig5")
+    fig, ax = new_figure(figsize=(6.4, 3.6))
+    ax.plot(np.degrees(sw.link0), mu, "-", color="C0", label="arm stretched, link0 swept")
+    ax.plot(np.degrees(sw.link0[maxima]), mu[maxima], "v", color="C3", label="local maxima")
+    ax.axhline(sw.mu_arm_removed[0], color="0.4", ls="--", label="arm removed")
+    ax.axhline(sw.mu_stowed[0], color="C2", ls=":", label="arm stowed")
+    ax.set(
+        xlabel="link0 angle [deg]",
+        ylabel="force-angle stability $\\mu$ [N rad]",
+        title=f"Fig. 5: roll {np.degrees(roll):.1f} deg, pitch {np.degrees(pitch):.1f} deg",
+        xlim=(0, 360),
+        xticks=np.arange(0, 361, 45),
+    )
+    ax.legend(fontsize=8, loc="lower center")
+    ax.grid(alpha=0.3)
+    write_figure(d / "fig5.png", fig)
+    write_npz(d / "sweep.npz", link0=sw.link0, mu=mu)
+    summary = {
+        "pose": pose[0],
+        "roll_rad": roll,
+        "pitch_rad": pitch,
+        "link0": sw.link0,
+        "mu": mu,
+        "local_maxima_rad": sw.link0[maxima],
+        "local_maxima_mu": mu[maxima],
+        "local_minima_rad": sw.link0[minima],
+        "mu_arm_removed": float(sw.mu_arm_removed[0]),
+        "mu_stowed": float(sw.mu_stowed[0]),
+    }
+    save_settings(d, problem)
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
+    """Paper Fig. 6: poses along the circle, one sweep each; writes ``results/fig6``."""
+    cfg = problem.section("sweep")
+    poses = problem.circle.poses(cfg["poses"])
+    sw = link0_sweep(problem.robot, problem.ramp, poses, cfg["samples"])
+    d = output_dir(out, "fig6")
+    fig, (ax_a, ax_b) = new_figure(1, 2, figsize=(11, 4.4), width_ratios=[1, 1.5])
+    draw_circle(ax_a, problem.circle)
+    cmap = __import__("matplotlib").colormaps["viridis"]
+    per_pose = []
+    for k, (pose, mu) in enumerate(zip(sw.poses, sw.mu, strict=True)):
+        c = cmap(k / max(len(poses) - 1, 1))
+        draw_base_topview(ax_a, problem.robot, pose, color=c, label=str(k))
+        ax_b.plot(np.degrees(sw.link0), mu, color=c, lw=1.2, label=f"pose {k}")
+        maxima, minima = circular_extrema(mu)
+        ax_b.plot(np.degrees(sw.link0[maxima]), mu[maxima], "v", color=c, ms=4)
+        roll, pitch = problem.ramp.roll_pitch(float(pose[2]))
+        per_pose.append(
+            {
+                "pose": pose,
+                "roll_rad": roll,
+                "pitch_rad": pitch,
+                "local_maxima_rad": sw.link0[maxima],
+                "local_maxima_mu": mu[maxima],
+                "local_minima_rad": sw.link0[minima],
+                "mu_min": float(mu.min()),
+                "mu_max": float(mu.max()),
+                "mu_arm_removed": float(sw.mu_arm_removed[k]),
+                "mu_stowed": float(sw.mu_stowed[k]),
+            }
+        )
+    ax_a.set(
+        aspect="equal",
+        xlabel="$x_S$ [m]",
+        ylabel="$y_S$ [m] (uphill)",
+        title=f"(a) poses on the ramp, slope {np.degrees(problem.ramp.slope):.1f} deg",
+    )
+    ax_b.set(
+        xlabel="link0 angle [deg]",
+        ylabel="$\\mu$ [N rad]",
+        xlim=(0, 360),
+        xticks=np.arange(0, 361, 45),
+        title="(b) stability over link0 at each pose",
+    )
+    ax_b.legend(fontsize=7, ncol=2)
+    ax_b.grid(alpha=0.3)
+    write_figure(d / "fig6.png", fig)
+    write_npz(d / "sweep.npz", link0=sw.link0, mu=sw.mu, poses=sw.poses)
+    counts = [len(p["local_maxima_rad"]) for p in per_pose]
+    summary = {
+        "link0": sw.link0,
+        "poses": per_pose,
+        "poses_with_two_maxima": int(sum(c == 2 for c in counts)),
+        "maxima_per_pose": counts,
+    }
+    save_settings(d, problem)
+    write_json(d / "summary.json", summary)
+    return summary

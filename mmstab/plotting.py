@@ -1,0 +1,53 @@
+"""Shared plotting helpers (matplotlib, headless-safe). Degrees appear only in labels."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import matplotlib
+
+if not os.environ.get("MPLBACKEND"):
+    matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from numpy.typing import ArrayLike  # noqa: E402
+
+from mmstab.robot import Robot  # noqa: E402
+from mmstab.terrain import CirclePath, rot_z  # noqa: E402
+
+
+def new_figure(*args: Any, **kwargs: Any) -> tuple[Any, Any]:
+    """``plt.subplots`` with the project's defaults."""
+    kwargs.setdefault("constrained_layout", True)
+    return plt.subplots(*args, **kwargs)
+
+
+def draw_base_topview(
+    ax: Any, robot: Robot, pose: ArrayLike, color: str = "C0", label: str | None = None
+) -> None:
+    """Draw the base's track footprint and heading, seen from above the slope (frame S).
+
+    Args:
+        ax: matplotlib 2-D axes.
+        robot: the robot.
+        pose: (x, y, heading) in S [m, m, rad].
+        color: matplotlib colour.
+        label: optional text written at the pose.
+    """
+    x, y, h = np.asarray(pose, dtype=float)
+    from mmstab.stability import base_polygon
+
+    pts = base_polygon(robot).vertices[:, :2]
+    R = rot_z(h)[:2, :2]
+    world = np.vstack([pts, pts[:1]]) @ R.T + [x, y]
+    ax.plot(world[:, 0], world[:, 1], color=color, lw=1.2)
+    ax.arrow(x, y, 0.3 * np.cos(h), 0.3 * np.sin(h), head_width=0.06, color=color)
+    if label:
+        ax.annotate(label, (x, y), textcoords="offset points", xytext=(6, 6), fontsize=8)
+
+
+def draw_circle(ax: Any, circle: CirclePath, **kwargs: Any) -> None:
+    """Draw the circular path in the slope frame."""
+    xy = circle.pose_at(np.linspace(0, 1, 200))[:, :2]
+    ax.plot(xy[:, 0], xy[:, 1], **{"color": "0.6", "ls": "--", "lw": 1, **kwargs})

@@ -1,0 +1,96 @@
+"""JSON schemas of the robot description and of a problem file.
+
+Every key is required and no other key is allowed, so that a typo is an error and a
+saved problem says everything a run depended on. Units: metres, radians, kg, seconds.
+Semantic checks the schema cannot express (inverted limits, a flipper under the
+ground) live beside the loaders.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+NUM: dict[str, Any] = {"type": "number"}
+POS: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}
+NONNEG: dict[str, Any] = {"type": "number", "minimum": 0}
+INT_POS: dict[str, Any] = {"type": "integer", "minimum": 1}
+SEED: dict[str, Any] = {"type": "integer", "minimum": 0}
+VEC2: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 2, "maxItems": 2}
+VEC3: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}
+VEC3_POS: dict[str, Any] = {"type": "array", "items": POS, "minItems": 3, "maxItems": 3}
+VEC4: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 4, "maxItems": 4}
+WEIGHT01: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1}
+
+
+def obj(**props: Any) -> dict[str, Any]:
+    """A closed object schema: all ``props`` required, nothing else allowed."""
+    return {
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+        "additionalProperties": False,
+    }
+
+
+def vec(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
+    """Array of exactly ``n`` items."""
+    return {"type": "array", "items": item, "minItems": n, "maxItems": n}
+
+
+BOX = obj(type={"const": "box"}, size=VEC3_POS, center=VEC3, rpy=VEC3)
+CAPSULE = obj(type={"const": "capsule"}, radius=POS, p0=VEC3, p1=VEC3)
+
+LINK = obj(
+    name={"type": "string", "minLength": 1},
+    dh=obj(a=NUM, alpha=NUM, d=NUM, theta_offset=NUM),
+    mass=POS,
+    com=VEC3,
+    geometry={"oneOf": [BOX, CAPSULE]},
+    limits=obj(lower=NUM, upper=NUM, velocity=POS),
+)
+
+ROBOT = obj(
+    name={"type": "string", "minLength": 1},
+    note={"type": "string"},
+    base=obj(
+        mass=POS,
+        com=VEC3,
+        body=obj(size=VEC3_POS, center=VEC3),
+        tracks=obj(
+            length=POS,
+            width=POS,
+            height=POS,
+            separation=POS,
+            sprocket_radius=POS,
+            velocity_limit=POS,
+        ),
+        flippers=obj(length=POS, width=POS, thickness=POS, pivot=VEC3, angle=NUM),
+    ),
+    arm=obj(
+        mount=obj(xyz=VEC3, rpy=VEC3),
+        links={"type": "array", "items": LINK, "minItems": 4, "maxItems": 4},
+        stowed=VEC4,
+    ),
+)
+
+# One entry per pipeline stage; a problem file has every section.
+PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
+    "robot": {"type": "string", "minLength": 1},
+    "terrain": obj(slope={"type": "number", "minimum": 0, "maximum": 1.2}),
+    "path": obj(
+        center=VEC2,
+        radius=POS,
+        start_angle=NUM,
+        direction={"enum": ["ccw", "cw"]},
+    ),
+    "sweep": obj(
+        samples={"type": "integer", "minimum": 8},
+        poses={"type": "integer", "minimum": 1},
+        roll_pose=VEC3,
+    ),
+}
+
+
+def problem_schema() -> dict[str, Any]:
+    """The closed schema of a whole problem file."""
+    return obj(**PROBLEM_SECTIONS)

@@ -1,0 +1,53 @@
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBLEMS = ROOT / "problems"
+ROBOT_YAML = PROBLEMS / "robots" / "cameleon.yaml"
+RAMP_YAML = PROBLEMS / "ramp.yaml"
+
+
+@pytest.fixture(scope="session")
+def robot():
+    from mmstab.robot import load_robot
+
+    return load_robot(ROBOT_YAML)
+
+
+@pytest.fixture(scope="session")
+def problem():
+    from mmstab.problem import load_problem
+
+    return load_problem(RAMP_YAML)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)
+
+
+def random_postures(robot, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Postures drawn uniformly within the joint limits."""
+    return rng.uniform(robot.joint_lower, robot.joint_upper, size=(n, 4))
+
+
+def write_problem(tmp_path: Path, edit=None, name: str = "problem.yaml") -> Path:
+    """Copy the default problem (and its robot) to tmp_path, apply ``edit(problem, robot)``."""
+    prob: dict[str, Any] = yaml.safe_load(RAMP_YAML.read_text())
+    rob: dict[str, Any] = yaml.safe_load(ROBOT_YAML.read_text())
+    prob, rob = copy.deepcopy(prob), copy.deepcopy(rob)
+    if edit is not None:
+        edit(prob, rob)
+    (tmp_path / "robots").mkdir(exist_ok=True)
+    (tmp_path / "robots" / "cameleon.yaml").write_text(yaml.safe_dump(rob))
+    prob["robot"] = prob.get("robot", "robots/cameleon.yaml")
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(prob))
+    return path

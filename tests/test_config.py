@@ -1,0 +1,112 @@
+"""Bad input: one line naming the file and the field, exit status 2, nothing written."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT, write_problem
+
+from mmstab.cli import main
+from mmstab.config import ConfigError
+from mmstab.problem import load_problem
+
+
+def _swap_limits(p, r):
+    lim = r["arm"]["links"][2]["limits"]
+    lim["lower"], lim["upper"] = lim["upper"], lim["lower"]
+
+
+CASES = [
+    (
+        "wrong type",
+        lambda p, r: r["base"].__setitem__("mass", "heavy"),
+        "cameleon.yaml",
+        "base.mass",
+    ),
+    ("missing key", lambda p, r: p["terrain"].pop("slope"), "problem.yaml", "terrain.slope"),
+    (
+        "unknown key",
+        lambda p, r: p["sweep"].__setitem__("sampels", 3),
+        "problem.yaml",
+        "sweep.sampels",
+    ),
+    ("unknown section", lambda p, r: p.__setitem__("extra", {}), "problem.yaml", "extra"),
+    (
+        "nan",
+        lambda p, r: r["arm"]["links"][1].__setitem__("mass", float("nan")),
+        "cameleon.yaml",
+        "arm.links[1].mass",
+    ),
+    (
+        "negative mass",
+        lambda p, r: r["base"].__setitem__("mass", -48.0),
+        "cameleon.yaml",
+        "base.mass",
+    ),
+    ("inverted limit", _swap_limits, "cameleon.yaml", "arm.links[2].limits"),
+    (
+        "short vector",
+        lambda p, r: r["base"].__setitem__("com", [0.0, 0.1]),
+        "cameleon.yaml",
+        "base.com",
+    ),
+    (
+        "stowed out of limits",
+        lambda p, r: r["arm"]["stowed"].__setitem__(1, 5.0),
+        "cameleon.yaml",
+        "arm.stowed[1]",
+    ),
+    (
+        "flipper in the ground",
+        lambda p, r: r["base"]["flippers"].__setitem__("angle", -1.2),
+        "cameleon.yaml",
+        "base.flippers.angle",
+    ),
+    (
+        "missing robot",
+        lambda p, r: p.__setitem__("robot", "robots/none.yaml"),
+        "problem.yaml",
+        "robot",
+    ),
+]
+
+
+@pytest.mark.parametrize("case,edit,filename,field", CASES, ids=[c[0] for c in CASES])
+def test_bad_input_names_file_and_field(tmp_path, capsys, case, edit, filename, field):
+    path = write_problem(tmp_path, edit)
+    with pytest.raises(ConfigError) as info:
+        load_problem(path)
+    assert info.value.path.endswith(filename)
+    assert info.value.field == field
+    out = tmp_path / "out"
+    assert main(["fig5", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert filename in err and field in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_cli_subprocess_bad_file_exit_status(tmp_path):
+    path = write_problem(tmp_path, lambda p, r: r["base"].__setitem__("mass", -1.0))
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "mmstab", "fig6", str(path), "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "base.mass" in proc.stderr
+    assert not (tmp_path / "o").exists()
+    missing = subprocess.run(
+        [sys.executable, "-m", "mmstab", "fig5", str(tmp_path / "no.yaml")],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
+    assert missing.returncode == 2 and "no.yaml" in missing.stderr
