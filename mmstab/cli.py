@@ -34,10 +34,38 @@ def _fig6(args: argparse.Namespace) -> None:
     print(f"fig6: {s['poses_with_two_maxima']} of {len(s['poses'])} poses with two maxima")
 
 
-# (name, help, handler, takes a problem file)
+def _fig7(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig7
+
+    s = run_fig7(_problem(args), args.out)
+    print(f"fig7: target arm CoM {[round(x, 3) for x in s['target_com']]} m, mu {s['mu_planned']:.1f}")
+
+
+def _fig8(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig8
+
+    s = run_fig8(_problem(args), args.out)
+    print(f"fig8: sides {s['sides']}")
+
+
+def _plan(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig8
+
+    s = run_fig8(_problem(args), args.out or "results/plan")
+    for k, p in enumerate(s["poses"]):
+        print(f"pose {k}: side {p['side']:5s} mu {p['mu_planned']:7.1f} "
+              f"(stowed {p['mu_stowed']:7.1f}, arm removed {p['mu_arm_removed']:7.1f}) "
+              f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
+              f"{'collision-free' if p['collision_free'] else 'COLLIDES'}")
+
+
+# (name, help, handler)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
+    ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
+    ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
+    ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
 ]
 
 

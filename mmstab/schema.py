@@ -88,6 +88,19 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         poses={"type": "integer", "minimum": 1},
         roll_pose=VEC3,
     ),
+    "planner": obj(
+        w_stability=WEIGHT01,
+        w_motion=WEIGHT01,
+        poses=INT_POS,
+        starts={"type": "array", "items": NUM, "minItems": 1},
+        sigma0=POS,
+        popsize={"type": "integer", "minimum": 2},
+        max_iterations=INT_POS,
+        tol_fitness=POS,
+        tol_x=POS,
+        max_resample=INT_POS,
+        seed=SEED,
+    ),
 }
 
 
