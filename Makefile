@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed-stamp
 PROBLEM ?= problems/ramp.yaml
 export MPLBACKEND ?= Agg
 
-.PHONY: setup demo test lint format clean fig5 fig6 figures
+.PHONY: setup demo test lint format clean fig5 fig6 figures bench-controller
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,10 @@ fig6: setup
 	$(MMSTAB) fig6 $(PROBLEM)
 
 figures: fig5 fig6
+
+## benchmark (not a test): µs per controller step per QP plugin -> results/bench/controller.json
+bench-controller: setup
+	$(PY) benchmarks/bench_controller.py $(PROBLEM)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache *.egg-info

@@ -21,7 +21,10 @@ after one lap); for d > 0 the block [[cos γ, −d sin γ], [sin γ, d cos γ]] 
 the point's error is corrected directly (the usual look-ahead point of differential-drive tracking;
 the same 0.1 m offset is under 1 mm after 5 s) and the light heading row only keeps the body
 aligned where the point's motion leaves it free. The reference must use the same d
-(:func:`mmstab.reference.base_reference`).
+(:func:`mmstab.reference.base_reference`). Whatever d, J has rank 5 (three base rows, two
+sprockets): a moving, consistent reference with feed-forward (the circle) is tracked to zero
+error, but a *constant* target is reached only up to an error in J's left null space
+(Jᵀ W_A e = 0; no smooth static feedback stabilises a nonholonomic pose, Brockett 1983).
 
 **QP (Eq. 7-8).** ξ̇_des = K_p (ξ_des − ξ) + f ξ̇_ref with the heading error wrapped to (−π, π]
 and f ∈ {0, 1} the feed-forward switch; then, with H = Jᵀ W_A J + W_B and g = −Jᵀ W_A ξ̇_des::
@@ -395,7 +398,7 @@ def _conic_options(settings: ControllerSettings) -> dict[str, Any]:
 
 
 @contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
+def quiet_stdout() -> Iterator[None]:
     """Silence C-level stdout (qpOASES prints its licence banner when it is created)."""
     sys.stdout.flush()
     try:
@@ -440,7 +443,7 @@ class Controller:
         self.params = ControllerParams.from_settings(robot, settings)
         self.qp = _build_qp(self.model)
         n = JOINT_COUNT
-        with _quiet_stdout():
+        with quiet_stdout():
             self.conic = ca.conic(
                 "controller_qp",
                 settings.plugin,
@@ -472,7 +475,7 @@ class Controller:
             self._buffer.set_arg(i, memoryview(a))  # type: ignore[arg-type]
         for i, a in enumerate((self._qdot, self._status, self._objective)):
             self._buffer.set_res(i, memoryview(a))  # type: ignore[arg-type]
-        with _quiet_stdout():  # the plugin's per-memory set-up may print (qpOASES banner)
+        with quiet_stdout():  # the plugin's per-memory set-up may print (qpOASES banner)
             self._eval()
         # OSQP's polishing prints a line on stdout whatever "verbose" says.
         self._quiet = settings.plugin == "osqp" and settings.osqp.polish
@@ -515,7 +518,7 @@ class Controller:
         """
         self._load(state, xi_des, xi_dot_ref)
         if self._quiet:
-            with _quiet_stdout():
+            with quiet_stdout():
                 self._eval()
         else:
             self._eval()
@@ -547,7 +550,7 @@ class Controller:
         zero = np.zeros(JOINT_COUNT)
         if qp.status is not QPStatus.SUCCESS:
             return ControlResult(zero, qp.status, False, qp.cost0)
-        with _quiet_stdout() if self._quiet else contextlib.nullcontext():
+        with quiet_stdout() if self._quiet else contextlib.nullcontext():
             sol = self.conic(h=qp.H, g=qp.g, lbx=qp.lbx, ubx=qp.ubx)
         if not self.conic.stats()["success"]:
             return ControlResult(zero, QPStatus.SOLVER_FAILED, False, qp.cost0)
