@@ -88,6 +88,11 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         poses={"type": "integer", "minimum": 1},
         roll_pose=VEC3,
     ),
+    "workspace": obj(
+        grid=vec(4, {"type": "integer", "minimum": 2}),
+        precision_samples=INT_POS,
+        seed=SEED,
+    ),
 }
 
 
