@@ -48,3 +48,14 @@ bench-controller: setup
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache *.egg-info
+
+## arm-CoM workspace V (paper Section II-B): cached build, Fig. 3, build benchmark
+.PHONY: workspace fig3 bench-workspace
+workspace: setup
+	$(MMSTAB) workspace $(PROBLEM)
+
+fig3: setup
+	$(MMSTAB) fig3 $(PROBLEM)
+
+bench-workspace: setup
+	$(PY) benchmarks/workspace.py $(PROBLEM)

@@ -34,11 +34,44 @@ def _fig6(args: argparse.Namespace) -> None:
     print(f"fig6: {s['poses_with_two_maxima']} of {len(s['poses'])} poses with two maxima")
 
 
+def _workspace(args: argparse.Namespace) -> None:
+    from mmstab.workspace import load_or_build_workspace, workspace_cache_path
+
+    problem = _problem(args)
+    path = workspace_cache_path(problem, args.out)
+    before = path.stat().st_mtime_ns if path.is_file() else None
+    ws = load_or_build_workspace(problem, force=args.force, cache_dir=args.out)
+    how = "loaded" if path.stat().st_mtime_ns == before else "built"
+    print(
+        f"workspace: {ws.postures} postures, {len(ws.valid_com)} valid, "
+        f"{len(ws.invalid_com)} invalid, diameter {ws.diameter:.3f} m "
+        f"(build {ws.build_seconds:.1f} s); {how}: {path}"
+    )
+
+
+def _fig3(args: argparse.Namespace) -> None:
+    from mmstab.experiments.fig3 import run_fig3
+
+    s = run_fig3(_problem(args), args.out, force=args.force)
+    print(
+        f"fig3: {s['valid']} valid / {s['invalid']} invalid, volume V {s['volume_V']:.4f} m^3, "
+        f"recall {s['recall']:.3f}, precision {s['precision']:.3f}"
+    )
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
+    ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
+    ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
 ]
+
+#: Options beyond ``problem`` and ``--out``, by command name.
+EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
+    "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
+    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,6 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.add_argument("problem", help="problem YAML file (e.g. problems/ramp.yaml)")
         p.add_argument("-o", "--out", default=None, help="output folder (default results/NAME)")
+        for flag, kwargs in EXTRA_OPTIONS.get(name, []):
+            p.add_argument(flag, **kwargs)
         p.set_defaults(handler=handler)
     return parser
 

@@ -101,6 +101,11 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         kkt_tol=POS,
         osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
     ),
+    "workspace": obj(
+        grid=vec(4, {"type": "integer", "minimum": 2}),
+        precision_samples=INT_POS,
+        seed=SEED,
+    ),
 }
 
 
