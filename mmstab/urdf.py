@@ -318,6 +318,13 @@ def robot_to_urdf(robot: Robot, effort: float = DEFAULT_EFFORT) -> str:
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 
 
+def default_file_mode() -> int:
+    """Permissions of a newly created file under the current umask (e.g. 0644)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def write_urdf(robot: Robot, path: str | os.PathLike[str], effort: float = DEFAULT_EFFORT) -> Path:
     """Write :func:`robot_to_urdf` to ``path`` atomically (temp file + rename).
 
@@ -337,6 +344,7 @@ def write_urdf(robot: Robot, path: str | os.PathLike[str], effort: float = DEFAU
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as fh:
                 fh.write(text)
+            os.chmod(tmp, default_file_mode())  # mkstemp makes it private (0600)
             os.replace(tmp, p)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

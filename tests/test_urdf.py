@@ -16,6 +16,7 @@ from mmstab.robot import Box, Capsule, rpy_matrix
 from mmstab.urdf import (
     BASE_LINKS,
     DEFAULT_EFFORT,
+    default_file_mode,
     matrix_to_rpy,
     robot_to_urdf,
     solid_box_inertia,
@@ -167,6 +168,7 @@ def test_cli_writes_the_urdf(tmp_path, urdf_text):
     assert res.returncode == 0, res.stderr
     assert out.read_text() == urdf_text
     assert [p.name for p in out.parent.iterdir()] == ["robot.urdf"]  # no temp file left
+    assert out.stat().st_mode & 0o777 == default_file_mode()  # not mkstemp's private 0600
 
 
 def test_cli_bad_robot_is_one_line_and_exit_2(tmp_path):
