@@ -8,12 +8,12 @@ STAMP := $(VENV)/.installed-stamp
 PROBLEM ?= problems/ramp.yaml
 export MPLBACKEND ?= Agg
 
-.PHONY: setup demo test lint format clean fig5 fig6 figures
+.PHONY: setup demo test lint format clean fig5 fig6 figures bench-controller
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --editable '.[dev]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -42,5 +42,34 @@ fig6: setup
 
 figures: fig5 fig6
 
+## benchmark (not a test): µs per controller step per QP plugin -> results/bench/controller.json
+bench-controller: setup
+	$(PY) benchmarks/bench_controller.py $(PROBLEM)
+
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache *.egg-info
+
+## arm-CoM workspace V (paper Section II-B): cached build, Fig. 3, build benchmark
+.PHONY: workspace fig3 bench-workspace
+workspace: setup
+	$(MMSTAB) workspace $(PROBLEM)
+
+fig3: setup
+	$(MMSTAB) fig3 $(PROBLEM)
+
+bench-workspace: setup
+	$(PY) benchmarks/workspace.py $(PROBLEM)
+
+## stability planner (paper Section II-D): CMA-ES per base pose, Fig. 7 and Fig. 8
+.PHONY: plan fig7 fig8 bench-plan
+plan: setup
+	$(MMSTAB) plan $(PROBLEM)
+
+fig7: setup
+	$(MMSTAB) fig7 $(PROBLEM)
+
+fig8: setup
+	$(MMSTAB) fig8 $(PROBLEM)
+
+bench-plan: setup
+	$(PY) benchmarks/plan.py $(PROBLEM)

@@ -34,18 +34,38 @@ def _fig6(args: argparse.Namespace) -> None:
     print(f"fig6: {s['poses_with_two_maxima']} of {len(s['poses'])} poses with two maxima")
 
 
-def _fig7(args: argparse.Namespace) -> None:
-    from mmstab.experiments.planning import run_fig7
+def _workspace(args: argparse.Namespace) -> None:
+    from mmstab.workspace import load_or_build_workspace, workspace_cache_path
 
-    s = run_fig7(_problem(args), args.out)
-    print(f"fig7: target arm CoM {[round(x, 3) for x in s['target_com']]} m, mu {s['mu_planned']:.1f}")
+    problem = _problem(args)
+    path = workspace_cache_path(problem, args.out)
+    before = path.stat().st_mtime_ns if path.is_file() else None
+    ws = load_or_build_workspace(problem, force=args.force, cache_dir=args.out)
+    how = "loaded" if path.stat().st_mtime_ns == before else "built"
+    print(
+        f"workspace: {ws.postures} postures, {len(ws.valid_com)} valid, "
+        f"{len(ws.invalid_com)} invalid, diameter {ws.diameter:.3f} m "
+        f"(build {ws.build_seconds:.1f} s); {how}: {path}"
+    )
 
 
-def _fig8(args: argparse.Namespace) -> None:
-    from mmstab.experiments.planning import run_fig8
+def _fig3(args: argparse.Namespace) -> None:
+    from mmstab.experiments.fig3 import run_fig3
 
-    s = run_fig8(_problem(args), args.out)
-    print(f"fig8: sides {s['sides']}")
+    s = run_fig3(_problem(args), args.out, force=args.force)
+    print(
+        f"fig3: {s['valid']} valid / {s['invalid']} invalid, volume V {s['volume_V']:.4f} m^3, "
+        f"recall {s['recall']:.3f}, precision {s['precision']:.3f}"
+    )
+
+
+def _urdf(args: argparse.Namespace) -> None:
+    from mmstab.robot import load_robot
+    from mmstab.urdf import write_urdf
+
+    robot = load_robot(args.robot)
+    out = args.out if args.out is not None else f"results/urdf/{robot.name}.urdf"
+    print(f"urdf: wrote {write_urdf(robot, out)}")
 
 
 def _plan(args: argparse.Namespace) -> None:
@@ -53,20 +73,45 @@ def _plan(args: argparse.Namespace) -> None:
 
     s = run_fig8(_problem(args), args.out or "results/plan")
     for k, p in enumerate(s["poses"]):
-        print(f"pose {k}: side {p['side']:5s} mu {p['mu_planned']:7.1f} "
-              f"(stowed {p['mu_stowed']:7.1f}, arm removed {p['mu_arm_removed']:7.1f}) "
-              f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
-              f"{'collision-free' if p['collision_free'] else 'COLLIDES'}")
+        print(
+            f"pose {k}: side {p['side']:5s} mu {p['mu_planned']:7.1f} "
+            f"(stowed {p['mu_stowed']:7.1f}, arm removed {p['mu_arm_removed']:7.1f}) "
+            f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
+            f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
+        )
 
 
-# (name, help, handler)
+def _fig7(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig7
+
+    s = run_fig7(_problem(args), args.out)
+    com = [round(float(x), 3) for x in s["target_com"]]
+    print(f"fig7: target arm CoM {com} m, mu {s['mu_planned']:.1f} N rad")
+
+
+def _fig8(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig8
+
+    s = run_fig8(_problem(args), args.out)
+    print(f"fig8: arm side per pose {s['sides']}")
+
+
+# (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
+    ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
+    ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
     ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
     ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
 ]
+
+#: Options beyond ``problem`` and ``--out``, by command name.
+EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
+    "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
+    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -80,7 +125,15 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.add_argument("problem", help="problem YAML file (e.g. problems/ramp.yaml)")
         p.add_argument("-o", "--out", default=None, help="output folder (default results/NAME)")
+        for flag, kwargs in EXTRA_OPTIONS.get(name, []):
+            p.add_argument(flag, **kwargs)
         p.set_defaults(handler=handler)
+    # commands that take a robot description rather than a problem
+    help_text = "export the robot description as URDF (base_link = body frame B)"
+    p = sub.add_parser("urdf", help=help_text, description=help_text)
+    p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
+    p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
+    p.set_defaults(handler=_urdf)
     return parser
 
 

@@ -54,14 +54,22 @@ class PostureSolver:
             "f": 0.5 * ca.sumsqr(kin.q - q_ref),
             "g": kin.com_body - target,
         }
-        opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12,
-                                               "max_iter": 200}}
+        opts: dict[str, Any] = {
+            "print_time": False,
+            "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12, "max_iter": 200},
+        }
         self._nlp = ca.nlpsol("arm_com_ik", "ipopt", nlp, opts)
 
     def solve(self, target_com: FloatArray, seed: FloatArray, q_ref: FloatArray) -> FloatArray:
         """One IPOPT solve from ``seed`` (4,) staying near ``q_ref`` (4,) [rad]."""
-        sol = self._nlp(x0=seed, p=np.concatenate([target_com, q_ref]), lbg=0.0, ubg=0.0,
-                        lbx=self.robot.joint_lower, ubx=self.robot.joint_upper)
+        sol = self._nlp(
+            x0=seed,
+            p=np.concatenate([target_com, q_ref]),
+            lbg=0.0,
+            ubg=0.0,
+            lbx=self.robot.joint_lower,
+            ubx=self.robot.joint_upper,
+        )
         return np.asarray(sol["x"]).ravel()
 
     def seeds(self, target_com: FloatArray, previous_q: FloatArray) -> list[FloatArray]:
@@ -78,10 +86,11 @@ class PostureSolver:
         target = np.asarray(target_com, dtype=float)
         best: PostureResult | None = None
         for seed in self.seeds(target, previous_q):
-            q = np.clip(self.solve(target, seed, seed), self.robot.joint_lower,
-                        self.robot.joint_upper)
+            q = np.clip(
+                self.solve(target, seed, seed), self.robot.joint_lower, self.robot.joint_upper
+            )
             err = float(np.linalg.norm(self.robot.arm_com(q) - target))
-            free = not bool(self.checker.collides(q[None, :])[0])
+            free = not bool(np.asarray(self.checker.collides(q[None, :]))[0])
             result = PostureResult(q=q, com_error=err, collision_free=free)
             if free and err <= COM_TOLERANCE:
                 return result

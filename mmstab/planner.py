@@ -31,18 +31,25 @@ from numpy.typing import ArrayLike, NDArray
 from mmstab.config import ConfigError, MmstabError
 from mmstab.problem import SECTION_CHECKS, Problem
 from mmstab.robot import FloatArray, Robot
+from mmstab.stability import base_polygon, force_angle_batch
 from mmstab.stability import mu_max as stowed_flat_mu
-from mmstab.stability import robot_force_angle
 from mmstab.terrain import Ramp
 
 
 class CoMRegion(Protocol):
     """Where the arm CoM may be: the workspace V (``mmstab.workspace.Workspace``)."""
 
-    diameter: float
+    @property
+    def diameter(self) -> float:
+        """Largest distance across the region [m]."""
+        ...
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Membership of body-frame points (N, 3) [m]."""
+        ...
+
+    def violation(self, points: ArrayLike) -> FloatArray:
+        """How far body-frame points (N, 3) lie outside the region, 0 inside [m]."""
         ...
 
 
@@ -59,7 +66,8 @@ class PlannerSettings(NamedTuple):
         max_iterations: CMA iteration budget per start.
         tol_fitness: stop when the fitness changes less than this over recent iterations.
         tol_x: stop when the search distribution is narrower than this [m].
-        max_resample: re-asks per generation before giving up on samples outside V.
+        max_resample: re-ask rounds per generation for samples outside V; those still
+            outside are then ranked below the feasible ones (see ``ask_generation``).
         seed: seed of the planner's own random generator.
     """
 
@@ -105,6 +113,7 @@ class Fitness(NamedTuple):
     """Eq. 6 for one base pose, evaluated for a whole population at once."""
 
     robot: Robot
+    polygon: FloatArray  # ordered support polygon in B (n, 3) [m]
     gravity_body: FloatArray  # (3,) [m/s^2]
     previous_com: FloatArray  # (3,) body frame [m]
     mu_max: float  # [N rad]
@@ -112,10 +121,11 @@ class Fitness(NamedTuple):
     settings: PlannerSettings
 
     def mu(self, com_body: ArrayLike) -> FloatArray:
-        """Force-angle measure for arm CoMs (N, 3) [m] -> (N,) [N rad]."""
-        coms = np.atleast_2d(com_body)
-        g = np.broadcast_to(self.gravity_body, coms.shape)
-        return robot_force_angle(self.robot, g, coms).mu
+        """Force-angle measure for arm CoMs (N, 3) [m] -> (N,) [N rad] (as robot_force_angle)."""
+        overall = self.robot.overall_com(np.atleast_2d(com_body))
+        return force_angle_batch(
+            self.polygon, overall, self.robot.total_mass * self.gravity_body
+        ).mu
 
     def __call__(self, com_body: ArrayLike) -> FloatArray:
         """Fitness (to maximise) of arm CoMs (N, 3) [m] -> (N,)."""
@@ -134,8 +144,8 @@ class SearchResult(NamedTuple):
         best_fitness: its fitness.
         history: best fitness of each iteration (I,).
         first_samples: the first population (popsize, 3) [m], feasible.
-        evaluations: fitness evaluations (feasible samples).
-        resamples: samples discarded for lying outside V.
+        evaluations: samples told to CMA-ES.
+        resamples: samples discarded (re-asked) for lying outside V.
         iterations: CMA iterations.
     """
 
@@ -149,23 +159,47 @@ class SearchResult(NamedTuple):
     iterations: int
 
 
-def _ask_feasible(es: Any, region: CoMRegion, max_resample: int) -> tuple[FloatArray, int]:
+class Generation(NamedTuple):
+    """One CMA generation: samples (popsize, 3) [m], their membership of V, re-asked count."""
+
+    samples: FloatArray
+    inside: NDArray[np.bool_]
+    discarded: int
+
+
+def ask_generation(es: Any, region: CoMRegion, rounds: int) -> Generation:
+    """Ask a population; re-ask (discard) samples outside V for up to ``rounds`` rounds.
+
+    The paper discards samples outside V. When the optimum lies in a thin part of V, pure
+    rejection hides the constraint from CMA-ES (its step size never shrinks) and the
+    feasible fraction collapses; so after ``rounds`` re-asks the samples still outside
+    are kept and told ranked below every feasible one (see :func:`solve_start`).
+    """
     X = np.array(es.ask())
     inside = region.contains(X)
     discarded = 0
-    for _ in range(max_resample):
+    for _ in range(rounds):
         if inside.all():
-            return X, discarded
+            break
         k = int((~inside).sum())
         discarded += k
         X[~inside] = np.array(es.ask(k))
         inside = region.contains(X)
-    if inside.all():
-        return X, discarded
-    raise MmstabError(
-        f"planner: CMA-ES samples kept falling outside the workspace V "
-        f"({max_resample} re-asks); V may be empty or far from the starts"
-    )
+    return Generation(X, inside, discarded)
+
+
+def ranking_values(
+    fitness: FloatArray, inside: NDArray[np.bool_], violation: FloatArray, diameter: float
+) -> FloatArray:
+    """Values for pycma, which minimises.
+
+    Inside V: -fitness. Outside: worse than every feasible sample, increasing with the
+    distance to V, so CMA-ES learns where V ends without ever choosing such a sample.
+    """
+    values = -fitness.copy()
+    worst = values[inside].max() if inside.any() else 0.0
+    values[~inside] = worst + 1.0 + violation[~inside] / diameter
+    return values
 
 
 def solve_start(
@@ -197,15 +231,23 @@ def solve_start(
     best_com, best_f = np.asarray(start_com, float), -np.inf
     history, first, evaluations, resamples = [], None, 0, 0
     while not es.stop():
-        X, discarded = _ask_feasible(es, region, s.max_resample)
-        f = fitness(X)
-        es.tell(list(X), list(-f))  # pycma minimises
-        resamples += discarded
-        evaluations += len(X)
-        first = X.copy() if first is None else first
-        k = int(np.argmax(f))
-        if f[k] > best_f:
-            best_f, best_com = float(f[k]), X[k].copy()
+        gen = ask_generation(es, region, s.max_resample)
+        if not gen.inside.any() and first is None:
+            raise MmstabError(
+                f"planner: no CMA-ES sample fell in the workspace V "
+                f"({s.max_resample} re-asks from {np.round(start_com, 3)} m); V may be empty"
+            )
+        f = fitness(gen.samples)
+        violation = region.violation(gen.samples) if not gen.inside.all() else np.zeros(len(f))
+        es.tell(list(gen.samples), list(ranking_values(f, gen.inside, violation, fitness.diameter)))
+        resamples += gen.discarded
+        evaluations += len(f)
+        feasible_f = np.where(gen.inside, f, -np.inf)
+        if first is None:
+            first = gen.samples[gen.inside].copy()
+        k = int(np.argmax(feasible_f))
+        if feasible_f[k] > best_f:
+            best_f, best_com = float(feasible_f[k]), gen.samples[k].copy()
         history.append(best_f)
     return SearchResult(
         start_com=np.asarray(start_com, float),
@@ -241,11 +283,23 @@ class PoseTarget(NamedTuple):
     seconds: float
 
 
-def start_coms(robot: Robot, starts: tuple[float, ...]) -> FloatArray:
-    """FK arm CoMs of the start postures: link0 at each angle, other joints zero [m]."""
+def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> FloatArray:
+    """Start means of CMA-ES, body frame (S, 3) [m].
+
+    The FK arm CoMs of link0 at each angle with the other joints at zero (paper); a start
+    outside V (a coarse grid's hull may miss the stretched arm) moves to the nearest valid
+    CoM inside V, when the region has that cloud (``valid_com_in_V``).
+    """
     q = np.zeros((len(starts), 4))
     q[:, 0] = starts
-    return robot.arm_com(q)
+    coms = robot.arm_com(q)
+    outside = ~region.contains(coms)
+    if outside.any() and hasattr(region, "valid_com_in_V"):
+        inside = region.valid_com_in_V
+        if len(inside):
+            for k in np.flatnonzero(outside):
+                coms[k] = inside[np.argmin(np.sum((inside - coms[k]) ** 2, axis=1))]
+    return coms
 
 
 def solve_pose(
@@ -257,6 +311,7 @@ def solve_pose(
     settings: PlannerSettings,
     rng: np.random.Generator,
     mu_max: float | None = None,
+    starts: FloatArray | None = None,
 ) -> PoseTarget:
     """Best arm CoM at one base pose: CMA-ES from each start, keep the better.
 
@@ -269,20 +324,22 @@ def solve_pose(
         settings: planner settings.
         rng: the planner's generator.
         mu_max: normaliser [N rad]; default: flat ground, arm stowed.
+        starts: start means (S, 3) [m]; default :func:`start_coms`.
     """
     t0 = time.perf_counter()
     pose = np.asarray(pose, dtype=float)
     fitness = Fitness(
         robot=robot,
+        polygon=base_polygon(robot).vertices,
         gravity_body=ramp.gravity_body([pose[2]])[0],
         previous_com=np.asarray(previous_com, dtype=float),
         mu_max=stowed_flat_mu(robot) if mu_max is None else mu_max,
         diameter=float(region.diameter),
         settings=settings,
     )
-    runs = tuple(
-        solve_start(fitness, region, c, rng) for c in start_coms(robot, settings.starts)
-    )
+    if starts is None:
+        starts = start_coms(robot, region, settings.starts)
+    runs = tuple(solve_start(fitness, region, c, rng) for c in starts)
     best = int(np.argmax([r.best_fitness for r in runs]))
     target = runs[best].best_com
     return PoseTarget(
@@ -342,10 +399,11 @@ def solve_path(
     poses = np.asarray(poses, dtype=float)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
+    starts = start_coms(robot, region, settings.starts)
     previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
     targets, postures, free = [], [], []
     for pose in poses:
-        t = solve_pose(robot, ramp, region, pose, previous_com, settings, rng, mu_max)
+        t = solve_pose(robot, ramp, region, pose, previous_com, settings, rng, mu_max, starts)
         targets.append(t)
         previous_com = t.target_com
         if realise is not None:
@@ -358,8 +416,9 @@ def solve_path(
     target_com = np.array([t.target_com for t in targets])
     postures_arr = np.array(postures)
     realised = robot.arm_com(np.nan_to_num(postures_arr))
-    error = np.where(np.isnan(postures_arr).any(axis=1), np.nan,
-                     np.linalg.norm(realised - target_com, axis=1))
+    error = np.where(
+        np.isnan(postures_arr).any(axis=1), np.nan, np.linalg.norm(realised - target_com, axis=1)
+    )
     return Plan(
         poses=poses,
         fractions=np.arange(len(poses)) / len(poses),
@@ -383,9 +442,8 @@ def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -
     from mmstab.ik import PostureSolver
     from mmstab.workspace import load_or_build_workspace
 
-    ws = workspace if workspace is not None else load_or_build_workspace(problem,
-                                                                         progress=progress)
-    if len(ws.valid_com) == 0 or not ws.contains(ws.valid_com).any():
+    ws = workspace if workspace is not None else load_or_build_workspace(problem, progress=progress)
+    if len(ws.valid_com_in_V) == 0:
         raise MmstabError(f"{problem.path}: the workspace V is empty; no arm CoM can be planned")
     settings = PlannerSettings.from_section(problem.section("planner"))
     solver = PostureSolver(problem.robot, ws)

@@ -67,23 +67,9 @@ def arm_polyline(robot: Robot, q: ArrayLike, G_T_B: ArrayLike | None = None) -> 
     return pts @ T[:3, :3].T + T[:3, 3]
 
 
-def draw_arm_3d(ax: Any, robot: Robot, q: ArrayLike, G_T_B: ArrayLike | None = None,
-                **kwargs: Any) -> None:
+def draw_arm_3d(
+    ax: Any, robot: Robot, q: ArrayLike, G_T_B: ArrayLike | None = None, **kwargs: Any
+) -> None:
     """Draw the arm as a stick figure on 3-D axes (body frame unless ``G_T_B`` given)."""
     pts = arm_polyline(robot, q, G_T_B)
     ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **{"color": "C2", "lw": 1.5, **kwargs})
-
-
-def draw_robot_on_ramp(ax: Any, robot: Robot, ramp: Any, pose: ArrayLike, q: ArrayLike,
-                       label: str | None = None) -> None:
-    """Draw the base footprint and the arm of a robot at a pose on the ramp (frame G)."""
-    from mmstab.stability import base_polygon
-
-    T = ramp.G_T_B(pose)
-    poly = base_polygon(robot).vertices
-    ring = np.vstack([poly, poly[:1]]) @ T[:3, :3].T + T[:3, 3]
-    ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="0.3", lw=1)
-    if not np.isnan(np.asarray(q, dtype=float)).any():
-        draw_arm_3d(ax, robot, q, T)
-    if label:
-        ax.text(*T[:3, 3], label, fontsize=7)

@@ -101,6 +101,24 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         max_resample=INT_POS,
         seed=SEED,
     ),
+    "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/controller.py)
+        dt=POS,
+        lap_time=POS,
+        duration=POS,
+        kp=vec(6, POS),
+        w_a=vec(6, NONNEG),
+        w_b=vec(6, POS),
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},
+        feedforward={"type": "boolean"},
+        base_offset=NONNEG,
+        kkt_tol=POS,
+        osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
+    ),
+    "workspace": obj(
+        grid=vec(4, {"type": "integer", "minimum": 2}),
+        precision_samples=INT_POS,
+        seed=SEED,
+    ),
 }
 
 

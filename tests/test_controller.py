@@ -1,0 +1,346 @@
+"""Tracking controller core: task Jacobian, QP (Eq. 7-8), plugins, limits, failures, references."""
+
+from __future__ import annotations
+
+import dataclasses
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import write_problem
+
+from mmstab.config import ConfigError
+from mmstab.controller import (
+    CODEGEN_PLUGINS,
+    PLUGINS,
+    ControllerParams,
+    ControllerSettings,
+    QPStatus,
+    build_controller,
+)
+from mmstab.problem import load_problem
+from mmstab.reference import arm_reference, base_reference, circle_pose, task_reference
+from mmstab.terrain import rot_z, wrap_angle
+
+
+@pytest.fixture(scope="module")
+def settings(problem) -> ControllerSettings:
+    return ControllerSettings.from_section(problem.section("controller"))
+
+
+@pytest.fixture(scope="module")
+def controllers(problem, settings):
+    return {
+        p: build_controller(problem.robot, dataclasses.replace(settings, plugin=p)) for p in PLUGINS
+    }
+
+
+def random_states(robot, rng, n, margin=0.0):
+    """States: pose in S, sprocket angles, arm joints within limits shrunk by ``margin``."""
+    return np.column_stack(
+        [
+            rng.uniform(-2, 2, (n, 2)),
+            rng.uniform(-np.pi, np.pi, n),
+            rng.uniform(-20, 20, (n, 2)),
+            rng.uniform(robot.joint_lower + margin, robot.joint_upper - margin, (n, 4)),
+        ]
+    )
+
+
+# ----------------------------------------------------------------------------- task, Jacobian
+def numpy_task(robot, state, d):
+    """ξ from the NumPy kinematics: base point and Rz(γ) g_a^B placed at (x, y)."""
+    x, y, h = state[:3]
+    com_S = np.array([x, y, 0.0]) + rot_z(h) @ robot.arm_com(state[5:9])
+    return np.r_[x + d * np.cos(h), y + d * np.sin(h), h, com_S]
+
+
+def numpy_jacobian(robot, state, d, h=1e-6):
+    """J from hand-derived track columns and NumPy central differences of g_a^B."""
+    t = robot.base.tracks
+    r, b = t.sprocket_radius, t.separation
+    heading = state[2]
+    c, s = np.cos(heading), np.sin(heading)
+    com_S_rel = rot_z(heading) @ robot.arm_com(state[5:9])
+    J = np.zeros((6, 6))
+    for col, (v, w) in enumerate([(r / 2, -r / b), (r / 2, r / b)]):
+        J[:3, col] = [v * c - d * w * s, v * s + d * w * c, w]
+        J[3:, col] = [v * c - w * com_S_rel[1], v * s + w * com_S_rel[0], 0.0]
+    q = state[5:9]
+    for j, e in enumerate(np.eye(4)):
+        dg = (robot.arm_com(q + h * e) - robot.arm_com(q - h * e)) / (2 * h)
+        J[3:, 2 + j] = rot_z(heading) @ dg
+    return J
+
+
+def test_task_and_jacobian_match_numpy(robot, controllers, rng):
+    model = controllers["qpoases"].model
+    for state in random_states(robot, rng, 40):
+        np.testing.assert_allclose(
+            model.task(state), numpy_task(robot, state, model.base_offset), atol=1e-12
+        )
+        np.testing.assert_allclose(
+            model.jacobian(state), numpy_jacobian(robot, state, model.base_offset), atol=1e-8
+        )
+
+
+def test_jacobian_matches_finite_differences_of_integrated_motion(robot, controllers, rng):
+    """(ξ(s after +h) − ξ(s after −h)) / 2h of the nonholonomic motion equals J q̇."""
+    model = controllers["qpoases"].model
+    h = 1e-6
+    for state in random_states(robot, rng, 30):
+        qdot = rng.uniform(-5, 5, 6)
+        fd = (
+            model.task(model.integrate(state, qdot, h))
+            - model.task(model.integrate(state, qdot, -h))
+        ) / (2 * h)
+        np.testing.assert_allclose(model.jacobian(state) @ qdot, fd, atol=1e-7)
+
+
+def test_integration_is_an_exact_arc_without_sideslip(robot, controllers, rng):
+    model = controllers["qpoases"].model
+    state = random_states(robot, rng, 1)[0]
+    for qdot in (
+        rng.uniform(-5, 5, 6),
+        np.r_[3.0, 3.0, rng.uniform(-1, 1, 4)],
+    ):  # turning, straight
+        whole = model.integrate(state, qdot, 0.5)
+        sub = state
+        for _ in range(500):
+            sub = model.integrate(sub, qdot, 1e-3)
+            # no sideways motion: every substep's chord is along its mid heading
+        np.testing.assert_allclose(whole, sub, atol=1e-12)
+        chord = whole[:2] - state[:2]
+        mid = (whole[2] + state[2]) / 2
+        assert abs(chord @ np.array([-np.sin(mid), np.cos(mid)])) < 1e-12
+        np.testing.assert_allclose(whole[3:], state[3:] + 0.5 * qdot, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------ the QP
+def test_qp_matrices_are_eq7(robot, controllers, rng):
+    c = controllers["qpoases"]
+    P = c.params
+    for state in random_states(robot, rng, 10):
+        xi_des = c.model.task(state) + rng.normal(0, 0.2, 6)
+        ff = rng.normal(0, 0.1, 6)
+        qp = c.qp_data(state, xi_des, ff)
+        e = xi_des - numpy_task(robot, state, c.model.base_offset)
+        e[2] = wrap_angle(e[2])
+        xdd = P.kp * e + P.feedforward * ff
+        J = numpy_jacobian(robot, state, c.model.base_offset)
+        np.testing.assert_allclose(qp.xi_dot_des, xdd, atol=1e-12)
+        np.testing.assert_allclose(qp.H, J.T @ np.diag(P.w_a) @ J + np.diag(P.w_b), atol=1e-8)
+        np.testing.assert_allclose(qp.g, -J.T @ (P.w_a * xdd), atol=1e-8)
+        assert np.linalg.eigvalsh(qp.H).min() > 0
+
+
+def test_heading_error_is_wrapped(robot, controllers, rng):
+    c = controllers["qpoases"]
+    state = random_states(robot, rng, 1)[0]
+    xi = c.model.task(state)
+    for offset, expected in [(2 * np.pi - 0.1, -0.1), (-2 * np.pi + 0.1, 0.1), (np.pi, np.pi)]:
+        qp = c.qp_data(state, xi + np.r_[0, 0, offset, 0, 0, 0])
+        assert qp.xi_dot_des[2] == pytest.approx(c.params.kp[2] * expected, abs=1e-9)
+
+
+def test_unconstrained_step_is_weighted_least_squares(robot, controllers, rng):
+    c = build_controller(robot, controllers["qpoases"].settings)
+    P = c.params
+    c.set_params(
+        P._replace(qdot_max=np.full(6, 1e6), q_min=np.full(4, -1e6), q_max=np.full(4, 1e6))
+    )
+    for state in random_states(robot, rng, 20):
+        xi_des = c.model.task(state) + rng.normal(0, 0.3, 6)
+        res = c.solve(state, xi_des)
+        e = xi_des - numpy_task(robot, state, c.model.base_offset)
+        e[2] = wrap_angle(e[2])
+        J, W_A = numpy_jacobian(robot, state, c.model.base_offset), np.diag(P.w_a)
+        expected = np.linalg.solve(J.T @ W_A @ J + np.diag(P.w_b), J.T @ W_A @ (P.kp * e))
+        assert res.success
+        np.testing.assert_allclose(res.qdot, expected, rtol=1e-6, atol=1e-7)
+        r = P.kp * e - J @ res.qdot
+        cost = 0.5 * r @ W_A @ r + 0.5 * res.qdot @ np.diag(P.w_b) @ res.qdot
+        assert res.objective == pytest.approx(cost, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("plugin", PLUGINS)
+def test_limits_never_exceeded(robot, controllers, rng, plugin):
+    """Random states (some on or just past a limit) and far references: limits hold to 1e-9."""
+    c = controllers[plugin]
+    dt, qdot_max = c.settings.dt, c.params.qdot_max
+    states = random_states(robot, rng, 150)
+    lo, hi = robot.joint_lower, robot.joint_upper
+    k = rng.integers(0, 4, 100)
+    states[:50, 5 + k[:50]] = np.where(rng.random(50) < 0.5, lo[k[:50]], hi[k[:50]])  # on a limit
+    past = rng.uniform(0, 0.9, 50) * qdot_max[2 + k[50:]] * dt  # past it, recoverable in one step
+    states[50:100, 5 + k[50:]] = np.where(
+        rng.random(50) < 0.5, lo[k[50:]] - past, hi[k[50:]] + past
+    )
+    active = 0
+    for state in states:
+        xi_des = c.model.task(state) + rng.normal(0, 2.0, 6)
+        res = c.solve(state, xi_des, rng.normal(0, 1.0, 6))
+        assert res.success, res.status
+        assert np.all(np.abs(res.qdot) <= qdot_max + 1e-9)
+        q_next = state[5:9] + res.qdot[2:] * dt
+        assert np.all(q_next >= lo - 1e-9) and np.all(q_next <= hi + 1e-9)
+        active += np.any(np.isclose(np.abs(res.qdot), qdot_max, rtol=0, atol=1e-9))
+    assert active > 50  # the test exercises saturated speeds, not only interior solutions
+
+
+def test_plugins_agree_and_match_their_own_status(robot, controllers, rng):
+    states = random_states(robot, rng, 60)
+    tol = {"qpoases": 1e-9, "qrqp": 1e-9, "daqp": 1e-9, "osqp": 1e-5}  # OSQP: first order
+    for state in states:
+        xi_des = controllers["qpoases"].model.task(state) + rng.normal(0, 0.5, 6)
+        ref = controllers["qpoases"].solve(state, xi_des)
+        for plugin, c in controllers.items():
+            res, direct = c.solve(state, xi_des), c.solve_direct(state, xi_des)
+            assert res.success and direct.success
+            np.testing.assert_allclose(res.qdot, ref.qdot, atol=tol[plugin], err_msg=plugin)
+            np.testing.assert_allclose(direct.qdot, res.qdot, atol=tol[plugin], err_msg=plugin)
+
+
+# ------------------------------------------------------------------------------- failures
+def test_nonfinite_state_or_reference_holds_still(robot, controllers, rng):
+    for c in controllers.values():
+        state = random_states(robot, rng, 1)[0]
+        xi = c.model.task(state)
+        before = c.failures
+        bad_state = state.copy()
+        bad_state[6] = np.nan
+        bad_ref = xi.copy()
+        bad_ref[4] = np.inf
+        for s, r in [(bad_state, xi), (state, bad_ref)]:
+            res = c.solve(s, r)
+            assert res.status is QPStatus.NONFINITE_INPUT and not res.success
+            np.testing.assert_array_equal(res.qdot, np.zeros(6))
+            assert c.solve_direct(s, r).status is QPStatus.NONFINITE_INPUT
+        assert c.failures == before + 2
+        assert c.solve(state, xi + 0.01).success  # and it recovers once the input is sane
+
+
+def test_infeasible_bounds_hold_still(robot, controllers, rng):
+    for c in controllers.values():
+        state = random_states(robot, rng, 1)[0]
+        xi = c.model.task(state) + 0.1
+        far = state.copy()  # joint 1 beyond its limit by more than one step can undo
+        far[6] = robot.joint_upper[1] + 2 * c.params.qdot_max[3] * c.settings.dt
+        res = c.solve(far, xi)
+        assert res.status is QPStatus.INFEASIBLE and np.all(res.qdot == 0)
+        assert c.solve_direct(far, xi).status is QPStatus.INFEASIBLE
+    # contradictory position bounds given as parameters
+    c = build_controller(robot, controllers["qrqp"].settings)
+    c.set_params(c.params._replace(q_min=robot.joint_upper, q_max=robot.joint_lower))
+    res = c.solve(state, xi)
+    assert res.status is QPStatus.INFEASIBLE and np.all(res.qdot == 0) and c.failures == 1
+
+
+def test_solver_failure_is_caught_by_status_not_exception(robot, settings, rng):
+    """OSQP stopped after one iteration: the certificate and the plugin's status both say so."""
+    s = dataclasses.replace(
+        settings, plugin="osqp", osqp=dataclasses.replace(settings.osqp, max_iter=1)
+    )
+    c = build_controller(robot, s)
+    state = random_states(robot, rng, 1)[0]
+    xi_des = c.model.task(state) + 0.3
+    res = c.solve(state, xi_des)
+    assert res.status is QPStatus.SOLVER_FAILED and np.all(res.qdot == 0) and c.failures == 1
+    assert c.solve_direct(state, xi_des).status is QPStatus.SOLVER_FAILED
+
+
+# ------------------------------------------------------------------------------ closed loop
+def _flat_run(tmp_path, w_heading, goal, seconds=4.0):
+    flat = load_problem(
+        write_problem(tmp_path, lambda p, r: p["terrain"].__setitem__("slope", 0.0))
+    )
+    robot = flat.robot
+    s = ControllerSettings.from_section(flat.section("controller"))
+    s = dataclasses.replace(s, feedforward=False, w_a=(*s.w_a[:2], w_heading, *s.w_a[3:]))
+    c = build_controller(robot, s)
+    state = np.r_[0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.5, -0.2]
+    xi_des = c.model.task(goal)
+    errors = []
+    for _ in range(int(seconds / s.dt)):
+        errors.append(xi_des - c.model.task(state))
+        res = c.solve(state, xi_des)
+        assert res.success
+        state = c.model.integrate(state, res.qdot, s.dt)
+    return c, state, np.array(errors)
+
+
+GOAL = np.r_[0.3, 0.1, 0.2, 0.0, 0.0, 2.0, 0.4, -0.6, 0.3]  # base 0.3 m ahead, 0.1 m left
+
+
+def test_closed_loop_on_flat_floor_converges(tmp_path):
+    """Base point + arm CoM (heading row weighted 0): every row is controllable, error -> 0."""
+    c, _, e = _flat_run(tmp_path, 0.0, GOAL)
+    err = np.linalg.norm(np.delete(e, 2, axis=1), axis=1)
+    assert err[-1] < 1e-6 * err[0]
+    after = err[int(0.5 / c.settings.dt) :]  # after the 0.5 s transient (speed saturation)
+    after = after[after > 1e-9]  # above round-off
+    assert after.size > 1000 and np.all(np.diff(after) < 0)
+
+
+def test_closed_loop_with_heading_row_stops_where_j_cannot_correct(tmp_path, settings):
+    """With the heading row the base has 3 task rows and 2 sprockets: J has rank 5, so a
+    constant target is tracked until what is left lies in J's left null space (Jᵀ W_A e = 0)."""
+    c, state, e = _flat_run(tmp_path, settings.w_a[2], GOAL)
+    J = c.model.jacobian(state)
+    assert np.linalg.matrix_rank(J) == 5
+    assert np.linalg.norm(e[-1]) < 0.5 * np.linalg.norm(e[0])
+    JtWe = J.T @ (np.array(c.settings.w_a) * e[-1])
+    assert np.linalg.norm(JtWe) < 1e-6 * np.linalg.norm(e[-1])
+
+
+# -------------------------------------------------------------------------------- settings
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        (lambda c: c.__setitem__("duration", 1e-4), "controller.duration"),
+        (lambda c: c.__setitem__("kp", [5.0, 5.0, 5.0, 5.0, 5.0, 2000.0]), "controller.kp"),
+        (lambda c: c.__setitem__("plugin", "quadprog"), "controller.plugin"),
+        (lambda c: c["w_b"].__setitem__(2, 0.0), "controller.w_b[2]"),
+        (lambda c: c["osqp"].pop("eps_abs"), "controller.osqp.eps_abs"),
+    ],
+)
+def test_bad_controller_settings_name_the_field(tmp_path, edit, field):
+    path = write_problem(tmp_path, lambda p, r: edit(p["controller"]))
+    with pytest.raises(ConfigError) as err:
+        load_problem(path)
+    assert err.value.field == field
+
+
+def test_step_function_interface(controllers):
+    for plugin, c in controllers.items():
+        assert c.step.name_in() == ["state", "reference", "params"]
+        assert c.step.name_out() == ["qdot", "status", "objective"]
+        assert c.step.size_in(2) == (len(c.params.pack()), 1)
+        assert (plugin in CODEGEN_PLUGINS) == (plugin != "qpoases")
+    assert len(ControllerParams.unpack(np.arange(34.0))) == len(ControllerParams._fields)
+
+
+# ------------------------------------------------------------------------------ references
+def test_references_rates_match_finite_differences(problem, rng):
+    circle, h = problem.circle, 1e-6
+    plan = SimpleNamespace(
+        fractions=np.sort(rng.uniform(0, 1, 7)), target_com=rng.uniform(-0.5, 0.5, (7, 3))
+    )
+    arm = arm_reference(plan, circle)
+    s = rng.uniform(0, 1, 20)
+    for fn in (lambda u: base_reference(circle, u, 0.2), arm, lambda u: circle_pose(circle, u)):
+        value, rate = fn(s)
+        fd = (fn(s + h).value - fn(s - h).value) / (2 * h)
+        np.testing.assert_allclose(rate, fd, atol=1e-6)
+    # the arm reference passes through the plan's targets placed at the reference poses
+    poses = circle.pose_at(plan.fractions)
+    expected = np.stack(
+        [np.r_[p[:2], 0.0] + rot_z(p[2]) @ g for p, g in zip(poses, plan.target_com, strict=True)]
+    )
+    np.testing.assert_allclose(arm(plan.fractions).value, expected, atol=1e-12)
+    np.testing.assert_allclose(arm(1.0).value, arm(0.0).value, atol=1e-12)  # periodic
+    xi, xi_dot = task_reference(circle, 30.0, 0.2, arm, [0.0, 15.0])
+    np.testing.assert_allclose(
+        xi_dot, np.hstack([base_reference(circle, [0, 0.5], 0.2).rate, arm([0, 0.5]).rate]) / 30.0
+    )
+    assert xi.shape == (2, 6)
