@@ -24,7 +24,8 @@ def _fig5(args: argparse.Namespace) -> None:
     from mmstab.experiments.sweeps import run_fig5
 
     s = run_fig5(_problem(args), args.out)
-    print(f"fig5: local maxima at link0 = {[round(x, 2) for x in s['local_maxima_rad']]} rad")
+    maxima = [round(float(x), 2) for x in s["local_maxima_rad"]]
+    print(f"fig5: local maxima at link0 = {maxima} rad")
 
 
 def _fig6(args: argparse.Namespace) -> None:
