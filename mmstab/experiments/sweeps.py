@@ -105,7 +105,8 @@ def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     ax.set(
         xlabel="link0 angle [deg]",
         ylabel="force-angle stability $\\mu$ [N rad]",
-        title=f"Fig. 5: roll {np.degrees(roll):.1f} deg, pitch {np.degrees(pitch):.1f} deg",
+        title=f"Fig. 5: roll {round(np.degrees(roll), 1) + 0.0} deg, "
+        f"pitch {round(np.degrees(pitch), 1) + 0.0} deg",
         xlim=(0, 360),
         xticks=np.arange(0, 361, 45),
     )
