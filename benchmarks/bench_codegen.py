@@ -245,7 +245,7 @@ def main() -> None:
     ap.add_argument("--calls", type=int, default=3000, help="replayed steps for (a), (b)")
     ap.add_argument("--mink-steps", type=int, default=3000)
     ap.add_argument("--passes", type=int, default=5, help="passes over the run for (c)")
-    ap.add_argument("--work", default="results/bench/codegen", help="generated code folder")
+    ap.add_argument("--work", default="results/codegen/bench", help="generated code folder")
     args = ap.parse_args()
     problem = load_problem(args.problem)
     plan = example_plan(problem.robot)

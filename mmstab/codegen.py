@@ -287,7 +287,7 @@ class GeneratedController(NamedTuple):
         header: its header ``controller_step.h``.
         library: the shared library (its name carries the key).
         plugin: the QP plugin.
-        key: the cache key (SHA-256, hex).
+        hash: the cache key (SHA-256, hex) the outputs were built for.
         functions: the exported Functions' names (step, task, rollout chunk).
         rebuilt: False when the outputs were already up to date.
         compiler_stderr: what the compiler printed (empty: no warning).
@@ -298,7 +298,7 @@ class GeneratedController(NamedTuple):
     header: Path
     library: Path
     plugin: str
-    key: str
+    hash: str
     functions: tuple[str, ...]
     rebuilt: bool
     compiler_stderr: str

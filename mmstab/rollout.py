@@ -178,11 +178,14 @@ def run_inputs(
         arm_reference(plan, problem.circle),
         t,
     )
+    x0 = np.asarray(initial_state(problem, plan) if state0 is None else state0, dtype=float)
+    if x0.shape != (STATE_SIZE,):
+        raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
     tracks = problem.robot.base.tracks
     return RunInputs(
         dt=settings.dt,
         params=ControllerParams.from_settings(problem.robot, settings).pack(),
-        state0=np.asarray(initial_state(problem, plan) if state0 is None else state0, float),
+        state0=x0,
         reference=np.hstack([xi_des, xi_dot]),
         track=np.array([tracks.sprocket_radius, tracks.separation, _SINC_SERIES_BELOW]),
     )
@@ -296,7 +299,7 @@ def rollout(
         The trajectory; every backend gives the same one (to round-off).
 
     Raises:
-        ValueError: an unknown backend.
+        ValueError: an unknown backend, or a state0 that is not (9,).
         MmstabError: code generation failed (generated backend).
     """
     if backend not in BACKENDS:

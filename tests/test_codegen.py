@@ -170,13 +170,13 @@ def test_cache_rebuilds_only_when_the_generated_code_changes(problem, tmp_path):
     first = generate((problem.robot, settings), tmp_path)
     again = generate((problem.robot, settings), tmp_path)
     assert first.rebuilt and not again.rebuilt
-    assert again.library == first.library and again.key == first.key
+    assert again.library == first.library and again.hash == first.hash
     # gains are run-time parameters: same code, no rebuild
     gains = generate((problem.robot, dataclasses.replace(settings, kp=(2.0,) * 6)), tmp_path)
-    assert not gains.rebuilt and gains.key == first.key
+    assert not gains.rebuilt and gains.hash == first.hash
     # the base offset is baked into the C: new key, new library, the old one removed
     moved = generate((problem.robot, dataclasses.replace(settings, base_offset=0.3)), tmp_path)
-    assert moved.rebuilt and moved.key != first.key and moved.library.is_file()
+    assert moved.rebuilt and moved.hash != first.hash and moved.library.is_file()
     assert not first.library.exists()
     forced = generate((problem.robot, settings), tmp_path, force=True)
     assert forced.rebuilt
@@ -338,3 +338,13 @@ def test_example_task_function_is_exported(generated_qrqp, problem):
     with pytest.raises(ValueError, match="not exported"):
         generated_qrqp.load("nope")
     assert isinstance(task, ca.Function)
+
+
+def test_rollout_rejects_bad_arguments(problem):
+    plan = example_plan(problem.robot)
+    with pytest.raises(ValueError, match="unknown backend"):
+        rollout(problem, plan, backend="matlab", steps=5)
+    with pytest.raises(ValueError, match=r"state0 must have shape \(9,\)"):
+        run_inputs(problem, plan, steps=5, state0=np.zeros(8))
+    with pytest.raises(ValueError, match="at least one step"):
+        run_inputs(problem, plan, steps=0)
