@@ -109,7 +109,9 @@ def _codegen(args: argparse.Namespace) -> None:
     if args.example:
         from mmstab import rollout as ro
 
-        plan = ro.example_plan(problem.robot)
+        from mmstab.planner import plan_path
+
+        plan = plan_path(problem)  # the ramp circle with the planned arm CoMs
         state0 = ro.initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
         inputs = ro.run_inputs(problem, plan, state0=state0)
         run = ro.write_run_file(ro.run_file_path(gen.directory), inputs)
