@@ -59,3 +59,13 @@ fig3: setup
 
 bench-workspace: setup
 	$(PY) benchmarks/workspace.py $(PROBLEM)
+
+## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
+.PHONY: tracking fig9 fig10 fig11 fig12 bench-track
+tracking: setup
+	$(MMSTAB) track $(PROBLEM)
+
+fig9 fig10 fig11 fig12: tracking
+
+bench-track: setup
+	$(PY) benchmarks/bench_tracking.py $(PROBLEM)

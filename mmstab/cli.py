@@ -59,18 +59,48 @@ def _fig3(args: argparse.Namespace) -> None:
     )
 
 
+def _track(args: argparse.Namespace) -> None:
+    from mmstab.experiments.tracking import run_tracking
+
+    s = run_tracking(
+        _problem(args), args.out, args.plugin, backend=args.backend, duration=args.duration
+    )
+    print(
+        f"track: {s['steps']} steps ({s['plugin']}, {s['backend']}) in {s['wall_seconds']:.2f} s "
+        f"({s['us_per_step']:.1f} us/step); max error base {s['base_error_max_m']:.3g} m, "
+        f"arm CoM {s['arm_com_error_max_m']:.3g} m; final {s['base_error_final_m']:.2g} m, "
+        f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}"
+    )
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
     ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
     ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
+    ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
 ]
 
 #: Options beyond ``problem`` and ``--out``, by command name.
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
     "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+    "track": [
+        (
+            "--plugin",
+            {"help": "QP plugin: qpoases, osqp, qrqp or daqp (default: the problem's)"},
+        ),
+        (
+            "--backend",
+            {
+                "choices": ("interpreted", "generated"),
+                "default": "interpreted",
+                "help": "controller step: CasADi interpreted, or the generated C library",
+            },
+        ),
+        ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+    ],
 }
 
 
