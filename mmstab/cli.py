@@ -73,6 +73,15 @@ def _track(args: argparse.Namespace) -> None:
     )
 
 
+def _urdf(args: argparse.Namespace) -> None:
+    from mmstab.robot import load_robot
+    from mmstab.urdf import write_urdf
+
+    robot = load_robot(args.robot)
+    out = args.out if args.out is not None else f"results/urdf/{robot.name}.urdf"
+    print(f"urdf: wrote {write_urdf(robot, out)}")
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -118,6 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
         for flag, kwargs in EXTRA_OPTIONS.get(name, []):
             p.add_argument(flag, **kwargs)
         p.set_defaults(handler=handler)
+    # commands that take a robot description rather than a problem
+    help_text = "export the robot description as URDF (base_link = body frame B)"
+    p = sub.add_parser("urdf", help=help_text, description=help_text)
+    p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
+    p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
+    p.set_defaults(handler=_urdf)
     return parser
 
 

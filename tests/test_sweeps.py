@@ -55,3 +55,4 @@ def test_fig6_one_curve_per_pose(tmp_path, problem):
         assert p["mu_min"] > 0
     assert s["poses_with_two_maxima"] >= 6
     assert (tmp_path / "problem.yaml").exists() and (tmp_path / "fig6.png").exists()
+    assert (tmp_path / "fig6_poses3d.png").stat().st_size > 10_000  # Fig. 6(a) in 3-D

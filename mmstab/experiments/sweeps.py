@@ -107,6 +107,37 @@ def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     return summary
 
 
+def poses3d_figure(problem: Problem, sw: Sweep) -> Any:
+    """Paper Fig. 6(a) in 3-D: the robot at each pose on the ramp, arm at its best link0.
+
+    Args:
+        problem: the problem (robot, ramp).
+        sw: the sweep of :func:`link0_sweep` (its poses and mu).
+
+    Returns:
+        The matplotlib figure.
+    """
+    from mmstab.drawing import draw_poses_on_ramp
+
+    cmap = __import__("matplotlib").colormaps["viridis"]
+    postures = np.zeros((len(sw.poses), 4))
+    postures[:, 0] = sw.link0[np.argmax(sw.mu, axis=1)]  # link0 of highest mu; others zero
+    fig, ax = new_figure(figsize=(7.5, 6.0), subplot_kw={"projection": "3d"})
+    colors = [cmap(k / max(len(sw.poses) - 1, 1)) for k in range(len(sw.poses))]
+    labels = [str(k) for k in range(len(sw.poses))]
+    path_S = problem.circle.pose_at(np.linspace(0, 1, 121))[:, :2]
+    draw_poses_on_ramp(
+        ax, problem.robot, problem.ramp, sw.poses, postures, colors, labels, path_S=path_S
+    )
+    ax.view_init(elev=35, azim=-70)
+    ax.set_title(
+        f"(a) the {len(sw.poses)} poses on the ramp (slope {np.degrees(problem.ramp.slope):.1f}"
+        " deg, uphill +y), arm at the link0 of highest $\\mu$",
+        fontsize=9,
+    )
+    return fig
+
+
 def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 6: poses along the circle, one sweep each; writes ``results/fig6``."""
     cfg = problem.section("sweep")
@@ -154,6 +185,7 @@ def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     ax_b.legend(fontsize=7, ncol=2)
     ax_b.grid(alpha=0.3)
     write_figure(d / "fig6.png", fig)
+    write_figure(d / "fig6_poses3d.png", poses3d_figure(problem, sw))
     write_npz(d / "sweep.npz", link0=sw.link0, mu=sw.mu, poses=sw.poses)
     counts = [len(p["local_maxima_rad"]) for p in per_pose]
     summary = {

@@ -1,0 +1,75 @@
+"""The animation building block: a short synthetic run rendered to a GIF."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image, ImageChops
+
+from mmstab.animation import frame_indices, render_animation
+from mmstab.stability import robot_force_angle
+from mmstab.terrain import Ramp
+
+
+def _run(robot, n: int):
+    ramp = Ramp(0.1)
+    s = np.linspace(0.0, 0.5, n)
+    poses = np.stack(
+        [1.5 * np.cos(np.pi * s - np.pi / 2), 1.5 + 1.5 * np.sin(np.pi * s - np.pi / 2), np.pi * s],
+        axis=1,
+    )
+    q = np.zeros((n, 4))
+    q[:, 0] = np.linspace(0.5, 2.5, n)
+    q[:, 1] = np.linspace(0.0, 0.8, n)
+    mu = robot_force_angle(robot, ramp.gravity_body(poses[:, 2]), robot.arm_com(q)).mu
+    return ramp, 2.0 * s, poses, q, mu
+
+
+def test_render_animation_writes_a_gif_of_every_frame(tmp_path, robot):
+    ramp, t, poses, q, mu = _run(robot, 5)
+    out = tmp_path / "anim" / "run.gif"
+    info = render_animation(robot, ramp, t, poses, q, mu, out, size=(320, 200), progress=False)
+    assert info.path == out and info.frames == 5
+    assert sorted(p.name for p in out.parent.iterdir()) == ["run.gif"]  # no temp file left
+    with Image.open(out) as im:
+        assert im.format == "GIF" and im.size == (320, 200)
+        assert im.n_frames == 5 >= 3
+        im.seek(0)
+        first = im.convert("RGB")
+        im.seek(im.n_frames - 1)
+        last = im.convert("RGB")
+    assert ImageChops.difference(first, last).getbbox() is not None  # the robot moved
+
+
+def test_long_runs_are_thinned(tmp_path, robot):
+    ramp, t, poses, q, mu = _run(robot, 10)
+    info = render_animation(
+        robot,
+        ramp,
+        t,
+        poses,
+        q,
+        mu,
+        tmp_path / "a.gif",
+        size=(240, 160),
+        max_frames=4,
+        progress=False,
+    )
+    assert list(info.indices) == [0, 3, 6, 9]
+    with Image.open(info.path) as im:
+        assert im.n_frames == 4
+
+
+def test_frame_indices():
+    assert list(frame_indices(3, 10)) == [0, 1, 2]
+    assert list(frame_indices(101, 5)) == [0, 25, 50, 75, 100]
+    assert list(frame_indices(7, None)) == list(range(7))
+
+
+def test_inconsistent_inputs_are_refused(tmp_path, robot):
+    ramp, t, poses, q, mu = _run(robot, 4)
+    with pytest.raises(ValueError, match="q_arm"):
+        render_animation(robot, ramp, t, poses, q[:3], mu, tmp_path / "x.gif", progress=False)
+    with pytest.raises(ValueError, match="mu"):
+        render_animation(robot, ramp, t, poses, q, mu[:2], tmp_path / "x.gif", progress=False)
+    assert not list(tmp_path.iterdir())
