@@ -60,6 +60,20 @@ fig3: setup
 bench-workspace: setup
 	$(PY) benchmarks/workspace.py $(PROBLEM)
 
+## stability planner (paper Section II-D): CMA-ES per base pose, Fig. 7 and Fig. 8
+.PHONY: plan fig7 fig8 bench-plan
+plan: setup
+	$(MMSTAB) plan $(PROBLEM)
+
+fig7: setup
+	$(MMSTAB) fig7 $(PROBLEM)
+
+fig8: setup
+	$(MMSTAB) fig8 $(PROBLEM)
+
+bench-plan: setup
+	$(PY) benchmarks/plan.py $(PROBLEM)
+
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
 tracking: setup

@@ -24,7 +24,8 @@ def _fig5(args: argparse.Namespace) -> None:
     from mmstab.experiments.sweeps import run_fig5
 
     s = run_fig5(_problem(args), args.out)
-    print(f"fig5: local maxima at link0 = {[round(x, 2) for x in s['local_maxima_rad']]} rad")
+    maxima = [round(float(x), 2) for x in s["local_maxima_rad"]]
+    print(f"fig5: local maxima at link0 = {maxima} rad")
 
 
 def _fig6(args: argparse.Namespace) -> None:
@@ -82,12 +83,43 @@ def _urdf(args: argparse.Namespace) -> None:
     print(f"urdf: wrote {write_urdf(robot, out)}")
 
 
+def _plan(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig8
+
+    s = run_fig8(_problem(args), args.out or "results/plan")
+    for k, p in enumerate(s["poses"]):
+        print(
+            f"pose {k}: side {p['side']:5s} mu {p['mu_planned']:7.1f} "
+            f"(stowed {p['mu_stowed']:7.1f}, arm removed {p['mu_arm_removed']:7.1f}) "
+            f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
+            f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
+        )
+
+
+def _fig7(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig7
+
+    s = run_fig7(_problem(args), args.out)
+    com = [round(float(x), 3) for x in s["target_com"]]
+    print(f"fig7: target arm CoM {com} m, mu {s['mu_planned']:.1f} N rad")
+
+
+def _fig8(args: argparse.Namespace) -> None:
+    from mmstab.experiments.planning import run_fig8
+
+    s = run_fig8(_problem(args), args.out)
+    print(f"fig8: arm side per pose {s['sides']}")
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
     ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
     ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
+    ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
+    ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
+    ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
 ]
 

@@ -51,3 +51,25 @@ def draw_circle(ax: Any, circle: CirclePath, **kwargs: Any) -> None:
     """Draw the circular path in the slope frame."""
     xy = circle.pose_at(np.linspace(0, 1, 200))[:, :2]
     ax.plot(xy[:, 0], xy[:, 1], **{"color": "0.6", "ls": "--", "lw": 1, **kwargs})
+
+
+def arm_polyline(robot: Robot, q: ArrayLike, G_T_B: ArrayLike | None = None) -> np.ndarray:
+    """The arm as a polyline through the mount and the link-frame origins, (5, 3) [m].
+
+    Args:
+        robot: the robot.
+        q: arm posture (4,) [rad].
+        G_T_B: pose of the body frame (4x4); default identity (body-frame points).
+    """
+    frames = robot.kinematics.link_frames(q)
+    pts = np.vstack([robot.mount_T[:3, 3], frames[:, :3, 3]])
+    T = np.eye(4) if G_T_B is None else np.asarray(G_T_B, dtype=float)
+    return pts @ T[:3, :3].T + T[:3, 3]
+
+
+def draw_arm_3d(
+    ax: Any, robot: Robot, q: ArrayLike, G_T_B: ArrayLike | None = None, **kwargs: Any
+) -> None:
+    """Draw the arm as a stick figure on 3-D axes (body frame unless ``G_T_B`` given)."""
+    pts = arm_polyline(robot, q, G_T_B)
+    ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **{"color": "C2", "lw": 1.5, **kwargs})

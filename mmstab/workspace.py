@@ -164,8 +164,10 @@ def hull_diameter(points: FloatArray, block: int = 2048) -> float:
 
 def _inside(points: FloatArray, hs: HalfSpaces, slack: float) -> NDArray[np.bool_]:
     """``all(A p <= b + slack)`` per point, in cache-sized blocks (no N x F temporary)."""
+    block = min(max(2**17 // max(len(hs.b), 1), 16), 4096)
+    if len(points) <= block:  # small batches (the planner's populations): one product
+        return (points @ hs.A.T - hs.b).max(axis=1, initial=-np.inf) <= slack
     out = np.empty(len(points), dtype=bool)
-    block = int(np.clip(2**17 // max(len(hs.b), 1), 16, 4096))
     AT = np.ascontiguousarray(hs.A.T)
     buf = np.empty((block, len(hs.b)))
     for s in range(0, len(points), block):
@@ -222,6 +224,25 @@ class Workspace:
         if len(self.b_bad) and inside.any():
             inside[inside] = ~_inside(pts[inside], HalfSpaces(self.A_bad, self.b_bad), HULL_TOL)
         return inside
+
+    @functools.cached_property
+    def valid_com_in_V(self) -> FloatArray:
+        """The valid CoMs that V contains (M, 3) [m] (V drops some: see ``recall``)."""
+        return self.valid_com[self.contains(self.valid_com)]
+
+    def violation(self, points: ArrayLike) -> FloatArray:
+        """How far body-frame points (N, 3) lie outside V, 0 inside [m].
+
+        Outside hull(all): the largest facet violation; inside hull(invalid): the depth
+        to its nearest facet. Facet normals are unit (Qhull), so both are distances to a
+        facet plane (a lower bound on the distance to V). Ranks infeasible CMA samples.
+        """
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        out = np.maximum((pts @ self.A_all.T - self.b_all).max(axis=1), 0.0)
+        if len(self.b_bad):
+            depth = (self.b_bad - pts @ self.A_bad.T).min(axis=1)
+            out = np.where(out > 0, out, np.maximum(depth, 0.0))
+        return np.where(self.contains(pts), 0.0, np.maximum(out, HULL_TOL))
 
     @functools.cached_property
     def _valid_tree(self) -> cKDTree:

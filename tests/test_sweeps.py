@@ -44,6 +44,11 @@ def test_fig5_reproduces_two_unequal_maxima_on_the_lifted_side(tmp_path, problem
     assert s["local_maxima_mu"][0] != s["local_maxima_mu"][1]
     assert s["roll_rad"] > 0 and abs(s["pitch_rad"]) < 1e-12
     assert min(mu) > 0 and max(mu) > s["mu_arm_removed"]
+    # the stretched arm passes through the raised flippers (front-left/right sectors),
+    # but neither maximum is such a posture
+    colliding = np.array(s["colliding_link0_rad"])
+    assert len(colliding) > 0 and not np.isin(maxima, colliding).any()
+    assert np.all((colliding < np.pi / 2) | (colliding > 3 * np.pi / 2))
 
 
 def test_fig6_one_curve_per_pose(tmp_path, problem):

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mmstab.config import write_figure, write_json, write_npz
 from mmstab.experiments.common import circular_extrema, output_dir, save_settings
@@ -65,6 +66,19 @@ def link0_sweep(robot: Robot, ramp: Ramp, poses: FloatArray, samples: int) -> Sw
     )
 
 
+def sweep_collisions(robot: Robot, link0: FloatArray) -> NDArray[np.bool_]:
+    """Which samples of a link0 sweep (other joints zero) are in self-collision (FCL).
+
+    The paper's sweep ignores collisions; with the flippers raised, the stretched arm
+    passes through them, so those samples are marked, not hidden.
+    """
+    from mmstab.collision import CollisionChecker
+
+    q = np.zeros((len(link0), 4))
+    q[:, 0] = link0
+    return np.asarray(CollisionChecker(robot).collides(q), dtype=bool)
+
+
 def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 5: base with roll and zero pitch, link0 swept; writes ``results/fig5``."""
     cfg = problem.section("sweep")
@@ -73,16 +87,26 @@ def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     mu = sw.mu[0]
     maxima, minima = circular_extrema(mu)
     roll, pitch = problem.ramp.roll_pitch(float(pose[0, 2]))
+    collides = sweep_collisions(problem.robot, sw.link0)
     d = output_dir(out, "fig5")
     fig, ax = new_figure(figsize=(6.4, 3.6))
     ax.plot(np.degrees(sw.link0), mu, "-", color="C0", label="arm stretched, link0 swept")
+    ax.plot(
+        np.degrees(sw.link0[collides]),
+        mu[collides],
+        "x",
+        color="0.3",
+        ms=4,
+        label="arm hits a flipper (not a valid posture)",
+    )
     ax.plot(np.degrees(sw.link0[maxima]), mu[maxima], "v", color="C3", label="local maxima")
     ax.axhline(sw.mu_arm_removed[0], color="0.4", ls="--", label="arm removed")
     ax.axhline(sw.mu_stowed[0], color="C2", ls=":", label="arm stowed")
     ax.set(
         xlabel="link0 angle [deg]",
         ylabel="force-angle stability $\\mu$ [N rad]",
-        title=f"Fig. 5: roll {np.degrees(roll):.1f} deg, pitch {np.degrees(pitch):.1f} deg",
+        title=f"Fig. 5: roll {round(np.degrees(roll), 1) + 0.0} deg, "
+        f"pitch {round(np.degrees(pitch), 1) + 0.0} deg",
         xlim=(0, 360),
         xticks=np.arange(0, 361, 45),
     )
@@ -101,6 +125,7 @@ def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         "local_minima_rad": sw.link0[minima],
         "mu_arm_removed": float(sw.mu_arm_removed[0]),
         "mu_stowed": float(sw.mu_stowed[0]),
+        "colliding_link0_rad": sw.link0[collides],
     }
     save_settings(d, problem)
     write_json(d / "summary.json", summary)

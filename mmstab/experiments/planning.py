@@ -1,0 +1,191 @@
+"""Paper Fig. 7 (CMA-ES at one rolled pose) and Fig. 8 (ten poses along the circle)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.config import write_figure, write_json, write_npz
+from mmstab.drawing import (
+    draw_poses_on_ramp,
+    draw_robot,
+    mesh_points,
+    robot_meshes,
+    set_equal_aspect,
+)
+from mmstab.experiments.common import output_dir, save_settings
+from mmstab.ik import PostureSolver
+from mmstab.planner import Plan, PlannerSettings, plan_path, solve_pose
+from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
+from mmstab.problem import Problem
+from mmstab.stability import mu_max, robot_force_angle
+
+
+def _side(com_body: np.ndarray) -> str:
+    return "left" if com_body[1] > 0 else "right"
+
+
+def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
+    """Paper Fig. 7: the first CMA samples and the converged CoM at the rolled pose."""
+    from mmstab.workspace import load_or_build_workspace
+
+    robot = problem.robot
+    ws = load_or_build_workspace(problem)
+    settings = PlannerSettings.from_section(problem.section("planner"))
+    pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
+    rng = np.random.default_rng(settings.seed)
+    target = solve_pose(robot, problem.ramp, ws, pose, robot.arm_com(robot.stowed), settings, rng)
+    solver = PostureSolver(robot, ws)
+    realised = solver.posture(target.target_com, robot.stowed)
+    best = target.runs[target.best_start]
+    d = output_dir(out, "fig7")
+
+    fig = new_figure(figsize=(12, 4.2))[0]
+    fig.clf()
+    ax_a = fig.add_subplot(1, 3, 1, projection="3d")
+    ax_b = fig.add_subplot(1, 3, 2, projection="3d")
+    ax_c = fig.add_subplot(1, 3, 3)
+    draw_robot(ax_a, robot, robot.stowed, alpha=0.15)  # the base, for scale
+    for com in best.first_samples:
+        draw_arm_3d(ax_a, robot, ws.nearest_valid_posture(com), color="0.5", lw=0.8)
+    ax_a.scatter(*best.first_samples.T, color="C0", s=12, label="sampled arm CoMs")
+    ax_a.scatter(*best.first_samples.mean(axis=0), color="C3", marker="*", s=80, label="mean")
+    ax_a.set_title("(a) first population (body frame)")
+    ax_a.legend(fontsize=7)
+    draw_robot(ax_b, robot, realised.q, support=True)
+    set_equal_aspect(ax_b, mesh_points(robot_meshes(robot, realised.q)))
+    ax_b.scatter(*target.target_com, color="C3", marker="*", s=80, label="optimal arm CoM")
+    ax_b.set_title(f"(b) converged, mu = {target.mu:.0f} N rad")
+    ax_b.legend(fontsize=7)
+    for ax in (ax_a, ax_b):
+        ax.set(xlabel="x_B [m]", ylabel="y_B [m]", zlabel="z_B [m]")
+    for k, run in enumerate(target.runs):
+        ax_c.plot(run.history, label=f"start link0 = {settings.starts[k]:.1f} rad")
+    ax_c.set(xlabel="CMA-ES iteration", ylabel="best fitness (Eq. 6)", title="(c) fitness")
+    ax_c.legend(fontsize=8)
+    ax_c.grid(alpha=0.3)
+    write_figure(d / "fig7.png", fig)
+    summary = {
+        "pose": pose,
+        "roll_pitch_rad": problem.ramp.roll_pitch(float(pose[2])),
+        "target_com": target.target_com,
+        "mu_planned": target.mu,
+        "fitness": target.fitness,
+        "best_start": settings.starts[target.best_start],
+        "runs": [
+            {
+                "start_com": r.start_com,
+                "best_com": r.best_com,
+                "best_fitness": r.best_fitness,
+                "evaluations": r.evaluations,
+                "resamples": r.resamples,
+                "iterations": r.iterations,
+                "history": r.history,
+            }
+            for r in target.runs
+        ],
+        "posture": realised.q,
+        "realised_com_error_m": realised.com_error,
+        "collision_free": realised.collision_free,
+        "seconds": target.seconds,
+    }
+    save_settings(d, problem)
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
+    """Per-pose numbers of a plan (``results/fig8/summary.json``)."""
+    robot = problem.robot
+    gravity = problem.ramp.gravity_body(plan.poses[:, 2])
+    stowed = np.broadcast_to(robot.arm_com(robot.stowed), (len(plan.poses), 3))
+    mu_stowed = robot_force_angle(robot, gravity, stowed).mu
+    mu_removed = robot_force_angle(robot, gravity, None).mu
+    mu_realised = robot_force_angle(robot, gravity, robot.arm_com(plan.postures)).mu
+    poses = []
+    for k, t in enumerate(plan.targets):
+        poses.append(
+            {
+                "pose": t.pose,
+                "fraction": plan.fractions[k],
+                "target_com": t.target_com,
+                "posture": plan.postures[k],
+                "realised_com_error_m": plan.realised_com_error[k],
+                "collision_free": bool(plan.collision_free[k]),
+                "mu_planned": t.mu,
+                "mu_realised": mu_realised[k],
+                "mu_stowed": mu_stowed[k],
+                "mu_arm_removed": mu_removed[k],
+                "side": _side(t.target_com),
+                "front": bool(t.target_com[0] > 0),
+                "fitness": t.fitness,
+                "best_start": plan.settings.starts[t.best_start],
+                "evaluations": sum(r.evaluations for r in t.runs),
+                "resamples": sum(r.resamples for r in t.runs),
+                "seconds": t.seconds,
+            }
+        )
+    return {
+        "mu_max": mu_max(robot),
+        "settings": plan.settings._asdict(),
+        "poses": poses,
+        "sides": [p["side"] for p in poses],
+    }
+
+
+def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
+    """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
+    plan = plan_path(problem, progress=True)
+    d = output_dir(out, "fig8")
+    summary = plan_summary(problem, plan)
+    fig = new_figure(figsize=(11, 5))[0]
+    fig.clf()
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    colors = ["tab:red" if p["side"] == "right" else "tab:blue" for p in summary["poses"]]
+    draw_poses_on_ramp(
+        ax,
+        problem.robot,
+        problem.ramp,
+        plan.poses,
+        np.nan_to_num(plan.postures),
+        arm_colors=colors,
+        labels=[str(k) for k in range(len(plan.poses))],
+        path_S=problem.circle.pose_at(np.linspace(0, 1, 200))[:, :2],
+    )
+    ax.set(
+        xlabel="x_G [m]",
+        ylabel="y_G [m]",
+        zlabel="z_G [m]",
+        title=f"(a) planned arm configurations, slope {np.degrees(problem.ramp.slope):.1f} deg",
+    )
+    ax2 = fig.add_subplot(1, 2, 2)
+    draw_circle(ax2, problem.circle)
+    for k, p in enumerate(summary["poses"]):
+        x, y, h = p["pose"]
+        c, s = np.cos(h), np.sin(h)
+        g = p["target_com"]
+        ax2.plot(
+            [x, x + c * g[0] - s * g[1]],
+            [y, y + s * g[0] + c * g[1]],
+            color="C3" if p["side"] == "right" else "C0",
+        )
+        ax2.annotate(f"{k}", (x, y), fontsize=8)
+    ax2.set(
+        aspect="equal",
+        xlabel="$x_S$ [m]",
+        ylabel="$y_S$ [m] (uphill)",
+        title="(b) base poses and arm CoM offsets (red right, blue left)",
+    )
+    write_figure(d / "fig8.png", fig)
+    write_npz(
+        d / "plan.npz",
+        poses=plan.poses,
+        fractions=plan.fractions,
+        target_com=plan.target_com,
+        postures=plan.postures,
+    )
+    save_settings(d, problem)
+    write_json(d / "summary.json", summary)
+    return summary
