@@ -325,7 +325,7 @@ def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
     for name in ("fig9.png", "fig10.png", "fig11.png", "fig12.png", "run.npz", "problem.yaml"):
         assert (tmp_path / name).stat().st_size > 0, name
     on_disk = json.loads((tmp_path / "summary.json").read_text())
-    assert SUMMARY_KEYS <= set(on_disk)
+    assert SUMMARY_KEYS <= set(on_disk) and "arm_self_collision" in on_disk
     assert set(on_disk["mu_min"]) == CASES and set(on_disk["mu_mean"]) == CASES
     assert (
         on_disk["steps"] == 500 and on_disk["plugin"] == "qpoases" and on_disk["qp_failures"] == 0
@@ -382,3 +382,21 @@ def test_cli_track_end_to_end(tmp_path):
     assert s["qdot_max_abs"]["link0"] <= s["qdot_limit"]["link0"] + 1e-9
     assert s["arm_com_error_final_m"] < s["arm_com_error_max_m"]
     assert "track:" in proc.stdout
+
+
+def test_self_collisions_reports_intervals_and_pairs(problem):
+    from mmstab.collision import CollisionChecker
+    from mmstab.experiments.tracking import self_collisions
+
+    robot = problem.robot
+    hit = np.array([2.25, -0.41, 0.5, 0.17])  # turret to the left-rear, upper arm down: hits
+    checker = CollisionChecker(robot)
+    pairs = checker.colliding_pairs(hit)
+    assert pairs and not checker.collides(robot.stowed)
+    q = np.array([robot.stowed, hit, hit, robot.stowed, robot.stowed])
+    t = np.arange(5) * 0.01
+    out = self_collisions(problem, t, q)
+    assert out["samples"] == 5 and out["colliding_samples"] == 2
+    assert out["colliding_share"] == pytest.approx(0.4)
+    assert out["intervals_s"] == [[0.01, 0.03]]
+    assert out["pairs"] == {p: 2 for p in pairs}

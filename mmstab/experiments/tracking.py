@@ -9,6 +9,7 @@ Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, the settin
 from __future__ import annotations
 
 import copy
+from collections import Counter
 from pathlib import Path
 from typing import Any, Literal
 
@@ -20,6 +21,7 @@ from mmstab.controller import PLUGINS
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.plotting import draw_base_topview, new_figure
 from mmstab.problem import Problem, problem_from_dict
+from mmstab.robot import FloatArray
 from mmstab.tracking import (
     JOINT_NAMES,
     STATE_NAMES,
@@ -113,12 +115,13 @@ def run_tracking(
         problem, plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
     )
     d = output_dir(out, "tracking")
-    _fig9(d, problem, run)
-    _fig10(d, run)
-    _fig11(d, run)
-    _fig12(d, problem, run)
     every = max(int(round(SAVE_EVERY_S / run.dt)), 1)
     keep = np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+    collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
+    _fig9(d, problem, run)
+    _fig10(d, run, collisions["intervals_s"])
+    _fig11(d, run)
+    _fig12(d, problem, run)
     applied = np.vstack([run.qdot, run.qdot[-1:]])  # q̇ over [t_k, t_k+1), repeated at the end
     write_npz(
         d / "run.npz",
@@ -141,6 +144,7 @@ def run_tracking(
     )
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
+    summary["arm_self_collision"] = collisions
     save_settings(
         d,
         problem,
@@ -153,6 +157,43 @@ def run_tracking(
     )
     write_json(d / "summary.json", summary)
     return summary
+
+
+def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
+    """Where the tracked arm intersects the base or itself (the controller does not check).
+
+    The QP tracks the arm CoM only (3 rows for 4 joints, Eq. 7), so the arm's posture is
+    whatever the joint-speed weights make of the redundancy, not the planner's collision-free
+    posture: this reports what that gives.
+
+    Args:
+        problem: the problem (robot geometry).
+        t: sample times (N,) [s].
+        q_arm: arm postures (N, 4) [rad].
+
+    Returns:
+        samples checked, colliding samples and share, the colliding time intervals [s]
+        (from the first colliding sample to the first free one after it) and the colliding
+        pairs with the number of samples each.
+    """
+    from mmstab.collision import CollisionChecker
+
+    checker = CollisionChecker(problem.robot)
+    hit = np.asarray(checker.collides(q_arm), dtype=bool)
+    edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0]))
+    intervals = [
+        [float(t[a]), float(t[min(b, t.size - 1)])] for a, b in edges.reshape(-1, 2).tolist()
+    ]
+    pairs: Counter[str] = Counter()
+    for k in np.flatnonzero(hit):
+        pairs.update(checker.colliding_pairs(q_arm[k]))
+    return {
+        "samples": int(t.size),
+        "colliding_samples": int(hit.sum()),
+        "colliding_share": float(hit.mean()),
+        "intervals_s": intervals,
+        "pairs": dict(pairs.most_common()),
+    }
 
 
 # ------------------------------------------------------------------------------------ figures
@@ -188,16 +229,20 @@ def _mark_failures(ax: Any, run: TrackingRun) -> None:
         ax.axvline(f.time, color="r", lw=0.5, alpha=0.5, label="QP failure" if i == 0 else None)
 
 
-def _fig10(d: Path, run: TrackingRun) -> None:
+def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) -> None:
     fig, (ax_b, ax_a) = new_figure(2, 1, figsize=(8, 6), sharex=True)
-    floor = 1e-12  # [m] / [rad]: exact zeros on a log axis
-    ax_b.semilogy(run.t, np.maximum(run.base_error, floor), color="C0", label="base point [m]")
-    ax_b.semilogy(
-        run.t, np.maximum(np.abs(run.heading_error), floor), color="C2", label="|heading| [rad]"
-    )
-    ax_a.semilogy(run.t, np.maximum(run.arm_com_error, floor), color="C1", label="arm CoM [m]")
+
+    def positive(v: FloatArray) -> FloatArray:  # exact zeros (t = 0) left off the log axis
+        return np.where(v > 0, v, np.nan)
+
+    ax_b.semilogy(run.t, positive(run.base_error), color="C0", label="base point [m]")
+    ax_b.semilogy(run.t, positive(np.abs(run.heading_error)), color="C2", label="|heading| [rad]")
+    ax_a.semilogy(run.t, positive(run.arm_com_error), color="C1", label="arm CoM [m]")
     ax_b.set(ylabel="error", title="(a) base: control point distance and heading")
     ax_a.set(xlabel="time [s]", ylabel="error [m]", title="(b) arm CoM distance")
+    for i, (a, b) in enumerate(collision_intervals):
+        label = "arm intersects the base (not constrained by the QP)" if i == 0 else None
+        ax_a.axvspan(a, b, color="C3", alpha=0.12, lw=0, label=label)
     for ax in (ax_b, ax_a):
         _mark_failures(ax, run)
         ax.grid(alpha=0.3, which="both")
