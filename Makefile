@@ -83,3 +83,21 @@ fig9 fig10 fig11 fig12: tracking
 
 bench-track: setup
 	$(PY) benchmarks/bench_tracking.py $(PROBLEM)
+
+## embedded controller (issue 6): the step as generated C, the standalone C closed loop, benchmarks
+.PHONY: codegen embedded bench
+codegen: setup
+	$(MMSTAB) codegen $(PROBLEM)
+
+embedded: setup
+	$(MMSTAB) codegen $(PROBLEM) -o results/codegen/embedded --example
+	results/codegen/embedded/mmstab_loop results/codegen/embedded/run.bin
+
+BENCH_STAMP := $(VENV)/.bench-stamp
+$(BENCH_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet --editable '.[dev,peer,bench]'
+	touch $(BENCH_STAMP)
+
+## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
+bench: $(BENCH_STAMP)
+	$(PY) benchmarks/bench_codegen.py $(PROBLEM)

@@ -37,7 +37,7 @@ def bench(
     loop, whole, per_step = [], [], []
     run = None
     for _ in range(repeats):
-        step: StepBackend | None = generated_step(prob) if generated else None
+        step: StepBackend | None = generated_step(prob, plugin) if generated else None
         t0 = time.perf_counter()
         run = simulate(prob, plan, step=step, progress=False)
         whole.append(time.perf_counter() - t0)

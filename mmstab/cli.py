@@ -111,6 +111,26 @@ def _fig8(args: argparse.Namespace) -> None:
     print(f"fig8: arm side per pose {s['sides']}")
 
 
+def _codegen(args: argparse.Namespace) -> None:
+    from mmstab.codegen import build_programs, check_plugin, generate
+
+    if args.plugin is not None:
+        check_plugin(args.plugin)  # qpOASES: a clear error before anything is loaded
+    problem = _problem(args)
+    gen = generate(problem, args.out, args.plugin, force=args.force)
+    how = "generated and compiled" if gen.rebuilt else "up to date"
+    print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
+    if args.example:
+        from mmstab import rollout as ro
+
+        plan = ro.example_plan(problem.robot)
+        state0 = ro.initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+        inputs = ro.run_inputs(problem, plan, state0=state0)
+        run = ro.write_run_file(ro.run_file_path(gen.directory), inputs)
+        progs = build_programs(gen)
+        print(f"codegen: example {progs.loop} and timing {progs.bench}; run file {run}")
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -121,6 +141,7 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
+    ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
 ]
 
 #: Options beyond ``problem`` and ``--out``, by command name.
@@ -141,6 +162,17 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             },
         ),
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+    ],
+    "codegen": [
+        (
+            "--plugin",
+            {"default": None, "help": "QP plugin: qrqp, daqp or osqp (default codegen.plugin)"},
+        ),
+        ("--force", {"action": "store_true", "help": "regenerate even if up to date"}),
+        (
+            "--example",
+            {"action": "store_true", "help": "also build the embedded example (embedded/)"},
+        ),
     ],
 }
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab import schema
+from mmstab.codegen import check_settings as _check_codegen
 from mmstab.config import ConfigError, read_yaml, validate
 from mmstab.controller import check_settings as _check_controller
 from mmstab.robot import Robot, load_robot
@@ -22,6 +23,7 @@ from mmstab.terrain import CirclePath, Ramp
 #: Semantic checks of a section beyond the schema: (problem path, section) -> None or raise.
 SECTION_CHECKS: dict[str, Callable[[Path, dict[str, Any]], None]] = {}
 SECTION_CHECKS["controller"] = _check_controller
+SECTION_CHECKS["codegen"] = _check_codegen
 
 
 @dataclass(frozen=True)

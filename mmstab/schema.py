@@ -119,6 +119,10 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         precision_samples=INT_POS,
         seed=SEED,
     ),
+    "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},  # qpoases: refused, clearly
+        directory={"type": "string", "minLength": 1},
+    ),
 }
 
 

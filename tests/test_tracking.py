@@ -337,13 +337,26 @@ def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
     assert data["state"].shape == (data["t"].size, 9)
 
 
-def test_generated_backend_without_codegen_is_a_clear_error(problem, tmp_path):
-    if importlib.util.find_spec("mmstab.codegen") is not None:
-        pytest.skip("mmstab.codegen is present: the generated backend exists")
+@pytest.mark.slow
+def test_generated_backend_gives_the_interpreted_trajectory(tmp_path):
+    """run_tracking(backend="generated") simulates with the compiled step: same run as qrqp."""
     from mmstab.experiments.tracking import run_tracking
 
-    with pytest.raises(MmstabError, match="mmstab.codegen"):
-        run_tracking(problem, tmp_path, backend="generated", plan=posture_plan(problem.robot))
+    def edit(prob, rob):
+        prob["codegen"]["directory"] = str(tmp_path / "gen")
+
+    problem = load_problem(write_problem(tmp_path, edit))
+    plan = posture_plan(problem.robot)
+    s = run_tracking(
+        problem, tmp_path / "out", backend="generated", plan=plan, duration=0.5, progress=False
+    )
+    assert (s["backend"], s["plugin"]) == ("generated", problem.section("codegen")["plugin"])
+    reference = simulate(problem, plan, plugin=s["plugin"], duration=0.5, progress=False)
+    run = np.load(tmp_path / "out" / "run.npz")
+    np.testing.assert_allclose(run["state"][-1], reference.state[-1], atol=1e-10)
+    assert s["arm_com_error_final_m"] == pytest.approx(reference.arm_com_error[-1], abs=1e-12)
+    with pytest.raises(MmstabError, match="qpOASES"):
+        run_tracking(problem, tmp_path / "out", "qpoases", backend="generated", plan=plan)
 
 
 @pytest.mark.slow

@@ -49,20 +49,25 @@ def with_plugin(problem: Problem, plugin: str | None) -> Problem:
     return problem_from_dict(data, problem.path)
 
 
-def generated_step(problem: Problem) -> StepBackend:
+def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
     """The code-generated controller step (``mmstab.codegen.load_step``, issue 6).
 
+    Args:
+        problem: the problem (``controller`` and ``codegen`` sections).
+        plugin: a code-generable QP plugin; default the problem's ``codegen.plugin``.
+
     Raises:
-        MmstabError: the code generator is not available in this installation.
+        MmstabError: the code generator is not available in this installation, the plugin
+            cannot be generated (qpOASES), or the build fails.
     """
     try:
-        from mmstab.codegen import load_step  # type: ignore[import-not-found,unused-ignore]
+        from mmstab.codegen import load_step
     except ImportError:
         raise MmstabError(
             "--backend generated needs mmstab.codegen.load_step (the code generator, issue 6), "
             "which this installation does not have; use --backend interpreted"
         ) from None
-    function = load_step(problem)
+    function = load_step(problem, plugin=plugin)
     if not isinstance(function, ca.Function):
         raise MmstabError(f"mmstab.codegen.load_step returned {type(function)}, not a Function")
     return StepBackend(function, "generated")
@@ -95,7 +100,8 @@ def run_tracking(
     Args:
         problem: the problem.
         out: output folder (default ``results/tracking``).
-        plugin: QP plugin (default the problem's ``controller.plugin``).
+        plugin: QP plugin (default the problem's ``controller.plugin``, or ``codegen.plugin``
+            for the generated backend).
         backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C, issue 6).
         duration: simulated time [s] (default the problem's ``controller.duration``).
         plan: an arm plan; default :func:`mmstab.planner.plan_path` on the problem.
@@ -107,8 +113,13 @@ def run_tracking(
     """
     if backend not in ("interpreted", "generated"):
         raise MmstabError(f"backend must be 'interpreted' or 'generated', got {backend!r}")
-    problem = with_plugin(problem, plugin)
-    step = generated_step(problem) if backend == "generated" else None  # fail before planning
+    step = None
+    if backend == "generated":  # default plugin: the code-generable codegen.plugin
+        plugin = plugin if plugin is not None else problem.section("codegen")["plugin"]
+        problem = with_plugin(problem, plugin)
+        step = generated_step(problem, plugin)  # build (or load) before planning: fail early
+    else:
+        problem = with_plugin(problem, plugin)
     if plan is None:
         plan = _plan(problem, progress)
     run = simulate(

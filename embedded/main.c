@@ -1,0 +1,147 @@
+/* mmstab embedded example: the tracking controller's closed loop in plain C.
+ *
+ * The template for putting the controller on a robot. The generated controller_step.c/.h
+ * (`mmstab codegen PROBLEM.yaml -o DIR`) is the whole controller: task Jacobian, QP, solver
+ * and answer check, as one C function with CasADi's calling convention
+ *
+ *   controller_step(arg, res, iw, w, mem)
+ *     arg[0] state (9)       [x, y, heading] of the base in the slope frame, then the joints
+ *                            [theta_l, theta_r, theta_0..theta_3]   [m, m, rad, rad...]
+ *     arg[1] reference (12)  [xi_des (6), xi_dot_ref (6)]: base point, heading, arm CoM
+ *     arg[2] params (34)     gains, weights, dt, joint speed and position limits
+ *     res[0] qdot (6)        joint speeds to command [rad/s] (zero = hold still on failure)
+ *     res[1] status          0 ok, 1 non-finite input, 2 infeasible bounds, 3 solver failed
+ *     res[2] objective       the QP's cost at qdot
+ *
+ * Real-time rules followed here: the work arrays are allocated once, statically, sized from
+ * the generated header and checked at start against controller_step_work(); nothing is
+ * allocated inside the loop (with the qrqp plugin the generated code references no allocator
+ * at all). On a robot, replace the run file by the planner's reference stream and
+ * integrate() by reading the encoders; keep the rest.
+ *
+ * Usage: mmstab_loop RUN_FILE   (written by `mmstab codegen PROBLEM.yaml -o DIR --example`)
+ * Prints the initial and final tracking errors, the failures, the loop's wall time, and the
+ * final state and error at full precision (lines "final_state:" and "final_error:").
+ */
+#define _POSIX_C_SOURCE 199309L
+#include <math.h>
+#include <stdio.h>
+#include <time.h>
+
+#include "controller_step.h"
+#include "motion.h"
+#include "run_file.h"
+
+enum { NX = 9, NQ = 6, NXI = 6, NREF = 12, NP = 34, NTRACK = 3 };
+
+/* Work arrays: the largest of the two generated functions used here, plus one (no 0-size). */
+#define MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define SZ_ARG (MAX2(controller_step_SZ_ARG, controller_task_SZ_ARG) + 1)
+#define SZ_RES (MAX2(controller_step_SZ_RES, controller_task_SZ_RES) + 1)
+#define SZ_IW (MAX2(controller_step_SZ_IW, controller_task_SZ_IW) + 1)
+#define SZ_W (MAX2(controller_step_SZ_W, controller_task_SZ_W) + 1)
+static const casadi_real* arg[SZ_ARG];
+static casadi_real* res[SZ_RES];
+static casadi_int iw[SZ_IW];
+static casadi_real w[SZ_W];
+
+typedef int (*WorkFn)(casadi_int*, casadi_int*, casadi_int*, casadi_int*);
+
+/* The generated function's own work sizes must fit the static arrays. */
+static int check_work(WorkFn work, const char* name) {
+  casadi_int n_arg, n_res, n_iw, n_w;
+  if (work(&n_arg, &n_res, &n_iw, &n_w) != 0 || n_arg > SZ_ARG || n_res > SZ_RES ||
+      n_iw > SZ_IW || n_w > SZ_W) {
+    fprintf(stderr, "%s: work arrays too small for the generated code\n", name);
+    return 1;
+  }
+  return 0;
+}
+
+/* Input i of a generated function must be a dense column of n numbers. */
+static int check_input(const casadi_int* sparsity, casadi_int n, const char* what) {
+  if (sparsity[0] != n || sparsity[1] != 1) {
+    fprintf(stderr, "generated controller: %s has %lld rows, expected %lld\n", what,
+            (long long)sparsity[0], (long long)n);
+    return 1;
+  }
+  return 0;
+}
+
+/* Tracking error xi_des - xi(state), heading wrapped to (-pi, pi]; 0 on success. */
+static int tracking_error(const double state[NX], const double ref[NREF], double e[NXI]) {
+  double xi[NXI];
+  int i;
+  arg[0] = state;
+  res[0] = xi;
+  if (controller_task(arg, res, iw, w, 0) != 0) return 1;
+  for (i = 0; i < NXI; ++i) e[i] = ref[i] - xi[i];
+  e[2] = atan2(sin(e[2]), cos(e[2]));
+  return 0;
+}
+
+static void print_errors(const char* when, const double e[NXI]) {
+  printf("%s tracking error: base point %.3e m, heading %.3e rad, arm CoM %.3e m\n", when,
+         hypot(e[0], e[1]), fabs(e[2]), sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]));
+}
+
+static double seconds(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+int main(int argc, char* argv[]) {
+  RunFile run;
+  double state[NX], qdot[NQ], status, objective, e0[NXI], e[NXI], t0, t1;
+  int64_t k, failures = 0;
+  int i, mem;
+  if (argc != 2) {
+    fprintf(stderr, "usage: %s RUN_FILE\n", argv[0]);
+    return 2;
+  }
+  if (check_work(controller_step_work, "controller_step") ||
+      check_work(controller_task_work, "controller_task") ||
+      check_input(controller_step_sparsity_in(0), NX, "state") ||
+      check_input(controller_step_sparsity_in(1), NREF, "reference") ||
+      check_input(controller_step_sparsity_in(2), NP, "params") ||
+      run_file_read(argv[1], &run, NX, NREF, NP, NTRACK))
+    return 1;
+  for (i = 0; i < NX; ++i) state[i] = run.state0[i];
+  if (tracking_error(state, run.reference, e0)) return 1;
+
+  mem = controller_step_checkout(); /* a memory slot of the solver (one per thread) */
+  if (mem < 0) return 1;
+  t0 = seconds();
+  for (k = 0; k < run.steps; ++k) {
+    arg[0] = state;                       /* the arguments are set before every call: */
+    arg[1] = run.reference + k * NREF;    /* tracking_error() and the solver's own calls */
+    arg[2] = run.params;                  /* use the same arrays as scratch */
+    res[0] = qdot;
+    res[1] = &status;
+    res[2] = &objective;
+    if (controller_step(arg, res, iw, w, mem) != 0 || status != 0) {
+      for (i = 0; i < NQ; ++i) qdot[i] = 0; /* the safe action: hold still */
+      ++failures;
+    }
+    integrate(state, qdot, run.dt, run.track); /* on a robot: command qdot, read encoders */
+  }
+  t1 = seconds();
+  controller_step_release(mem);
+
+  if (tracking_error(state, run.reference + run.steps * NREF, e)) return 1;
+  printf("closed loop: %lld steps of %g s (%g s simulated)\n", (long long)run.steps, run.dt,
+         (double)run.steps * run.dt);
+  print_errors("initial", e0);
+  print_errors("final  ", e);
+  printf("failures: %lld of %lld steps held still\n", (long long)failures, (long long)run.steps);
+  printf("loop wall time: %.4f s (%.3f us per step, controller + integration)\n", t1 - t0,
+         1e6 * (t1 - t0) / (double)run.steps);
+  printf("final_state:");
+  for (i = 0; i < NX; ++i) printf(" %.17g", state[i]);
+  printf("\nfinal_error:");
+  for (i = 0; i < NXI; ++i) printf(" %.17g", e[i]);
+  printf("\n");
+  run_file_free(&run);
+  return 0;
+}
