@@ -74,6 +74,16 @@ fig8: setup
 bench-plan: setup
 	$(PY) benchmarks/plan.py $(PROBLEM)
 
+## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
+.PHONY: tracking fig9 fig10 fig11 fig12 bench-track
+tracking: setup
+	$(MMSTAB) track $(PROBLEM)
+
+fig9 fig10 fig11 fig12: tracking
+
+bench-track: setup
+	$(PY) benchmarks/bench_tracking.py $(PROBLEM)
+
 ## embedded controller (issue 6): the step as generated C, the standalone C closed loop, benchmarks
 .PHONY: codegen embedded bench
 codegen: setup

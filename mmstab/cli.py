@@ -60,6 +60,20 @@ def _fig3(args: argparse.Namespace) -> None:
     )
 
 
+def _track(args: argparse.Namespace) -> None:
+    from mmstab.experiments.tracking import run_tracking
+
+    s = run_tracking(
+        _problem(args), args.out, args.plugin, backend=args.backend, duration=args.duration
+    )
+    print(
+        f"track: {s['steps']} steps ({s['plugin']}, {s['backend']}) in {s['wall_seconds']:.2f} s "
+        f"({s['us_per_step']:.1f} us/step); max error base {s['base_error_max_m']:.3g} m, "
+        f"arm CoM {s['arm_com_error_max_m']:.3g} m; final {s['base_error_final_m']:.2g} m, "
+        f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}"
+    )
+
+
 def _urdf(args: argparse.Namespace) -> None:
     from mmstab.robot import load_robot
     from mmstab.urdf import write_urdf
@@ -128,6 +142,7 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
     ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
+    ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
 ]
 
@@ -135,6 +150,21 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
     "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+    "track": [
+        (
+            "--plugin",
+            {"help": "QP plugin: qpoases, osqp, qrqp or daqp (default: the problem's)"},
+        ),
+        (
+            "--backend",
+            {
+                "choices": ("interpreted", "generated"),
+                "default": "interpreted",
+                "help": "controller step: CasADi interpreted, or the generated C library",
+            },
+        ),
+        ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+    ],
     "codegen": [
         (
             "--plugin",

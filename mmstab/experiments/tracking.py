@@ -1,0 +1,304 @@
+"""Paper Fig. 9-12: one tracking run around the circle on the ramp, four figures.
+
+Fig. 9: desired and actual paths of the base control point and the arm CoM on the slope.
+Fig. 10: tracking errors of both. Fig. 11: joint speeds of the arm and of the two tracks, with
+their limits. Fig. 12: stability μ along the run with the arm reconfiguring, removed, stowed.
+Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, the settings used).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections import Counter
+from pathlib import Path
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+
+from mmstab.config import MmstabError, write_figure, write_json, write_npz
+from mmstab.controller import PLUGINS
+from mmstab.experiments.common import output_dir, save_settings
+from mmstab.plotting import draw_base_topview, new_figure
+from mmstab.problem import Problem, problem_from_dict
+from mmstab.robot import FloatArray
+from mmstab.tracking import (
+    JOINT_NAMES,
+    STATE_NAMES,
+    InitialArm,
+    StepBackend,
+    TrackingPlan,
+    TrackingRun,
+    simulate,
+    summarize,
+)
+
+Backend = Literal["interpreted", "generated"]
+#: Sample spacing of the saved arrays (``run.npz``) [s].
+SAVE_EVERY_S = 0.01
+
+
+def with_plugin(problem: Problem, plugin: str | None) -> Problem:
+    """The problem with ``controller.plugin`` replaced (validated again); itself if None."""
+    if plugin is None or plugin == problem.section("controller")["plugin"]:
+        return problem
+    if plugin not in PLUGINS:
+        raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {', '.join(PLUGINS)}")
+    data = copy.deepcopy(problem.data)
+    data["controller"]["plugin"] = plugin
+    return problem_from_dict(data, problem.path)
+
+
+def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
+    """The code-generated controller step (``mmstab.codegen.load_step``, issue 6).
+
+    Args:
+        problem: the problem (``controller`` and ``codegen`` sections).
+        plugin: a code-generable QP plugin; default the problem's ``codegen.plugin``.
+
+    Raises:
+        MmstabError: the code generator is not available in this installation, the plugin
+            cannot be generated (qpOASES), or the build fails.
+    """
+    try:
+        from mmstab.codegen import load_step
+    except ImportError:
+        raise MmstabError(
+            "--backend generated needs mmstab.codegen.load_step (the code generator, issue 6), "
+            "which this installation does not have; use --backend interpreted"
+        ) from None
+    function = load_step(problem, plugin=plugin)
+    if not isinstance(function, ca.Function):
+        raise MmstabError(f"mmstab.codegen.load_step returned {type(function)}, not a Function")
+    return StepBackend(function, "generated")
+
+
+def _plan(problem: Problem, progress: bool) -> TrackingPlan:
+    try:
+        from mmstab.planner import plan_path
+    except ImportError:
+        raise MmstabError(
+            "tracking needs the arm plan from mmstab.planner (issue 4), which this installation "
+            "does not have; pass a plan to run_tracking(plan=...)"
+        ) from None
+    return plan_path(problem, progress=progress)
+
+
+def run_tracking(
+    problem: Problem,
+    out: str | Path | None = None,
+    plugin: str | None = None,
+    *,
+    backend: Backend = "interpreted",
+    duration: float | None = None,
+    plan: TrackingPlan | None = None,
+    initial_arm: InitialArm = "stowed",
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Plan (unless given), track one lap, write Fig. 9-12 and the summary.
+
+    Args:
+        problem: the problem.
+        out: output folder (default ``results/tracking``).
+        plugin: QP plugin (default the problem's ``controller.plugin``, or ``codegen.plugin``
+            for the generated backend).
+        backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C, issue 6).
+        duration: simulated time [s] (default the problem's ``controller.duration``).
+        plan: an arm plan; default :func:`mmstab.planner.plan_path` on the problem.
+        initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
+        progress: show progress bars.
+
+    Returns:
+        The summary written to ``summary.json``.
+    """
+    if backend not in ("interpreted", "generated"):
+        raise MmstabError(f"backend must be 'interpreted' or 'generated', got {backend!r}")
+    step = None
+    if backend == "generated":  # default plugin: the code-generable codegen.plugin
+        plugin = plugin if plugin is not None else problem.section("codegen")["plugin"]
+        problem = with_plugin(problem, plugin)
+        step = generated_step(problem, plugin)  # build (or load) before planning: fail early
+    else:
+        problem = with_plugin(problem, plugin)
+    if plan is None:
+        plan = _plan(problem, progress)
+    run = simulate(
+        problem, plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
+    )
+    d = output_dir(out, "tracking")
+    every = max(int(round(SAVE_EVERY_S / run.dt)), 1)
+    keep = np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+    collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
+    _fig9(d, problem, run)
+    _fig10(d, run, collisions["intervals_s"])
+    _fig11(d, run)
+    _fig12(d, problem, run)
+    applied = np.vstack([run.qdot, run.qdot[-1:]])  # q̇ over [t_k, t_k+1), repeated at the end
+    write_npz(
+        d / "run.npz",
+        t=run.t[keep],
+        state=run.state[keep],
+        state_names=np.array(STATE_NAMES),
+        qdot=applied[keep],
+        joint_names=np.array(JOINT_NAMES),
+        xi=run.xi[keep],
+        xi_des=run.xi_des[keep],
+        base_error=run.base_error[keep],
+        heading_error=run.heading_error[keep],
+        arm_com_error=run.arm_com_error[keep],
+        mu_reconfigured=run.mu.reconfigured[keep],
+        mu_arm_removed=run.mu.arm_removed[keep],
+        mu_stowed=run.mu.stowed[keep],
+        failure_times=np.array([f.time for f in run.failures]),
+        plan_fractions=np.asarray(plan.fractions),
+        plan_target_com=np.asarray(plan.target_com),
+    )
+    summary = summarize(run)
+    summary["plan_poses"] = int(np.asarray(plan.fractions).size)
+    summary["arm_self_collision"] = collisions
+    save_settings(
+        d,
+        problem,
+        tracking={
+            "plugin": run.plugin,
+            "backend": run.backend,
+            "duration": float(run.t[-1]),
+            "initial_arm": run.initial_arm,
+        },
+    )
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
+    """Where the tracked arm intersects the base or itself (the controller does not check).
+
+    The QP tracks the arm CoM only (3 rows for 4 joints, Eq. 7), so the arm's posture is
+    whatever the joint-speed weights make of the redundancy, not the planner's collision-free
+    posture: this reports what that gives.
+
+    Args:
+        problem: the problem (robot geometry).
+        t: sample times (N,) [s].
+        q_arm: arm postures (N, 4) [rad].
+
+    Returns:
+        samples checked, colliding samples and share, the colliding time intervals [s]
+        (from the first colliding sample to the first free one after it) and the colliding
+        pairs with the number of samples each.
+    """
+    from mmstab.collision import CollisionChecker
+
+    checker = CollisionChecker(problem.robot)
+    hit = np.asarray(checker.collides(q_arm), dtype=bool)
+    edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0]))
+    intervals = [
+        [float(t[a]), float(t[min(b, t.size - 1)])] for a, b in edges.reshape(-1, 2).tolist()
+    ]
+    pairs: Counter[str] = Counter()
+    for k in np.flatnonzero(hit):
+        pairs.update(checker.colliding_pairs(q_arm[k]))
+    return {
+        "samples": int(t.size),
+        "colliding_samples": int(hit.sum()),
+        "colliding_share": float(hit.mean()),
+        "intervals_s": intervals,
+        "pairs": dict(pairs.most_common()),
+    }
+
+
+# ------------------------------------------------------------------------------------ figures
+def _fig9(d: Path, problem: Problem, run: TrackingRun) -> None:
+    fig, (ax, ax_z) = new_figure(1, 2, figsize=(11, 4.8), width_ratios=[1.25, 1])
+    xi, des = run.xi, run.xi_des
+    ax.plot(des[:, 0], des[:, 1], "--", color="0.45", lw=1.2, label="base point, desired")
+    ax.plot(xi[:, 0], xi[:, 1], "-", color="C0", lw=1.4, label="base point, actual")
+    ax.plot(des[:, 3], des[:, 4], "--", color="C3", lw=1.2, alpha=0.7, label="arm CoM, desired")
+    ax.plot(xi[:, 3], xi[:, 4], "-", color="C1", lw=1.2, label="arm CoM, actual")
+    ax.plot(xi[0, 3], xi[0, 4], "o", color="C1", ms=5, label="arm CoM at t = 0")
+    for k in np.linspace(0, run.t.size - 1, 7)[:-1].astype(int):
+        draw_base_topview(ax, problem.robot, run.state[k, :3], color="0.75")
+    ax.set(
+        aspect="equal",
+        xlabel="$x_S$ [m]",
+        ylabel="$y_S$ [m] (uphill)",
+        title=f"(a) on the slope ({np.degrees(problem.ramp.slope):.1f} deg), seen from above",
+    )
+    ax.legend(fontsize=7, loc="center")
+    ax_z.plot(run.t, des[:, 5], "--", color="C3", label="desired")
+    ax_z.plot(run.t, xi[:, 5], "-", color="C1", label="actual")
+    ax_z.set(xlabel="time [s]", ylabel="arm CoM height above the slope [m]", title="(b) height")
+    ax_z.legend(fontsize=8)
+    for a in (ax, ax_z):
+        a.grid(alpha=0.3)
+    fig.suptitle("Fig. 9: desired and actual paths of the base control point and the arm CoM")
+    write_figure(d / "fig9.png", fig)
+
+
+def _mark_failures(ax: Any, run: TrackingRun) -> None:
+    for i, f in enumerate(run.failures[:200]):
+        ax.axvline(f.time, color="r", lw=0.5, alpha=0.5, label="QP failure" if i == 0 else None)
+
+
+def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) -> None:
+    fig, (ax_b, ax_a) = new_figure(2, 1, figsize=(8, 6), sharex=True)
+
+    def positive(v: FloatArray) -> FloatArray:  # exact zeros (t = 0) left off the log axis
+        return np.where(v > 0, v, np.nan)
+
+    ax_b.semilogy(run.t, positive(run.base_error), color="C0", label="base point [m]")
+    ax_b.semilogy(run.t, positive(np.abs(run.heading_error)), color="C2", label="|heading| [rad]")
+    ax_a.semilogy(run.t, positive(run.arm_com_error), color="C1", label="arm CoM [m]")
+    ax_b.set(ylabel="error", title="(a) base: control point distance and heading")
+    ax_a.set(xlabel="time [s]", ylabel="error [m]", title="(b) arm CoM distance")
+    for i, (a, b) in enumerate(collision_intervals):
+        label = "arm intersects the base (not constrained by the QP)" if i == 0 else None
+        ax_a.axvspan(a, b, color="C3", alpha=0.12, lw=0, label=label)
+    for ax in (ax_b, ax_a):
+        _mark_failures(ax, run)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle("Fig. 10: tracking errors")
+    write_figure(d / "fig10.png", fig)
+
+
+def _fig11(d: Path, run: TrackingRun) -> None:
+    fig, axes = new_figure(2, 2, figsize=(12, 6.5), width_ratios=[1.6, 1])
+    t_q = run.t[:-1]  # q̇ holds over [t_k, t_k+1)
+    zoom = t_q <= min(1.0, float(t_q[-1]))
+    groups = [(slice(2, 6), "(a) arm joints"), (slice(0, 2), "(b) tracks (sprockets)")]
+    for row, (cols, title) in enumerate(groups):
+        for col, mask in enumerate((np.ones_like(zoom), zoom)):
+            ax = axes[row, col]
+            for j in range(6)[cols]:
+                ax.plot(t_q[mask], run.qdot[mask, j], lw=1.0, color=f"C{j}", label=JOINT_NAMES[j])
+            lim = float(np.max(run.qdot_limit[cols]))
+            for sign in (1, -1):
+                ax.axhline(
+                    sign * lim, color="k", ls="--", lw=0.8, label="limit" if sign > 0 else None
+                )
+            ax.set(ylabel="[rad/s]", title=title + (" (first second)" if col else ""))
+            ax.grid(alpha=0.3)
+            if col == 0:
+                ax.legend(fontsize=7, ncol=3, loc="lower right")
+    for ax in axes[1]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle("Fig. 11: joint speeds and their limits (±4π rad/s)")
+    write_figure(d / "fig11.png", fig)
+
+
+def _fig12(d: Path, problem: Problem, run: TrackingRun) -> None:
+    fig, ax = new_figure(figsize=(8, 4.2))
+    mu = run.mu
+    ax.plot(run.t, mu.reconfigured, color="C0", label="arm reconfiguring (tracked)")
+    ax.plot(run.t, mu.stowed, color="C2", ls=":", label="arm held stowed")
+    ax.plot(run.t, mu.arm_removed, color="0.4", ls="--", label="arm removed")
+    ax.set(
+        xlabel="time [s]",
+        ylabel="force-angle stability $\\mu$ [N rad]",
+        title=f"Fig. 12: stability along the run (slope {np.degrees(problem.ramp.slope):.1f} deg)",
+    )
+    _mark_failures(ax, run)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    write_figure(d / "fig12.png", fig)
