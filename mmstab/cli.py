@@ -122,7 +122,6 @@ def _codegen(args: argparse.Namespace) -> None:
     print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
     if args.example:
         from mmstab import rollout as ro
-
         from mmstab.planner import plan_path
 
         plan = plan_path(problem)  # the ramp circle with the planned arm CoMs
