@@ -18,8 +18,9 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-## the main job on the default problem
-demo: setup fig5 fig6
+## the main job on the default problem: the paper's pipeline, every stage and figure
+## (workspace V -> stability sweeps -> CMA-ES plan -> tracking on the ramp -> animation)
+demo: setup fig3 fig5 fig6 fig7 fig8 tracking animation
 
 test: setup
 	$(PY) -m pytest -q
@@ -40,7 +41,7 @@ fig5: setup
 fig6: setup
 	$(MMSTAB) fig6 $(PROBLEM)
 
-figures: fig5 fig6
+figures: fig3 fig5 fig6 fig7 fig8 tracking animation
 
 ## benchmark (not a test): µs per controller step per QP plugin -> results/bench/controller.json
 bench-controller: setup
@@ -101,3 +102,8 @@ $(BENCH_STAMP): $(STAMP)
 ## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
 bench: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_codegen.py $(PROBLEM)
+
+## issue 7: the tracking run animated -> results/tracking/animation.gif
+.PHONY: animation
+animation: setup
+	$(MMSTAB) animation $(PROBLEM)

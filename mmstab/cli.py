@@ -132,6 +132,13 @@ def _codegen(args: argparse.Namespace) -> None:
         print(f"codegen: example {progs.loop} and timing {progs.bench}; run file {run}")
 
 
+def _animation(args: argparse.Namespace) -> None:
+    from mmstab.experiments.animation import run_animation
+
+    s = run_animation(_problem(args), args.out)
+    print(f"animation: {s['frames']} frames -> {s['gif']}")
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -143,6 +150,7 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
+    ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
 ]
 
 #: Options beyond ``problem`` and ``--out``, by command name.

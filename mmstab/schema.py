@@ -123,6 +123,12 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},  # qpoases: refused, clearly
         directory={"type": "string", "minLength": 1},
     ),
+    "animation": obj(  # make animation: the tracking run as a GIF
+        frames={"type": "integer", "minimum": 2},
+        fps={"type": "integer", "minimum": 1, "maximum": 50},
+        width={"type": "integer", "minimum": 64, "maximum": 1920},
+        height={"type": "integer", "minimum": 64, "maximum": 1080},
+    ),
 }
 
 
