@@ -26,13 +26,13 @@ test: setup
 	$(PY) -m pytest -q
 
 lint: setup
-	$(VENV)/bin/ruff check mmstab tests
-	$(VENV)/bin/ruff format --check mmstab tests
+	$(VENV)/bin/ruff check mmstab tests benchmarks
+	$(VENV)/bin/ruff format --check mmstab tests benchmarks
 	$(VENV)/bin/mypy mmstab
 
 format: setup
-	$(VENV)/bin/ruff format mmstab tests
-	$(VENV)/bin/ruff check --fix mmstab tests
+	$(VENV)/bin/ruff format mmstab tests benchmarks
+	$(VENV)/bin/ruff check --fix mmstab tests benchmarks
 
 ## paper experiments: one target each, results in results/<name>/
 fig5: setup
