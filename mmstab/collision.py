@@ -287,9 +287,10 @@ def sequence_collisions(
     edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0])).reshape(-1, 2)
     intervals = [[float(xs[a]), float(xs[min(b, xs.size - 1)])] for a, b in edges.tolist()]
     counts: dict[str, int] = {}
-    for k in np.flatnonzero(hit):
-        for name in checker.colliding_pairs(qa[k]):
-            counts[name] = counts.get(name, 0) + 1
+    unique, repeats = np.unique(qa[hit], axis=0, return_counts=True)  # each posture once
+    for q_k, n in zip(unique, repeats, strict=True):
+        for name in checker.colliding_pairs(q_k):
+            counts[name] = counts.get(name, 0) + int(n)
     pairs = dict(sorted(counts.items(), key=lambda kv: -kv[1]))
     report = SequenceCollisions(
         int(hit.size), int(hit.sum()), float(hit.mean()) if hit.size else 0.0, intervals, pairs

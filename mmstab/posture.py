@@ -270,6 +270,8 @@ def build_posture_reference(
         added = []
         for (a, b), interval in zip(_stretches(hit), ref.check.intervals, strict=True):
             mid = (a + b - 1) // 2
+            if np.any((ref.fractions >= s[a]) & (ref.fractions <= s[b - 1])):
+                continue  # a knot itself collides (a plan's posture): no via posture helps
             if np.min(np.abs(ref.fractions - s[mid])) < 1.0 / samples:
                 continue  # a knot already sits there: another one would only make a kink
             k = int(np.searchsorted(ref.fractions, s[mid]))

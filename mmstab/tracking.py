@@ -26,8 +26,11 @@ state components at fault.
 
 **Initial state.** The base starts on the reference start pose (the circle at s = 0), sprocket
 angles zero. The arm starts ``stowed`` by default (the robot arrives with its arm folded, as
-the paper's Fig. 11(a) suggests: the arm joints saturate early, while the arm reconfigures),
-or at the plan's first posture (``initial_arm="planned"``: no transient).
+the paper's Fig. 11(a) suggests) or at the plan's first posture (``initial_arm="planned"``).
+For the first ``approach_time`` seconds the arm's references follow a collision-free path
+from that posture onto the lap's (:class:`mmstab.posture.Approach`); with ``approach_time: 0``
+they are the lap's from t = 0, a step the arm takes at saturated joint speeds, through the
+body on the default problem.
 
 **Stability.** After the loop, vectorised over every recorded sample: μ with the arm as it
 moved (``reconfigured``), with the arm held stowed on the same base trajectory (``stowed``)
@@ -567,9 +570,12 @@ def _run_loop(
 def transient_end(run: TrackingRun) -> int:
     """The sample where the initial transient ends (0 when the arm starts on its reference).
 
-    The first index from which the arm-CoM error stays within :data:`TRANSIENT_FRACTION` of
-    its initial value.
+    With a start-up approach, the first sample at or after its end. Without one, the first
+    index from which the arm-CoM error stays within :data:`TRANSIENT_FRACTION` of its initial
+    value.
     """
+    if run.approach is not None:
+        return int(np.searchsorted(run.t, run.approach.duration - 0.5 * run.dt))
     e = run.arm_com_error
     above = np.flatnonzero(e > TRANSIENT_FRACTION * e[0])
     return int(above[-1] + 1) if above.size and e[0] > 0 else 0
@@ -580,7 +586,8 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
 
     Besides the whole-run numbers, ``after_transient`` repeats errors, mean joint speeds and
     μ from :func:`transient_end` on: the initial reconfiguration (from the stowed arm)
-    dominates the whole-run maxima and minima. ``posture_reference`` is the posture
+    dominates the whole-run maxima and minima (with an approach: the approach is the transient).
+    ``posture_reference`` is the posture
     reference's collision check and via postures (:meth:`PostureReference.summary`).
     """
     names = JOINT_NAMES

@@ -168,6 +168,27 @@ def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
         assert np.linalg.eigvalsh(qp.H).min() > 0
 
 
+def test_certificate_judges_the_posture_term(robot, controllers, rng):
+    """The in-graph certificate uses the whole cost: the answer of Eq. 7 without the posture
+    term is refused (SOLVER_FAILED), the true optimum accepted."""
+    from mmstab.controller import _build_guard_and_certificate
+
+    c = controllers["qrqp"]
+    _, certificate = _build_guard_and_certificate(c.settings.kkt_tol)
+    W_q = np.r_[0.0, 0.0, c.params.posture_weight]
+    refused = 0
+    for state in random_states(robot, rng, 10, margin=0.3):
+        ref = random_reference(robot, c, state, rng)
+        qp = c.qp_data(state, *ref)
+        H0, g0 = qp.H - np.diag(W_q), qp.g + W_q * np.r_[0.0, 0.0, qp.q_dot_posture]
+        without = np.asarray(c.conic(h=H0, g=g0, lbx=qp.lbx, ubx=qp.ubx)["x"]).ravel()
+        args = (qp.H, qp.g, qp.lbx, qp.ubx, qp.cost0, float(qp.status))
+        best = c.solve(state, *ref).qdot
+        assert float(certificate(best, *args)[1]) == QPStatus.SUCCESS
+        refused += float(certificate(without, *args)[1]) == QPStatus.SOLVER_FAILED
+    assert refused == 10
+
+
 def test_default_posture_reference_is_the_current_posture(robot, controllers, rng):
     """Without q_ref the posture term only damps the arm: q̇_post = 0, W_q adds to W_B."""
     c = controllers["qpoases"]
