@@ -78,8 +78,9 @@ def bench_interpreted(problem: Problem, inputs: RunInputs, states: np.ndarray, i
         solve_t = []
         with quiet_stdout() if plugin == "osqp" else contextlib.nullcontext():  # OSQP polish
             for k in idx:
+                ref_k = StepReference.unpack(ref[k])
                 t = time.perf_counter()
-                ctrl.solve(states[k], *StepReference.unpack(ref[k]))
+                ctrl.solve(states[k], *ref_k)
                 solve_t.append(time.perf_counter() - t)
             call = bench_external(ctrl.step, inputs, states, idx)
         out[plugin] = {"solve_us": _us(solve_t), **call}

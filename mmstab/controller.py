@@ -119,11 +119,12 @@ PLUGINS = ("qpoases", "osqp", "qrqp", "daqp")
 CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp")
 
 
-#: (name, slice, size) of each field of the reference vector, and what an unset one becomes.
-_REFERENCE_FIELDS = tuple(
-    (name, sl, sl.stop - sl.start) for name, sl in StepReference.offsets().items()
-)
-_UNSET = (None, "zero", "posture", "zero")
+#: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref in the reference vector.
+_REFERENCE_SLICES = tuple(StepReference.offsets().values())
+
+
+def _shape_error(name: str, value: Any, n: int) -> ValueError:
+    return ValueError(f"{name} must have shape ({n},), got {np.shape(value)}")
 
 
 class QPStatus(IntEnum):
@@ -165,7 +166,7 @@ class ControllerSettings:
         plugin: QP plugin, one of :data:`PLUGINS`.
         feedforward: add ξ̇_ref to ξ̇_des and q̇_ref to q̇_post.
         base_offset: base control point ahead of the body origin d [m].
-        approach_time: length of the arm's start-up reference [s] (:mod:`mmstab.posture`;
+        approach_time: length of the arm's start-up reference [s] (:mod:`mmstab.approach`;
             0: the lap's references from t = 0).
         kkt_tol: tolerance of the in-graph solution certificate [rad/s].
         osqp: OSQP options.
@@ -390,22 +391,33 @@ class Controller:
         q_ref: ArrayLike | None,
         q_dot_ref: ArrayLike | None,
     ) -> None:
-        if np.shape(state) != (STATE_SIZE,):
-            raise ValueError(f"state must have shape ({STATE_SIZE},), got {np.shape(state)}")
-        self._state[:] = state
+        # written out (no loop): this runs every control step
+        xi_sl, xi_dot_sl, q_sl, q_dot_sl = _REFERENCE_SLICES
         ref = self._ref
-        # unset: no feed-forward, and the posture held (q_ref = the current arm posture)
-        for (name, sl, n), value, unset in zip(
-            _REFERENCE_FIELDS, (xi_des, xi_dot_ref, q_ref, q_dot_ref), _UNSET, strict=True
-        ):
-            if value is None:
-                if unset is None:
-                    raise ValueError(f"{name} is required")
-                ref[sl] = self._state[ARM] if unset == "posture" else 0.0
-            elif np.shape(value) != (n,):
-                raise ValueError(f"{name} must have shape ({n},), got {np.shape(value)}")
-            else:
-                ref[sl] = value
+        if np.shape(state) != (STATE_SIZE,):
+            raise _shape_error("state", state, STATE_SIZE)
+        self._state[:] = state
+        if np.shape(xi_des) != (TASK_SIZE,):
+            raise _shape_error("xi_des", xi_des, TASK_SIZE)
+        ref[xi_sl] = xi_des
+        if xi_dot_ref is None:  # no feed-forward
+            ref[xi_dot_sl] = 0.0
+        elif np.shape(xi_dot_ref) != (TASK_SIZE,):
+            raise _shape_error("xi_dot_ref", xi_dot_ref, TASK_SIZE)
+        else:
+            ref[xi_dot_sl] = xi_dot_ref
+        if q_ref is None:  # the posture held: the posture task only damps the arm
+            ref[q_sl] = self._state[ARM]
+        elif np.shape(q_ref) != (ARM_JOINTS,):
+            raise _shape_error("q_ref", q_ref, ARM_JOINTS)
+        else:
+            ref[q_sl] = q_ref
+        if q_dot_ref is None:
+            ref[q_dot_sl] = 0.0
+        elif np.shape(q_dot_ref) != (ARM_JOINTS,):
+            raise _shape_error("q_dot_ref", q_dot_ref, ARM_JOINTS)
+        else:
+            ref[q_dot_sl] = q_dot_ref
 
     def solve(
         self,

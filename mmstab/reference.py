@@ -237,7 +237,7 @@ def posture_reference(
 
 
 class ApproachLike(Protocol):
-    """The arm's start-up reference over the first ``duration`` seconds (``posture.Approach``)."""
+    """The arm's start-up reference over the first ``duration`` seconds (``approach.Approach``)."""
 
     @property
     def duration(self) -> float:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import casadi as ca
 import numpy as np
 
+from mmstab.approach import arm_references
 from mmstab.codegen import (
     ROLLOUT_CHUNK,
     ROLLOUT_NAME,
@@ -49,7 +50,7 @@ from mmstab.controller import (
     StepReference,
     build_controller,
 )
-from mmstab.posture import PosturePlan, PostureReference, arm_references
+from mmstab.posture import PosturePlan, PostureReference
 from mmstab.reference import task_reference
 from mmstab.robot import FloatArray, Robot
 
@@ -178,7 +179,7 @@ def run_inputs(
         posture: the lap's posture reference (default
             :func:`mmstab.posture.build_posture_reference` of the plan, checked at every
             control period of a lap, as in the simulation); the start-up approach is built
-            from ``state0``'s arm (:func:`mmstab.posture.arm_references`).
+            from ``state0``'s arm (:func:`mmstab.approach.arm_references`).
     """
     settings = settings or ControllerSettings.from_section(problem.section("controller"))
     n = int(round(settings.duration / settings.dt)) if steps is None else int(steps)

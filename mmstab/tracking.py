@@ -28,7 +28,7 @@ state components at fault.
 angles zero. The arm starts ``stowed`` by default (the robot arrives with its arm folded, as
 the paper's Fig. 11(a) suggests) or at the plan's first posture (``initial_arm="planned"``).
 For the first ``approach_time`` seconds the arm's references follow a collision-free path
-from that posture onto the lap's (:class:`mmstab.posture.Approach`); with ``approach_time: 0``
+from that posture onto the lap's (:class:`mmstab.approach.Approach`); with ``approach_time: 0``
 they are the lap's from t = 0, a step the arm takes at saturated joint speeds, through the
 body on the default problem.
 
@@ -47,6 +47,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mmstab.approach import Approach, arm_references
 from mmstab.config import MmstabError
 from mmstab.controller import (
     ARM,
@@ -64,7 +65,7 @@ from mmstab.controller import (
     quiet_stdout,
 )
 from mmstab.ik import COM_TOLERANCE
-from mmstab.posture import Approach, PostureReference, arm_references
+from mmstab.posture import PostureReference
 from mmstab.problem import Problem
 from mmstab.reference import PlanLike, task_reference
 from mmstab.robot import FloatArray, Robot
@@ -402,7 +403,7 @@ def simulate(
         posture: the lap's posture reference, if already built; default
             :func:`mmstab.posture.build_posture_reference` of the plan, checked (and repaired)
             at every control period of a lap. The start-up approach (``approach_time``) is
-            built from the initial arm posture (:func:`mmstab.posture.arm_references`).
+            built from the initial arm posture (:func:`mmstab.approach.arm_references`).
 
     Returns:
         The recorded run.

@@ -566,8 +566,8 @@ def test_short_closed_loop_from_a_planned_posture_stays_collision_free(
 
 
 def test_approach_from_stowed_is_collision_free_and_meets_the_lap(problem, default_posture):
+    from mmstab.approach import build_approach
     from mmstab.collision import CollisionChecker
-    from mmstab.posture import build_approach
 
     robot, s = problem.robot, settings_of(problem)
     ap = build_approach(robot, robot.stowed, default_posture, s.approach_time, s.lap_time, s.dt)
