@@ -36,7 +36,15 @@ import numpy as np
 
 from mmstab.codegen import CODEGEN_PLUGINS, EMBEDDED_DIR, STEP_NAME, build_programs, generate
 from mmstab.config import write_json
-from mmstab.controller import PLUGINS, TASK_SIZE, build_controller, quiet_stdout
+from mmstab.controller import (
+    PARAMS_SIZE,
+    PLUGINS,
+    REFERENCE_SIZE,
+    STATE_SIZE,
+    StepReference,
+    build_controller,
+    quiet_stdout,
+)
 from mmstab.problem import Problem, load_problem
 from mmstab.robot import Robot
 from mmstab.rollout import (
@@ -70,8 +78,9 @@ def bench_interpreted(problem: Problem, inputs: RunInputs, states: np.ndarray, i
         solve_t = []
         with quiet_stdout() if plugin == "osqp" else contextlib.nullcontext():  # OSQP polish
             for k in idx:
+                ref_k = StepReference.unpack(ref[k])
                 t = time.perf_counter()
-                ctrl.solve(states[k], ref[k, :TASK_SIZE], ref[k, TASK_SIZE:])
+                ctrl.solve(states[k], *ref_k)
                 solve_t.append(time.perf_counter() - t)
             call = bench_external(ctrl.step, inputs, states, idx)
         out[plugin] = {"solve_us": _us(solve_t), **call}
@@ -80,7 +89,8 @@ def bench_interpreted(problem: Problem, inputs: RunInputs, states: np.ndarray, i
 
 def bench_external(f: ca.Function, inputs: RunInputs, states: np.ndarray, idx) -> dict:
     """(b) A generated library's step through ``Function.buffer`` on replayed states."""
-    state, ref, p = np.zeros(9), np.zeros(12), np.array(inputs.params)
+    state, ref, p = np.zeros(STATE_SIZE), np.zeros(REFERENCE_SIZE), np.array(inputs.params)
+    assert p.size == PARAMS_SIZE
     qdot, status, objective = np.zeros(6), np.zeros(1), np.zeros(1)
     buf, ev = f.buffer()
     for i, a in enumerate((state, ref, p)):

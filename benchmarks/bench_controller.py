@@ -1,7 +1,8 @@
 """Benchmark: µs per interpreted controller step, per QP plugin (not a test).
 
-Runs the default problem's closed loop (circle reference on the ramp, a fixed arm-CoM target,
-start 0.1 m off the path with the arm stowed, so the first second saturates joint speeds) for
+Runs the default problem's closed loop (circle reference on the ramp, a fixed arm posture and
+its CoM as the target, start 0.1 m off the path with the arm stowed, the arm on its start-up
+approach for the first ``approach_time``) for
 ``--seconds`` of simulated time and times every ``Controller.solve`` call. Also times the same
 ``step`` Function called the usual ways (keyword/dict arguments; positional NumPy arguments),
 to show where the per-call overhead goes. Medians; the machine is shared, so expect noise.
@@ -22,9 +23,15 @@ import casadi as ca
 import numpy as np
 
 from mmstab.config import write_json
-from mmstab.controller import PLUGINS, ControllerSettings, build_controller, quiet_stdout
+from mmstab.controller import (
+    PLUGINS,
+    ControllerSettings,
+    StepReference,
+    build_controller,
+    quiet_stdout,
+)
 from mmstab.problem import load_problem
-from mmstab.reference import arm_reference, task_reference
+from mmstab.rollout import initial_state, run_inputs
 
 ARM_TARGET_POSTURE = np.array([2.0, 0.3, -0.5, 0.2])  # a reachable arm posture [rad]
 
@@ -35,34 +42,28 @@ def _median_us(samples: list[float]) -> float:
 
 def bench_plugin(problem, settings: ControllerSettings, seconds: float) -> dict:
     """Closed-loop run with one plugin; per-call timings of solve and of plain Function calls."""
-    robot, circle = problem.robot, problem.circle
+    robot = problem.robot
     t0 = time.perf_counter()
     c = build_controller(robot, settings)
     build_s = time.perf_counter() - t0
     steps = int(round(seconds / settings.dt))
-    plan = SimpleNamespace(
-        fractions=np.zeros(1), target_com=robot.arm_com(ARM_TARGET_POSTURE)[None]
-    )
-    xi_des, xi_dot = task_reference(
-        circle,
-        settings.lap_time,
-        settings.base_offset,
-        arm_reference(plan, circle),
-        np.arange(steps) * settings.dt,
-    )
-    pose = circle.pose_at(0.0)[0]
-    normal = np.array([-np.sin(pose[2]), np.cos(pose[2])])
-    state = np.r_[pose[:2] + 0.1 * normal, pose[2], 0.0, 0.0, robot.stowed]
+    q = ARM_TARGET_POSTURE[None]
+    plan = SimpleNamespace(fractions=np.zeros(1), target_com=robot.arm_com(q), postures=q)
+    state = initial_state(problem, plan, lateral_offset=0.1, arm=robot.stowed)
+    inputs = run_inputs(problem, plan, steps=steps, state0=state, settings=settings)
+    refs = StepReference.unpack(inputs.reference)
+    xi_des = refs.xi_des
     solve_t, saturated = [], 0
     for k in range(steps):
+        ref_k = StepReference.unpack(inputs.reference[k])
         t = time.perf_counter()
-        res = c.solve(state, xi_des[k], xi_dot[k])
+        res = c.solve(state, *ref_k)
         solve_t.append(time.perf_counter() - t)
         saturated += bool(np.any(np.isclose(np.abs(res.qdot), c.params.qdot_max, atol=1e-9)))
         state = c.model.integrate(state, res.qdot, settings.dt)
     final_error = np.linalg.norm(xi_des[-1] - c.model.task(state))
     # the same Function, called the ordinary ways, at the final state
-    ref, p = np.r_[xi_des[-1], xi_dot[-1]], c.params.pack()
+    ref, p = inputs.reference[-1], c.params.pack()
     dict_t, pos_t = [], []
     with quiet_stdout():  # OSQP's polish line; both timings pay the same
         for _ in range(min(steps, 2000)):

@@ -14,11 +14,19 @@
 #include <stdlib.h>
 #include <time.h>
 
+#include "controller_layout.h"
 #include "controller_step.h"
 #include "motion.h"
 #include "run_file.h"
 
-enum { NX = 9, NQ = 6, NREF = 12, NP = 34, NTRACK = 3, BATCH = 100 };
+enum {
+  NX = MMSTAB_N_STATE,
+  NQ = MMSTAB_N_JOINTS,
+  NREF = MMSTAB_N_REFERENCE,
+  NP = MMSTAB_N_PARAMS,
+  NTRACK = MMSTAB_N_TRACK,
+  BATCH = 100
+};
 
 static const casadi_real* arg[controller_step_SZ_ARG + 1];
 static casadi_real* res[controller_step_SZ_RES + 1];

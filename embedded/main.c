@@ -7,11 +7,14 @@
  *   controller_step(arg, res, iw, w, mem)
  *     arg[0] state (9)       [x, y, heading] of the base in the slope frame, then the joints
  *                            [theta_l, theta_r, theta_0..theta_3]   [m, m, rad, rad...]
- *     arg[1] reference (12)  [xi_des (6), xi_dot_ref (6)]: base point, heading, arm CoM
- *     arg[2] params (34)     gains, weights, dt, joint speed and position limits
+ *     arg[1] reference (20)  [xi_des (6), xi_dot_ref (6), q_ref (4), q_dot_ref (4)]: base
+ *                            point, heading, arm CoM, and the arm posture for the posture task
+ *     arg[2] params (42)     gains, weights, posture gains and weights, dt, joint limits
  *     res[0] qdot (6)        joint speeds to command [rad/s] (zero = hold still on failure)
  *     res[1] status          0 ok, 1 non-finite input, 2 infeasible bounds, 3 solver failed
  *     res[2] objective       the QP's cost at qdot
+ *
+ * The sizes and layouts (MMSTAB_N_*, MMSTAB_REF_*) come from the generated controller_layout.h.
  *
  * Real-time rules followed here: the work arrays are allocated once, statically, sized from
  * the generated header and checked at start against controller_step_work(); nothing is
@@ -28,11 +31,20 @@
 #include <stdio.h>
 #include <time.h>
 
+#include "controller_layout.h"
 #include "controller_step.h"
 #include "motion.h"
 #include "run_file.h"
 
-enum { NX = 9, NQ = 6, NXI = 6, NREF = 12, NP = 34, NTRACK = 3 };
+enum {
+  NX = MMSTAB_N_STATE,
+  NQ = MMSTAB_N_JOINTS,
+  NXI = MMSTAB_N_TASK,
+  NARM = MMSTAB_N_ARM,
+  NREF = MMSTAB_N_REFERENCE,
+  NP = MMSTAB_N_PARAMS,
+  NTRACK = MMSTAB_N_TRACK
+};
 
 /* Work arrays: the largest of the two generated functions used here, plus one (no 0-size). */
 #define MAX2(a, b) ((a) > (b) ? (a) : (b))
@@ -75,14 +87,27 @@ static int tracking_error(const double state[NX], const double ref[NREF], double
   arg[0] = state;
   res[0] = xi;
   if (controller_task(arg, res, iw, w, 0) != 0) return 1;
-  for (i = 0; i < NXI; ++i) e[i] = ref[i] - xi[i];
+  for (i = 0; i < NXI; ++i) e[i] = ref[MMSTAB_REF_XI_DES + i] - xi[i];
   e[2] = atan2(sin(e[2]), cos(e[2]));
   return 0;
 }
 
-static void print_errors(const char* when, const double e[NXI]) {
-  printf("%s tracking error: base point %.3e m, heading %.3e rad, arm CoM %.3e m\n", when,
-         hypot(e[0], e[1]), fabs(e[2]), sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]));
+/* Largest |q_ref - q_arm| over the arm joints [rad]. */
+static double posture_error(const double state[NX], const double ref[NREF]) {
+  double worst = 0;
+  int i;
+  for (i = 0; i < NARM; ++i) {
+    const double d = fabs(ref[MMSTAB_REF_Q_REF + i] - state[NX - NARM + i]);
+    worst = d > worst ? d : worst;
+  }
+  return worst;
+}
+
+static void print_errors(const char* when, const double e[NXI], double posture) {
+  printf("%s tracking error: base point %.3e m, heading %.3e rad, arm CoM %.3e m, "
+         "arm posture %.3e rad\n",
+         when, hypot(e[0], e[1]), fabs(e[2]), sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]),
+         posture);
 }
 
 static double seconds(void) {
@@ -132,8 +157,8 @@ int main(int argc, char* argv[]) {
   if (tracking_error(state, run.reference + run.steps * NREF, e)) return 1;
   printf("closed loop: %lld steps of %g s (%g s simulated)\n", (long long)run.steps, run.dt,
          (double)run.steps * run.dt);
-  print_errors("initial", e0);
-  print_errors("final  ", e);
+  print_errors("initial", e0, posture_error(run.state0, run.reference));
+  print_errors("final  ", e, posture_error(state, run.reference + run.steps * NREF));
   printf("failures: %lld of %lld steps held still\n", (long long)failures, (long long)run.steps);
   printf("loop wall time: %.4f s (%.3f us per step, controller + integration)\n", t1 - t0,
          1e6 * (t1 - t0) / (double)run.steps);

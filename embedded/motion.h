@@ -11,10 +11,13 @@
 
 #include <math.h>
 
-/* state s = [x, y, heading, theta_l, theta_r, theta_0..theta_3] (9), qdot (6) [rad/s],
- * dt [s], track = [sprocket radius r [m], track separation b [m], |a| under which sin(a)/a
- * uses its series 1 - a^2/6]. */
-static void integrate(double s[9], const double qdot[6], double dt, const double track[3]) {
+#include "controller_layout.h" /* MMSTAB_N_*: generated with the controller */
+
+/* state s = [x, y, heading, theta_l, theta_r, theta_0..theta_3] (MMSTAB_N_STATE), qdot
+ * (MMSTAB_N_JOINTS) [rad/s], dt [s], track = [sprocket radius r [m], track separation b [m],
+ * |a| under which sin(a)/a uses its series 1 - a^2/6]. */
+static void integrate(double s[MMSTAB_N_STATE], const double qdot[MMSTAB_N_JOINTS], double dt,
+                      const double track[MMSTAB_N_TRACK]) {
   const double r = track[0], b = track[1], series_below = track[2];
   const double v = r * (qdot[0] + qdot[1]) / 2, omega = r * (qdot[1] - qdot[0]) / b;
   const double half = omega * dt / 2;
@@ -24,7 +27,8 @@ static void integrate(double s[9], const double qdot[6], double dt, const double
   s[0] += chord * cos(mid);
   s[1] += chord * sin(mid);
   s[2] += omega * dt;
-  for (i = 0; i < 6; ++i) s[3 + i] += qdot[i] * dt;
+  for (i = 0; i < MMSTAB_N_JOINTS; ++i) /* the joints are the state's last entries */
+    s[MMSTAB_N_STATE - MMSTAB_N_JOINTS + i] += qdot[i] * dt;
 }
 
 #endif /* MMSTAB_MOTION_H */

@@ -10,7 +10,8 @@
  *   float64 state0[n_state]                   initial state
  *   float64 track[n_track]                    sprocket radius [m], track separation [m],
  *                                             |w dt / 2| under which sin(a)/a uses its series
- *   float64 reference[steps + 1][n_reference] [xi_des, xi_dot_ref] at t_k = k dt
+ *   float64 reference[steps + 1][n_reference] [xi_des, xi_dot_ref, q_ref, q_dot_ref] at
+ *                                             t_k = k dt (layout: controller_layout.h)
  */
 #ifndef MMSTAB_RUN_FILE_H
 #define MMSTAB_RUN_FILE_H
@@ -26,7 +27,7 @@ typedef struct {
   const double* params;
   const double* state0;
   const double* track;
-  const double* reference; /* row k: [xi_des (6), xi_dot_ref (6)] at t_k */
+  const double* reference; /* row k: [xi_des, xi_dot_ref, q_ref, q_dot_ref] at t_k */
   double* data;            /* the one allocation holding all of the above */
 } RunFile;
 

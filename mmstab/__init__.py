@@ -2,7 +2,8 @@
 
 Pipeline (one module per stage): ``robot``/``problem`` (validated inputs) ->
 ``kinematics`` (CasADi + NumPy) -> ``stability`` (force-angle) -> ``workspace`` ->
-``planner`` (CMA-ES) -> ``controller`` (QP diff-IK) -> ``codegen``.
+``planner`` (CMA-ES) -> ``posture``/``approach`` (the arm references, collision-checked) ->
+``tasks``/``controller`` (QP diff-IK with a posture task) -> ``codegen``.
 """
 
 __version__ = "0.1.0"

@@ -70,7 +70,10 @@ def _track(args: argparse.Namespace) -> None:
         f"track: {s['steps']} steps ({s['plugin']}, {s['backend']}) in {s['wall_seconds']:.2f} s "
         f"({s['us_per_step']:.1f} us/step); max error base {s['base_error_max_m']:.3g} m, "
         f"arm CoM {s['arm_com_error_max_m']:.3g} m; final {s['base_error_final_m']:.2g} m, "
-        f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}"
+        f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}; arm self-collision "
+        f"{100 * s['arm_self_collision']['colliding_share']:.1f} % of the samples; posture "
+        f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
+        f"samples {s['posture_reference']['reference']['colliding_samples']}"
     )
 
 

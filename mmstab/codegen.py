@@ -5,8 +5,13 @@ them into a shared library with the system C compiler (``cc -O3 -std=c99 -Wall -
 -fPIC -shared``); :func:`load_step` hands the simulation the compiled step as a CasADi
 ``Function`` (``casadi.external``) with :attr:`Controller.step`'s signature::
 
-    controller_step(state[9], reference[12] = [ξ_des, ξ̇_ref], params[34])
+    controller_step(state[9], reference[20] = [ξ_des, ξ̇_ref, q_ref, q̇_ref], params[42])
         -> (qdot[6], status, objective)
+
+Beside it, ``controller_layout.h`` (:func:`layout_header`) gives C the sizes and the packed
+layouts of the arguments (``MMSTAB_N_*``, ``MMSTAB_REF_*``, ``MMSTAB_PARAM_*``), written from
+:class:`~mmstab.tasks.StepReference` and :class:`~mmstab.tasks.ControllerParams`, so the
+embedded example never repeats them by hand.
 
 The same C file also exports ``controller_task`` (state -> ξ, for the embedded example's error
 report) and ``controller_rollout`` (:data:`ROLLOUT_CHUNK` closed-loop steps, controller step +
@@ -59,12 +64,18 @@ import casadi as ca
 
 from mmstab.config import ConfigError, MmstabError, _atomic, write_json
 from mmstab.controller import (
+    ARM_JOINTS,
     CODEGEN_PLUGINS,
+    JOINT_COUNT,
+    PARAMS_SIZE,
     REFERENCE_SIZE,
     STATE_SIZE,
+    TASK_SIZE,
+    TRACK_DATA_SIZE,
     Controller,
     ControllerParams,
     ControllerSettings,
+    StepReference,
     build_controller,
 )
 from mmstab.robot import Robot
@@ -76,7 +87,8 @@ STEP_NAME = "controller_step"  #: the exported step (and the .c/.h file stem)
 TASK_NAME = "controller_task"  #: state -> ξ, exported alongside
 ROLLOUT_NAME = "controller_rollout"  #: ROLLOUT_CHUNK closed-loop steps, exported alongside
 ROLLOUT_CHUNK = 1000  #: closed-loop steps per ``controller_rollout`` call
-FORMAT_VERSION = 1  #: bump when the generated content or post-processing changes
+LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
+FORMAT_VERSION = 2  #: bump when the generated content or post-processing changes
 #: Compiler flags for the generated C (warnings are errors); ``-fPIC -shared`` for the library.
 CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror")
 QPOASES_MESSAGE = "CasADi cannot generate C for qpOASES; use qrqp, daqp or osqp"
@@ -138,11 +150,11 @@ def closed_loop(ctrl: Controller) -> ca.Function:
     """One closed-loop step: controller step, then the exact-arc motion over ``params.dt``.
 
     Returns:
-        ``Function`` (state (9), reference (12), params (34)) -> (state_next (9), qdot (6)
+        ``Function`` (state (9), reference (20), params (42)) -> (state_next (9), qdot (6)
         [rad/s], status).
     """
     state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
-    p = ca.MX.sym("params", sum(ControllerParams.sizes()))
+    p = ca.MX.sym("params", PARAMS_SIZE)
     qdot, status, _ = ctrl.step(state, ref, p)
     nxt = ctrl.model.f_integrate(state, qdot, ControllerParams.unpack(p).dt)
     return ca.Function(
@@ -158,13 +170,13 @@ def rollout_chunk(ctrl: Controller, steps: int = ROLLOUT_CHUNK) -> ca.Function:
     """``steps`` closed-loop steps in one Function (``mapaccum`` of :func:`closed_loop`).
 
     Returns:
-        ``Function`` ``controller_rollout`` (state0 (9), references (12 x steps), params (34))
+        ``Function`` ``controller_rollout`` (state0 (9), references (20 x steps), params (42))
         -> (states after each step (9 x steps), qdot (6 x steps), status (1 x steps)).
     """
     acc = closed_loop(ctrl).mapaccum("closed_loop_acc", steps)
     x0 = ca.MX.sym("state0", STATE_SIZE)
     refs = ca.MX.sym("references", REFERENCE_SIZE, steps)
-    p = ca.MX.sym("params", sum(ControllerParams.sizes()))
+    p = ca.MX.sym("params", PARAMS_SIZE)
     states, qdot, status = acc(x0, refs, ca.repmat(p, 1, steps))
     return ca.Function(
         ROLLOUT_NAME,
@@ -182,6 +194,45 @@ def export_functions(ctrl: Controller) -> list[ca.Function]:
         raise RuntimeError(f"the controller's step is named {step.name()!r}, not {STEP_NAME!r}")
     task = ca.Function(TASK_NAME, [ctrl.model.state], [ctrl.model.xi], ["state"], ["xi"])
     return [step, task, rollout_chunk(ctrl)]
+
+
+def layout_header() -> str:
+    """``controller_layout.h``: the step's argument sizes and packed layouts as C macros.
+
+    ``MMSTAB_N_*`` sizes (state, joints, task, arm joints, reference, params, run-file track
+    data), then the offset of each field of the reference (``MMSTAB_REF_*``) and of the
+    parameters (``MMSTAB_PARAM_*``), from :class:`StepReference` and :class:`ControllerParams`.
+    """
+    sizes = {
+        "STATE": STATE_SIZE,
+        "JOINTS": JOINT_COUNT,
+        "TASK": TASK_SIZE,
+        "ARM": ARM_JOINTS,
+        "REFERENCE": REFERENCE_SIZE,
+        "PARAMS": PARAMS_SIZE,
+        "TRACK": TRACK_DATA_SIZE,
+    }
+    lines = [
+        "/* Sizes and layouts of controller_step's arguments (mmstab/codegen.py, layout_header;",
+        " * from mmstab.tasks.StepReference and ControllerParams). Generated: do not edit. */",
+        "#ifndef MMSTAB_CONTROLLER_LAYOUT_H",
+        "#define MMSTAB_CONTROLLER_LAYOUT_H",
+        "",
+        *(f"#define MMSTAB_N_{name} {n}" for name, n in sizes.items()),
+        "",
+        "/* reference (StepReference): offset of each field */",
+        *(f"#define MMSTAB_REF_{k.upper()} {v.start}" for k, v in StepReference.offsets().items()),
+        "",
+        "/* params (ControllerParams): offset of each field */",
+        *(
+            f"#define MMSTAB_PARAM_{k.upper()} {v.start}"
+            for k, v in ControllerParams.offsets().items()
+        ),
+        "",
+        "#endif /* MMSTAB_CONTROLLER_LAYOUT_H */",
+        "",
+    ]
+    return "\n".join(lines)
 
 
 # ----------------------------------------------------------------------------- post-process
@@ -285,6 +336,7 @@ class GeneratedController(NamedTuple):
         directory: the output folder.
         source: the C file ``controller_step.c``.
         header: its header ``controller_step.h``.
+        layout: ``controller_layout.h``: argument sizes and layouts (:func:`layout_header`).
         library: the shared library (its name carries the key).
         plugin: the QP plugin.
         hash: the cache key (SHA-256, hex) the outputs were built for.
@@ -296,6 +348,7 @@ class GeneratedController(NamedTuple):
     directory: Path
     source: Path
     header: Path
+    layout: Path
     library: Path
     plugin: str
     hash: str
@@ -374,14 +427,15 @@ def generate(
     functions = export_functions(ctrl)
     names = tuple(f.name() for f in functions)
     key = cache_key(functions, plugin)
-    c_file, h_file = out / f"{STEP_NAME}.c", out / f"{STEP_NAME}.h"
+    c_file, h_file, l_file = out / f"{STEP_NAME}.c", out / f"{STEP_NAME}.h", out / LAYOUT_HEADER
     library = out / f"lib{STEP_NAME}_{key[:16]}.so"
     meta_path = out / "build.json"
-    if not force and meta_path.is_file() and all(p.is_file() for p in (c_file, h_file, library)):
+    files = (c_file, h_file, l_file, library)
+    if not force and meta_path.is_file() and all(p.is_file() for p in files):
         meta = json.loads(meta_path.read_text())
         if meta.get("key") == key:
             return GeneratedController(
-                out, c_file, h_file, library, plugin, key, names, False, meta["compiler_stderr"]
+                *(out, *files), plugin, key, names, False, meta["compiler_stderr"]
             )
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
@@ -391,7 +445,7 @@ def generate(
         gen.generate(f"{tmp}/")
         c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name())
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    for path, text in ((c_file, c_text), (h_file, h_text)):
+    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout_header())):
         _write_text(path, text)
     stderr = compile_c([c_file], library, plugin, shared=True)
     for stale in out.glob(f"lib{STEP_NAME}_*.so"):
@@ -412,7 +466,7 @@ def generate(
             "compiler_stderr": stderr,
         },
     )
-    return GeneratedController(out, c_file, h_file, library, plugin, key, names, True, stderr)
+    return GeneratedController(*(out, *files), plugin, key, names, True, stderr)
 
 
 class WorkSizes(NamedTuple):
@@ -443,7 +497,7 @@ def load_step(problem: Problem, plugin: str | None = None) -> ca.Function:
 
     Returns:
         ``casadi.external`` Function with :attr:`Controller.step`'s signature: (state (9),
-        reference (12), params (34)) -> (qdot (6) [rad/s], status, objective).
+        reference (20), params (42)) -> (qdot (6) [rad/s], status, objective).
     """
     return generate(problem, plugin=plugin).load(STEP_NAME)
 

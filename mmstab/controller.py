@@ -1,15 +1,9 @@
-"""Tracking controller core (paper Section II-E, Eq. 7-8; DESIGN.md §6): task Jacobian and QP.
+"""Tracking controller (paper Section II-E, Eq. 7-8; DESIGN.md §6): settings, QP, one step.
 
-Vectors (all in the slope frame S, DESIGN.md §2)::
-
-    state s = [x, y, γ, θ_l, θ_r, θ_0, θ_1, θ_2, θ_3]   base pose in S [m, m, rad], joints [rad]
-    q       = [θ_l, θ_r, θ_0, θ_1, θ_2, θ_3]            = s[3:9]  (sprockets, then the arm)
-    ξ       = [g_bx, g_by, γ, g_ax, g_ay, g_az]          task: base control point, heading, arm CoM
-
-The base pose is part of the state, not a function of q: the tracked base is nonholonomic
-(ẋ = v cos γ, ẏ = v sin γ, γ̇ = ω, v = r(θ̇_l+θ̇_r)/2, ω = r(θ̇_r−θ̇_l)/b), so
-ξ̇ = J(s) q̇ with J = [∂ξ/∂pose · B(γ) | ∂ξ/∂q_arm], B the 3x2 track-to-pose-rate map, and
-g_a^S = [x, y, 0] + Rz(γ) g_a^B(q_arm).
+The task model (ξ, J, motion) and the QP's assembly live in :mod:`mmstab.tasks`; this module
+builds the solver around them and certifies its answers. Vectors: state s (9) = base pose in S
+[x, y, γ] and the joints q = [θ_l, θ_r, θ_0..θ_3]; task ξ (6) = [g_bx, g_by, γ, g_ax, g_ay,
+g_az] in S.
 
 **Base control point.** ξ's first two rows are the paper's g_b, taken as the point a distance
 d = ``base_offset`` [m] ahead of the body origin: g_b = [x, y] + d [cos γ, sin γ] (d = 0 is the
@@ -26,13 +20,19 @@ sprockets): a moving, consistent reference with feed-forward (the circle) is tra
 error, but a *constant* target is reached only up to an error in J's left null space
 (Jᵀ W_A e = 0; no smooth static feedback stabilises a nonholonomic pose, Brockett 1983).
 
-**QP (Eq. 7-8).** ξ̇_des = K_p (ξ_des − ξ) + f ξ̇_ref with the heading error wrapped to (−π, π]
-and f ∈ {0, 1} the feed-forward switch; then, with H = Jᵀ W_A J + W_B and g = −Jᵀ W_A ξ̇_des::
+**QP (Eq. 7-8 + posture task).** ξ̇_des = K_p (ξ_des − ξ) + f ξ̇_ref (heading error wrapped to
+(−π, π]) and q̇_post = K_q (q_ref − q_arm) + f q̇_ref; then, with H = Jᵀ W_A J + W_B + Sᵀ W_q S
+and g = −Jᵀ W_A ξ̇_des − Sᵀ W_q q̇_post (S: the arm columns)::
 
     min ½ q̇ᵀ H q̇ + gᵀ q̇    s.t.  max(−q̇_max, (q_min − q)/dt) ≤ q̇ ≤ min(q̇_max, (q_max − q)/dt)
 
 (position bounds on the arm joints only; the sprockets turn freely). W_B > 0, so the QP is
-strictly convex and every plugin must return the same q̇.
+strictly convex and every plugin must return the same q̇. The arm-CoM rows are 3 equations for
+4 arm joints: the posture task (weights W_q = ``posture_weight``, 10⁻³ by default, well under
+the CoM rows' ~0.1 m²/rad² in Jᵀ W_A J, so the CoM task dominates) chooses the remaining arm
+direction by pulling toward the planner's collision-free postures q_ref(s)
+(:mod:`mmstab.posture`); without it the redundancy drifts and the upper arm went through the
+body for 29 % of the default lap.
 
 **Failure handling.** The one CasADi ``step`` Function certifies its own answer, so the status
 is the same interpreted and code-generated and does not depend on a plugin's exceptions:
@@ -66,14 +66,65 @@ from numpy.typing import ArrayLike
 
 from mmstab.config import ConfigError
 from mmstab.robot import FloatArray, Robot
+from mmstab.tasks import (
+    _SINC_SERIES_BELOW,
+    ARM,
+    ARM_JOINTS,
+    JOINT_COUNT,
+    JOINTS,
+    PARAMS_SIZE,
+    POSE,
+    REFERENCE_SIZE,
+    STATE_SIZE,
+    TASK_SIZE,
+    TRACK_DATA_SIZE,
+    ControllerParams,
+    QPData,
+    StepReference,
+    TaskModel,
+    all_finite,
+    build_qp,
+)
 
-STATE_SIZE, JOINT_COUNT, TASK_SIZE = 9, 6, 6
-REFERENCE_SIZE = 2 * TASK_SIZE  # [ξ_des, ξ̇_ref]
-POSE, JOINTS, ARM = slice(0, 3), slice(3, 9), slice(5, 9)
+__all__ = [  # the task model and layouts are re-exported: most callers import them from here
+    "_SINC_SERIES_BELOW",
+    "ARM",
+    "ARM_JOINTS",
+    "CODEGEN_PLUGINS",
+    "JOINT_COUNT",
+    "JOINTS",
+    "PARAMS_SIZE",
+    "PLUGINS",
+    "POSE",
+    "REFERENCE_SIZE",
+    "STATE_SIZE",
+    "TASK_SIZE",
+    "TRACK_DATA_SIZE",
+    "ControlResult",
+    "Controller",
+    "ControllerParams",
+    "ControllerSettings",
+    "OsqpSettings",
+    "QPData",
+    "QPStatus",
+    "StepReference",
+    "TaskModel",
+    "build_controller",
+    "check_settings",
+    "quiet_stdout",
+]
+
 PLUGINS = ("qpoases", "osqp", "qrqp", "daqp")
 #: Plugins CasADi can generate C for (qpOASES emits ``#error``).
 CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp")
-_SINC_SERIES_BELOW = 1e-4  # |ω dt / 2| under which sin(a)/a uses its series [rad]
+
+
+#: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref in the reference vector.
+_REFERENCE_SLICES = tuple(StepReference.offsets().values())
+
+
+def _shape_error(name: str, value: Any, n: int) -> ValueError:
+    return ValueError(f"{name} must have shape ({n},), got {np.shape(value)}")
 
 
 class QPStatus(IntEnum):
@@ -96,6 +147,9 @@ class OsqpSettings:
     polish: bool
 
 
+_VECTORS = ("kp", "w_a", "w_b", "posture_gain", "posture_weight")
+
+
 @dataclass(frozen=True)
 class ControllerSettings:
     """The ``controller:`` section of a problem file.
@@ -107,9 +161,13 @@ class ControllerSettings:
         kp: proportional gains K_p, one per task row (6,) [1/s].
         w_a: task weights W_A (6,) [-].
         w_b: joint-velocity weights W_B (6,), > 0 [-].
+        posture_gain: posture gains K_q, one per arm joint (4,) [1/s].
+        posture_weight: posture weights W_q, one per arm joint (4,) [-].
         plugin: QP plugin, one of :data:`PLUGINS`.
-        feedforward: add ξ̇_ref to ξ̇_des.
+        feedforward: add ξ̇_ref to ξ̇_des and q̇_ref to q̇_post.
         base_offset: base control point ahead of the body origin d [m].
+        approach_time: length of the arm's start-up reference [s] (:mod:`mmstab.approach`;
+            0: the lap's references from t = 0).
         kkt_tol: tolerance of the in-graph solution certificate [rad/s].
         osqp: OSQP options.
     """
@@ -120,16 +178,19 @@ class ControllerSettings:
     kp: tuple[float, ...]
     w_a: tuple[float, ...]
     w_b: tuple[float, ...]
+    posture_gain: tuple[float, ...]
+    posture_weight: tuple[float, ...]
     plugin: str
     feedforward: bool
     base_offset: float
+    approach_time: float
     kkt_tol: float
     osqp: OsqpSettings
 
     @classmethod
     def from_section(cls, section: Mapping[str, Any]) -> ControllerSettings:
         """Build from a validated ``controller:`` section."""
-        vecs = {k: tuple(float(v) for v in section[k]) for k in ("kp", "w_a", "w_b")}
+        vecs = {k: tuple(float(v) for v in section[k]) for k in _VECTORS}
         o = section["osqp"]
         return cls(
             dt=float(section["dt"]),
@@ -138,6 +199,7 @@ class ControllerSettings:
             plugin=str(section["plugin"]),
             feedforward=bool(section["feedforward"]),
             base_offset=float(section["base_offset"]),
+            approach_time=float(section["approach_time"]),
             kkt_tol=float(section["kkt_tol"]),
             osqp=OsqpSettings(
                 float(o["eps_abs"]), float(o["eps_rel"]), int(o["max_iter"]), bool(o["polish"])
@@ -150,151 +212,19 @@ def check_settings(path: Path, section: Mapping[str, Any]) -> None:
     """Semantic checks of the ``controller:`` section beyond its schema.
 
     Raises:
-        ConfigError: naming the field (``controller.duration``, ``controller.kp``).
+        ConfigError: naming the field (``controller.duration``, ``controller.kp``,
+            ``controller.posture_gain``).
     """
     dt = float(section["dt"])
     if float(section["duration"]) < dt:
         raise ConfigError(path, "controller.duration", f"must be at least dt = {dt} s")
-    if max(section["kp"]) * dt >= 1.0:
-        raise ConfigError(
-            path,
-            "controller.kp",
-            f"kp * dt must stay below 1 (the discrete loop overshoots); dt = {dt} s",
-        )
-
-
-class ControllerParams(NamedTuple):
-    """Run-time parameters of the ``step`` Function, packed in this order (34 numbers).
-
-    Attributes:
-        kp: gains (6,) [1/s].
-        w_a: task weights (6,).
-        w_b: joint-velocity weights (6,).
-        feedforward: 1.0 to add ξ̇_ref, 0.0 not to.
-        dt: control period [s].
-        qdot_max: joint speed limits (6,) [rad/s] (sprockets, then arm).
-        q_min: arm joint lower limits (4,) [rad].
-        q_max: arm joint upper limits (4,) [rad].
-    """
-
-    kp: Any
-    w_a: Any
-    w_b: Any
-    feedforward: Any
-    dt: Any
-    qdot_max: Any
-    q_min: Any
-    q_max: Any
-
-    @classmethod
-    def sizes(cls) -> tuple[int, ...]:
-        """Length of each field in the packed vector."""
-        return (6, 6, 6, 1, 1, 6, 4, 4)
-
-    @classmethod
-    def from_settings(cls, robot: Robot, settings: ControllerSettings) -> ControllerParams:
-        """Parameters from the settings and the robot's joint limits."""
-        return cls(
-            kp=np.array(settings.kp),
-            w_a=np.array(settings.w_a),
-            w_b=np.array(settings.w_b),
-            feedforward=float(settings.feedforward),
-            dt=settings.dt,
-            qdot_max=np.r_[np.full(2, robot.base.tracks.velocity_limit), robot.joint_velocity],
-            q_min=robot.joint_lower,
-            q_max=robot.joint_upper,
-        )
-
-    def pack(self) -> FloatArray:
-        """The packed parameter vector (34,)."""
-        return np.concatenate([np.atleast_1d(np.asarray(v, dtype=float)) for v in self])
-
-    @classmethod
-    def unpack(cls, p: Any) -> ControllerParams:
-        """Split a packed vector (NumPy or CasADi) into fields."""
-        edges = np.cumsum((0, *cls.sizes()))
-        return cls(*(p[int(a) : int(b)] for a, b in zip(edges[:-1], edges[1:], strict=True)))
-
-
-# --------------------------------------------------------------------------- task kinematics
-class TaskModel:
-    """Task ξ(s), Jacobian J(s) and base + joint motion of one robot (CasADi and NumPy).
-
-    Attributes:
-        base_offset: base control point ahead of the body origin [m].
-        state: the symbolic state (9,) SX.
-        xi: ξ(state) (6,) SX [m, m, rad, m, m, m].
-        J: the task Jacobian (6x6) SX: ξ̇ = J q̇.
-        f_task: ``Function`` state -> xi.
-        f_jacobian: ``Function`` state -> J.
-        f_integrate: ``Function`` (state, qdot [rad/s], dt [s]) -> state after dt.
-    """
-
-    def __init__(self, robot: Robot, base_offset: float):
-        self.base_offset = float(base_offset)
-        tracks = robot.base.tracks
-        r, b = tracks.sprocket_radius, tracks.separation
-        s = self.state = ca.SX.sym("state", STATE_SIZE)
-        x, y, heading = s[0], s[1], s[2]
-        c, sn = ca.cos(heading), ca.sin(heading)
-        com_B = robot.kinematics.f_arm_com(s[ARM])  # g_a^B(q_arm), inlined as SX
-        self.xi = ca.vertcat(
-            x + self.base_offset * c,
-            y + self.base_offset * sn,
-            heading,
-            x + c * com_B[0] - sn * com_B[1],
-            y + sn * com_B[0] + c * com_B[1],
-            com_B[2],
-        )
-        # pose rate = B(γ) [θ̇_l, θ̇_r]: the nonholonomic track kinematics
-        B = ca.vertcat(
-            ca.horzcat(r / 2 * c, r / 2 * c),
-            ca.horzcat(r / 2 * sn, r / 2 * sn),
-            ca.horzcat(-r / b, r / b),
-        )
-        self.J = ca.horzcat(ca.jacobian(self.xi, s[POSE]) @ B, ca.jacobian(self.xi, s[ARM]))
-        self.f_task = ca.Function("task", [s], [self.xi], ["state"], ["xi"])
-        self.f_jacobian = ca.Function("task_jacobian", [s], [self.J], ["state"], ["J"])
-
-        # Exact motion over dt for constant q̇: the base drives an arc (chord along mid-heading).
-        qdot, dt = ca.SX.sym("qdot", JOINT_COUNT), ca.SX.sym("dt")
-        v, w = r * (qdot[0] + qdot[1]) / 2, r * (qdot[1] - qdot[0]) / b
-        half = w * dt / 2
-        small = ca.fabs(half) < _SINC_SERIES_BELOW
-        safe = ca.if_else(small, 1.0, half)
-        sinc = ca.if_else(small, 1 - half**2 / 6, ca.sin(safe) / safe)
-        chord, mid = v * dt * sinc, heading + half
-        nxt = ca.vertcat(x + chord * ca.cos(mid), y + chord * ca.sin(mid), heading + w * dt)
-        nxt = ca.vertcat(nxt, s[JOINTS] + qdot * dt)
-        self.f_integrate = ca.Function(
-            "integrate", [s, qdot, dt], [nxt], ["state", "qdot", "dt"], ["state_next"]
-        )
-
-    def task(self, state: ArrayLike) -> FloatArray:
-        """ξ at a state (9,) -> (6,) [m, m, rad, m, m, m]."""
-        return np.asarray(self.f_task(np.asarray(state, dtype=float))).ravel()
-
-    def jacobian(self, state: ArrayLike) -> FloatArray:
-        """J at a state (9,) -> (6, 6) [m/rad, rad/rad]."""
-        return np.asarray(self.f_jacobian(np.asarray(state, dtype=float)))
-
-    def integrate(self, state: ArrayLike, qdot: ArrayLike, dt: float) -> FloatArray:
-        """State after ``dt`` [s] at constant joint speeds ``qdot`` (6,) [rad/s] (exact arc)."""
-        out = self.f_integrate(np.asarray(state, dtype=float), np.asarray(qdot, dtype=float), dt)
-        return np.asarray(out).ravel()
-
-
-# ---------------------------------------------------------------------------------------- QP
-class QPData(NamedTuple):
-    """The QP of one step: min ½ q̇ᵀHq̇ + gᵀq̇ + cost0 s.t. lbx ≤ q̇ ≤ ubx; pre-solve status."""
-
-    H: FloatArray
-    g: FloatArray
-    lbx: FloatArray
-    ubx: FloatArray
-    xi_dot_des: FloatArray
-    cost0: float
-    status: QPStatus
+    for gain in ("kp", "posture_gain"):
+        if max(section[gain]) * dt >= 1.0:
+            raise ConfigError(
+                path,
+                f"controller.{gain}",
+                f"{gain} * dt must stay below 1 (the discrete loop overshoots); dt = {dt} s",
+            )
 
 
 class ControlResult(NamedTuple):
@@ -304,47 +234,6 @@ class ControlResult(NamedTuple):
     status: QPStatus
     success: bool
     objective: float
-
-
-def _all(x: ca.SX) -> ca.SX:
-    return ca.mmin(x) if x.numel() else ca.SX(1)
-
-
-def _finite(x: ca.SX) -> ca.SX:
-    return _all(ca.fabs(x) < ca.inf)  # NaN compares false
-
-
-def _build_qp(model: TaskModel) -> ca.Function:
-    """SX Function (state, reference, params) -> the QP's matrices and the pre-solve status."""
-    s = model.state
-    ref, p = (
-        ca.SX.sym("reference", REFERENCE_SIZE),
-        ca.SX.sym("params", sum(ControllerParams.sizes())),
-    )
-    P = ControllerParams.unpack(p)
-    e = ref[:TASK_SIZE] - model.xi
-    e[2] = ca.atan2(ca.sin(e[2]), ca.cos(e[2]))  # heading error in (−π, π]
-    xi_dot_des = P.kp * e + P.feedforward * ref[TASK_SIZE:]
-    JtW = model.J.T @ ca.diag(P.w_a)
-    H = JtW @ model.J + ca.diag(P.w_b)
-    g = -JtW @ xi_dot_des
-    q_arm = s[ARM]
-    lbx = ca.vertcat(-P.qdot_max[:2], ca.fmax(-P.qdot_max[2:], (P.q_min - q_arm) / P.dt))
-    ubx = ca.vertcat(P.qdot_max[:2], ca.fmin(P.qdot_max[2:], (P.q_max - q_arm) / P.dt))
-    cost0 = 0.5 * ca.dot(xi_dot_des, P.w_a * xi_dot_des)
-    finite = _finite(ca.vertcat(s, ref, p, ca.vec(H), g))
-    status = ca.if_else(
-        finite,
-        ca.if_else(_all(lbx <= ubx), float(QPStatus.SUCCESS), float(QPStatus.INFEASIBLE)),
-        float(QPStatus.NONFINITE_INPUT),
-    )
-    return ca.Function(
-        "qp",
-        [s, ref, p],
-        [H, g, lbx, ubx, xi_dot_des, cost0, status],
-        ["state", "reference", "params"],
-        ["H", "g", "lbx", "ubx", "xi_dot_des", "cost0", "status"],
-    )
 
 
 def _build_guard_and_certificate(kkt_tol: float) -> tuple[ca.Function, ca.Function]:
@@ -366,7 +255,7 @@ def _build_guard_and_certificate(kkt_tol: float) -> tuple[ca.Function, ca.Functi
     clipped = ca.fmin(ca.fmax(x, lbx), ubx)
     violation = ca.mmax(ca.vertcat(lbx - x, x - ubx))
     newton = clipped - ca.fmin(ca.fmax(clipped - (H @ clipped + g) / ca.diag(H), lbx), ubx)
-    certified = ca.logic_and(_finite(x), violation <= kkt_tol)
+    certified = ca.logic_and(all_finite(x), violation <= kkt_tol)
     certified = ca.logic_and(certified, ca.mmax(ca.fabs(newton)) <= kkt_tol)
     final = ca.if_else(ok, ca.if_else(certified, status, float(QPStatus.SOLVER_FAILED)), status)
     qdot = ca.if_else(final == float(QPStatus.SUCCESS), clipped, 0)
@@ -425,10 +314,12 @@ class Controller:
         settings: the settings it was built with.
         model: task kinematics (ξ, J, motion integration).
         params: the run-time parameters (joint limits, gains, weights, dt).
-        qp: ``Function`` (state, reference, params) -> (H, g, lbx, ubx, xi_dot_des, cost0,
-            status): the QP's matrices, for inspection and tests.
+        qp: ``Function`` (state, reference, params) -> (H, g, lbx, ubx, xi_dot_des,
+            q_dot_posture, cost0, status): the QP's matrices (:func:`mmstab.tasks.build_qp`),
+            for inspection and tests.
         conic: the CasADi ``conic`` (dense H, no linear constraints).
-        step: ``Function`` (state (9), reference (12) = [ξ_des, ξ̇_ref], params (34)) ->
+        step: ``Function`` (state (9), reference (20) = [ξ_des, ξ̇_ref, q_ref, q̇_ref]
+            (:class:`StepReference`), params (42) (:class:`ControllerParams`)) ->
             (qdot (6) [rad/s], status (QPStatus as float), objective): J + QP assembly +
             conic + certificate, one call; what the code generator exports.
         steps: number of ``solve`` calls.
@@ -441,7 +332,10 @@ class Controller:
         self.robot, self.settings = robot, settings
         self.model = TaskModel(robot, settings.base_offset)
         self.params = ControllerParams.from_settings(robot, settings)
-        self.qp = _build_qp(self.model)
+        self.qp = build_qp(
+            self.model,
+            (float(QPStatus.SUCCESS), float(QPStatus.NONFINITE_INPUT), float(QPStatus.INFEASIBLE)),
+        )
         n = JOINT_COUNT
         with quiet_stdout():
             self.conic = ca.conic(
@@ -452,8 +346,9 @@ class Controller:
             )
         guard, certificate = _build_guard_and_certificate(settings.kkt_tol)
         state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
-        p = ca.MX.sym("params", sum(ControllerParams.sizes()))
-        H, g, lbx, ubx, _, cost0, status = self.qp(state, ref, p)
+        p = ca.MX.sym("params", PARAMS_SIZE)
+        # the certificate judges the whole cost: task, regularisation and posture terms
+        H, g, lbx, ubx, _, _, cost0, status = self.qp(state, ref, p)
         Hs, gs, lbs, ubs = guard(H, g, lbx, ubx, status)
         x = self.conic(h=Hs, g=gs, lbx=lbs, ubx=ubs)["x"]
         self.step = ca.Function(
@@ -488,35 +383,66 @@ class Controller:
         self.params = params
         self._p[:] = packed
 
-    def _load(self, state: ArrayLike, xi_des: ArrayLike, xi_dot_ref: ArrayLike | None) -> None:
-        for name, value, n in (("state", state, STATE_SIZE), ("xi_des", xi_des, TASK_SIZE)):
-            if np.shape(value) != (n,):
-                raise ValueError(f"{name} must have shape ({n},), got {np.shape(value)}")
+    def _load(
+        self,
+        state: ArrayLike,
+        xi_des: ArrayLike,
+        xi_dot_ref: ArrayLike | None,
+        q_ref: ArrayLike | None,
+        q_dot_ref: ArrayLike | None,
+    ) -> None:
+        # written out (no loop): this runs every control step
+        xi_sl, xi_dot_sl, q_sl, q_dot_sl = _REFERENCE_SLICES
+        ref = self._ref
+        if np.shape(state) != (STATE_SIZE,):
+            raise _shape_error("state", state, STATE_SIZE)
         self._state[:] = state
-        self._ref[:TASK_SIZE] = xi_des
-        if xi_dot_ref is None:
-            self._ref[TASK_SIZE:] = 0.0
+        if np.shape(xi_des) != (TASK_SIZE,):
+            raise _shape_error("xi_des", xi_des, TASK_SIZE)
+        ref[xi_sl] = xi_des
+        if xi_dot_ref is None:  # no feed-forward
+            ref[xi_dot_sl] = 0.0
         elif np.shape(xi_dot_ref) != (TASK_SIZE,):
-            raise ValueError(
-                f"xi_dot_ref must have shape ({TASK_SIZE},), got {np.shape(xi_dot_ref)}"
-            )
+            raise _shape_error("xi_dot_ref", xi_dot_ref, TASK_SIZE)
         else:
-            self._ref[TASK_SIZE:] = xi_dot_ref
+            ref[xi_dot_sl] = xi_dot_ref
+        if q_ref is None:  # the posture held: the posture task only damps the arm
+            ref[q_sl] = self._state[ARM]
+        elif np.shape(q_ref) != (ARM_JOINTS,):
+            raise _shape_error("q_ref", q_ref, ARM_JOINTS)
+        else:
+            ref[q_sl] = q_ref
+        if q_dot_ref is None:
+            ref[q_dot_sl] = 0.0
+        elif np.shape(q_dot_ref) != (ARM_JOINTS,):
+            raise _shape_error("q_dot_ref", q_dot_ref, ARM_JOINTS)
+        else:
+            ref[q_dot_sl] = q_dot_ref
 
     def solve(
-        self, state: ArrayLike, xi_des: ArrayLike, xi_dot_ref: ArrayLike | None = None
+        self,
+        state: ArrayLike,
+        xi_des: ArrayLike,
+        xi_dot_ref: ArrayLike | None = None,
+        q_ref: ArrayLike | None = None,
+        q_dot_ref: ArrayLike | None = None,
     ) -> ControlResult:
         """One control step: joint speeds for the current state and reference.
 
         Args:
             state: [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
             xi_des: desired task ξ_des (6,) in S [m, m, rad, m, m, m].
-            xi_dot_ref: task feed-forward ξ̇_ref (6,) [m/s, rad/s] (used if ``feedforward``).
+            xi_dot_ref: task feed-forward ξ̇_ref (6,) [m/s, rad/s] (used if ``feedforward``);
+                default zero.
+            q_ref: arm posture reference (4,) [rad]; default the current arm posture (the
+                posture task then only damps the arm speeds, with W_q on top of W_B).
+            q_dot_ref: posture feed-forward q̇_ref (4,) [rad/s] (used if ``feedforward``);
+                default zero.
 
         Returns:
             The result; on failure ``qdot`` is zero (hold still) and ``failures`` counts it.
         """
-        self._load(state, xi_des, xi_dot_ref)
+        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
         if self._quiet:
             with quiet_stdout():
                 self._eval()
@@ -529,27 +455,38 @@ class Controller:
         return ControlResult(self._qdot.copy(), status, success, float(self._objective[0]))
 
     def qp_data(
-        self, state: ArrayLike, xi_des: ArrayLike, xi_dot_ref: ArrayLike | None = None
+        self,
+        state: ArrayLike,
+        xi_des: ArrayLike,
+        xi_dot_ref: ArrayLike | None = None,
+        q_ref: ArrayLike | None = None,
+        q_dot_ref: ArrayLike | None = None,
     ) -> QPData:
         """The QP one step would solve (arguments as :meth:`solve`)."""
-        self._load(state, xi_des, xi_dot_ref)
-        H, g, lbx, ubx, xdd, cost0, status = (
+        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
+        H, g, lbx, ubx, xdd, qdp, cost0, status = (
             np.asarray(v) for v in self.qp(self._state, self._ref, self._p)
         )
-        vec = (g.ravel(), lbx.ravel(), ubx.ravel(), xdd.ravel())
+        vec = (g.ravel(), lbx.ravel(), ubx.ravel(), xdd.ravel(), qdp.ravel())
         return QPData(H, *vec, cost0.item(), QPStatus(int(status.item())))
 
     def solve_direct(
-        self, state: ArrayLike, xi_des: ArrayLike, xi_dot_ref: ArrayLike | None = None
+        self,
+        state: ArrayLike,
+        xi_des: ArrayLike,
+        xi_dot_ref: ArrayLike | None = None,
+        q_ref: ArrayLike | None = None,
+        q_dot_ref: ArrayLike | None = None,
     ) -> ControlResult:
         """The same step judged by the plugin's own status (``stats()['success']``); slow.
 
         For cross-checking :meth:`solve`'s in-graph certificate; does not count steps.
+        Arguments as :meth:`solve`.
         """
-        qp = self.qp_data(state, xi_des, xi_dot_ref)
+        qp = self.qp_data(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
         zero = np.zeros(JOINT_COUNT)
         if qp.status is not QPStatus.SUCCESS:
-            return ControlResult(zero, qp.status, False, qp.cost0)
+            return ControlResult(zero, QPStatus(qp.status), False, qp.cost0)
         with quiet_stdout() if self._quiet else contextlib.nullcontext():
             sol = self.conic(h=qp.H, g=qp.g, lbx=qp.lbx, ubx=qp.ubx)
         if not self.conic.stats()["success"]:

@@ -34,7 +34,8 @@ class PostureSolver:
 
     Args:
         robot: the robot.
-        workspace: the workspace (``valid_q``, ``valid_com``) that supplies seeds.
+        workspace: the workspace (``valid_q``, ``valid_com``) that supplies seeds; None: no
+            workspace seeds (only the given ones).
         seeds: how many nearest valid postures to try after the previous posture.
     """
 
@@ -43,7 +44,7 @@ class PostureSolver:
 
         self.robot = robot
         self.checker = CollisionChecker(robot)
-        self.valid_q = np.asarray(workspace.valid_q)
+        self.valid_q = np.empty((0, 4)) if workspace is None else np.asarray(workspace.valid_q)
         self._tree = cKDTree(np.asarray(workspace.valid_com)) if len(self.valid_q) else None
         self.n_seeds = seeds
         kin = robot.kinematics

@@ -9,7 +9,11 @@ feed-forward is ξ̇_ref = d ξ_des/ds / lap_time):
 - :func:`arm_reference`: the arm-CoM rows [g_ax, g_ay, g_az] in S: the planned body-frame CoM
   targets interpolated along the lap (periodic cubic spline in s) and placed with the
   reference base pose, g_a^S(s) = [x, y, 0](s) + Rz(γ(s)) g_a^B(s).
-- :func:`task_reference`: both, stacked into ξ_des (N, 6) and ξ̇_ref (N, 6) at times t.
+- :func:`posture_reference`: the arm posture reference q_ref(s): the plan's postures
+  interpolated along the lap (the same periodic cubic spline), a full-turn joint (the turret)
+  unwrapped so that it takes the short way between postures when its limits allow it.
+- :func:`task_reference`: all of it at times t, as the controller's
+  :class:`~mmstab.tasks.StepReference` (ξ_des, ξ̇_ref, q_ref, q̇_ref), rates per second.
 """
 
 from __future__ import annotations
@@ -22,7 +26,11 @@ from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
 from mmstab.robot import FloatArray
+from mmstab.tasks import StepReference
 from mmstab.terrain import CirclePath
+
+#: A joint whose range is at least a full turn less this [rad] is unwrapped (the turret).
+FULL_TURN_TOL = 1e-6
 
 
 class PlanLike(Protocol):
@@ -77,6 +85,47 @@ def base_reference(circle: CirclePath, s: ArrayLike, base_offset: float) -> Path
     return PathSample(value, rate)
 
 
+def _check_fractions(f: FloatArray, values: FloatArray, name: str) -> None:
+    if f.ndim != 1 or f.size == 0 or values.ndim != 2 or values.shape[0] != f.size:
+        raise ValueError(f"plan fractions {f.shape} and {name} {values.shape} do not match")
+    if f[0] < 0 or f[-1] >= 1 or np.any(np.diff(f) <= 0):
+        raise ValueError("plan fractions must increase strictly within [0, 1)")
+
+
+def periodic_spline(
+    fractions: ArrayLike, values: ArrayLike, name: str = "values"
+) -> Callable[[ArrayLike], PathSample]:
+    """The periodic cubic spline (period 1 in s) through ``values`` (K, n) at ``fractions`` (K,).
+
+    Args:
+        fractions: path fractions (K,) increasing in [0, 1) [-].
+        values: the knots' values (K, n) [any unit].
+        name: what the values are, for messages.
+
+    Returns:
+        ``f(s) -> PathSample``: value (N, n) and d/ds (N, n) at fractions s (any real s).
+    """
+    f = np.asarray(fractions, dtype=float)
+    v = np.asarray(values, dtype=float)
+    _check_fractions(f, v, name)
+    if f.size == 1:
+
+        def constant(s: ArrayLike) -> PathSample:
+            n = np.atleast_1d(np.asarray(s, dtype=float)).size
+            return PathSample(np.tile(v[0], (n, 1)), np.zeros((n, v.shape[1])))
+
+        return constant
+    spline = CubicSpline(np.r_[f, f[0] + 1], np.vstack([v, v[:1]]), bc_type="periodic")
+    dspline = spline.derivative()
+
+    def periodic(s: ArrayLike) -> PathSample:
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        u = f[0] + np.mod(s - f[0], 1.0)  # into the spline's period [f0, f0 + 1)
+        return PathSample(spline(u), dspline(u))
+
+    return periodic
+
+
 def arm_reference(plan: PlanLike, circle: CirclePath) -> Callable[[ArrayLike], PathSample]:
     """The arm-CoM reference in S along the lap, from a plan's body-frame targets.
 
@@ -90,37 +139,118 @@ def arm_reference(plan: PlanLike, circle: CirclePath) -> Callable[[ArrayLike], P
     Raises:
         ValueError: fractions not increasing in [0, 1), or shapes that do not match.
     """
-    f = np.asarray(plan.fractions, dtype=float)
-    com = np.asarray(plan.target_com, dtype=float)
-    if f.ndim != 1 or com.shape != (f.size, 3) or f.size == 0:
-        raise ValueError(f"plan fractions {f.shape} and target_com {com.shape} do not match")
-    if f[0] < 0 or f[-1] >= 1 or np.any(np.diff(f) <= 0):
-        raise ValueError("plan fractions must increase strictly within [0, 1)")
-    if f.size == 1:
-
-        def com_body(s: FloatArray) -> PathSample:
-            return PathSample(np.tile(com[0], (s.size, 1)), np.zeros((s.size, 3)))
-    else:
-        spline = CubicSpline(np.r_[f, f[0] + 1], np.vstack([com, com[:1]]), bc_type="periodic")
-        dspline = spline.derivative()
-
-        def com_body(s: FloatArray) -> PathSample:
-            u = f[0] + np.mod(s - f[0], 1.0)  # into the spline's period [f0, f0 + 1)
-            return PathSample(spline(u), dspline(u))
+    if np.ndim(plan.target_com) != 2 or np.shape(plan.target_com)[1] != 3:
+        raise ValueError(f"plan target_com {np.shape(plan.target_com)} must be (K, 3)")
+    com_body = periodic_spline(plan.fractions, plan.target_com, "target_com")
 
     def reference(s: ArrayLike) -> PathSample:
         s = np.atleast_1d(np.asarray(s, dtype=float))
-        (pose, dpose), (g_B, dg_B) = circle_pose(circle, s), com_body(s)
-        c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-        rotated = np.stack([c * g_B[:, 0] - sn * g_B[:, 1], sn * g_B[:, 0] + c * g_B[:, 1]], 1)
-        d_rot = np.stack([c * dg_B[:, 0] - sn * dg_B[:, 1], sn * dg_B[:, 0] + c * dg_B[:, 1]], 1)
-        value = np.column_stack([pose[:, :2] + rotated, g_B[:, 2]])
-        # d/ds [Rz(γ) g] = γ' ẑ × (Rz g) + Rz g'
-        turn = dpose[:, 2:3] * np.stack([-rotated[:, 1], rotated[:, 0]], axis=1)
-        rate = np.column_stack([dpose[:, :2] + turn + d_rot, dg_B[:, 2]])
-        return PathSample(value, rate)
+        return place_body_com(circle, s, com_body(s))
 
     return reference
+
+
+def place_body_com(circle: CirclePath, s: ArrayLike, com_body: PathSample) -> PathSample:
+    """Body-frame arm CoMs placed with the reference base pose: g_a^S = [x, y, 0] + Rz(γ) g_a^B.
+
+    Args:
+        circle: the base path.
+        s: path fractions (N,) [-].
+        com_body: g_a^B (N, 3) [m] and d g_a^B / ds (N, 3) [m] at s.
+
+    Returns:
+        g_a^S (N, 3) [m] and d g_a^S / ds (N, 3) [m].
+    """
+    (pose, dpose), (g_B, dg_B) = circle_pose(circle, s), com_body
+    c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    rotated = np.stack([c * g_B[:, 0] - sn * g_B[:, 1], sn * g_B[:, 0] + c * g_B[:, 1]], 1)
+    d_rot = np.stack([c * dg_B[:, 0] - sn * dg_B[:, 1], sn * dg_B[:, 0] + c * dg_B[:, 1]], 1)
+    value = np.column_stack([pose[:, :2] + rotated, g_B[:, 2]])
+    # d/ds [Rz(γ) g] = γ' ẑ × (Rz g) + Rz g'
+    turn = dpose[:, 2:3] * np.stack([-rotated[:, 1], rotated[:, 0]], axis=1)
+    rate = np.column_stack([dpose[:, :2] + turn + d_rot, dg_B[:, 2]])
+    return PathSample(value, rate)
+
+
+def unwrap_postures(postures: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> FloatArray:
+    """Postures (K, 4) with each full-turn joint on the branch a periodic spline should use.
+
+    A joint whose range ``upper − lower`` is at least 2π (the turret, [0, 2π]) is first put
+    into its limits (an angle outside them moves into [lower, lower + 2π)), then unwrapped
+    around the closed sequence (last posture back to the first) so that consecutive postures
+    differ by at most π, and shifted by a multiple of 2π into its limits. If that short way
+    does not fit the limits (it would cross the stop, e.g. 0.2 → 6.1 rad on [0, 2π]) or winds
+    a net turn over the lap, the joint keeps the wrapped angles: the long way round, within
+    the limits. Other joints are unchanged.
+
+    Args:
+        postures: arm postures (K, 4) [rad].
+        lower: joint lower limits (4,) [rad].
+        upper: joint upper limits (4,) [rad].
+    """
+    q = np.array(postures, dtype=float, ndmin=2)
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    for j in np.flatnonzero(hi - lo >= 2 * np.pi - FULL_TURN_TOL):
+        inside = (q[:, j] >= lo[j]) & (q[:, j] <= hi[j])
+        wrapped = np.where(inside, q[:, j], lo[j] + np.mod(q[:, j] - lo[j], 2 * np.pi))
+        closed = np.unwrap(np.r_[wrapped, wrapped[0]])
+        q[:, j] = wrapped
+        if abs(closed[-1] - closed[0]) > np.pi:  # a net turn per lap: no periodic short way
+            continue
+        short = closed[:-1]
+        short = short + 2 * np.pi * np.ceil((lo[j] - short.min()) / (2 * np.pi) - FULL_TURN_TOL)
+        if short.max() <= hi[j]:
+            q[:, j] = short
+    return q
+
+
+def posture_reference(
+    fractions: ArrayLike, postures: ArrayLike, lower: ArrayLike, upper: ArrayLike
+) -> Callable[[ArrayLike], PathSample]:
+    """The arm posture reference q_ref(s) along the lap: the plan's postures interpolated.
+
+    The postures are unwrapped (:func:`unwrap_postures`) and joined by the periodic cubic
+    spline that :func:`arm_reference` uses for the CoMs. Where the spline overshoots a joint
+    limit between postures, the value is clipped to the limit and its rate set to zero.
+
+    Args:
+        fractions: path fractions (K,) increasing in [0, 1) [-].
+        postures: arm postures at them (K, 4) [rad], within the limits.
+        lower: joint lower limits (4,) [rad].
+        upper: joint upper limits (4,) [rad].
+
+    Returns:
+        ``ref(s) -> PathSample`` with q_ref (N, 4) [rad] and d q_ref / ds (N, 4) [rad].
+
+    Raises:
+        ValueError: fractions not increasing in [0, 1), or shapes that do not match.
+    """
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    spline = periodic_spline(fractions, unwrap_postures(postures, lo, hi), "postures")
+
+    def reference(s: ArrayLike) -> PathSample:
+        q, dq = spline(s)
+        inside = (q >= lo) & (q <= hi)
+        return PathSample(np.clip(q, lo, hi), np.where(inside, dq, 0.0))
+
+    return reference
+
+
+class ApproachLike(Protocol):
+    """The arm's start-up reference over the first ``duration`` seconds (``approach.Approach``)."""
+
+    @property
+    def duration(self) -> float:
+        """Its length [s]."""
+        ...
+
+    def posture(self, t: ArrayLike) -> PathSample:
+        """q_ref (N, 4) [rad] and its rate (N, 4) [rad/s] at times t (N,) [s]."""
+        ...
+
+    def com_body(self, t: ArrayLike) -> PathSample:
+        """Body-frame arm-CoM reference (N, 3) [m] and its rate (N, 3) [m/s] at times t."""
+        ...
 
 
 def task_reference(
@@ -128,19 +258,39 @@ def task_reference(
     lap_time: float,
     base_offset: float,
     arm: Callable[[ArrayLike], PathSample],
+    posture: Callable[[ArrayLike], PathSample],
     t: ArrayLike,
-) -> PathSample:
-    """ξ_des (N, 6) and ξ̇_ref (N, 6) [per second] at times t for a constant-speed lap.
+    approach: ApproachLike | None = None,
+) -> StepReference:
+    """The controller's reference at times t for a constant-speed lap (rates per second).
 
     Args:
         circle: the base path.
         lap_time: time for one lap [s].
         base_offset: base control point ahead of the body origin [m].
         arm: the arm-CoM reference (e.g. from :func:`arm_reference`).
+        posture: the arm posture reference (e.g. from :func:`posture_reference`).
         t: times (N,) [s].
+        approach: the arm's start-up reference; for t < ``approach.duration`` it replaces the
+            arm-CoM rows (its body-frame CoM placed with the reference base pose) and the
+            posture reference.
+
+    Returns:
+        ξ_des (N, 6), ξ̇_ref (N, 6) [m/s, rad/s], q_ref (N, 4) [rad], q̇_ref (N, 4) [rad/s];
+        ``.pack()`` gives the (N, 20) rows the ``step`` Function takes.
     """
-    s = np.atleast_1d(np.asarray(t, dtype=float)) / lap_time
-    base, arm_s = base_reference(circle, s, base_offset), arm(s)
-    return PathSample(
-        np.hstack([base.value, arm_s.value]), np.hstack([base.rate, arm_s.rate]) / lap_time
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    s = t / lap_time
+    base, arm_s, q = base_reference(circle, s, base_offset), arm(s), posture(s)
+    ref = StepReference(
+        xi_des=np.hstack([base.value, arm_s.value]),
+        xi_dot_ref=np.hstack([base.rate, arm_s.rate]) / lap_time,
+        q_ref=np.array(q.value),
+        q_dot_ref=q.rate / lap_time,
     )
+    if approach is not None and np.any(early := t < approach.duration):
+        g_B, dg_B = approach.com_body(t[early])
+        placed = place_body_com(circle, s[early], PathSample(g_B, dg_B * lap_time))
+        ref.xi_des[early, 3:], ref.xi_dot_ref[early, 3:] = placed.value, placed.rate / lap_time
+        ref.q_ref[early], ref.q_dot_ref[early] = approach.posture(t[early])
+    return ref

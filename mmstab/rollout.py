@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import casadi as ca
 import numpy as np
 
+from mmstab.approach import arm_references
 from mmstab.codegen import (
     ROLLOUT_CHUNK,
     ROLLOUT_NAME,
@@ -37,6 +38,7 @@ from mmstab.codegen import (
 from mmstab.config import _atomic
 from mmstab.controller import (
     _SINC_SERIES_BELOW,
+    ARM,
     JOINT_COUNT,
     REFERENCE_SIZE,
     STATE_SIZE,
@@ -45,9 +47,11 @@ from mmstab.controller import (
     ControllerParams,
     ControllerSettings,
     QPStatus,
+    StepReference,
     build_controller,
 )
-from mmstab.reference import PlanLike, arm_reference, task_reference
+from mmstab.posture import PosturePlan, PostureReference
+from mmstab.reference import task_reference
 from mmstab.robot import FloatArray, Robot
 
 if TYPE_CHECKING:
@@ -98,10 +102,11 @@ class RunInputs(NamedTuple):
 
     Attributes:
         dt: control period = integration step [s].
-        params: the controller's packed parameters (34,).
+        params: the controller's packed parameters (42,).
         state0: initial state (9,) [m, m, rad, rad...].
-        reference: ``[ξ_des, ξ̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 12); the last
-            row is only used to measure the final tracking error.
+        reference: packed :class:`~mmstab.tasks.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
+            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 20); the last row is only used
+            to measure the final tracking error.
         track: [sprocket radius [m], track separation [m], |ω dt / 2| below which the arc's
             sin(a)/a uses its series [rad]] (the C example's own integrator).
     """
@@ -130,7 +135,11 @@ def controller_settings(problem: Problem, plugin: str | None = None) -> Controll
 
 
 def initial_state(
-    problem: Problem, plan: PlanLike, *, lateral_offset: float = 0.0, arm: FloatArray | None = None
+    problem: Problem,
+    plan: PosturePlan,
+    *,
+    lateral_offset: float = 0.0,
+    arm: FloatArray | None = None,
 ) -> FloatArray:
     """A start state: the circle's first pose, shifted sideways, sprockets at zero.
 
@@ -151,42 +160,51 @@ def initial_state(
 
 def run_inputs(
     problem: Problem,
-    plan: PlanLike,
+    plan: PosturePlan,
     *,
     steps: int | None = None,
     state0: FloatArray | None = None,
     settings: ControllerSettings | None = None,
+    posture: PostureReference | None = None,
 ) -> RunInputs:
     """The inputs of a closed-loop run of a problem with a plan.
 
     Args:
         problem: the problem (robot, circle, controller settings).
-        plan: the arm reference (``fractions``, ``target_com``), e.g. the planner's ``Plan``.
+        plan: the arm reference (``fractions``, ``target_com``, ``postures``), e.g. the
+            planner's ``Plan``.
         steps: control steps (default ``controller.duration / controller.dt``).
         state0: initial state (9,) (default :func:`initial_state`).
         settings: controller settings (default the problem's).
+        posture: the lap's posture reference (default
+            :func:`mmstab.posture.build_posture_reference` of the plan, checked at every
+            control period of a lap, as in the simulation); the start-up approach is built
+            from ``state0``'s arm (:func:`mmstab.approach.arm_references`).
     """
     settings = settings or ControllerSettings.from_section(problem.section("controller"))
     n = int(round(settings.duration / settings.dt)) if steps is None else int(steps)
     if n < 1:
         raise ValueError(f"a run needs at least one step, got {n}")
     t = np.arange(n + 1) * settings.dt
-    xi_des, xi_dot = task_reference(
-        problem.circle,
-        settings.lap_time,
-        settings.base_offset,
-        arm_reference(plan, problem.circle),
-        t,
-    )
     x0 = np.asarray(initial_state(problem, plan) if state0 is None else state0, dtype=float)
     if x0.shape != (STATE_SIZE,):
         raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
+    arm = arm_references(problem.robot, plan, x0[ARM], settings, posture)
+    reference = task_reference(
+        problem.circle,
+        settings.lap_time,
+        settings.base_offset,
+        arm.posture.arm_reference(problem.circle),
+        arm.posture,
+        t,
+        arm.approach,
+    )
     tracks = problem.robot.base.tracks
     return RunInputs(
         dt=settings.dt,
         params=ControllerParams.from_settings(problem.robot, settings).pack(),
         state0=x0,
-        reference=np.hstack([xi_des, xi_dot]),
+        reference=reference.pack(),
         track=np.array([tracks.sprocket_radius, tracks.separation, _SINC_SERIES_BELOW]),
     )
 
@@ -232,7 +250,7 @@ def _python_loop(ctrl: Controller, inputs: RunInputs) -> tuple[FloatArray, ...]:
     ctrl.set_params(ControllerParams.unpack(inputs.params))
     ref = inputs.reference
     for k in range(n):
-        res = ctrl.solve(states[k], ref[k, :TASK_SIZE], ref[k, TASK_SIZE:])
+        res = ctrl.solve(states[k], *StepReference.unpack(ref[k]))
         qdot[k], status[k] = res.qdot, res.status
         states[k + 1] = ctrl.model.integrate(states[k], res.qdot, inputs.dt)
     return states, qdot, status
@@ -261,7 +279,7 @@ def _chunk_loop(chunk: ca.Function, inputs: RunInputs) -> tuple[FloatArray, ...]
     for i, a in enumerate((out_x, out_q, out_s)):
         buf.set_res(i, memoryview(a))  # type: ignore[arg-type]
     for c in range(chunks):
-        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 12) = column-major 12 x size
+        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 20) = column-major 20 x size
         run()
         m = min(size, n - c * size)
         k = c * size
@@ -273,7 +291,7 @@ def _chunk_loop(chunk: ca.Function, inputs: RunInputs) -> tuple[FloatArray, ...]
 
 def rollout(
     problem: Problem,
-    plan: PlanLike,
+    plan: PosturePlan,
     *,
     backend: str = "generated",
     steps: int | None = None,
@@ -286,7 +304,8 @@ def rollout(
 
     Args:
         problem: the problem (robot, circle, ``controller:``, ``codegen:``).
-        plan: the arm reference (``fractions``, ``target_com``; e.g. the planner's ``Plan``).
+        plan: the arm reference (``fractions``, ``target_com``, ``postures``; e.g. the
+            planner's ``Plan``).
         backend: ``"python"`` (step loop), ``"casadi"`` (interpreted chunks) or
             ``"generated"`` (compiled chunks).
         steps: control steps (default ``controller.duration / controller.dt``).
@@ -336,7 +355,7 @@ def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
 
     Layout, little-endian: 8-byte magic ``MMSTRUN1``; int64 steps, state size, reference size,
     parameter count, track-data count; float64 dt; params; state0; track data; reference rows
-    (steps + 1, 12), row-major.
+    (steps + 1, 20), row-major.
     """
     sizes = np.array(
         [

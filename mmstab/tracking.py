@@ -1,8 +1,10 @@
 """Closed-loop trajectory tracking on the ramp (paper Section II-E and III; DESIGN.md §6).
 
 :func:`simulate` drives the controller step (:mod:`mmstab.controller`, Eq. 7-8) around the
-problem's circle while the arm CoM follows a plan's body-frame CoM targets
-(:func:`mmstab.reference.task_reference`), and records everything the paper's Fig. 9-12 show.
+problem's circle while the arm CoM follows a plan's body-frame CoM targets and the posture task
+holds the arm near the plan's postures (:func:`mmstab.reference.task_reference`; the posture
+reference is checked for self-collision and repaired first, :mod:`mmstab.posture`), and records
+everything the paper's Fig. 9-12 show.
 
 **Plant.** The base is the nonholonomic tracked vehicle of :class:`mmstab.controller.TaskModel`:
 over one control period dt the sprocket speeds are constant, so the base drives an exact arc
@@ -24,8 +26,11 @@ state components at fault.
 
 **Initial state.** The base starts on the reference start pose (the circle at s = 0), sprocket
 angles zero. The arm starts ``stowed`` by default (the robot arrives with its arm folded, as
-the paper's Fig. 11(a) suggests: the arm joints saturate early, while the arm reconfigures),
-or at the plan's first posture (``initial_arm="planned"``: no transient).
+the paper's Fig. 11(a) suggests) or at the plan's first posture (``initial_arm="planned"``).
+For the first ``approach_time`` seconds the arm's references follow a collision-free path
+from that posture onto the lap's (:class:`mmstab.approach.Approach`); with ``approach_time: 0``
+they are the lap's from t = 0, a step the arm takes at saturated joint speeds, through the
+body on the default problem.
 
 **Stability.** After the loop, vectorised over every recorded sample: μ with the arm as it
 moved (``reconfigured``), with the arm held stowed on the same base trajectory (``stowed``)
@@ -42,10 +47,13 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mmstab.approach import Approach, arm_references
 from mmstab.config import MmstabError
 from mmstab.controller import (
     ARM,
+    ARM_JOINTS,
     JOINT_COUNT,
+    PARAMS_SIZE,
     PLUGINS,
     REFERENCE_SIZE,
     STATE_SIZE,
@@ -56,8 +64,10 @@ from mmstab.controller import (
     build_controller,
     quiet_stdout,
 )
+from mmstab.ik import COM_TOLERANCE
+from mmstab.posture import PostureReference
 from mmstab.problem import Problem
-from mmstab.reference import PlanLike, arm_reference, task_reference
+from mmstab.reference import PlanLike, task_reference
 from mmstab.robot import FloatArray, Robot
 from mmstab.stability import robot_force_angle
 from mmstab.terrain import wrap_angle
@@ -87,7 +97,7 @@ class TrackingPlan(PlanLike, Protocol):
 
     @property
     def postures(self) -> FloatArray:
-        """Arm postures realising the targets (K, 4) [rad]."""
+        """Arm postures realising the targets (K, 4) [rad]: the posture task's reference."""
         ...
 
 
@@ -96,7 +106,8 @@ class StepBackend(NamedTuple):
     """A controller step to simulate with.
 
     Attributes:
-        function: CasADi Function (state (9), reference (12) = [ξ_des, ξ̇_ref], params (34))
+        function: CasADi Function (state (9), reference (20) = [ξ_des, ξ̇_ref, q_ref, q̇_ref],
+            params (42))
             -> (qdot (6) [rad/s], status (a :class:`QPStatus` value), ...), the signature of
             :attr:`mmstab.controller.Controller.step`; on failure it should return q̇ = 0 (the
             simulation holds still on any status but SUCCESS regardless).
@@ -110,7 +121,7 @@ class StepBackend(NamedTuple):
         """Raise :class:`MmstabError` unless the Function has the step's signature."""
         f = self.function
         sizes_in = [f.size_in(i) for i in range(f.n_in())]
-        expected = [(STATE_SIZE, 1), (REFERENCE_SIZE, 1), (sum(ControllerParams.sizes()), 1)]
+        expected = [(STATE_SIZE, 1), (REFERENCE_SIZE, 1), (PARAMS_SIZE, 1)]
         if sizes_in != expected:
             raise MmstabError(
                 f"step Function {f.name()!r} takes {sizes_in}; expected {expected} "
@@ -140,14 +151,14 @@ def build_advance(model: TaskModel, step: ca.Function) -> ca.Function:
         step: the step Function (see :class:`StepBackend`).
 
     Returns:
-        Function (state (9), reference (12), params (34)) -> (state_next (9), qdot (6)
+        Function (state (9), reference (20), params (42)) -> (state_next (9), qdot (6)
         [rad/s] as applied, status, finite): ``qdot`` is the step's answer when its status is
         SUCCESS and zero otherwise; ``finite`` is 1 when every component of ``state_next`` is
         finite. dt [s] is read from the parameters (``ControllerParams.dt``).
     """
     state = ca.MX.sym("state", STATE_SIZE)
     ref = ca.MX.sym("reference", REFERENCE_SIZE)
-    p = ca.MX.sym("params", sum(ControllerParams.sizes()))
+    p = ca.MX.sym("params", PARAMS_SIZE)
     out = step(state, ref, p)
     qdot_raw, status = out[0], out[1]
     ok = status == float(QPStatus.SUCCESS)
@@ -198,13 +209,18 @@ class TrackingRun:
         xi: task ξ in S (N+1, 6) [m, m, rad, m, m, m].
         xi_des: reference ξ_des in S (N+1, 6).
         xi_dot_ref: reference rate (N+1, 6) [m/s, rad/s].
+        q_ref: arm posture reference (N+1, 4) [rad].
+        posture_error: q_ref − q_arm (N+1, 4) [rad].
         base_error: distance of the base control point from its reference (N+1,) [m].
         heading_error: wrapped heading error γ_des − γ (N+1,) [rad].
         arm_com_error: distance of the arm CoM from its reference (N+1,) [m].
         arm_com_body: arm CoM in the body frame (N+1, 3) [m].
         mu: stability along the run.
         failures: every period that held still, in order.
+        posture: the posture reference (knots, via postures, its collision check).
+        approach: the arm's start-up reference (None when ``approach_time`` is 0).
         dt: control period [s].
+        lap_time: time of one lap of the reference [s].
         qdot_limit: joint speed limits (6,) [rad/s].
         q_lower: arm joint lower limits (4,) [rad].
         q_upper: arm joint upper limits (4,) [rad].
@@ -222,13 +238,18 @@ class TrackingRun:
     xi: FloatArray
     xi_des: FloatArray
     xi_dot_ref: FloatArray
+    q_ref: FloatArray
+    posture_error: FloatArray
     base_error: FloatArray
     heading_error: FloatArray
     arm_com_error: FloatArray
     arm_com_body: FloatArray
     mu: Stability
     failures: tuple[Failure, ...]
+    posture: PostureReference
+    approach: Approach | None
     dt: float
+    lap_time: float
     qdot_limit: FloatArray
     q_lower: FloatArray
     q_upper: FloatArray
@@ -299,7 +320,7 @@ def stability_along(problem: Problem, headings: ArrayLike, arm_com_body: ArrayLi
 
 
 # ------------------------------------------------------------------------------- simulation
-def _check_plan(plan: TrackingPlan, initial_arm: str, robot: Robot) -> None:
+def _check_plan(plan: TrackingPlan, robot: Robot) -> None:
     try:
         fractions = np.asarray(plan.fractions, dtype=float)
         target = np.asarray(plan.target_com, dtype=float)
@@ -313,19 +334,24 @@ def _check_plan(plan: TrackingPlan, initial_arm: str, robot: Robot) -> None:
         raise MmstabError("plan: fractions and target_com must be finite")
     if fractions[0] < 0 or fractions[-1] >= 1 or np.any(np.diff(fractions) <= 0):
         raise MmstabError("plan: fractions must increase strictly within [0, 1)")
-    if initial_arm == "planned":
-        postures = np.asarray(getattr(plan, "postures", np.empty((0, 4))), dtype=float)
-        if postures.ndim != 2 or postures.shape[1:] != (4,) or len(postures) == 0:
-            raise MmstabError(
-                f"plan: initial_arm='planned' needs postures (K, 4), got {postures.shape}"
-            )
-        q0 = postures[0]
-        if (
-            not np.all(np.isfinite(q0))
-            or np.any(q0 < robot.joint_lower)
-            or np.any(q0 > robot.joint_upper)
-        ):
-            raise MmstabError(f"plan: first posture {q0} is not finite and within the joint limits")
+    try:
+        postures = np.asarray(plan.postures, dtype=float)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise MmstabError(f"plan: the posture task needs postures (K, 4): {exc}") from None
+    if postures.shape != (fractions.size, ARM_JOINTS):
+        raise MmstabError(
+            f"plan: postures {postures.shape} do not match fractions {fractions.shape} "
+            f"(the posture task needs one arm posture (4,) per fraction)"
+        )
+    outside = (postures < robot.joint_lower) | (postures > robot.joint_upper)
+    if not np.all(np.isfinite(postures)) or outside.any():
+        raise MmstabError("plan: postures must be finite and within the joint limits")
+    gap = float(np.linalg.norm(robot.arm_com(postures) - target, axis=1).max())
+    if gap > COM_TOLERANCE:
+        raise MmstabError(
+            f"plan: the postures do not realise target_com (largest gap {gap:.3g} m > "
+            f"{COM_TOLERANCE} m); the arm references are built from the postures"
+        )
 
 
 def initial_state(problem: Problem, plan: TrackingPlan, initial_arm: InitialArm) -> FloatArray:
@@ -357,13 +383,14 @@ def simulate(
     initial_arm: InitialArm = "stowed",
     state0: ArrayLike | None = None,
     settings: ControllerSettings | None = None,
+    posture: PostureReference | None = None,
 ) -> TrackingRun:
     """Simulate the tracking controller around the problem's circle.
 
     Args:
         problem: the problem (robot, ramp, circle, ``controller`` section).
-        plan: the arm plan: ``fractions`` (K,), body-frame ``target_com`` (K, 3) [m], and
-            ``postures`` (K, 4) [rad] if ``initial_arm="planned"``.
+        plan: the arm plan: ``fractions`` (K,), body-frame ``target_com`` (K, 3) [m] and
+            ``postures`` (K, 4) [rad] (the posture task's reference).
         plugin: QP plugin (one of :data:`mmstab.controller.PLUGINS`); default the problem's.
         step: the controller step to use instead of the interpreted ``Controller.step``: a
             CasADi Function with its signature, or a :class:`StepBackend`.
@@ -373,6 +400,10 @@ def simulate(
         state0: the initial state (9,) instead of :func:`initial_state`.
         settings: controller settings instead of the problem's section (``plugin`` still
             overrides their plugin).
+        posture: the lap's posture reference, if already built; default
+            :func:`mmstab.posture.build_posture_reference` of the plan, checked (and repaired)
+            at every control period of a lap. The start-up approach (``approach_time``) is
+            built from the initial arm posture (:func:`mmstab.approach.arm_references`).
 
     Returns:
         The recorded run.
@@ -393,7 +424,7 @@ def simulate(
         raise MmstabError(f"duration {duration} s must be at least dt = {settings.dt} s")
     if initial_arm not in ("stowed", "planned"):
         raise MmstabError(f"initial_arm must be 'stowed' or 'planned', got {initial_arm!r}")
-    _check_plan(plan, initial_arm, robot)
+    _check_plan(plan, robot)
     s0 = initial_state(problem, plan, initial_arm) if state0 is None else np.asarray(state0, float)
     if s0.shape != (STATE_SIZE,):
         raise MmstabError(f"initial state must have shape ({STATE_SIZE},), got {s0.shape}")
@@ -411,14 +442,17 @@ def simulate(
     params = ControllerParams.from_settings(robot, settings).pack()
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
-    xi_des, xi_dot_ref = task_reference(
+    arm = arm_references(robot, plan, s0[ARM], settings, posture)
+    ref = task_reference(
         problem.circle,
         settings.lap_time,
         settings.base_offset,
-        arm_reference(plan, problem.circle),
+        arm.posture.arm_reference(problem.circle),
+        arm.posture,
         t,
+        arm.approach,
     )
-    reference = np.ascontiguousarray(np.hstack([xi_des, xi_dot_ref]))
+    reference = ref.pack()
     if not np.all(np.isfinite(reference)):
         raise MmstabError("the task reference is not finite")
     advance = build_advance(model, backend.function)
@@ -442,15 +476,20 @@ def simulate(
         qdot=qdots,
         status=statuses,
         xi=xi,
-        xi_des=xi_des,
-        xi_dot_ref=xi_dot_ref,
-        base_error=np.linalg.norm(xi_des[:, :2] - xi[:, :2], axis=1),
-        heading_error=wrap_angle(xi_des[:, 2] - xi[:, 2]),
-        arm_com_error=np.linalg.norm(xi_des[:, 3:] - xi[:, 3:], axis=1),
+        xi_des=ref.xi_des,
+        xi_dot_ref=ref.xi_dot_ref,
+        q_ref=ref.q_ref,
+        posture_error=ref.q_ref - states[:, ARM],
+        base_error=np.linalg.norm(ref.xi_des[:, :2] - xi[:, :2], axis=1),
+        heading_error=wrap_angle(ref.xi_des[:, 2] - xi[:, 2]),
+        arm_com_error=np.linalg.norm(ref.xi_des[:, 3:] - xi[:, 3:], axis=1),
         arm_com_body=com_B,
         mu=stability_along(problem, states[:, 2], com_B),
         failures=tuple(Failure(int(k), float(t[k]), QPStatus(int(statuses[k]))) for k in failed),
+        posture=arm.posture,
+        approach=arm.approach,
         dt=settings.dt,
+        lap_time=settings.lap_time,
         qdot_limit=ControllerParams.from_settings(robot, settings).qdot_max,
         q_lower=robot.joint_lower,
         q_upper=robot.joint_upper,
@@ -476,8 +515,9 @@ def _run_loop(
     Args:
         advance: from :func:`build_advance`.
         state0: initial state (9,).
-        reference: [ξ_des, ξ̇_ref] per sample (steps+1, 12); row k is used in period k.
-        params: packed controller parameters (34,).
+        reference: packed :class:`~mmstab.tasks.StepReference` per sample (steps+1, 20); row
+            k is used in period k.
+        params: packed controller parameters (42,).
         steps: number of control periods.
         dt: control period [s] (for messages).
         progress: show a progress bar.
@@ -531,9 +571,12 @@ def _run_loop(
 def transient_end(run: TrackingRun) -> int:
     """The sample where the initial transient ends (0 when the arm starts on its reference).
 
-    The first index from which the arm-CoM error stays within :data:`TRANSIENT_FRACTION` of
-    its initial value.
+    With a start-up approach, the first sample at or after its end. Without one, the first
+    index from which the arm-CoM error stays within :data:`TRANSIENT_FRACTION` of its initial
+    value.
     """
+    if run.approach is not None:
+        return int(np.searchsorted(run.t, run.approach.duration - 0.5 * run.dt))
     e = run.arm_com_error
     above = np.flatnonzero(e > TRANSIENT_FRACTION * e[0])
     return int(above[-1] + 1) if above.size and e[0] > 0 else 0
@@ -544,9 +587,15 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
 
     Besides the whole-run numbers, ``after_transient`` repeats errors, mean joint speeds and
     μ from :func:`transient_end` on: the initial reconfiguration (from the stowed arm)
-    dominates the whole-run maxima and minima.
+    dominates the whole-run maxima and minima (with an approach: the approach is the transient).
+    ``posture_reference`` is the posture
+    reference's collision check and via postures (:meth:`PostureReference.summary`).
     """
     names = JOINT_NAMES
+
+    def arm_dict(values: FloatArray) -> dict[str, float]:
+        return dict(zip(names[2:], np.asarray(values, dtype=float).tolist(), strict=True))
+
     limit = run.qdot_limit
     saturated = np.isclose(np.abs(run.qdot), limit, rtol=0, atol=1e-9)
     cases = run.mu._asdict()
@@ -555,6 +604,7 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "start_s": float(run.t[k]),
         "base_error_max_m": float(run.base_error[k:].max()),
         "arm_com_error_max_m": float(run.arm_com_error[k:].max()),
+        "posture_error_max_abs_rad": arm_dict(np.abs(run.posture_error[k:]).max(axis=0)),
         "qdot_mean_abs": dict(zip(names, np.abs(run.qdot[k:]).mean(axis=0).tolist(), strict=True)),
         "mu_min": {name: float(v[k:].min()) for name, v in cases.items()},
         "mu_mean": {name: float(v[k:].mean()) for name, v in cases.items()},
@@ -565,6 +615,8 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "arm_com_error_max_m": float(run.arm_com_error.max()),
         "arm_com_error_final_m": float(run.arm_com_error[-1]),
         "heading_error_max_abs_rad": float(np.abs(run.heading_error).max()),
+        "posture_error_max_abs_rad": arm_dict(np.abs(run.posture_error).max(axis=0)),
+        "posture_error_final_abs_rad": arm_dict(np.abs(run.posture_error[-1])),
         "qdot_max_abs": dict(zip(names, np.abs(run.qdot).max(axis=0).tolist(), strict=True)),
         "qdot_mean_abs": dict(zip(names, np.abs(run.qdot).mean(axis=0).tolist(), strict=True)),
         "qdot_limit": dict(zip(names, limit.tolist(), strict=True)),
@@ -591,4 +643,6 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "plugin": run.plugin,
         "backend": run.backend,
         "initial_arm": run.initial_arm,
+        "posture_reference": run.posture.summary(run.lap_time),
+        "approach": None if run.approach is None else run.approach.summary(),
     }

@@ -25,7 +25,17 @@ from mmstab.codegen import (
     postprocess,
 )
 from mmstab.config import ConfigError, MmstabError
-from mmstab.controller import QPStatus, build_controller, quiet_stdout
+from mmstab.controller import (
+    PARAMS_SIZE,
+    REFERENCE_SIZE,
+    STATE_SIZE,
+    TRACK_DATA_SIZE,
+    ControllerParams,
+    QPStatus,
+    StepReference,
+    build_controller,
+    quiet_stdout,
+)
 from mmstab.problem import load_problem
 from mmstab.rollout import (
     controller_settings,
@@ -64,9 +74,11 @@ def random_cases(robot, rng: np.random.Generator, n: int):
         state = np.r_[rng.uniform(-2, 2, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-9, 9, 2), q]
         xi_des = np.r_[state[:2] + rng.normal(0, 0.2, 2), rng.uniform(-np.pi, np.pi)]
         xi_des = np.r_[xi_des, rng.uniform(-1, 1, 3)]
-        ref = np.r_[xi_des, rng.normal(0, 0.3, 6)]
+        q_ref = rng.uniform(lo - 0.05 * span, hi + 0.05 * span)
+        ref = np.r_[xi_des, rng.normal(0, 0.3, 6), q_ref, rng.normal(0, 1.0, 4)]
         if k % 50 == 49:
-            (state if k % 100 == 49 else ref)[rng.integers(0, 9)] = np.nan
+            bad = state if k % 100 == 49 else ref
+            bad[rng.integers(0, bad.size)] = np.nan
         yield state, ref
 
 
@@ -156,6 +168,20 @@ def test_work_sizes_come_from_the_generated_work_function(generated_qrqp):
     assert f'"w": {sizes.w}' in meta
 
 
+def test_layout_header_matches_the_python_layouts(generated_qrqp):
+    """controller_layout.h: the sizes and offsets C uses are the Python ones."""
+    text = generated_qrqp.layout.read_text()
+    defines = [line.split() for line in text.splitlines() if line.startswith("#define MMSTAB_")]
+    macros = {d[1]: d[2] for d in defines if len(d) == 3}
+    expected = {"STATE": STATE_SIZE, "REFERENCE": REFERENCE_SIZE, "PARAMS": PARAMS_SIZE}
+    for name, value in {**expected, "TRACK": TRACK_DATA_SIZE, "ARM": 4}.items():
+        assert int(macros[f"MMSTAB_N_{name}"]) == value, name
+    for layout, prefix in ((StepReference, "REF"), (ControllerParams, "PARAM")):
+        for field, sl in layout.offsets().items():
+            assert int(macros[f"MMSTAB_{prefix}_{field.upper()}"]) == sl.start, field
+    assert int(macros["MMSTAB_REF_Q_REF"]) == 12 and int(macros["MMSTAB_PARAM_DT"]) == 27
+
+
 def test_postprocess_refuses_unexpected_code():
     with pytest.raises(RuntimeError, match="one call of controller_qp"):
         postprocess("/* generated */\nint main(void) { return 0; }\n", "controller_qp")
@@ -189,12 +215,12 @@ def test_load_step_uses_the_problem_codegen_section(tmp_path):
     problem = load_problem(write_problem(tmp_path, edit))
     step = load_step(problem)
     assert step.name() == STEP_NAME
-    assert [step.size1_in(i) for i in range(3)] == [9, 12, 34]
+    assert [step.size1_in(i) for i in range(3)] == [STATE_SIZE, REFERENCE_SIZE, PARAMS_SIZE]
     assert [step.size1_out(i) for i in range(3)] == [6, 1, 1]
     assert (tmp_path / "gen" / "qrqp" / f"{STEP_NAME}.c").is_file()
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.1, -1.4, 0.2, 0.0, 0.0, 2.0, 0.3, -0.5, 0.2]
-    ref = np.r_[ctrl.model.task(state) + 0.01, np.zeros(6)]
+    ref = np.r_[ctrl.model.task(state) + 0.01, np.zeros(6), state[5:] + 0.02, np.zeros(4)]
     p = ctrl.params.pack()
     np.testing.assert_array_equal(
         np.asarray(step(state, ref, p)[0]), np.asarray(ctrl.step(state, ref, p)[0])
@@ -262,8 +288,11 @@ def test_embedded_example_matches_the_python_closed_loop(problem, programs, tmp_
     np.testing.assert_allclose(_parse(proc.stdout, "final_state"), py.states[-1], atol=1e-6, rtol=0)
     np.testing.assert_allclose(_parse(proc.stdout, "final_error"), py.errors[-1], atol=1e-6, rtol=0)
     assert f"failures: {py.failures} of 2000" in proc.stdout
-    # the run really converges from its 5 cm / stowed-arm start (heading last: light weight)
-    assert np.abs(py.errors[0]).max() > 0.1 and np.abs(py.errors[-1]).max() < 0.05
+    # the run really converges from its 5 cm off the path; the arm starts on its approach
+    # reference (from the stowed posture), so its CoM error at t = 0 is the base's offset
+    assert np.hypot(*py.errors[0, :2]) == pytest.approx(0.05, rel=1e-9)
+    np.testing.assert_allclose(py.errors[0, 3:], np.r_[py.errors[0, :2], 0.0], atol=1e-12)
+    assert np.abs(py.errors[-1]).max() < 0.05
     assert np.abs(py.errors[-1, [0, 1, 3, 4, 5]]).max() < 2e-3
 
 
@@ -295,7 +324,8 @@ def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path
 def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
     progs = programs
     bad = tmp_path / "bad.bin"
-    bad.write_bytes(b"MMSTRUN1" + np.array([10, 8, 12, 34, 3], "<i8").tobytes())
+    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 8, PARAMS_SIZE, TRACK_DATA_SIZE]  # old layout
+    bad.write_bytes(b"MMSTRUN1" + np.array(sizes, "<i8").tobytes())
     proc = subprocess.run([str(progs.loop), str(bad)], capture_output=True, text=True)
     assert proc.returncode == 1 and "do not match the controller" in proc.stderr
 

@@ -12,14 +12,25 @@ from conftest import write_problem
 from mmstab.config import ConfigError
 from mmstab.controller import (
     CODEGEN_PLUGINS,
+    PARAMS_SIZE,
     PLUGINS,
+    REFERENCE_SIZE,
     ControllerParams,
     ControllerSettings,
     QPStatus,
+    StepReference,
     build_controller,
 )
 from mmstab.problem import load_problem
-from mmstab.reference import arm_reference, base_reference, circle_pose, task_reference
+from mmstab.reference import (
+    arm_reference,
+    base_reference,
+    circle_pose,
+    periodic_spline,
+    posture_reference,
+    task_reference,
+    unwrap_postures,
+)
 from mmstab.terrain import rot_z, wrap_angle
 
 
@@ -117,21 +128,79 @@ def test_integration_is_an_exact_arc_without_sideslip(robot, controllers, rng):
 
 
 # ------------------------------------------------------------------------------------ the QP
-def test_qp_matrices_are_eq7(robot, controllers, rng):
+def numpy_qp(robot, P, state, d, xi_des, xi_dot_ref, q_ref, q_dot_ref):
+    """H, g, the constant, ξ̇_des and q̇_post of Eq. 7 + the posture task, in NumPy."""
+    e = xi_des - numpy_task(robot, state, d)
+    e[2] = wrap_angle(e[2])
+    xdd = P.kp * e + P.feedforward * xi_dot_ref
+    qdp = P.posture_gain * (q_ref - state[5:9]) + P.feedforward * q_dot_ref
+    J = numpy_jacobian(robot, state, d)
+    W_q = np.r_[0.0, 0.0, P.posture_weight]  # the posture task acts on the arm columns only
+    H = J.T @ np.diag(P.w_a) @ J + np.diag(P.w_b) + np.diag(W_q)
+    g = -J.T @ (P.w_a * xdd) - W_q * np.r_[0.0, 0.0, qdp]
+    cost0 = 0.5 * xdd @ (P.w_a * xdd) + 0.5 * qdp @ (P.posture_weight * qdp)
+    return H, g, cost0, xdd, qdp
+
+
+def random_reference(robot, c, state, rng):
+    """ξ_des near ξ(state), ξ̇_ref, q_ref within the limits and q̇_ref: a StepReference."""
+    return StepReference(
+        c.model.task(state) + rng.normal(0, 0.2, 6),
+        rng.normal(0, 0.1, 6),
+        rng.uniform(robot.joint_lower, robot.joint_upper),
+        rng.normal(0, 0.3, 4),
+    )
+
+
+def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
     c = controllers["qpoases"]
     P = c.params
+    assert np.all(P.posture_weight > 0) and np.all(P.posture_gain > 0)  # the term is on
     for state in random_states(robot, rng, 10):
-        xi_des = c.model.task(state) + rng.normal(0, 0.2, 6)
-        ff = rng.normal(0, 0.1, 6)
-        qp = c.qp_data(state, xi_des, ff)
-        e = xi_des - numpy_task(robot, state, c.model.base_offset)
-        e[2] = wrap_angle(e[2])
-        xdd = P.kp * e + P.feedforward * ff
-        J = numpy_jacobian(robot, state, c.model.base_offset)
+        ref = random_reference(robot, c, state, rng)
+        qp = c.qp_data(state, *ref)
+        H, g, cost0, xdd, qdp = numpy_qp(robot, P, state, c.model.base_offset, *ref)
         np.testing.assert_allclose(qp.xi_dot_des, xdd, atol=1e-12)
-        np.testing.assert_allclose(qp.H, J.T @ np.diag(P.w_a) @ J + np.diag(P.w_b), atol=1e-8)
-        np.testing.assert_allclose(qp.g, -J.T @ (P.w_a * xdd), atol=1e-8)
+        np.testing.assert_allclose(qp.q_dot_posture, qdp, atol=1e-12)
+        np.testing.assert_allclose(qp.H, H, atol=1e-8)
+        np.testing.assert_allclose(qp.g, g, atol=1e-8)
+        assert qp.cost0 == pytest.approx(cost0, rel=1e-12)
         assert np.linalg.eigvalsh(qp.H).min() > 0
+
+
+def test_certificate_judges_the_posture_term(robot, controllers, rng):
+    """The in-graph certificate uses the whole cost: the answer of Eq. 7 without the posture
+    term is refused (SOLVER_FAILED), the true optimum accepted."""
+    from mmstab.controller import _build_guard_and_certificate
+
+    c = controllers["qrqp"]
+    _, certificate = _build_guard_and_certificate(c.settings.kkt_tol)
+    W_q = np.r_[0.0, 0.0, c.params.posture_weight]
+    refused = 0
+    for state in random_states(robot, rng, 10, margin=0.3):
+        ref = random_reference(robot, c, state, rng)
+        qp = c.qp_data(state, *ref)
+        H0, g0 = qp.H - np.diag(W_q), qp.g + W_q * np.r_[0.0, 0.0, qp.q_dot_posture]
+        without = np.asarray(c.conic(h=H0, g=g0, lbx=qp.lbx, ubx=qp.ubx)["x"]).ravel()
+        args = (qp.H, qp.g, qp.lbx, qp.ubx, qp.cost0, float(qp.status))
+        best = c.solve(state, *ref).qdot
+        assert float(certificate(best, *args)[1]) == QPStatus.SUCCESS
+        refused += float(certificate(without, *args)[1]) == QPStatus.SOLVER_FAILED
+    assert refused == 10
+
+
+def test_default_posture_reference_is_the_current_posture(robot, controllers, rng):
+    """Without q_ref the posture term only damps the arm: q̇_post = 0, W_q adds to W_B."""
+    c = controllers["qpoases"]
+    state = random_states(robot, rng, 1)[0]
+    xi_des = c.model.task(state) + 0.1
+    held = c.qp_data(state, xi_des)
+    explicit = c.qp_data(state, xi_des, np.zeros(6), state[5:9], np.zeros(4))
+    np.testing.assert_array_equal(held.q_dot_posture, np.zeros(4))
+    for a, b in zip(held, explicit, strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match=r"q_ref must have shape \(4,\)"):
+        c.solve(state, xi_des, None, np.zeros(3))
 
 
 def test_heading_error_is_wrapped(robot, controllers, rng):
@@ -150,16 +219,16 @@ def test_unconstrained_step_is_weighted_least_squares(robot, controllers, rng):
         P._replace(qdot_max=np.full(6, 1e6), q_min=np.full(4, -1e6), q_max=np.full(4, 1e6))
     )
     for state in random_states(robot, rng, 20):
-        xi_des = c.model.task(state) + rng.normal(0, 0.3, 6)
-        res = c.solve(state, xi_des)
-        e = xi_des - numpy_task(robot, state, c.model.base_offset)
-        e[2] = wrap_angle(e[2])
-        J, W_A = numpy_jacobian(robot, state, c.model.base_offset), np.diag(P.w_a)
-        expected = np.linalg.solve(J.T @ W_A @ J + np.diag(P.w_b), J.T @ W_A @ (P.kp * e))
+        ref = random_reference(robot, c, state, rng)
+        res = c.solve(state, *ref)
+        H, g, _, xdd, qdp = numpy_qp(robot, P, state, c.model.base_offset, *ref)
+        expected = np.linalg.solve(H, -g)
         assert res.success
         np.testing.assert_allclose(res.qdot, expected, rtol=1e-6, atol=1e-7)
-        r = P.kp * e - J @ res.qdot
+        J, W_A = numpy_jacobian(robot, state, c.model.base_offset), np.diag(P.w_a)
+        r, r_q = xdd - J @ res.qdot, res.qdot[2:] - qdp
         cost = 0.5 * r @ W_A @ r + 0.5 * res.qdot @ np.diag(P.w_b) @ res.qdot
+        cost += 0.5 * r_q @ (P.posture_weight * r_q)
         assert res.objective == pytest.approx(cost, rel=1e-9, abs=1e-12)
 
 
@@ -179,7 +248,8 @@ def test_limits_never_exceeded(robot, controllers, rng, plugin):
     active = 0
     for state in states:
         xi_des = c.model.task(state) + rng.normal(0, 2.0, 6)
-        res = c.solve(state, xi_des, rng.normal(0, 1.0, 6))
+        q_ref = rng.uniform(lo - 1.0, hi + 1.0)  # posture targets also beyond the limits
+        res = c.solve(state, xi_des, rng.normal(0, 1.0, 6), q_ref, rng.normal(0, 5.0, 4))
         assert res.success, res.status
         assert np.all(np.abs(res.qdot) <= qdot_max + 1e-9)
         q_next = state[5:9] + res.qdot[2:] * dt
@@ -192,10 +262,10 @@ def test_plugins_agree_and_match_their_own_status(robot, controllers, rng):
     states = random_states(robot, rng, 60)
     tol = {"qpoases": 1e-9, "qrqp": 1e-9, "daqp": 1e-9, "osqp": 1e-5}  # OSQP: first order
     for state in states:
-        xi_des = controllers["qpoases"].model.task(state) + rng.normal(0, 0.5, 6)
-        ref = controllers["qpoases"].solve(state, xi_des)
+        step_ref = random_reference(robot, controllers["qpoases"], state, rng)
+        ref = controllers["qpoases"].solve(state, *step_ref)
         for plugin, c in controllers.items():
-            res, direct = c.solve(state, xi_des), c.solve_direct(state, xi_des)
+            res, direct = c.solve(state, *step_ref), c.solve_direct(state, *step_ref)
             assert res.success and direct.success
             np.testing.assert_allclose(res.qdot, ref.qdot, atol=tol[plugin], err_msg=plugin)
             np.testing.assert_allclose(direct.qdot, res.qdot, atol=tol[plugin], err_msg=plugin)
@@ -211,12 +281,13 @@ def test_nonfinite_state_or_reference_holds_still(robot, controllers, rng):
         bad_state[6] = np.nan
         bad_ref = xi.copy()
         bad_ref[4] = np.inf
-        for s, r in [(bad_state, xi), (state, bad_ref)]:
-            res = c.solve(s, r)
+        bad_posture = StepReference(xi, np.zeros(6), np.r_[1.0, np.nan, 0.0, 0.0], np.zeros(4))
+        for s, r in [(bad_state, (xi,)), (state, (bad_ref,)), (state, bad_posture)]:
+            res = c.solve(s, *r)
             assert res.status is QPStatus.NONFINITE_INPUT and not res.success
             np.testing.assert_array_equal(res.qdot, np.zeros(6))
-            assert c.solve_direct(s, r).status is QPStatus.NONFINITE_INPUT
-        assert c.failures == before + 2
+            assert c.solve_direct(s, *r).status is QPStatus.NONFINITE_INPUT
+        assert c.failures == before + 3
         assert c.solve(state, xi + 0.01).success  # and it recovers once the input is sane
 
 
@@ -257,6 +328,9 @@ def _flat_run(tmp_path, w_heading, goal, seconds=4.0):
     robot = flat.robot
     s = ControllerSettings.from_section(flat.section("controller"))
     s = dataclasses.replace(s, feedforward=False, w_a=(*s.w_a[:2], w_heading, *s.w_a[3:]))
+    # Eq. 7 alone (no posture task): a constant ξ target fixes no arm posture, and where the
+    # base heading is free (w_heading = 0) no posture would agree with it anyway
+    s = dataclasses.replace(s, posture_weight=(0.0,) * 4)
     c = build_controller(robot, s)
     state = np.r_[0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.5, -0.2]
     xi_des = c.model.task(goal)
@@ -293,6 +367,26 @@ def test_closed_loop_with_heading_row_stops_where_j_cannot_correct(tmp_path, set
     assert np.linalg.norm(JtWe) < 1e-6 * np.linalg.norm(e[-1])
 
 
+def test_posture_task_alone_converges_to_a_constant_posture(robot, settings, rng):
+    """W_A = 0 on the CoM rows: only the posture task moves the arm, and the arm columns of
+    the QP decouple: q̇_arm = W_q/(W_q + W_B) K_q (q_ref − q), a geometric decay per step."""
+    s = dataclasses.replace(settings, w_a=(*settings.w_a[:3], 0.0, 0.0, 0.0))
+    c = build_controller(robot, s)
+    P = c.params
+    q_ref = np.array([2.0, 0.3, -0.5, 0.2])
+    state = np.r_[0.3, -1.2, 0.4, 0.0, 0.0, q_ref + rng.uniform(-0.5, 0.5, 4)]
+    xi_des = c.model.task(state)  # the base stays put; the CoM rows have no weight
+    e0 = q_ref - state[5:9]
+    steps = int(round(2.0 / s.dt))
+    for _ in range(steps):
+        res = c.solve(state, xi_des, np.zeros(6), q_ref, np.zeros(4))
+        assert res.success
+        state = c.model.integrate(state, res.qdot, s.dt)
+    rate = P.posture_weight / (P.posture_weight + P.w_b[2:]) * P.posture_gain  # [1/s]
+    np.testing.assert_allclose(q_ref - state[5:9], e0 * (1 - rate * s.dt) ** steps, atol=1e-12)
+    assert np.abs(q_ref - state[5:9]).max() < 1e-3 * np.abs(e0).max()  # converged
+
+
 # -------------------------------------------------------------------------------- settings
 @pytest.mark.parametrize(
     ("edit", "field"),
@@ -302,6 +396,12 @@ def test_closed_loop_with_heading_row_stops_where_j_cannot_correct(tmp_path, set
         (lambda c: c.__setitem__("plugin", "quadprog"), "controller.plugin"),
         (lambda c: c["w_b"].__setitem__(2, 0.0), "controller.w_b[2]"),
         (lambda c: c["osqp"].pop("eps_abs"), "controller.osqp.eps_abs"),
+        (
+            lambda c: c.__setitem__("posture_gain", [5.0, 5.0, 5.0, 2000.0]),
+            "controller.posture_gain",
+        ),
+        (lambda c: c["posture_weight"].__setitem__(1, -1.0), "controller.posture_weight[1]"),
+        (lambda c: c.pop("approach_time"), "controller.approach_time"),
     ],
 )
 def test_bad_controller_settings_name_the_field(tmp_path, edit, field):
@@ -315,9 +415,16 @@ def test_step_function_interface(controllers):
     for plugin, c in controllers.items():
         assert c.step.name_in() == ["state", "reference", "params"]
         assert c.step.name_out() == ["qdot", "status", "objective"]
-        assert c.step.size_in(2) == (len(c.params.pack()), 1)
+        assert c.step.size_in(1) == (REFERENCE_SIZE, 1)
+        assert c.step.size_in(2) == (len(c.params.pack()), 1) == (PARAMS_SIZE, 1)
         assert (plugin in CODEGEN_PLUGINS) == (plugin != "qpoases")
-    assert len(ControllerParams.unpack(np.arange(34.0))) == len(ControllerParams._fields)
+    fields = ControllerParams.unpack(np.arange(float(PARAMS_SIZE)))
+    np.testing.assert_array_equal(np.concatenate([np.atleast_1d(f) for f in fields]), np.arange(42))
+    assert fields.posture_weight.tolist() == [22, 23, 24, 25]  # after kp, w_a, w_b, posture_gain
+    ref = StepReference.unpack(np.arange(float(REFERENCE_SIZE)))
+    assert ref.q_ref.tolist() == [12, 13, 14, 15] and REFERENCE_SIZE == 20
+    rows = np.arange(40.0).reshape(2, 20)  # (N, 20) tables split on the last axis
+    np.testing.assert_array_equal(StepReference.unpack(rows).pack(), rows)
 
 
 # ------------------------------------------------------------------------------ references
@@ -339,8 +446,67 @@ def test_references_rates_match_finite_differences(problem, rng):
     )
     np.testing.assert_allclose(arm(plan.fractions).value, expected, atol=1e-12)
     np.testing.assert_allclose(arm(1.0).value, arm(0.0).value, atol=1e-12)  # periodic
-    xi, xi_dot = task_reference(circle, 30.0, 0.2, arm, [0.0, 15.0])
+    q = rng.uniform(problem.robot.joint_lower, problem.robot.joint_upper, (7, 4))
+    posture = posture_reference(plan.fractions, q, problem.robot.joint_lower, [7.0, 2, 2.9, 2.2])
+    ref = task_reference(circle, 30.0, 0.2, arm, posture, [0.0, 15.0])
     np.testing.assert_allclose(
-        xi_dot, np.hstack([base_reference(circle, [0, 0.5], 0.2).rate, arm([0, 0.5]).rate]) / 30.0
+        ref.xi_dot_ref,
+        np.hstack([base_reference(circle, [0, 0.5], 0.2).rate, arm([0, 0.5]).rate]) / 30.0,
     )
-    assert xi.shape == (2, 6)
+    np.testing.assert_allclose(ref.q_ref, posture([0, 0.5]).value)
+    np.testing.assert_allclose(ref.q_dot_ref, posture([0, 0.5]).rate / 30.0)
+    assert ref.pack().shape == (2, REFERENCE_SIZE)
+
+
+def test_posture_reference_interpolates_the_postures(robot, rng):
+    """Periodic spline through the postures, rate = d/ds, within the limits, knots kept."""
+    lo, hi = robot.joint_lower, robot.joint_upper
+    f = np.sort(rng.uniform(0, 1, 6))
+    q = rng.uniform(lo + 0.3, hi - 0.3, (6, 4))
+    q[:, 0] = [1.0, 1.5, 2.5, 3.0, 2.0, 1.2]  # turret: no wrap needed, the knots stay as given
+    ref = posture_reference(f, q, lo, hi)
+    np.testing.assert_allclose(ref(f).value, q, atol=1e-12)
+    np.testing.assert_allclose(ref(f + 1.0).value, q, atol=1e-12)  # period 1
+    s, h = rng.uniform(0, 1, 30), 1e-6
+    value, rate = ref(s)
+    inside = np.all((value > lo + 1e-6) & (value < hi - 1e-6), axis=1)
+    fd = (ref(s + h).value - ref(s - h).value) / (2 * h)
+    np.testing.assert_allclose(rate[inside], fd[inside], atol=1e-6)
+    fine = ref(np.linspace(0, 1, 2001)).value
+    assert np.all(fine >= lo) and np.all(fine <= hi)
+    # a spline overshooting a limit is clipped there, with zero rate
+    q[2, 3] = hi[3]
+    q[3, 3] = hi[3] - 0.01
+    clipped = posture_reference(f, q, lo, hi)(np.linspace(f[2], f[3], 50)[1:-1])
+    assert np.isclose(clipped.value[:, 3], hi[3]).sum() > 1
+    assert np.all(clipped.rate[np.isclose(clipped.value[:, 3], hi[3]), 3] == 0)
+
+
+@pytest.mark.parametrize(
+    ("turret", "upper", "expected"),
+    [
+        # short way across 0 rad would leave [0, 2π]: the long way, within the limits
+        ([5.9, 0.3], 2 * np.pi, [5.9, 0.3]),
+        # angles outside the limits (another branch) are brought in, then the short way
+        ([7.0, 7.5], 2 * np.pi, [7.0 - 2 * np.pi, 7.5 - 2 * np.pi]),
+        # a wider range (−π to 3π) lets the short way across 0 be taken
+        ([1.0, 4.5], 3 * np.pi, [1.0, 4.5 - 2 * np.pi]),
+    ],
+)
+def test_full_turn_joint_is_unwrapped_within_its_limits(turret, upper, expected):
+    lower = [-np.pi if upper > 2 * np.pi else 0.0, -0.8, -2.9, -2.2]
+    upper4 = [upper, 2.0, 2.9, 2.2]
+    q = np.column_stack([turret, np.zeros((2, 3))])
+    out = unwrap_postures(q, lower, upper4)
+    np.testing.assert_allclose(out[:, 0], expected, atol=1e-12)
+    np.testing.assert_array_equal(out[:, 1:], q[:, 1:])
+    fine = posture_reference([0.0, 0.5], q, lower, upper4)(np.linspace(0, 1, 501)).value[:, 0]
+    assert np.all(fine >= lower[0]) and np.all(fine <= upper4[0])
+    assert np.ptp(fine) <= abs(expected[1] - expected[0]) + 1e-12  # no detour beyond the knots
+
+
+def test_periodic_spline_rejects_bad_knots():
+    with pytest.raises(ValueError, match="increase strictly"):
+        periodic_spline([0.5, 0.2], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match=r"postures \(3, 4\) do not match"):
+        posture_reference([0.0, 0.5], np.zeros((3, 4)), np.zeros(4), np.ones(4))

@@ -17,6 +17,8 @@ from conftest import write_problem
 
 from mmstab.config import MmstabError
 from mmstab.controller import (
+    PARAMS_SIZE,
+    REFERENCE_SIZE,
     ControllerParams,
     ControllerSettings,
     QPStatus,
@@ -48,11 +50,16 @@ SUMMARY_KEYS = {
 CASES = {"reconfigured", "arm_removed", "stowed"}
 
 
-def constant_plan(robot, target_com_body):
-    """A plan with one body-frame arm-CoM target for the whole lap."""
-    return SimpleNamespace(
-        fractions=np.zeros(1), target_com=np.atleast_2d(target_com_body), postures=None
-    )
+def constant_plan(robot, posture):
+    """A plan with one arm posture (and its CoM) for the whole lap."""
+    q = np.atleast_2d(np.asarray(posture, dtype=float))
+    return SimpleNamespace(fractions=np.zeros(1), target_com=robot.arm_com(q), postures=q)
+
+
+def settings_of(problem, **changes):
+    """The problem's controller settings with some fields replaced."""
+    settings = ControllerSettings.from_section(problem.section("controller"))
+    return dataclasses.replace(settings, **changes)
 
 
 def posture_plan(robot, k=8):
@@ -84,8 +91,8 @@ def window_step(problem, inner, t0, t1, make_bad):
     window on it is a window in time.
     """
     s = ca.MX.sym("state", 9)
-    ref = ca.MX.sym("reference", 12)
-    p = ca.MX.sym("params", sum(ControllerParams.sizes()))
+    ref = ca.MX.sym("reference", REFERENCE_SIZE)
+    p = ca.MX.sym("params", PARAMS_SIZE)
     settings = ControllerSettings.from_section(problem.section("controller"))
     from mmstab.reference import base_reference
 
@@ -101,9 +108,23 @@ def window_step(problem, inner, t0, t1, make_bad):
 
 # -------------------------------------------------------------------------------- limits
 def test_limits_never_exceeded_over_a_run(problem):
-    """An unreachable target low ahead drives joints onto their limits and speeds to 4π."""
+    """A posture on the joint limits as a step (no approach), and the base 0.5 m off its
+    path, drive joints onto their limits and speeds to 4π."""
     robot = problem.robot
-    run = simulate(problem, constant_plan(robot, [0.8, 0.0, -0.3]), duration=1.0, progress=False)
+    lo, hi = robot.joint_lower, robot.joint_upper
+    on_limits = np.array([hi[0], lo[1], lo[2], hi[3]])
+    x, y, heading = problem.circle.pose_at(0.0)[0]
+    state0 = np.r_[
+        x - 0.5 * np.sin(heading), y + 0.5 * np.cos(heading), heading, 0, 0, robot.stowed
+    ]
+    run = simulate(
+        problem,
+        constant_plan(robot, on_limits),
+        duration=1.0,
+        progress=False,
+        state0=state0,
+        settings=settings_of(problem, approach_time=0.0),
+    )
     assert run.failures == ()
     assert np.all(np.abs(run.qdot) <= run.qdot_limit + 1e-9)
     q = run.state[:, 5:]
@@ -114,15 +135,21 @@ def test_limits_never_exceeded_over_a_run(problem):
     on_limit = np.isclose(q, robot.joint_lower, atol=1e-9) | np.isclose(
         q, robot.joint_upper, atol=1e-9
     )
-    assert on_limit[1:].sum(axis=0).min() > 0  # every arm joint reaches a limit in the run
+    # upper arm and wrist are driven onto their limits (the others approach theirs as e^-Kt)
+    assert on_limit[1:, [1, 3]].sum(axis=0).min() > 100
 
 
 # ---------------------------------------------------------------------------- convergence
 def test_flat_floor_arm_com_error_converges(flat):
-    """Reachable constant body-frame target, arm from stowed: error strictly decreasing."""
+    """Eq. 7 alone (no posture task), reachable constant target, arm from stowed as a step:
+    after the saturated transient the arm-CoM error decreases strictly."""
     robot = flat.robot
     run = simulate(
-        flat, constant_plan(robot, robot.arm_com(REACHABLE)), duration=3.0, progress=False
+        flat,
+        constant_plan(robot, REACHABLE),
+        duration=3.0,
+        progress=False,
+        settings=settings_of(flat, approach_time=0.0, posture_weight=(0.0,) * 4),
     )
     e = run.arm_com_error
     saturated = np.isclose(np.abs(run.qdot), run.qdot_limit, rtol=0, atol=1e-9).any(axis=1)
@@ -131,6 +158,24 @@ def test_flat_floor_arm_com_error_converges(flat):
     assert np.all(np.diff(e[transient_end:]) < 0)
     assert e[-1] < 1e-5 * e[0]
     assert run.base_error.max() < 0.05 and run.base_error[-1] < 1e-4
+
+
+def test_flat_floor_posture_and_arm_com_converge_together(flat):
+    """With the posture task the arm converges to the planned posture and its CoM; the CoM
+    error is no longer monotone (the two tasks' transients differ) but both vanish."""
+    robot = flat.robot
+    run = simulate(
+        flat,
+        constant_plan(robot, REACHABLE),
+        duration=3.0,
+        progress=False,
+        settings=settings_of(flat, approach_time=0.0),
+    )
+    e, q_err = run.arm_com_error, np.abs(run.posture_error).max(axis=1)
+    assert e[-1] < 2e-4 * e[0] and q_err[-1] < 5e-3 * q_err[0]
+    last = run.t >= 2.0
+    assert np.all(np.diff(q_err[last]) < 0) and e[last].max() < 2e-3 * e[0]
+    np.testing.assert_allclose(run.q_ref, np.broadcast_to(REACHABLE, run.q_ref.shape))
 
 
 # -------------------------------------------------------------------------------- the plant
@@ -298,8 +343,9 @@ def test_bad_plan_is_rejected_at_the_boundary(problem, plan_edit, message):
 # -------------------------------------------------------------------------------- plugins
 def test_qpoases_and_osqp_give_the_same_trajectory(problem):
     plan = posture_plan(problem.robot)
-    a = simulate(problem, plan, duration=0.5, progress=False, plugin="qpoases")
-    b = simulate(problem, plan, duration=0.5, progress=False, plugin="osqp")
+    kw = {"duration": 0.5, "progress": False, "settings": settings_of(problem, approach_time=0.0)}
+    a = simulate(problem, plan, plugin="qpoases", **kw)
+    b = simulate(problem, plan, plugin="osqp", **kw)
     assert a.failures == () and b.failures == ()
     assert np.abs(a.qdot).max(axis=0)[2] == pytest.approx(a.qdot_limit[2])  # saturated start
     np.testing.assert_allclose(b.qdot, a.qdot, atol=1e-5)  # OSQP: first-order accuracy
@@ -330,11 +376,19 @@ def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
     assert (
         on_disk["steps"] == 500 and on_disk["plugin"] == "qpoases" and on_disk["qp_failures"] == 0
     )
-    assert on_disk["qdot_max_abs"]["link0"] == pytest.approx(4 * np.pi)
+    # the arm starts stowed and follows the approach, then the posture reference: no contact
+    assert on_disk["arm_self_collision"]["colliding_share"] == 0.0
+    assert on_disk["approach"]["duration_s"] == problem.section("controller")["approach_time"]
+    assert on_disk["approach"]["path"]["colliding_samples"] == 0
+    assert on_disk["approach"]["start_posture"] == problem.robot.stowed.tolist()
+    assert on_disk["posture_reference"]["reference"]["colliding_samples"] == 0
+    assert max(on_disk["posture_error_max_abs_rad"].values()) < 0.05
     assert s["base_error_max_m"] == on_disk["base_error_max_m"]
     data = np.load(tmp_path / "run.npz")
     assert data["t"][0] == 0.0 and data["t"][-1] == pytest.approx(0.5)
     assert data["state"].shape == (data["t"].size, 9)
+    assert data["q_ref"].shape == (data["t"].size, 4)
+    np.testing.assert_array_equal(data["q_ref"][0], problem.robot.stowed)  # approach start
 
 
 @pytest.mark.slow
@@ -393,7 +447,7 @@ def test_cli_track_end_to_end(tmp_path):
     assert SUMMARY_KEYS <= set(s)
     assert s["steps"] == 500 and s["plugin"] == "daqp" and s["qp_failures"] == 0
     assert s["qdot_max_abs"]["link0"] <= s["qdot_limit"]["link0"] + 1e-9
-    assert s["arm_com_error_final_m"] < s["arm_com_error_max_m"]
+    assert s["arm_com_error_max_m"] < 5e-3  # the approach starts the CoM reference at the arm
     assert "track:" in proc.stdout
 
 
@@ -413,3 +467,135 @@ def test_self_collisions_reports_intervals_and_pairs(problem):
     assert out["colliding_share"] == pytest.approx(0.4)
     assert out["intervals_s"] == [[0.01, 0.03]]
     assert out["pairs"] == {p: 2 for p in pairs}
+
+
+# --------------------------------------------------------------------- posture reference
+@pytest.fixture(scope="module")
+def default_plan(problem):
+    from mmstab.planner import plan_path
+
+    return plan_path(problem)
+
+
+@pytest.fixture(scope="module")
+def default_posture(problem, default_plan):
+    from mmstab.posture import build_posture_reference, posture_samples
+
+    s = settings_of(problem)
+    return build_posture_reference(problem.robot, default_plan, posture_samples(s.lap_time, s.dt))
+
+
+def test_default_posture_reference_is_collision_free(problem, default_plan, default_posture):
+    """The planned postures interpolated collide (s ≈ 0.81-0.87): the via postures repair it."""
+    from mmstab.collision import CollisionChecker
+    from mmstab.ik import COM_TOLERANCE
+    from mmstab.reference import periodic_spline
+
+    robot, ref = problem.robot, default_posture
+    checker = CollisionChecker(robot)
+    planned = ref.planned_check
+    assert planned.colliding_samples > 1000 and "upper_arm-track_left" in planned.pairs
+    assert any(0.8 < a < b < 0.9 for a, b in planned.intervals)  # between postures 8 and 9
+    assert ref.via and ref.check.colliding_samples == 0 and ref.collision_free
+    # an independent, finer sampling between the checked points: still free
+    s = (np.arange(2 * ref.check.samples) + 0.5) / (2 * ref.check.samples)
+    assert not np.any(checker.collides(ref(s).value))
+    # the planned postures are kept, and each via posture realises the plan's splined CoM
+    np.testing.assert_allclose(ref(default_plan.fractions).value, default_plan.postures, atol=1e-12)
+    com = periodic_spline(default_plan.fractions, default_plan.target_com)
+    for v in ref.via:
+        np.testing.assert_allclose(ref(v.fraction).value[0], v.posture, atol=1e-12)
+        assert np.linalg.norm(robot.arm_com(v.posture) - com(v.fraction).value[0]) <= COM_TOLERANCE
+        assert not checker.collides(v.posture)
+    # the CoM reference is the reference posture's CoM, rate J q̇_ref
+    h, s = 1e-6, np.array([0.1, 0.45, 0.84])
+    g = ref.com_body(s)
+    np.testing.assert_allclose(g.value, robot.arm_com(ref(s).value), atol=1e-15)
+    fd = (ref.com_body(s + h).value - ref.com_body(s - h).value) / (2 * h)
+    np.testing.assert_allclose(g.rate, fd, atol=1e-6)
+
+
+def _window_run(problem, plan, posture, settings, t0, t1):
+    """The controller's closed loop over [t0, t1] s of the lap, from the reference state."""
+    from mmstab.reference import task_reference
+
+    ctrl = build_controller(problem.robot, settings)
+    t = np.arange(t0, t1, settings.dt)
+    ref = task_reference(
+        problem.circle,
+        settings.lap_time,
+        settings.base_offset,
+        posture.arm_reference(problem.circle),
+        posture,
+        t,
+    )
+    state = np.r_[problem.circle.pose_at(t0 / settings.lap_time)[0], 0.0, 0.0, ref.q_ref[0]]
+    q_arm = [state[5:]]
+    for k in range(t.size):
+        res = ctrl.solve(state, ref.xi_des[k], ref.xi_dot_ref[k], ref.q_ref[k], ref.q_dot_ref[k])
+        assert res.success
+        state = ctrl.model.integrate(state, res.qdot, settings.dt)
+        q_arm.append(state[5:])
+    return np.array(q_arm), ref
+
+
+def test_short_closed_loop_from_a_planned_posture_stays_collision_free(
+    problem, default_plan, default_posture
+):
+    """2.5 s from the planned posture at s = 0.8 through the stretch where the planned
+    interpolation collides: the arm never touches the body. With the unrepaired reference it
+    does, and without the posture task (the paper's Eq. 7) it drifts off the postures."""
+    from mmstab.collision import CollisionChecker
+    from mmstab.posture import build_posture_reference
+
+    checker = CollisionChecker(problem.robot)
+    settings = settings_of(problem)
+    t0 = default_plan.fractions[8] * settings.lap_time  # 24 s: a planned posture
+    q_arm, ref = _window_run(problem, default_plan, default_posture, settings, t0, t0 + 2.5)
+    np.testing.assert_allclose(q_arm[0], default_plan.postures[8], atol=1e-12)
+    assert not np.any(checker.collides(q_arm))
+    assert np.abs(q_arm[:-1] - ref.q_ref).max() < 0.05  # it follows the posture reference
+    without_task = dataclasses.replace(settings, posture_weight=(0.0,) * 4)
+    q_free, _ = _window_run(problem, default_plan, default_posture, without_task, t0, t0 + 2.5)
+    unrepaired = build_posture_reference(
+        problem.robot, default_plan, default_posture.check.samples, repair=False
+    )
+    q_unrep, _ = _window_run(problem, default_plan, unrepaired, settings, t0, t0 + 2.5)
+    assert np.any(checker.collides(q_unrep))
+    assert np.abs(q_free[:-1] - ref.q_ref).max() > 0.1  # Eq. 7 alone drifts off the postures
+
+
+def test_approach_from_stowed_is_collision_free_and_meets_the_lap(problem, default_posture):
+    from mmstab.approach import build_approach
+    from mmstab.collision import CollisionChecker
+
+    robot, s = problem.robot, settings_of(problem)
+    ap = build_approach(robot, robot.stowed, default_posture, s.approach_time, s.lap_time, s.dt)
+    assert ap.planned_check.colliding_samples > 0  # the straight joint path hits a flipper
+    assert ap.via and ap.check.colliding_samples == 0
+    t = (np.arange(4 * ap.check.samples) + 0.5) * s.approach_time / (4 * ap.check.samples)
+    assert not np.any(CollisionChecker(robot).collides(ap.posture(t).value))
+    # from the stowed posture at rest to the lap's posture reference, at rest
+    start, end = ap.posture([0.0, s.approach_time])
+    np.testing.assert_allclose(start[0], robot.stowed, atol=1e-12)
+    np.testing.assert_allclose(
+        start[1], default_posture(s.approach_time / s.lap_time).value[0], atol=1e-12
+    )
+    np.testing.assert_allclose(end, 0.0, atol=1e-12)
+    # rates are d/dt of the values; the CoM reference is the posture's CoM
+    h, tt = 1e-6, np.array([0.2, 0.5, 0.8]) * s.approach_time
+    fd = (ap.posture(tt + h).value - ap.posture(tt - h).value) / (2 * h)
+    np.testing.assert_allclose(ap.posture(tt).rate, fd, atol=1e-6)
+    fd = (ap.com_body(tt + h).value - ap.com_body(tt - h).value) / (2 * h)
+    np.testing.assert_allclose(ap.com_body(tt).rate, fd, atol=1e-6)
+    np.testing.assert_allclose(ap.com_body(tt).value, robot.arm_com(ap.posture(tt).value))
+
+
+def test_plan_whose_postures_miss_their_com_is_refused(problem):
+    plan = posture_plan(problem.robot)
+    plan.target_com = plan.target_com + np.array([0.0, 0.0, 0.01])
+    with pytest.raises(MmstabError, match="do not realise target_com"):
+        simulate(problem, plan, duration=0.1, progress=False)
+    no_postures = SimpleNamespace(fractions=plan.fractions, target_com=plan.target_com)
+    with pytest.raises(MmstabError, match="posture task needs postures"):
+        simulate(problem, no_postures, duration=0.1, progress=False)

@@ -9,7 +9,6 @@ Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, the settin
 from __future__ import annotations
 
 import copy
-from collections import Counter
 from pathlib import Path
 from typing import Any, Literal
 
@@ -143,6 +142,7 @@ def run_tracking(
         joint_names=np.array(JOINT_NAMES),
         xi=run.xi[keep],
         xi_des=run.xi_des[keep],
+        q_ref=run.q_ref[keep],
         base_error=run.base_error[keep],
         heading_error=run.heading_error[keep],
         arm_com_error=run.arm_com_error[keep],
@@ -152,6 +152,9 @@ def run_tracking(
         failure_times=np.array([f.time for f in run.failures]),
         plan_fractions=np.asarray(plan.fractions),
         plan_target_com=np.asarray(plan.target_com),
+        plan_postures=np.asarray(plan.postures),
+        posture_knot_fractions=run.posture.fractions,
+        posture_knots=run.posture.postures,
     )
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
@@ -171,11 +174,11 @@ def run_tracking(
 
 
 def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
-    """Where the tracked arm intersects the base or itself (the controller does not check).
+    """Where the tracked arm intersects the base or itself.
 
-    The QP tracks the arm CoM only (3 rows for 4 joints, Eq. 7), so the arm's posture is
-    whatever the joint-speed weights make of the redundancy, not the planner's collision-free
-    posture: this reports what that gives.
+    Eq. 7 has no collision constraint: the posture task keeps the arm near the planner's
+    collision-free postures (and the posture reference is checked and repaired,
+    :mod:`mmstab.posture`); this checks what the arm actually did.
 
     Args:
         problem: the problem (robot geometry).
@@ -187,23 +190,15 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
         (from the first colliding sample to the first free one after it) and the colliding
         pairs with the number of samples each.
     """
-    from mmstab.collision import CollisionChecker
+    from mmstab.collision import CollisionChecker, sequence_collisions
 
-    checker = CollisionChecker(problem.robot)
-    hit = np.asarray(checker.collides(q_arm), dtype=bool)
-    edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0]))
-    intervals = [
-        [float(t[a]), float(t[min(b, t.size - 1)])] for a, b in edges.reshape(-1, 2).tolist()
-    ]
-    pairs: Counter[str] = Counter()
-    for k in np.flatnonzero(hit):
-        pairs.update(checker.colliding_pairs(q_arm[k]))
+    report, _ = sequence_collisions(CollisionChecker(problem.robot), t, q_arm)
     return {
-        "samples": int(t.size),
-        "colliding_samples": int(hit.sum()),
-        "colliding_share": float(hit.mean()),
-        "intervals_s": intervals,
-        "pairs": dict(pairs.most_common()),
+        "samples": report.samples,
+        "colliding_samples": report.colliding_samples,
+        "colliding_share": report.colliding_share,
+        "intervals_s": report.intervals,
+        "pairs": report.pairs,
     }
 
 
@@ -241,7 +236,7 @@ def _mark_failures(ax: Any, run: TrackingRun) -> None:
 
 
 def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) -> None:
-    fig, (ax_b, ax_a) = new_figure(2, 1, figsize=(8, 6), sharex=True)
+    fig, (ax_b, ax_a, ax_q) = new_figure(3, 1, figsize=(8, 8), sharex=True)
 
     def positive(v: FloatArray) -> FloatArray:  # exact zeros (t = 0) left off the log axis
         return np.where(v > 0, v, np.nan)
@@ -249,15 +244,30 @@ def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) ->
     ax_b.semilogy(run.t, positive(run.base_error), color="C0", label="base point [m]")
     ax_b.semilogy(run.t, positive(np.abs(run.heading_error)), color="C2", label="|heading| [rad]")
     ax_a.semilogy(run.t, positive(run.arm_com_error), color="C1", label="arm CoM [m]")
+    for j in range(4):
+        ax_q.semilogy(
+            run.t,
+            positive(np.abs(run.posture_error[:, j])),
+            color=f"C{j + 2}",
+            lw=0.9,
+            label=JOINT_NAMES[2 + j],
+        )
     ax_b.set(ylabel="error", title="(a) base: control point distance and heading")
-    ax_a.set(xlabel="time [s]", ylabel="error [m]", title="(b) arm CoM distance")
+    ax_a.set(ylabel="error [m]", title="(b) arm CoM distance")
+    ax_q.set(
+        xlabel="time [s]",
+        ylabel="|q_ref − q| [rad]",
+        title="(c) arm posture (posture task; the approach from stowed until "
+        f"{0.0 if run.approach is None else run.approach.duration:g} s)",
+    )
     for i, (a, b) in enumerate(collision_intervals):
-        label = "arm intersects the base (not constrained by the QP)" if i == 0 else None
-        ax_a.axvspan(a, b, color="C3", alpha=0.12, lw=0, label=label)
-    for ax in (ax_b, ax_a):
+        label = "arm intersects the base or itself" if i == 0 else None
+        for ax in (ax_a, ax_q):
+            ax.axvspan(a, b, color="C3", alpha=0.12, lw=0, label=label)
+    for ax in (ax_b, ax_a, ax_q):
         _mark_failures(ax, run)
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, ncol=2 if ax is ax_q else 1)
     fig.suptitle("Fig. 10: tracking errors")
     write_figure(d / "fig10.png", fig)
 
