@@ -236,13 +236,18 @@ class Workspace:
         Outside hull(all): the largest facet violation; inside hull(invalid): the depth
         to its nearest facet. Facet normals are unit (Qhull), so both are distances to a
         facet plane (a lower bound on the distance to V). Ranks infeasible CMA samples.
+        Zero exactly where :meth:`contains` is true (same products, same ``HULL_TOL``).
         """
         pts = np.atleast_2d(np.asarray(points, dtype=float))
-        out = np.maximum((pts @ self.A_all.T - self.b_all).max(axis=1), 0.0)
+        excess = (pts @ self.A_all.T - self.b_all).max(axis=1, initial=-np.inf)
+        out = np.maximum(excess, 0.0)
+        inside = excess <= HULL_TOL
         if len(self.b_bad):
             depth = (self.b_bad - pts @ self.A_bad.T).min(axis=1)
-            out = np.where(out > 0, out, np.maximum(depth, 0.0))
-        return np.where(self.contains(pts), 0.0, np.maximum(out, HULL_TOL))
+            in_bad = depth >= -HULL_TOL
+            inside &= ~in_bad
+            out = np.where(excess > HULL_TOL, out, np.maximum(depth, 0.0))
+        return np.where(inside, 0.0, np.maximum(out, HULL_TOL))
 
     @functools.cached_property
     def _valid_tree(self) -> cKDTree:

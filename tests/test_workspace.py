@@ -176,6 +176,22 @@ def test_hull_difference_cube_minus_cube():
     np.testing.assert_allclose([ws.volume_all, ws.volume_invalid, ws.volume_V], [8, 1, 7])
 
 
+def test_violation_is_the_distance_to_the_nearest_facet_and_zero_exactly_in_V(rng):
+    outer, inner = _cube(1.0), _cube(0.5)
+    ws = workspace_from_clouds(
+        (2, 2, 2, 2), np.zeros((len(outer), 4)), outer, np.zeros((len(inner), 4)), inner
+    )
+    # outside hull(all): distance past the face; inside hull(invalid): depth to its face
+    np.testing.assert_allclose(
+        ws.violation([[1.3, 0, 0], [0, 0, 0], [0.4, 0.1, 0], [0.75, 0, 0]]),
+        [0.3, 0.5, 0.1, 0.0],
+        atol=1e-12,
+    )
+    pts = rng.uniform(-1.5, 1.5, (5000, 3))
+    v = ws.violation(pts)
+    assert np.array_equal(v == 0, ws.contains(pts)) and np.all(v >= 0)
+
+
 def test_no_invalid_posture_means_no_subtraction():
     outer = _cube(1.0, 3)
     ws = workspace_from_clouds((2, 2, 2, 2), np.zeros((27, 4)), outer, [], [])
