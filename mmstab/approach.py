@@ -27,7 +27,7 @@ from mmstab.posture import (
     posture_samples,
     stretches,
 )
-from mmstab.reference import PathSample
+from mmstab.reference import PathSample, StepReference, task_reference
 from mmstab.robot import FloatArray, Robot
 
 
@@ -232,3 +232,49 @@ def arm_references(
             robot, q0, posture, settings.approach_time, settings.lap_time, settings.dt
         )
     return ArmReferences(posture, approach)
+
+
+class RunReference(NamedTuple):
+    """Everything a run tracks: the arm's references and the per-step references.
+
+    Attributes:
+        arm: the lap's posture reference and the start-up approach.
+        step: the controller's reference at each time (ξ_des, ξ̇_ref, q_ref, q̇_ref).
+    """
+
+    arm: ArmReferences
+    step: StepReference
+
+
+def run_reference(
+    robot: Robot,
+    circle: Any,
+    plan: PosturePlan,
+    q0: ArrayLike,
+    settings: Any,
+    t: ArrayLike,
+    posture: PostureReference | None = None,
+) -> RunReference:
+    """The references of a run from the arm at ``q0``, at times ``t`` (simulation and rollout).
+
+    Args:
+        robot: the robot.
+        circle: the base path (``CirclePath``).
+        plan: the plan (``fractions``, ``target_com``, ``postures``).
+        q0: the initial arm posture (4,) [rad].
+        settings: the controller settings (``lap_time``, ``dt``, ``approach_time``,
+            ``base_offset``).
+        t: the times (T,) [s].
+        posture: the lap's posture reference if already built.
+    """
+    arm = arm_references(robot, plan, q0, settings, posture)
+    step = task_reference(
+        circle,
+        settings.lap_time,
+        settings.base_offset,
+        arm.posture.arm_reference(circle),
+        arm.posture,
+        np.asarray(t, dtype=float),
+        arm.approach,
+    )
+    return RunReference(arm, step)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import casadi as ca
 import numpy as np
 
-from mmstab.approach import arm_references
+from mmstab.approach import run_reference
 from mmstab.codegen import (
     ROLLOUT_CHUNK,
     ROLLOUT_NAME,
@@ -51,7 +51,6 @@ from mmstab.controller import (
     build_controller,
 )
 from mmstab.posture import PosturePlan, PostureReference
-from mmstab.reference import task_reference
 from mmstab.robot import FloatArray, Robot
 
 if TYPE_CHECKING:
@@ -189,16 +188,9 @@ def run_inputs(
     x0 = np.asarray(initial_state(problem, plan) if state0 is None else state0, dtype=float)
     if x0.shape != (STATE_SIZE,):
         raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
-    arm = arm_references(problem.robot, plan, x0[ARM], settings, posture)
-    reference = task_reference(
-        problem.circle,
-        settings.lap_time,
-        settings.base_offset,
-        arm.posture.arm_reference(problem.circle),
-        arm.posture,
-        t,
-        arm.approach,
-    )
+    reference = run_reference(
+        problem.robot, problem.circle, plan, x0[ARM], settings, t, posture
+    ).step
     tracks = problem.robot.base.tracks
     return RunInputs(
         dt=settings.dt,

@@ -47,7 +47,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.approach import Approach, arm_references
+from mmstab.approach import Approach, run_reference
 from mmstab.config import MmstabError
 from mmstab.controller import (
     ARM,
@@ -67,7 +67,7 @@ from mmstab.controller import (
 from mmstab.ik import COM_TOLERANCE
 from mmstab.posture import PostureReference
 from mmstab.problem import Problem
-from mmstab.reference import PlanLike, task_reference
+from mmstab.reference import PlanLike
 from mmstab.robot import FloatArray, Robot
 from mmstab.stability import robot_force_angle
 from mmstab.terrain import wrap_angle
@@ -442,16 +442,7 @@ def simulate(
     params = ControllerParams.from_settings(robot, settings).pack()
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
-    arm = arm_references(robot, plan, s0[ARM], settings, posture)
-    ref = task_reference(
-        problem.circle,
-        settings.lap_time,
-        settings.base_offset,
-        arm.posture.arm_reference(problem.circle),
-        arm.posture,
-        t,
-        arm.approach,
-    )
+    arm, ref = run_reference(robot, problem.circle, plan, s0[ARM], settings, t, posture)
     reference = ref.pack()
     if not np.all(np.isfinite(reference)):
         raise MmstabError("the task reference is not finite")
