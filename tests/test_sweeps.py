@@ -61,3 +61,18 @@ def test_fig6_one_curve_per_pose(tmp_path, problem):
     assert s["poses_with_two_maxima"] >= 6
     assert (tmp_path / "problem.yaml").exists() and (tmp_path / "fig6.png").exists()
     assert (tmp_path / "fig6_poses3d.png").stat().st_size > 10_000  # Fig. 6(a) in 3-D
+
+
+def test_two_maxima_need_a_mild_roll(robot):
+    """README claim: 0.1 rad of roll gives the paper's two maxima; from 0.15 rad, one."""
+    from mmstab.experiments.sweeps import link0_sweep
+    from mmstab.terrain import Ramp
+
+    counts = {}
+    for roll in (0.1, 0.15, 0.2, 0.3):
+        sw = link0_sweep(robot, Ramp(roll), np.zeros((1, 3)), 100)
+        maxima, _ = circular_extrema(sw.mu[0])
+        counts[roll] = len(maxima)
+        if len(maxima) == 1:  # the single maximum points the arm straight uphill (+y_B)
+            assert abs(sw.link0[maxima[0]] - np.pi / 2) < 2 * np.pi / 100
+    assert counts == {0.1: 2, 0.15: 1, 0.2: 1, 0.3: 1}
