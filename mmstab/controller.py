@@ -5,20 +5,20 @@ builds the solver around them and certifies its answers. Vectors: state s (9) = 
 [x, y, γ] and the joints q = [θ_l, θ_r, θ_0..θ_3]; task ξ (6) = [g_bx, g_by, γ, g_ax, g_ay,
 g_az] in S.
 
-**Base control point.** ξ's first two rows are the paper's g_b, taken as the point a distance
-d = ``base_offset`` [m] ahead of the body origin: g_b = [x, y] + d [cos γ, sin γ] (d = 0 is the
+**Base control point.** ξ's first two rows are the paper's g_b, taken as the point a distance d
+= ``base_offset`` [m] ahead of the body origin: g_b = [x, y] + d [cos γ, sin γ] (d = 0 is the
 body origin, the centre of the track contact rectangle). Default d = 0.2 m with a small heading
 weight (W_A[2] = 0.01): for d = 0 the base rows of J have rank 1 in position, so a lateral
-error has no instantaneous correction and decays only through the heading on a curved path,
-with time constant K_p/ω_ref² (≈ 110 s on the default lap: a 0.1 m offset is still 0.08 m
-after one lap); for d > 0 the block [[cos γ, −d sin γ], [sin γ, d cos γ]] is invertible, so
-the point's error is corrected directly (the usual look-ahead point of differential-drive tracking;
-the same 0.1 m offset is under 1 mm after 5 s) and the light heading row only keeps the body
-aligned where the point's motion leaves it free. The reference must use the same d
+error has no instantaneous correction and decays only through the heading on a curved path (on
+the default lap a 0.1 m offset is still 0.1 m after 10 s, 1.5 mm after the 30 s lap); for d > 0
+the block [[cos γ, −d sin γ], [sin γ, d cos γ]] is invertible, so the point's error is
+corrected directly (the usual look-ahead point of differential-drive tracking; the same 0.1 m
+offset is under 0.1 mm after 5 s; tests/test_tracking.py) and the light heading row only keeps
+the body aligned where the point's motion leaves it free. The reference must use the same d
 (:func:`mmstab.reference.base_reference`). Whatever d, J has rank 5 (three base rows, two
 sprockets): a moving, consistent reference with feed-forward (the circle) is tracked to zero
-error, but a *constant* target is reached only up to an error in J's left null space
-(Jᵀ W_A e = 0; no smooth static feedback stabilises a nonholonomic pose, Brockett 1983).
+error, but a *constant* target is reached only up to an error in J's left null space (Jᵀ W_A e
+= 0; no smooth static feedback stabilises a nonholonomic pose, Brockett 1983).
 
 **QP (Eq. 7-8 + posture task).** ξ̇_des = K_p (ξ_des − ξ) + f ξ̇_ref (heading error wrapped to
 (−π, π]) and q̇_post = K_q (q_ref − q_arm) + f q̇_ref; then, with H = Jᵀ W_A J + W_B + Sᵀ W_q S

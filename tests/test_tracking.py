@@ -599,3 +599,26 @@ def test_plan_whose_postures_miss_their_com_is_refused(problem):
     no_postures = SimpleNamespace(fractions=plan.fractions, target_com=plan.target_com)
     with pytest.raises(MmstabError, match="posture task needs postures"):
         simulate(problem, no_postures, duration=0.1, progress=False)
+
+
+@pytest.mark.slow
+def test_look_ahead_point_corrects_a_lateral_offset(problem):
+    """README claim: at the body origin (d = 0) a lateral offset decays only slowly, through
+    the path's curvature; the look-ahead point (d = 0.2 m) removes it within seconds."""
+    import dataclasses
+
+    from mmstab import rollout as ro
+    from mmstab.controller import ControllerSettings
+
+    plan = ro.example_plan(problem.robot)
+    base = ControllerSettings.from_section(problem.section("controller"))
+    state0 = ro.initial_state(problem, plan, lateral_offset=0.1, arm=plan.postures[0])
+    error = {}
+    for d, duration in ((0.0, 10.0), (0.2, 5.0)):
+        settings = dataclasses.replace(base, base_offset=d)
+        run = simulate(
+            problem, plan, duration=duration, progress=False, state0=state0, settings=settings
+        )
+        error[d] = run.base_error[-1]
+    assert error[0.0] > 0.09  # after 10 s, still the whole 0.1 m
+    assert error[0.2] < 1e-3  # after 5 s
