@@ -7,13 +7,13 @@ G's x axis, so +y_S points straight uphill and z_S is the plane normal. A base p
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.robot import FloatArray
+from mmstab.robot import FloatArray, Robot
 
 GRAVITY_G = np.array([0.0, 0.0, -9.81])  # [m/s^2]
 
@@ -88,7 +88,7 @@ class Ramp:
         pitch = float(np.arctan2(-g[0], np.hypot(g[1], g[2])))
         return roll, pitch
 
-    def body_to_slope_sx(self, pose_sx: ca.SX, point_body: ca.SX) -> ca.SX:
+    def body_to_slope_sx(self, pose_sx: ca.SX, point_body: Any) -> ca.SX:
         """Symbolic point in S from a point in B: ``Trans(x, y, 0) Rot_z(heading) p``."""
         c, s = ca.cos(pose_sx[2]), ca.sin(pose_sx[2])
         return ca.vertcat(
@@ -126,3 +126,57 @@ class CirclePath(NamedTuple):
     def poses(self, n: int) -> FloatArray:
         """``n`` poses evenly spread over one lap (the first at ``start_angle``) -> (n, 3)."""
         return self.pose_at(np.arange(n) / n)
+
+
+def _evaluate(f: ca.Function, q: ArrayLike, pose: ArrayLike) -> FloatArray:
+    out = f(ca.DM(np.asarray(q, dtype=np.float64)), ca.DM(np.asarray(pose, dtype=np.float64)))
+    return np.asarray(out, dtype=np.float64).ravel()
+
+
+class GlobalCoM(NamedTuple):
+    """CasADi Functions of the CoMs in the global frame G on a ramp (paper Eq. 1 and 5).
+
+    Each takes the arm posture ``q`` (4,) [rad] and the base pose ``(x, y, heading)`` in S
+    [m, m, rad]; the Jacobians are with respect to ``[q, pose]`` (3x7).
+
+    Attributes:
+        arm_com: (q, pose) -> G g_a [m] (Eq. 1: G_T_B applied to the body-frame arm CoM).
+        overall_com: (q, pose) -> G g_o [m] (Eq. 5).
+        arm_com_jacobian: (q, pose) -> d G g_a / d [q, pose] (3x7).
+        overall_com_jacobian: (q, pose) -> d G g_o / d [q, pose] (3x7).
+    """
+
+    arm_com: ca.Function
+    overall_com: ca.Function
+    arm_com_jacobian: ca.Function
+    overall_com_jacobian: ca.Function
+
+    def arm(self, q: ArrayLike, pose: ArrayLike) -> FloatArray:
+        """G g_a (3,) [m] for one posture and base pose."""
+        return _evaluate(self.arm_com, q, pose)
+
+    def overall(self, q: ArrayLike, pose: ArrayLike) -> FloatArray:
+        """G g_o (3,) [m] for one posture and base pose."""
+        return _evaluate(self.overall_com, q, pose)
+
+
+def global_com_functions(robot: Robot, ramp: Ramp) -> GlobalCoM:
+    """Build the global-frame CoM Functions and their Jacobians (``casadi.jacobian``)."""
+    kin = robot.kinematics
+    pose = ca.SX.sym("pose", 3)
+    G_R_S = ca.DM(ramp.G_R_S)
+    arm_G = G_R_S @ ramp.body_to_slope_sx(pose, kin.com_body)
+    base_G = G_R_S @ ramp.body_to_slope_sx(pose, ca.DM(robot.base.com))
+    overall_G = (robot.arm_mass * arm_G + robot.base.mass * base_G) / robot.total_mass
+    x = ca.vertcat(kin.q, pose)
+    names = ["q", "pose"]
+    return GlobalCoM(
+        arm_com=ca.Function("arm_com_G", [kin.q, pose], [arm_G], names, ["com_G"]),
+        overall_com=ca.Function("overall_com_G", [kin.q, pose], [overall_G], names, ["com_G"]),
+        arm_com_jacobian=ca.Function(
+            "arm_com_G_jac", [kin.q, pose], [ca.jacobian(arm_G, x)], names, ["J"]
+        ),
+        overall_com_jacobian=ca.Function(
+            "overall_com_G_jac", [kin.q, pose], [ca.jacobian(overall_G, x)], names, ["J"]
+        ),
+    )

@@ -95,3 +95,28 @@ def test_ramp_frames(rng):
     assert np.isclose(roll, 0.3) and np.isclose(pitch, 0.0)
     roll, pitch = ramp.roll_pitch(np.pi / 2)  # facing uphill: nose up
     assert np.isclose(roll, 0.0, atol=1e-12) and np.isclose(pitch, 0.3)
+
+
+def test_global_com_functions_match_numpy_and_finite_differences(robot, rng):
+    from mmstab.terrain import global_com_functions
+
+    ramp = Ramp(0.25)
+    f = global_com_functions(robot, ramp)
+    h = 1e-6
+    for q in random_postures(robot, rng, 15):
+        pose = np.array([*rng.uniform(-2, 2, 2), rng.uniform(-np.pi, np.pi)])
+        T = ramp.G_T_B(pose)
+        g_a_G = T[:3, :3] @ robot.arm_com(q) + T[:3, 3]
+        g_o_G = T[:3, :3] @ robot.overall_com(robot.arm_com(q)) + T[:3, 3]
+        np.testing.assert_allclose(f.arm(q, pose), g_a_G, atol=1e-12)
+        np.testing.assert_allclose(f.overall(q, pose), g_o_G, atol=1e-12)
+        x = np.r_[q, pose]
+        for fn, jac in ((f.arm, f.arm_com_jacobian), (f.overall, f.overall_com_jacobian)):
+            J_fd = np.stack(
+                [
+                    (fn(*np.split(x + h * e, [4])) - fn(*np.split(x - h * e, [4]))) / (2 * h)
+                    for e in np.eye(7)
+                ],
+                axis=1,
+            )
+            np.testing.assert_allclose(np.asarray(jac(q, pose)), J_fd, atol=1e-8)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import subprocess
@@ -157,3 +158,17 @@ def test_fig7_fig8_subprocess(tmp_path):
         assert p["side"] in ("left", "right")
         assert p["mu_planned"] > p["mu_arm_removed"]
         assert p["evaluations"] > 0
+
+
+def test_empty_workspace_is_a_clear_error(problem):
+    """Every valid CoM inside hull(invalid): V holds none of them, so nothing can be planned."""
+    from mmstab.workspace import workspace_from_clouds
+
+    corners = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+    inside = np.random.default_rng(0).uniform(-0.5, 0.5, (50, 3))
+    ws = workspace_from_clouds(
+        (2, 2, 2, 2), np.zeros((len(inside), 4)), inside, np.zeros((len(corners), 4)), corners
+    )
+    assert len(ws.valid_com_in_V) == 0
+    with pytest.raises(MmstabError, match="workspace V is empty"):
+        plan_path(problem, workspace=ws)
