@@ -25,14 +25,13 @@ import argparse
 import contextlib
 import importlib.metadata
 import json
-import os
-import platform
 import subprocess
 import time
 from typing import Any
 
 import casadi as ca
 import numpy as np
+from common import machine_info
 
 from mmstab.codegen import CODEGEN_PLUGINS, EMBEDDED_DIR, STEP_NAME, build_programs, generate
 from mmstab.config import write_json
@@ -344,16 +343,11 @@ def main() -> None:
             "steps": inputs.steps,
             "replayed_calls": len(idx),
             "default_codegen_plugin": default_plugin,
-            "machine": {
-                "platform": platform.platform(),
-                "processor": platform.processor() or platform.machine(),
-                "cpus": os.cpu_count(),
-                "python": platform.python_version(),
-                "casadi": ca.__version__,
-                "cc": subprocess.run(
+            "machine": machine_info(
+                cc=subprocess.run(
                     ["cc", "--version"], capture_output=True, text=True
-                ).stdout.splitlines()[0],
-            },
+                ).stdout.splitlines()[0]
+            ),
             **result,
         },
     )

@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
-import platform
 import time
 from types import SimpleNamespace
 
-import casadi as ca
 import numpy as np
+from common import machine_info
 
 from mmstab.config import write_json
 from mmstab.controller import (
@@ -115,13 +113,7 @@ def main() -> None:
             "note": "medians on a shared 2-core machine: noisy",
             "problem": str(args.problem),
             "simulated_seconds": args.seconds,
-            "machine": {
-                "platform": platform.platform(),
-                "processor": platform.processor() or platform.machine(),
-                "cpus": os.cpu_count(),
-                "python": platform.python_version(),
-                "casadi": ca.__version__,
-            },
+            "machine": machine_info(),
             "plugins": results,
         },
     )

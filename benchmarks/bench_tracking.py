@@ -15,13 +15,11 @@ Usage: python benchmarks/bench_tracking.py [PROBLEM.yaml] [--repeats N] [-o JSON
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import time
 from typing import Any
 
-import casadi as ca
 import numpy as np
+from common import machine_info
 
 from mmstab.config import MmstabError, write_json
 from mmstab.controller import CODEGEN_PLUGINS, PLUGINS, ControllerSettings
@@ -119,13 +117,7 @@ def main() -> None:
             "repeats": args.repeats,
             "plan_seconds": plan_seconds,
             "posture_reference_seconds": posture_seconds,
-            "machine": {
-                "platform": platform.platform(),
-                "processor": platform.processor() or platform.machine(),
-                "cpus": os.cpu_count(),
-                "python": platform.python_version(),
-                "casadi": ca.__version__,
-            },
+            "machine": machine_info(),
             "interpreted": interpreted,
             "generated": generated,
         },

@@ -11,12 +11,12 @@ iterations per start) at the same poses and previous CoMs.
 from __future__ import annotations
 
 import argparse
-import platform
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
+from common import machine_info
 
 from mmstab.config import write_json
 from mmstab.ik import PostureSolver
@@ -61,7 +61,7 @@ def main() -> None:
         previous = target.target_com
     result = {
         "problem": str(problem.path),
-        "machine": {"processor": platform.processor(), "python": platform.python_version()},
+        "machine": machine_info(),
         "settings": settings._asdict(),
         "runs": args.runs,
         "median_ms_per_pose": 1e3 * statistics.median(per_pose),

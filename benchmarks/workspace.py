@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
 import time
 from concurrent.futures import Executor, Future
@@ -20,6 +19,7 @@ from typing import Any
 
 import fcl
 import numpy as np
+from common import machine_info
 
 from mmstab.collision import CollisionChecker
 from mmstab.config import write_json
@@ -112,7 +112,7 @@ def main() -> None:
         **fcl_calls(problem.robot, grid),
         **fcl_strategies(problem.robot),
         "cpu_count": os.cpu_count(),
-        "machine": platform.platform(),
+        "machine": machine_info(),
         "note": "wall time on a shared 2-core machine: medians, noisy",
     }
     write_json(Path(args.out), result)
