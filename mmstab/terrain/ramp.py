@@ -1,4 +1,4 @@
-"""The planar ramp and base poses on it (``DESIGN.md`` §2).
+"""The planar ramp and base poses on it (``docs/design.md``, "Frames").
 
 G is the global frame (z up). The slope frame S is G turned by the slope angle about
 G's x axis, so +y_S points straight uphill and z_S is the plane normal. A base pose
@@ -14,8 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.robot import FloatArray, Robot
-
-GRAVITY_G = np.array([0.0, 0.0, -9.81])  # [m/s^2]
+from mmstab.terrain.base import GRAVITY_G
 
 
 class BasePose(NamedTuple):
