@@ -46,7 +46,7 @@ def check_payload(
         raise ConfigError(path, f"{field}.mass", f"must be a finite mass >= 0 [kg], got {mass}")
     com = np.asarray(com_wrist, dtype=float) if np.ndim(com_wrist) == 1 else None
     if com is None or com.shape != (3,) or not np.all(np.isfinite(com)):
-        raise ConfigError(path, f"{field}.com", f"must be 3 finite numbers [m], got {com_wrist}")
+        raise ConfigError(path, f"{field}.com", f"must be 3 finite numbers [m], got {com_wrist!r}")
     return Payload(mass=float(mass), com_wrist=com)
 
 
