@@ -28,8 +28,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.robot import FloatArray
-from mmstab.stability import ForceAngle
+from mmstab.robot import FloatArray, Robot
+from mmstab.stability import ForceAngle, base_polygon
 
 
 class Wrench(NamedTuple):
@@ -144,3 +144,38 @@ def dynamic_force_angle(
     angles = np.atleast_2d(dynamic_axis_angles(vertices, com, net_force, net_moment))
     magnitude = np.linalg.norm(np.atleast_2d(np.asarray(net_force, dtype=float)), axis=1)
     return ForceAngle(mu=angles.min(axis=1) * magnitude, angles=angles)
+
+
+def robot_force_angle_wrench(
+    robot: Robot,
+    gravity_body: ArrayLike,
+    arm_com_body: ArrayLike,
+    tool_body: ArrayLike,
+    wrench_body: ArrayLike,
+) -> ForceAngle:
+    """Quasi-static measure of the robot with an external wrench at the tool, body frame.
+
+    The wrench (e.g. the gripper pulling a handle) adds its force to ``f_r = m g`` and its
+    moment about the overall CoM to ``n_r``; the measure is then the dynamic form above.
+
+    Args:
+        robot: the robot (payload already attached, see ``mmstab.payload``).
+        gravity_body: gravity in B (B, 3) or (3,) [m/s^2].
+        arm_com_body: arm CoM g_a in B (B, 3) or (3,) [m].
+        tool_body: where the wrench acts, in B (B, 3) or (3,) [m].
+        wrench_body: ``[f (3) [N], n (3) [N m]]`` in B, (B, 6) or (6,).
+
+    Returns:
+        ``ForceAngle`` with mu (B,) [N rad]; equal to ``robot_force_angle`` for a zero wrench.
+
+    Raises:
+        ValueError: a wrench that is not 6 numbers per state.
+    """
+    w = np.atleast_2d(np.asarray(wrench_body, dtype=float))
+    if w.shape[-1] != 6:
+        raise ValueError(f"a wrench is [fx, fy, fz, nx, ny, nz], got shape {w.shape}")
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    com = robot.overall_com(np.atleast_2d(np.asarray(arm_com_body, dtype=float)))
+    force = robot.total_mass * g + w[:, :3]
+    moment = np.cross(np.atleast_2d(np.asarray(tool_body, dtype=float)) - com, w[:, :3]) + w[:, 3:]
+    return dynamic_force_angle(base_polygon(robot).vertices, com, force, moment)

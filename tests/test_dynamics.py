@@ -128,3 +128,37 @@ def test_bad_inputs():
         net_wrench([1.0, 2.0], [[0, 0, 0]], [[0, 0, 0]], G)
     with pytest.raises(ValueError, match="point_ext"):
         net_wrench([1.0], [[0, 0, 0]], [[0, 0, 0]], G, force_ext=[1, 0, 0])
+
+
+def test_robot_wrench_zero_is_static_and_pull_through_com_by_hand(robot, rng):
+    from mmstab.dynamics import robot_force_angle_wrench
+    from mmstab.stability import robot_force_angle
+
+    q = rng.uniform(robot.joint_lower, robot.joint_upper, (8, 4))
+    g_a = robot.arm_com(q)
+    gravity = np.tile(G, (8, 1))
+    tool = rng.normal(0, 0.3, (8, 3))
+    zero = robot_force_angle_wrench(robot, gravity, g_a, tool, np.zeros(6))
+    np.testing.assert_allclose(zero.mu, robot_force_angle(robot, gravity, g_a).mu, rtol=1e-13)
+    # a pull acting at the overall CoM has no moment: the measure of the static form with
+    # f_r = m g + F, by hand from the polygon
+    g_o = robot.overall_com(g_a)
+    pull = np.array([0.0, 60.0, 0.0])
+    got = robot_force_angle_wrench(robot, gravity, g_a, g_o, np.r_[pull, 0, 0, 0])
+    ref = force_angle_batch(base_polygon_vertices(robot), g_o, robot.total_mass * G + pull)
+    np.testing.assert_allclose(got.mu, ref.mu, rtol=1e-12)
+    # pulling to the left (+y) tips toward the left edge: the left axis angle drops and the
+    # right one grows
+    v = base_polygon_vertices(robot)
+    mid_y = (v[:, 1] + np.roll(v, -1, axis=0)[:, 1]) / 2
+    left, right = np.argmax(mid_y), np.argmin(mid_y)
+    assert np.all(got.angles[:, left] < zero.angles[:, left])
+    assert np.all(got.angles[:, right] > zero.angles[:, right])
+    with pytest.raises(ValueError, match="wrench"):
+        robot_force_angle_wrench(robot, G, g_a[0], tool[0], np.zeros(5))
+
+
+def base_polygon_vertices(robot):
+    from mmstab.stability import base_polygon
+
+    return base_polygon(robot).vertices
