@@ -110,7 +110,7 @@ animation: setup
 
 ## issue 18: the interactive 3-D viewer of the default run (prints its URL; Ctrl-C stops).
 ## VIEW_ARGS passes options, e.g. make view VIEW_ARGS="--host 0.0.0.0 --port 8090 --no-browser"
-.PHONY: view view-screenshot
+.PHONY: view view-screenshot bench-view
 VIEW_RUN ?= results/tracking
 view: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
@@ -120,3 +120,8 @@ view: setup
 view-screenshot: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) -m mmstab.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
+
+## seconds to the first page: mmstab view vs bare viser vs MeshCat -> results/bench/view.json
+## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
+bench-view: setup
+	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))

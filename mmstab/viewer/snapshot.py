@@ -151,7 +151,10 @@ def screenshot(
     if path is not None:
         from mmstab.config import _atomic
 
-        _atomic(Path(path), lambda tmp: tmp.write_bytes(png))
+        def write(tmp: Path) -> None:
+            tmp.write_bytes(png)
+
+        _atomic(Path(path), write)
     return Snapshot(png, drawn, seen)
 
 
