@@ -18,6 +18,7 @@ from conftest import ROOT, write_problem
 
 from mmstab.config import ConfigError, MmstabError
 from mmstab.problem import load_problem
+from mmstab.stability import robot_force_angle
 from mmstab.terrain import global_com_functions
 from mmstab.viewer.ground import (
     RampGround,
@@ -176,6 +177,9 @@ def test_com_and_its_projection_against_the_casadi_global_com(problem, rng):
         q = rng.uniform(problem.robot.joint_lower, problem.robot.joint_upper)
         now = instant(problem.robot, ground, pose, q)
         np.testing.assert_allclose(now.com_G, com.overall(q, pose), atol=1e-12)
+        gravity_B = problem.ramp.gravity_body([pose[2]])
+        fa = robot_force_angle(problem.robot, gravity_B, problem.robot.arm_com(q))
+        assert now.mu == pytest.approx(fa.mu[0], rel=1e-12)
         drop = now.com_projection_G - now.com_G
         assert np.linalg.norm(np.cross(drop, now.gravity_G)) < 1e-9 * np.linalg.norm(drop)
         assert drop @ now.gravity_G > 0  # down along gravity
@@ -300,16 +304,28 @@ def test_cli_serves_prints_the_url_and_stops_on_ctrl_c(run_dir):
 
 
 # ------------------------------------------------------------------------------- browser
-def chromium_processes(marker: str) -> list[int]:
-    found = []
+def processes() -> dict[int, tuple[int, str]]:
+    """pid -> (parent pid, command line) of every process we may read."""
+    out = {}
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
-                if marker in (entry / "cmdline").read_bytes().decode(errors="replace"):
-                    found.append(int(entry.name))
+                stat = (entry / "stat").read_text()
+                cmd = (entry / "cmdline").read_bytes().decode(errors="replace")
             except OSError:
                 continue
-    return found
+            out[int(entry.name)] = (int(stat.rsplit(")", 1)[1].split()[1]), cmd)
+    return out
+
+
+def leftovers(marker: str) -> list[str]:
+    """Chromium with our profile marker, and any browser/driver child of this process."""
+    me = os.getpid()
+    return [
+        cmd
+        for ppid, cmd in processes().values()
+        if marker in cmd or (ppid == me and ("playwright" in cmd or "chrom" in cmd))
+    ]
 
 
 def test_viewer_renders_in_headless_chromium(problem, run_dir):
@@ -349,7 +365,7 @@ def test_viewer_renders_in_headless_chromium(problem, run_dir):
         )
     finally:
         viewer.stop()
-    assert chromium_processes("mmstab-view-chromium-") == []
+    assert leftovers("mmstab-view-chromium-") == []
     with pytest.raises(OSError), socket.create_connection(("127.0.0.1", viewer.port), timeout=2):
         pass
 

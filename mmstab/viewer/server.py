@@ -243,9 +243,9 @@ class Viewer:
             e = self.extent
             pose0 = self.problem.circle.pose_at([0.0])[0]
             self._pose_sliders = [
-                gui.add_slider("x [m]", e.x_min, e.x_max, 0.01, float(pose0[0])),
-                gui.add_slider("y [m]", e.y_min, e.y_max, 0.01, float(pose0[1])),
-                gui.add_slider("yaw [rad]", -np.pi, np.pi, 0.01, float(_wrap(pose0[2]))),
+                gui.add_slider("x [m]", e.x_min, e.x_max, 0.01, round(float(pose0[0]), 2)),
+                gui.add_slider("y [m]", e.y_min, e.y_max, 0.01, round(float(pose0[1]), 2)),
+                gui.add_slider("yaw [rad]", -np.pi, np.pi, 0.01, round(_wrap(pose0[2]), 2)),
             ]
             self._joint_sliders = [
                 gui.add_slider(
@@ -373,7 +373,7 @@ class Viewer:
         if self._quiet or editing == self.editing:
             return
         if editing and self.run is not None:  # start from the instant shown
-            self._playing.clear()
+            self.pause()
             self.show_pose(_wrap_pose(self.run.poses[self.index]), self.run.q[self.index])
             return
         self.editing = editing if self.run is not None else True
@@ -381,6 +381,7 @@ class Viewer:
 
     def _on_pose(self) -> None:
         if not self._quiet:
+            self.pause()
             self.editing = True
             if not self._edit.value:
                 self._quiet = True
@@ -412,31 +413,42 @@ class Viewer:
         if self.run is None:
             return False
         if self._playing.is_set():
-            self._playing.clear()
-            self._play.label = "Play"
+            self.pause()
         else:
             if self.index >= self.run.samples - 1:
                 self.index = 0
+            if self.editing:
+                self.show_sample(self.index)
             self._play.label = "Pause"
             self._playing.set()
         return self._playing.is_set()
+
+    def pause(self) -> None:
+        """Pause playback (no-op if paused)."""
+        self._playing.clear()
+        if self.run is not None:
+            self._play.label = "Play"
 
     def _play_loop(self) -> None:
         while not self._stop.is_set():
             if not self._playing.wait(timeout=0.2) or self.run is None:
                 continue
-            start_wall, start_t = time.monotonic(), float(self.run.t[self.index])
+            t = self.run.t
+            clock, shown, wall = float(t[self.index]), self.index, time.monotonic()
             while self._playing.is_set() and not self._stop.is_set():
-                speed = float(self._speed.value.rstrip("x"))
-                target = start_t + speed * (time.monotonic() - start_wall)
-                k = int(np.searchsorted(self.run.t, target))
-                if k >= self.run.samples:
-                    self.show_sample(self.run.samples - 1)
-                    self.toggle_play()
-                    break
-                if k != self.index:
-                    self.show_sample(k)
                 self._stop.wait(FRAME_S)
+                if self.index != shown:  # moved on the slider meanwhile: go on from there
+                    clock = float(t[self.index])
+                now = time.monotonic()
+                clock += float(self._speed.value.rstrip("x")) * (now - wall)
+                wall = now
+                if clock >= t[-1]:
+                    self.show_sample(self.run.samples - 1)
+                    self.pause()
+                    break
+                shown = max(int(np.searchsorted(t, clock, side="right")) - 1, 0)
+                if shown != self.index:
+                    self.show_sample(shown)
 
 
 def _wrap(angle: float) -> float:
