@@ -194,6 +194,53 @@ def test_com_and_its_projection_against_the_casadi_global_com(problem, rng):
         )
 
 
+class Bare:
+    """Only the three methods every terrain has (no support, no surface_G)."""
+
+    def __init__(self, ground):
+        self.ground = ground
+
+    def G_T_M(self):
+        return self.ground.G_T_M()
+
+    def G_T_B(self, poses):
+        return self.ground.G_T_B(poses)
+
+    def gravity_body(self, poses):
+        return self.ground.gravity_body(poses)
+
+
+class ClockwiseSupport(Bare):
+    """A terrain that reports its support polygon clockwise (seen from above)."""
+
+    def __init__(self, ground, robot):
+        super().__init__(ground)
+        self.robot = robot
+
+    def support(self, pose, contacts_body):
+        from mmstab.stability import base_polygon
+        from mmstab.terrain import Support
+
+        T = np.asarray(self.ground.G_T_B(np.asarray(pose)[None])).reshape(-1, 4, 4)[0]
+        ccw = base_polygon(self.robot).vertices @ T[:3, :3].T + T[:3, 3]
+        contacts = np.asarray(contacts_body) @ T[:3, :3].T + T[:3, 3]
+        return Support(T, contacts, ccw[::-1])
+
+
+def test_terrain_support_polygon_in_either_order_gives_the_same_picture(problem, rng):
+    ground = problem_ground(problem)
+    bare, cw = Bare(ground), ClockwiseSupport(ground, problem.robot)
+    for _ in range(3):
+        pose = rng.uniform([-1, -1, -np.pi], [1, 1, np.pi])
+        q = rng.uniform(problem.robot.joint_lower, problem.robot.joint_upper)
+        a, b = instant(problem.robot, bare, pose, q), instant(problem.robot, cw, pose, q)
+        assert a.mu > 0 and b.mu == pytest.approx(a.mu, rel=1e-12)
+        np.testing.assert_allclose(b.com_projection_G, a.com_projection_G, atol=1e-12)
+        assert {tuple(np.round(p, 9)) for p in b.axis_G} == {
+            tuple(np.round(p, 9)) for p in a.axis_G
+        }
+
+
 def test_mu_color_runs_red_to_green():
     red, mid, green = mu_color(-5.0, 100.0), mu_color(50.0, 100.0), mu_color(100.0, 100.0)
     assert red[0] > 150 and red[1] < 60  # RdYlGn: dark red ... yellow ... dark green

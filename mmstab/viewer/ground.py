@@ -4,7 +4,8 @@ The viewer talks to the ground only through the methods of
 :class:`mmstab.terrain.Terrain` it needs (:class:`Ground`): ``G_T_M()``, ``G_T_B(poses)``
 and ``gravity_body(poses)``, plus an optional ``height(x, y)`` [m] in the map frame M
 (heightmap terrains). A planar ramp written before that interface (``Ramp.G_T_S``,
-``Ramp.gravity_body(headings)``) is wrapped by :class:`RampGround`.
+``Ramp.gravity_body(headings)``) is wrapped by :class:`RampGround`. A terrain's own
+``surface_G(x, y)`` and ``support(pose, contacts_B)`` are used when it has them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from numpy.typing import ArrayLike
 
 from mmstab.robot import FloatArray
 
+#: Default size of a terrain mesh cell [m] (a heightmap's bumps need them small).
+MESH_CELL = 0.1
 #: Route and grid lines are drawn this far above the ground, to stay visible [m].
 LINE_LIFT = 4e-3
 
@@ -104,7 +107,8 @@ def extent_around(points_M: ArrayLike, margin: float) -> Extent:
 def surface_points(ground: Ground, x: ArrayLike, y: ArrayLike, lift: float = 0.0) -> FloatArray:
     """Points of the ground surface over map coordinates ``x``, ``y`` (same shape) in G [m].
 
-    The height is ``ground.height(x, y)`` [m] in M if the ground has it, else 0 (a plane).
+    ``ground.surface_G(x, y)`` if the ground has it; else the height is
+    ``ground.height(x, y)`` [m] in M if it has that, else 0 (a plane).
 
     Args:
         ground: the terrain.
@@ -116,6 +120,9 @@ def surface_points(ground: Ground, x: ArrayLike, y: ArrayLike, lift: float = 0.0
         (..., 3) points in G [m].
     """
     xa, ya = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    surface = getattr(ground, "surface_G", None)
+    if surface is not None:  # the terrain draws itself (mmstab.terrain.Terrain.surface_G)
+        return np.asarray(surface(xa, ya), dtype=float) + lift * ground.G_T_M()[:3, 2]
     height = getattr(ground, "height", None)
     z = np.zeros_like(xa) if height is None else np.asarray(height(xa, ya), dtype=float)
     return transform(ground.G_T_M(), np.stack([xa, ya, z + lift], axis=-1))
@@ -135,14 +142,18 @@ class TerrainMesh(NamedTuple):
     colors: np.ndarray
 
 
-def terrain_mesh(ground: Ground, extent: Extent, cells: int = 40) -> TerrainMesh:
+def terrain_mesh(ground: Ground, extent: Extent, cells: int | None = None) -> TerrainMesh:
     """Mesh the ground over a rectangle of M with ``cells`` x ``cells`` squares.
 
     Args:
         ground: the terrain.
         extent: the rectangle in M [m].
-        cells: grid cells per side (>= 1).
+        cells: grid cells per side (>= 1); default about :data:`MESH_CELL` [m] each,
+            10 to 200 per side.
     """
+    if cells is None:
+        span = max(extent.x_max - extent.x_min, extent.y_max - extent.y_min)
+        cells = int(np.clip(np.ceil(span / MESH_CELL), 10, 200))
     xs = np.linspace(extent.x_min, extent.x_max, cells + 1)
     ys = np.linspace(extent.y_min, extent.y_max, cells + 1)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
@@ -159,7 +170,7 @@ def height_colors(z: ArrayLike) -> np.ndarray:
     za = np.asarray(z, dtype=float)
     span = float(za.max() - za.min()) if za.size else 0.0
     s = (za - za.min()) / span if span > 1e-9 else np.full_like(za, 0.5)
-    low, high = np.array([122.0, 132.0, 104.0]), np.array([214.0, 208.0, 184.0])
+    low, high = np.array([84.0, 110.0, 70.0]), np.array([226.0, 214.0, 180.0])
     return np.round(low + s[:, None] * (high - low)).astype(np.uint8)
 
 

@@ -133,8 +133,11 @@ def arm_posture(robot: Robot, mode: str, q: ArrayLike) -> FloatArray | None:
 def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) -> Instant:
     """The stability picture at one base pose and arm posture.
 
-    The force-angle measure is evaluated in B (as :func:`mmstab.stability.robot_force_angle`)
-    with gravity from the ground at the resting pose; the result is mapped to G.
+    The resting pose and the support polygon come from the ground: ``ground.support(pose,
+    contacts_B)`` if it has it (heightmaps: the contacts that touch), else the base's
+    polygon (:func:`mmstab.stability.base_polygon`) at ``G_T_B(pose)``. μ is the
+    force-angle measure (:func:`mmstab.stability.axis_angles`) of that polygon with the
+    overall CoM and f_r = m g, gravity from ``ground.gravity_body``.
 
     Args:
         robot: the robot.
@@ -143,8 +146,14 @@ def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) 
         q: arm joint angles (4,) [rad]; ``None`` = the arm removed.
     """
     p = np.asarray(pose, dtype=float).reshape(3)
-    G_T_B = resting_poses(ground, p)[0]
-    gravity_B = np.asarray(ground.gravity_body(p[None]), dtype=float).reshape(3)
+    support = getattr(ground, "support", None)
+    if support is not None:
+        stand = support(p, robot.base.support_points())
+        G_T_B, polygon_G = np.asarray(stand.G_T_B, float), np.asarray(stand.polygon_G, float)
+    else:
+        G_T_B = resting_poses(ground, p)[0]
+        polygon_G = transform(G_T_B, base_polygon(robot).vertices)
+    gravity_G = G_T_B[:3, :3] @ np.asarray(ground.gravity_body(p[None]), dtype=float).reshape(3)
     if q is None:
         qa, B_T_R = None, None
         mass, com_B = robot.base.mass, np.asarray(robot.base.com, dtype=float)
@@ -152,30 +161,50 @@ def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) 
         qa = np.asarray(q, dtype=float).reshape(4)
         B_T_R = robot.kinematics.link_frames(qa)
         mass, com_B = robot.total_mass, robot.overall_com(robot.arm_com(qa))
-    poly = base_polygon(robot)
-    angles = np.asarray(axis_angles(poly.vertices, com_B, mass * gravity_B), dtype=float)
+    com_G = transform(G_T_B, com_B)
+    polygon_G, normal = oriented_polygon(polygon_G, com_G)
+    angles = np.atleast_1d(np.asarray(axis_angles(polygon_G, com_G, mass * gravity_G), float))
     j = int(np.argmin(angles))
-    n = len(poly.vertices)
-    axis_B = poly.vertices[[j, (j + 1) % n]]
-    # the CoM moved along gravity until it meets the support plane (point p0, normal n_B)
-    n_B, p0 = poly.normal, poly.vertices[0]
-    along = float(n_B @ gravity_B)
-    step = float(n_B @ (p0 - com_B)) / along if abs(along) > 1e-12 else 0.0
-    projection_B = com_B + step * gravity_B
+    # the CoM moved along gravity until it meets the support plane (through the centroid)
+    along = float(normal @ gravity_G)
+    centre = polygon_G.mean(axis=0)
+    step = float(normal @ (centre - com_G)) / along if abs(along) > 1e-12 else 0.0
     return Instant(
         pose=p,
         q=qa,
         G_T_B=G_T_B,
         B_T_R=B_T_R,
-        gravity_G=G_T_B[:3, :3] @ gravity_B,
-        com_G=transform(G_T_B, com_B),
-        com_projection_G=transform(G_T_B, projection_B),
-        polygon_G=transform(G_T_B, poly.vertices),
+        gravity_G=gravity_G,
+        com_G=com_G,
+        com_projection_G=com_G + step * gravity_G,
+        polygon_G=polygon_G,
         axis=j,
-        axis_G=transform(G_T_B, axis_B),
+        axis_G=polygon_G[[j, (j + 1) % len(polygon_G)]],
         angles=angles,
-        mu=float(angles[j] * mass * np.linalg.norm(gravity_B)),
+        mu=float(angles[j] * mass * np.linalg.norm(gravity_G)),
     )
+
+
+def oriented_polygon(polygon: ArrayLike, com: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """A convex polygon's vertices ordered counter-clockwise about its normal toward ``com``.
+
+    The force-angle measure needs that order (:mod:`mmstab.stability`); a terrain may give
+    either. The normal is Newell's (robust for slightly non-planar contacts).
+
+    Args:
+        polygon: ordered vertices (n, 3) [m], either way round.
+        com: a point on the side the normal must face, e.g. the CoM (3,) [m].
+
+    Returns:
+        The vertices (n, 3) [m], possibly reversed, and the unit normal (3,).
+    """
+    v = np.asarray(polygon, dtype=float)
+    nxt = np.roll(v, -1, axis=0)
+    normal = np.cross(v, nxt).sum(axis=0)  # Newell: 2 x area x unit normal
+    normal /= np.linalg.norm(normal)
+    if normal @ (np.asarray(com, dtype=float) - v.mean(axis=0)) < 0:
+        return v[::-1].copy(), -normal
+    return v, normal
 
 
 def mu_color(mu: float, scale: float) -> tuple[int, int, int]:
