@@ -170,7 +170,7 @@ def height_colors(z: ArrayLike) -> np.ndarray:
     za = np.asarray(z, dtype=float)
     span = float(za.max() - za.min()) if za.size else 0.0
     s = (za - za.min()) / span if span > 1e-9 else np.full_like(za, 0.5)
-    low, high = np.array([84.0, 110.0, 70.0]), np.array([226.0, 214.0, 180.0])
+    low, high = np.array([112.0, 132.0, 92.0]), np.array([232.0, 222.0, 190.0])
     return np.round(low + s[:, None] * (high - low)).astype(np.uint8)
 
 

@@ -153,6 +153,12 @@ class Viewer:
         scene: Any = self.server.scene
         problem, ground = self.problem, self.ground
         scene.set_up_direction("+z")
+        # plain lights, no environment map: its image-based lighting takes seconds to set
+        # up in software WebGL (remote desktops, CI) and washes out the terrain's colours
+        scene.configure_environment_map(hdri=None)
+        scene.add_light_hemisphere(
+            "/lights/sky", sky_color=(255, 255, 255), ground_color=(120, 110, 100), intensity=2.0
+        )
         reference = problem.circle.poses(240)
         poses_for_extent = reference if self.run is None else np.vstack([reference, self.run.poses])
         self.extent = extent_around(poses_for_extent, TERRAIN_MARGIN)
