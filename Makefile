@@ -13,7 +13,7 @@ export MPLBACKEND ?= Agg
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --editable '.[dev,peer]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer,view]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -96,7 +96,7 @@ embedded: setup
 
 BENCH_STAMP := $(VENV)/.bench-stamp
 $(BENCH_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet --editable '.[dev,peer,bench]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer,view,bench]'
 	touch $(BENCH_STAMP)
 
 ## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
@@ -107,3 +107,21 @@ bench: $(BENCH_STAMP)
 .PHONY: animation
 animation: setup
 	$(MMSTAB) animation $(PROBLEM)
+
+## issue 18: the interactive 3-D viewer of the default run (prints its URL; Ctrl-C stops).
+## VIEW_ARGS passes options, e.g. make view VIEW_ARGS="--host 0.0.0.0 --port 8090 --no-browser"
+.PHONY: view view-screenshot bench-view
+VIEW_RUN ?= results/tracking
+view: setup
+	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
+	$(MMSTAB) view $(PROBLEM) --run $(VIEW_RUN) $(VIEW_ARGS)
+
+## the viewer as headless chromium shows it -> results/view/viewer.png (the README's picture)
+view-screenshot: setup
+	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
+	$(PY) -m mmstab.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
+
+## seconds to the first page: mmstab view vs bare viser vs MeshCat -> results/bench/view.json
+## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
+bench-view: setup
+	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))

@@ -1,0 +1,10 @@
+"""An interactive 3-D viewer in the browser (``mmstab view``), served by viser.
+
+- :mod:`mmstab.viewer.ground`: the terrain through the ``Terrain`` interface, as a mesh.
+- :mod:`mmstab.viewer.scene`: robot meshes and the stability picture of one instant (pure).
+- :mod:`mmstab.viewer.run`: a stored tracking run, read and checked against the problem.
+- :mod:`mmstab.viewer.server`: the viser server, its scene tree and GUI (needs ``viser``).
+- :mod:`mmstab.viewer.cli`: the ``mmstab view`` command.
+
+Importing this package does not import viser (an optional dependency: ``mmstab[view]``).
+"""
