@@ -22,8 +22,19 @@ setup: $(STAMP)
 ## (workspace V -> stability sweeps -> CMA-ES plan -> tracking on the ramp -> animation)
 demo: setup fig3 fig5 fig6 fig7 fig8 tracking animation
 
-test: setup
+test: setup system
 	$(PY) -m pytest -q
+
+## system packages the tests need (Debian): chromium for the browser test of `mmstab view`
+.PHONY: system
+system:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	    echo "make: installing chromium (browser test of mmstab view)"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else \
+	    echo "make: chromium is missing and cannot be installed here: the browser test will skip"; \
+	  fi; }
 
 lint: setup
 	$(VENV)/bin/ruff check mmstab tests benchmarks
