@@ -13,7 +13,7 @@ export MPLBACKEND ?= Agg
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --editable '.[dev,peer]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer,validate]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -96,7 +96,7 @@ embedded: setup
 
 BENCH_STAMP := $(VENV)/.bench-stamp
 $(BENCH_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet --editable '.[dev,peer,bench]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer,validate,bench]'
 	touch $(BENCH_STAMP)
 
 ## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
