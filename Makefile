@@ -107,3 +107,9 @@ bench: $(BENCH_STAMP)
 .PHONY: animation
 animation: setup
 	$(MMSTAB) animation $(PROBLEM)
+
+## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/validation.{json,png}
+.PHONY: validate-terrain
+VALIDATION ?= problems/validate_terrain.yaml
+validate-terrain: setup
+	$(PY) benchmarks/validate_terrain.py $(VALIDATION)

@@ -224,3 +224,20 @@ def test_distribution_and_outliers(robot):
     assert cmp.stats["settled"] == 2
     with pytest.raises(MmstabError, match="not a plane"):
         plane_predictor(sinusoid(), RES, ORIGIN)
+
+
+def test_rest_state_hook_tells_a_second_rest_from_a_wrong_prediction(robot):
+    from mmstab.validation.compare import rest_state_check
+
+    e = plane(np.tan(0.2), 0.0)
+    dm = DropModel(robot, e, RES, ORIGIN)
+    r = drop(dm, [[0.1, -0.1, 0.4]])
+    good = plane_predictor(e, RES, ORIGIN)
+
+    def tilted(p):  # 3 deg of extra roll: the robot cannot stay there on a plane
+        roll, pitch, z = good(p)
+        return roll + np.radians(3.0), pitch, z
+
+    errors = {"roll_deg": 3.0, "pitch_deg": 0.0, "z_m": 0.0}
+    assert rest_state_check(dm, good)(0, r, errors).startswith("two rest states")
+    assert rest_state_check(dm, tilted)(0, r, errors).startswith("MuJoCo does not stay")

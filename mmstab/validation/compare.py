@@ -15,8 +15,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mmstab.robot import FloatArray
-from mmstab.validation.mujoco_drop import DropResult
-from mmstab.validation.plane import Predictor
+from mmstab.validation.mujoco_drop import DropModel, DropResult
+from mmstab.validation.plane import Predictor, attitude
 
 #: explain(index, drops, prediction errors row) -> a sentence, or "" when it has nothing to say.
 Explainer = Callable[[int, DropResult, dict[str, float]], str]
@@ -72,6 +72,48 @@ def default_explanation(index: int, drops: DropResult, errors: dict[str, float])
     if abs(drops.yaw_drift[index]) > np.radians(2):
         reasons.append(f"turned {np.degrees(drops.yaw_drift[index]):.1f} deg while settling")
     return "; ".join(reasons)
+
+
+def rest_state_check(
+    model: DropModel, predict: Predictor, lift: float = 1e-3, tol_deg: float = 0.5
+) -> Explainer:
+    """A hook that releases MuJoCo's robot AT the predicted rest and watches what it does.
+
+    If it stays (within ``tol_deg``), the prediction is a MuJoCo rest state too: the drop
+    found another one (two rest states, e.g. tipping either way over a crest). If it
+    moves away, the prediction is not a MuJoCo rest: a predictor error, or a rest so
+    marginal that the surfaces' small differences (MuJoCo's triangles vs bilinear cells,
+    about a millimetre on curved ground) tip it.
+
+    Args:
+        model: the drop model the drops were made with.
+        predict: the predictor being compared.
+        lift: release the prediction this much higher, so no contact starts penetrating [m].
+        tol_deg: largest roll/pitch change that counts as staying [deg].
+    """
+
+    def hook(index: int, drops: DropResult, errors: dict[str, float]) -> str:
+        if not drops.settled[index]:
+            return ""
+        pose = drops.settled_poses[index]
+        roll, pitch, z = (float(np.asarray(v).ravel()[0]) for v in predict(pose[None]))
+        T = np.eye(4)
+        T[:3, :3] = attitude(pose[2], roll, pitch)
+        T[:3, 3] = [pose[0], pose[1], z + lift]
+        again = model.drop_one(pose, start=T)
+        moved = np.degrees(max(abs(again["roll"] - roll), abs(again["pitch"] - pitch)))
+        if again["settled"] and moved <= tol_deg:
+            return (
+                f"two rest states: released at the prediction MuJoCo stays there "
+                f"(within {moved:.2f} deg)"
+            )
+        return (
+            f"MuJoCo does not stay at the prediction: released there it moves {moved:.1f} deg "
+            f"(to roll {np.degrees(again['roll']):.2f}, pitch {np.degrees(again['pitch']):.2f} "
+            "deg): a predictor error, or a rest too marginal for the surfaces' differences"
+        )
+
+    return hook
 
 
 def compare(

@@ -43,6 +43,8 @@ class DropSettings:
         solref: contact (time constant [s], damping ratio [-]): stiff, critically damped.
         solimp: contact impedance (dmin, dmax, width [m], midpoint, power).
         impratio: frictional-to-normal impedance ratio (elliptic cones): high = less creep.
+        damping: viscous damping of the free joint, every DOF [N s/m, N m s/rad]: it ends
+            rocking on crests (rolling contacts lose no energy) and is zero at rest.
         noslip_iterations: MuJoCo's no-slip post-solver iterations (0 = off).
         drop_height: gap between the lowest robot point and the ground at release [m].
         start: initial attitude, ``"fit"`` (the plane fitted under the footprint) or
@@ -59,6 +61,7 @@ class DropSettings:
     solref: tuple[float, float] = (0.004, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 1.0
+    damping: float = 30.0
     noslip_iterations: int = 0
     drop_height: float = 0.03
     start: str = "fit"
@@ -219,7 +222,7 @@ def build_model(
   <worldbody>
     {field.geom}
     <body name="base">
-      <freejoint name="base"/>
+      <joint name="base" type="free" damping="{s.damping:.12g}"/>
       <inertial pos="{_f(mp.com_body)}" mass="{mp.mass:.12g}" fullinertia="{_f(full)}"/>
 {geoms}
     </body>
@@ -346,16 +349,22 @@ class DropModel:
         z0 = float(np.max(self.heightmap.height(p[:, :2]) - p[:, 2])) + self.settings.drop_height
         return _pose(R, [x, y, z0])
 
-    def drop_one(self, pose: ArrayLike) -> dict[str, Any]:
-        """Drop at one (x, y, yaw) in G and settle; the fields of :class:`DropResult`."""
+    def drop_one(self, pose: ArrayLike, start: ArrayLike | None = None) -> dict[str, Any]:
+        """Drop at one (x, y, yaw) in G and settle; the fields of :class:`DropResult`.
+
+        Args:
+            pose: the commanded (x [m], y [m], yaw [rad]) in G.
+            start: release pose G_T_B (4, 4) instead of :meth:`initial_pose` (e.g. a
+                predicted rest, to see whether MuJoCo stays there).
+        """
         m, d, s = self.model, self.data, self.settings
-        T0 = self.initial_pose(pose)
+        T0 = self.initial_pose(pose) if start is None else np.asarray(start, dtype=float)
         mujoco.mj_resetData(m, d)
         d.qpos[:3] = T0[:3, 3]
         d.qpos[3:7] = _quat(T0[:3, :3])
         n_quiet = int(np.ceil(s.settle_time / (s.check_every * s.timestep)))
         quiet, settled = 0, False
-        start = time.perf_counter()
+        t_wall = time.perf_counter()
         while d.time < s.max_time:
             mujoco.mj_step(m, d, nstep=s.check_every)
             v = d.qvel
@@ -366,7 +375,7 @@ class DropModel:
                     break
             else:
                 quiet = 0
-        wall = time.perf_counter() - start
+        wall = time.perf_counter() - t_wall
         mujoco.mj_forward(m, d)
         R = d.xmat[self.body].reshape(3, 3).copy()
         G_T_B = _pose(R, d.xpos[self.body].copy())

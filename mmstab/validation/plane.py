@@ -53,6 +53,16 @@ def tilted_frame(a: float, b: float, yaw: float) -> FloatArray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
+def attitude(yaw: float, roll: float, pitch: float) -> FloatArray:
+    """G_R_B = Rz(yaw) Ry(-pitch) Rx(roll) (3, 3): the inverse of :func:`roll_pitch` [rad]."""
+    cy, sy, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(roll), np.sin(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    Ry = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return Rz @ Ry @ Rx
+
+
 def roll_pitch(G_R_B: ArrayLike) -> tuple[float, float]:
     """Roll and pitch [rad] of a body attitude, as ``Ramp.roll_pitch``: from gravity in B.
 
