@@ -9,8 +9,7 @@ import sys
 
 import pytest
 import yaml
-
-from tests.conftest import ROBOT_YAML, ROOT
+from conftest import ROBOT_YAML, ROOT
 
 pytest.importorskip("mujoco")
 
