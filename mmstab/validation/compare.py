@@ -59,6 +59,8 @@ def default_explanation(index: int, drops: DropResult, errors: dict[str, float])
     reasons = []
     if not drops.settled[index]:
         reasons.append(f"did not settle within {drops.time[index]:.1f} s (fell off or rocking)")
+    if abs(drops.roll[index]) > np.pi / 2 or abs(drops.pitch[index]) > np.pi / 2:
+        reasons.append("turned over while settling (a tumble of the release, not a rest)")
     touching = drops.touching[index]
     if "chassis" in touching:
         reasons.append("chassis on the ground (high-centred)")

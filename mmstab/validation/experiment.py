@@ -280,23 +280,33 @@ def summary(settings: dict[str, Any], runs: list[Run]) -> dict[str, Any]:
 
 
 def figure(runs: list[Run]) -> Any:
-    """Histograms of |Δroll|, |Δpitch| [deg] and |Δz| [mm], one colour per terrain."""
+    """Histograms of |Δroll|, |Δpitch| [deg] and |Δz| [mm] (log axes), one colour per terrain.
+
+    Dashed lines: the targets (median 0.5 deg, 95th percentile 2 deg; height 10 mm).
+    """
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
-    for ax, key, label, scale in (
-        (axes[0], "roll_deg", "|Δroll| [deg]", 1.0),
-        (axes[1], "pitch_deg", "|Δpitch| [deg]", 1.0),
-        (axes[2], "z_m", "|Δz| [mm]", 1000.0),
+    for ax, key, label, scale, targets in (
+        (axes[0], "roll_deg", "|Δroll| [deg]", 1.0, (0.5, 2.0)),
+        (axes[1], "pitch_deg", "|Δpitch| [deg]", 1.0, (0.5, 2.0)),
+        (axes[2], "z_m", "|Δz| [mm]", 1000.0, (10.0,)),
     ):
-        data = [scale * getattr(r.comparison, key)[r.comparison.settled] for r in runs]
-        top = max((float(d.max()) for d in data if d.size), default=1.0) or 1e-6
-        bins = np.linspace(0.0, top * 1.05, 30)
+        floor = 1e-6
+        data = [
+            np.maximum(scale * getattr(r.comparison, key)[r.comparison.settled], floor)
+            for r in runs
+        ]
+        top = max([float(d.max()) for d in data if d.size] + [max(targets)])
+        bins = np.logspace(np.log10(floor), np.log10(top * 1.5), 40)
         ax.hist(data, bins=bins, stacked=True, label=[r.terrain.name for r in runs])
+        for t in targets:
+            ax.axvline(t, color="k", linestyle="--", linewidth=0.8)
+        ax.set_xscale("log")
         ax.set_xlabel(label)
         ax.set_ylabel("drops")
     axes[0].legend(fontsize=8)
-    fig.suptitle("resting pose: prediction minus MuJoCo heightfield drop")
+    fig.suptitle("resting pose: prediction minus MuJoCo heightfield drop (settled drops)")
     fig.tight_layout()
     return fig
 
