@@ -113,3 +113,8 @@ animation: setup
 VALIDATION ?= problems/validate_terrain.yaml
 validate-terrain: setup
 	$(PY) benchmarks/validate_terrain.py $(VALIDATION)
+
+## drops per pose: Python loop with early stop vs mujoco.rollout -> results/bench/drop.json
+.PHONY: bench-drop
+bench-drop: setup
+	$(PY) benchmarks/bench_drop.py
