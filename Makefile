@@ -5,6 +5,8 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 MMSTAB := $(VENV)/bin/mmstab
 STAMP := $(VENV)/.installed-stamp
+# optional extras every set-up installs (the tests use them all)
+EXTRAS := dev,peer,view,validate
 PROBLEM ?= problems/ramp.yaml
 export MPLBACKEND ?= Agg
 
@@ -13,7 +15,7 @@ export MPLBACKEND ?= Agg
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --editable '.[dev,peer,view]'
+	$(PY) -m pip install --quiet --editable '.[$(EXTRAS)]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -107,7 +109,7 @@ embedded: setup
 
 BENCH_STAMP := $(VENV)/.bench-stamp
 $(BENCH_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet --editable '.[dev,peer,view,bench]'
+	$(PY) -m pip install --quiet --editable '.[$(EXTRAS),bench]'
 	touch $(BENCH_STAMP)
 
 ## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
@@ -136,3 +138,14 @@ view-screenshot: setup
 ## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
 bench-view: setup
 	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))
+
+## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/validation.{json,png}
+.PHONY: validate-terrain
+VALIDATION ?= problems/validate_terrain.yaml
+validate-terrain: setup
+	$(PY) benchmarks/validate_terrain.py $(VALIDATION)
+
+## drops per pose: Python loop with early stop vs mujoco.rollout -> results/bench/drop.json
+.PHONY: bench-drop
+bench-drop: setup
+	$(PY) benchmarks/bench_drop.py
