@@ -169,7 +169,7 @@ def robot_force_angle(
 
     Args:
         robot: the robot.
-        gravity_body: gravity in B (B, 3) or (3,) [m/s^2] (see ``Ramp.gravity_body``).
+        gravity_body: gravity in B (B, 3) or (3,) [m/s^2] (see ``Terrain.gravity_body``).
         arm_com_body: arm CoM g_a in B (B, 3) or (3,) [m]; ``None`` = the arm removed.
 
     Returns:

@@ -301,16 +301,16 @@ def task_batch(
     return xi, com_B
 
 
-def stability_along(problem: Problem, headings: ArrayLike, arm_com_body: ArrayLike) -> Stability:
+def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike) -> Stability:
     """μ along a base trajectory: with the given arm CoMs, the arm removed, the arm stowed.
 
     Args:
-        problem: the problem (robot and ramp).
-        headings: base headings in S (N,) [rad] (position on a plane does not matter).
+        problem: the problem (robot and terrain).
+        poses: base poses (N, 3) in the map frame M [m, m, rad].
         arm_com_body: arm CoM in the body frame per sample (N, 3) [m].
     """
     robot = problem.robot
-    gravity = problem.ramp.gravity_body(headings)
+    gravity = problem.terrain.gravity_body(poses)
     stowed = np.broadcast_to(robot.arm_com(robot.stowed), gravity.shape)
     return Stability(
         reconfigured=robot_force_angle(robot, gravity, arm_com_body).mu,
@@ -475,7 +475,7 @@ def simulate(
         heading_error=wrap_angle(ref.xi_des[:, 2] - xi[:, 2]),
         arm_com_error=np.linalg.norm(ref.xi_des[:, 3:] - xi[:, 3:], axis=1),
         arm_com_body=com_B,
-        mu=stability_along(problem, states[:, 2], com_B),
+        mu=stability_along(problem, states[:, :3], com_B),
         failures=tuple(Failure(int(k), float(t[k]), QPStatus(int(statuses[k]))) for k in failed),
         posture=arm.posture,
         approach=arm.approach,

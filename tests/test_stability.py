@@ -99,7 +99,7 @@ def test_robot_on_flat_ground_by_hand(robot):
 
 def test_arm_uphill_is_more_stable_than_downhill(robot):
     ramp = Ramp(0.25)
-    g = ramp.gravity_body([0.0])  # heading 0: uphill is +y_B (left)
+    g = ramp.gravity_body([0.0, 0.0, 0.0])  # heading 0: uphill is +y_B (left)
     q_up, q_down = np.array([np.pi / 2, 0, 0, 0]), np.array([3 * np.pi / 2, 0, 0, 0])
     mu_up = robot_force_angle(robot, g, robot.arm_com(q_up)).mu[0]
     mu_down = robot_force_angle(robot, g, robot.arm_com(q_down)).mu[0]
@@ -126,6 +126,6 @@ def test_touching_flippers_extend_the_polygon():
     assert poly.vertices[:, 0].max() > robot.base.tracks.length / 2 + 0.2
     # pitched nose-down on a ramp, the flippers add margin at the front
     ramp = Ramp(0.4)
-    g = ramp.gravity_body([-np.pi / 2])
+    g = ramp.gravity_body([0.0, 0.0, -np.pi / 2])
     com = robot.arm_com(robot.stowed)
     assert robot_force_angle(down, g, com).mu[0] > robot_force_angle(robot, g, com).mu[0]

@@ -227,7 +227,7 @@ def test_task_batch_matches_the_casadi_task(problem, rng):
 
 def test_stability_matches_force_angle_in_the_global_frame(problem):
     """μ of the three cases against the force angle computed in G from G_T_B."""
-    robot, ramp = problem.robot, problem.ramp
+    robot, ramp = problem.robot, problem.terrain
     run = simulate(problem, posture_plan(robot), duration=0.3, progress=False)
     pts_B = robot.base.support_points()
     for k in (0, 150, 300):

@@ -38,7 +38,7 @@ def run_animation(
     d = output_dir(out, "tracking")
     info = render_animation(
         problem.robot,
-        problem.ramp,
+        problem.terrain,
         run.t,
         run.state[:, :3],
         run.state[:, 5:9],

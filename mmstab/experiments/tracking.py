@@ -217,7 +217,7 @@ def _fig9(d: Path, problem: Problem, run: TrackingRun) -> None:
         aspect="equal",
         xlabel="$x_S$ [m]",
         ylabel="$y_S$ [m] (uphill)",
-        title=f"(a) on the slope ({np.degrees(problem.ramp.slope):.1f} deg), seen from above",
+        title=f"(a) on the {problem.terrain.label}, seen from above",
     )
     ax.legend(fontsize=7, loc="center")
     ax_z.plot(run.t, des[:, 5], "--", color="C3", label="desired")
@@ -306,7 +306,7 @@ def _fig12(d: Path, problem: Problem, run: TrackingRun) -> None:
     ax.set(
         xlabel="time [s]",
         ylabel="force-angle stability $\\mu$ [N rad]",
-        title=f"Fig. 12: stability along the run (slope {np.degrees(problem.ramp.slope):.1f} deg)",
+        title=f"Fig. 12: stability along the run ({problem.terrain.label})",
     )
     _mark_failures(ax, run)
     ax.grid(alpha=0.3)

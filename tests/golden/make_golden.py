@@ -63,11 +63,6 @@ def golden_problem(tmp: Path) -> Any:
     return load_problem(write_problem(tmp, edit, "golden.yaml"))
 
 
-def ground(problem: Any) -> Any:
-    """The problem's ground (``terrain``; ``ramp`` before the terrain interface)."""
-    return getattr(problem, "terrain", None) or problem.ramp
-
-
 def step_cases(robot: Any) -> tuple[np.ndarray, np.ndarray]:
     """Fixed (state, reference) pairs around the circle, within and at the joint limits."""
     rng = np.random.default_rng(20261123)
@@ -97,7 +92,7 @@ def compute_sweeps(problem: Any) -> dict[str, Any]:
         ("fig5", np.array([cfg["roll_pose"]], dtype=float)),
         ("fig6", problem.circle.poses(cfg["poses"])),
     ):
-        sw = link0_sweep(problem.robot, ground(problem), poses, cfg["samples"])
+        sw = link0_sweep(problem.robot, problem.terrain, poses, cfg["samples"])
         out[name] = {
             "poses": sw.poses,
             "mu": sw.mu,
