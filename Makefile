@@ -107,3 +107,8 @@ bench: $(BENCH_STAMP)
 .PHONY: animation
 animation: setup
 	$(MMSTAB) animation $(PROBLEM)
+
+## what the local ground in the reference costs the step (docs/controller-terrain.md)
+.PHONY: bench-step-terrain
+bench-step-terrain: setup
+	$(PY) benchmarks/step_terrain.py $(PROBLEM)

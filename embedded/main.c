@@ -7,8 +7,10 @@
  *   controller_step(arg, res, iw, w, mem)
  *     arg[0] state (9)       [x, y, heading] of the base in the slope frame, then the joints
  *                            [theta_l, theta_r, theta_0..theta_3]   [m, m, rad, rad...]
- *     arg[1] reference (20)  [xi_des (6), xi_dot_ref (6), q_ref (4), q_dot_ref (4)]: base
- *                            point, heading, arm CoM, and the arm posture for the posture task
+ *     arg[1] reference (23)  [xi_des (6), xi_dot_ref (6), q_ref (4), q_dot_ref (4),
+ *                            ground (3)]: base point, heading, arm CoM, the arm posture for
+ *                            the posture task, and the local ground (z, roll, pitch) of the
+ *                            reference pose (zero on the ramp)
  *     arg[2] params (42)     gains, weights, posture gains and weights, dt, joint limits
  *     res[0] qdot (6)        joint speeds to command [rad/s] (zero = hold still on failure)
  *     res[1] status          0 ok, 1 non-finite input, 2 infeasible bounds, 3 solver failed
@@ -85,6 +87,7 @@ static int tracking_error(const double state[NX], const double ref[NREF], double
   double xi[NXI];
   int i;
   arg[0] = state;
+  arg[1] = ref + MMSTAB_REF_GROUND; /* the local ground the reference was placed with */
   res[0] = xi;
   if (controller_task(arg, res, iw, w, 0) != 0) return 1;
   for (i = 0; i < NXI; ++i) e[i] = ref[MMSTAB_REF_XI_DES + i] - xi[i];

@@ -5,7 +5,7 @@ them into a shared library with the system C compiler (``cc -O3 -std=c99 -Wall -
 -fPIC -shared``); :func:`load_step` hands the simulation the compiled step as a CasADi
 ``Function`` (``casadi.external``) with :attr:`Controller.step`'s signature::
 
-    controller_step(state[9], reference[20] = [ξ_des, ξ̇_ref, q_ref, q̇_ref], params[42])
+    controller_step(state[9], reference[23] = [ξ_des, ξ̇_ref, q_ref, q̇_ref, ground], params[42])
         -> (qdot[6], status, objective)
 
 Beside it, ``controller_layout.h`` (:func:`layout_header`) gives C the sizes and the packed
@@ -150,7 +150,7 @@ def closed_loop(ctrl: Controller) -> ca.Function:
     """One closed-loop step: controller step, then the exact-arc motion over ``params.dt``.
 
     Returns:
-        ``Function`` (state (9), reference (20), params (42)) -> (state_next (9), qdot (6)
+        ``Function`` (state (9), reference (23), params (42)) -> (state_next (9), qdot (6)
         [rad/s], status).
     """
     state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
@@ -170,7 +170,7 @@ def rollout_chunk(ctrl: Controller, steps: int = ROLLOUT_CHUNK) -> ca.Function:
     """``steps`` closed-loop steps in one Function (``mapaccum`` of :func:`closed_loop`).
 
     Returns:
-        ``Function`` ``controller_rollout`` (state0 (9), references (20 x steps), params (42))
+        ``Function`` ``controller_rollout`` (state0 (9), references (23 x steps), params (42))
         -> (states after each step (9 x steps), qdot (6 x steps), status (1 x steps)).
     """
     acc = closed_loop(ctrl).mapaccum("closed_loop_acc", steps)
@@ -192,7 +192,8 @@ def export_functions(ctrl: Controller) -> list[ca.Function]:
     step = ctrl.step
     if step.name() != STEP_NAME:  # the exported symbol is the Function's name
         raise RuntimeError(f"the controller's step is named {step.name()!r}, not {STEP_NAME!r}")
-    task = ca.Function(TASK_NAME, [ctrl.model.state], [ctrl.model.xi], ["state"], ["xi"])
+    m = ctrl.model
+    task = ca.Function(TASK_NAME, [m.state, m.ground], [m.xi], ["state", "ground"], ["xi"])
     return [step, task, rollout_chunk(ctrl)]
 
 
@@ -497,7 +498,7 @@ def load_step(problem: Problem, plugin: str | None = None) -> ca.Function:
 
     Returns:
         ``casadi.external`` Function with :attr:`Controller.step`'s signature: (state (9),
-        reference (20), params (42)) -> (qdot (6) [rad/s], status, objective).
+        reference (23), params (42)) -> (qdot (6) [rad/s], status, objective).
     """
     return generate(problem, plugin=plugin).load(STEP_NAME)
 

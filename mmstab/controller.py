@@ -85,6 +85,7 @@ from mmstab.tasks import (
     all_finite,
     build_qp,
 )
+from mmstab.terrain import GROUND_SIZE
 
 __all__ = [  # the task model and layouts are re-exported: most callers import them from here
     "_SINC_SERIES_BELOW",
@@ -119,7 +120,7 @@ PLUGINS = ("qpoases", "osqp", "qrqp", "daqp")
 CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp")
 
 
-#: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref in the reference vector.
+#: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref and the local ground in the reference vector.
 _REFERENCE_SLICES = tuple(StepReference.offsets().values())
 
 
@@ -318,7 +319,7 @@ class Controller:
             q_dot_posture, cost0, status): the QP's matrices (:func:`mmstab.tasks.build_qp`),
             for inspection and tests.
         conic: the CasADi ``conic`` (dense H, no linear constraints).
-        step: ``Function`` (state (9), reference (20) = [ξ_des, ξ̇_ref, q_ref, q̇_ref]
+        step: ``Function`` (state (9), reference (23) = [ξ_des, ξ̇_ref, q_ref, q̇_ref, ground]
             (:class:`StepReference`), params (42) (:class:`ControllerParams`)) ->
             (qdot (6) [rad/s], status (QPStatus as float), objective): J + QP assembly +
             conic + certificate, one call; what the code generator exports.
@@ -390,9 +391,10 @@ class Controller:
         xi_dot_ref: ArrayLike | None,
         q_ref: ArrayLike | None,
         q_dot_ref: ArrayLike | None,
+        ground: ArrayLike | None,
     ) -> None:
         # written out (no loop): this runs every control step
-        xi_sl, xi_dot_sl, q_sl, q_dot_sl = _REFERENCE_SLICES
+        xi_sl, xi_dot_sl, q_sl, q_dot_sl, ground_sl = _REFERENCE_SLICES
         ref = self._ref
         if np.shape(state) != (STATE_SIZE,):
             raise _shape_error("state", state, STATE_SIZE)
@@ -418,6 +420,12 @@ class Controller:
             raise _shape_error("q_dot_ref", q_dot_ref, ARM_JOINTS)
         else:
             ref[q_dot_sl] = q_dot_ref
+        if ground is None:  # the pose rests level on M's plane (the ramp)
+            ref[ground_sl] = 0.0
+        elif np.shape(ground) != (GROUND_SIZE,):
+            raise _shape_error("ground", ground, GROUND_SIZE)
+        else:
+            ref[ground_sl] = ground
 
     def solve(
         self,
@@ -426,23 +434,26 @@ class Controller:
         xi_dot_ref: ArrayLike | None = None,
         q_ref: ArrayLike | None = None,
         q_dot_ref: ArrayLike | None = None,
+        ground: ArrayLike | None = None,
     ) -> ControlResult:
         """One control step: joint speeds for the current state and reference.
 
         Args:
             state: [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
-            xi_des: desired task ξ_des (6,) in S [m, m, rad, m, m, m].
+            xi_des: desired task ξ_des (6,) in M [m, m, rad, m, m, m].
             xi_dot_ref: task feed-forward ξ̇_ref (6,) [m/s, rad/s] (used if ``feedforward``);
                 default zero.
             q_ref: arm posture reference (4,) [rad]; default the current arm posture (the
                 posture task then only damps the arm speeds, with W_q on top of W_B).
             q_dot_ref: posture feed-forward q̇_ref (4,) [rad/s] (used if ``feedforward``);
                 default zero.
+            ground: local ground (z [m], roll [rad], pitch [rad]) of the reference pose
+                (:meth:`mmstab.terrain.Terrain.local_ground`); default zero (the ramp).
 
         Returns:
             The result; on failure ``qdot`` is zero (hold still) and ``failures`` counts it.
         """
-        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
+        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref, ground)
         if self._quiet:
             with quiet_stdout():
                 self._eval()
@@ -461,9 +472,10 @@ class Controller:
         xi_dot_ref: ArrayLike | None = None,
         q_ref: ArrayLike | None = None,
         q_dot_ref: ArrayLike | None = None,
+        ground: ArrayLike | None = None,
     ) -> QPData:
         """The QP one step would solve (arguments as :meth:`solve`)."""
-        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
+        self._load(state, xi_des, xi_dot_ref, q_ref, q_dot_ref, ground)
         H, g, lbx, ubx, xdd, qdp, cost0, status = (
             np.asarray(v) for v in self.qp(self._state, self._ref, self._p)
         )
@@ -477,13 +489,14 @@ class Controller:
         xi_dot_ref: ArrayLike | None = None,
         q_ref: ArrayLike | None = None,
         q_dot_ref: ArrayLike | None = None,
+        ground: ArrayLike | None = None,
     ) -> ControlResult:
         """The same step judged by the plugin's own status (``stats()['success']``); slow.
 
         For cross-checking :meth:`solve`'s in-graph certificate; does not count steps.
         Arguments as :meth:`solve`.
         """
-        qp = self.qp_data(state, xi_des, xi_dot_ref, q_ref, q_dot_ref)
+        qp = self.qp_data(state, xi_des, xi_dot_ref, q_ref, q_dot_ref, ground)
         zero = np.zeros(JOINT_COUNT)
         if qp.status is not QPStatus.SUCCESS:
             return ControlResult(zero, QPStatus(qp.status), False, qp.cost0)

@@ -42,7 +42,6 @@ from mmstab.controller import (
     JOINT_COUNT,
     REFERENCE_SIZE,
     STATE_SIZE,
-    TASK_SIZE,
     Controller,
     ControllerParams,
     ControllerSettings,
@@ -104,7 +103,7 @@ class RunInputs(NamedTuple):
         params: the controller's packed parameters (42,).
         state0: initial state (9,) [m, m, rad, rad...].
         reference: packed :class:`~mmstab.tasks.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
-            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 20); the last row is only used
+            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 23); the last row is only used
             to measure the final tracking error.
         track: [sprocket radius [m], track separation [m], |ω dt / 2| below which the arc's
             sin(a)/a uses its series [rad]] (the C example's own integrator).
@@ -189,7 +188,7 @@ def run_inputs(
     if x0.shape != (STATE_SIZE,):
         raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
     reference = run_reference(
-        problem.robot, problem.circle, plan, x0[ARM], settings, t, posture
+        problem.robot, problem.circle, problem.terrain, plan, x0[ARM], settings, t, posture
     ).step
     tracks = problem.robot.base.tracks
     return RunInputs(
@@ -228,9 +227,12 @@ class Rollout(NamedTuple):
 
 
 def tracking_errors(ctrl: Controller, states: FloatArray, reference: FloatArray) -> FloatArray:
-    """ξ_des − ξ(state) per row (N, 6), heading error wrapped to (−π, π]."""
-    xi = np.asarray(ctrl.model.f_task.map(len(states))(states.T)).T
-    e = reference[:, :TASK_SIZE] - xi
+    """ξ_des − ξ(state) per row (N, 6), heading error wrapped to (−π, π].
+
+    ξ is evaluated with each row's local ground, as the controller's step sees it.
+    """
+    ref = StepReference.unpack(reference)
+    e = ref.xi_des - ctrl.model.task_batch(states, ref.ground)
     e[:, 2] = np.arctan2(np.sin(e[:, 2]), np.cos(e[:, 2]))
     return e
 
@@ -271,7 +273,7 @@ def _chunk_loop(chunk: ca.Function, inputs: RunInputs) -> tuple[FloatArray, ...]
     for i, a in enumerate((out_x, out_q, out_s)):
         buf.set_res(i, memoryview(a))  # type: ignore[arg-type]
     for c in range(chunks):
-        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 20) = column-major 20 x size
+        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 23) = column-major 23 x size
         run()
         m = min(size, n - c * size)
         k = c * size
@@ -347,7 +349,7 @@ def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
 
     Layout, little-endian: 8-byte magic ``MMSTRUN1``; int64 steps, state size, reference size,
     parameter count, track-data count; float64 dt; params; state0; track data; reference rows
-    (steps + 1, 20), row-major.
+    (steps + 1, 23), row-major.
     """
     sizes = np.array(
         [

@@ -1,16 +1,21 @@
 """Task model and QP assembly of the tracking controller (paper Eq. 7-8 + a posture task).
 
-Vectors (all in the slope frame S, DESIGN.md §2)::
+Vectors (all in the terrain's map frame M, ``docs/design.md``, "Frames")::
 
-    state s = [x, y, γ, θ_l, θ_r, θ_0, θ_1, θ_2, θ_3]   base pose in S [m, m, rad], joints [rad]
+    state s = [x, y, γ, θ_l, θ_r, θ_0, θ_1, θ_2, θ_3]   base pose in M [m, m, rad], joints [rad]
     q       = [θ_l, θ_r, θ_0, θ_1, θ_2, θ_3]            = s[3:9]  (sprockets, then the arm)
     ξ       = [g_bx, g_by, γ, g_ax, g_ay, g_az]          task: base control point, heading, arm CoM
+    ground  = [z, roll, pitch]                           local ground of the pose (reference)
 
 The base pose is part of the state, not a function of q: the tracked base is nonholonomic
 (ẋ = v cos γ, ẏ = v sin γ, γ̇ = ω, v = r(θ̇_l+θ̇_r)/2, ω = r(θ̇_r−θ̇_l)/b), so
-ξ̇ = J(s) q̇ with J = [∂ξ/∂pose · B(γ) | ∂ξ/∂q_arm], B the 3x2 track-to-pose-rate map, and
-g_a^S = [x, y, 0] + Rz(γ) g_a^B(q_arm). The base control point is ``base_offset`` d ahead of
-the body origin: g_b = [x, y] + d [cos γ, sin γ] (see :mod:`mmstab.controller`).
+ξ̇ = J(s) q̇ with J = [∂ξ/∂pose · B(γ) | ∂ξ/∂q_arm], B the 3x2 track-to-pose-rate map. Both
+points of ξ are placed by the one placement of the terrain package,
+:func:`mmstab.terrain.place_local_sx` (``M_T_B p`` with the local ground as data, so the
+step does not depend on which terrain it runs on; ``docs/controller-terrain.md``):
+g_a^M = place(pose, ground, g_a^B(q_arm)), and the base control point ``base_offset`` d ahead
+of the body origin, g_b = place(pose, ground, [d, 0, 0])[:2] (on the ramp [x, y] + d [cos γ,
+sin γ]; see :mod:`mmstab.controller`).
 
 **QP.** Eq. 7 with a posture task on the arm joints: the CoM rows have 3 rows for 4 arm
 joints, so one arm direction is free; the posture task holds it near the planner's
@@ -25,7 +30,7 @@ so H = Jᵀ W_A J + W_B + Sᵀ W_q S and g = −Jᵀ W_A ξ̇_des − Sᵀ W_q q
 columns of q̇), f ∈ {0, 1} the feed-forward switch. W_B > 0: strictly convex.
 
 **Layouts.** The step's run-time inputs are two packed vectors: :class:`StepReference`
-(``reference``, 20 numbers: ξ_des, ξ̇_ref, q_ref, q̇_ref) and :class:`ControllerParams`
+(``reference``, 23 numbers: ξ_des, ξ̇_ref, q_ref, q̇_ref, local ground) and :class:`ControllerParams`
 (``params``, 42 numbers: gains, weights, dt, limits). Both classes give their sizes, ``pack``
 and ``unpack``; the code generator writes the same layouts into a C header.
 """
@@ -39,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.robot import FloatArray, Robot
+from mmstab.terrain import GROUND_SIZE, place_local_sx
 
 STATE_SIZE, JOINT_COUNT, TASK_SIZE, ARM_JOINTS = 9, 6, 6, 4
 POSE, JOINTS, ARM = slice(0, 3), slice(3, 9), slice(5, 9)
@@ -144,24 +150,28 @@ class ControllerParams(NamedTuple):
 
 
 class StepReference(NamedTuple):
-    """The controller's reference at one step (or N steps), packed in this order (20 numbers).
+    """The controller's reference at one step (or N steps), packed in this order (23 numbers).
 
     Attributes:
-        xi_des: task reference ξ_des (6,) in S [m, m, rad, m, m, m].
+        xi_des: task reference ξ_des (6,) in M [m, m, rad, m, m, m].
         xi_dot_ref: its rate ξ̇_ref (6,) [m/s, rad/s] (feed-forward).
         q_ref: arm posture reference (4,) [rad], within the joint limits.
         q_dot_ref: its rate (4,) [rad/s] (feed-forward).
+        ground: local ground (z [m], roll [rad], pitch [rad]) of the reference pose
+            (:meth:`mmstab.terrain.Terrain.local_ground`; zero on the ramp): the task map
+            places body points with it.
     """
 
     xi_des: Any
     xi_dot_ref: Any
     q_ref: Any
     q_dot_ref: Any
+    ground: Any
 
     @classmethod
     def sizes(cls) -> tuple[int, ...]:
         """Length of each field in the packed vector."""
-        return (TASK_SIZE, TASK_SIZE, ARM_JOINTS, ARM_JOINTS)
+        return (TASK_SIZE, TASK_SIZE, ARM_JOINTS, ARM_JOINTS, GROUND_SIZE)
 
     @classmethod
     def size(cls) -> int:
@@ -174,13 +184,13 @@ class StepReference(NamedTuple):
         return dict(_offsets(cls))
 
     def pack(self) -> FloatArray:
-        """The packed reference: (20,) for one step, (N, 20) if the fields are (N, ·)."""
+        """The packed reference: (23,) for one step, (N, 23) if the fields are (N, ·)."""
         rows = None if np.ndim(self.xi_des) == 1 else int(np.shape(self.xi_des)[0])
         return _pack(tuple(self), rows)
 
     @classmethod
     def unpack(cls, r: Any) -> StepReference:
-        """Split a packed reference ((20,) or (N, 20) NumPy, or a CasADi column)."""
+        """Split a packed reference ((23,) or (N, 23) NumPy, or a CasADi column)."""
         return _unpack(cls, r)
 
 
@@ -193,31 +203,29 @@ class TaskModel:
     """Task ξ(s), Jacobian J(s) and base + joint motion of one robot (CasADi and NumPy).
 
     Attributes:
+        robot: the robot.
         base_offset: base control point ahead of the body origin [m].
         state: the symbolic state (9,) SX.
-        xi: ξ(state) (6,) SX [m, m, rad, m, m, m].
-        J: the task Jacobian (6x6) SX: ξ̇ = J q̇.
-        f_task: ``Function`` state -> xi.
-        f_jacobian: ``Function`` state -> J.
+        ground: the symbolic local ground (3,) SX [m, rad, rad].
+        xi: ξ(state, ground) (6,) SX [m, m, rad, m, m, m].
+        J: the task Jacobian (6x6) SX: ξ̇ = J q̇ (the ground held constant).
+        f_task: ``Function`` (state, ground) -> xi.
+        f_jacobian: ``Function`` (state, ground) -> J.
         f_integrate: ``Function`` (state, qdot [rad/s], dt [s]) -> state after dt.
     """
 
     def __init__(self, robot: Robot, base_offset: float):
+        self.robot = robot
         self.base_offset = float(base_offset)
         tracks = robot.base.tracks
         r, b = tracks.sprocket_radius, tracks.separation
         s = self.state = ca.SX.sym("state", STATE_SIZE)
+        ground = self.ground = ca.SX.sym("ground", GROUND_SIZE)
         x, y, heading = s[0], s[1], s[2]
         c, sn = ca.cos(heading), ca.sin(heading)
         com_B = robot.kinematics.f_arm_com(s[ARM])  # g_a^B(q_arm), inlined as SX
-        self.xi = ca.vertcat(
-            x + self.base_offset * c,
-            y + self.base_offset * sn,
-            heading,
-            x + c * com_B[0] - sn * com_B[1],
-            y + sn * com_B[0] + c * com_B[1],
-            com_B[2],
-        )
+        point_M = place_local_sx(s[POSE], ground, ca.vertcat(self.base_offset, 0, 0))
+        self.xi = ca.vertcat(point_M[:2], heading, place_local_sx(s[POSE], ground, com_B))
         # pose rate = B(γ) [θ̇_l, θ̇_r]: the nonholonomic track kinematics
         B = ca.vertcat(
             ca.horzcat(r / 2 * c, r / 2 * c),
@@ -225,8 +233,9 @@ class TaskModel:
             ca.horzcat(-r / b, r / b),
         )
         self.J = ca.horzcat(ca.jacobian(self.xi, s[POSE]) @ B, ca.jacobian(self.xi, s[ARM]))
-        self.f_task = ca.Function("task", [s], [self.xi], ["state"], ["xi"])
-        self.f_jacobian = ca.Function("task_jacobian", [s], [self.J], ["state"], ["J"])
+        names = ["state", "ground"]
+        self.f_task = ca.Function("task", [s, ground], [self.xi], names, ["xi"])
+        self.f_jacobian = ca.Function("task_jacobian", [s, ground], [self.J], names, ["J"])
 
         # Exact motion over dt for constant q̇: the base drives an arc (chord along mid-heading).
         qdot, dt = ca.SX.sym("qdot", JOINT_COUNT), ca.SX.sym("dt")
@@ -242,13 +251,19 @@ class TaskModel:
             "integrate", [s, qdot, dt], [nxt], ["state", "qdot", "dt"], ["state_next"]
         )
 
-    def task(self, state: ArrayLike) -> FloatArray:
-        """ξ at a state (9,) -> (6,) [m, m, rad, m, m, m]."""
-        return np.asarray(self.f_task(np.asarray(state, dtype=float))).ravel()
+    def task(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
+        """ξ at a state (9,) and local ground (3,) -> (6,) [m, m, rad, m, m, m]."""
+        return np.asarray(self.f_task(np.asarray(state, float), np.asarray(ground, float))).ravel()
 
-    def jacobian(self, state: ArrayLike) -> FloatArray:
-        """J at a state (9,) -> (6, 6) [m/rad, rad/rad]."""
-        return np.asarray(self.f_jacobian(np.asarray(state, dtype=float)))
+    def task_batch(self, states: ArrayLike, ground: ArrayLike) -> FloatArray:
+        """ξ for many states (N, 9) and their local ground (N, 3) -> (N, 6) (one mapped call)."""
+        s = np.atleast_2d(np.asarray(states, dtype=float))
+        g = np.broadcast_to(np.asarray(ground, dtype=float), (len(s), GROUND_SIZE))
+        return np.asarray(self.f_task.map(len(s))(s.T, g.T)).T
+
+    def jacobian(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
+        """J at a state (9,) and local ground (3,) -> (6, 6) [m/rad, rad/rad]."""
+        return np.asarray(self.f_jacobian(np.asarray(state, float), np.asarray(ground, float)))
 
     def integrate(self, state: ArrayLike, qdot: ArrayLike, dt: float) -> FloatArray:
         """State after ``dt`` [s] at constant joint speeds ``qdot`` (6,) [rad/s] (exact arc)."""
@@ -299,7 +314,7 @@ def build_qp(model: TaskModel, statuses: tuple[float, float, float]) -> ca.Funct
         statuses: the status values for (success, non-finite input, infeasible bounds).
 
     Returns:
-        ``qp`` (state (9), reference (20), params (42)) -> (H, g, lbx, ubx, xi_dot_des,
+        ``qp`` (state (9), reference (23), params (42)) -> (H, g, lbx, ubx, xi_dot_des,
         q_dot_posture, cost0, status); see the module docstring for the formulas.
     """
     success, nonfinite, infeasible = statuses
@@ -307,13 +322,14 @@ def build_qp(model: TaskModel, statuses: tuple[float, float, float]) -> ca.Funct
     ref, p = ca.SX.sym("reference", REFERENCE_SIZE), ca.SX.sym("params", PARAMS_SIZE)
     P, R = ControllerParams.unpack(p), StepReference.unpack(ref)
     q_arm = s[ARM]
-    e = R.xi_des - model.xi
+    xi, J = model.f_task(s, R.ground), model.f_jacobian(s, R.ground)
+    e = R.xi_des - xi
     e[2] = ca.atan2(ca.sin(e[2]), ca.cos(e[2]))  # heading error in (−π, π]
     xi_dot_des = P.kp * e + P.feedforward * R.xi_dot_ref
     q_dot_post = P.posture_gain * (R.q_ref - q_arm) + P.feedforward * R.q_dot_ref
-    JtW = model.J.T @ ca.diag(P.w_a)
+    JtW = J.T @ ca.diag(P.w_a)
     w_q = ca.vertcat(ca.SX.zeros(JOINT_COUNT - ARM_JOINTS), P.posture_weight)
-    H = JtW @ model.J + ca.diag(P.w_b + w_q)
+    H = JtW @ J + ca.diag(P.w_b + w_q)
     g = -JtW @ xi_dot_des - ca.vertcat(ca.SX.zeros(2), P.posture_weight * q_dot_post)
     lbx = ca.vertcat(-P.qdot_max[:2], ca.fmax(-P.qdot_max[2:], (P.q_min - q_arm) / P.dt))
     ubx = ca.vertcat(P.qdot_max[:2], ca.fmin(P.qdot_max[2:], (P.q_max - q_arm) / P.dt))

@@ -70,7 +70,7 @@ from mmstab.problem import Problem
 from mmstab.reference import PlanLike
 from mmstab.robot import FloatArray, Robot
 from mmstab.stability import robot_force_angle
-from mmstab.terrain import wrap_angle
+from mmstab.terrain import Terrain, wrap_angle
 
 #: Names of the state components, for messages and saved arrays.
 STATE_NAMES = (
@@ -106,7 +106,7 @@ class StepBackend(NamedTuple):
     """A controller step to simulate with.
 
     Attributes:
-        function: CasADi Function (state (9), reference (20) = [ξ_des, ξ̇_ref, q_ref, q̇_ref],
+        function: CasADi Function (state (9), reference (23) = [ξ_des, ξ̇_ref, q_ref, q̇_ref, ground],
             params (42))
             -> (qdot (6) [rad/s], status (a :class:`QPStatus` value), ...), the signature of
             :attr:`mmstab.controller.Controller.step`; on failure it should return q̇ = 0 (the
@@ -151,7 +151,7 @@ def build_advance(model: TaskModel, step: ca.Function) -> ca.Function:
         step: the step Function (see :class:`StepBackend`).
 
     Returns:
-        Function (state (9), reference (20), params (42)) -> (state_next (9), qdot (6)
+        Function (state (9), reference (23), params (42)) -> (state_next (9), qdot (6)
         [rad/s] as applied, status, finite): ``qdot`` is the step's answer when its status is
         SUCCESS and zero otherwise; ``finite`` is 1 when every component of ``state_next`` is
         finite. dt [s] is read from the parameters (``ControllerParams.dt``).
@@ -272,33 +272,21 @@ class TrackingRun:
 
 # ---------------------------------------------------------------------------- post-processing
 def task_batch(
-    robot: Robot, states: ArrayLike, base_offset: float
+    model: TaskModel, terrain: Terrain, states: ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
-    """ξ for many states, in NumPy (the same as ``TaskModel.task``, vectorised).
+    """ξ for many states: the controller's task map (``TaskModel.f_task``) mapped over them.
 
     Args:
-        robot: the robot.
+        model: the task kinematics.
+        terrain: the ground (the local ground of each state's pose).
         states: states (N, 9) [m, m, rad, rad...].
-        base_offset: base control point ahead of the body origin [m].
 
     Returns:
-        (ξ (N, 6) in S [m, m, rad, m, m, m], arm CoM in the body frame (N, 3) [m]).
+        (ξ (N, 6) in M [m, m, rad, m, m, m], arm CoM in the body frame (N, 3) [m]).
     """
     s = np.atleast_2d(np.asarray(states, dtype=float))
-    x, y, heading = s[:, 0], s[:, 1], s[:, 2]
-    c, sn = np.cos(heading), np.sin(heading)
-    com_B = np.atleast_2d(robot.arm_com(s[:, ARM]))
-    xi = np.column_stack(
-        [
-            x + base_offset * c,
-            y + base_offset * sn,
-            heading,
-            x + c * com_B[:, 0] - sn * com_B[:, 1],
-            y + sn * com_B[:, 0] + c * com_B[:, 1],
-            com_B[:, 2],
-        ]
-    )
-    return xi, com_B
+    xi = model.task_batch(s, terrain.local_ground(s[:, :3]))
+    return xi, np.atleast_2d(model.robot.arm_com(s[:, ARM]))
 
 
 def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike) -> Stability:
@@ -442,7 +430,9 @@ def simulate(
     params = ControllerParams.from_settings(robot, settings).pack()
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
-    arm, ref = run_reference(robot, problem.circle, plan, s0[ARM], settings, t, posture)
+    arm, ref = run_reference(
+        robot, problem.circle, problem.terrain, plan, s0[ARM], settings, t, posture
+    )
     reference = ref.pack()
     if not np.all(np.isfinite(reference)):
         raise MmstabError("the task reference is not finite")
@@ -459,7 +449,7 @@ def simulate(
         progress,
     )
 
-    xi, com_B = task_batch(robot, states, settings.base_offset)
+    xi, com_B = task_batch(model, problem.terrain, states)
     failed = np.flatnonzero(statuses != QPStatus.SUCCESS)
     return TrackingRun(
         t=t,
@@ -506,7 +496,7 @@ def _run_loop(
     Args:
         advance: from :func:`build_advance`.
         state0: initial state (9,).
-        reference: packed :class:`~mmstab.tasks.StepReference` per sample (steps+1, 20); row
+        reference: packed :class:`~mmstab.tasks.StepReference` per sample (steps+1, 23); row
             k is used in period k.
         params: packed controller parameters (42,).
         steps: number of control periods.

@@ -75,7 +75,8 @@ def random_cases(robot, rng: np.random.Generator, n: int):
         xi_des = np.r_[state[:2] + rng.normal(0, 0.2, 2), rng.uniform(-np.pi, np.pi)]
         xi_des = np.r_[xi_des, rng.uniform(-1, 1, 3)]
         q_ref = rng.uniform(lo - 0.05 * span, hi + 0.05 * span)
-        ref = np.r_[xi_des, rng.normal(0, 0.3, 6), q_ref, rng.normal(0, 1.0, 4)]
+        ground = rng.normal(0, 0.2, 3)  # any local ground: the step is terrain-agnostic
+        ref = np.r_[xi_des, rng.normal(0, 0.3, 6), q_ref, rng.normal(0, 1.0, 4), ground]
         if k % 50 == 49:
             bad = state if k % 100 == 49 else ref
             bad[rng.integers(0, bad.size)] = np.nan
@@ -220,7 +221,9 @@ def test_load_step_uses_the_problem_codegen_section(tmp_path):
     assert (tmp_path / "gen" / "qrqp" / f"{STEP_NAME}.c").is_file()
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.1, -1.4, 0.2, 0.0, 0.0, 2.0, 0.3, -0.5, 0.2]
-    ref = np.r_[ctrl.model.task(state) + 0.01, np.zeros(6), state[5:] + 0.02, np.zeros(4)]
+    ref = np.r_[
+        ctrl.model.task(state) + 0.01, np.zeros(6), state[5:] + 0.02, np.zeros(4), np.zeros(3)
+    ]
     p = ctrl.params.pack()
     np.testing.assert_array_equal(
         np.asarray(step(state, ref, p)[0]), np.asarray(ctrl.step(state, ref, p)[0])
@@ -324,7 +327,7 @@ def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path
 def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
     progs = programs
     bad = tmp_path / "bad.bin"
-    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 8, PARAMS_SIZE, TRACK_DATA_SIZE]  # old layout
+    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 3, PARAMS_SIZE, TRACK_DATA_SIZE]  # old layout
     bad.write_bytes(b"MMSTRUN1" + np.array(sizes, "<i8").tobytes())
     proc = subprocess.run([str(progs.loop), str(bad)], capture_output=True, text=True)
     assert proc.returncode == 1 and "do not match the controller" in proc.stderr
@@ -364,7 +367,10 @@ def test_example_task_function_is_exported(generated_qrqp, problem):
     task = generated_qrqp.load(TASK_NAME)
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.3, -1.2, 0.7, 1.0, 2.0, 2.2, 0.1, -0.3, 0.4]
-    np.testing.assert_allclose(np.asarray(task(state)).ravel(), ctrl.model.task(state), atol=1e-14)
+    ground = np.array([0.1, 0.05, -0.2])
+    np.testing.assert_allclose(
+        np.asarray(task(state, ground)).ravel(), ctrl.model.task(state, ground), atol=1e-14
+    )
     with pytest.raises(ValueError, match="not exported"):
         generated_qrqp.load("nope")
     assert isinstance(task, ca.Function)

@@ -97,7 +97,10 @@ def window_step(problem, inner, t0, t1, make_bad):
     from mmstab.reference import base_reference
 
     x0, x1 = base_reference(
-        problem.circle, np.array([t0, t1]) / settings.lap_time, settings.base_offset
+        problem.circle,
+        problem.terrain,
+        np.array([t0, t1]) / settings.lap_time,
+        settings.base_offset,
     ).value[:, 0]
     inside = ca.logic_and(ref[0] >= x0, ref[0] < x1)
     good = inner(s, ref, p)
@@ -220,8 +223,14 @@ def test_task_batch_matches_the_casadi_task(problem, rng):
             rng.uniform(robot.joint_lower, robot.joint_upper, (20, 4)),
         ]
     )
-    xi, com = task_batch(robot, states, 0.2)
+    xi, com = task_batch(model, problem.terrain, states)
     np.testing.assert_allclose(xi, [model.task(s) for s in states], atol=1e-12)
+    # independent: the ramp's placement by hand, [x, y, 0] + Rz(γ) g_a^B and the point d ahead
+    c, s = np.cos(states[:, 2]), np.sin(states[:, 2])
+    g = robot.arm_com(states[:, 5:])
+    np.testing.assert_allclose(xi[:, 0], states[:, 0] + 0.2 * c, atol=1e-12)
+    np.testing.assert_allclose(xi[:, 4], states[:, 1] + s * g[:, 0] + c * g[:, 1], atol=1e-12)
+    np.testing.assert_allclose(xi[:, 5], g[:, 2], atol=1e-12)
     np.testing.assert_allclose(com, robot.arm_com(states[:, 5:]), atol=1e-12)
 
 
@@ -523,9 +532,10 @@ def _window_run(problem, plan, posture, settings, t0, t1):
     t = np.arange(t0, t1, settings.dt)
     ref = task_reference(
         problem.circle,
+        problem.terrain,
         settings.lap_time,
         settings.base_offset,
-        posture.arm_reference(problem.circle),
+        posture.arm_reference(problem.circle, problem.terrain),
         posture,
         t,
     )

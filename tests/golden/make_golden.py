@@ -149,6 +149,19 @@ def compute_tracking(problem: Any) -> dict[str, Any]:
     }
 
 
+def full_reference(problem: Any, state: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """The step's reference vector from the pinned (ξ_des, ξ̇_ref, q_ref, q̇_ref) (20,).
+
+    Since the terrain interface the step also takes the local ground of the pose (zero on
+    the ramp), appended after the pinned 20 numbers.
+    """
+    from mmstab.controller import StepReference
+
+    if "ground" not in StepReference._fields:
+        return np.asarray(ref)
+    return np.r_[ref, problem.terrain.local_ground(np.asarray(state)[:3])[0]]
+
+
 def compute_step(problem: Any) -> dict[str, Any]:
     """The interpreted controller step (qrqp) on fixed states."""
     import dataclasses
@@ -162,7 +175,9 @@ def compute_step(problem: Any) -> dict[str, Any]:
     qdot, status, objective = [], [], []
     with quiet_stdout():
         for s, r in zip(states, refs, strict=True):
-            a, b, c = (np.asarray(v).ravel() for v in ctrl.step(s, r, p))
+            a, b, c = (
+                np.asarray(v).ravel() for v in ctrl.step(s, full_reference(problem, s, r), p)
+            )
             qdot.append(a)
             status.append(float(b[0]))
             objective.append(float(c[0]))
