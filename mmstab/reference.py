@@ -117,6 +117,25 @@ def base_reference(
     )
 
 
+def initial_state(circle: CirclePath, arm: ArrayLike, lateral_offset: float = 0.0) -> FloatArray:
+    """A run's first state: the path's start pose, shifted sideways, sprockets at zero.
+
+    Args:
+        circle: the base path (its pose at s = 0).
+        arm: the arm posture (4,) [rad] (e.g. the robot's stowed posture or a plan's first).
+        lateral_offset: shift of the base to the left of the path [m].
+
+    Returns:
+        [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
+    """
+    pose = circle.pose_at(0.0)[0]
+    left = np.array([-np.sin(pose[2]), np.cos(pose[2])])
+    arm = np.asarray(arm, dtype=float)
+    if arm.shape != (4,):
+        raise ValueError(f"the arm posture must be (4,), got {arm.shape}")
+    return np.r_[pose[:2] + lateral_offset * left, pose[2], 0.0, 0.0, arm]
+
+
 def _check_fractions(f: FloatArray, values: FloatArray, name: str) -> None:
     if f.ndim != 1 or f.size == 0 or values.ndim != 2 or values.shape[0] != f.size:
         raise ValueError(f"plan fractions {f.shape} and {name} {values.shape} do not match")

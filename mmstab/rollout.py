@@ -50,6 +50,7 @@ from mmstab.controller import (
     build_controller,
 )
 from mmstab.posture import PosturePlan, PostureReference
+from mmstab.reference import initial_state
 from mmstab.robot import FloatArray, Robot
 
 if TYPE_CHECKING:
@@ -132,30 +133,6 @@ def controller_settings(problem: Problem, plugin: str | None = None) -> Controll
     return dataclasses.replace(settings, plugin=plugin or codegen_plugin(problem))
 
 
-def initial_state(
-    problem: Problem,
-    plan: PosturePlan,
-    *,
-    lateral_offset: float = 0.0,
-    arm: FloatArray | None = None,
-) -> FloatArray:
-    """A start state: the circle's first pose, shifted sideways, sprockets at zero.
-
-    Args:
-        problem: the problem (circle).
-        plan: the plan; its first posture (``plan.postures[0]``, if it has postures) is the
-            arm's start unless ``arm`` is given; else the stowed posture.
-        lateral_offset: shift of the base to the left of the path [m].
-        arm: arm posture (4,) [rad].
-    """
-    pose = problem.circle.pose_at(0.0)[0]
-    left = np.array([-np.sin(pose[2]), np.cos(pose[2])])
-    if arm is None:
-        postures = getattr(plan, "postures", None)
-        arm = problem.robot.stowed if postures is None else np.asarray(postures)[0]
-    return np.r_[pose[:2] + lateral_offset * left, pose[2], 0.0, 0.0, arm]
-
-
 def run_inputs(
     problem: Problem,
     plan: PosturePlan,
@@ -172,7 +149,8 @@ def run_inputs(
         plan: the arm reference (``fractions``, ``target_com``, ``postures``), e.g. the
             planner's ``Plan``.
         steps: control steps (default ``controller.duration / controller.dt``).
-        state0: initial state (9,) (default :func:`initial_state`).
+        state0: initial state (9,) (default :func:`mmstab.reference.initial_state` with the
+            plan's first posture, or the stowed arm for a plan without postures).
         settings: controller settings (default the problem's).
         posture: the lap's posture reference (default
             :func:`mmstab.posture.build_posture_reference` of the plan, checked at every
@@ -184,7 +162,11 @@ def run_inputs(
     if n < 1:
         raise ValueError(f"a run needs at least one step, got {n}")
     t = np.arange(n + 1) * settings.dt
-    x0 = np.asarray(initial_state(problem, plan) if state0 is None else state0, dtype=float)
+    if state0 is None:
+        postures = getattr(plan, "postures", None)
+        arm = problem.robot.stowed if postures is None else np.asarray(postures)[0]
+        state0 = initial_state(problem.circle, arm)
+    x0 = np.asarray(state0, dtype=float)
     if x0.shape != (STATE_SIZE,):
         raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
     reference = run_reference(
@@ -303,7 +285,8 @@ def rollout(
         backend: ``"python"`` (step loop), ``"casadi"`` (interpreted chunks) or
             ``"generated"`` (compiled chunks).
         steps: control steps (default ``controller.duration / controller.dt``).
-        state0: initial state (9,) (default :func:`initial_state`).
+        state0: initial state (9,) (default :func:`mmstab.reference.initial_state` with the
+            plan's first posture, or the stowed arm for a plan without postures).
         plugin: QP plugin (default ``codegen.plugin``); the same for every backend.
         inputs: the run's inputs, if already computed (then ``steps``/``state0`` are ignored).
         out_dir: where the generated backend's library lives (default ``codegen.directory``).

@@ -11,6 +11,9 @@ counter-clockwise about the polygon's normal, which points to the CoM's side):
 f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see DESIGN.md errata),
 smooth where ``sigma_j acos(.)`` is not. theta_j > 0 when the force line passes inside
 axis j, so mu > 0 exactly when the robot is statically stable.
+
+:func:`stability_along` gives μ along base poses on a terrain in the three cases the
+experiments compare (arm as it is, stowed, removed).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
 
 
 class SupportPolygon(NamedTuple):
@@ -187,3 +191,42 @@ def mu_max(robot: Robot) -> float:
     """The measure on flat ground with the arm stowed: the normaliser of Eq. 6 [N rad]."""
     flat = np.array([0.0, 0.0, -9.81])
     return float(robot_force_angle(robot, flat, robot.arm_com(robot.stowed)).mu[0])
+
+
+# ------------------------------------------------------------- the three cases along a run
+class StabilityCases(NamedTuple):
+    """Force-angle μ [N rad] along a sequence of base poses, per sample (N,).
+
+    Attributes:
+        reconfigured: with the arm as it is (moved, planned or swept).
+        arm_removed: the base alone.
+        stowed: with the arm held stowed on the same base poses.
+    """
+
+    reconfigured: FloatArray
+    arm_removed: FloatArray
+    stowed: FloatArray
+
+
+def stability_along(
+    robot: Robot, terrain: Terrain, poses: ArrayLike, arm_com_body: ArrayLike
+) -> StabilityCases:
+    """μ along base poses: with the given arm CoMs, with the arm removed, with it stowed.
+
+    The one place the planned/reconfigured, stowed and arm-removed cases are computed (the
+    tracking run, the plan's summary and the sweeps use it).
+
+    Args:
+        robot: the robot.
+        terrain: the ground (gravity in the body at each pose).
+        poses: base poses (N, 3) in the map frame M [m, m, rad].
+        arm_com_body: arm CoM in the body frame per pose (N, 3) or (3,) [m].
+    """
+    gravity = terrain.gravity_body(poses)
+    arm = np.broadcast_to(np.asarray(arm_com_body, dtype=float), gravity.shape)
+    stowed = np.broadcast_to(robot.arm_com(robot.stowed), gravity.shape)
+    return StabilityCases(
+        reconfigured=robot_force_angle(robot, gravity, arm).mu,
+        arm_removed=robot_force_angle(robot, gravity, None).mu,
+        stowed=robot_force_angle(robot, gravity, stowed).mu,
+    )

@@ -37,10 +37,10 @@ from mmstab.controller import (
     quiet_stdout,
 )
 from mmstab.problem import load_problem
+from mmstab.reference import initial_state
 from mmstab.rollout import (
     controller_settings,
     example_plan,
-    initial_state,
     rollout,
     run_inputs,
     write_run_file,
@@ -280,7 +280,7 @@ def test_embedded_example_matches_the_python_closed_loop(problem, programs, tmp_
     progs = programs
     assert progs.compiler_stderr == ""
     plan = example_plan(problem.robot)
-    state0 = initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+    state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     inputs = run_inputs(problem, plan, steps=2000, state0=state0)
     run_file = write_run_file(tmp_path / "run.bin", inputs)
     proc = subprocess.run(
@@ -336,7 +336,7 @@ def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
 # ----------------------------------------------------------------------------------- rollout
 def test_rollout_backends_equal_the_python_step_loop(problem, generated_qrqp):
     plan = example_plan(problem.robot)
-    state0 = initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+    state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     steps = ROLLOUT_CHUNK + 250  # a full chunk and a padded one
     inputs = run_inputs(problem, plan, steps=steps, state0=state0)
     ref = rollout(problem, plan, backend="python", inputs=inputs)

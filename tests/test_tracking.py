@@ -26,6 +26,7 @@ from mmstab.controller import (
     build_controller,
 )
 from mmstab.problem import load_problem
+from mmstab.reference import initial_state
 from mmstab.stability import force_angle
 from mmstab.terrain import GRAVITY_G
 from mmstab.tracking import simulate, summarize, task_batch
@@ -622,7 +623,7 @@ def test_look_ahead_point_corrects_a_lateral_offset(problem):
 
     plan = ro.example_plan(problem.robot)
     base = ControllerSettings.from_section(problem.section("controller"))
-    state0 = ro.initial_state(problem, plan, lateral_offset=0.1, arm=plan.postures[0])
+    state0 = initial_state(problem.circle, plan.postures[0], lateral_offset=0.1)
     error = {}
     for d, duration in ((0.0, 10.0), (0.2, 5.0)):
         settings = dataclasses.replace(base, base_offset=d)

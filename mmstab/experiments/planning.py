@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from mmstab.app import plan as plan_of
+from mmstab.app import stability_along, workspace
 from mmstab.config import write_figure, write_json, write_npz
 from mmstab.drawing import (
     draw_poses_on_ground,
@@ -17,10 +19,10 @@ from mmstab.drawing import (
 )
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.ik import PostureSolver
-from mmstab.planner import Plan, PlannerSettings, plan_path, solve_pose
+from mmstab.planner import Plan, PlannerSettings, solve_pose
 from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
 from mmstab.problem import Problem
-from mmstab.stability import mu_max, robot_force_angle
+from mmstab.stability import mu_max
 from mmstab.terrain import roll_pitch
 
 
@@ -30,10 +32,8 @@ def _side(com_body: np.ndarray) -> str:
 
 def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 7: the first CMA samples and the converged CoM at the rolled pose."""
-    from mmstab.workspace import load_or_build_workspace
-
     robot = problem.robot
-    ws = load_or_build_workspace(problem)
+    ws = workspace(problem)
     settings = PlannerSettings.from_section(problem.section("planner"))
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
@@ -102,11 +102,8 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
 def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     """Per-pose numbers of a plan (``results/fig8/summary.json``)."""
     robot = problem.robot
-    gravity = problem.terrain.gravity_body(plan.poses)
-    stowed = np.broadcast_to(robot.arm_com(robot.stowed), (len(plan.poses), 3))
-    mu_stowed = robot_force_angle(robot, gravity, stowed).mu
-    mu_removed = robot_force_angle(robot, gravity, None).mu
-    mu_realised = robot_force_angle(robot, gravity, robot.arm_com(plan.postures)).mu
+    mu = stability_along(problem, plan.poses, robot.arm_com(plan.postures))
+    mu_realised, mu_stowed, mu_removed = mu.reconfigured, mu.stowed, mu.arm_removed
     poses = []
     for k, t in enumerate(plan.targets):
         poses.append(
@@ -140,7 +137,7 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
 
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
-    plan = plan_path(problem, progress=True)
+    plan = plan_of(problem, progress=True)
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
     fig = new_figure(figsize=(11, 5))[0]

@@ -16,7 +16,7 @@ from mmstab.experiments.common import circular_extrema, output_dir, save_setting
 from mmstab.plotting import draw_base_topview, draw_circle, new_figure
 from mmstab.problem import Problem
 from mmstab.robot import FloatArray, Robot
-from mmstab.stability import robot_force_angle
+from mmstab.stability import robot_force_angle, stability_along
 from mmstab.terrain import Terrain, roll_pitch
 
 
@@ -55,14 +55,13 @@ def link0_sweep(robot: Robot, terrain: Terrain, poses: FloatArray, samples: int)
     mu = np.stack(
         [robot_force_angle(robot, np.broadcast_to(g, (samples, 3)), com).mu for g in gravity]
     )
+    cases = stability_along(robot, terrain, poses, robot.arm_com(robot.stowed))
     return Sweep(
         link0=link0,
         poses=poses,
         mu=mu,
-        mu_arm_removed=robot_force_angle(robot, gravity, None).mu,
-        mu_stowed=robot_force_angle(
-            robot, gravity, np.broadcast_to(robot.arm_com(robot.stowed), (len(poses), 3))
-        ).mu,
+        mu_arm_removed=cases.arm_removed,
+        mu_stowed=cases.stowed,
     )
 
 
