@@ -56,13 +56,13 @@ def workspace(
     progress: bool = True,
     cache_dir: str | os.PathLike[str] | None = None,
 ) -> Workspace:
-    """The problem's workspace V: from the cache when robot and grid are unchanged, else built.
+    """The problem's workspace V (:func:`mmstab.workspace.load_or_build_workspace`).
 
     Args:
-        problem: the problem (robot and ``workspace.grid``).
-        force: rebuild (and overwrite the cache) even when a cached copy matches.
+        problem: the problem.
+        force: rebuild even when the cache matches.
         progress: show a progress bar while building.
-        cache_dir: cache folder (default ``results/workspace``).
+        cache_dir: cache folder (default: the workspace module's).
     """
     from mmstab.workspace import load_or_build_workspace
 
