@@ -16,7 +16,6 @@
 
 #include "controller_layout.h"
 #include "controller_step.h"
-#include "motion.h"
 #include "run_file.h"
 
 enum {
@@ -24,14 +23,18 @@ enum {
   NQ = MMSTAB_N_JOINTS,
   NREF = MMSTAB_N_REFERENCE,
   NP = MMSTAB_N_PARAMS,
-  NTRACK = MMSTAB_N_TRACK,
   BATCH = 100
 };
 
-static const casadi_real* arg[controller_step_SZ_ARG + 1];
-static casadi_real* res[controller_step_SZ_RES + 1];
-static casadi_int iw[controller_step_SZ_IW + 1];
-static casadi_real w[controller_step_SZ_W + 1];
+#define MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define SZ_ARG (MAX2(controller_step_SZ_ARG, controller_plant_SZ_ARG) + 1)
+#define SZ_RES (MAX2(controller_step_SZ_RES, controller_plant_SZ_RES) + 1)
+#define SZ_IW (MAX2(controller_step_SZ_IW, controller_plant_SZ_IW) + 1)
+#define SZ_W (MAX2(controller_step_SZ_W, controller_plant_SZ_W) + 1)
+static const casadi_real* arg[SZ_ARG];
+static casadi_real* res[SZ_RES];
+static casadi_int iw[SZ_IW];
+static casadi_real w[SZ_W];
 
 static double seconds(void) {
   struct timespec t;
@@ -62,6 +65,19 @@ static int step(const double* state, const double* ref, const double* params, do
   return controller_step(arg, res, iw, w, mem);
 }
 
+/* The generated plant over one period (mmstab.plant): state <- plant(state, qdot, dt). */
+static int advance(double* state, const double* qdot, double dt) {
+  double next[NX];
+  int i;
+  arg[0] = state;
+  arg[1] = qdot;
+  arg[2] = &dt;
+  res[0] = next;
+  if (controller_plant(arg, res, iw, w, 0) != 0) return 1;
+  for (i = 0; i < NX; ++i) state[i] = next[i];
+  return 0;
+}
+
 int main(int argc, char* argv[]) {
   RunFile run;
   casadi_int n_arg, n_res, n_iw, n_w;
@@ -73,9 +89,10 @@ int main(int argc, char* argv[]) {
     fprintf(stderr, "usage: %s RUN_FILE [PASSES]\n", argv[0]);
     return 2;
   }
-  if (controller_step_work(&n_arg, &n_res, &n_iw, &n_w) || n_arg > controller_step_SZ_ARG + 1 ||
-      n_res > controller_step_SZ_RES + 1 || n_iw > controller_step_SZ_IW + 1 ||
-      n_w > controller_step_SZ_W + 1 || run_file_read(argv[1], &run, NX, NREF, NP, NTRACK))
+  if (controller_step_work(&n_arg, &n_res, &n_iw, &n_w) || n_arg > SZ_ARG || n_res > SZ_RES ||
+      n_iw > SZ_IW || n_w > SZ_W || controller_plant_work(&n_arg, &n_res, &n_iw, &n_w) ||
+      n_arg > SZ_ARG || n_res > SZ_RES || n_iw > SZ_IW || n_w > SZ_W ||
+      run_file_read(argv[1], &run, NX, NREF, NP))
     return 1;
   n = (long)run.steps;
   n_batches = n / BATCH;
@@ -94,7 +111,7 @@ int main(int argc, char* argv[]) {
       for (i = 0; i < NQ; ++i) qdot[i] = 0;
       ++failures;
     }
-    integrate(state, qdot, run.dt, run.track);
+    if (advance(state, qdot, run.dt)) return 1;
   }
   loop_s = seconds() - t0;
 

@@ -22,7 +22,7 @@
  * the generated header and checked at start against controller_step_work(); nothing is
  * allocated inside the loop (with the qrqp plugin the generated code references no allocator
  * at all). On a robot, replace the run file by the planner's reference stream and
- * integrate() by reading the encoders; keep the rest.
+ * advance() (the generated plant) by reading the encoders; keep the rest.
  *
  * Usage: mmstab_loop RUN_FILE   (written by `mmstab codegen PROBLEM.yaml -o DIR --example`)
  * Prints the initial and final tracking errors, the failures, the loop's wall time, and the
@@ -35,7 +35,6 @@
 
 #include "controller_layout.h"
 #include "controller_step.h"
-#include "motion.h"
 #include "run_file.h"
 
 enum {
@@ -44,16 +43,16 @@ enum {
   NXI = MMSTAB_N_TASK,
   NARM = MMSTAB_N_ARM,
   NREF = MMSTAB_N_REFERENCE,
-  NP = MMSTAB_N_PARAMS,
-  NTRACK = MMSTAB_N_TRACK
+  NP = MMSTAB_N_PARAMS
 };
 
-/* Work arrays: the largest of the two generated functions used here, plus one (no 0-size). */
+/* Work arrays: the largest of the three generated functions used here, plus one (no 0-size). */
 #define MAX2(a, b) ((a) > (b) ? (a) : (b))
-#define SZ_ARG (MAX2(controller_step_SZ_ARG, controller_task_SZ_ARG) + 1)
-#define SZ_RES (MAX2(controller_step_SZ_RES, controller_task_SZ_RES) + 1)
-#define SZ_IW (MAX2(controller_step_SZ_IW, controller_task_SZ_IW) + 1)
-#define SZ_W (MAX2(controller_step_SZ_W, controller_task_SZ_W) + 1)
+#define MAX3(a, b, c) MAX2(a, MAX2(b, c))
+#define SZ_ARG (MAX3(controller_step_SZ_ARG, controller_task_SZ_ARG, controller_plant_SZ_ARG) + 1)
+#define SZ_RES (MAX3(controller_step_SZ_RES, controller_task_SZ_RES, controller_plant_SZ_RES) + 1)
+#define SZ_IW (MAX3(controller_step_SZ_IW, controller_task_SZ_IW, controller_plant_SZ_IW) + 1)
+#define SZ_W (MAX3(controller_step_SZ_W, controller_task_SZ_W, controller_plant_SZ_W) + 1)
 static const casadi_real* arg[SZ_ARG];
 static casadi_real* res[SZ_RES];
 static casadi_int iw[SZ_IW];
@@ -79,6 +78,20 @@ static int check_input(const casadi_int* sparsity, casadi_int n, const char* wha
             (long long)sparsity[0], (long long)n);
     return 1;
   }
+  return 0;
+}
+
+/* The plant over one period (generated with the step: mmstab.plant); 0 on success. On a
+ * robot this is replaced by commanding qdot and reading the encoders and the pose estimate. */
+static int advance(double state[NX], const double qdot[NQ], double dt) {
+  double next[NX];
+  int i;
+  arg[0] = state;
+  arg[1] = qdot;
+  arg[2] = &dt;
+  res[0] = next;
+  if (controller_plant(arg, res, iw, w, 0) != 0) return 1;
+  for (i = 0; i < NX; ++i) state[i] = next[i];
   return 0;
 }
 
@@ -130,10 +143,11 @@ int main(int argc, char* argv[]) {
   }
   if (check_work(controller_step_work, "controller_step") ||
       check_work(controller_task_work, "controller_task") ||
+      check_work(controller_plant_work, "controller_plant") ||
       check_input(controller_step_sparsity_in(0), NX, "state") ||
       check_input(controller_step_sparsity_in(1), NREF, "reference") ||
       check_input(controller_step_sparsity_in(2), NP, "params") ||
-      run_file_read(argv[1], &run, NX, NREF, NP, NTRACK))
+      run_file_read(argv[1], &run, NX, NREF, NP))
     return 1;
   for (i = 0; i < NX; ++i) state[i] = run.state0[i];
   if (tracking_error(state, run.reference, e0)) return 1;
@@ -152,7 +166,7 @@ int main(int argc, char* argv[]) {
       for (i = 0; i < NQ; ++i) qdot[i] = 0; /* the safe action: hold still */
       ++failures;
     }
-    integrate(state, qdot, run.dt, run.track); /* on a robot: command qdot, read encoders */
+    if (advance(state, qdot, run.dt)) return 1; /* on a robot: command qdot, read encoders */
   }
   t1 = seconds();
   controller_step_release(mem);

@@ -19,7 +19,7 @@ local ground's own rate is not included: zero on the ramp, ``docs/controller-ter
   interpolated along the lap (the same periodic cubic spline), a full-turn joint (the turret)
   unwrapped so that it takes the short way between postures when its limits allow it.
 - :func:`task_reference`: all of it at times t, as the controller's
-  :class:`~mmstab.tasks.StepReference` (ξ_des, ξ̇_ref, q_ref, q̇_ref), rates per second.
+  :class:`~mmstab.layout.StepReference` (ξ_des, ξ̇_ref, q_ref, q̇_ref), rates per second.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
+from mmstab.layout import StepReference
 from mmstab.robot import FloatArray
-from mmstab.tasks import StepReference
 from mmstab.terrain import CirclePath, Terrain, place_local
 
 #: A joint whose range is at least a full turn less this [rad] is unwrapped (the turret).

@@ -12,9 +12,9 @@ backends that compute the same thing:
 - ``"generated"``: the same chunk compiled to C (:func:`mmstab.codegen.generate`, cached) and
   called through ``casadi.external``.
 
-The inputs of a run (:class:`RunInputs`: parameters, initial state, reference table, track
-geometry) are also what the standalone C example reads (:func:`write_run_file`), so the Python
-and the C closed loops can be compared number for number.
+The inputs of a run (:class:`RunInputs`: parameters, initial state, reference table) are also
+what the standalone C example reads (:func:`write_run_file`), so the Python and the C closed
+loops can be compared number for number.
 """
 
 from __future__ import annotations
@@ -37,7 +37,6 @@ from mmstab.codegen import (
 )
 from mmstab.config import _atomic
 from mmstab.controller import (
-    _SINC_SERIES_BELOW,
     ARM,
     JOINT_COUNT,
     REFERENCE_SIZE,
@@ -57,7 +56,7 @@ if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 BACKENDS = ("python", "casadi", "generated")
-RUN_FILE_MAGIC = b"MMSTRUN1"  #: first 8 bytes of a run file (embedded/run_file.h)
+RUN_FILE_MAGIC = b"MMSTRUN2"  #: first 8 bytes of a run file (embedded/run_file.h)
 
 
 class ExamplePlan(NamedTuple):
@@ -103,18 +102,15 @@ class RunInputs(NamedTuple):
         dt: control period = integration step [s].
         params: the controller's packed parameters (42,).
         state0: initial state (9,) [m, m, rad, rad...].
-        reference: packed :class:`~mmstab.tasks.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
+        reference: packed :class:`~mmstab.layout.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
             q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 23); the last row is only used
             to measure the final tracking error.
-        track: [sprocket radius [m], track separation [m], |ω dt / 2| below which the arc's
-            sin(a)/a uses its series [rad]] (the C example's own integrator).
     """
 
     dt: float
     params: FloatArray
     state0: FloatArray
     reference: FloatArray
-    track: FloatArray
 
     @property
     def steps(self) -> int:
@@ -172,13 +168,11 @@ def run_inputs(
     reference = run_reference(
         problem.robot, problem.circle, problem.terrain, plan, x0[ARM], settings, t, posture
     ).step
-    tracks = problem.robot.base.tracks
     return RunInputs(
         dt=settings.dt,
         params=ControllerParams.from_settings(problem.robot, settings).pack(),
         state0=x0,
         reference=reference.pack(),
-        track=np.array([tracks.sprocket_radius, tracks.separation, _SINC_SERIES_BELOW]),
     )
 
 
@@ -330,8 +324,8 @@ def run_file_path(directory: str | os.PathLike[str]) -> Path:
 def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
     """Write a run's inputs for the C example (format: ``embedded/run_file.h``), atomically.
 
-    Layout, little-endian: 8-byte magic ``MMSTRUN1``; int64 steps, state size, reference size,
-    parameter count, track-data count; float64 dt; params; state0; track data; reference rows
+    Layout, little-endian: 8-byte magic ``MMSTRUN2``; int64 steps, state size, reference size,
+    parameter count; float64 dt; params; state0; reference rows
     (steps + 1, 23), row-major.
     """
     sizes = np.array(
@@ -340,11 +334,10 @@ def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
             len(inputs.state0),
             inputs.reference.shape[1],
             len(inputs.params),
-            len(inputs.track),
         ],
         dtype="<i8",
     )
-    body = [np.array([inputs.dt]), inputs.params, inputs.state0, inputs.track, inputs.reference]
+    body = [np.array([inputs.dt]), inputs.params, inputs.state0, inputs.reference]
     data = RUN_FILE_MAGIC + sizes.tobytes()
     data += b"".join(np.ascontiguousarray(a, dtype="<f8").tobytes() for a in body)
 

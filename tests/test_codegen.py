@@ -11,10 +11,12 @@ import pytest
 from conftest import write_problem
 
 import mmstab.codegen as codegen
-import mmstab.controller as controller_mod
+import mmstab.codegen.build as codegen_build
+import mmstab.controller.step as controller_step_mod
 from mmstab.cli import main
 from mmstab.codegen import (
     CODEGEN_PLUGINS,
+    PLANT_NAME,
     QPOASES_MESSAGE,
     ROLLOUT_CHUNK,
     STEP_NAME,
@@ -29,7 +31,6 @@ from mmstab.controller import (
     PARAMS_SIZE,
     REFERENCE_SIZE,
     STATE_SIZE,
-    TRACK_DATA_SIZE,
     ControllerParams,
     QPStatus,
     StepReference,
@@ -105,12 +106,12 @@ def test_generated_step_equals_interpreted_on_1000_states(generated, problem, rn
 def test_solver_failure_gives_the_same_status_generated(problem, tmp_path, monkeypatch, rng):
     # a QP solver allowed one iteration fails on most QPs: without the post-processing the
     # generated step would abort ("Evaluation failed") instead of reporting SOLVER_FAILED
-    real = controller_mod._conic_options
+    real = controller_step_mod._conic_options
 
     def one_iteration(settings):
         return {**real(settings), "max_iter": 1}
 
-    monkeypatch.setattr(controller_mod, "_conic_options", one_iteration)
+    monkeypatch.setattr(controller_step_mod, "_conic_options", one_iteration)
     settings = controller_settings(problem, "qrqp")
     gen = generate((problem.robot, settings), tmp_path)
     ext, ctrl = gen.load(), build_controller(problem.robot, settings)
@@ -175,7 +176,7 @@ def test_layout_header_matches_the_python_layouts(generated_qrqp):
     defines = [line.split() for line in text.splitlines() if line.startswith("#define MMSTAB_")]
     macros = {d[1]: d[2] for d in defines if len(d) == 3}
     expected = {"STATE": STATE_SIZE, "REFERENCE": REFERENCE_SIZE, "PARAMS": PARAMS_SIZE}
-    for name, value in {**expected, "TRACK": TRACK_DATA_SIZE, "ARM": 4}.items():
+    for name, value in {**expected, "GROUND": 3, "ARM": 4}.items():
         assert int(macros[f"MMSTAB_N_{name}"]) == value, name
     for layout, prefix in ((StepReference, "REF"), (ControllerParams, "PARAM")):
         for field, sl in layout.offsets().items():
@@ -235,8 +236,8 @@ def test_qpoases_is_refused_before_casadi_is_called(problem, tmp_path, monkeypat
     def never(*args, **kwargs):
         raise AssertionError("CasADi was called")
 
-    monkeypatch.setattr(codegen, "build_controller", never)
-    monkeypatch.setattr(codegen.ca, "CodeGenerator", never)
+    monkeypatch.setattr(codegen_build, "build_controller", never)
+    monkeypatch.setattr(codegen_build.ca, "CodeGenerator", never)
     with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use qrqp"):
         generate(problem, tmp_path / "out", "qpoases")
     with pytest.raises(MmstabError, match="unknown QP plugin"):
@@ -327,10 +328,14 @@ def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path
 def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
     progs = programs
     bad = tmp_path / "bad.bin"
-    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 3, PARAMS_SIZE, TRACK_DATA_SIZE]  # old layout
-    bad.write_bytes(b"MMSTRUN1" + np.array(sizes, "<i8").tobytes())
+    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 3, PARAMS_SIZE]  # the reference before the ground
+    bad.write_bytes(b"MMSTRUN2" + np.array(sizes, "<i8").tobytes())
     proc = subprocess.run([str(progs.loop), str(bad)], capture_output=True, text=True)
     assert proc.returncode == 1 and "do not match the controller" in proc.stderr
+    old = tmp_path / "old.bin"  # the format with the hand-written plant's track data
+    old.write_bytes(b"MMSTRUN1" + np.array([*sizes, 3], "<i8").tobytes())
+    proc = subprocess.run([str(progs.loop), str(old)], capture_output=True, text=True)
+    assert proc.returncode == 1 and "not a run file" in proc.stderr
 
 
 # ----------------------------------------------------------------------------------- rollout
@@ -361,6 +366,27 @@ def test_python_step_loop_is_controller_step_and_f_integrate(problem):
         s = np.asarray(f_int(s, qdot, inputs.dt)).ravel()
         np.testing.assert_allclose(r.states[k + 1], s, atol=1e-12, rtol=0)
     assert r.times[-1] == pytest.approx(20 * inputs.dt)
+
+
+def test_generated_plant_equals_the_simulation_plant(generated_qrqp, problem, rng):
+    """controller_plant (what the C example moves the robot with) is the Python plant."""
+    plant = generated_qrqp.load(PLANT_NAME)
+    ctrl = build_controller(problem.robot, controller_settings(problem))
+    r, b = problem.robot.base.tracks.sprocket_radius, problem.robot.base.tracks.separation
+    for k in range(40):
+        state = np.r_[rng.uniform(-2, 2, 3), rng.uniform(-9, 9, 6)]
+        qdot = rng.uniform(-5, 5, 6)
+        if k % 4 == 0:  # straight, and the series branch of sin(a)/a
+            qdot[1] = qdot[0] + (0.0 if k % 8 == 0 else 1e-9)
+        out = np.asarray(plant(state, qdot, 1e-3)).ravel()
+        np.testing.assert_allclose(out, ctrl.model.integrate(state, qdot, 1e-3), atol=1e-14)
+        # independently: the arc by hand (heading change ω dt, chord along the mid heading)
+        v, w = r * (qdot[0] + qdot[1]) / 2, r * (qdot[1] - qdot[0]) / b
+        assert out[2] == pytest.approx(state[2] + w * 1e-3, abs=1e-14)
+        mid = state[2] + w * 1e-3 / 2
+        chord = out[:2] - state[:2]
+        assert abs(chord @ [-np.sin(mid), np.cos(mid)]) < 1e-14
+        assert np.linalg.norm(chord) == pytest.approx(abs(v) * 1e-3, rel=1e-6, abs=1e-15)
 
 
 def test_example_task_function_is_exported(generated_qrqp, problem):

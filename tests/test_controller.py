@@ -188,10 +188,10 @@ def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
 def test_certificate_judges_the_posture_term(robot, controllers, rng):
     """The in-graph certificate uses the whole cost: the answer of Eq. 7 without the posture
     term is refused (SOLVER_FAILED), the true optimum accepted."""
-    from mmstab.controller import _build_guard_and_certificate
+    from mmstab.controller.certificate import build_guard_and_certificate
 
     c = controllers["qrqp"]
-    _, certificate = _build_guard_and_certificate(c.settings.kkt_tol)
+    _, certificate = build_guard_and_certificate(c.settings.kkt_tol)
     W_q = np.r_[0.0, 0.0, c.params.posture_weight]
     refused = 0
     for state in random_states(robot, rng, 10, margin=0.3):

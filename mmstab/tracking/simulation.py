@@ -191,7 +191,7 @@ def _run_loop(
     Args:
         advance: from :func:`build_advance`.
         state0: initial state (9,).
-        reference: packed :class:`~mmstab.tasks.StepReference` per sample (steps+1, 23); row
+        reference: packed :class:`~mmstab.layout.StepReference` per sample (steps+1, 23); row
             k is used in period k.
         params: packed controller parameters (42,).
         steps: number of control periods.
