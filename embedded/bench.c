@@ -36,6 +36,8 @@ static casadi_real* res[SZ_RES];
 static casadi_int iw[SZ_IW];
 static casadi_real w[SZ_W];
 
+#include "plant_step.h" /* advance(): the generated plant, after the work arrays */
+
 static double seconds(void) {
   struct timespec t;
   clock_gettime(CLOCK_MONOTONIC, &t);
@@ -63,19 +65,6 @@ static int step(const double* state, const double* ref, const double* params, do
   res[1] = status;
   res[2] = &objective;
   return controller_step(arg, res, iw, w, mem);
-}
-
-/* The generated plant over one period (mmstab.plant): state <- plant(state, qdot, dt). */
-static int advance(double* state, const double* qdot, double dt) {
-  double next[NX];
-  int i;
-  arg[0] = state;
-  arg[1] = qdot;
-  arg[2] = &dt;
-  res[0] = next;
-  if (controller_plant(arg, res, iw, w, 0) != 0) return 1;
-  for (i = 0; i < NX; ++i) state[i] = next[i];
-  return 0;
 }
 
 int main(int argc, char* argv[]) {

@@ -58,6 +58,8 @@ static casadi_real* res[SZ_RES];
 static casadi_int iw[SZ_IW];
 static casadi_real w[SZ_W];
 
+#include "plant_step.h" /* advance(): the generated plant, after the work arrays */
+
 typedef int (*WorkFn)(casadi_int*, casadi_int*, casadi_int*, casadi_int*);
 
 /* The generated function's own work sizes must fit the static arrays. */
@@ -78,20 +80,6 @@ static int check_input(const casadi_int* sparsity, casadi_int n, const char* wha
             (long long)sparsity[0], (long long)n);
     return 1;
   }
-  return 0;
-}
-
-/* The plant over one period (generated with the step: mmstab.plant); 0 on success. On a
- * robot this is replaced by commanding qdot and reading the encoders and the pose estimate. */
-static int advance(double state[NX], const double qdot[NQ], double dt) {
-  double next[NX];
-  int i;
-  arg[0] = state;
-  arg[1] = qdot;
-  arg[2] = &dt;
-  res[0] = next;
-  if (controller_plant(arg, res, iw, w, 0) != 0) return 1;
-  for (i = 0; i < NX; ++i) state[i] = next[i];
   return 0;
 }
 

@@ -42,7 +42,7 @@ def build_programs(
     Args:
         generated: the generated controller.
         out_dir: where to write the programs (default the generated controller's folder).
-        sources: the folder holding ``main.c``, ``bench.c`` and ``run_file.h``.
+        sources: the folder holding ``main.c``, ``bench.c``, ``run_file.h`` and ``plant_step.h``.
 
     Raises:
         MmstabError: the sources are missing (not a source checkout) or do not compile.
