@@ -1,13 +1,13 @@
-"""Stability planner (paper Section II-D, Eq. 6; DESIGN.md §5).
+"""Stability planner (paper Section II-D, Eq. 6; ``docs/design.md``, "Planner").
 
 Per base pose on the ramp, CMA-ES (pycma, ask/tell) searches the arm CoM g_a (body
 frame) inside the workspace V that maximises
 
     fitness = w_stability mu(g_a) / mu_max - w_motion |g_a - g_a_prev|^2 / d_workspace^2
 
-(Eq. 6 with the DESIGN.md errata: the decision variable and the motion penalty are on
-the *arm* CoM, the penalty is the squared Euclidean norm). Samples outside V are
-discarded and re-asked. Two starts, the FK CoMs of link0 = 2.0 and 5.0 rad with the
+(Eq. 6 with the errata of ``docs/design.md``, "Planner": the decision variable and the
+motion penalty are on the *arm* CoM, the penalty is the squared Euclidean norm). Samples
+outside V are discarded and re-asked. Two starts, the FK CoMs of link0 = 2.0 and 5.0 rad with the
 other joints at zero; the better one is kept. No IK inside the loop (as in the paper);
 after convergence :mod:`mmstab.ik` finds a collision-free posture that realises it.
 

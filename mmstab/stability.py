@@ -1,4 +1,6 @@
-"""Force-angle tip-over stability (Papadopoulos & Rey 1996; paper Eq. 2-5, DESIGN.md §3).
+"""Force-angle tip-over stability (Papadopoulos & Rey 1996; paper Eq. 2-5).
+
+Conventions and errata: ``docs/design.md``, "Force-angle".
 
 For each tip-over axis ``a_j = p_{j+1} - p_j`` of the support polygon (vertices ordered
 counter-clockwise about the polygon's normal, which points to the CoM's side):
@@ -8,7 +10,7 @@ counter-clockwise about the polygon's normal, which points to the CoM's side):
     mu = min_j theta_j |f_r|                      [N rad]
 
 ``atan2`` of the cross and dot products is the signed angle between the *unit* vectors
-f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see DESIGN.md errata),
+f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see the errata),
 smooth where ``sigma_j acos(.)`` is not. theta_j > 0 when the force line passes inside
 axis j, so mu > 0 exactly when the robot is statically stable.
 

@@ -35,6 +35,7 @@ LAYERS: dict[str, int] = {
     "mmstab.stability": 3,
     "mmstab.workspace": 4,
     "mmstab.ik": 4,
+    "mmstab.workspace_fidelity": 4,
     "mmstab.planner": 5,
     "mmstab.tasks": 6,
     "mmstab.limits": 6,

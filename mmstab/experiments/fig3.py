@@ -22,9 +22,8 @@ from mmstab.robot import Robot
 from mmstab.workspace import (
     Workspace,
     convex_hull,
-    measure_fidelity,
-    sample_in_workspace,
 )
+from mmstab.workspace_fidelity import measure_fidelity, sample_in_workspace
 
 #: Points drawn per scatter cloud in the figures (subsampled: the figures stay small).
 PLOT_POINTS = 3000
