@@ -99,7 +99,7 @@ def render_animation(
         robot: the robot.
         terrain: the ground the run is on.
         times: sample times (T,) [s].
-        base_poses: base poses (T, 3) of (x, y, heading) in the slope frame S [m, m, rad].
+        base_poses: base poses (T, 3) of (x, y, yaw) in the map frame M [m, m, rad].
         q_arm: arm joint angles (T, 4) [rad].
         mu: force-angle stability margin (T,) [N rad] (``NaN`` = unknown, drawn grey).
         out_path: the GIF to write (atomically: temp file + rename); folders are created.

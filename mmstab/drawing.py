@@ -71,7 +71,7 @@ class LayerLines(Line3DCollection):
 
 
 class Extent(NamedTuple):
-    """A rectangle in the slope plane S: x from ``x_min`` to ``x_max``, y likewise [m]."""
+    """A rectangle in the map frame M: x from ``x_min`` to ``x_max``, y likewise [m]."""
 
     x_min: float
     x_max: float

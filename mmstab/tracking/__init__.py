@@ -6,10 +6,11 @@ holds the arm near the plan's postures (:func:`mmstab.reference.task_reference`;
 reference is checked for self-collision and repaired first, :mod:`mmstab.posture`), and records
 everything the paper's Fig. 9-12 show.
 
-**Plant.** The base is the nonholonomic tracked vehicle of :class:`mmstab.controller.TaskModel`:
-over one control period dt the sprocket speeds are constant, so the base drives an exact arc
-on the slope plane (no sideways motion); the joints integrate q̇·dt. The plant is kinematic,
-as the paper's: the commanded joint speeds are the actual ones (no slip, no dynamics).
+**Plant** (:mod:`mmstab.plant`). The base is the nonholonomic tracked vehicle: over one
+control period dt the sprocket speeds are constant, so the base drives an exact arc in the
+map frame's x-y plane (no sideways motion); the joints integrate q̇·dt. The plant is
+kinematic, as the paper's: the commanded joint speeds are the actual ones (no slip, no
+dynamics).
 
 **One step = one CasADi call.** The controller step Function (state, reference, params) ->
 (q̇, status, objective) and the integrator are composed into one ``advance`` Function, called
