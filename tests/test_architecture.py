@@ -145,3 +145,17 @@ def test_each_module_imports_alone():
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads(proc.stdout.splitlines()[-1]) == {}
+
+
+def test_no_stage_knows_the_ramp():
+    """Above mmstab.terrain, the ground is a Terrain: no Ramp, no slope angle."""
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.is_relative_to(PACKAGE / "terrain"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Name) and node.id == "Ramp":
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} Ramp")
+            if isinstance(node, ast.Attribute) and node.attr in ("slope", "G_R_S", "G_T_S"):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
+    assert offenders == []
