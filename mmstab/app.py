@@ -130,7 +130,7 @@ def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
 
 def track(
     problem: Problem,
-    plan_: TrackingPlan | None = None,
+    arm_plan: TrackingPlan | None = None,
     *,
     plugin: str | None = None,
     backend: Backend = "interpreted",
@@ -142,7 +142,7 @@ def track(
 
     Args:
         problem: the problem.
-        plan_: an arm plan; default :func:`plan` on the problem.
+        arm_plan: an arm plan; default :func:`plan` on the problem.
         plugin: QP plugin (default the problem's ``controller.plugin``, or ``codegen.plugin``
             for the generated backend).
         backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C).
@@ -167,9 +167,9 @@ def track(
         step = generated_step(problem, plugin)  # build (or load) before planning: fail early
     else:
         problem = with_plugin(problem, plugin)
-    if plan_ is None:
-        plan_ = plan(problem, progress=progress)
+    if arm_plan is None:
+        arm_plan = plan(problem, progress=progress)
     run = simulate(
-        problem, plan_, step=step, duration=duration, progress=progress, initial_arm=initial_arm
+        problem, arm_plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
     )
-    return TrackResult(problem, plan_, run)
+    return TrackResult(problem, arm_plan, run)
