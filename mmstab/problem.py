@@ -77,11 +77,12 @@ def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Pro
     for name, check in SECTION_CHECKS.items():
         check(p, data[name])
     c = data["path"]
+    robot = load_robot(robot_path)
     return Problem(
         path=p,
         data=data,
-        robot=load_robot(robot_path),
-        terrain=from_section(p, data["terrain"]),
+        robot=robot,
+        terrain=from_section(p, data["terrain"], robot),
         circle=CirclePath(
             center=tuple(c["center"]),
             radius=float(c["radius"]),

@@ -148,7 +148,7 @@ def test_placement_jacobians_equal_finite_differences(terrain, rng):
 def test_support_contacts_are_the_body_contacts_placed(terrain, robot, rng):
     pose = poses(rng, 1)[0]
     contacts_B = robot.base.support_points()
-    s = terrain.support(pose, contacts_B)
+    s = terrain.support(robot, pose)
     np.testing.assert_allclose(s.G_T_B, terrain.G_T_B(pose), atol=1e-12)
     assert len(s.polygon_G) >= 3 and len(s.contacts_G) <= len(contacts_B)
     # every polygon vertex is a contact, every contact lies on or inside the polygon's hull

@@ -9,11 +9,6 @@ section.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from pathlib import Path
-from typing import Any
-
-from mmstab.config import ConfigError
 from mmstab.terrain.base import (
     GRAVITY_G,
     GROUND_SIZE,
@@ -31,6 +26,7 @@ from mmstab.terrain.base import (
     wrap_angle,
 )
 from mmstab.terrain.com import GlobalCoM, global_com_functions
+from mmstab.terrain.factory import KINDS, from_section
 from mmstab.terrain.paths import CirclePath
 from mmstab.terrain.ramp import BasePose, Ramp
 
@@ -57,30 +53,3 @@ __all__ = [
     "rot_z",
     "wrap_angle",
 ]
-
-
-def _ramp(path: Path, section: Mapping[str, Any]) -> Terrain:
-    return Ramp(float(section["slope"]))
-
-
-#: Terrain kinds by the ``terrain.kind`` of a problem (default ``ramp``): (path, section) ->
-#: Terrain. New grounds register their builder here.
-KINDS: dict[str, Any] = {"ramp": _ramp}
-
-
-def from_section(path: str | Path, section: Mapping[str, Any]) -> Terrain:
-    """The terrain of a problem's validated ``terrain:`` section.
-
-    Args:
-        path: the problem file (for messages and relative paths).
-        section: the ``terrain:`` section; ``kind`` (default ``ramp``) chooses the ground.
-
-    Raises:
-        ConfigError: an unknown ``terrain.kind``.
-    """
-    kind = str(section.get("kind", "ramp"))
-    if kind not in KINDS:
-        raise ConfigError(
-            Path(path), "terrain.kind", f"unknown kind {kind!r}; one of {list(KINDS)}"
-        )
-    return KINDS[kind](Path(path), section)

@@ -20,11 +20,14 @@ local ground as data (``docs/controller-terrain.md``).
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from mmstab.robot import Robot
 
 FloatArray = NDArray[np.float64]
 
@@ -92,8 +95,8 @@ class Terrain(Protocol):
         """Symbolic placement ``M_T_B(pose) p`` (CasADi) of a body point (3,) [m]."""
         ...
 
-    def support(self, pose: ArrayLike, contacts_body: ArrayLike) -> Support:
-        """How the base stands at one pose, given its contact points in B (n, 3) [m]."""
+    def support(self, robot: Robot, pose: ArrayLike) -> Support:
+        """How ``robot``'s base stands at one pose (its contacts from its description)."""
         ...
 
     def surface_G(self, x: ArrayLike, y: ArrayLike) -> FloatArray:

@@ -9,7 +9,7 @@ frame M: a base pose ``(x, y, yaw)`` lives in S, the body rests on the plane
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -27,6 +27,9 @@ from mmstab.terrain.base import (
     place_local_sx,
     rot_x,
 )
+
+if TYPE_CHECKING:
+    from mmstab.robot import Robot
 
 
 class BasePose(NamedTuple):
@@ -99,10 +102,10 @@ class Ramp:
         """Symbolic ``Trans(x, y, 0) Rot_z(yaw) p`` (:func:`place_local_sx`, zero ground)."""
         return place_local_sx(pose, ca.DM.zeros(GROUND_SIZE), point_body)
 
-    def support(self, pose: ArrayLike, contacts_body: ArrayLike) -> Support:
-        """Every contact touches the plane; the polygon is their hull, ordered CCW about z_B."""
+    def support(self, robot: Robot, pose: ArrayLike) -> Support:
+        """Every contact of the base touches the plane; the polygon is their hull, CCW about z_B."""
         T = self.G_T_B(np.asarray(pose, dtype=float).reshape(3))
-        pts = np.asarray(contacts_body, dtype=float)
+        pts = np.asarray(robot.base.support_points(), dtype=float)
         to_G = lambda p: p @ T[:3, :3].T + T[:3, 3]  # noqa: E731
         return Support(T, to_G(pts), to_G(ordered_polygon(pts)))
 
