@@ -96,7 +96,7 @@ def test_task_and_jacobian_match_numpy(robot, controllers, rng):
 
 
 def test_task_on_a_tilted_local_ground_is_M_T_B_applied(robot, controllers, rng):
-    """With a nonzero local ground, ξ places the points with Trans(x, y, z) Rz Ry Rx."""
+    """With a nonzero local ground, ξ places the points with M_T_B = local_transforms(...)."""
     from mmstab.terrain import local_transforms
 
     model = controllers["qpoases"].model

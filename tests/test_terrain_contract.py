@@ -180,3 +180,24 @@ def test_from_section_builds_the_ramp_and_names_a_bad_kind(tmp_path):
     assert isinstance(t, Ramp) and t.slope == 0.2
     with pytest.raises(ConfigError, match="terrain.kind"):
         from_section(tmp_path / "p.yaml", {"kind": "lava", "slope": 0.2})
+
+
+def test_local_ground_angles_are_roll_and_pitch(rng):
+    """A body tilted by the local ground (roll, pitch) on level ground reads them back."""
+    from mmstab.terrain import roll_pitch
+
+    class Tilted:  # M = G, the body resting at a given tilt
+        def __init__(self, ground):
+            self.ground = np.asarray(ground, dtype=float)
+
+        def gravity_body(self, poses):
+            R = local_transforms(poses, self.ground)[:, :3, :3]
+            return np.einsum("nji,j->ni", R, GRAVITY_G)
+
+    for _ in range(10):
+        roll, pitch = rng.uniform(-0.6, 0.6, 2)
+        got = roll_pitch(Tilted([0.0, roll, pitch]), [0.0, 0.0, rng.uniform(-3, 3)])
+        np.testing.assert_allclose(got, (roll, pitch), atol=1e-12)
+    # positive pitch lifts the nose: the body x axis points up
+    T = local_transforms([0.0, 0.0, 0.0], [0.0, 0.0, 0.3])[0]
+    assert T[2, 0] > 0

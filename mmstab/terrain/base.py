@@ -9,8 +9,9 @@ The terrain turns a pose into the *resting* body pose ``M_T_B`` (for the ramp: o
 plane; for a heightmap: the pose the rigid robot settles in), and from it gravity in
 the body and the support contacts.
 
-**Local ground.** Every resting pose is written ``M_T_B = Trans(x, y, z) Rz(yaw) Ry(pitch)
-Rx(roll)``; ``(z [m], roll [rad], pitch [rad])`` is the pose's *local ground*
+**Local ground.** Every resting pose is written ``M_T_B = Trans(x, y, z) Rz(yaw) Ry(-pitch)
+Rx(roll)`` (positive roll lifts the left side, positive pitch lifts the nose, as
+:func:`roll_pitch`); ``(z [m], roll [rad], pitch [rad])`` is the pose's *local ground*
 (:meth:`Terrain.local_ground`; all zero on the ramp, where M is the plane). The one placement
 of a body point, :func:`place_local_sx` (CasADi) and :func:`place_local` (NumPy, batched, the
 same expression), is written in these terms, so the controller's task map only needs the
@@ -138,10 +139,10 @@ def wrap_angle(angle: ArrayLike) -> FloatArray:
 
 # -------------------------------------------------------------------------- placement
 def local_rotation_sx(yaw: Any, ground: Any) -> Any:
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` (CasADi) with ``ground = (z, roll, pitch)``."""
+    """``Rz(yaw) Ry(-pitch) Rx(roll)`` (CasADi) with ``ground = (z, roll, pitch)``."""
     cy, sy = ca.cos(yaw), ca.sin(yaw)
     cr, sr = ca.cos(ground[1]), ca.sin(ground[1])
-    cp, sp = ca.cos(ground[2]), ca.sin(ground[2])
+    cp, sp = ca.cos(ground[2]), -ca.sin(ground[2])  # Ry(-pitch): the nose up for pitch > 0
     return ca.vertcat(
         ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
         ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
@@ -152,7 +153,7 @@ def local_rotation_sx(yaw: Any, ground: Any) -> Any:
 def place_local_sx(pose: Any, ground: Any, point_body: Any) -> Any:
     """The one placement of a body point in M (CasADi, SX or MX).
 
-    ``M_T_B p = [x, y, z] + Rz(yaw) Ry(pitch) Rx(roll) p``.
+    ``M_T_B p = [x, y, z] + Rz(yaw) Ry(-pitch) Rx(roll) p``.
 
     Args:
         pose: base pose ``(x, y, yaw)`` in M [m, m, rad].
@@ -227,7 +228,7 @@ def local_transforms(poses: ArrayLike, ground: ArrayLike) -> FloatArray:
     Gd = _rows(ground, len(P), "ground")
     cy, sy = np.cos(P[:, 2]), np.sin(P[:, 2])
     cr, sr = np.cos(Gd[:, 1]), np.sin(Gd[:, 1])
-    cp, sp = np.cos(Gd[:, 2]), np.sin(Gd[:, 2])
+    cp, sp = np.cos(Gd[:, 2]), -np.sin(Gd[:, 2])  # Ry(-pitch), as local_rotation_sx
     T = np.zeros((len(P), 4, 4))
     T[:, 0, :3] = np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], 1)
     T[:, 1, :3] = np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], 1)
