@@ -149,3 +149,9 @@ validate-terrain: setup
 .PHONY: bench-drop
 bench-drop: setup
 	$(PY) benchmarks/bench_drop.py
+
+## what the local ground in the reference costs the step (docs/controller-terrain.md)
+.PHONY: bench-step-terrain
+bench-step-terrain: setup
+	$(PY) benchmarks/step_terrain.py $(PROBLEM)
+

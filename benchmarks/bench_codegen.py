@@ -45,13 +45,13 @@ from mmstab.controller import (
     quiet_stdout,
 )
 from mmstab.problem import Problem, load_problem
+from mmstab.reference import initial_state
 from mmstab.robot import Robot
 from mmstab.rollout import (
     BACKENDS,
     RunInputs,
     controller_settings,
     example_plan,
-    initial_state,
     rollout,
     run_file_path,
     run_inputs,
@@ -258,7 +258,7 @@ def main() -> None:
     args = ap.parse_args()
     problem = load_problem(args.problem)
     plan = example_plan(problem.robot)
-    state0 = initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+    state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     inputs = run_inputs(problem, plan, state0=state0)
     default_plugin = controller_settings(problem).plugin
     traj = rollout(

@@ -29,7 +29,8 @@ from mmstab.controller import (
     quiet_stdout,
 )
 from mmstab.problem import load_problem
-from mmstab.rollout import initial_state, run_inputs
+from mmstab.reference import initial_state
+from mmstab.rollout import run_inputs
 
 ARM_TARGET_POSTURE = np.array([2.0, 0.3, -0.5, 0.2])  # a reachable arm posture [rad]
 
@@ -47,7 +48,7 @@ def bench_plugin(problem, settings: ControllerSettings, seconds: float) -> dict:
     steps = int(round(seconds / settings.dt))
     q = ARM_TARGET_POSTURE[None]
     plan = SimpleNamespace(fractions=np.zeros(1), target_com=robot.arm_com(q), postures=q)
-    state = initial_state(problem, plan, lateral_offset=0.1, arm=robot.stowed)
+    state = initial_state(problem.circle, robot.stowed, lateral_offset=0.1)
     inputs = run_inputs(problem, plan, steps=steps, state0=state, settings=settings)
     refs = StepReference.unpack(inputs.reference)
     xi_des = refs.xi_des

@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 from common import machine_info
 
+from mmstab.app import generated_step, with_plugin
 from mmstab.config import MmstabError, write_json
 from mmstab.controller import CODEGEN_PLUGINS, PLUGINS, ControllerSettings
-from mmstab.experiments.tracking import generated_step, with_plugin
 from mmstab.posture import build_posture_reference, posture_samples
 from mmstab.problem import Problem, load_problem
 from mmstab.tracking import StepBackend, simulate

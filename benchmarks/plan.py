@@ -33,7 +33,7 @@ def main() -> None:
     ap.add_argument("--out", default="results/bench/plan.json")
     args = ap.parse_args()
     problem = load_problem(args.problem)
-    robot, ramp = problem.robot, problem.ramp
+    robot, ramp = problem.robot, problem.terrain
     ws = load_or_build_workspace(problem, progress=False)
     settings = PlannerSettings.from_section(problem.section("planner"))
     poses = problem.circle.poses(settings.poses)

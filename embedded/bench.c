@@ -16,7 +16,6 @@
 
 #include "controller_layout.h"
 #include "controller_step.h"
-#include "motion.h"
 #include "run_file.h"
 
 enum {
@@ -24,14 +23,20 @@ enum {
   NQ = MMSTAB_N_JOINTS,
   NREF = MMSTAB_N_REFERENCE,
   NP = MMSTAB_N_PARAMS,
-  NTRACK = MMSTAB_N_TRACK,
   BATCH = 100
 };
 
-static const casadi_real* arg[controller_step_SZ_ARG + 1];
-static casadi_real* res[controller_step_SZ_RES + 1];
-static casadi_int iw[controller_step_SZ_IW + 1];
-static casadi_real w[controller_step_SZ_W + 1];
+#define MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define SZ_ARG (MAX2(controller_step_SZ_ARG, controller_plant_SZ_ARG) + 1)
+#define SZ_RES (MAX2(controller_step_SZ_RES, controller_plant_SZ_RES) + 1)
+#define SZ_IW (MAX2(controller_step_SZ_IW, controller_plant_SZ_IW) + 1)
+#define SZ_W (MAX2(controller_step_SZ_W, controller_plant_SZ_W) + 1)
+static const casadi_real* arg[SZ_ARG];
+static casadi_real* res[SZ_RES];
+static casadi_int iw[SZ_IW];
+static casadi_real w[SZ_W];
+
+#include "plant_step.h" /* advance(): the generated plant, after the work arrays */
 
 static double seconds(void) {
   struct timespec t;
@@ -73,9 +78,10 @@ int main(int argc, char* argv[]) {
     fprintf(stderr, "usage: %s RUN_FILE [PASSES]\n", argv[0]);
     return 2;
   }
-  if (controller_step_work(&n_arg, &n_res, &n_iw, &n_w) || n_arg > controller_step_SZ_ARG + 1 ||
-      n_res > controller_step_SZ_RES + 1 || n_iw > controller_step_SZ_IW + 1 ||
-      n_w > controller_step_SZ_W + 1 || run_file_read(argv[1], &run, NX, NREF, NP, NTRACK))
+  if (controller_step_work(&n_arg, &n_res, &n_iw, &n_w) || n_arg > SZ_ARG || n_res > SZ_RES ||
+      n_iw > SZ_IW || n_w > SZ_W || controller_plant_work(&n_arg, &n_res, &n_iw, &n_w) ||
+      n_arg > SZ_ARG || n_res > SZ_RES || n_iw > SZ_IW || n_w > SZ_W ||
+      run_file_read(argv[1], &run, NX, NREF, NP))
     return 1;
   n = (long)run.steps;
   n_batches = n / BATCH;
@@ -94,7 +100,7 @@ int main(int argc, char* argv[]) {
       for (i = 0; i < NQ; ++i) qdot[i] = 0;
       ++failures;
     }
-    integrate(state, qdot, run.dt, run.track);
+    if (advance(state, qdot, run.dt)) return 1;
   }
   loop_s = seconds() - t0;
 

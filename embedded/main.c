@@ -7,8 +7,10 @@
  *   controller_step(arg, res, iw, w, mem)
  *     arg[0] state (9)       [x, y, heading] of the base in the slope frame, then the joints
  *                            [theta_l, theta_r, theta_0..theta_3]   [m, m, rad, rad...]
- *     arg[1] reference (20)  [xi_des (6), xi_dot_ref (6), q_ref (4), q_dot_ref (4)]: base
- *                            point, heading, arm CoM, and the arm posture for the posture task
+ *     arg[1] reference (23)  [xi_des (6), xi_dot_ref (6), q_ref (4), q_dot_ref (4),
+ *                            ground (3)]: base point, heading, arm CoM, the arm posture for
+ *                            the posture task, and the local ground (z, roll, pitch) of the
+ *                            reference pose (zero on the ramp)
  *     arg[2] params (42)     gains, weights, posture gains and weights, dt, joint limits
  *     res[0] qdot (6)        joint speeds to command [rad/s] (zero = hold still on failure)
  *     res[1] status          0 ok, 1 non-finite input, 2 infeasible bounds, 3 solver failed
@@ -20,7 +22,7 @@
  * the generated header and checked at start against controller_step_work(); nothing is
  * allocated inside the loop (with the qrqp plugin the generated code references no allocator
  * at all). On a robot, replace the run file by the planner's reference stream and
- * integrate() by reading the encoders; keep the rest.
+ * advance() (the generated plant) by reading the encoders; keep the rest.
  *
  * Usage: mmstab_loop RUN_FILE   (written by `mmstab codegen PROBLEM.yaml -o DIR --example`)
  * Prints the initial and final tracking errors, the failures, the loop's wall time, and the
@@ -33,7 +35,6 @@
 
 #include "controller_layout.h"
 #include "controller_step.h"
-#include "motion.h"
 #include "run_file.h"
 
 enum {
@@ -42,20 +43,22 @@ enum {
   NXI = MMSTAB_N_TASK,
   NARM = MMSTAB_N_ARM,
   NREF = MMSTAB_N_REFERENCE,
-  NP = MMSTAB_N_PARAMS,
-  NTRACK = MMSTAB_N_TRACK
+  NP = MMSTAB_N_PARAMS
 };
 
-/* Work arrays: the largest of the two generated functions used here, plus one (no 0-size). */
+/* Work arrays: the largest of the three generated functions used here, plus one (no 0-size). */
 #define MAX2(a, b) ((a) > (b) ? (a) : (b))
-#define SZ_ARG (MAX2(controller_step_SZ_ARG, controller_task_SZ_ARG) + 1)
-#define SZ_RES (MAX2(controller_step_SZ_RES, controller_task_SZ_RES) + 1)
-#define SZ_IW (MAX2(controller_step_SZ_IW, controller_task_SZ_IW) + 1)
-#define SZ_W (MAX2(controller_step_SZ_W, controller_task_SZ_W) + 1)
+#define MAX3(a, b, c) MAX2(a, MAX2(b, c))
+#define SZ_ARG (MAX3(controller_step_SZ_ARG, controller_task_SZ_ARG, controller_plant_SZ_ARG) + 1)
+#define SZ_RES (MAX3(controller_step_SZ_RES, controller_task_SZ_RES, controller_plant_SZ_RES) + 1)
+#define SZ_IW (MAX3(controller_step_SZ_IW, controller_task_SZ_IW, controller_plant_SZ_IW) + 1)
+#define SZ_W (MAX3(controller_step_SZ_W, controller_task_SZ_W, controller_plant_SZ_W) + 1)
 static const casadi_real* arg[SZ_ARG];
 static casadi_real* res[SZ_RES];
 static casadi_int iw[SZ_IW];
 static casadi_real w[SZ_W];
+
+#include "plant_step.h" /* advance(): the generated plant, after the work arrays */
 
 typedef int (*WorkFn)(casadi_int*, casadi_int*, casadi_int*, casadi_int*);
 
@@ -85,6 +88,7 @@ static int tracking_error(const double state[NX], const double ref[NREF], double
   double xi[NXI];
   int i;
   arg[0] = state;
+  arg[1] = ref + MMSTAB_REF_GROUND; /* the local ground the reference was placed with */
   res[0] = xi;
   if (controller_task(arg, res, iw, w, 0) != 0) return 1;
   for (i = 0; i < NXI; ++i) e[i] = ref[MMSTAB_REF_XI_DES + i] - xi[i];
@@ -127,10 +131,11 @@ int main(int argc, char* argv[]) {
   }
   if (check_work(controller_step_work, "controller_step") ||
       check_work(controller_task_work, "controller_task") ||
+      check_work(controller_plant_work, "controller_plant") ||
       check_input(controller_step_sparsity_in(0), NX, "state") ||
       check_input(controller_step_sparsity_in(1), NREF, "reference") ||
       check_input(controller_step_sparsity_in(2), NP, "params") ||
-      run_file_read(argv[1], &run, NX, NREF, NP, NTRACK))
+      run_file_read(argv[1], &run, NX, NREF, NP))
     return 1;
   for (i = 0; i < NX; ++i) state[i] = run.state0[i];
   if (tracking_error(state, run.reference, e0)) return 1;
@@ -149,7 +154,7 @@ int main(int argc, char* argv[]) {
       for (i = 0; i < NQ; ++i) qdot[i] = 0; /* the safe action: hold still */
       ++failures;
     }
-    integrate(state, qdot, run.dt, run.track); /* on a robot: command qdot, read encoders */
+    if (advance(state, qdot, run.dt)) return 1; /* on a robot: command qdot, read encoders */
   }
   t1 = seconds();
   controller_step_release(mem);

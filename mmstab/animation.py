@@ -3,7 +3,7 @@
 A building block for the tracking experiment: hand it the time series the run produced
 (base poses in S, arm postures, force-angle margin) and an output path::
 
-    render_animation(robot, ramp, t, base_poses, q_arm, mu, "results/tracking/animation.gif")
+    render_animation(robot, terrain, t, base_poses, q_arm, mu, "results/tracking/animation.gif")
 
 Left, the robot (drawn by :mod:`mmstab.drawing` from its collision geometry) on the ramp,
 with the base's planned and travelled track and the support polygon filled in the colour
@@ -26,8 +26,8 @@ from tqdm import tqdm
 from mmstab.drawing import (
     PATH_RANK,
     LayerLines,
-    draw_path_on_ramp,
-    draw_ramp,
+    draw_ground,
+    draw_path_on_ground,
     draw_robot,
     mesh_points,
     robot_meshes,
@@ -36,7 +36,7 @@ from mmstab.drawing import (
 )
 from mmstab.plotting import plt
 from mmstab.robot import FloatArray, Robot
-from mmstab.terrain import Ramp
+from mmstab.terrain import Terrain
 from mmstab.urdf import default_file_mode
 
 #: Colour map of the margin: 0 (tipping) .. mu_scale (as stable as the run gets).
@@ -80,7 +80,7 @@ def _check_inputs(times: FloatArray, poses: FloatArray, q: FloatArray, mu: Float
 
 def render_animation(
     robot: Robot,
-    ramp: Ramp,
+    terrain: Terrain,
     times: ArrayLike,
     base_poses: ArrayLike,
     q_arm: ArrayLike,
@@ -97,9 +97,9 @@ def render_animation(
 
     Args:
         robot: the robot.
-        ramp: the ramp the run is on.
+        terrain: the ground the run is on.
         times: sample times (T,) [s].
-        base_poses: base poses (T, 3) of (x, y, heading) in the slope frame S [m, m, rad].
+        base_poses: base poses (T, 3) of (x, y, yaw) in the map frame M [m, m, rad].
         q_arm: arm joint angles (T, 4) [rad].
         mu: force-angle stability margin (T,) [N rad] (``NaN`` = unknown, drawn grey).
         out_path: the GIF to write (atomically: temp file + rename); folders are created.
@@ -140,15 +140,15 @@ def render_animation(
     ax_bar = fig.add_axes((0.9, 0.16, 0.03, 0.7))
 
     # static scene: ramp patch holding every drawn robot, the planned base track
-    G_T_Bs = {int(k): ramp.G_T_B(poses[k]) for k in idx}
+    G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
     pts_G = np.concatenate([mesh_points(robot_meshes(robot, q[k], G_T_Bs[int(k)])) for k in idx])
-    pts_S = transform_points(np.linalg.inv(ramp.G_T_S()), pts_G)
+    pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)
     lo, hi = pts_S.min(axis=0) - 0.15, pts_S.max(axis=0) + 0.15
-    draw_ramp(ax3d, ramp, (lo[0], hi[0], lo[1], hi[1]))
-    draw_path_on_ramp(ax3d, ramp, poses[:, :2], color="0.55", linewidths=0.8)
+    draw_ground(ax3d, terrain, (lo[0], hi[0], lo[1], hi[1]))
+    draw_path_on_ground(ax3d, terrain, poses[:, :2], color="0.55", linewidths=0.8)
     travelled = LayerLines([np.zeros((2, 3))], PATH_RANK - 1, colors="C0", linewidths=1.6)
     ax3d.add_collection3d(travelled)
-    corners_G = transform_points(ramp.G_T_S(), np.array([[lo[0], lo[1], 0], [hi[0], hi[1], 0]]))
+    corners_G = transform_points(terrain.G_T_M(), np.array([[lo[0], lo[1], 0], [hi[0], hi[1], 0]]))
     set_equal_aspect(ax3d, np.vstack([pts_G, corners_G]), margin=0.0, zoom=1.3)
     ax3d.view_init(elev=view[0], azim=view[1])
     ax3d.set_axis_off()
@@ -188,7 +188,7 @@ def render_animation(
         done = np.column_stack([poses[: k + 1, :2], np.full(k + 1, 2e-3)])
         if k == 0:
             done = np.vstack([done, done])
-        travelled.set_segments([transform_points(ramp.G_T_S(), done)])
+        travelled.set_segments([transform_points(terrain.G_T_M(), done)])
         mu_done.set_data(t[: k + 1], m[: k + 1])
         mu_now.set_data([t[k]], [m[k]])
         mu_now.set_color(color)

@@ -29,6 +29,7 @@ from mmstab.posture import (
 )
 from mmstab.reference import PathSample, StepReference, task_reference
 from mmstab.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
 
 
 def time_scaling(tau: ArrayLike) -> PathSample:
@@ -249,6 +250,7 @@ class RunReference(NamedTuple):
 def run_reference(
     robot: Robot,
     circle: Any,
+    terrain: Terrain,
     plan: PosturePlan,
     q0: ArrayLike,
     settings: Any,
@@ -260,6 +262,7 @@ def run_reference(
     Args:
         robot: the robot.
         circle: the base path (``CirclePath``).
+        terrain: the ground.
         plan: the plan (``fractions``, ``target_com``, ``postures``).
         q0: the initial arm posture (4,) [rad].
         settings: the controller settings (``lap_time``, ``dt``, ``approach_time``,
@@ -270,9 +273,10 @@ def run_reference(
     arm = arm_references(robot, plan, q0, settings, posture)
     step = task_reference(
         circle,
+        terrain,
         settings.lap_time,
         settings.base_offset,
-        arm.posture.arm_reference(circle),
+        arm.posture.arm_reference(circle, terrain),
         arm.posture,
         np.asarray(t, dtype=float),
         arm.approach,

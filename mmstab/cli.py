@@ -36,12 +36,13 @@ def _fig6(args: argparse.Namespace) -> None:
 
 
 def _workspace(args: argparse.Namespace) -> None:
-    from mmstab.workspace import load_or_build_workspace, workspace_cache_path
+    from mmstab.app import workspace
+    from mmstab.workspace import workspace_cache_path
 
     problem = _problem(args)
     path = workspace_cache_path(problem, args.out)
     before = path.stat().st_mtime_ns if path.is_file() else None
-    ws = load_or_build_workspace(problem, force=args.force, cache_dir=args.out)
+    ws = workspace(problem, force=args.force, cache_dir=args.out)
     how = "loaded" if path.stat().st_mtime_ns == before else "built"
     print(
         f"workspace: {ws.postures} postures, {len(ws.valid_com)} valid, "
@@ -125,10 +126,11 @@ def _codegen(args: argparse.Namespace) -> None:
     print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
     if args.example:
         from mmstab import rollout as ro
-        from mmstab.planner import plan_path
+        from mmstab.app import plan as plan_of
+        from mmstab.reference import initial_state
 
-        plan = plan_path(problem)  # the ramp circle with the planned arm CoMs
-        state0 = ro.initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+        plan = plan_of(problem)  # the problem's path with the planned arm CoMs
+        state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
         inputs = ro.run_inputs(problem, plan, state0=state0)
         run = ro.write_run_file(ro.run_file_path(gen.directory), inputs)
         progs = build_programs(gen)

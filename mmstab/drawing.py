@@ -1,10 +1,10 @@
-"""3-D drawing of the robot on the ramp (matplotlib ``mplot3d``), from the collision geometry.
+"""3-D drawing of the robot on the ground (matplotlib ``mplot3d``), from the collision geometry.
 
 Every body the collision checker knows is drawn from the same shapes: the five base boxes
 (``Base.collision_boxes()``) and the four arm links (box or capsule in their DH frame R_i,
 placed by ``ArmKinematics.link_frames``). Capsules are drawn as low-poly cylinders with
 low-poly hemispherical caps. Points are mapped to the drawing frame by ``G_T_B`` (the
-body frame's pose in G, e.g. ``Ramp.G_T_B(pose)``); without it the drawing is in B.
+body frame's pose in G, e.g. ``Terrain.G_T_B(pose)``); without it the drawing is in B.
 
 Each body is one ``Poly3DCollection`` whose ``gid`` is its name (``body``, ``track_left``,
 ..., ``arm_link_0`` ... ``arm_link_3``), so figures and tests can find them.
@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.robot import Box, Capsule, FloatArray, Geometry, Robot
 from mmstab.stability import base_polygon
-from mmstab.terrain import Ramp
+from mmstab.terrain import Terrain
 from mmstab.urdf import axis_to_z_rotation
 
 #: Default face colours (matplotlib colour specs) of the base, tracks/flippers and arm.
@@ -71,7 +71,7 @@ class LayerLines(Line3DCollection):
 
 
 class Extent(NamedTuple):
-    """A rectangle in the slope plane S: x from ``x_min`` to ``x_max``, y likewise [m]."""
+    """A rectangle in the map frame M: x from ``x_min`` to ``x_max``, y likewise [m]."""
 
     x_min: float
     x_max: float
@@ -215,7 +215,7 @@ def draw_robot(
         ax3d: matplotlib 3-D axes (``projection="3d"``).
         robot: the robot.
         q: arm joint angles (4,) [rad].
-        G_T_B: pose of the body frame in the drawing frame (4x4), e.g. ``Ramp.G_T_B(pose)``;
+        G_T_B: pose of the body frame in the drawing frame (4x4), e.g. ``Terrain.G_T_B(pose)``;
             ``None`` draws in the body frame.
         base_color: face colour of the main body.
         track_color: face colour of tracks and flippers.
@@ -257,69 +257,72 @@ def draw_robot(
     return artists
 
 
-def draw_ramp(
+def draw_ground(
     ax3d: Any,
-    ramp: Ramp,
+    terrain: Terrain,
     extent: Extent | ArrayLike,
     color: Any = "0.85",
     alpha: float = 0.6,
     grid: float | None = 0.5,
 ) -> list[Any]:
-    """Draw a rectangle of the ramp's plane (and a grid on it) in G.
+    """Draw a rectangle of the ground (and a grid on it) in G.
 
     Args:
         ax3d: matplotlib 3-D axes.
-        ramp: the ramp.
-        extent: ``(x_min, x_max, y_min, y_max)`` in the slope frame S [m].
+        terrain: the ground (its ``surface_G``).
+        extent: ``(x_min, x_max, y_min, y_max)`` in the map frame M [m].
         color: face colour of the plane.
         alpha: its opacity in [0, 1].
         grid: spacing of grid lines in S [m]; ``None`` for none.
 
     Returns:
-        The artists: the plane patch (gid ``ramp``), then the grid lines (gid ``ramp_grid``).
+        The artists: the plane patch (gid ``ground``), then the grid lines (gid ``ground_grid``).
     """
     e = Extent(*np.asarray(extent, dtype=float))
-    G_T_S = ramp.G_T_S()
-    corners_S = np.array(
-        [[e.x_min, e.y_min, 0], [e.x_max, e.y_min, 0], [e.x_max, e.y_max, 0], [e.x_min, e.y_max, 0]]
+    corners_G = terrain.surface_G(
+        [e.x_min, e.x_max, e.x_max, e.x_min], [e.y_min, e.y_min, e.y_max, e.y_max]
     )
-    patch = LayerPolys([transform_points(G_T_S, corners_S)], GROUND_RANK, facecolors=color)
+    patch = LayerPolys([corners_G], GROUND_RANK, facecolors=color)
     patch.set_alpha(alpha)
     patch.set_edgecolor("0.5")
-    patch.set_gid("ramp")
+    patch.set_gid("ground")
     ax3d.add_collection3d(patch)
     artists: list[Any] = [patch]
     if grid:
         xs = np.arange(np.ceil(e.x_min / grid) * grid, e.x_max + 1e-9, grid)
         ys = np.arange(np.ceil(e.y_min / grid) * grid, e.y_max + 1e-9, grid)
-        segments_S = [[[x, e.y_min, 0], [x, e.y_max, 0]] for x in xs]
-        segments_S += [[[e.x_min, y, 0], [e.x_max, y, 0]] for y in ys]
-        lines = LayerLines(
-            transform_points(G_T_S, np.array(segments_S)), GROUND_RANK, colors="0.7", linewidths=0.5
-        )
-        lines.set_gid("ramp_grid")
+        segments_M = [[[x, e.y_min], [x, e.y_max]] for x in xs]
+        segments_M += [[[e.x_min, y], [e.x_max, y]] for y in ys]
+        seg = np.array(segments_M).reshape(-1, 2, 2)
+        segments_G = terrain.surface_G(seg[..., 0], seg[..., 1])
+        lines = LayerLines(segments_G, GROUND_RANK, colors="0.7", linewidths=0.5)
+        lines.set_gid("ground_grid")
         ax3d.add_collection3d(lines)
         artists.append(lines)
     return artists
 
 
-def draw_path_on_ramp(
-    ax3d: Any, ramp: Ramp, points_S: ArrayLike, color: Any = "0.35", **kwargs: Any
+def draw_path_on_ground(
+    ax3d: Any, terrain: Terrain, points_S: ArrayLike, color: Any = "0.35", **kwargs: Any
 ) -> Line3DCollection:
-    """Draw a polyline given in the slope frame S, (n, 2) or (n, 3) [m], on the ramp (gid ``path``).
+    """Draw a polyline given in the map frame M, (n, 2) or (n, 3) [m], on the ground (gid ``path``).
 
     Args:
         ax3d: matplotlib 3-D axes.
-        ramp: the ramp.
-        points_S: polyline vertices in S [m] (z = 0 if only x, y are given).
+        terrain: the ground.
+        points_S: polyline vertices in M [m] (on the ground, lifted slightly, if only x, y
+            are given).
         color: line colour.
         **kwargs: passed to ``Line3DCollection`` (``linestyles``, ``linewidths``, ...).
     """
     p = np.asarray(points_S, dtype=float)
     if p.shape[1] == 2:
-        p = np.column_stack([p, np.full(len(p), SUPPORT_LIFT)])
+        up_G = terrain.G_T_M()[:3, 2]
+        p_G = terrain.surface_G(p[:, 0], p[:, 1]) + SUPPORT_LIFT * up_G
+    else:
+        p_G = transform_points(terrain.G_T_M(), p)
     kwargs = {"linestyles": "--", "linewidths": 1.0, **kwargs}
-    lines = LayerLines([transform_points(ramp.G_T_S(), p)], PATH_RANK, colors=color, **kwargs)
+    lines = LayerLines([p_G], PATH_RANK, colors=color, **kwargs)
     lines.set_gid("path")
     ax3d.add_collection3d(lines)
     return lines
@@ -349,10 +352,10 @@ def mesh_points(meshes: dict[str, list[FloatArray]]) -> FloatArray:
     return np.concatenate([np.concatenate(faces) for faces in meshes.values()])
 
 
-def draw_poses_on_ramp(
+def draw_poses_on_ground(
     ax3d: Any,
     robot: Robot,
-    ramp: Ramp,
+    terrain: Terrain,
     poses: ArrayLike,
     postures: ArrayLike,
     arm_colors: list[Any] | None = None,
@@ -360,33 +363,33 @@ def draw_poses_on_ramp(
     path_S: ArrayLike | None = None,
     margin: float = 0.3,
 ) -> list[list[Poly3DCollection]]:
-    """Draw the robot at several base poses on a ramp patch that holds them all.
+    """Draw the robot at several base poses on a ground patch that holds them all.
 
     Args:
         ax3d: matplotlib 3-D axes.
         robot: the robot.
-        ramp: the ramp.
+        terrain: the ground.
         poses: base poses (P, 3) of (x, y, heading) in S [m, m, rad].
         postures: arm joint angles (P, 4) [rad], one per pose.
         arm_colors: face colour of the arm at each pose; ``None`` = :data:`ARM_COLOR`.
         labels: text written above each pose's base; ``None`` for none.
-        path_S: a path (n, 2) in S drawn dashed on the ramp [m], e.g. the circle; or ``None``.
-        margin: ramp patch margin around the robots [m].
+        path_S: a path (n, 2) in M drawn dashed on the ground [m], e.g. the circle; or ``None``.
+        margin: ground patch margin around the robots [m].
 
     Returns:
         Per pose, the artists of :func:`draw_robot` (nine bodies each).
     """
     P = np.asarray(poses, dtype=float).reshape(-1, 3)
     Q = np.asarray(postures, dtype=float).reshape(-1, 4)
-    G_T_Bs = [ramp.G_T_B(p) for p in P]
+    G_T_Bs = [terrain.G_T_B(p) for p in P]
     pts_G = np.concatenate(
         [mesh_points(robot_meshes(robot, q, T)) for q, T in zip(Q, G_T_Bs, strict=True)]
     )
-    pts_S = transform_points(np.linalg.inv(ramp.G_T_S()), pts_G)
+    pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)
     lo, hi = pts_S.min(axis=0) - margin, pts_S.max(axis=0) + margin
-    draw_ramp(ax3d, ramp, Extent(lo[0], hi[0], lo[1], hi[1]))
+    draw_ground(ax3d, terrain, Extent(lo[0], hi[0], lo[1], hi[1]))
     if path_S is not None:
-        draw_path_on_ramp(ax3d, ramp, path_S)
+        draw_path_on_ground(ax3d, terrain, path_S)
     out = []
     for k, (q, T) in enumerate(zip(Q, G_T_Bs, strict=True)):
         color = ARM_COLOR if arm_colors is None else arm_colors[k]
@@ -395,6 +398,6 @@ def draw_poses_on_ramp(
             top = transform_points(T, np.array([0.0, 0.0, 0.5]))
             ax3d.text(*top, labels[k], fontsize=8, ha="center", weight="bold", zorder=1e4)
     corners_S = np.array([[lo[0], lo[1], 0], [hi[0], hi[1], 0]])
-    set_equal_aspect(ax3d, np.vstack([pts_G, transform_points(ramp.G_T_S(), corners_S)]))
+    set_equal_aspect(ax3d, np.vstack([pts_G, transform_points(terrain.G_T_M(), corners_S)]))
     ax3d.set(xlabel="$x_G$ [m]", ylabel="$y_G$ [m]", zlabel="$z_G$ [m]")
     return out

@@ -1,13 +1,13 @@
-"""Stability planner (paper Section II-D, Eq. 6; DESIGN.md §5).
+"""Stability planner (paper Section II-D, Eq. 6; ``docs/design.md``, "Planner").
 
 Per base pose on the ramp, CMA-ES (pycma, ask/tell) searches the arm CoM g_a (body
 frame) inside the workspace V that maximises
 
     fitness = w_stability mu(g_a) / mu_max - w_motion |g_a - g_a_prev|^2 / d_workspace^2
 
-(Eq. 6 with the DESIGN.md errata: the decision variable and the motion penalty are on
-the *arm* CoM, the penalty is the squared Euclidean norm). Samples outside V are
-discarded and re-asked. Two starts, the FK CoMs of link0 = 2.0 and 5.0 rad with the
+(Eq. 6 with the errata of ``docs/design.md``, "Planner": the decision variable and the
+motion penalty are on the *arm* CoM, the penalty is the squared Euclidean norm). Samples
+outside V are discarded and re-asked. Two starts, the FK CoMs of link0 = 2.0 and 5.0 rad with the
 other joints at zero; the better one is kept. No IK inside the loop (as in the paper);
 after convergence :mod:`mmstab.ik` finds a collision-free posture that realises it.
 
@@ -33,7 +33,7 @@ from mmstab.problem import SECTION_CHECKS, Problem
 from mmstab.robot import FloatArray, Robot
 from mmstab.stability import base_polygon, force_angle_batch
 from mmstab.stability import mu_max as stowed_flat_mu
-from mmstab.terrain import Ramp
+from mmstab.terrain import Terrain
 
 
 class CoMRegion(Protocol):
@@ -304,7 +304,7 @@ def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> Fl
 
 def solve_pose(
     robot: Robot,
-    ramp: Ramp,
+    terrain: Terrain,
     region: CoMRegion,
     pose: ArrayLike,
     previous_com: ArrayLike,
@@ -317,7 +317,7 @@ def solve_pose(
 
     Args:
         robot: the robot.
-        ramp: the ramp.
+        terrain: the ground.
         region: the workspace V (``contains``, ``diameter``).
         pose: base pose (x, y, heading) in S [m, m, rad].
         previous_com: arm CoM at the previous pose, body frame [m] (Eq. 6 penalty).
@@ -331,7 +331,7 @@ def solve_pose(
     fitness = Fitness(
         robot=robot,
         polygon=base_polygon(robot).vertices,
-        gravity_body=ramp.gravity_body([pose[2]])[0],
+        gravity_body=terrain.gravity_body(pose)[0],
         previous_com=np.asarray(previous_com, dtype=float),
         mu_max=stowed_flat_mu(robot) if mu_max is None else mu_max,
         diameter=float(region.diameter),
@@ -379,7 +379,7 @@ class Plan(NamedTuple):
 
 def solve_path(
     robot: Robot,
-    ramp: Ramp,
+    terrain: Terrain,
     region: CoMRegion,
     poses: ArrayLike,
     settings: PlannerSettings,
@@ -389,7 +389,7 @@ def solve_path(
 
     Args:
         robot: the robot.
-        ramp: the ramp.
+        terrain: the ground.
         region: the workspace V.
         poses: base poses (K, 3) in S.
         settings: planner settings (its ``seed`` seeds the planner's generator).
@@ -403,7 +403,7 @@ def solve_path(
     previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
     targets, postures, free = [], [], []
     for pose in poses:
-        t = solve_pose(robot, ramp, region, pose, previous_com, settings, rng, mu_max, starts)
+        t = solve_pose(robot, terrain, region, pose, previous_com, settings, rng, mu_max, starts)
         targets.append(t)
         previous_com = t.target_com
         if realise is not None:
@@ -448,4 +448,4 @@ def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -
     settings = PlannerSettings.from_section(problem.section("planner"))
     solver = PostureSolver(problem.robot, ws)
     poses = problem.circle.poses(settings.poses)
-    return solve_path(problem.robot, problem.ramp, ws, poses, settings, solver.realise)
+    return solve_path(problem.robot, problem.terrain, ws, poses, settings, solver.realise)

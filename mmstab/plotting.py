@@ -26,12 +26,12 @@ def new_figure(*args: Any, **kwargs: Any) -> tuple[Any, Any]:
 def draw_base_topview(
     ax: Any, robot: Robot, pose: ArrayLike, color: str = "C0", label: str | None = None
 ) -> None:
-    """Draw the base's track footprint and heading, seen from above the slope (frame S).
+    """Draw the base's track footprint and heading, seen from above (the map frame M).
 
     Args:
         ax: matplotlib 2-D axes.
         robot: the robot.
-        pose: (x, y, heading) in S [m, m, rad].
+        pose: (x, y, yaw) in M [m, m, rad].
         color: matplotlib colour.
         label: optional text written at the pose.
     """
@@ -48,7 +48,7 @@ def draw_base_topview(
 
 
 def draw_circle(ax: Any, circle: CirclePath, **kwargs: Any) -> None:
-    """Draw the circular path in the slope frame."""
+    """Draw the circular path in the map frame M."""
     xy = circle.pose_at(np.linspace(0, 1, 200))[:, :2]
     ax.plot(xy[:, 0], xy[:, 1], **{"color": "0.6", "ls": "--", "lw": 1, **kwargs})
 

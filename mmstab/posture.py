@@ -43,11 +43,11 @@ from mmstab.reference import (
     PathSample,
     PlanLike,
     periodic_spline,
-    place_body_com,
+    place_on_path,
     posture_reference,
 )
 from mmstab.robot import FloatArray, Robot
-from mmstab.terrain import CirclePath
+from mmstab.terrain import CirclePath, Terrain
 
 #: At most this many repair rounds (each adds one via posture per colliding stretch).
 MAX_REPAIR_ROUNDS = 8
@@ -139,20 +139,21 @@ class PostureReference:
         """Its arm CoM g_a^B(q_ref(s)) (N, 3) [m] and d/ds (N, 3) [m]: the CoM reference."""
         return posture_com(self.robot, self(s))
 
-    def arm_reference(self, circle: CirclePath) -> Any:
-        """The arm-CoM reference in S: its CoM placed with the reference base pose.
+    def arm_reference(self, circle: CirclePath, terrain: Terrain) -> Any:
+        """The arm-CoM reference in M: its CoM placed with the reference base pose.
 
         Args:
             circle: the base path.
+            terrain: the ground.
 
         Returns:
-            ``s -> PathSample``: g_a^S (N, 3) [m] and d/ds (N, 3) [m], as
+            ``s -> PathSample``: g_a^M (N, 3) [m] and d/ds (N, 3) [m], as
             :func:`mmstab.reference.arm_reference` places the plan's CoMs.
         """
 
         def reference(s: ArrayLike) -> PathSample:
             s = np.atleast_1d(np.asarray(s, dtype=float))
-            return place_body_com(circle, s, self.com_body(s))
+            return place_on_path(circle, terrain, s, self.com_body(s))
 
         return reference
 

@@ -18,7 +18,7 @@ from mmstab.codegen import check_settings as _check_codegen
 from mmstab.config import ConfigError, read_yaml, validate
 from mmstab.controller import check_settings as _check_controller
 from mmstab.robot import Robot, load_robot
-from mmstab.terrain import CirclePath, Ramp
+from mmstab.terrain import CirclePath, Terrain, from_section
 
 #: Semantic checks of a section beyond the schema: (problem path, section) -> None or raise.
 SECTION_CHECKS: dict[str, Callable[[Path, dict[str, Any]], None]] = {}
@@ -34,15 +34,20 @@ class Problem:
         path: the problem file.
         data: its validated content (sections by name).
         robot: the robot it names.
-        ramp: the planar ramp.
-        circle: the base reference path on the ramp.
+        terrain: the ground (:func:`mmstab.terrain.from_section` of the ``terrain:`` section).
+        circle: the base reference path, in the terrain's map frame.
     """
 
     path: Path
     data: dict[str, Any]
     robot: Robot
-    ramp: Ramp
+    terrain: Terrain
     circle: CirclePath
+
+    @property
+    def ramp(self) -> Terrain:
+        """Transitional alias of :attr:`terrain` (code written before the terrain interface)."""
+        return self.terrain
 
     @property
     def name(self) -> str:
@@ -72,11 +77,12 @@ def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Pro
     for name, check in SECTION_CHECKS.items():
         check(p, data[name])
     c = data["path"]
+    robot = load_robot(robot_path)
     return Problem(
         path=p,
         data=data,
-        robot=load_robot(robot_path),
-        ramp=Ramp(data["terrain"]["slope"]),
+        robot=robot,
+        terrain=from_section(p, data["terrain"], robot),
         circle=CirclePath(
             center=tuple(c["center"]),
             radius=float(c["radius"]),

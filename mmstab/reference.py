@@ -2,18 +2,24 @@
 
 Everything is a function of the path fraction s ∈ [0, 1) (one lap; s = t / lap_time for a
 constant-speed lap), vectorised over s, and returns the value and its derivative d/ds (so the
-feed-forward is ξ̇_ref = d ξ_des/ds / lap_time):
+feed-forward is ξ̇_ref = d ξ_des/ds / lap_time).
+
+**One placement.** Body points are placed in the map frame M by the terrain package's one
+placement (:func:`mmstab.terrain.place_local`, the controller's task map evaluated in NumPy)
+at the reference pose and its local ground; the rates are its Jacobians times the pose's and
+the point's rates, d/ds place(pose(s), p(s)) = ∂place/∂pose · pose'(s) + M_R_B · p'(s) (the
+local ground's own rate is not included: zero on the ramp, ``docs/controller-terrain.md``).
 
 - :func:`base_reference`: the base rows [g_bx, g_by, γ] of ξ: the control point a distance
   ``base_offset`` ahead of the circle's reference pose, and the tangent heading.
-- :func:`arm_reference`: the arm-CoM rows [g_ax, g_ay, g_az] in S: the planned body-frame CoM
+- :func:`arm_reference`: the arm-CoM rows [g_ax, g_ay, g_az] in M: the planned body-frame CoM
   targets interpolated along the lap (periodic cubic spline in s) and placed with the
-  reference base pose, g_a^S(s) = [x, y, 0](s) + Rz(γ(s)) g_a^B(s).
+  reference base pose, g_a^M(s) = place(pose(s), g_a^B(s)).
 - :func:`posture_reference`: the arm posture reference q_ref(s): the plan's postures
   interpolated along the lap (the same periodic cubic spline), a full-turn joint (the turret)
   unwrapped so that it takes the short way between postures when its limits allow it.
 - :func:`task_reference`: all of it at times t, as the controller's
-  :class:`~mmstab.tasks.StepReference` (ξ_des, ξ̇_ref, q_ref, q̇_ref), rates per second.
+  :class:`~mmstab.layout.StepReference` (ξ_des, ξ̇_ref, q_ref, q̇_ref), rates per second.
 """
 
 from __future__ import annotations
@@ -25,9 +31,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
+from mmstab.layout import StepReference
 from mmstab.robot import FloatArray
-from mmstab.tasks import StepReference
-from mmstab.terrain import CirclePath
+from mmstab.terrain import CirclePath, Terrain, place_local
 
 #: A joint whose range is at least a full turn less this [rad] is unwrapped (the turret).
 FULL_TURN_TOL = 1e-6
@@ -55,7 +61,7 @@ class PathSample(NamedTuple):
 
 
 def circle_pose(circle: CirclePath, s: ArrayLike) -> PathSample:
-    """Reference base pose (x, y, γ) in S at fractions s, and its derivative d/ds (N, 3)."""
+    """Reference base pose (x, y, γ) in M at fractions s, and its derivative d/ds (N, 3)."""
     s = np.atleast_1d(np.asarray(s, dtype=float))
     dphi = circle.sign * 2 * np.pi  # d phi / ds [rad]
     phi = circle.start_angle + dphi * s
@@ -70,19 +76,64 @@ def circle_pose(circle: CirclePath, s: ArrayLike) -> PathSample:
     return PathSample(circle.pose_at(s), rate)
 
 
-def base_reference(circle: CirclePath, s: ArrayLike, base_offset: float) -> PathSample:
+def place_on_path(
+    circle: CirclePath, terrain: Terrain, s: ArrayLike, point_body: PathSample
+) -> PathSample:
+    """Body points placed in M with the reference base pose, and their rate d/ds.
+
+    Args:
+        circle: the base path.
+        terrain: the ground (gives the local ground of each reference pose).
+        s: path fractions (N,) [-].
+        point_body: points in B (N, 3) [m] and their rates d/ds (N, 3) [m].
+
+    Returns:
+        The placed points (N, 3) [m] and d/ds = ∂place/∂pose · pose' + M_R_B · p' (N, 3) [m].
+    """
+    pose, dpose = circle_pose(circle, s)
+    placed = place_local(pose, terrain.local_ground(pose), point_body.value)
+    rate = np.einsum("nij,nj->ni", placed.d_pose, dpose)
+    rate += np.einsum("nij,nj->ni", placed.d_point, point_body.rate)
+    return PathSample(placed.points, rate)
+
+
+def base_reference(
+    circle: CirclePath, terrain: Terrain, s: ArrayLike, base_offset: float
+) -> PathSample:
     """Base task rows [g_bx, g_by, γ] at fractions s (N, 3), and d/ds.
 
     Args:
         circle: the base path.
+        terrain: the ground.
         s: path fractions (N,) [-].
         base_offset: control point ahead of the body origin [m] (as the controller's).
     """
     pose, dpose = circle_pose(circle, s)
-    c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    value = pose + base_offset * np.stack([c, sn, np.zeros_like(c)], axis=1)
-    rate = dpose + base_offset * dpose[:, 2:3] * np.stack([-sn, c, np.zeros_like(c)], axis=1)
-    return PathSample(value, rate)
+    fixed = np.broadcast_to([base_offset, 0.0, 0.0], pose.shape)
+    point = place_on_path(circle, terrain, s, PathSample(fixed, np.zeros_like(pose)))
+    return PathSample(
+        np.column_stack([point.value[:, :2], pose[:, 2]]),
+        np.column_stack([point.rate[:, :2], dpose[:, 2]]),
+    )
+
+
+def initial_state(circle: CirclePath, arm: ArrayLike, lateral_offset: float = 0.0) -> FloatArray:
+    """A run's first state: the path's start pose, shifted sideways, sprockets at zero.
+
+    Args:
+        circle: the base path (its pose at s = 0).
+        arm: the arm posture (4,) [rad] (e.g. the robot's stowed posture or a plan's first).
+        lateral_offset: shift of the base to the left of the path [m].
+
+    Returns:
+        [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
+    """
+    pose = circle.pose_at(0.0)[0]
+    left = np.array([-np.sin(pose[2]), np.cos(pose[2])])
+    arm = np.asarray(arm, dtype=float)
+    if arm.shape != (4,):
+        raise ValueError(f"the arm posture must be (4,), got {arm.shape}")
+    return np.r_[pose[:2] + lateral_offset * left, pose[2], 0.0, 0.0, arm]
 
 
 def _check_fractions(f: FloatArray, values: FloatArray, name: str) -> None:
@@ -126,15 +177,18 @@ def periodic_spline(
     return periodic
 
 
-def arm_reference(plan: PlanLike, circle: CirclePath) -> Callable[[ArrayLike], PathSample]:
-    """The arm-CoM reference in S along the lap, from a plan's body-frame targets.
+def arm_reference(
+    plan: PlanLike, circle: CirclePath, terrain: Terrain
+) -> Callable[[ArrayLike], PathSample]:
+    """The arm-CoM reference in M along the lap, from a plan's body-frame targets.
 
     Args:
         plan: ``fractions`` (K,) increasing in [0, 1) and ``target_com`` (K, 3) [m] in B.
         circle: the base path (gives the reference base pose at each s).
+        terrain: the ground.
 
     Returns:
-        ``ref(s) -> PathSample`` with g_a^S (N, 3) [m] and d g_a^S / ds (N, 3) [m].
+        ``ref(s) -> PathSample`` with g_a^M (N, 3) [m] and d g_a^M / ds (N, 3) [m].
 
     Raises:
         ValueError: fractions not increasing in [0, 1), or shapes that do not match.
@@ -145,31 +199,9 @@ def arm_reference(plan: PlanLike, circle: CirclePath) -> Callable[[ArrayLike], P
 
     def reference(s: ArrayLike) -> PathSample:
         s = np.atleast_1d(np.asarray(s, dtype=float))
-        return place_body_com(circle, s, com_body(s))
+        return place_on_path(circle, terrain, s, com_body(s))
 
     return reference
-
-
-def place_body_com(circle: CirclePath, s: ArrayLike, com_body: PathSample) -> PathSample:
-    """Body-frame arm CoMs placed with the reference base pose: g_a^S = [x, y, 0] + Rz(γ) g_a^B.
-
-    Args:
-        circle: the base path.
-        s: path fractions (N,) [-].
-        com_body: g_a^B (N, 3) [m] and d g_a^B / ds (N, 3) [m] at s.
-
-    Returns:
-        g_a^S (N, 3) [m] and d g_a^S / ds (N, 3) [m].
-    """
-    (pose, dpose), (g_B, dg_B) = circle_pose(circle, s), com_body
-    c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    rotated = np.stack([c * g_B[:, 0] - sn * g_B[:, 1], sn * g_B[:, 0] + c * g_B[:, 1]], 1)
-    d_rot = np.stack([c * dg_B[:, 0] - sn * dg_B[:, 1], sn * dg_B[:, 0] + c * dg_B[:, 1]], 1)
-    value = np.column_stack([pose[:, :2] + rotated, g_B[:, 2]])
-    # d/ds [Rz(γ) g] = γ' ẑ × (Rz g) + Rz g'
-    turn = dpose[:, 2:3] * np.stack([-rotated[:, 1], rotated[:, 0]], axis=1)
-    rate = np.column_stack([dpose[:, :2] + turn + d_rot, dg_B[:, 2]])
-    return PathSample(value, rate)
 
 
 def unwrap_postures(postures: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> FloatArray:
@@ -255,6 +287,7 @@ class ApproachLike(Protocol):
 
 def task_reference(
     circle: CirclePath,
+    terrain: Terrain,
     lap_time: float,
     base_offset: float,
     arm: Callable[[ArrayLike], PathSample],
@@ -266,6 +299,7 @@ def task_reference(
 
     Args:
         circle: the base path.
+        terrain: the ground (the local ground of the reference poses is in the reference).
         lap_time: time for one lap [s].
         base_offset: base control point ahead of the body origin [m].
         arm: the arm-CoM reference (e.g. from :func:`arm_reference`).
@@ -276,21 +310,22 @@ def task_reference(
             posture reference.
 
     Returns:
-        ξ_des (N, 6), ξ̇_ref (N, 6) [m/s, rad/s], q_ref (N, 4) [rad], q̇_ref (N, 4) [rad/s];
-        ``.pack()`` gives the (N, 20) rows the ``step`` Function takes.
+        ξ_des (N, 6), ξ̇_ref (N, 6) [m/s, rad/s], q_ref (N, 4) [rad], q̇_ref (N, 4) [rad/s],
+        the local ground (N, 3); ``.pack()`` gives the (N, 23) rows the ``step`` Function takes.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     s = t / lap_time
-    base, arm_s, q = base_reference(circle, s, base_offset), arm(s), posture(s)
+    base, arm_s, q = base_reference(circle, terrain, s, base_offset), arm(s), posture(s)
     ref = StepReference(
         xi_des=np.hstack([base.value, arm_s.value]),
         xi_dot_ref=np.hstack([base.rate, arm_s.rate]) / lap_time,
         q_ref=np.array(q.value),
         q_dot_ref=q.rate / lap_time,
+        ground=terrain.local_ground(circle_pose(circle, s).value),
     )
     if approach is not None and np.any(early := t < approach.duration):
         g_B, dg_B = approach.com_body(t[early])
-        placed = place_body_com(circle, s[early], PathSample(g_B, dg_B * lap_time))
+        placed = place_on_path(circle, terrain, s[early], PathSample(g_B, dg_B * lap_time))
         ref.xi_des[early, 3:], ref.xi_dot_ref[early, 3:] = placed.value, placed.rate / lap_time
         ref.q_ref[early], ref.q_dot_ref[early] = approach.posture(t[early])
     return ref

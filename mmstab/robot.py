@@ -1,7 +1,7 @@
 """Robot description: a tracked base (body, two tracks, two flippers) and a 4-DoF arm.
 
 Loaded from YAML (``problems/robots/*.yaml``), validated once, and held as frozen
-dataclasses of NumPy arrays. Frames follow ``DESIGN.md`` §2: the body frame B has its
+dataclasses of NumPy arrays. Frames follow ``docs/design.md``, "Frames": the body frame B has its
 origin at the centre of the track-ground contact rectangle, x forward, y left, z up
 along the plane normal.
 """

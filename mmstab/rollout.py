@@ -12,9 +12,9 @@ backends that compute the same thing:
 - ``"generated"``: the same chunk compiled to C (:func:`mmstab.codegen.generate`, cached) and
   called through ``casadi.external``.
 
-The inputs of a run (:class:`RunInputs`: parameters, initial state, reference table, track
-geometry) are also what the standalone C example reads (:func:`write_run_file`), so the Python
-and the C closed loops can be compared number for number.
+The inputs of a run (:class:`RunInputs`: parameters, initial state, reference table) are also
+what the standalone C example reads (:func:`write_run_file`), so the Python and the C closed
+loops can be compared number for number.
 """
 
 from __future__ import annotations
@@ -37,12 +37,10 @@ from mmstab.codegen import (
 )
 from mmstab.config import _atomic
 from mmstab.controller import (
-    _SINC_SERIES_BELOW,
     ARM,
     JOINT_COUNT,
     REFERENCE_SIZE,
     STATE_SIZE,
-    TASK_SIZE,
     Controller,
     ControllerParams,
     ControllerSettings,
@@ -51,13 +49,14 @@ from mmstab.controller import (
     build_controller,
 )
 from mmstab.posture import PosturePlan, PostureReference
+from mmstab.reference import initial_state
 from mmstab.robot import FloatArray, Robot
 
 if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 BACKENDS = ("python", "casadi", "generated")
-RUN_FILE_MAGIC = b"MMSTRUN1"  #: first 8 bytes of a run file (embedded/run_file.h)
+RUN_FILE_MAGIC = b"MMSTRUN2"  #: first 8 bytes of a run file (embedded/run_file.h)
 
 
 class ExamplePlan(NamedTuple):
@@ -103,18 +102,15 @@ class RunInputs(NamedTuple):
         dt: control period = integration step [s].
         params: the controller's packed parameters (42,).
         state0: initial state (9,) [m, m, rad, rad...].
-        reference: packed :class:`~mmstab.tasks.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
-            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 20); the last row is only used
+        reference: packed :class:`~mmstab.layout.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
+            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 23); the last row is only used
             to measure the final tracking error.
-        track: [sprocket radius [m], track separation [m], |ω dt / 2| below which the arc's
-            sin(a)/a uses its series [rad]] (the C example's own integrator).
     """
 
     dt: float
     params: FloatArray
     state0: FloatArray
     reference: FloatArray
-    track: FloatArray
 
     @property
     def steps(self) -> int:
@@ -133,30 +129,6 @@ def controller_settings(problem: Problem, plugin: str | None = None) -> Controll
     return dataclasses.replace(settings, plugin=plugin or codegen_plugin(problem))
 
 
-def initial_state(
-    problem: Problem,
-    plan: PosturePlan,
-    *,
-    lateral_offset: float = 0.0,
-    arm: FloatArray | None = None,
-) -> FloatArray:
-    """A start state: the circle's first pose, shifted sideways, sprockets at zero.
-
-    Args:
-        problem: the problem (circle).
-        plan: the plan; its first posture (``plan.postures[0]``, if it has postures) is the
-            arm's start unless ``arm`` is given; else the stowed posture.
-        lateral_offset: shift of the base to the left of the path [m].
-        arm: arm posture (4,) [rad].
-    """
-    pose = problem.circle.pose_at(0.0)[0]
-    left = np.array([-np.sin(pose[2]), np.cos(pose[2])])
-    if arm is None:
-        postures = getattr(plan, "postures", None)
-        arm = problem.robot.stowed if postures is None else np.asarray(postures)[0]
-    return np.r_[pose[:2] + lateral_offset * left, pose[2], 0.0, 0.0, arm]
-
-
 def run_inputs(
     problem: Problem,
     plan: PosturePlan,
@@ -173,7 +145,8 @@ def run_inputs(
         plan: the arm reference (``fractions``, ``target_com``, ``postures``), e.g. the
             planner's ``Plan``.
         steps: control steps (default ``controller.duration / controller.dt``).
-        state0: initial state (9,) (default :func:`initial_state`).
+        state0: initial state (9,) (default :func:`mmstab.reference.initial_state` with the
+            plan's first posture, or the stowed arm for a plan without postures).
         settings: controller settings (default the problem's).
         posture: the lap's posture reference (default
             :func:`mmstab.posture.build_posture_reference` of the plan, checked at every
@@ -185,19 +158,21 @@ def run_inputs(
     if n < 1:
         raise ValueError(f"a run needs at least one step, got {n}")
     t = np.arange(n + 1) * settings.dt
-    x0 = np.asarray(initial_state(problem, plan) if state0 is None else state0, dtype=float)
+    if state0 is None:
+        postures = getattr(plan, "postures", None)
+        arm = problem.robot.stowed if postures is None else np.asarray(postures)[0]
+        state0 = initial_state(problem.circle, arm)
+    x0 = np.asarray(state0, dtype=float)
     if x0.shape != (STATE_SIZE,):
         raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
     reference = run_reference(
-        problem.robot, problem.circle, plan, x0[ARM], settings, t, posture
+        problem.robot, problem.circle, problem.terrain, plan, x0[ARM], settings, t, posture
     ).step
-    tracks = problem.robot.base.tracks
     return RunInputs(
         dt=settings.dt,
         params=ControllerParams.from_settings(problem.robot, settings).pack(),
         state0=x0,
         reference=reference.pack(),
-        track=np.array([tracks.sprocket_radius, tracks.separation, _SINC_SERIES_BELOW]),
     )
 
 
@@ -228,9 +203,12 @@ class Rollout(NamedTuple):
 
 
 def tracking_errors(ctrl: Controller, states: FloatArray, reference: FloatArray) -> FloatArray:
-    """ξ_des − ξ(state) per row (N, 6), heading error wrapped to (−π, π]."""
-    xi = np.asarray(ctrl.model.f_task.map(len(states))(states.T)).T
-    e = reference[:, :TASK_SIZE] - xi
+    """ξ_des − ξ(state) per row (N, 6), heading error wrapped to (−π, π].
+
+    ξ is evaluated with each row's local ground, as the controller's step sees it.
+    """
+    ref = StepReference.unpack(reference)
+    e = ref.xi_des - ctrl.model.task_batch(states, ref.ground)
     e[:, 2] = np.arctan2(np.sin(e[:, 2]), np.cos(e[:, 2]))
     return e
 
@@ -271,7 +249,7 @@ def _chunk_loop(chunk: ca.Function, inputs: RunInputs) -> tuple[FloatArray, ...]
     for i, a in enumerate((out_x, out_q, out_s)):
         buf.set_res(i, memoryview(a))  # type: ignore[arg-type]
     for c in range(chunks):
-        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 20) = column-major 20 x size
+        r[:] = padded[c * size : (c + 1) * size]  # row-major (size, 23) = column-major 23 x size
         run()
         m = min(size, n - c * size)
         k = c * size
@@ -301,7 +279,8 @@ def rollout(
         backend: ``"python"`` (step loop), ``"casadi"`` (interpreted chunks) or
             ``"generated"`` (compiled chunks).
         steps: control steps (default ``controller.duration / controller.dt``).
-        state0: initial state (9,) (default :func:`initial_state`).
+        state0: initial state (9,) (default :func:`mmstab.reference.initial_state` with the
+            plan's first posture, or the stowed arm for a plan without postures).
         plugin: QP plugin (default ``codegen.plugin``); the same for every backend.
         inputs: the run's inputs, if already computed (then ``steps``/``state0`` are ignored).
         out_dir: where the generated backend's library lives (default ``codegen.directory``).
@@ -345,9 +324,9 @@ def run_file_path(directory: str | os.PathLike[str]) -> Path:
 def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
     """Write a run's inputs for the C example (format: ``embedded/run_file.h``), atomically.
 
-    Layout, little-endian: 8-byte magic ``MMSTRUN1``; int64 steps, state size, reference size,
-    parameter count, track-data count; float64 dt; params; state0; track data; reference rows
-    (steps + 1, 20), row-major.
+    Layout, little-endian: 8-byte magic ``MMSTRUN2``; int64 steps, state size, reference size,
+    parameter count; float64 dt; params; state0; reference rows
+    (steps + 1, 23), row-major.
     """
     sizes = np.array(
         [
@@ -355,11 +334,10 @@ def write_run_file(path: str | os.PathLike[str], inputs: RunInputs) -> Path:
             len(inputs.state0),
             inputs.reference.shape[1],
             len(inputs.params),
-            len(inputs.track),
         ],
         dtype="<i8",
     )
-    body = [np.array([inputs.dt]), inputs.params, inputs.state0, inputs.track, inputs.reference]
+    body = [np.array([inputs.dt]), inputs.params, inputs.state0, inputs.reference]
     data = RUN_FILE_MAGIC + sizes.tobytes()
     data += b"".join(np.ascontiguousarray(a, dtype="<f8").tobytes() for a in body)
 

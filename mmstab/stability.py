@@ -1,4 +1,6 @@
-"""Force-angle tip-over stability (Papadopoulos & Rey 1996; paper Eq. 2-5, DESIGN.md §3).
+"""Force-angle tip-over stability (Papadopoulos & Rey 1996; paper Eq. 2-5).
+
+Conventions and errata: ``docs/design.md``, "Force-angle".
 
 For each tip-over axis ``a_j = p_{j+1} - p_j`` of the support polygon (vertices ordered
 counter-clockwise about the polygon's normal, which points to the CoM's side):
@@ -8,9 +10,12 @@ counter-clockwise about the polygon's normal, which points to the CoM's side):
     mu = min_j theta_j |f_r|                      [N rad]
 
 ``atan2`` of the cross and dot products is the signed angle between the *unit* vectors
-f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see DESIGN.md errata),
+f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see the errata),
 smooth where ``sigma_j acos(.)`` is not. theta_j > 0 when the force line passes inside
 axis j, so mu > 0 exactly when the robot is statically stable.
+
+:func:`stability_along` gives μ along base poses on a terrain in the three cases the
+experiments compare (arm as it is, stowed, removed).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
 
 
 class SupportPolygon(NamedTuple):
@@ -169,7 +175,7 @@ def robot_force_angle(
 
     Args:
         robot: the robot.
-        gravity_body: gravity in B (B, 3) or (3,) [m/s^2] (see ``Ramp.gravity_body``).
+        gravity_body: gravity in B (B, 3) or (3,) [m/s^2] (see ``Terrain.gravity_body``).
         arm_com_body: arm CoM g_a in B (B, 3) or (3,) [m]; ``None`` = the arm removed.
 
     Returns:
@@ -187,3 +193,42 @@ def mu_max(robot: Robot) -> float:
     """The measure on flat ground with the arm stowed: the normaliser of Eq. 6 [N rad]."""
     flat = np.array([0.0, 0.0, -9.81])
     return float(robot_force_angle(robot, flat, robot.arm_com(robot.stowed)).mu[0])
+
+
+# ------------------------------------------------------------- the three cases along a run
+class StabilityCases(NamedTuple):
+    """Force-angle μ [N rad] along a sequence of base poses, per sample (N,).
+
+    Attributes:
+        reconfigured: with the arm as it is (moved, planned or swept).
+        arm_removed: the base alone.
+        stowed: with the arm held stowed on the same base poses.
+    """
+
+    reconfigured: FloatArray
+    arm_removed: FloatArray
+    stowed: FloatArray
+
+
+def stability_along(
+    robot: Robot, terrain: Terrain, poses: ArrayLike, arm_com_body: ArrayLike
+) -> StabilityCases:
+    """μ along base poses: with the given arm CoMs, with the arm removed, with it stowed.
+
+    The one place the planned/reconfigured, stowed and arm-removed cases are computed (the
+    tracking run, the plan's summary and the sweeps use it).
+
+    Args:
+        robot: the robot.
+        terrain: the ground (gravity in the body at each pose).
+        poses: base poses (N, 3) in the map frame M [m, m, rad].
+        arm_com_body: arm CoM in the body frame per pose (N, 3) or (3,) [m].
+    """
+    gravity = terrain.gravity_body(poses)
+    arm = np.broadcast_to(np.asarray(arm_com_body, dtype=float), gravity.shape)
+    stowed = np.broadcast_to(robot.arm_com(robot.stowed), gravity.shape)
+    return StabilityCases(
+        reconfigured=robot_force_angle(robot, gravity, arm).mu,
+        arm_removed=robot_force_angle(robot, gravity, None).mu,
+        stowed=robot_force_angle(robot, gravity, stowed).mu,
+    )

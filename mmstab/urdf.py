@@ -1,6 +1,6 @@
 """URDF export of a robot description (issue 7), so RViz, pinocchio, MuJoCo or Drake can load it.
 
-Tree (all frames follow ``DESIGN.md`` §2)::
+Tree (all frames follow ``docs/design.md``, "Frames")::
 
     base_link (= body frame B; no inertia of its own)
     ├── body, track_left, track_right, flipper_left, flipper_right   (fixed joints)

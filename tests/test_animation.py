@@ -21,7 +21,7 @@ def _run(robot, n: int):
     q = np.zeros((n, 4))
     q[:, 0] = np.linspace(0.5, 2.5, n)
     q[:, 1] = np.linspace(0.0, 0.8, n)
-    mu = robot_force_angle(robot, ramp.gravity_body(poses[:, 2]), robot.arm_com(q)).mu
+    mu = robot_force_angle(robot, ramp.gravity_body(poses), robot.arm_com(q)).mu
     return ramp, 2.0 * s, poses, q, mu
 
 

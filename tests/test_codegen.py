@@ -11,10 +11,12 @@ import pytest
 from conftest import write_problem
 
 import mmstab.codegen as codegen
-import mmstab.controller as controller_mod
+import mmstab.codegen.build as codegen_build
+import mmstab.controller.step as controller_step_mod
 from mmstab.cli import main
 from mmstab.codegen import (
     CODEGEN_PLUGINS,
+    PLANT_NAME,
     QPOASES_MESSAGE,
     ROLLOUT_CHUNK,
     STEP_NAME,
@@ -29,7 +31,6 @@ from mmstab.controller import (
     PARAMS_SIZE,
     REFERENCE_SIZE,
     STATE_SIZE,
-    TRACK_DATA_SIZE,
     ControllerParams,
     QPStatus,
     StepReference,
@@ -37,10 +38,10 @@ from mmstab.controller import (
     quiet_stdout,
 )
 from mmstab.problem import load_problem
+from mmstab.reference import initial_state
 from mmstab.rollout import (
     controller_settings,
     example_plan,
-    initial_state,
     rollout,
     run_inputs,
     write_run_file,
@@ -75,7 +76,8 @@ def random_cases(robot, rng: np.random.Generator, n: int):
         xi_des = np.r_[state[:2] + rng.normal(0, 0.2, 2), rng.uniform(-np.pi, np.pi)]
         xi_des = np.r_[xi_des, rng.uniform(-1, 1, 3)]
         q_ref = rng.uniform(lo - 0.05 * span, hi + 0.05 * span)
-        ref = np.r_[xi_des, rng.normal(0, 0.3, 6), q_ref, rng.normal(0, 1.0, 4)]
+        ground = rng.normal(0, 0.2, 3)  # any local ground: the step is terrain-agnostic
+        ref = np.r_[xi_des, rng.normal(0, 0.3, 6), q_ref, rng.normal(0, 1.0, 4), ground]
         if k % 50 == 49:
             bad = state if k % 100 == 49 else ref
             bad[rng.integers(0, bad.size)] = np.nan
@@ -104,12 +106,12 @@ def test_generated_step_equals_interpreted_on_1000_states(generated, problem, rn
 def test_solver_failure_gives_the_same_status_generated(problem, tmp_path, monkeypatch, rng):
     # a QP solver allowed one iteration fails on most QPs: without the post-processing the
     # generated step would abort ("Evaluation failed") instead of reporting SOLVER_FAILED
-    real = controller_mod._conic_options
+    real = controller_step_mod._conic_options
 
     def one_iteration(settings):
         return {**real(settings), "max_iter": 1}
 
-    monkeypatch.setattr(controller_mod, "_conic_options", one_iteration)
+    monkeypatch.setattr(controller_step_mod, "_conic_options", one_iteration)
     settings = controller_settings(problem, "qrqp")
     gen = generate((problem.robot, settings), tmp_path)
     ext, ctrl = gen.load(), build_controller(problem.robot, settings)
@@ -174,7 +176,7 @@ def test_layout_header_matches_the_python_layouts(generated_qrqp):
     defines = [line.split() for line in text.splitlines() if line.startswith("#define MMSTAB_")]
     macros = {d[1]: d[2] for d in defines if len(d) == 3}
     expected = {"STATE": STATE_SIZE, "REFERENCE": REFERENCE_SIZE, "PARAMS": PARAMS_SIZE}
-    for name, value in {**expected, "TRACK": TRACK_DATA_SIZE, "ARM": 4}.items():
+    for name, value in {**expected, "GROUND": 3, "ARM": 4}.items():
         assert int(macros[f"MMSTAB_N_{name}"]) == value, name
     for layout, prefix in ((StepReference, "REF"), (ControllerParams, "PARAM")):
         for field, sl in layout.offsets().items():
@@ -220,7 +222,9 @@ def test_load_step_uses_the_problem_codegen_section(tmp_path):
     assert (tmp_path / "gen" / "qrqp" / f"{STEP_NAME}.c").is_file()
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.1, -1.4, 0.2, 0.0, 0.0, 2.0, 0.3, -0.5, 0.2]
-    ref = np.r_[ctrl.model.task(state) + 0.01, np.zeros(6), state[5:] + 0.02, np.zeros(4)]
+    ref = np.r_[
+        ctrl.model.task(state) + 0.01, np.zeros(6), state[5:] + 0.02, np.zeros(4), np.zeros(3)
+    ]
     p = ctrl.params.pack()
     np.testing.assert_array_equal(
         np.asarray(step(state, ref, p)[0]), np.asarray(ctrl.step(state, ref, p)[0])
@@ -232,8 +236,8 @@ def test_qpoases_is_refused_before_casadi_is_called(problem, tmp_path, monkeypat
     def never(*args, **kwargs):
         raise AssertionError("CasADi was called")
 
-    monkeypatch.setattr(codegen, "build_controller", never)
-    monkeypatch.setattr(codegen.ca, "CodeGenerator", never)
+    monkeypatch.setattr(codegen_build, "build_controller", never)
+    monkeypatch.setattr(codegen_build.ca, "CodeGenerator", never)
     with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use qrqp"):
         generate(problem, tmp_path / "out", "qpoases")
     with pytest.raises(MmstabError, match="unknown QP plugin"):
@@ -277,7 +281,7 @@ def test_embedded_example_matches_the_python_closed_loop(problem, programs, tmp_
     progs = programs
     assert progs.compiler_stderr == ""
     plan = example_plan(problem.robot)
-    state0 = initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+    state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     inputs = run_inputs(problem, plan, steps=2000, state0=state0)
     run_file = write_run_file(tmp_path / "run.bin", inputs)
     proc = subprocess.run(
@@ -324,16 +328,20 @@ def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path
 def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
     progs = programs
     bad = tmp_path / "bad.bin"
-    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 8, PARAMS_SIZE, TRACK_DATA_SIZE]  # old layout
-    bad.write_bytes(b"MMSTRUN1" + np.array(sizes, "<i8").tobytes())
+    sizes = [10, STATE_SIZE, REFERENCE_SIZE - 3, PARAMS_SIZE]  # the reference before the ground
+    bad.write_bytes(b"MMSTRUN2" + np.array(sizes, "<i8").tobytes())
     proc = subprocess.run([str(progs.loop), str(bad)], capture_output=True, text=True)
     assert proc.returncode == 1 and "do not match the controller" in proc.stderr
+    old = tmp_path / "old.bin"  # the format with the hand-written plant's track data
+    old.write_bytes(b"MMSTRUN1" + np.array([*sizes, 3], "<i8").tobytes())
+    proc = subprocess.run([str(progs.loop), str(old)], capture_output=True, text=True)
+    assert proc.returncode == 1 and "not a run file" in proc.stderr
 
 
 # ----------------------------------------------------------------------------------- rollout
 def test_rollout_backends_equal_the_python_step_loop(problem, generated_qrqp):
     plan = example_plan(problem.robot)
-    state0 = initial_state(problem, plan, lateral_offset=0.05, arm=problem.robot.stowed)
+    state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     steps = ROLLOUT_CHUNK + 250  # a full chunk and a padded one
     inputs = run_inputs(problem, plan, steps=steps, state0=state0)
     ref = rollout(problem, plan, backend="python", inputs=inputs)
@@ -360,11 +368,35 @@ def test_python_step_loop_is_controller_step_and_f_integrate(problem):
     assert r.times[-1] == pytest.approx(20 * inputs.dt)
 
 
+def test_generated_plant_equals_the_simulation_plant(generated_qrqp, problem, rng):
+    """controller_plant (what the C example moves the robot with) is the Python plant."""
+    plant = generated_qrqp.load(PLANT_NAME)
+    ctrl = build_controller(problem.robot, controller_settings(problem))
+    r, b = problem.robot.base.tracks.sprocket_radius, problem.robot.base.tracks.separation
+    for k in range(40):
+        state = np.r_[rng.uniform(-2, 2, 3), rng.uniform(-9, 9, 6)]
+        qdot = rng.uniform(-5, 5, 6)
+        if k % 4 == 0:  # straight, and the series branch of sin(a)/a
+            qdot[1] = qdot[0] + (0.0 if k % 8 == 0 else 1e-9)
+        out = np.asarray(plant(state, qdot, 1e-3)).ravel()
+        np.testing.assert_allclose(out, ctrl.model.integrate(state, qdot, 1e-3), atol=1e-14)
+        # independently: the arc by hand (heading change ω dt, chord along the mid heading)
+        v, w = r * (qdot[0] + qdot[1]) / 2, r * (qdot[1] - qdot[0]) / b
+        assert out[2] == pytest.approx(state[2] + w * 1e-3, abs=1e-14)
+        mid = state[2] + w * 1e-3 / 2
+        chord = out[:2] - state[:2]
+        assert abs(chord @ [-np.sin(mid), np.cos(mid)]) < 1e-14
+        assert np.linalg.norm(chord) == pytest.approx(abs(v) * 1e-3, rel=1e-6, abs=1e-15)
+
+
 def test_example_task_function_is_exported(generated_qrqp, problem):
     task = generated_qrqp.load(TASK_NAME)
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.3, -1.2, 0.7, 1.0, 2.0, 2.2, 0.1, -0.3, 0.4]
-    np.testing.assert_allclose(np.asarray(task(state)).ravel(), ctrl.model.task(state), atol=1e-14)
+    ground = np.array([0.1, 0.05, -0.2])
+    np.testing.assert_allclose(
+        np.asarray(task(state, ground)).ravel(), ctrl.model.task(state, ground), atol=1e-14
+    )
     with pytest.raises(ValueError, match="not exported"):
         generated_qrqp.load("nope")
     assert isinstance(task, ca.Function)

@@ -95,6 +95,21 @@ def test_task_and_jacobian_match_numpy(robot, controllers, rng):
         )
 
 
+def test_task_on_a_tilted_local_ground_is_M_T_B_applied(robot, controllers, rng):
+    """With a nonzero local ground, ξ places the points with M_T_B = local_transforms(...)."""
+    from mmstab.terrain import local_transforms
+
+    model = controllers["qpoases"].model
+    for state in random_states(robot, rng, 10):
+        ground = rng.normal(0, 0.3, 3)
+        T = local_transforms(state[:3], ground)[0]
+        com_M = T[:3, :3] @ robot.arm_com(state[5:9]) + T[:3, 3]
+        point = T[:3, :3] @ [model.base_offset, 0, 0] + T[:3, 3]
+        np.testing.assert_allclose(
+            model.task(state, ground), np.r_[point[:2], state[2], com_M], atol=1e-12
+        )
+
+
 def test_jacobian_matches_finite_differences_of_integrated_motion(robot, controllers, rng):
     """(ξ(s after +h) − ξ(s after −h)) / 2h of the nonholonomic motion equals J q̇."""
     model = controllers["qpoases"].model
@@ -128,8 +143,9 @@ def test_integration_is_an_exact_arc_without_sideslip(robot, controllers, rng):
 
 
 # ------------------------------------------------------------------------------------ the QP
-def numpy_qp(robot, P, state, d, xi_des, xi_dot_ref, q_ref, q_dot_ref):
-    """H, g, the constant, ξ̇_des and q̇_post of Eq. 7 + the posture task, in NumPy."""
+def numpy_qp(robot, P, state, d, xi_des, xi_dot_ref, q_ref, q_dot_ref, ground):
+    """H, g, the constant, ξ̇_des and q̇_post of Eq. 7 + the posture task, in NumPy (ramp)."""
+    assert not np.any(ground)  # the ramp's local ground
     e = xi_des - numpy_task(robot, state, d)
     e[2] = wrap_angle(e[2])
     xdd = P.kp * e + P.feedforward * xi_dot_ref
@@ -149,6 +165,7 @@ def random_reference(robot, c, state, rng):
         rng.normal(0, 0.1, 6),
         rng.uniform(robot.joint_lower, robot.joint_upper),
         rng.normal(0, 0.3, 4),
+        np.zeros(3),
     )
 
 
@@ -171,10 +188,10 @@ def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
 def test_certificate_judges_the_posture_term(robot, controllers, rng):
     """The in-graph certificate uses the whole cost: the answer of Eq. 7 without the posture
     term is refused (SOLVER_FAILED), the true optimum accepted."""
-    from mmstab.controller import _build_guard_and_certificate
+    from mmstab.controller.certificate import build_guard_and_certificate
 
     c = controllers["qrqp"]
-    _, certificate = _build_guard_and_certificate(c.settings.kkt_tol)
+    _, certificate = build_guard_and_certificate(c.settings.kkt_tol)
     W_q = np.r_[0.0, 0.0, c.params.posture_weight]
     refused = 0
     for state in random_states(robot, rng, 10, margin=0.3):
@@ -281,7 +298,9 @@ def test_nonfinite_state_or_reference_holds_still(robot, controllers, rng):
         bad_state[6] = np.nan
         bad_ref = xi.copy()
         bad_ref[4] = np.inf
-        bad_posture = StepReference(xi, np.zeros(6), np.r_[1.0, np.nan, 0.0, 0.0], np.zeros(4))
+        bad_posture = StepReference(
+            xi, np.zeros(6), np.r_[1.0, np.nan, 0.0, 0.0], np.zeros(4), np.zeros(3)
+        )
         for s, r in [(bad_state, (xi,)), (state, (bad_ref,)), (state, bad_posture)]:
             res = c.solve(s, *r)
             assert res.status is QPStatus.NONFINITE_INPUT and not res.success
@@ -422,8 +441,9 @@ def test_step_function_interface(controllers):
     np.testing.assert_array_equal(np.concatenate([np.atleast_1d(f) for f in fields]), np.arange(42))
     assert fields.posture_weight.tolist() == [22, 23, 24, 25]  # after kp, w_a, w_b, posture_gain
     ref = StepReference.unpack(np.arange(float(REFERENCE_SIZE)))
-    assert ref.q_ref.tolist() == [12, 13, 14, 15] and REFERENCE_SIZE == 20
-    rows = np.arange(40.0).reshape(2, 20)  # (N, 20) tables split on the last axis
+    assert ref.q_ref.tolist() == [12, 13, 14, 15] and REFERENCE_SIZE == 23
+    assert ref.ground.tolist() == [20, 21, 22]
+    rows = np.arange(46.0).reshape(2, 23)  # (N, 23) tables split on the last axis
     np.testing.assert_array_equal(StepReference.unpack(rows).pack(), rows)
 
 
@@ -433,9 +453,11 @@ def test_references_rates_match_finite_differences(problem, rng):
     plan = SimpleNamespace(
         fractions=np.sort(rng.uniform(0, 1, 7)), target_com=rng.uniform(-0.5, 0.5, (7, 3))
     )
-    arm = arm_reference(plan, circle)
+    terrain = problem.terrain
+    arm = arm_reference(plan, circle, terrain)
     s = rng.uniform(0, 1, 20)
-    for fn in (lambda u: base_reference(circle, u, 0.2), arm, lambda u: circle_pose(circle, u)):
+    base = lambda u: base_reference(circle, terrain, u, 0.2)  # noqa: E731
+    for fn in (base, arm, lambda u: circle_pose(circle, u)):
         value, rate = fn(s)
         fd = (fn(s + h).value - fn(s - h).value) / (2 * h)
         np.testing.assert_allclose(rate, fd, atol=1e-6)
@@ -448,11 +470,16 @@ def test_references_rates_match_finite_differences(problem, rng):
     np.testing.assert_allclose(arm(1.0).value, arm(0.0).value, atol=1e-12)  # periodic
     q = rng.uniform(problem.robot.joint_lower, problem.robot.joint_upper, (7, 4))
     posture = posture_reference(plan.fractions, q, problem.robot.joint_lower, [7.0, 2, 2.9, 2.2])
-    ref = task_reference(circle, 30.0, 0.2, arm, posture, [0.0, 15.0])
+    ref = task_reference(circle, terrain, 30.0, 0.2, arm, posture, [0.0, 15.0])
     np.testing.assert_allclose(
-        ref.xi_dot_ref,
-        np.hstack([base_reference(circle, [0, 0.5], 0.2).rate, arm([0, 0.5]).rate]) / 30.0,
+        ref.xi_dot_ref, np.hstack([base([0, 0.5]).rate, arm([0, 0.5]).rate]) / 30.0
     )
+    # the base point is d ahead of the reference pose along its heading (hand computation)
+    p = circle.pose_at([0.0, 0.5])
+    np.testing.assert_allclose(
+        ref.xi_des[:, :2], p[:, :2] + 0.2 * np.c_[np.cos(p[:, 2]), np.sin(p[:, 2])], atol=1e-12
+    )
+    np.testing.assert_array_equal(ref.ground, terrain.local_ground(p))
     np.testing.assert_allclose(ref.q_ref, posture([0, 0.5]).value)
     np.testing.assert_allclose(ref.q_dot_ref, posture([0, 0.5]).rate / 30.0)
     assert ref.pack().shape == (2, REFERENCE_SIZE)

@@ -14,8 +14,8 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 from mmstab.drawing import (  # noqa: E402
     box_faces,
     capsule_faces,
-    draw_poses_on_ramp,
-    draw_ramp,
+    draw_ground,
+    draw_poses_on_ground,
     draw_robot,
     robot_meshes,
     support_polygon_G,
@@ -107,17 +107,17 @@ def test_support_polygon_lies_on_the_ramp(robot):
     poly_G = support_polygon_G(robot, G_T_B)
     assert len(poly_G) == len(base_polygon(robot).vertices)
     # height above the slope plane: the small lift only
-    normal_G = ramp.G_T_S()[:3, 2]
+    normal_G = ramp.G_T_M()[:3, 2]
     np.testing.assert_allclose(poly_G @ normal_G, 2e-3, atol=1e-12)
 
 
-def test_draw_ramp_and_poses(ax3d, robot):
+def test_draw_ground_and_poses(ax3d, robot):
     ramp = Ramp(0.1)
-    artists = draw_ramp(ax3d, ramp, (-1.0, 1.0, -0.5, 0.5), grid=0.5)
-    assert [a.get_gid() for a in artists] == ["ramp", "ramp_grid"]
+    artists = draw_ground(ax3d, ramp, (-1.0, 1.0, -0.5, 0.5), grid=0.5)
+    assert [a.get_gid() for a in artists] == ["ground", "ground_grid"]
     ax3d.figure.canvas.draw()
     assert len(artists[1].get_segments()) == 5 + 3  # projected grid lines, x then y
     poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 1.0], [-1.0, 0.5, 2.0]])
-    drawn = draw_poses_on_ramp(ax3d, robot, ramp, poses, np.zeros((3, 4)), labels=["a", "b", "c"])
+    drawn = draw_poses_on_ground(ax3d, robot, ramp, poses, np.zeros((3, 4)), labels=["a", "b", "c"])
     assert [len(d) for d in drawn] == [9, 9, 9]
     assert [t.get_text() for t in ax3d.texts] == ["a", "b", "c"]

@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 from conftest import random_postures
 
-from mmstab.terrain import BasePose, Ramp, rot_z
+from mmstab.terrain import BasePose, Ramp, roll_pitch, rot_z
 
 
 def test_casadi_and_numpy_link_frames_agree(robot, rng):
@@ -82,18 +82,18 @@ def test_ramp_frames(rng):
         np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
         # gravity in B is the global gravity rotated into B
         np.testing.assert_allclose(
-            ramp.gravity_body([pose.heading])[0], T[:3, :3].T @ [0, 0, -9.81], atol=1e-12
+            ramp.gravity_body(list(pose))[0], T[:3, :3].T @ [0, 0, -9.81], atol=1e-12
         )
         # symbolic body -> slope map equals the numeric one
         p_body = rng.normal(size=3)
-        f = ca.Function("f", [], [ramp.body_to_slope_sx(ca.DM(list(pose)), ca.DM(p_body))])
+        f = ca.Function("f", [], [ramp.place_sx(ca.DM(list(pose)), ca.DM(p_body))])
         p_S = rot_z(pose.heading) @ p_body + [pose.x, pose.y, 0]
         np.testing.assert_allclose(np.asarray(f()["o0"]).ravel(), p_S, atol=1e-12)
     # +y_S is uphill; heading 0 = pure roll with the left side up
     assert ramp.G_T_B(BasePose(0, 1, 0))[2, 3] > 0
-    roll, pitch = ramp.roll_pitch(0.0)
+    roll, pitch = roll_pitch(ramp, [0.0, 0.0, 0.0])
     assert np.isclose(roll, 0.3) and np.isclose(pitch, 0.0)
-    roll, pitch = ramp.roll_pitch(np.pi / 2)  # facing uphill: nose up
+    roll, pitch = roll_pitch(ramp, [0.0, 0.0, np.pi / 2])  # facing uphill: nose up
     assert np.isclose(roll, 0.0, atol=1e-12) and np.isclose(pitch, 0.3)
 
 

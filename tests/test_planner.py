@@ -44,11 +44,11 @@ def test_same_seed_same_plan_and_global_state_untouched(coarse):
     poses = problem.circle.poses(3)
     np.random.seed(99)  # noqa: NPY002 - the global state must stay untouched
     before = np.random.get_state()[1].copy()  # noqa: NPY002
-    a = solve_path(problem.robot, problem.ramp, ws, poses, s)
-    b = solve_path(problem.robot, problem.ramp, ws, poses, s)
+    a = solve_path(problem.robot, problem.terrain, ws, poses, s)
+    b = solve_path(problem.robot, problem.terrain, ws, poses, s)
     assert np.array_equal(a.target_com, b.target_com)
     assert np.array_equal(np.random.get_state()[1], before)  # noqa: NPY002
-    c = solve_path(problem.robot, problem.ramp, ws, poses, s._replace(seed=s.seed + 1))
+    c = solve_path(problem.robot, problem.terrain, ws, poses, s._replace(seed=s.seed + 1))
     assert not np.array_equal(a.target_com, c.target_com)
 
 
@@ -78,9 +78,9 @@ def test_pure_stability_beats_stowed_and_arm_removed(tmp_path, problem):
     ws = load_or_build_workspace(problem, progress=False, cache_dir=tmp_path)
     s = _settings(problem, w_stability=1.0, w_motion=0.0)
     poses = problem.circle.poses(s.poses)
-    plan = solve_path(problem.robot, problem.ramp, ws, poses, s)
+    plan = solve_path(problem.robot, problem.terrain, ws, poses, s)
     robot = problem.robot
-    g = problem.ramp.gravity_body(poses[:, 2])
+    g = problem.terrain.gravity_body(poses)
     mu_planned = np.array([t.mu for t in plan.targets])
     stowed = np.broadcast_to(robot.arm_com(robot.stowed), (len(poses), 3))
     assert np.all(mu_planned >= robot_force_angle(robot, g, stowed).mu)
@@ -94,7 +94,7 @@ def test_pure_motion_penalty_keeps_the_com(coarse):
     previous = inside[len(inside) // 2]
     t = solve_pose(
         problem.robot,
-        problem.ramp,
+        problem.terrain,
         ws,
         problem.circle.poses(1)[0],
         previous,
@@ -120,7 +120,7 @@ def test_no_sample_in_V_is_a_clear_error(coarse):
     with pytest.raises(MmstabError, match="no CMA-ES sample fell in the workspace V"):
         solve_pose(
             problem.robot,
-            problem.ramp,
+            problem.terrain,
             _Nowhere(),
             [0, 0, 0],
             np.zeros(3),

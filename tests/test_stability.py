@@ -99,7 +99,7 @@ def test_robot_on_flat_ground_by_hand(robot):
 
 def test_arm_uphill_is_more_stable_than_downhill(robot):
     ramp = Ramp(0.25)
-    g = ramp.gravity_body([0.0])  # heading 0: uphill is +y_B (left)
+    g = ramp.gravity_body([0.0, 0.0, 0.0])  # heading 0: uphill is +y_B (left)
     q_up, q_down = np.array([np.pi / 2, 0, 0, 0]), np.array([3 * np.pi / 2, 0, 0, 0])
     mu_up = robot_force_angle(robot, g, robot.arm_com(q_up)).mu[0]
     mu_down = robot_force_angle(robot, g, robot.arm_com(q_down)).mu[0]
@@ -126,6 +126,24 @@ def test_touching_flippers_extend_the_polygon():
     assert poly.vertices[:, 0].max() > robot.base.tracks.length / 2 + 0.2
     # pitched nose-down on a ramp, the flippers add margin at the front
     ramp = Ramp(0.4)
-    g = ramp.gravity_body([-np.pi / 2])
+    g = ramp.gravity_body([0.0, 0.0, -np.pi / 2])
     com = robot.arm_com(robot.stowed)
     assert robot_force_angle(down, g, com).mu[0] > robot_force_angle(robot, g, com).mu[0]
+
+
+def test_stability_along_gives_the_three_cases(robot, rng):
+    """The trio against robot_force_angle case by case, and the arm-removed case by hand."""
+    from mmstab.stability import stability_along
+
+    ramp = Ramp(0.2)
+    poses = np.column_stack([rng.uniform(-2, 2, (6, 2)), rng.uniform(-np.pi, np.pi, 6)])
+    arm = robot.arm_com(rng.uniform(robot.joint_lower, robot.joint_upper, (6, 4)))
+    cases = stability_along(robot, ramp, poses, arm)
+    g = ramp.gravity_body(poses)
+    np.testing.assert_allclose(cases.reconfigured, robot_force_angle(robot, g, arm).mu)
+    stowed = np.tile(robot.arm_com(robot.stowed), (6, 1))
+    np.testing.assert_allclose(cases.stowed, robot_force_angle(robot, g, stowed).mu)
+    pts = robot.base.support_points()
+    for k in range(6):  # the base alone: force_angle on the support points, m_base g
+        expected = force_angle(pts, robot.base.com, robot.base.mass * g[k])
+        assert cases.arm_removed[k] == pytest.approx(expected, abs=1e-9)

@@ -35,7 +35,7 @@ def test_fig5_reproduces_two_unequal_maxima_on_the_lifted_side(tmp_path, problem
     assert len(link0) == problem.section("sweep")["samples"]
     # recompute one sample independently
     q = np.array([link0[7], 0, 0, 0])
-    g = problem.ramp.gravity_body([s["pose"][2]])
+    g = problem.terrain.gravity_body(s["pose"])
     assert mu[7] == robot_force_angle(problem.robot, g, problem.robot.arm_com(q)).mu[0]
     # roll lifts the left side (+y_B), so both maxima point the arm left: 0 < link0 < pi
     maxima = np.array(s["local_maxima_rad"])

@@ -26,6 +26,7 @@ from mmstab.controller import (
     build_controller,
 )
 from mmstab.problem import load_problem
+from mmstab.reference import initial_state
 from mmstab.stability import force_angle
 from mmstab.terrain import GRAVITY_G
 from mmstab.tracking import simulate, summarize, task_batch
@@ -97,7 +98,10 @@ def window_step(problem, inner, t0, t1, make_bad):
     from mmstab.reference import base_reference
 
     x0, x1 = base_reference(
-        problem.circle, np.array([t0, t1]) / settings.lap_time, settings.base_offset
+        problem.circle,
+        problem.terrain,
+        np.array([t0, t1]) / settings.lap_time,
+        settings.base_offset,
     ).value[:, 0]
     inside = ca.logic_and(ref[0] >= x0, ref[0] < x1)
     good = inner(s, ref, p)
@@ -220,14 +224,20 @@ def test_task_batch_matches_the_casadi_task(problem, rng):
             rng.uniform(robot.joint_lower, robot.joint_upper, (20, 4)),
         ]
     )
-    xi, com = task_batch(robot, states, 0.2)
+    xi, com = task_batch(model, problem.terrain, states)
     np.testing.assert_allclose(xi, [model.task(s) for s in states], atol=1e-12)
+    # independent: the ramp's placement by hand, [x, y, 0] + Rz(γ) g_a^B and the point d ahead
+    c, s = np.cos(states[:, 2]), np.sin(states[:, 2])
+    g = robot.arm_com(states[:, 5:])
+    np.testing.assert_allclose(xi[:, 0], states[:, 0] + 0.2 * c, atol=1e-12)
+    np.testing.assert_allclose(xi[:, 4], states[:, 1] + s * g[:, 0] + c * g[:, 1], atol=1e-12)
+    np.testing.assert_allclose(xi[:, 5], g[:, 2], atol=1e-12)
     np.testing.assert_allclose(com, robot.arm_com(states[:, 5:]), atol=1e-12)
 
 
 def test_stability_matches_force_angle_in_the_global_frame(problem):
     """μ of the three cases against the force angle computed in G from G_T_B."""
-    robot, ramp = problem.robot, problem.ramp
+    robot, ramp = problem.robot, problem.terrain
     run = simulate(problem, posture_plan(robot), duration=0.3, progress=False)
     pts_B = robot.base.support_points()
     for k in (0, 150, 300):
@@ -523,9 +533,10 @@ def _window_run(problem, plan, posture, settings, t0, t1):
     t = np.arange(t0, t1, settings.dt)
     ref = task_reference(
         problem.circle,
+        problem.terrain,
         settings.lap_time,
         settings.base_offset,
-        posture.arm_reference(problem.circle),
+        posture.arm_reference(problem.circle, problem.terrain),
         posture,
         t,
     )
@@ -612,7 +623,7 @@ def test_look_ahead_point_corrects_a_lateral_offset(problem):
 
     plan = ro.example_plan(problem.robot)
     base = ControllerSettings.from_section(problem.section("controller"))
-    state0 = ro.initial_state(problem, plan, lateral_offset=0.1, arm=plan.postures[0])
+    state0 = initial_state(problem.circle, plan.postures[0], lateral_offset=0.1)
     error = {}
     for d, duration in ((0.0, 10.0), (0.2, 5.0)):
         settings = dataclasses.replace(base, base_offset=d)

@@ -23,9 +23,9 @@ from mmstab.workspace import (
     grid_postures,
     joint_grid,
     load_or_build_workspace,
-    measure_fidelity,
     workspace_from_clouds,
 )
+from mmstab.workspace_fidelity import measure_fidelity
 
 COARSE = [6, 6, 6, 6]
 
@@ -169,7 +169,7 @@ def test_hull_difference_cube_minus_cube():
             [0, 0, -1.01],
         ]
     )
-    # (0.5, 0, 0) is on the boundary of hull(invalid): not in V (DESIGN.md section 4)
+    # (0.5, 0, 0) is on the boundary of hull(invalid): not in V (docs/design.md, "Workspace")
     assert ws.contains(pts).tolist() == [False, False, True, True, True, False, False, False]
     assert ws.contains([0.75, 0.0, 0.0]).tolist() == [True]
     np.testing.assert_allclose(ws.diameter, 2 * np.sqrt(3))

@@ -8,12 +8,11 @@ from typing import Any
 import numpy as np
 
 from mmstab.animation import render_animation
+from mmstab.app import track
 from mmstab.config import write_json
 from mmstab.experiments.common import output_dir
-from mmstab.experiments.tracking import _plan
 from mmstab.problem import Problem
 from mmstab.stability import mu_max
-from mmstab.tracking import simulate
 
 
 def run_animation(
@@ -34,11 +33,11 @@ def run_animation(
         What was rendered (also written to ``animation.json``).
     """
     cfg = problem.section("animation")
-    run = simulate(problem, _plan(problem, progress), progress=progress)
+    run = track(problem, progress=progress).run
     d = output_dir(out, "tracking")
     info = render_animation(
         problem.robot,
-        problem.ramp,
+        problem.terrain,
         run.t,
         run.state[:, :3],
         run.state[:, 5:9],

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.app import workspace
 from mmstab.config import write_figure, write_json
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.plotting import new_figure
@@ -21,10 +22,8 @@ from mmstab.robot import Robot
 from mmstab.workspace import (
     Workspace,
     convex_hull,
-    load_or_build_workspace,
-    measure_fidelity,
-    sample_in_workspace,
 )
+from mmstab.workspace_fidelity import measure_fidelity, sample_in_workspace
 
 #: Points drawn per scatter cloud in the figures (subsampled: the figures stay small).
 PLOT_POINTS = 3000
@@ -124,7 +123,7 @@ def run_fig3(
         force: rebuild the workspace even when the cache matches.
     """
     cfg = problem.section("workspace")
-    ws = load_or_build_workspace(problem, force=force)
+    ws = workspace(problem, force=force)
     fid = measure_fidelity(problem.robot, ws, cfg["precision_samples"], cfg["seed"])
     rng = np.random.default_rng(cfg["seed"])
     d = output_dir(out, "fig3")

@@ -7,9 +7,11 @@ from typing import Any
 
 import numpy as np
 
+from mmstab.app import plan as plan_of
+from mmstab.app import stability_along, workspace
 from mmstab.config import write_figure, write_json, write_npz
 from mmstab.drawing import (
-    draw_poses_on_ramp,
+    draw_poses_on_ground,
     draw_robot,
     mesh_points,
     robot_meshes,
@@ -17,10 +19,11 @@ from mmstab.drawing import (
 )
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.ik import PostureSolver
-from mmstab.planner import Plan, PlannerSettings, plan_path, solve_pose
+from mmstab.planner import Plan, PlannerSettings, solve_pose
 from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
 from mmstab.problem import Problem
-from mmstab.stability import mu_max, robot_force_angle
+from mmstab.stability import mu_max
+from mmstab.terrain import roll_pitch
 
 
 def _side(com_body: np.ndarray) -> str:
@@ -29,14 +32,14 @@ def _side(com_body: np.ndarray) -> str:
 
 def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 7: the first CMA samples and the converged CoM at the rolled pose."""
-    from mmstab.workspace import load_or_build_workspace
-
     robot = problem.robot
-    ws = load_or_build_workspace(problem)
+    ws = workspace(problem)
     settings = PlannerSettings.from_section(problem.section("planner"))
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
-    target = solve_pose(robot, problem.ramp, ws, pose, robot.arm_com(robot.stowed), settings, rng)
+    target = solve_pose(
+        robot, problem.terrain, ws, pose, robot.arm_com(robot.stowed), settings, rng
+    )
     solver = PostureSolver(robot, ws)
     realised = solver.posture(target.target_com, robot.stowed)
     best = target.runs[target.best_start]
@@ -69,7 +72,7 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     write_figure(d / "fig7.png", fig)
     summary = {
         "pose": pose,
-        "roll_pitch_rad": problem.ramp.roll_pitch(float(pose[2])),
+        "roll_pitch_rad": roll_pitch(problem.terrain, pose),
         "target_com": target.target_com,
         "mu_planned": target.mu,
         "fitness": target.fitness,
@@ -99,11 +102,8 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
 def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     """Per-pose numbers of a plan (``results/fig8/summary.json``)."""
     robot = problem.robot
-    gravity = problem.ramp.gravity_body(plan.poses[:, 2])
-    stowed = np.broadcast_to(robot.arm_com(robot.stowed), (len(plan.poses), 3))
-    mu_stowed = robot_force_angle(robot, gravity, stowed).mu
-    mu_removed = robot_force_angle(robot, gravity, None).mu
-    mu_realised = robot_force_angle(robot, gravity, robot.arm_com(plan.postures)).mu
+    mu = stability_along(problem, plan.poses, robot.arm_com(plan.postures))
+    mu_realised, mu_stowed, mu_removed = mu.reconfigured, mu.stowed, mu.arm_removed
     poses = []
     for k, t in enumerate(plan.targets):
         poses.append(
@@ -137,17 +137,17 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
 
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
-    plan = plan_path(problem, progress=True)
+    plan = plan_of(problem, progress=True)
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
     fig = new_figure(figsize=(11, 5))[0]
     fig.clf()
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     colors = ["tab:red" if p["side"] == "right" else "tab:blue" for p in summary["poses"]]
-    draw_poses_on_ramp(
+    draw_poses_on_ground(
         ax,
         problem.robot,
-        problem.ramp,
+        problem.terrain,
         plan.poses,
         np.nan_to_num(plan.postures),
         arm_colors=colors,
@@ -158,7 +158,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         xlabel="x_G [m]",
         ylabel="y_G [m]",
         zlabel="z_G [m]",
-        title=f"(a) planned arm configurations, slope {np.degrees(problem.ramp.slope):.1f} deg",
+        title=f"(a) planned arm configurations, {problem.terrain.label}",
     )
     ax2 = fig.add_subplot(1, 2, 2)
     draw_circle(ax2, problem.circle)

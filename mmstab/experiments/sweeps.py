@@ -16,8 +16,8 @@ from mmstab.experiments.common import circular_extrema, output_dir, save_setting
 from mmstab.plotting import draw_base_topview, draw_circle, new_figure
 from mmstab.problem import Problem
 from mmstab.robot import FloatArray, Robot
-from mmstab.stability import robot_force_angle
-from mmstab.terrain import Ramp
+from mmstab.stability import robot_force_angle, stability_along
+from mmstab.terrain import Terrain, roll_pitch
 
 
 class Sweep(NamedTuple):
@@ -38,31 +38,30 @@ class Sweep(NamedTuple):
     mu_stowed: FloatArray
 
 
-def link0_sweep(robot: Robot, ramp: Ramp, poses: FloatArray, samples: int) -> Sweep:
+def link0_sweep(robot: Robot, terrain: Terrain, poses: FloatArray, samples: int) -> Sweep:
     """Sweep link0 over a full turn (joints 1-3 at zero) at each base pose.
 
     Args:
         robot: the robot.
-        ramp: the ramp.
-        poses: base poses (P, 3) in S [m, m, rad].
+        terrain: the ground.
+        poses: base poses (P, 3) in the map frame M [m, m, rad].
         samples: number of link0 samples; step 2 pi / samples [rad].
     """
     link0 = np.arange(samples) * 2 * np.pi / samples
     q = np.zeros((samples, 4))
     q[:, 0] = link0
     com = robot.arm_com(q)
-    gravity = ramp.gravity_body(poses[:, 2])  # (P, 3)
+    gravity = terrain.gravity_body(poses)  # (P, 3)
     mu = np.stack(
         [robot_force_angle(robot, np.broadcast_to(g, (samples, 3)), com).mu for g in gravity]
     )
+    cases = stability_along(robot, terrain, poses, robot.arm_com(robot.stowed))
     return Sweep(
         link0=link0,
         poses=poses,
         mu=mu,
-        mu_arm_removed=robot_force_angle(robot, gravity, None).mu,
-        mu_stowed=robot_force_angle(
-            robot, gravity, np.broadcast_to(robot.arm_com(robot.stowed), (len(poses), 3))
-        ).mu,
+        mu_arm_removed=cases.arm_removed,
+        mu_stowed=cases.stowed,
     )
 
 
@@ -83,10 +82,10 @@ def run_fig5(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 5: base with roll and zero pitch, link0 swept; writes ``results/fig5``."""
     cfg = problem.section("sweep")
     pose = np.array([cfg["roll_pose"]], dtype=float)
-    sw = link0_sweep(problem.robot, problem.ramp, pose, cfg["samples"])
+    sw = link0_sweep(problem.robot, problem.terrain, pose, cfg["samples"])
     mu = sw.mu[0]
     maxima, minima = circular_extrema(mu)
-    roll, pitch = problem.ramp.roll_pitch(float(pose[0, 2]))
+    roll, pitch = roll_pitch(problem.terrain, pose[0])
     collides = sweep_collisions(problem.robot, sw.link0)
     d = output_dir(out, "fig5")
     fig, ax = new_figure(figsize=(6.4, 3.6))
@@ -142,7 +141,7 @@ def poses3d_figure(problem: Problem, sw: Sweep) -> Any:
     Returns:
         The matplotlib figure.
     """
-    from mmstab.drawing import draw_poses_on_ramp
+    from mmstab.drawing import draw_poses_on_ground
 
     cmap = __import__("matplotlib").colormaps["viridis"]
     postures = np.zeros((len(sw.poses), 4))
@@ -151,13 +150,13 @@ def poses3d_figure(problem: Problem, sw: Sweep) -> Any:
     colors = [cmap(k / max(len(sw.poses) - 1, 1)) for k in range(len(sw.poses))]
     labels = [str(k) for k in range(len(sw.poses))]
     path_S = problem.circle.pose_at(np.linspace(0, 1, 121))[:, :2]
-    draw_poses_on_ramp(
-        ax, problem.robot, problem.ramp, sw.poses, postures, colors, labels, path_S=path_S
+    draw_poses_on_ground(
+        ax, problem.robot, problem.terrain, sw.poses, postures, colors, labels, path_S=path_S
     )
     ax.view_init(elev=35, azim=-70)
     ax.set_title(
-        f"(a) the {len(sw.poses)} poses on the ramp (slope {np.degrees(problem.ramp.slope):.1f}"
-        " deg, uphill +y), arm at the link0 of highest $\\mu$",
+        f"(a) the {len(sw.poses)} poses on the {problem.terrain.label} (uphill +y),"
+        " arm at the link0 of highest $\\mu$",
         fontsize=9,
     )
     return fig
@@ -167,7 +166,7 @@ def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 6: poses along the circle, one sweep each; writes ``results/fig6``."""
     cfg = problem.section("sweep")
     poses = problem.circle.poses(cfg["poses"])
-    sw = link0_sweep(problem.robot, problem.ramp, poses, cfg["samples"])
+    sw = link0_sweep(problem.robot, problem.terrain, poses, cfg["samples"])
     d = output_dir(out, "fig6")
     fig, (ax_a, ax_b) = new_figure(1, 2, figsize=(11, 4.4), width_ratios=[1, 1.5])
     draw_circle(ax_a, problem.circle)
@@ -179,7 +178,7 @@ def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         ax_b.plot(np.degrees(sw.link0), mu, color=c, lw=1.2, label=f"pose {k}")
         maxima, minima = circular_extrema(mu)
         ax_b.plot(np.degrees(sw.link0[maxima]), mu[maxima], "v", color=c, ms=4)
-        roll, pitch = problem.ramp.roll_pitch(float(pose[2]))
+        roll, pitch = roll_pitch(problem.terrain, pose)
         per_pose.append(
             {
                 "pose": pose,
@@ -198,7 +197,7 @@ def run_fig6(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         aspect="equal",
         xlabel="$x_S$ [m]",
         ylabel="$y_S$ [m] (uphill)",
-        title=f"(a) poses on the ramp, slope {np.degrees(problem.ramp.slope):.1f} deg",
+        title=f"(a) poses on the {problem.terrain.label}",
     )
     ax_b.set(
         xlabel="link0 angle [deg]",

@@ -8,79 +8,28 @@ Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, the settin
 
 from __future__ import annotations
 
-import copy
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-import casadi as ca
 import numpy as np
 
-from mmstab.config import MmstabError, write_figure, write_json, write_npz
-from mmstab.controller import PLUGINS
+from mmstab.app import Backend, track
+from mmstab.config import write_figure, write_json, write_npz
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.plotting import draw_base_topview, new_figure
-from mmstab.problem import Problem, problem_from_dict
+from mmstab.problem import Problem
 from mmstab.robot import FloatArray
 from mmstab.tracking import (
     JOINT_NAMES,
     STATE_NAMES,
     InitialArm,
-    StepBackend,
     TrackingPlan,
     TrackingRun,
-    simulate,
     summarize,
 )
 
-Backend = Literal["interpreted", "generated"]
 #: Sample spacing of the saved arrays (``run.npz``) [s].
 SAVE_EVERY_S = 0.01
-
-
-def with_plugin(problem: Problem, plugin: str | None) -> Problem:
-    """The problem with ``controller.plugin`` replaced (validated again); itself if None."""
-    if plugin is None or plugin == problem.section("controller")["plugin"]:
-        return problem
-    if plugin not in PLUGINS:
-        raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {', '.join(PLUGINS)}")
-    data = copy.deepcopy(problem.data)
-    data["controller"]["plugin"] = plugin
-    return problem_from_dict(data, problem.path)
-
-
-def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
-    """The code-generated controller step (``mmstab.codegen.load_step``, issue 6).
-
-    Args:
-        problem: the problem (``controller`` and ``codegen`` sections).
-        plugin: a code-generable QP plugin; default the problem's ``codegen.plugin``.
-
-    Raises:
-        MmstabError: the code generator is not available in this installation, the plugin
-            cannot be generated (qpOASES), or the build fails.
-    """
-    try:
-        from mmstab.codegen import load_step
-    except ImportError:
-        raise MmstabError(
-            "--backend generated needs mmstab.codegen.load_step (the code generator, issue 6), "
-            "which this installation does not have; use --backend interpreted"
-        ) from None
-    function = load_step(problem, plugin=plugin)
-    if not isinstance(function, ca.Function):
-        raise MmstabError(f"mmstab.codegen.load_step returned {type(function)}, not a Function")
-    return StepBackend(function, "generated")
-
-
-def _plan(problem: Problem, progress: bool) -> TrackingPlan:
-    try:
-        from mmstab.planner import plan_path
-    except ImportError:
-        raise MmstabError(
-            "tracking needs the arm plan from mmstab.planner (issue 4), which this installation "
-            "does not have; pass a plan to run_tracking(plan=...)"
-        ) from None
-    return plan_path(problem, progress=progress)
 
 
 def run_tracking(
@@ -103,26 +52,21 @@ def run_tracking(
             for the generated backend).
         backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C, issue 6).
         duration: simulated time [s] (default the problem's ``controller.duration``).
-        plan: an arm plan; default :func:`mmstab.planner.plan_path` on the problem.
+        plan: an arm plan; default :func:`mmstab.app.plan` on the problem.
         initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
         progress: show progress bars.
 
     Returns:
         The summary written to ``summary.json``.
     """
-    if backend not in ("interpreted", "generated"):
-        raise MmstabError(f"backend must be 'interpreted' or 'generated', got {backend!r}")
-    step = None
-    if backend == "generated":  # default plugin: the code-generable codegen.plugin
-        plugin = plugin if plugin is not None else problem.section("codegen")["plugin"]
-        problem = with_plugin(problem, plugin)
-        step = generated_step(problem, plugin)  # build (or load) before planning: fail early
-    else:
-        problem = with_plugin(problem, plugin)
-    if plan is None:
-        plan = _plan(problem, progress)
-    run = simulate(
-        problem, plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
+    problem, plan, run = track(
+        problem,
+        plan,
+        plugin=plugin,
+        backend=backend,
+        duration=duration,
+        initial_arm=initial_arm,
+        progress=progress,
     )
     d = output_dir(out, "tracking")
     every = max(int(round(SAVE_EVERY_S / run.dt)), 1)
@@ -217,7 +161,7 @@ def _fig9(d: Path, problem: Problem, run: TrackingRun) -> None:
         aspect="equal",
         xlabel="$x_S$ [m]",
         ylabel="$y_S$ [m] (uphill)",
-        title=f"(a) on the slope ({np.degrees(problem.ramp.slope):.1f} deg), seen from above",
+        title=f"(a) on the {problem.terrain.label}, seen from above",
     )
     ax.legend(fontsize=7, loc="center")
     ax_z.plot(run.t, des[:, 5], "--", color="C3", label="desired")
@@ -306,7 +250,7 @@ def _fig12(d: Path, problem: Problem, run: TrackingRun) -> None:
     ax.set(
         xlabel="time [s]",
         ylabel="force-angle stability $\\mu$ [N rad]",
-        title=f"Fig. 12: stability along the run (slope {np.degrees(problem.ramp.slope):.1f} deg)",
+        title=f"Fig. 12: stability along the run ({problem.terrain.label})",
     )
     _mark_failures(ax, run)
     ax.grid(alpha=0.3)

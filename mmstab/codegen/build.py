@@ -1,0 +1,203 @@
+"""Generating and compiling the controller's C, with a cache; loading it back."""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, NamedTuple
+
+import casadi as ca
+
+from mmstab.codegen.compiler import compile_c, compile_command
+from mmstab.codegen.functions import ROLLOUT_CHUNK, STEP_NAME, export_functions
+from mmstab.codegen.postprocess import postprocess
+from mmstab.codegen.settings import CodegenSettings, check_plugin
+from mmstab.config import _atomic, write_json
+from mmstab.controller import ControllerSettings, build_controller
+from mmstab.layout import layout_header
+from mmstab.robot import Robot
+
+if TYPE_CHECKING:
+    from mmstab.problem import Problem
+
+LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
+FORMAT_VERSION = 3  #: bump when the generated content or post-processing changes
+
+
+class GeneratedController(NamedTuple):
+    """A generated and compiled controller.
+
+    Attributes:
+        directory: the output folder.
+        source: the C file ``controller_step.c``.
+        header: its header ``controller_step.h``.
+        layout: ``controller_layout.h``: argument sizes and layouts (:func:`layout_header`).
+        library: the shared library (its name carries the key).
+        plugin: the QP plugin.
+        hash: the cache key (SHA-256, hex) the outputs were built for.
+        functions: the exported Functions' names (step, task, plant, rollout chunk).
+        rebuilt: False when the outputs were already up to date.
+        compiler_stderr: what the compiler printed (empty: no warning).
+    """
+
+    directory: Path
+    source: Path
+    header: Path
+    layout: Path
+    library: Path
+    plugin: str
+    hash: str
+    functions: tuple[str, ...]
+    rebuilt: bool
+    compiler_stderr: str
+
+    def load(self, name: str = STEP_NAME) -> ca.Function:
+        """One exported Function of the library as a CasADi ``Function`` (``casadi.external``)."""
+        if name not in self.functions:
+            raise ValueError(f"{name!r} is not exported; choose one of {self.functions}")
+        return ca.external(name, str(self.library.resolve()))
+
+
+def _resolve(
+    source: Problem | tuple[Robot, ControllerSettings],
+) -> tuple[Robot, ControllerSettings, CodegenSettings]:
+    if isinstance(source, tuple):
+        robot, settings = source
+        return robot, settings, CodegenSettings(plugin="qrqp", directory="results/codegen")
+    return (
+        source.robot,
+        ControllerSettings.from_section(source.section("controller")),
+        CodegenSettings.from_section(source.section("codegen")),
+    )
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Write a source file atomically, readable by all (mode 644)."""
+
+    def write(tmp: Path) -> None:
+        tmp.write_text(text)
+        tmp.chmod(0o644)
+
+    _atomic(path, write)
+
+
+def cache_key(functions: Sequence[ca.Function], plugin: str) -> str:
+    """SHA-256 of what the generated library depends on (module docstring, "Cache")."""
+    h = hashlib.sha256()
+    meta = [FORMAT_VERSION, ca.CasadiMeta.version(), plugin, compile_command(plugin), ROLLOUT_CHUNK]
+    h.update(json.dumps(meta).encode())
+    for f in functions:
+        h.update(f.serialize().encode())
+    return h.hexdigest()
+
+
+def generate(
+    source: Problem | tuple[Robot, ControllerSettings],
+    out_dir: str | os.PathLike[str] | None = None,
+    plugin: str | None = None,
+    *,
+    force: bool = False,
+) -> GeneratedController:
+    """Generate the controller step's C and compile it, unless already up to date.
+
+    Args:
+        source: a problem, or (robot, controller settings).
+        out_dir: output folder (default ``codegen.directory/plugin``, ``results/codegen/plugin``
+            for a (robot, settings) source).
+        plugin: QP plugin (default the problem's ``codegen.plugin``, qrqp for a tuple).
+        force: regenerate and recompile even if up to date.
+
+    Returns:
+        Paths of the C file, header and library, and the cache key.
+
+    Raises:
+        MmstabError: qpOASES or an unknown plugin (before CasADi is called), no compiler,
+            or a compile error.
+    """
+    robot, settings, cg = _resolve(source)
+    plugin = cg.plugin if plugin is None else plugin
+    check_plugin(plugin)
+    out = Path(out_dir) if out_dir is not None else Path(cg.directory) / plugin
+    ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin))
+    functions = export_functions(ctrl)
+    names = tuple(f.name() for f in functions)
+    key = cache_key(functions, plugin)
+    c_file, h_file, l_file = out / f"{STEP_NAME}.c", out / f"{STEP_NAME}.h", out / LAYOUT_HEADER
+    library = out / f"lib{STEP_NAME}_{key[:16]}.so"
+    meta_path = out / "build.json"
+    files = (c_file, h_file, l_file, library)
+    if not force and meta_path.is_file() and all(p.is_file() for p in files):
+        meta = json.loads(meta_path.read_text())
+        if meta.get("key") == key:
+            return GeneratedController(
+                *(out, *files), plugin, key, names, False, meta["compiler_stderr"]
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        gen = ca.CodeGenerator(f"{STEP_NAME}.c", {"with_header": True, "prefix": "mmstab"})
+        for f in functions:
+            gen.add(f)
+        gen.generate(f"{tmp}/")
+        c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name())
+        h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
+    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout_header())):
+        _write_text(path, text)
+    stderr = compile_c([c_file], library, plugin, shared=True)
+    for stale in out.glob(f"lib{STEP_NAME}_*.so"):
+        if stale != library:
+            stale.unlink(missing_ok=True)
+    write_json(
+        meta_path,
+        {
+            "key": key,
+            "plugin": plugin,
+            "casadi": ca.CasadiMeta.version(),
+            "format_version": FORMAT_VERSION,
+            "compile_command": compile_command(plugin),
+            "library": library.name,
+            "functions": list(names),
+            "rollout_chunk": ROLLOUT_CHUNK,
+            "step_work": work_sizes(library)._asdict(),
+            "compiler_stderr": stderr,
+        },
+    )
+    return GeneratedController(*(out, *files), plugin, key, names, True, stderr)
+
+
+class WorkSizes(NamedTuple):
+    """A generated function's work: pointer slots for arguments and results, ints, reals."""
+
+    arg: int
+    res: int
+    iw: int
+    w: int
+
+
+def work_sizes(library: str | os.PathLike[str], name: str = STEP_NAME) -> WorkSizes:
+    """Call a compiled function's ``<name>_work`` (what the C example sizes its arrays by)."""
+    lib = ctypes.CDLL(str(Path(library).resolve()))
+    fn = getattr(lib, f"{name}_work")
+    sizes = [ctypes.c_longlong() for _ in range(4)]  # casadi_int = long long int
+    if fn(*(ctypes.byref(v) for v in sizes)) != 0:
+        raise RuntimeError(f"{name}_work failed")
+    return WorkSizes(*(int(v.value) for v in sizes))
+
+
+def load_step(problem: Problem, plugin: str | None = None) -> ca.Function:
+    """The compiled controller step for a problem (generated and compiled if missing/outdated).
+
+    Args:
+        problem: the problem (robot, ``controller:`` and ``codegen:`` sections).
+        plugin: QP plugin (default ``codegen.plugin``).
+
+    Returns:
+        ``casadi.external`` Function with :attr:`Controller.step`'s signature: (state (9),
+        reference (23), params (42)) -> (qdot (6) [rad/s], status, objective).
+    """
+    return generate(problem, plugin=plugin).load(STEP_NAME)

@@ -1,0 +1,73 @@
+"""The Functions exported to C: step, task, plant and the rolled closed loop."""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from mmstab.controller import (
+    PARAMS_SIZE,
+    REFERENCE_SIZE,
+    STATE_SIZE,
+    Controller,
+    ControllerParams,
+)
+from mmstab.plant import PLANT_NAME
+
+STEP_NAME = "controller_step"  #: the exported step (and the .c/.h file stem)
+TASK_NAME = "controller_task"  #: state -> ξ, exported alongside
+ROLLOUT_NAME = "controller_rollout"  #: ROLLOUT_CHUNK closed-loop steps, exported alongside
+ROLLOUT_CHUNK = 1000  #: closed-loop steps per ``controller_rollout`` call
+
+
+def closed_loop(ctrl: Controller) -> ca.Function:
+    """One closed-loop step: controller step, then the exact-arc motion over ``params.dt``.
+
+    Returns:
+        ``Function`` (state (9), reference (23), params (42)) -> (state_next (9), qdot (6)
+        [rad/s], status).
+    """
+    state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
+    p = ca.MX.sym("params", PARAMS_SIZE)
+    qdot, status, _ = ctrl.step(state, ref, p)
+    nxt = ctrl.model.f_integrate(state, qdot, ControllerParams.unpack(p).dt)
+    return ca.Function(
+        "closed_loop",
+        [state, ref, p],
+        [nxt, qdot, status],
+        ["state", "reference", "params"],
+        ["state_next", "qdot", "status"],
+    )
+
+
+def rollout_chunk(ctrl: Controller, steps: int = ROLLOUT_CHUNK) -> ca.Function:
+    """``steps`` closed-loop steps in one Function (``mapaccum`` of :func:`closed_loop`).
+
+    Returns:
+        ``Function`` ``controller_rollout`` (state0 (9), references (23 x steps), params (42))
+        -> (states after each step (9 x steps), qdot (6 x steps), status (1 x steps)).
+    """
+    acc = closed_loop(ctrl).mapaccum("closed_loop_acc", steps)
+    x0 = ca.MX.sym("state0", STATE_SIZE)
+    refs = ca.MX.sym("references", REFERENCE_SIZE, steps)
+    p = ca.MX.sym("params", PARAMS_SIZE)
+    states, qdot, status = acc(x0, refs, ca.repmat(p, 1, steps))
+    return ca.Function(
+        ROLLOUT_NAME,
+        [x0, refs, p],
+        [states, qdot, status],
+        ["state0", "references", "params"],
+        ["states", "qdot", "status"],
+    )
+
+
+def export_functions(ctrl: Controller) -> list[ca.Function]:
+    """The Functions written to the C file: step, task, plant, rollout chunk."""
+    step = ctrl.step
+    if step.name() != STEP_NAME:  # the exported symbol is the Function's name
+        raise RuntimeError(f"the controller's step is named {step.name()!r}, not {STEP_NAME!r}")
+    m = ctrl.model
+    task = ca.Function(TASK_NAME, [m.state, m.ground], [m.xi], ["state", "ground"], ["xi"])
+    plant = ctrl.model.f_integrate
+    if plant.name() != PLANT_NAME:
+        raise RuntimeError(f"the plant is named {plant.name()!r}, not {PLANT_NAME!r}")
+    return [step, task, plant, rollout_chunk(ctrl)]

@@ -1,0 +1,161 @@
+"""The import graph: every module imports alone, and dependencies point one way.
+
+Layers, lowest first (``docs/architecture.md``): inputs → model/terrain → problem →
+stability → workspace → planner → controller → codegen → application (simulation, rollouts,
+drawing) → app → experiments → CLI. A module may import from its own layer or below, never
+above. The static check reads every ``import`` of every module (function-level ones too);
+the dynamic check imports each module with no other mmstab module loaded before it, in a
+fresh interpreter (no cycle, no reliance on import order).
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "mmstab"
+
+#: Layer of each module (prefix match: the longest listed prefix wins).
+LAYERS: dict[str, int] = {
+    "mmstab": 0,
+    "mmstab.config": 0,
+    "mmstab.schema": 0,
+    "mmstab.robot": 1,
+    "mmstab.kinematics": 1,
+    "mmstab.urdf": 1,
+    "mmstab.collision": 1,
+    "mmstab.terrain": 1,
+    "mmstab.problem": 2,
+    "mmstab.stability": 3,
+    "mmstab.workspace": 4,
+    "mmstab.ik": 4,
+    "mmstab.workspace_fidelity": 4,
+    "mmstab.planner": 5,
+    "mmstab.tasks": 6,
+    "mmstab.limits": 6,
+    "mmstab.layout": 6,
+    "mmstab.plant": 6,
+    "mmstab.reference": 6,
+    "mmstab.posture": 6,
+    "mmstab.approach": 6,
+    "mmstab.controller": 6,
+    "mmstab.codegen": 7,
+    "mmstab.tracking": 8,
+    "mmstab.rollout": 8,
+    "mmstab.drawing": 8,
+    "mmstab.plotting": 8,
+    "mmstab.animation": 8,
+    "mmstab.app": 9,
+    "mmstab.experiments": 10,
+    "mmstab.cli": 11,
+    "mmstab.__main__": 11,
+}
+#: Known upward imports, each with its reason; nothing else may point up.
+ALLOWED_UP = {
+    # problem.py checks the controller and codegen sections by importing their checks; the
+    # explicit settings registry (issue 13, branch "edges") removes these two edges.
+    ("mmstab.problem", "mmstab.controller"),
+    ("mmstab.problem", "mmstab.codegen"),
+}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = sorted(module_name(p) for p in PACKAGE.rglob("*.py"))
+
+
+def layer(module: str) -> int:
+    best = max((p for p in LAYERS if module == p or module.startswith(p + ".")), key=len)
+    return LAYERS[best]
+
+
+def imports_of(module: str) -> set[str]:
+    """Every mmstab module ``module`` imports, anywhere in its source."""
+    path = ROOT / Path(*module.split("."))
+    path = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.split(".")[0] == "mmstab"}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            if node.module.split(".")[0] == "mmstab":
+                found.add(node.module)
+                # ``from mmstab import rollout``: a submodule, not a name
+                found |= {
+                    f"{node.module}.{a.name}"
+                    for a in node.names
+                    if f"{node.module}.{a.name}" in MODULES
+                }
+    return found - {module}
+
+
+def test_every_module_has_a_layer():
+    for m in MODULES:
+        named = [p for p in LAYERS if p != "mmstab" or m == "mmstab"]
+        assert any(m == p or m.startswith(p + ".") for p in named), m
+
+
+def test_dependencies_point_down():
+    upward = []
+    for m in MODULES:
+        for dep in imports_of(m):
+            if layer(dep) > layer(m) and (m, dep) not in ALLOWED_UP:
+                upward.append(f"{m} (layer {layer(m)}) imports {dep} (layer {layer(dep)})")
+    assert upward == []
+
+
+def test_the_check_sees_an_upward_import():
+    """The checker itself: a stability module importing the controller is flagged."""
+    assert layer("mmstab.stability") < layer("mmstab.controller")
+    assert "mmstab.terrain.base" in imports_of("mmstab.terrain.ramp")
+    assert "mmstab.rollout" in imports_of("mmstab.cli")  # ``from mmstab import rollout``
+
+
+#: Run in a fresh interpreter: import each module with no mmstab module loaded before it
+#: (third-party libraries stay loaded between modules, which keeps this fast).
+_IMPORT_EACH = """
+import importlib, json, sys, traceback
+failed = {}
+for name in sys.argv[1:]:
+    for loaded in [m for m in sys.modules if m == "mmstab" or m.startswith("mmstab.")]:
+        del sys.modules[loaded]
+    try:
+        importlib.import_module(name)
+    except BaseException:
+        failed[name] = traceback.format_exc(limit=3)
+print(json.dumps(failed))
+"""
+
+
+@pytest.mark.slow
+def test_each_module_imports_alone():
+    # (``mmstab.__main__`` runs the CLI when imported: it is ``python -m mmstab``)
+    modules = [m for m in MODULES if m != "mmstab.__main__"]
+    proc = subprocess.run(
+        [sys.executable, "-c", _IMPORT_EACH, *modules], capture_output=True, text=True, cwd=ROOT
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads(proc.stdout.splitlines()[-1]) == {}
+
+
+def test_no_stage_knows_the_ramp():
+    """Above mmstab.terrain, the ground is a Terrain: no Ramp, no slope angle."""
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.is_relative_to(PACKAGE / "terrain"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Name) and node.id == "Ramp":
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} Ramp")
+            if isinstance(node, ast.Attribute) and node.attr in ("slope", "G_R_S", "G_T_S"):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
+    assert offenders == []

@@ -1,0 +1,106 @@
+"""Each task's value, error and Jacobian; each limit's bounds; the QP as their sum."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from mmstab.controller import ControllerParams, ControllerSettings
+from mmstab.limits import JointPositionLimit, JointVelocityLimit
+from mmstab.limits.base import intersect
+from mmstab.tasks import ArmCoMTask, BasePointTask, PostureTask, TaskModel, TaskTarget
+
+
+@pytest.fixture(scope="module")
+def model(problem):
+    return TaskModel(problem.robot, 0.2)
+
+
+def states(robot, rng, n):
+    return np.column_stack(
+        [
+            rng.uniform(-2, 2, (n, 2)),
+            rng.uniform(-np.pi, np.pi, n),
+            rng.uniform(-9, 9, (n, 2)),
+            rng.uniform(robot.joint_lower, robot.joint_upper, (n, 4)),
+        ]
+    )
+
+
+@pytest.mark.parametrize("task", [BasePointTask(0.2), ArmCoMTask(), PostureTask()])
+def test_jacobian_is_the_rate_of_the_value_along_the_plant(model, problem, rng, task):
+    """(value(s after +h) − value(s after −h)) / 2h = J q̇, on a tilted local ground too."""
+    value = ca.Function("v", [model.state, model.ground], [task.value(model)])
+    jac = ca.Function("J", [model.state, model.ground], [task.jacobian(model)])
+    h = 1e-6
+    for s in states(problem.robot, rng, 10):
+        ground, qdot = rng.normal(0, 0.2, 3), rng.uniform(-3, 3, 6)
+        fd = (
+            np.asarray(value(model.integrate(s, qdot, h), ground))
+            - np.asarray(value(model.integrate(s, qdot, -h), ground))
+        ).ravel() / (2 * h)
+        assert np.asarray(jac(s, ground)).shape == (task.size, 6)
+        np.testing.assert_allclose(np.asarray(jac(s, ground)) @ qdot, fd, atol=1e-7)
+
+
+def test_errors(model, problem):
+    s = np.r_[0.3, -0.2, 3.0, 0.0, 0.0, problem.robot.stowed]
+    err = ca.Function(
+        "e", [model.state, model.ground], [BasePointTask(0.2).error(model, ca.DM([0.5, 0.1, -3.0]))]
+    )
+    e = np.asarray(err(s, np.zeros(3))).ravel()
+    # the point 0.2 m ahead on the ramp (ground zero), heading error wrapped: -3 - 3 + 2π
+    np.testing.assert_allclose(
+        e[:2], [0.5 - 0.3 - 0.2 * np.cos(3.0), 0.1 + 0.2 - 0.2 * np.sin(3.0)]
+    )
+    assert e[2] == pytest.approx(-6.0 + 2 * np.pi)
+    q_ref = np.array([1.0, 0.1, -0.2, 0.3])
+    pe = ca.Function("p", [model.state], [PostureTask().error(model, ca.DM(q_ref))])
+    np.testing.assert_allclose(np.asarray(pe(s)).ravel(), q_ref - problem.robot.stowed)
+
+
+def test_objective_is_the_weighted_least_squares_of_the_rate(model, problem, rng):
+    task = ArmCoMTask()
+    target = TaskTarget(
+        ca.DM([0.1, 0.2, 0.3]),
+        ca.DM([0.01, 0.0, -0.02]),
+        ca.DM([5, 4, 3]),
+        ca.DM([1.0, 2.0, 0.5]),
+        1.0,
+    )
+    obj = task.objective(model, target)
+    f = ca.Function("o", [model.state, model.ground], [obj.H, obj.g, obj.cost0, obj.rate])
+    jac = ca.Function("J", [model.state, model.ground], [task.jacobian(model)])
+    s = states(problem.robot, rng, 1)[0]
+    H, g, c0, v = (np.asarray(x) for x in f(s, np.zeros(3)))
+    J, W = np.asarray(jac(s, np.zeros(3))), np.diag([1.0, 2.0, 0.5])
+    qdot = rng.normal(size=6)
+    cost = 0.5 * (v.ravel() - J @ qdot) @ W @ (v.ravel() - J @ qdot)
+    assert 0.5 * qdot @ H @ qdot + g.ravel() @ qdot + c0.item() == pytest.approx(cost, rel=1e-12)
+
+
+def test_limits_bound_and_intersect(problem, rng):
+    robot = problem.robot
+    settings = ControllerSettings.from_section(problem.section("controller"))
+    P = ControllerParams.from_settings(robot, settings)
+    s = ca.SX.sym("s", 9)
+    Ps = ControllerParams.unpack(ca.SX.sym("p", ControllerParams.size()))
+    f = ca.Function(
+        "b",
+        [s, ca.vertcat(*[ca.vec(x) for x in Ps])],
+        list(intersect([JointVelocityLimit(), JointPositionLimit()], s, Ps)),
+    )
+    state = states(robot, rng, 1)[0]
+    state[5] = robot.joint_upper[0] - 1e-4  # near a stop: the position limit is the tighter
+    lo, hi = (np.asarray(x).ravel() for x in f(state, P.pack()))
+    q = state[5:]
+    np.testing.assert_allclose(
+        lo, np.r_[-P.qdot_max[:2], np.maximum(-P.qdot_max[2:], (robot.joint_lower - q) / P.dt)]
+    )
+    np.testing.assert_allclose(
+        hi, np.r_[P.qdot_max[:2], np.minimum(P.qdot_max[2:], (robot.joint_upper - q) / P.dt)]
+    )
+    assert hi[2] == pytest.approx(1e-4 / P.dt) and hi[2] < P.qdot_max[2]
+    pos = JointPositionLimit().bounds(s, Ps)
+    assert np.isinf(np.asarray(ca.evalf(pos.lower[:2]))).all()  # the sprockets turn freely
