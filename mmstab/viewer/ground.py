@@ -1,21 +1,20 @@
 """The ground as the viewer sees it: the terrain interface, and the terrain as a mesh.
 
-The viewer talks to the ground only through the methods of
-:class:`mmstab.terrain.Terrain` it needs (:class:`Ground`): ``G_T_M()``, ``G_T_B(poses)``
-and ``gravity_body(poses)``, plus an optional ``height(x, y)`` [m] in the map frame M
-(heightmap terrains). A planar ramp written before that interface (``Ramp.G_T_S``,
-``Ramp.gravity_body(headings)``) is wrapped by :class:`RampGround`. A terrain's own
-``surface_G(x, y)`` and ``support(pose, contacts_B)`` are used when it has them.
+The viewer talks to the ground only through :class:`mmstab.terrain.Terrain`:
+``G_T_M()``, ``G_T_B(poses)``, ``gravity_body(poses)``, ``support(robot, pose)`` and
+``surface_G(x, y)`` (the terrain draws itself); an object with only ``G_T_M`` and a
+``height(x, y)`` [m] in M is meshed through its height.
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.robot import FloatArray
+from mmstab.terrain import Terrain
 
 #: Default size of a terrain mesh cell [m] (a heightmap's bumps need them small).
 MESH_CELL = 0.1
@@ -23,56 +22,13 @@ MESH_CELL = 0.1
 LINE_LIFT = 4e-3
 
 
-class Ground(Protocol):
-    """What the viewer needs of a terrain (a subset of :class:`mmstab.terrain.Terrain`)."""
-
-    def G_T_M(self) -> FloatArray:
-        """Pose of the map frame M in G (4, 4)."""
-        ...
-
-    def G_T_B(self, poses: ArrayLike) -> FloatArray:
-        """Resting body poses in G: (N, 4, 4) for poses (N, 3) of (x [m], y [m], yaw [rad])."""
-        ...
-
-    def gravity_body(self, poses: ArrayLike) -> FloatArray:
-        """Gravity in the body frame at the resting poses, (N, 3) [m/s^2]."""
-        ...
-
-
-class RampGround:
-    """A planar ramp (``mmstab.terrain.Ramp``) seen through the :class:`Ground` methods.
-
-    Args:
-        ramp: an object with ``G_T_S()``, ``G_T_B(pose)`` for one pose and
-            ``gravity_body(headings)``; M is its slope frame S.
-    """
-
-    kind = "ramp"
-
-    def __init__(self, ramp: Any):
-        self.ramp = ramp
-
-    def G_T_M(self) -> FloatArray:
-        """Pose of the slope frame in G (4, 4)."""
-        return np.asarray(self.ramp.G_T_S(), dtype=float)
-
-    def G_T_B(self, poses: ArrayLike) -> FloatArray:
-        """Body poses in G (N, 4, 4) for poses (N, 3) in S [m, m, rad]."""
-        P = np.asarray(poses, dtype=float).reshape(-1, 3)
-        return np.stack([self.ramp.G_T_B(p) for p in P])
-
-    def gravity_body(self, poses: ArrayLike) -> FloatArray:
-        """Gravity in B (N, 3) [m/s^2]; on a plane only the heading matters."""
-        P = np.asarray(poses, dtype=float).reshape(-1, 3)
-        return np.asarray(self.ramp.gravity_body(P[:, 2]), dtype=float)
+#: What the viewer draws on: any :class:`mmstab.terrain.Terrain`.
+Ground = Terrain
 
 
 def problem_ground(problem: Any) -> Ground:
-    """The ground of a problem: ``problem.terrain`` if it has one, else its ramp."""
-    terrain = getattr(problem, "terrain", None)
-    if terrain is None or not hasattr(terrain, "G_T_B"):
-        terrain = problem.ramp
-    return terrain if hasattr(terrain, "G_T_M") else RampGround(terrain)
+    """The ground of a problem (its terrain)."""
+    return problem.terrain
 
 
 def resting_poses(ground: Ground, poses: ArrayLike) -> FloatArray:

@@ -21,7 +21,7 @@ import trimesh
 from numpy.typing import ArrayLike
 
 from mmstab.robot import Box, Capsule, FloatArray, Geometry, Robot
-from mmstab.stability import axis_angles, base_polygon
+from mmstab.stability import axis_angles
 from mmstab.urdf import axis_to_z_rotation
 from mmstab.viewer.ground import LINE_LIFT, Ground, resting_poses, transform
 
@@ -133,9 +133,8 @@ def arm_posture(robot: Robot, mode: str, q: ArrayLike) -> FloatArray | None:
 def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) -> Instant:
     """The stability picture at one base pose and arm posture.
 
-    The resting pose and the support polygon come from the ground: ``ground.support(pose,
-    contacts_B)`` if it has it (heightmaps: the contacts that touch), else the base's
-    polygon (:func:`mmstab.stability.base_polygon`) at ``G_T_B(pose)``. μ is the
+    The resting pose and the support polygon come from the ground's
+    ``support(robot, pose)`` (on a heightmap: the contacts that touch). μ is the
     force-angle measure (:func:`mmstab.stability.axis_angles`) of that polygon with the
     overall CoM and f_r = m g, gravity from ``ground.gravity_body``.
 
@@ -146,13 +145,8 @@ def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) 
         q: arm joint angles (4,) [rad]; ``None`` = the arm removed.
     """
     p = np.asarray(pose, dtype=float).reshape(3)
-    support = getattr(ground, "support", None)
-    if support is not None:
-        stand = support(p, robot.base.support_points())
-        G_T_B, polygon_G = np.asarray(stand.G_T_B, float), np.asarray(stand.polygon_G, float)
-    else:
-        G_T_B = resting_poses(ground, p)[0]
-        polygon_G = transform(G_T_B, base_polygon(robot).vertices)
+    stand = ground.support(robot, p)
+    G_T_B, polygon_G = np.asarray(stand.G_T_B, float), np.asarray(stand.polygon_G, float)
     gravity_G = G_T_B[:3, :3] @ np.asarray(ground.gravity_body(p[None]), dtype=float).reshape(3)
     if q is None:
         qa, B_T_R = None, None
