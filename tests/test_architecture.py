@@ -56,6 +56,7 @@ LAYERS: dict[str, int] = {
     "mmstab.animation": 8,
     "mmstab.validation": 8,
     "mmstab.app": 9,
+    "mmstab.runstore": 9,
     "mmstab.experiments": 10,
     "mmstab.viewer": 10,
     "mmstab.cli": 11,

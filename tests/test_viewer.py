@@ -18,6 +18,7 @@ from conftest import ROOT, write_problem
 
 from mmstab.config import ConfigError, MmstabError
 from mmstab.problem import load_problem
+from mmstab.runstore import first_difference, load_run
 from mmstab.stability import robot_force_angle
 from mmstab.terrain import global_com_functions
 from mmstab.viewer.ground import (
@@ -26,7 +27,6 @@ from mmstab.viewer.ground import (
     problem_ground,
     terrain_mesh,
 )
-from mmstab.viewer.run import first_difference, load_run
 from mmstab.viewer.scene import (
     ARM_MODES,
     arm_posture,

@@ -1,24 +1,47 @@
-"""The tracking run as an animated GIF (issue 7): the robot driving the circle on the ramp."""
+"""The tracking run as an animated GIF (issue 7): the robot driving the circle on the ramp.
+
+It renders the stored run of ``mmstab track`` (``results/tracking/run.npz``), so
+``make demo`` simulates the lap once; only when no run of this problem is stored does it
+run the tracking experiment first.
+"""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mmstab.animation import render_animation
-from mmstab.app import track
-from mmstab.config import write_json
+from mmstab.config import MmstabError, write_json
 from mmstab.experiments.common import output_dir
+from mmstab.experiments.tracking import run_tracking
 from mmstab.problem import Problem
+from mmstab.runstore import Run, load_run
 from mmstab.stability import mu_max
+
+
+def stored_or_new_run(problem: Problem, directory: Path, progress: bool) -> Run:
+    """The stored run of ``problem`` in ``directory``; tracked and stored first if there is none.
+
+    Args:
+        problem: the problem.
+        directory: the run's folder (``results/tracking``).
+        progress: show progress bars when tracking.
+    """
+    try:
+        return load_run(directory, problem)
+    except MmstabError as exc:
+        print(f"animation: no stored run to render ({exc}); tracking first", file=sys.stderr)
+    run_tracking(problem, directory, progress=progress)
+    return load_run(directory, problem)
 
 
 def run_animation(
     problem: Problem, out: str | Path | None = None, progress: bool = True
 ) -> dict[str, Any]:
-    """Plan, track one lap (as ``mmstab track``) and render ``results/tracking/animation.gif``.
+    """Render ``results/tracking/animation.gif`` from the stored tracking run.
 
     The frame count, rate and size come from the problem's ``animation`` section; the
     margin colour scale is mu_max (flat ground, arm stowed), so green means "as stable as
@@ -26,22 +49,22 @@ def run_animation(
 
     Args:
         problem: the problem.
-        out: output folder (default ``results/tracking``).
+        out: the run's folder and output folder (default ``results/tracking``).
         progress: show progress bars.
 
     Returns:
         What was rendered (also written to ``animation.json``).
     """
     cfg = problem.section("animation")
-    run = track(problem, progress=progress).run
     d = output_dir(out, "tracking")
+    run = stored_or_new_run(problem, d, progress)
     info = render_animation(
         problem.robot,
         problem.terrain,
         run.t,
-        run.state[:, :3],
-        run.state[:, 5:9],
-        run.mu.reconfigured,
+        run.poses,
+        run.q,
+        run.mu["planned"],
         d / "animation.gif",
         fps=cfg["fps"],
         size=(cfg["width"], cfg["height"]),
@@ -55,7 +78,8 @@ def run_animation(
         "fps": cfg["fps"],
         "size_px": [cfg["width"], cfg["height"]],
         "simulated_s": float(run.t[-1]),
-        "mu_min": float(np.min(run.mu.reconfigured)),
+        "mu_min": float(np.min(run.mu["planned"])),
+        "source": str(d / "run.npz"),
     }
     write_json(d / "animation.json", summary)
     return summary

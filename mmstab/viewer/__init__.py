@@ -2,7 +2,7 @@
 
 - :mod:`mmstab.viewer.ground`: the terrain through the ``Terrain`` interface, as a mesh.
 - :mod:`mmstab.viewer.scene`: robot meshes and the stability picture of one instant (pure).
-- :mod:`mmstab.viewer.run`: a stored tracking run, read and checked against the problem.
+- stored runs are read and checked by :mod:`mmstab.runstore`.
 - :mod:`mmstab.viewer.server`: the viser server, its scene tree and GUI (needs ``viser``).
 - :mod:`mmstab.viewer.cli`: the ``mmstab view`` command.
 

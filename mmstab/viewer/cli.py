@@ -80,7 +80,7 @@ def has_display() -> bool:
 def run_view(args: argparse.Namespace) -> None:
     """Load the problem (and run), start the server, print its URL, serve until Ctrl-C."""
     from mmstab.problem import load_problem
-    from mmstab.viewer.run import load_run
+    from mmstab.runstore import load_run
 
     problem = load_problem(args.problem)
     run = load_run(args.run, problem) if args.run is not None else None

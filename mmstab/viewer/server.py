@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.robot import FloatArray
+from mmstab.runstore import Run
 from mmstab.stability import mu_max
 from mmstab.viewer.ground import (
     extent_around,
@@ -27,7 +28,6 @@ from mmstab.viewer.ground import (
     problem_ground,
     terrain_mesh,
 )
-from mmstab.viewer.run import Run
 from mmstab.viewer.scene import (
     ARM_MODES,
     Instant,
@@ -89,7 +89,7 @@ class Viewer:
 
     Args:
         problem: the problem (robot, terrain, path).
-        run: a run of that problem (:func:`mmstab.viewer.run.load_run`), or ``None``.
+        run: a run of that problem (:func:`mmstab.runstore.load_run`), or ``None``.
         host: interface to listen on (``127.0.0.1``: this machine only; ``0.0.0.0``: all).
         port: TCP port (0: any free port; a busy port makes viser try the next one).
     """

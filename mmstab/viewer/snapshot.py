@@ -177,7 +177,7 @@ def write_screenshot(
         at: where in the run, as a share of its samples in [0, 1].
     """
     from mmstab.problem import load_problem
-    from mmstab.viewer.run import load_run
+    from mmstab.runstore import load_run
     from mmstab.viewer.server import Viewer
 
     problem = load_problem(problem_path)

@@ -1,8 +1,9 @@
 """A stored tracking run (``results/tracking/``, as ``mmstab track`` writes it), read and checked.
 
-The viewer recomputes nothing heavy: it reads ``run.npz`` (base poses, arm postures and
-μ per sample for the three arm modes, the plan's arm-CoM targets) and checks that the run
-belongs to the problem being shown by comparing the run's saved ``problem.yaml`` with it.
+One simulated run serves every product after it: the animation and the viewer read
+``run.npz`` (base poses, arm postures and μ per sample for the three arm modes, the plan's
+arm-CoM targets) instead of simulating again, after checking that the run belongs to the
+problem by comparing the run's saved ``problem.yaml`` with it.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from mmstab.robot import FloatArray
 #: Sections of a problem that decide what a run is: a run made with other values there
 #: belongs to another problem. (``animation``, ``sweep``, ``codegen`` ... only present it.)
 RUN_SECTIONS = ("robot", "terrain", "path", "planner", "controller")
-#: Arrays the viewer reads from ``run.npz``.
+#: Arrays read from ``run.npz``.
 RUN_ARRAYS = (
     "t",
     "state",
@@ -40,7 +41,7 @@ class Run(NamedTuple):
         t: sample times (N,) [s].
         poses: base poses (N, 3) of (x [m], y [m], yaw [rad]) in the map frame M.
         q: arm postures (N, 4) [rad].
-        mu: μ per arm mode of :data:`mmstab.viewer.scene.ARM_MODES`, each (N,) [N rad].
+        mu: μ per arm mode (``planned``, ``stowed``, ``arm removed``), each (N,) [N rad].
         plan_fractions: path fractions of the planned poses (K,) in [0, 1).
         plan_target_com: planned arm CoMs in the body frame (K, 3) [m].
     """
@@ -132,7 +133,7 @@ def load_run(directory: str | Path, problem: Any) -> Run:
 
     Args:
         directory: the run's folder (``results/tracking``).
-        problem: the :class:`mmstab.problem.Problem` being viewed.
+        problem: the :class:`mmstab.problem.Problem` the run must belong to.
 
     Raises:
         MmstabError: the folder or ``run.npz`` is missing or unreadable.
