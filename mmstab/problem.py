@@ -19,6 +19,8 @@ from mmstab.config import ConfigError, read_yaml, validate
 from mmstab.controller import check_settings as _check_controller
 from mmstab.robot import Robot, load_robot
 from mmstab.terrain import CirclePath, Ramp
+from mmstab.terrain.factory import NotARamp, from_section
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Semantic checks of a section beyond the schema: (problem path, section) -> None or raise.
 SECTION_CHECKS: dict[str, Callable[[Path, dict[str, Any]], None]] = {}
@@ -34,8 +36,9 @@ class Problem:
         path: the problem file.
         data: its validated content (sections by name).
         robot: the robot it names.
-        ramp: the planar ramp.
+        ramp: the planar ramp (on a heightmap problem: a stand-in that refuses, clearly).
         circle: the base reference path on the ramp.
+        terrain: the ground of ``terrain:`` (the ramp, or a heightmap bound to the robot).
     """
 
     path: Path
@@ -43,6 +46,7 @@ class Problem:
     robot: Robot
     ramp: Ramp
     circle: CirclePath
+    terrain: Ramp | HeightmapTerrain
 
     @property
     def name(self) -> str:
@@ -72,11 +76,14 @@ def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Pro
     for name, check in SECTION_CHECKS.items():
         check(p, data[name])
     c = data["path"]
+    robot = load_robot(robot_path)
+    terrain = from_section(p, data["terrain"], robot)
     return Problem(
         path=p,
         data=data,
-        robot=load_robot(robot_path),
-        ramp=Ramp(data["terrain"]["slope"]),
+        robot=robot,
+        ramp=terrain if isinstance(terrain, Ramp) else NotARamp(p),
+        terrain=terrain,
         circle=CirclePath(
             center=tuple(c["center"]),
             radius=float(c["radius"]),

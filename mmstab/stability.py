@@ -72,6 +72,46 @@ def support_polygon(points: ArrayLike, com: ArrayLike, net_force: ArrayLike) -> 
     return SupportPolygon(vertices=pts[hull.vertices], normal=normal)  # 2-D hull is CCW
 
 
+def support_polygon_3d(points: ArrayLike, net_force: ArrayLike) -> SupportPolygon:
+    """Order 3-D contact points, not necessarily coplanar, into the support polygon.
+
+    The polygon is the convex hull of the points seen along the net force: its vertices
+    are the contacts on the hull of their projection onto the plane normal to ``f_r``,
+    kept at their 3-D positions and ordered counter-clockwise about ``-f_r``. Consecutive
+    vertices join the tip-over axes of :func:`axis_angles`, whose angles need no common
+    plane: each is measured about its own axis. For coplanar points it is the polygon of
+    :func:`support_polygon` (the same vertices, in the same turning sense).
+
+    Args:
+        points: contact points (n, 3), n >= 3 [m].
+        net_force: net force f_r (3,) [N] (gravity: m g).
+
+    Returns:
+        ``SupportPolygon`` with ``normal`` = -f_r / |f_r| (the "up" it is ordered about).
+
+    Raises:
+        ValueError: fewer than 3 points, or all on one line seen along ``f_r``.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
+        raise ValueError(f"support points must be (n>=3, 3), got {pts.shape}")
+    f = np.asarray(net_force, dtype=float)
+    up = -f / np.linalg.norm(f)
+    u = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(up, u)  # (u, v, up) right-handed: CCW in (u, v) is CCW about up
+    rel = pts - pts.mean(axis=0)
+    flat = np.stack([rel @ u, rel @ v], axis=1)
+    _, sing, _ = np.linalg.svd(flat - flat.mean(axis=0))
+    if sing[1] < 1e-9 * max(sing[0], 1e-300):
+        raise ValueError("support points are collinear seen along the force: no polygon")
+    try:
+        hull = ConvexHull(flat)
+    except QhullError as exc:
+        raise ValueError(f"degenerate support polygon: {exc}") from None
+    return SupportPolygon(vertices=pts[hull.vertices], normal=up)
+
+
 def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> FloatArray:
     """Signed angles theta_j for many CoMs/forces against one ordered polygon.
 

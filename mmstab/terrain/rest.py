@@ -5,19 +5,29 @@ heading of its x axis; the ground decides the rest: the height ``z`` [m], the ro
 the pitch [rad], with ``G_R_B = Rz(yaw) Ry(-pitch) Rx(roll)`` (positive roll lifts the
 left side, positive pitch lifts the nose, as ``Ramp.roll_pitch``).
 
-**Method: least potential energy without penetration.** Lowering the robot vertically
-does not move a candidate point's (x, y), so for a given (roll, pitch) the body comes to
-rest at ``z = max_k f_k`` with ``f_k = h(xy_k) - (G_R_B c_k)_z`` (``c_k`` the contact
-candidates, ``h`` the bilinear ground). The resting attitude minimises the height of the
-centre of mass, ``U = max_k f_k + (G_R_B g_o)_z``. Each iteration linearises the ``f_k``
-about the current attitude and solves the linear programme
-``min_{t, d} t + grad_U_com . d  s.t.  t >= f_k + J_k . d`` exactly: its dual is the upper
-convex hull of the lifted points ``(J_k, f_k)`` above ``q = -grad_U_com``, found by a
-simplex pivot on triangles (big-M start). The optimal triangle is the three supporting
-contacts and its barycentric weights their (non-negative) load shares, so the solution is
-the physical tip-until-stable rest: contacts hold the robot and the gravity line of the
-CoM passes through their polygon (Oehler & von Stryk's contact estimation reaches the
-same state by explicit tipping). Newton-like: on a plane it is exact in a few steps.
+**Method: lower, then tip until the supporting contacts hold the CoM.** Lowering the robot
+vertically does not move a candidate point's (x, y), so for a given (roll, pitch) the body
+comes to rest at ``z = max_k f_k`` with ``f_k = h(xy_k) - (G_R_B c_k)_z`` (``c_k`` the
+contact candidates, ``h`` the bilinear ground): the lift point k needs to touch. Starting
+level, each round
+
+1. picks the *supporting triangle*: the three candidates whose lifted points
+   ``(a_k, f_k)`` span the facet of their upper convex hull above the CoM, where ``a_k``
+   is the horizontal moment arm of a vertical force at k (``-d(G_R_B c_k)_z/d(roll,
+   pitch)``) and the CoM's is ``-d(G_R_B g_o)_z/d(roll, pitch)``. It is a 2-D linear
+   programme (weights w >= 0 summing to one that put the CoM's arm at the contacts'
+   average, maximising the average lift) solved exactly by simplex pivots on triangles;
+   its weights are the contacts' load shares. If no triangle holds the CoM, the robot
+   tips toward the programme's unbounded direction;
+2. takes a Newton step in (roll, pitch) that brings those three candidates to the same
+   lift (all touching), with the ground's slope under them (``J_k = d f_k/d(roll, pitch)``).
+
+At the fixed point the three touch, nothing penetrates (the facet is level in f) and the
+gravity line of the CoM passes through their triangle: the quasi-static rest that
+explicit tipping about support edges reaches (as Oehler & von Stryk's contact estimation
+for tracked robots). On a plane it is exact in a few rounds. Long steps are shortened so
+the rest is approached from one side (an overshoot could tip a marginally stable robot);
+a roll or pitch beyond ``max_tilt`` means the robot tips over.
 """
 
 from __future__ import annotations
@@ -43,6 +53,8 @@ class RestSettings(NamedTuple):
         max_tilt: a roll or pitch beyond this means the robot tips over [rad].
         contact_tol: a candidate within this of the ground touches it [m].
         line_width: touching contacts within this of one line are a line contact [m].
+        approach: Newton steps longer than this [rad] are shortened ...
+        approach_factor: ... by this factor (approach the rest without overshooting it).
     """
 
     max_iterations: int = 40
@@ -51,6 +63,8 @@ class RestSettings(NamedTuple):
     max_tilt: float = 1.3
     contact_tol: float = 2e-4
     line_width: float = 1e-3
+    approach: float = 0.02
+    approach_factor: float = 0.8
 
 
 class RestPoses(NamedTuple):
@@ -88,7 +102,7 @@ class RestPoses(NamedTuple):
         """The operator flags of pose ``i`` (empty = normal)."""
         names = ("high_centred", "line_contact", "tips_over")
         out = tuple(n for n in names if bool(getattr(self, n)[i]))
-        return out if self.converged[i] else (*out, "not_converged")
+        return out if self.converged[i] or self.tips_over[i] else (*out, "not_converged")
 
     def contacts_G(self, points_body: ArrayLike, i: int) -> FloatArray:
         """The touching candidates of pose ``i`` in G (n, 3) [m]."""
@@ -116,7 +130,12 @@ def rotations(yaw: FloatArray, roll: FloatArray, pitch: FloatArray) -> tuple[Flo
 def _lift(
     hm: Heightmap, c: FloatArray, com: FloatArray, xy: FloatArray, yaw: FloatArray, att: FloatArray
 ) -> tuple[Any, ...]:
-    """f_k (n, K), J_k (n, K, 2), grad of the CoM height (n, 2), valid (n,)."""
+    """f_k (n, K), J_k and its lever part (n, K, 2), CoM height gradient (n, 2), valid (n,).
+
+    ``J_k = d f_k / d(roll, pitch)``; the lever part ``-d (G_R_B c_k)_z / d(roll, pitch)``
+    leaves out the ground's slope under the moving point: it is the horizontal moment arm
+    of a vertical contact force, the one that decides equilibrium.
+    """
     R, dR_r, dR_p = rotations(yaw, att[:, 0], att[:, 1])
     n, K = yaw.shape[0], c.shape[0]
     # every row of R, dR/droll, dR/dpitch against every candidate: one matrix product
@@ -126,7 +145,8 @@ def _lift(
     f = s.height - m[:, 2]
     jac = [s.dh_dx * m[:, j] + s.dh_dy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
     grad = np.stack([np.einsum("nj,nj->n", dR[:, 2, :], com) for dR in (dR_r, dR_p)], axis=1)
-    return f, np.stack(jac, axis=-1), grad, s.valid.all(axis=1)
+    lever = np.stack([-m[:, 5], -m[:, 8]], axis=-1)
+    return f, np.stack(jac, axis=-1), lever, grad, s.valid.all(axis=1)
 
 
 def _bary(P: FloatArray, x: FloatArray) -> FloatArray:
@@ -226,6 +246,20 @@ def support_lp(
     return t, d, basis, bounded
 
 
+def _touch_step(f: FloatArray, J: FloatArray, tri: NDArray[np.int_]) -> FloatArray:
+    """Newton step (n, 2) [rad] bringing the three contacts ``tri`` to the same lift f."""
+    r = np.arange(f.shape[0])[:, None]
+    fa, Ja = f[r, tri], J[r, tri]  # (n, 3), (n, 3, 2)
+    A = Ja[:, :1] - Ja[:, 1:]  # rows: J_a - J_b, J_a - J_c
+    b = fa[:, 1:] - fa[:, :1]  # -(f_a - f_b), -(f_a - f_c)
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    ok = np.abs(det) > 1e-14
+    det = np.where(ok, det, 1.0)
+    d0 = (A[:, 1, 1] * b[:, 0] - A[:, 0, 1] * b[:, 1]) / det
+    d1 = (-A[:, 1, 0] * b[:, 0] + A[:, 0, 0] * b[:, 1]) / det
+    return np.where(ok[:, None], np.stack([d0, d1], axis=1), 0.0)
+
+
 def rest_poses(
     heightmap: Heightmap,
     candidates: ArrayLike,
@@ -279,6 +313,7 @@ def _solve(
     xy, yaw = p[:, :2], p[:, 2]
     att = np.zeros((n, 2))  # (roll, pitch): lowered level
     f_last = np.full((n, K), np.nan)
+    last = np.zeros((n, 2))  # the last Newton step taken [rad]
     basis: NDArray[np.int_] = np.tile(np.arange(K, K + 3), (n, 1))
     u, v = c[:, 0] + c[:, 1], c[:, 0] - c[:, 1]
     corners = np.array([np.argmax(u), np.argmax(v), np.argmin(u), np.argmin(v)])  # CCW-ish
@@ -291,24 +326,36 @@ def _solve(
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
-        f, J, grad, ok = _lift(hm, c, com[idx], xy[idx], yaw[idx], att[idx])
+        f, J, lever, grad, ok = _lift(hm, c, com[idx], xy[idx], yaw[idx], att[idx])
         if not ok.all():
             valid[idx[~ok]] = False
             active[idx[~ok]] = False
-            idx, f, J, grad = idx[ok], f[ok], J[ok], grad[ok]
+            idx, f, J, lever, grad = idx[ok], f[ok], J[ok], lever[ok], grad[ok]
             if idx.size == 0:
                 break
         f_last[idx] = f
         if it == settings.max_iterations:
             break  # f_last now belongs to the final attitude
         warm = basis[idx] if it else None
-        _, step, basis[idx], bounded = support_lp(J, f, -grad, warm, corners)
+        _, tip, basis[idx], bounded = support_lp(lever, f, -grad, warm, corners)
+        newton = _touch_step(f, J, basis[idx])
+        # long Newton steps are shortened so they approach the rest from the side they
+        # started on: an overshoot can put the CoM outside its support and tip a stable robot
+        n_norm = np.linalg.norm(newton, axis=1, keepdims=True)
+        newton *= np.where(n_norm > settings.approach, settings.approach_factor, 1.0)
+        step = np.where(bounded[:, None], newton, tip)
         norm = np.linalg.norm(step, axis=1)
+        # a Newton step that overshot the rest put the CoM outside its support: go half back
+        # (tipping is believed only once it appears after a tiny step)
+        back = ~bounded & (np.linalg.norm(last[idx], axis=1) > 1e-7)
         done = bounded & (norm <= settings.tol_step)
-        over = ~done & (np.abs(att[idx]) > settings.max_tilt).any(axis=1)
+        over = ~done & ~back & (np.abs(att[idx]) > settings.max_tilt).any(axis=1)
         limit = settings.max_step * (0.5 ** max(0, it - 20))  # damp a late limit cycle
         step *= np.minimum(1.0, limit / np.maximum(norm, 1e-300))[:, None]
         step[done | over] = 0.0  # f_last is at the final attitude
+        half = 0.5 * last[idx]
+        step = np.where(back[:, None], -half, step)
+        last[idx] = np.where(back[:, None], half, np.where(bounded[:, None], step, 0.0))
         att[idx] += step
         iterations[idx] = it + 1
         tips[idx[over]] = True
