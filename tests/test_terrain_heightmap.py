@@ -205,3 +205,26 @@ def test_generators_are_seeded_and_shaped_as_asked():
     assert dch.height([-0.3, 0.0]) == -0.2 and dch.height([-0.25, 0.0]) == 0.0
     bm = bumps(g, 0.05, 0.5, np.random.default_rng(1))
     assert np.abs(bm.elevation).max() <= 0.05 + 1e-12
+
+
+def test_fast_row_sampler_matches_the_checked_one(rng):
+    hm = generate(
+        {
+            "kind": "bumps",
+            "seed": 1,
+            "size": [1.0, 0.8],
+            "resolution": 0.1,
+            "amplitude": 0.1,
+            "wavelength": 0.5,
+        }
+    )
+    x0, x1, y0, y1 = hm.bounds
+    x = rng.uniform(x0, x1, (5, 30))
+    y = rng.uniform(y0, y1, (5, 30))
+    x[:, 0], y[:, 1] = x1, y1  # the far edges are on the map
+    x[3, 2] = x1 + 0.01  # row 3 leaves it
+    h, hx, hy, valid = hm.sample_rows(x, y)
+    s = hm.sample(np.stack([x, y], axis=-1))
+    assert valid.tolist() == [True, True, True, False, True]
+    for a, b in ((h, s.height), (hx, s.dh_dx), (hy, s.dh_dy)):
+        np.testing.assert_allclose(a[valid], b[valid], atol=1e-12)

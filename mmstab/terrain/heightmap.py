@@ -163,6 +163,48 @@ class Heightmap:
             dh_dy = np.where(bad, np.nan, dh_dy)
         return HeightSample(height, dh_dx, dh_dy, valid)
 
+    def sample_rows(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, ...]:
+        """Fast bilinear samples for rows of points; validity per row (the resting-pose loop).
+
+        Args:
+            x: G x of the points (n, K) [m].
+            y: G y of the points (n, K) [m].
+
+        Returns:
+            ``(height, dh_dx, dh_dy)`` each (n, K), and ``valid`` (n,): every point of the
+            row inside the map and on known cells (invalid rows hold garbage).
+        """
+        ny, nx = self.shape
+        u = (x - self.origin[0]) * (1.0 / self.resolution)
+        v = (y - self.origin[1]) * (1.0 / self.resolution)
+        eps = 1e-9
+        valid = (
+            (u.min(axis=1) >= -eps)
+            & (u.max(axis=1) <= nx - 1 + eps)
+            & (v.min(axis=1) >= -eps)
+            & (v.max(axis=1) <= ny - 1 + eps)
+        )
+        ix = np.minimum(np.maximum(u, 0.0).astype(np.intp), nx - 2)  # floor for u >= 0
+        iy = np.minimum(np.maximum(v, 0.0).astype(np.intp), ny - 2)
+        fx, fy = u - ix, v - iy
+        flat = self.elevation.ravel()
+        k = iy * nx + ix
+        h00, h10 = flat[k], flat[k + 1]
+        h01, h11 = flat[k + nx], flat[k + nx + 1]
+        ax = h10 - h00
+        bx = h11 - h01
+        low = h00 + fx * ax
+        high = h01 + fx * bx
+        dy = high - low
+        height = low + fy * dy
+        valid &= np.isfinite(height.sum(axis=1))
+        return (
+            height,
+            (ax + fy * (bx - ax)) * (1.0 / self.resolution),
+            dy * (1.0 / self.resolution),
+            valid,
+        )
+
     def check(self, sample: HeightSample, xy: ArrayLike, what: str = "point") -> None:
         """Raise :class:`OffMapError` naming the first invalid point of ``sample``."""
         if sample.valid.all():

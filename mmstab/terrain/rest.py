@@ -141,12 +141,12 @@ def _lift(
     # every row of R, dR/droll, dR/dpitch against every candidate: one matrix product
     rows = np.concatenate([R, dR_r, dR_p], axis=1).reshape(n * 9, 3) @ c.T
     m = rows.reshape(n, 9, K)
-    s = hm.sample(np.stack([xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1]], axis=-1))
-    f = s.height - m[:, 2]
-    jac = [s.dh_dx * m[:, j] + s.dh_dy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
+    h, hx, hy, valid = hm.sample_rows(xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1])
+    f = h - m[:, 2]
+    jac = [hx * m[:, j] + hy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
     grad = np.stack([np.einsum("nj,nj->n", dR[:, 2, :], com) for dR in (dR_r, dR_p)], axis=1)
     lever = np.stack([-m[:, 5], -m[:, 8]], axis=-1)
-    return f, np.stack(jac, axis=-1), lever, grad, s.valid.all(axis=1)
+    return f, np.stack(jac, axis=-1), lever, grad, valid
 
 
 def _bary(P: FloatArray, x: FloatArray) -> FloatArray:
