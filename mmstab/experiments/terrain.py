@@ -56,10 +56,12 @@ def snapshot_poses(sm: StabilityMap) -> dict[str, list[float]]:
 def draw_stability_map(sm: StabilityMap, title: str) -> Any:
     """Two panels: mu at the worst and at the best heading per cell (red: < 0)."""
     import matplotlib.pyplot as plt
+    from matplotlib.colors import TwoSlopeNorm
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     finite = np.concatenate([sm.worst[np.isfinite(sm.worst)], sm.best[np.isfinite(sm.best)]])
-    vmax = float(np.max(np.abs(finite))) if finite.size else 1.0
+    vmax = float(np.max(finite)) if finite.size and np.max(finite) > 0 else 1.0
+    lo = float(np.min(finite)) if finite.size else -1.0
     extent = (
         sm.x[0] - (sm.x[1] - sm.x[0]) / 2 if sm.x.size > 1 else sm.x[0] - 0.5,
         sm.x[-1] + (sm.x[1] - sm.x[0]) / 2 if sm.x.size > 1 else sm.x[0] + 0.5,
@@ -70,7 +72,8 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
         (axes[0], sm.worst, sm.worst_heading, "worst"),
         (axes[1], sm.best, sm.best_heading, "best"),
     ):
-        im = ax.imshow(field, origin="lower", extent=extent, cmap="RdYlGn", vmin=-vmax, vmax=vmax)
+        norm = TwoSlopeNorm(vcenter=0.0, vmin=min(lo, -1e-3 * vmax), vmax=vmax)
+        im = ax.imshow(field, origin="lower", extent=extent, cmap="RdYlGn", norm=norm)
         if np.nanmin(field) < 0 < np.nanmax(field) and field.shape[0] > 1 and field.shape[1] > 1:
             ax.contour(sm.x, sm.y, field, levels=[0.0], colors="k", linewidths=1.0)
         step = max(1, max(field.shape) // 12)
@@ -86,35 +89,62 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
 
 
 def draw_terrain_3d(problem: Problem, terrain: HeightmapTerrain, poses: dict[str, Any]) -> Any:
-    """The ground in 3-D with the robot at rest (stowed arm) at the given poses."""
+    """The ground in 3-D: the whole map, then a close-up of the robot at rest at each pose.
+
+    The robot (stowed arm) is drawn over the ground (no depth sorting between them), its
+    touching contacts as red dots.
+    """
     import matplotlib.pyplot as plt
 
     from mmstab.drawing import draw_robot, set_equal_aspect
 
-    fig = plt.figure(figsize=(9, 7))
-    ax = fig.add_subplot(projection="3d")
-    terrain.draw(ax, alpha=0.75)
-    pts = []
+    hm = terrain.heightmap
     robot = problem.robot
+    fig = plt.figure(figsize=(14, 4.2 * (1 + (len(poses) + 1) // 4)))
+    n = len(poses) + 1
+    ax = fig.add_subplot(1, n, 1, projection="3d")
+    terrain.draw(ax, alpha=0.9)
+    x0, x1, y0, y1 = hm.bounds
+    z = hm.elevation[np.isfinite(hm.elevation)]
     for name, pose in poses.items():
+        ax.scatter(pose[0], pose[1], hm.height(pose[:2]) + 0.05, s=20, c="k")
+        ax.text(pose[0], pose[1], float(hm.height(pose[:2])) + 0.3, name, fontsize=8)
+    set_equal_aspect(ax, np.array([[x0, y0, z.min()], [x1, y1, z.max()]]))
+    ax.set_title(f"{problem.name}: {hm.source}", fontsize=9)
+    ax.set_xlabel("x_G [m]")
+    ax.set_ylabel("y_G [m]")
+    half = 0.9  # close-up window half-width [m]
+    for k, (name, pose) in enumerate(poses.items()):
+        ax = fig.add_subplot(1, n, k + 2, projection="3d")
+        ax.computed_zorder = False  # draw in order: ground, then the robot on top
         st = heightmap_stance(terrain, robot, pose)
+        window = HeightmapTerrain(_crop(hm, pose[:2], half))
+        window.draw(ax, stride=1, alpha=0.8)
         draw_robot(ax, robot, robot.stowed, st.G_T_B, edge_width=0.1)
         if len(st.contacts):
             c = st.contacts
-            ax.scatter(c[:, 0], c[:, 1], c[:, 2] + 0.005, s=4, c="r", depthshade=False)
-        ax.text(*(st.G_T_B[:3, 3] + [0, 0, 0.6]), f"{name}: mu {st.mu:.0f}", fontsize=8)
-        pts.append(st.G_T_B[:3, 3])
-    hm = terrain.heightmap
-    x0, x1, y0, y1 = hm.bounds
-    z = hm.elevation[np.isfinite(hm.elevation)]
-    corners = np.array([[x0, y0, z.min()], [x1, y1, z.max() + 0.8]])
-    set_equal_aspect(ax, np.vstack([corners, *pts]))
-    ax.set_xlabel("x_G [m]")
-    ax.set_ylabel("y_G [m]")
-    ax.set_zlabel("z_G [m]")
-    ax.view_init(elev=32, azim=-60)
-    ax.set_title(f"{problem.name}: {hm.source}; the robot at rest (stowed arm), contacts red")
+            ax.scatter(c[:, 0], c[:, 1], c[:, 2], s=6, c="r", depthshade=False, zorder=10)
+        p = st.G_T_B[:3, 3]
+        set_equal_aspect(ax, np.array([p - [half, half, 0.3], p + [half, half, 0.9]]))
+        flags = ", ".join(st.flags) or "no flags"
+        ax.set_title(
+            f"{name}: roll {np.degrees(st.roll):.1f}, pitch {np.degrees(st.pitch):.1f} deg\n"
+            f"mu {st.mu:.0f} N rad; {flags}",
+            fontsize=9,
+        )
+        ax.view_init(elev=25, azim=-60 + np.degrees(pose[2]) - 30)
+        ax.set_axis_off()
     return fig
+
+
+def _crop(hm: Any, xy: Any, half: float) -> Any:
+    """The part of ``hm`` within ``half`` [m] of ``xy`` (a heightmap)."""
+    from mmstab.terrain.heightmap import Heightmap
+
+    ix = np.flatnonzero(np.abs(hm.x - xy[0]) <= half)
+    iy = np.flatnonzero(np.abs(hm.y - xy[1]) <= half)
+    e = hm.elevation[iy[0] : iy[-1] + 1, ix[0] : ix[-1] + 1]
+    return Heightmap.build(e, hm.resolution, [hm.x[ix[0]], hm.y[iy[0]]], hm.source)
 
 
 def run_stability_map(
@@ -159,6 +189,7 @@ def run_stability_map(
         "high_centred_poses": int(np.sum((sm.flags & 1) > 0)),
         "line_contact_poses": int(np.sum((sm.flags & 2) > 0)),
         "tips_over_poses": int(np.sum((sm.flags & 4) > 0)),
+        "not_converged_poses": int(np.sum((sm.flags & 8) > 0)),
         "snapshots": poses,
     }
     write_json(d / "summary.json", summary)

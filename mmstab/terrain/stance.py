@@ -135,8 +135,10 @@ class StabilityMap(NamedTuple):
         x: (nx,) G x of the grid columns [m].
         y: (ny,) G y of the grid rows [m].
         headings: (nh,) yaws [rad].
-        mu: (ny, nx, nh) [N rad]; NaN off the map / on unknown cells.
-        flags: (ny, nx, nh) bit set: 1 high-centred, 2 line contact, 4 tips over.
+        mu: (ny, nx, nh) [N rad]; NaN off the map / on unknown cells, or where the rest
+            did not converge (flag 8).
+        flags: (ny, nx, nh) bit set: 1 high-centred, 2 line contact, 4 tips over,
+            8 not converged (mu left NaN).
         worst: (ny, nx) min over headings [N rad]; best: (ny, nx) max over headings.
         worst_heading: (ny, nx) [rad]; best_heading: (ny, nx) [rad].
         seconds_rest: wall time of the batched resting poses [s].
@@ -169,7 +171,8 @@ def stability_map(
 
     hm = terrain.heightmap
     c = terrain.candidates.points
-    reach = float(np.max(np.linalg.norm(c[:, :2], axis=1))) if margin is None else margin
+    # any rotation keeps the candidates within their 3-D reach of the body origin
+    reach = float(np.max(np.linalg.norm(c, axis=1))) if margin is None else margin
     x0, x1, y0, y1 = hm.bounds
     xs = np.arange(x0 + reach, x1 - reach + 1e-9, spacing)
     ys = np.arange(y0 + reach, y1 - reach + 1e-9, spacing)
@@ -185,7 +188,9 @@ def stability_map(
     flags = np.zeros(len(poses), dtype=np.int_)
     com = terrain.com_body
     mass = terrain._robot().total_mass
-    for i in np.flatnonzero(np.isfinite(r.z)):
+    unsettled = ~r.converged & ~r.tips_over & np.isfinite(r.z)
+    flags[unsettled] = 8
+    for i in np.flatnonzero(np.isfinite(r.z) & ~unsettled):
         T = r.G_T_B[i]
         contacts = r.contacts_G(c, int(i))
         _, mu[i], line = mu_of_support(contacts, T[:3, :3] @ com + T[:3, 3], mass)
