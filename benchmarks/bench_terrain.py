@@ -29,7 +29,7 @@ DEFAULT = ["problems/rough.yaml", "problems/kerb.yaml", "problems/dem.yaml"]
 
 def random_poses(terrain: HeightmapTerrain, n: int, seed: int = 0) -> np.ndarray:
     """``n`` poses (x, y, yaw) over the map, inside the robot's reach of its edge."""
-    reach = float(np.max(np.linalg.norm(terrain.candidates.points[:, :2], axis=1))) + 0.05
+    reach = float(np.max(np.linalg.norm(terrain.candidates.points, axis=1)))  # any attitude
     x0, x1, y0, y1 = terrain.heightmap.bounds
     rng = np.random.default_rng(seed)
     return np.c_[

@@ -55,6 +55,8 @@ class RestSettings(NamedTuple):
         line_width: touching contacts within this of one line are a line contact [m].
         approach: Newton steps longer than this [rad] are shortened ...
         approach_factor: ... by this factor (approach the rest without overshooting it).
+        coarse_spacing: the first rounds use candidates this far apart [m] ...
+        coarse_tol: ... until their step is below this [rad]; then all candidates.
     """
 
     max_iterations: int = 40
@@ -65,6 +67,8 @@ class RestSettings(NamedTuple):
     line_width: float = 1e-3
     approach: float = 0.02
     approach_factor: float = 0.8
+    coarse_spacing: float = 0.09
+    coarse_tol: float = 1e-6
 
 
 class RestPoses(NamedTuple):
@@ -289,10 +293,18 @@ def rest_poses(
     p = np.atleast_2d(np.asarray(poses, dtype=float))
     n = p.shape[0]
     com = np.broadcast_to(np.asarray(com_body, dtype=float), (n, 3))
-    out = [
-        _solve(heightmap, c, com[i : i + CHUNK], p[i : i + CHUNK], settings)
-        for i in range(0, n, CHUNK)
-    ]
+    coarse = coarse_subset(c, settings.coarse_spacing)
+    rough = settings._replace(tol_step=settings.coarse_tol)
+    out = []
+    for i in range(0, n, CHUNK):
+        ci, pi = com[i : i + CHUNK], p[i : i + CHUNK]
+        # settle on a sparse subset of the candidates first, then on all of them
+        a0, *_, it0, b0 = _solve(heightmap, c[coarse], ci, pi, rough)
+        b0 = np.where(
+            b0 < len(coarse), coarse[np.minimum(b0, len(coarse) - 1)], b0 - len(coarse) + len(c)
+        )
+        *fine, it1, _ = _solve(heightmap, c, ci, pi, settings, a0, b0)
+        out.append((*fine, it0 + it1))
     cat = [np.concatenate(a) for a in zip(*out, strict=True)]
     att, f, iterations = cat[0], cat[1], cat[5]
     valid, converged, tips = cat[2].astype(bool), cat[3].astype(bool), cat[4].astype(bool)
@@ -305,16 +317,31 @@ def rest_poses(
 CHUNK = 256
 
 
+def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
+    """Indices of candidates at least ``spacing`` [m] apart (greedy, in order)."""
+    keep: list[int] = []
+    for k in range(len(c)):
+        if not keep or np.min(np.linalg.norm(c[keep] - c[k], axis=1)) >= spacing:
+            keep.append(k)
+    return np.array(keep, dtype=np.intp)
+
+
 def _solve(
-    hm: Heightmap, c: FloatArray, com: FloatArray, p: FloatArray, settings: RestSettings
+    hm: Heightmap,
+    c: FloatArray,
+    com: FloatArray,
+    p: FloatArray,
+    settings: RestSettings,
+    att0: FloatArray | None = None,
+    basis0: NDArray[np.int_] | None = None,
 ) -> tuple[Any, ...]:
-    """One chunk: attitudes (n, 2), f at them (n, K) and the per-pose flags."""
+    """One chunk: attitudes (n, 2), f at them (n, K), per-pose flags, rounds, triangles."""
     n, K = p.shape[0], c.shape[0]
     xy, yaw = p[:, :2], p[:, 2]
-    att = np.zeros((n, 2))  # (roll, pitch): lowered level
+    att = np.zeros((n, 2)) if att0 is None else att0.copy()  # (roll, pitch): lowered level
     f_last = np.full((n, K), np.nan)
     last = np.zeros((n, 2))  # the last Newton step taken [rad]
-    basis: NDArray[np.int_] = np.tile(np.arange(K, K + 3), (n, 1))
+    basis: NDArray[np.int_] = np.tile(np.arange(K, K + 3), (n, 1)) if basis0 is None else basis0
     u, v = c[:, 0] + c[:, 1], c[:, 0] - c[:, 1]
     corners = np.array([np.argmax(u), np.argmax(v), np.argmin(u), np.argmin(v)])  # CCW-ish
     active = np.ones(n, dtype=bool)
@@ -336,7 +363,7 @@ def _solve(
         f_last[idx] = f
         if it == settings.max_iterations:
             break  # f_last now belongs to the final attitude
-        warm = basis[idx] if it else None
+        warm = basis[idx] if it or basis0 is not None else None
         _, tip, basis[idx], bounded = support_lp(lever, f, -grad, warm, corners)
         newton = _touch_step(f, J, basis[idx])
         # long Newton steps are shortened so they approach the rest from the side they
@@ -361,7 +388,7 @@ def _solve(
         tips[idx[over]] = True
         converged[idx[done]] = True
         active[idx[done | over]] = False
-    return att, f_last, valid, converged, tips, iterations
+    return att, f_last, valid, converged, tips, iterations, basis
 
 
 def _raise_off_map(
