@@ -224,7 +224,7 @@ def _rest(args: argparse.Namespace) -> None:
 
     import numpy as np
 
-    from mmstab.terrain.stance import stance
+    from mmstab.stance import stance
 
     _finite("--pose", args.pose)
     if args.flipper is not None:

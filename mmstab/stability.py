@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.robot import FloatArray, Robot
+from mmstab.terrain.polygon import hull_along, support_vertices
 
 
 class SupportPolygon(NamedTuple):
@@ -92,24 +93,40 @@ def support_polygon_3d(points: ArrayLike, net_force: ArrayLike) -> SupportPolygo
     Raises:
         ValueError: fewer than 3 points, or all on one line seen along ``f_r``.
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
-        raise ValueError(f"support points must be (n>=3, 3), got {pts.shape}")
     f = np.asarray(net_force, dtype=float)
-    up = -f / np.linalg.norm(f)
-    u = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(up, u)  # (u, v, up) right-handed: CCW in (u, v) is CCW about up
-    rel = pts - pts.mean(axis=0)
-    flat = np.stack([rel @ u, rel @ v], axis=1)
-    _, sing, _ = np.linalg.svd(flat - flat.mean(axis=0))
-    if sing[1] < 1e-9 * max(sing[0], 1e-300):
-        raise ValueError("support points are collinear seen along the force: no polygon")
-    try:
-        hull = ConvexHull(flat)
-    except QhullError as exc:
-        raise ValueError(f"degenerate support polygon: {exc}") from None
-    return SupportPolygon(vertices=pts[hull.vertices], normal=up)
+    return SupportPolygon(vertices=hull_along(points, f), normal=-f / np.linalg.norm(f))
+
+
+class ContactStability(NamedTuple):
+    """Force-angle on touching contacts: ordered polygon (m, 3) [m], mu [N rad], line flag."""
+
+    polygon: FloatArray
+    mu: float
+    line: bool
+
+
+def contact_force_angle(
+    contacts: ArrayLike, com: ArrayLike, net_force: ArrayLike
+) -> ContactStability:
+    """Force-angle measure on 3-D contacts (any order, not necessarily coplanar).
+
+    With fewer than three contacts off one line (seen along the force) the "polygon" is the
+    segment between the two extreme contacts and mu <= 0: balanced at best; one point
+    gives mu = 0; none gives NaN.
+
+    Args:
+        contacts: touching contact points (n, 3) [m].
+        com: overall CoM (3,) [m].
+        net_force: net force (3,) [N].
+    """
+    f = np.asarray(net_force, dtype=float)
+    poly, line = support_vertices(contacts, f)
+    if len(poly) == 0:
+        return ContactStability(poly, float("nan"), True)
+    if len(poly) == 1:
+        return ContactStability(poly, 0.0, True)
+    theta = axis_angles(poly, com, f)
+    return ContactStability(poly, float(np.min(theta) * np.linalg.norm(f)), line)
 
 
 def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> FloatArray:

@@ -7,12 +7,12 @@ import pytest
 from scipy.optimize import brentq
 
 from mmstab.stability import robot_force_angle
+from mmstab.stance import heightmap_stance, ramp_stance
 from mmstab.terrain import Ramp
 from mmstab.terrain.contacts import ARC_STEP, CHASSIS, FLIPPER, TRACK, contact_candidates
 from mmstab.terrain.generators import Grid, generate, kerb, plane
 from mmstab.terrain.heightmap import OffMapError
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
-from mmstab.terrain.stance import heightmap_stance, ramp_stance
 
 ROUGH = {
     "kind": "rough",

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from mmstab.stability import axis_angles, force_angle, support_polygon_3d
-from mmstab.terrain.heightmap_terrain import mu_of_support
+from mmstab.stability import axis_angles, contact_force_angle, force_angle, support_polygon_3d
 
 
 def test_non_coplanar_polygon_by_hand():
@@ -31,7 +30,7 @@ def test_non_coplanar_polygon_by_hand():
         assert theta[j] == pytest.approx(expected[axis], abs=1e-12)
     mu = float(theta.min() * 100)
     assert mu == pytest.approx(100 * np.pi / 4)
-    _, mu2, line = mu_of_support(pts, com, 100 / 9.81)
+    _, mu2, line = contact_force_angle(pts, com, force)
     assert mu2 == pytest.approx(mu) and not line
 
 
@@ -67,7 +66,7 @@ def test_collinear_contacts_are_a_line_with_mu_at_most_zero():
     pts = np.array([[0.0, -1, 0], [0, 0, 0], [0, 1, 0]])
     with pytest.raises(ValueError, match="collinear"):
         support_polygon_3d(pts, [0, 0, -1.0])
-    poly, mu, line = mu_of_support(pts, np.array([0.1, 0, 1]), 10.0)
+    poly, mu, line = contact_force_angle(pts, np.array([0.1, 0, 1]), [0, 0, -98.1])
     assert line and len(poly) == 2 and mu < 0
-    _, mu, line = mu_of_support(pts, np.array([0.0, 0.3, 1]), 10.0)
+    _, mu, line = contact_force_angle(pts, np.array([0.0, 0.3, 1]), [0, 0, -98.1])
     assert line and mu == pytest.approx(0.0, abs=1e-12)  # balanced on the line

@@ -18,9 +18,9 @@ import numpy as np
 from mmstab.config import write_figure, write_json, write_npz
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.problem import Problem
+from mmstab.stance import StabilityMap, heightmap_stance, stability_map
 from mmstab.terrain.factory import as_heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
-from mmstab.terrain.stance import StabilityMap, heightmap_stance, stability_map
 
 #: Extent and cells of a ramp sampled for its map [m], [m/cell].
 RAMP_SIZE, RAMP_RESOLUTION = (6.0, 6.0), 0.1

@@ -19,10 +19,10 @@ from numpy.typing import ArrayLike
 
 from mmstab.config import MmstabError
 from mmstab.robot import Robot
-from mmstab.stability import axis_angles, support_polygon_3d
 from mmstab.terrain.base import GRAVITY_G, Support
 from mmstab.terrain.contacts import ContactCandidates, contact_candidates
 from mmstab.terrain.heightmap import FloatArray, Heightmap
+from mmstab.terrain.polygon import support_vertices
 from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
 
 
@@ -50,32 +50,6 @@ class LocalPlane(NamedTuple):
     z: float
     normal: FloatArray
     G_T_B: FloatArray
-
-
-def mu_of_support(
-    contacts_G: FloatArray, com_G: FloatArray, mass: float
-) -> tuple[FloatArray, float, bool]:
-    """Support polygon (ordered, G), force-angle mu [N rad] and whether it is a line.
-
-    With fewer than three contacts off one line the "polygon" is the segment between the
-    two extreme contacts (or the one point) and mu <= 0: balanced at best.
-    """
-    force = mass * GRAVITY_G
-    try:
-        poly = support_polygon_3d(contacts_G, force).vertices
-        line = False
-    except ValueError:
-        line = True
-        if len(contacts_G) == 0:
-            return np.zeros((0, 3)), float("nan"), True
-        d = contacts_G - contacts_G.mean(axis=0)
-        axis = np.linalg.svd(d[:, :2])[2][0] if len(d) > 1 else np.array([1.0, 0.0])
-        s = d[:, :2] @ axis
-        poly = contacts_G[[int(np.argmin(s)), int(np.argmax(s))]]
-        if np.linalg.norm(poly[1] - poly[0]) < 1e-9:
-            return poly[:1], 0.0, True
-    theta = axis_angles(poly, com_G, force)
-    return poly, float(np.min(theta) * np.linalg.norm(force)), line
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -201,9 +175,11 @@ class HeightmapTerrain:
         terrain = self if robot is self.robot else self.with_robot(robot, self.flipper_angle)
         r = terrain.rest(np.asarray(pose, dtype=float))
         contacts = r.contacts_G(terrain.candidates.points, 0)
-        com_G = r.G_T_B[0, :3, :3] @ terrain.com_body + r.G_T_B[0, :3, 3]
-        poly, _, _ = mu_of_support(contacts, com_G, robot.total_mass)
-        return Support(r.G_T_B[0], contacts, poly, r.flags(0))
+        poly, line = support_vertices(contacts, GRAVITY_G)
+        flags = r.flags(0)
+        if line and "line_contact" not in flags:
+            flags = (*flags, "line_contact")
+        return Support(r.G_T_B[0], contacts, poly, flags)
 
     # ---------------------------------------------------------------------- drawing
     def draw(

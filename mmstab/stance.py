@@ -1,4 +1,4 @@
-"""How the robot stands at a base pose, on any terrain; and stability maps over a heightmap.
+"""How the robot stands at a base pose on any terrain, with its stability; stability maps.
 
 :func:`stance` is what ``mmstab rest`` prints: roll, pitch, height, the resting pose,
 the touching contacts and their support polygon in G, the force-angle measure mu of the
@@ -15,8 +15,10 @@ from numpy.typing import ArrayLike
 
 from mmstab.config import MmstabError
 from mmstab.robot import FLIPPER_CONTACT_TOL, Robot
+from mmstab.stability import contact_force_angle
+from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.heightmap import FloatArray
-from mmstab.terrain.heightmap_terrain import HeightmapTerrain, mu_of_support, with_flipper_angle
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain, with_flipper_angle
 from mmstab.terrain.ramp import Ramp
 
 
@@ -84,7 +86,7 @@ def ramp_stance(
     T = ramp.G_T_B(pose)
     contacts = r.base.support_points() @ T[:3, :3].T + T[:3, 3]
     com_G = T[:3, :3] @ _overall_com(r, arm_q) + T[:3, 3]
-    poly, mu, line = mu_of_support(contacts, com_G, r.total_mass)
+    poly, mu, line = contact_force_angle(contacts, com_G, r.total_mass * GRAVITY_G)
     roll, pitch = ramp.roll_pitch(float(np.asarray(pose, dtype=float)[2]))
     flags = ("line_contact",) if line else ()
     return Stance(roll, pitch, float(T[2, 3]), T, contacts, poly, mu, flags)
@@ -107,7 +109,7 @@ def heightmap_stance(
     T = r.G_T_B[0]
     contacts = r.contacts_G(t.candidates.points, 0)
     com_G = T[:3, :3] @ t.com_body + T[:3, 3]
-    poly, mu, line = mu_of_support(contacts, com_G, robot.total_mass)
+    poly, mu, line = contact_force_angle(contacts, com_G, robot.total_mass * GRAVITY_G)
     flags = r.flags(0)
     if line and "line_contact" not in flags:
         flags = (*flags, "line_contact")
@@ -193,7 +195,7 @@ def stability_map(
     for i in np.flatnonzero(np.isfinite(r.z) & ~unsettled):
         T = r.G_T_B[i]
         contacts = r.contacts_G(c, int(i))
-        _, mu[i], line = mu_of_support(contacts, T[:3, :3] @ com + T[:3, 3], mass)
+        _, mu[i], line = contact_force_angle(contacts, T[:3, :3] @ com + T[:3, 3], mass * GRAVITY_G)
         flags[i] = (
             1 * bool(r.high_centred[i])
             + 2 * (line or bool(r.line_contact[i]))
