@@ -182,3 +182,30 @@ def test_terrain_interface_on_a_heightmap(robot, rough_terrain):
     pose = ca.SX.sym("pose", 3)
     f = ca.Function("f", [pose], [local.place_sx(pose, ca.DM([0.2, 0.1, 0.3]))])
     np.testing.assert_allclose(np.asarray(f(poses[0])).ravel(), p[0], atol=1e-9)
+
+
+def test_lowered_flippers_lift_the_nose(robot, capsys):
+    """Flippers turned 0.4 rad below straight ahead reach under the tracks: on flat ground
+    the robot rests on the flipper edges and the rear track ends, nose up."""
+    from mmstab.cli import main
+    from mmstab.terrain.contacts import FLIPPER
+
+    flat = HeightmapTerrain(plane(Grid.of_size((3, 3), 0.05), 0.0, 0.0))
+    t = flat.with_robot(robot, flipper_angle=-0.4)
+    r = t.rest([0.0, 0.0, 0.0])
+    touching = t.candidates.part[r.touching[0]]
+    assert (touching == FLIPPER).sum() >= 2 and (touching == TRACK).sum() >= 2
+    assert r.roll[0] == pytest.approx(0.0, abs=1e-9)
+    # by hand: the flipper's lowest edge on z = 0 and the rear arc (centre (-L/2, 0, r))
+    # tangent to it: z0 + sin(p) x + cos(p) z = 0 at the edge, = r at the arc's centre
+    fl = t.candidates.points[t.candidates.part == FLIPPER]
+    tip = fl[np.argmin(fl[:, 2])]
+    L, r_t = robot.base.tracks.length, robot.base.tracks.height / 2
+    pitch = brentq(
+        lambda q: np.sin(q) * (tip[0] + L / 2) + np.cos(q) * (tip[2] - r_t) + r_t, 0.0, 0.5
+    )
+    sag = r_t * (1 - np.cos(ARC_STEP / 2)) / (tip[0] + L / 2)  # arc sampled every ARC_STEP
+    assert r.pitch[0] == pytest.approx(pitch, abs=1.01 * sag)
+    # on the ramp the same flippers would dig into the plane: a clear error
+    assert main(["rest", "problems/ramp.yaml", "--pose", "0", "0", "0", "--flipper", "-0.4"]) == 2
+    assert "into the ramp" in capsys.readouterr().err
