@@ -318,12 +318,19 @@ CHUNK = 256
 
 
 def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
-    """Indices of candidates at least ``spacing`` [m] apart (greedy, in order)."""
-    keep: list[int] = []
-    for k in range(len(c)):
-        if not keep or np.min(np.linalg.norm(c[keep] - c[k], axis=1)) >= spacing:
-            keep.append(k)
-    return np.array(keep, dtype=np.intp)
+    """Indices of candidates at least ``spacing`` [m] apart (greedy, in order; cached)."""
+    key = (c.tobytes(), c.shape, float(spacing))
+    if key not in _COARSE:
+        far = np.linalg.norm(c[:, None, :] - c[None, :, :], axis=-1) >= spacing
+        keep = np.zeros(len(c), dtype=bool)
+        for k in range(len(c)):
+            keep[k] = bool(far[k, keep].all())
+        _COARSE.clear()  # one robot at a time
+        _COARSE[key] = np.flatnonzero(keep)
+    return _COARSE[key]
+
+
+_COARSE: dict[tuple[bytes, tuple[int, ...], float], NDArray[np.int_]] = {}
 
 
 def _solve(
