@@ -141,10 +141,11 @@ def _lift(
     of a vertical contact force, the one that decides equilibrium.
     """
     R, dR_r, dR_p = rotations(yaw, att[:, 0], att[:, 1])
-    n, K = yaw.shape[0], c.shape[0]
-    # every row of R, dR/droll, dR/dpitch against every candidate: one matrix product
-    rows = np.concatenate([R, dR_r, dR_p], axis=1).reshape(n * 9, 3) @ c.T
-    m = rows.reshape(n, 9, K)
+    # every row of R, dR/droll, dR/dpitch against every candidate
+    M = np.concatenate([R, dR_r, dR_p], axis=1)  # (n, 9, 3)
+    # (elementwise, not BLAS: a 3-long inner product gains nothing from threads, which
+    # only contend on a busy machine)
+    m = M[:, :, 0, None] * c[:, 0] + M[:, :, 1, None] * c[:, 1] + M[:, :, 2, None] * c[:, 2]
     h, hx, hy, valid = hm.sample_rows(xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1])
     f = h - m[:, 2]
     jac = [hx * m[:, j] + hy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
@@ -426,7 +427,7 @@ def _finish(
 ) -> RestPoses:
     n, K = p.shape[0], c.shape[0]
     R = rotations(p[:, 2], att[:, 0], att[:, 1])[0]
-    m = (R.reshape(n * 3, 3) @ c.T).reshape(n, 3, K)
+    m = R[:, :, 0, None] * c[:, 0] + R[:, :, 1, None] * c[:, 1] + R[:, :, 2, None] * c[:, 2]
     foot = np.stack([p[:, 0, None] + m[:, 0], p[:, 1, None] + m[:, 1]], axis=-1)  # (n, K, 2)
     z = np.max(f, axis=1)
     gap = z[:, None] - f
