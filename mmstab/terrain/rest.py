@@ -219,6 +219,8 @@ def support_lp(
         tries.insert(0, basis)
     found = np.zeros(n, dtype=bool)
     for tri in tries:
+        if found.all():
+            break
         tri = np.broadcast_to(tri, (n, 3))
         lam = _bary(P[rows[:, None], tri], q)
         ok = ~found & (lam >= -1e-12).all(axis=1)
@@ -315,7 +317,7 @@ def rest_poses(
 
 
 #: Poses solved together (keeps the (poses, candidates) arrays in cache).
-CHUNK = 256
+CHUNK = 1024
 
 
 def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
