@@ -168,6 +168,13 @@ def test_off_map_pose_is_a_clear_error(rough_terrain):
 def test_terrain_interface_on_a_heightmap(robot, rough_terrain):
     import casadi as ca
 
+    from mmstab.terrain import Terrain, from_section
+
+    assert isinstance(rough_terrain, Terrain) and rough_terrain.kind == "heightmap"
+    ramp = from_section("problems/ramp.yaml", {"slope": 0.1})
+    assert isinstance(ramp, Ramp) and ramp.slope == 0.1
+    np.testing.assert_array_equal(rough_terrain.G_T_M(), np.eye(4))
+
     poses = np.array([[0.1, -0.2, 0.3], [-0.4, 0.5, 2.0]])
     T = rough_terrain.G_T_B(poses)
     g = rough_terrain.gravity_body(poses)
