@@ -155,3 +155,12 @@ bench-drop: setup
 bench-step-terrain: setup
 	$(PY) benchmarks/step_terrain.py $(PROBLEM)
 
+## issue 14: uneven terrain: stability maps + 3-D views of the shipped terrains, benchmark
+TERRAINS ?= problems/rough.yaml problems/kerb.yaml problems/dem.yaml
+.PHONY: terrain bench-terrain
+terrain: setup
+	for p in $(TERRAINS); do $(MMSTAB) stability-map $$p || exit 1; done
+
+## ms per resting pose, batched vs one by one -> results/bench/terrain.json
+bench-terrain: setup
+	$(PY) benchmarks/bench_terrain.py $(TERRAINS)

@@ -76,7 +76,7 @@ ROBOT = obj(
 # One entry per pipeline stage; a problem file has every section.
 PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
     "robot": {"type": "string", "minLength": 1},
-    "terrain": obj(slope={"type": "number", "minimum": 0, "maximum": 1.2}),
+    "terrain": {"type": "object"},  # one of three forms: mmstab.terrain.factory
     "path": obj(
         center=VEC2,
         radius=POS,
@@ -138,3 +138,40 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
 def problem_schema() -> dict[str, Any]:
     """The closed schema of a whole problem file."""
     return obj(**PROBLEM_SECTIONS)
+
+
+# --------------------------------------------------------------- terrain (heightmaps)
+# The ``terrain:`` section takes one of three forms, told apart by their key and checked by
+# ``mmstab.terrain.factory.from_section``: ``{slope}`` (the ramp), ``{file, resolution?}`` (a
+# heightmap file, path relative to the problem file; ``resolution`` [m/cell] rasterises a
+# mesh) or ``{generate: {kind, seed, size, resolution, ...}}`` (a seeded generator).
+SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2}
+TERRAIN_RAMP = obj(slope=SLOPE)
+TERRAIN_FILE: dict[str, Any] = {
+    "type": "object",
+    "properties": {"file": {"type": "string", "minLength": 1}, "resolution": POS},
+    "required": ["file"],
+    "additionalProperties": False,
+}
+#: Keys of each generator kind beyond kind, seed, size [m, m] and resolution [m/cell].
+TERRAIN_KINDS: dict[str, dict[str, Any]] = {
+    "plane": {"slope": SLOPE, "azimuth": NUM},
+    "kerb": {"height": NUM, "distance": NUM, "azimuth": NUM},
+    "ditch": {"depth": POS, "width": POS, "distance": NUM, "azimuth": NUM},
+    "bumps": {"amplitude": NONNEG, "wavelength": POS},
+    "rough": {
+        "amplitude": NONNEG,
+        "correlation_length": POS,
+        "hill_height": NUM,
+        "hill_radius": POS,
+        "slope": SLOPE,
+        "azimuth": NUM,
+    },
+}
+
+
+def terrain_generate_schema(kind: str) -> dict[str, Any]:
+    """Closed schema of ``terrain.generate`` for one generator kind."""
+    return obj(
+        kind={"const": kind}, seed=SEED, size=vec(2, POS), resolution=POS, **TERRAIN_KINDS[kind]
+    )

@@ -29,6 +29,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.robot import FloatArray, Robot
 from mmstab.terrain import Terrain
+from mmstab.terrain.polygon import hull_along, support_vertices
 
 
 class SupportPolygon(NamedTuple):
@@ -76,6 +77,62 @@ def support_polygon(points: ArrayLike, com: ArrayLike, net_force: ArrayLike) -> 
     except QhullError as exc:
         raise ValueError(f"degenerate support polygon: {exc}") from None
     return SupportPolygon(vertices=pts[hull.vertices], normal=normal)  # 2-D hull is CCW
+
+
+def support_polygon_3d(points: ArrayLike, net_force: ArrayLike) -> SupportPolygon:
+    """Order 3-D contact points, not necessarily coplanar, into the support polygon.
+
+    The polygon is the convex hull of the points seen along the net force: its vertices
+    are the contacts on the hull of their projection onto the plane normal to ``f_r``,
+    kept at their 3-D positions and ordered counter-clockwise about ``-f_r``. Consecutive
+    vertices join the tip-over axes of :func:`axis_angles`, whose angles need no common
+    plane: each is measured about its own axis. For coplanar points it is the polygon of
+    :func:`support_polygon` (the same vertices, in the same turning sense).
+
+    Args:
+        points: contact points (n, 3), n >= 3 [m].
+        net_force: net force f_r (3,) [N] (gravity: m g).
+
+    Returns:
+        ``SupportPolygon`` with ``normal`` = -f_r / |f_r| (the "up" it is ordered about).
+
+    Raises:
+        ValueError: fewer than 3 points, or all on one line seen along ``f_r``.
+    """
+    f = np.asarray(net_force, dtype=float)
+    return SupportPolygon(vertices=hull_along(points, f), normal=-f / np.linalg.norm(f))
+
+
+class ContactStability(NamedTuple):
+    """Force-angle on touching contacts: ordered polygon (m, 3) [m], mu [N rad], line flag."""
+
+    polygon: FloatArray
+    mu: float
+    line: bool
+
+
+def contact_force_angle(
+    contacts: ArrayLike, com: ArrayLike, net_force: ArrayLike
+) -> ContactStability:
+    """Force-angle measure on 3-D contacts (any order, not necessarily coplanar).
+
+    With fewer than three contacts off one line (seen along the force) the "polygon" is the
+    segment between the two extreme contacts and mu <= 0: balanced at best; one point
+    gives mu = 0; none gives NaN.
+
+    Args:
+        contacts: touching contact points (n, 3) [m].
+        com: overall CoM (3,) [m].
+        net_force: net force (3,) [N].
+    """
+    f = np.asarray(net_force, dtype=float)
+    poly, line = support_vertices(contacts, f)
+    if len(poly) == 0:
+        return ContactStability(poly, float("nan"), True)
+    if len(poly) == 1:
+        return ContactStability(poly, 0.0, True)
+    theta = axis_angles(poly, com, f)
+    return ContactStability(poly, float(np.min(theta) * np.linalg.norm(f)), line)
 
 
 def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> FloatArray:

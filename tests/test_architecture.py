@@ -36,6 +36,7 @@ LAYERS: dict[str, int] = {
     "mmstab.problem": 2,
     "mmstab.stability": 3,
     "mmstab.dynamics": 3,
+    "mmstab.stance": 3,
     "mmstab.workspace": 4,
     "mmstab.ik": 4,
     "mmstab.workspace_fidelity": 4,

@@ -20,13 +20,41 @@ from mmstab.terrain import (
     placement_function,
 )
 
+
+def rough_heightmap():
+    """Rough ground (a generated 6 m map) bound to the default robot."""
+    from conftest import ROBOT_YAML
+
+    from mmstab.robot import load_robot
+    from mmstab.terrain import HeightmapTerrain
+    from mmstab.terrain.generators import generate
+
+    settings = {
+        "kind": "rough",
+        "seed": 4,
+        "size": [6.0, 6.0],
+        "resolution": 0.05,
+        "amplitude": 0.03,
+        "correlation_length": 0.4,
+        "hill_height": 0.5,
+        "hill_radius": 1.0,
+        "slope": 0.2,
+        "azimuth": 0.5,
+    }
+    return HeightmapTerrain(generate(settings)).with_robot(load_robot(ROBOT_YAML))
+
+
 #: (id, factory) of every terrain the contract runs against.
 TERRAINS = [
     ("ramp_flat", lambda: Ramp(0.0)),
     ("ramp_0.1", lambda: Ramp(0.1)),
     ("ramp_0.35", lambda: Ramp(0.35)),
     ("ramp_1.0", lambda: Ramp(1.0)),
+    ("heightmap_rough", rough_heightmap),
 ]
+#: How close a contact of ``support`` lies to the ground surface [m], by kind: exact on a
+#: plane; within the resting pose's contact tolerance on a heightmap.
+CONTACT_TOL = {"ramp": 1e-9, "heightmap": 5e-4}
 
 
 @pytest.fixture(params=[f for _, f in TERRAINS], ids=[n for n, _ in TERRAINS])
@@ -86,10 +114,20 @@ def test_place_numeric_equals_symbolic_and_M_T_B(terrain, rng):
     np.testing.assert_allclose(
         placed, np.einsum("nij,nj->ni", T[:, :3, :3], X) + T[:, :3, 3], atol=1e-12
     )
-    pose, point = ca.SX.sym("pose", 3), ca.SX.sym("point", 3)
-    f = ca.Function("f", [pose, point], [terrain.place_sx(pose, point)])
+    # the symbolic placement the controller uses: the one placement with the local ground
+    ground = terrain.local_ground(P)
+    f = placement_function()
     for k in range(len(P)):
-        np.testing.assert_allclose(np.asarray(f(P[k], X[k])).ravel(), placed[k], atol=1e-12)
+        got = np.asarray(f(P[k], ground[k], X[k])[0]).ravel()
+        np.testing.assert_allclose(got, placed[k], atol=1e-12)
+    # the terrain's own place_sx: exact on a plane, exact at its reference pose elsewhere
+    pose, point = ca.SX.sym("pose", 3), ca.SX.sym("point", 3)
+    if terrain.kind == "heightmap":
+        terrain = terrain.at(P[0])
+        P, placed = P[:1], placed[:1]
+    g = ca.Function("g", [pose, point], [terrain.place_sx(pose, point)])
+    for k in range(len(P)):
+        np.testing.assert_allclose(np.asarray(g(P[k], X[k])).ravel(), placed[k], atol=1e-12)
 
 
 def test_batched_equals_single(terrain, rng):
@@ -150,14 +188,16 @@ def test_support_contacts_are_the_body_contacts_placed(terrain, robot, rng):
     contacts_B = robot.base.support_points()
     s = terrain.support(robot, pose)
     np.testing.assert_allclose(s.G_T_B, terrain.G_T_B(pose), atol=1e-12)
-    assert len(s.polygon_G) >= 3 and len(s.contacts_G) <= len(contacts_B)
+    assert len(s.polygon_G) >= 3
+    if terrain.kind == "ramp":  # a plane: exactly the base's support points
+        assert len(s.contacts_G) == len(contacts_B)
     # every polygon vertex is a contact, every contact lies on or inside the polygon's hull
     for v in s.polygon_G:
         assert np.min(np.linalg.norm(s.contacts_G - v, axis=1)) < 1e-12
     # the contacts rest on the ground
     pts_M = (np.linalg.inv(terrain.G_T_M()) @ np.c_[s.contacts_G, np.ones(len(s.contacts_G))].T).T
     ground = terrain.surface_G(pts_M[:, 0], pts_M[:, 1])
-    np.testing.assert_allclose(s.contacts_G, ground, atol=1e-9)
+    np.testing.assert_allclose(s.contacts_G, ground, atol=CONTACT_TOL[terrain.kind])
 
 
 def test_ramp_is_invariant_under_motions_along_its_plane(rng):

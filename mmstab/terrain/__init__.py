@@ -3,8 +3,8 @@
 Every stage above this package asks a :class:`Terrain` for the body pose, gravity in the
 body, the placement of body points and the support contacts of a base pose; none of them
 knows which ground it is. The planar ramp (:mod:`mmstab.terrain.ramp`) is the first
-implementation; :func:`from_section` builds the problem's terrain from its ``terrain:``
-section.
+implementation, heightmaps (:mod:`mmstab.terrain.heightmap_terrain`) the second;
+:func:`from_section` builds the problem's terrain from its ``terrain:`` section.
 """
 
 from __future__ import annotations
@@ -26,17 +26,21 @@ from mmstab.terrain.base import (
     wrap_angle,
 )
 from mmstab.terrain.com import GlobalCoM, global_com_functions
-from mmstab.terrain.factory import KINDS, from_section
+from mmstab.terrain.factory import from_section
+from mmstab.terrain.heightmap import Heightmap, OffMapError
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.terrain.paths import CirclePath
 from mmstab.terrain.ramp import BasePose, Ramp
 
 __all__ = [
     "GRAVITY_G",
     "GROUND_SIZE",
-    "KINDS",
     "BasePose",
     "CirclePath",
     "GlobalCoM",
+    "Heightmap",
+    "HeightmapTerrain",
+    "OffMapError",
     "Placement",
     "Ramp",
     "Support",

@@ -61,7 +61,10 @@ class Terrain(Protocol):
     ``G_T_B`` drop it for a single ``(3,)`` pose).
     """
 
-    kind: str
+    @property
+    def kind(self) -> str:
+        """The kind of ground (``ramp``, ``heightmap``)."""
+        ...
 
     @property
     def label(self) -> str:
@@ -94,6 +97,16 @@ class Terrain(Protocol):
 
     def place_sx(self, pose: ca.SX, point_body: Any) -> ca.SX:
         """Symbolic placement ``M_T_B(pose) p`` (CasADi) of a body point (3,) [m]."""
+        ...
+
+    def with_robot(
+        self, robot: Robot, flipper_angle: float | None = None, arm_q: ArrayLike | None = None
+    ) -> Terrain:
+        """This ground under ``robot``, flippers at ``flipper_angle`` [rad], arm at ``arm_q``.
+
+        ``None`` keeps the robot's flipper angle and the stowed arm (4,) [rad]. Where the
+        resting pose depends on the load (a heightmap), the answers that follow use it.
+        """
         ...
 
     def support(self, robot: Robot, pose: ArrayLike) -> Support:

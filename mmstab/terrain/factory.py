@@ -1,43 +1,109 @@
-"""The one terrain factory: a problem's ``terrain:`` section -> a :class:`Terrain`."""
+"""The ground a problem file's ``terrain:`` section describes (``docs/terrain.md``).
+
+Three forms, told apart by their key:
+
+* ``{slope: A}``: the planar ramp (:class:`~mmstab.terrain.ramp.Ramp`), A [rad];
+* ``{file: PATH, resolution: R}``: a heightmap file (``.npz``, GeoTIFF, STL/PLY/OBJ mesh),
+  PATH relative to the problem file, R [m/cell] only to rasterise a mesh;
+* ``{generate: {kind: K, seed: S, size: [X, Y], resolution: R, ...}}``: a seeded generator
+  (:mod:`mmstab.terrain.generators`; each kind's keys in ``schema.TERRAIN_KINDS``).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import os
 from pathlib import Path
 from typing import Any
 
-from mmstab.config import ConfigError
+import numpy as np
+
+from mmstab import schema
+from mmstab.config import ConfigError, validate
 from mmstab.robot import Robot
 from mmstab.terrain.base import Terrain
+from mmstab.terrain.generators import Grid, generate
+from mmstab.terrain.heightmap import Heightmap
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.terrain.io import load_heightmap
 from mmstab.terrain.ramp import Ramp
 
 
-def _ramp(path: Path, section: Mapping[str, Any], robot: Robot | None) -> Terrain:
-    return Ramp(float(section["slope"]))
+def check_section(problem_path: Path, section: Any) -> str:
+    """Validate a ``terrain:`` section; return its form (``ramp``, ``file`` or ``generate``).
+
+    Raises:
+        ConfigError: naming the problem file and the ``terrain.*`` field at fault.
+    """
+    if not isinstance(section, dict):
+        raise ConfigError(problem_path, "terrain", "must be a mapping")
+    if "generate" in section:
+        gen = section["generate"]
+        validate(problem_path, {"terrain": section}, schema.obj(terrain=schema.obj(generate={})))
+        if not isinstance(gen, dict):
+            raise ConfigError(problem_path, "terrain.generate", "must be a mapping")
+        kind = gen.get("kind")
+        if kind not in schema.TERRAIN_KINDS:
+            kinds = ", ".join(schema.TERRAIN_KINDS)
+            raise ConfigError(problem_path, "terrain.generate.kind", f"must be one of {kinds}")
+        sub = schema.terrain_generate_schema(kind)
+        validate(problem_path, {"terrain": {"generate": gen}}, _wrap(_wrap(sub, "generate")))
+        return "generate"
+    if "file" in section:
+        validate(problem_path, {"terrain": section}, _wrap(schema.TERRAIN_FILE))
+        return "file"
+    validate(problem_path, {"terrain": section}, _wrap(schema.TERRAIN_RAMP))
+    return "ramp"
 
 
-#: Terrain kinds by the ``terrain.kind`` of a problem (default ``ramp``): (path, section,
-#: robot) -> Terrain. New grounds register their builder here.
-KINDS: dict[str, Any] = {"ramp": _ramp}
+def _wrap(sub: dict[str, Any], key: str = "terrain") -> dict[str, Any]:
+    return schema.obj(**{key: sub})
 
 
 def from_section(
-    path: str | Path, section: Mapping[str, Any], robot: Robot | None = None
-) -> Terrain:
-    """The terrain of a problem's validated ``terrain:`` section.
+    problem_path: str | os.PathLike[str], section: Any, robot: Robot | None = None
+) -> Ramp | HeightmapTerrain:
+    """Build the terrain of a problem file's ``terrain:`` section.
 
     Args:
-        path: the problem file (for messages and relative paths).
-        section: the ``terrain:`` section; ``kind`` (default ``ramp``) chooses the ground.
-        robot: the robot standing on it (a ground whose resting pose depends on the robot
-            binds it; the ramp does not need it).
+        problem_path: the problem file (file paths are relative to its folder).
+        section: the ``terrain:`` mapping.
+        robot: bind a heightmap terrain to this robot (its YAML flipper angle, arm stowed).
 
     Raises:
-        ConfigError: an unknown ``terrain.kind``.
+        ConfigError: a bad section or a bad heightmap file (naming that file and field).
     """
-    kind = str(section.get("kind", "ramp"))
-    if kind not in KINDS:
-        raise ConfigError(
-            Path(path), "terrain.kind", f"unknown kind {kind!r}; one of {list(KINDS)}"
-        )
-    return KINDS[kind](Path(path), section, robot)
+    p = Path(problem_path)
+    form = check_section(p, section)
+    if form == "ramp":
+        return Ramp(section["slope"])
+    if form == "file":
+        target = p.parent / section["file"]
+        if not target.is_file():
+            raise ConfigError(p, "terrain.file", f"no heightmap file at {target}")
+        hm = load_heightmap(target, section.get("resolution"))
+    else:
+        hm = generate(section["generate"])
+    terrain = HeightmapTerrain(hm)
+    return terrain if robot is None else terrain.with_robot(robot)
+
+
+def ramp_heightmap(ramp: Ramp, size: tuple[float, float], resolution: float) -> Heightmap:
+    """The ramp sampled as a heightmap centred on G's origin: z = y tan(slope).
+
+    Args:
+        ramp: the ramp.
+        size: (x, y) extent [m].
+        resolution: cell size [m/cell].
+    """
+    grid = Grid.of_size(size, resolution)
+    _, y = grid.xy()
+    return grid.heightmap(np.tan(ramp.slope) * y, f"ramp({ramp.slope:g} rad)")
+
+
+def as_heightmap(terrain: Terrain, size: tuple[float, float], resolution: float) -> Heightmap:
+    """Any terrain as a heightmap (a ramp is sampled over ``size`` at ``resolution``)."""
+    if isinstance(terrain, Ramp):
+        return ramp_heightmap(terrain, size, resolution)
+    if isinstance(terrain, HeightmapTerrain):
+        return terrain.heightmap
+    raise TypeError(f"no heightmap form of {type(terrain).__name__}")

@@ -102,6 +102,31 @@ class Ramp:
         """Symbolic ``Trans(x, y, 0) Rot_z(yaw) p`` (:func:`place_local_sx`, zero ground)."""
         return place_local_sx(pose, ca.DM.zeros(GROUND_SIZE), point_body)
 
+    def with_robot(
+        self, robot: Robot, flipper_angle: float | None = None, arm_q: ArrayLike | None = None
+    ) -> Ramp:
+        """The ramp under ``robot``: the body lies on the plane whatever its load.
+
+        Raises:
+            MmstabError: flippers (at ``flipper_angle`` [rad], default the robot's) that
+                reach into the plane, which a rigid base on a plane cannot have.
+        """
+        from mmstab.config import MmstabError
+        from mmstab.robot import FLIPPER_CONTACT_TOL
+
+        flippers = robot.base.flippers
+        if flipper_angle is not None:
+            import dataclasses
+
+            flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
+        lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
+        if lowest < -FLIPPER_CONTACT_TOL:
+            raise MmstabError(
+                f"flipper angle {flippers.angle:g} rad: the flippers reach {-lowest:.3f} m "
+                "into the ramp; raise them"
+            )
+        return self
+
     def support(self, robot: Robot, pose: ArrayLike) -> Support:
         """Every contact of the base touches the plane; the polygon is their hull, CCW about z_B."""
         T = self.G_T_B(np.asarray(pose, dtype=float).reshape(3))

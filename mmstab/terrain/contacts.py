@@ -1,0 +1,140 @@
+"""Contact candidates of the tracked base, in the body frame B (``docs/terrain.md``).
+
+B has its origin at the centre of the track-ground contact rectangle, x forward, y left,
+z up. The candidates are the points of the base that can touch the ground:
+
+* **tracks**: each track is a stadium in the x-z plane, ``tracks.width`` wide, centred at
+  y = +-separation/2: a flat bottom from x = -L/2 to +L/2 at z = 0 (L = ``tracks.length``)
+  and end arcs (sprocket, idler) of radius r_t = ``tracks.height``/2 centred at
+  (+-L/2, r_t). Points along the bottom and along the lower half of each end arc (from
+  straight down to straight ahead/behind), on both track edges (y = centre +- width/2).
+* **flippers**: the box of :meth:`mmstab.robot.Flippers.box` at the flipper angle; points
+  along its two lower long edges.
+* **chassis**: the bottom face of ``base.body`` (z = centre_z - size_z/2): its corners and
+  points along its edges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.robot import Base, Flippers, rpy_matrix
+
+FloatArray = NDArray[np.float64]
+
+TRACK, FLIPPER, CHASSIS = 0, 1, 2
+PART_NAMES = ("track", "flipper", "chassis")
+
+#: Default spacing of the candidates along straight edges [m].
+SPACING = 0.05
+#: Default angular step along the track end arcs [rad]: the chords sag r_t (1 - cos(step/2))
+#: = 0.24 mm below the arc for r_t = 0.11 m.
+ARC_STEP = np.radians(7.5)
+
+
+class ContactCandidates(NamedTuple):
+    """Points of the base that may touch the ground.
+
+    Attributes:
+        points: (K, 3) in the body frame B [m].
+        part: (K,) part code per point: ``TRACK``, ``FLIPPER`` or ``CHASSIS``.
+    """
+
+    points: FloatArray
+    part: NDArray[np.int_]
+
+
+def _segment(a: FloatArray, b: FloatArray, spacing: float) -> FloatArray:
+    """Points from ``a`` to ``b`` (both included), at most ``spacing`` [m] apart."""
+    n = max(int(np.ceil(np.linalg.norm(b - a) / spacing - 1e-9)), 1) + 1
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    return a + s * (b - a)
+
+
+def track_profile(length: float, height: float, spacing: float, arc_step: float) -> FloatArray:
+    """The (x, z) profile of one track bottom: flat part then both lower quarter arcs.
+
+    Args:
+        length: flat ground-contact length L [m].
+        height: track height 2 r_t [m].
+        spacing: point spacing along the flat bottom [m].
+        arc_step: angular step along the arcs [rad].
+
+    Returns:
+        (n, 2) points (x, z) [m].
+    """
+    r = height / 2
+    flat = _segment(np.array([-length / 2, 0.0]), np.array([length / 2, 0.0]), spacing)
+    n_arc = max(int(np.ceil(np.pi / 2 / arc_step - 1e-9)), 1)
+    phi = np.linspace(0.0, np.pi / 2, n_arc + 1)[1:]  # phi = 0 is the bottom end, already in
+    front = np.stack([length / 2 + r * np.sin(phi), r - r * np.cos(phi)], axis=1)
+    rear = front * np.array([-1.0, 1.0])
+    return np.concatenate([flat, front, rear])
+
+
+def flipper_edges(flippers: Flippers, side: str, spacing: float) -> FloatArray:
+    """Points along the two lower long edges of one flipper box, body frame (n, 3) [m]."""
+    box = flippers.box(side)  # type: ignore[arg-type]
+    R = rpy_matrix(box.rpy)
+    half = box.size / 2
+    edges = []
+    for sy in (-1.0, 1.0):
+        for sz in (-1.0, 1.0):
+            a = box.center + R @ (half * np.array([-1.0, sy, sz]))
+            b = box.center + R @ (half * np.array([1.0, sy, sz]))
+            edges.append((a, b))
+    edges.sort(key=lambda ab: float(ab[0][2] + ab[1][2]))  # the two lowest long edges
+    return np.concatenate([_segment(a, b, spacing) for a, b in edges[:2]])
+
+
+def chassis_outline(base: Base, spacing: float) -> FloatArray:
+    """Corners and edge points of the chassis bottom face, body frame (n, 3) [m]."""
+    body = base.body
+    z = body.center[2] - body.size[2] / 2
+    hx, hy = body.size[0] / 2, body.size[1] / 2
+    cx, cy = body.center[0], body.center[1]
+    corners = np.array(
+        [[cx - hx, cy - hy, z], [cx + hx, cy - hy, z], [cx + hx, cy + hy, z], [cx - hx, cy + hy, z]]
+    )
+    pts = [_segment(corners[i], corners[(i + 1) % 4], spacing)[:-1] for i in range(4)]
+    return np.concatenate(pts)
+
+
+def contact_candidates(
+    base: Base,
+    flipper_angle: float | None = None,
+    spacing: float = SPACING,
+    arc_step: float = ARC_STEP,
+) -> ContactCandidates:
+    """All contact candidates of the base in B.
+
+    Args:
+        base: the tracked base.
+        flipper_angle: flipper angle [rad] (0 = straight forward, positive raises the tip);
+            ``None`` = the robot description's.
+        spacing: candidate spacing along straight edges [m].
+        arc_step: angular step along the track end arcs [rad].
+    """
+    flippers = base.flippers
+    if flipper_angle is not None:
+        flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
+    t = base.tracks
+    prof = track_profile(t.length, t.height, spacing, arc_step)
+    parts: list[FloatArray] = []
+    codes: list[int] = []
+    for yc in (t.separation / 2, -t.separation / 2):
+        for y in (yc + t.width / 2, yc - t.width / 2):
+            parts.append(np.stack([prof[:, 0], np.full(len(prof), y), prof[:, 1]], axis=1))
+            codes += [TRACK] * len(prof)
+    for side in ("left", "right"):
+        pts = flipper_edges(flippers, side, spacing)
+        parts.append(pts)
+        codes += [FLIPPER] * len(pts)
+    chassis = chassis_outline(base, spacing)
+    parts.append(chassis)
+    codes += [CHASSIS] * len(chassis)
+    return ContactCandidates(points=np.concatenate(parts), part=np.array(codes, dtype=np.int_))

@@ -1,0 +1,222 @@
+"""A heightmap as a :class:`~mmstab.terrain.base.Terrain`: poses in G, resting poses.
+
+The map frame M is G itself. A base pose ``(x, y, yaw)`` [m, m, rad] puts the body
+origin above (x, y) with the body x axis heading ``yaw`` about G's z; the ground decides
+the rest (:mod:`mmstab.terrain.rest`). The resting pose depends on the robot (its contact
+candidates and its centre of mass), so a terrain is bound to one robot, flipper angle and
+arm posture with :meth:`HeightmapTerrain.with_robot` before it answers pose queries.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, NamedTuple
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.config import MmstabError
+from mmstab.robot import Robot
+from mmstab.terrain.base import GRAVITY_G, Support, as_poses, place_local
+from mmstab.terrain.contacts import ContactCandidates, contact_candidates
+from mmstab.terrain.heightmap import FloatArray, Heightmap
+from mmstab.terrain.polygon import support_vertices
+from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
+
+
+def with_flipper_angle(robot: Robot, angle: float | None) -> Robot:
+    """The robot with its flippers at ``angle`` [rad] (``None``: unchanged)."""
+    if angle is None:
+        return robot
+    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
+    return dataclasses.replace(robot, base=dataclasses.replace(robot.base, flippers=flippers))
+
+
+class LocalPlane(NamedTuple):
+    """The resting pose at one base pose, as a plane the controller can use locally.
+
+    Attributes:
+        pose: the base pose (x, y, yaw) in G [m, m, rad].
+        roll: [rad]. pitch: [rad]. z: G height of the body origin [m].
+        normal: the body's z axis in G (3,) (the plane's upward normal).
+        G_T_B: the resting pose (4, 4).
+    """
+
+    pose: FloatArray
+    roll: float
+    pitch: float
+    z: float
+    normal: FloatArray
+    G_T_B: FloatArray
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HeightmapTerrain:
+    """A heightmap ground (``kind = "heightmap"``).
+
+    Attributes:
+        heightmap: the elevation grid.
+        robot: the robot standing on it (``None`` until :meth:`with_robot`).
+        flipper_angle: flipper angle used for the contacts [rad] (``None`` = the robot's).
+        arm_q: arm posture whose CoM loads the base (4,) [rad] (``None`` = stowed).
+        settings: resting-pose solver settings.
+        reference: the pose whose resting plane :meth:`place_sx` uses (``None`` = the map
+            centre, heading +x).
+    """
+
+    heightmap: Heightmap
+    robot: Robot | None = None
+    flipper_angle: float | None = None
+    arm_q: FloatArray | None = None
+    settings: RestSettings = RestSettings()
+    reference: FloatArray | None = None
+    kind: str = "heightmap"
+
+    # ---------------------------------------------------------------------- binding
+    def with_robot(
+        self, robot: Robot, flipper_angle: float | None = None, arm_q: ArrayLike | None = None
+    ) -> HeightmapTerrain:
+        """This ground with a robot (flipper angle [rad], arm posture (4,) [rad]) on it."""
+        q = None if arm_q is None else np.asarray(arm_q, dtype=float)
+        return dataclasses.replace(self, robot=robot, flipper_angle=flipper_angle, arm_q=q)
+
+    def at(self, pose: ArrayLike) -> HeightmapTerrain:
+        """This ground with :meth:`place_sx` linearised at ``pose`` (x, y, yaw) in G."""
+        return dataclasses.replace(self, reference=np.asarray(pose, dtype=float))
+
+    def _robot(self) -> Robot:
+        if self.robot is None:
+            raise MmstabError(
+                f"{self.heightmap.source}: a heightmap terrain needs a robot for resting "
+                "poses (HeightmapTerrain.with_robot)"
+            )
+        return with_flipper_angle(self.robot, self.flipper_angle)
+
+    @functools.cached_property
+    def candidates(self) -> ContactCandidates:
+        """Contact candidates of the bound robot in B."""
+        return contact_candidates(self._robot().base)
+
+    @functools.cached_property
+    def com_body(self) -> FloatArray:
+        """Overall CoM of the bound robot in B [m] (base + arm at ``arm_q``)."""
+        r = self._robot()
+        q = r.stowed if self.arm_q is None else self.arm_q
+        return np.asarray(r.overall_com(r.arm_com(q)), dtype=float)
+
+    # ---------------------------------------------------------------- Terrain interface
+    @property
+    def label(self) -> str:
+        """``heightmap NAME (nx x ny cells of R m)``, for figure titles."""
+        ny, nx = self.heightmap.shape
+        name = getattr(self.heightmap, "source", "")
+        return f"heightmap {name} ({nx} x {ny} cells of {self.heightmap.resolution:g} m)"
+
+    def local_ground(self, poses: ArrayLike) -> FloatArray:
+        """``(z [m], roll [rad], pitch [rad])`` of the resting poses, (N, 3)."""
+        r = self.rest(as_poses(poses))
+        return np.stack([r.z, r.roll, r.pitch], axis=1)
+
+    def surface_G(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """Ground points in G under (x, y) [m] (bilinear heights), (..., 3)."""
+        xb, yb = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        z = self.heightmap.height(np.stack([xb.ravel(), yb.ravel()], axis=1)).reshape(xb.shape)
+        return np.stack([xb, yb, z], axis=-1)
+
+    def rest(self, poses: ArrayLike, strict: bool = True) -> RestPoses:
+        """Resting poses, batched (see :func:`mmstab.terrain.rest.rest_poses`)."""
+        c = self.candidates
+        return rest_poses(
+            self.heightmap, c.points, self.com_body, poses, c.part, self.settings, strict
+        )
+
+    def G_T_M(self) -> FloatArray:
+        """The map frame is G."""
+        return np.eye(4)
+
+    def M_T_B(self, poses: ArrayLike) -> FloatArray:
+        """Resting body poses: (4, 4) for one pose, (N, 4, 4) for many."""
+        p = np.asarray(poses, dtype=float)
+        T = self.rest(p).G_T_B
+        return T[0] if p.ndim == 1 else T
+
+    def G_T_B(self, poses: ArrayLike) -> FloatArray:
+        """Resting body poses in G (= M)."""
+        return self.M_T_B(poses)
+
+    def gravity_body(self, poses: ArrayLike) -> FloatArray:
+        """Gravity in the body at the resting poses, (N, 3) [m/s^2]."""
+        T = self.rest(np.atleast_2d(np.asarray(poses, dtype=float))).G_T_B
+        return np.einsum("nji,j->ni", T[:, :3, :3], GRAVITY_G)
+
+    def place(self, poses: ArrayLike, points_body: ArrayLike) -> FloatArray:
+        """Body points (3,) or (N, 3) placed in G at the resting poses -> (N, 3) [m].
+
+        The one placement (:func:`mmstab.terrain.place_local`) with the local ground.
+        """
+        P = as_poses(poses)
+        return place_local(P, self.local_ground(P), points_body).points
+
+    def local_plane(self, pose: ArrayLike) -> LocalPlane:
+        """The resting pose at one pose, for export to a controller (per-step ground data)."""
+        p = np.asarray(pose, dtype=float)
+        r = self.rest(p)
+        T = r.G_T_B[0]
+        return LocalPlane(p, float(r.roll[0]), float(r.pitch[0]), float(r.z[0]), T[:3, 2], T)
+
+    def place_sx(self, pose: ca.SX, point_body: Any) -> ca.SX:
+        """Symbolic ``G_T_B(pose) p`` on the resting plane at :attr:`reference` (CasADi).
+
+        The ground is approximated by the plane of the resting pose at the reference pose
+        (exact on planar ground): the body origin at (x, y) on that plane, z_B its normal,
+        x_B the heading ``yaw`` projected onto it.
+        """
+        ref = self.reference
+        if ref is None:
+            x0, x1, y0, y1 = self.heightmap.bounds
+            ref = np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
+        lp = self.local_plane(ref)
+        n = lp.normal
+        c, s = ca.cos(pose[2]), ca.sin(pose[2])
+        z = lp.z - (n[0] * (pose[0] - ref[0]) + n[1] * (pose[1] - ref[1])) / n[2]
+        x_dir = ca.vertcat(c, s, -(n[0] * c + n[1] * s) / n[2])
+        x_b = x_dir / ca.norm_2(x_dir)
+        n_dm = ca.DM(n)
+        y_b = ca.cross(n_dm, x_b)
+        return ca.vertcat(pose[0], pose[1], z) + (
+            x_b * point_body[0] + y_b * point_body[1] + n_dm * point_body[2]
+        )
+
+    # ---------------------------------------------------------------------- support
+    def support(self, robot: Robot, pose: ArrayLike) -> Support:
+        """How ``robot`` stands at one pose: resting pose, contacts, polygon, flags."""
+        terrain = self if robot is self.robot else self.with_robot(robot, self.flipper_angle)
+        r = terrain.rest(np.asarray(pose, dtype=float))
+        contacts = r.contacts_G(terrain.candidates.points, 0)
+        poly, line = support_vertices(contacts, GRAVITY_G)
+        flags = r.flags(0)
+        if line and "line_contact" not in flags:
+            flags = (*flags, "line_contact")
+        return Support(r.G_T_B[0], contacts, poly, flags)
+
+    # ---------------------------------------------------------------------- drawing
+    def draw(
+        self, ax3d: Any, stride: int | None = None, cmap: str = "terrain", alpha: float = 0.9
+    ) -> Any:
+        """Draw the ground as a surface on matplotlib 3-D axes (NaN cells left out).
+
+        Args:
+            ax3d: matplotlib 3-D axes.
+            stride: draw every ``stride``-th cell (``None``: about 120 per side).
+            cmap: colour map of the heights.
+            alpha: opacity.
+        """
+        hm = self.heightmap
+        step = stride or max(1, max(hm.shape) // 120)
+        X, Y = np.meshgrid(hm.x[::step], hm.y[::step])
+        Z = hm.elevation[::step, ::step]
+        return ax3d.plot_surface(
+            X, Y, Z, cmap=cmap, alpha=alpha, linewidth=0, antialiased=False, rstride=1, cstride=1
+        )

@@ -1,0 +1,61 @@
+"""Ordering 3-D contact points into a support polygon, seen along a direction.
+
+The polygon of contacts that need not be coplanar is their convex hull seen along the net
+force (gravity): the contacts on the hull of their projection onto the plane normal to it,
+kept at their 3-D positions, counter-clockwise about the opposite ("up") direction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
+
+FloatArray = NDArray[np.float64]
+
+
+def hull_along(points: ArrayLike, direction: ArrayLike) -> FloatArray:
+    """Hull vertices of ``points`` (n, 3) seen along ``direction`` (3,), CCW about -direction.
+
+    Raises:
+        ValueError: fewer than 3 points, or all on one line seen along ``direction``.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
+        raise ValueError(f"support points must be (n>=3, 3), got {pts.shape}")
+    d = np.asarray(direction, dtype=float)
+    up = -d / np.linalg.norm(d)
+    u = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(up, u)  # (u, v, up) right-handed: CCW in (u, v) is CCW about up
+    rel = pts - pts.mean(axis=0)
+    flat = np.stack([rel @ u, rel @ v], axis=1)
+    _, sing, _ = np.linalg.svd(flat - flat.mean(axis=0))
+    if sing[1] < 1e-9 * max(sing[0], 1e-300):
+        raise ValueError("support points are collinear seen along the force: no polygon")
+    try:
+        hull = ConvexHull(flat)
+    except QhullError as exc:
+        raise ValueError(f"degenerate support polygon: {exc}") from None
+    return pts[hull.vertices]
+
+
+def extreme_pair(points: ArrayLike) -> FloatArray:
+    """The two contacts farthest apart along their main horizontal direction (2 or 1, 3)."""
+    pts = np.asarray(points, dtype=float)
+    d = pts - pts.mean(axis=0)
+    axis = np.linalg.svd(d[:, :2])[2][0] if len(d) > 1 else np.array([1.0, 0.0])
+    s = d[:, :2] @ axis
+    pair = pts[[int(np.argmin(s)), int(np.argmax(s))]]
+    return pair[:1] if np.linalg.norm(pair[1] - pair[0]) < 1e-9 else pair
+
+
+def support_vertices(points: ArrayLike, direction: ArrayLike) -> tuple[FloatArray, bool]:
+    """``(vertices, is_line)``: the hull seen along ``direction``, or the extreme pair."""
+    pts = np.asarray(points, dtype=float)
+    if len(pts) == 0:
+        return np.zeros((0, 3)), True
+    try:
+        return hull_along(pts, direction), False
+    except ValueError:
+        return extreme_pair(pts), True
