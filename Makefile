@@ -139,9 +139,9 @@ view-screenshot: setup
 bench-view: setup
 	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))
 
-## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/validation.{json,png}
+## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/summary.json, validation.png
 .PHONY: validate-terrain
-VALIDATION ?= problems/validate_terrain.yaml
+VALIDATION ?= problems/validate_terrain_rest.yaml
 validate-terrain: setup
 	$(PY) benchmarks/validate_terrain.py $(VALIDATION)
 

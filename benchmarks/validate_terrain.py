@@ -1,7 +1,7 @@
 """Validate a resting-pose predictor against MuJoCo heightfield drops (issue 14 item 5).
 
 Usage: ``python benchmarks/validate_terrain.py [SETTINGS.yaml] [-o DIR] [--predictor NAME]``
-(default ``problems/validate_terrain.yaml`` -> ``results/terrain/validation.json`` and
+(default ``problems/validate_terrain.yaml`` -> ``results/terrain/summary.json`` and
 ``validation.png``). ``make validate-terrain`` runs it. Bad settings: one line on stderr,
 exit status 2, nothing written.
 """

@@ -65,7 +65,7 @@ def run(tmp_path, data):
 def test_validation_writes_distributions_and_figure(tmp_path):
     proc, out = run(tmp_path, settings())
     assert proc.returncode == 0, proc.stderr
-    data = json.loads((out / "validation.json").read_text())
+    data = json.loads((out / "summary.json").read_text())
     assert data["predictor"] == "plane"
     assert set(data["terrains"]) == {"a", "b"}
     assert data["overall"]["drops"] == 8 and data["overall"]["settled"] == 8

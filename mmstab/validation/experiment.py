@@ -1,7 +1,7 @@
 """The drop-test validation run: many poses over several terrains, one predictor.
 
 Settings come from a YAML file (``problems/validate_terrain.yaml``); the run writes
-``validation.json`` (settings, per-terrain and overall error distributions, outliers
+``summary.json`` (settings, per-terrain and overall error distributions, outliers
 with explanations, timings) and ``validation.png`` (error histograms) to its output
 folder (default ``results/terrain``). Predictors are chosen by name from
 :data:`PREDICTORS`: ``plane`` (the analytic plane rest, planes only) and ``rest``
@@ -247,7 +247,7 @@ def _triple(d: dict[str, float], scale: float = 1.0) -> str:
 
 
 def summary(settings: dict[str, Any], runs: list[Run]) -> dict[str, Any]:
-    """The JSON written as ``validation.json``."""
+    """The JSON written as ``summary.json``."""
     from mmstab.validation.mujoco_drop import DropSettings
 
     def errors(cmps: list[Comparison]) -> dict[str, Any]:
@@ -317,7 +317,7 @@ def main_validation(
     predictor: str | None = None,
     extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Load settings, run, write ``validation.json``/``.png``/``_settings.yaml``; the summary."""
+    """Load settings, run, write ``summary.json``/``.png``/``_settings.yaml``; the summary."""
     settings = load_settings(path)
     if predictor is not None:
         if predictor not in PREDICTORS:
@@ -328,7 +328,7 @@ def main_validation(
     data = summary(settings, runs) | {"source": str(path)} | (extra or {})
     from mmstab.config import write_figure
 
-    write_json(out / "validation.json", _finite(data))
+    write_json(out / "summary.json", _finite(data))
     write_figure(out / "validation.png", figure(runs))
     write_yaml(out / "validation_settings.yaml", data["settings"] | {"source": str(path)})
     return data
