@@ -72,8 +72,14 @@ fig7: setup
 fig8: setup
 	$(MMSTAB) fig8 $(PROBLEM)
 
+## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
 bench-plan: setup
 	$(PY) benchmarks/plan.py $(PROBLEM)
+
+## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
+.PHONY: fidelity
+fidelity: setup
+	$(MMSTAB) fidelity $(PROBLEM)
 
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track

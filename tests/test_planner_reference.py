@@ -298,3 +298,43 @@ def test_no_samples_is_a_clear_error(problem, changes):
             s,
             np.random.default_rng(0),
         )
+
+
+def test_unrealisable_target_falls_back_to_the_best_nearby_sample(coarse):
+    """Off-grid CMA answers that no collision-free posture realises become samples of V."""
+    problem, ws = coarse
+    robot = problem.robot
+    s = _settings(problem, ws, max_iterations=8)  # CMA moves off the grid
+    V = ws.valid_com_in_V
+
+    def grid_only(target, previous_q):  # realises exactly the grid's collision-free CoMs
+        ok = bool(np.min(np.linalg.norm(V - target, axis=1)) < 1e-12)
+        return ws.nearest_valid_posture(target), ok
+
+    poses = problem.circle.poses(s.poses)
+    free = solve_path(robot, problem.ramp, ws, poses, s)
+    plan = solve_path(robot, problem.ramp, ws, poses, s, grid_only)
+    assert plan.collision_free.all()
+    assert np.all(plan.realised_com_error < 1e-12)
+    off_grid = [np.min(np.linalg.norm(V - t.target_com, axis=1)) > 1e-12 for t in free.targets]
+    assert any(off_grid)  # the fallback is exercised
+    previous = robot.arm_com(robot.stowed)
+    for t in plan.targets:
+        fitness = pose_fitness(
+            robot, gravity_body_at(problem.ramp, t.pose)[0], previous, s, mu_max(robot), ws.diameter
+        )
+        assert t.fitness == pytest.approx(fitness(t.target_com)[0], abs=1e-12)
+        assert t.mu == pytest.approx(fitness.mu(t.target_com)[0], abs=1e-9)
+        previous = t.target_com
+    assert any(t.fallback for t in plan.targets)
+
+
+def test_sample_region_holds_every_valid_com_and_ranks_the_rest(coarse):
+    _, ws = coarse
+    region = sample_region(ws)
+    assert region.contains(ws.valid_com).all()
+    assert np.all(region.violation(ws.valid_com) == 0)
+    far = ws.valid_com[:5] + np.array([0.0, 0.0, 2.0])
+    assert not region.contains(far).any()
+    np.testing.assert_allclose(region.violation(far), region.distance(far) - region.radius)
+    assert len(region.valid_com_in_V) == len(ws.valid_com) > len(ws.valid_com_in_V)

@@ -138,6 +138,7 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
                 "mu_realised": mu_realised[k],
                 "mu_stowed": mu_stowed[k],
                 "mu_arm_removed": mu_removed[k],
+                "fallback": bool(t.fallback),
                 "side": _side(t.target_com),
                 "front": bool(t.target_com[0] > 0),
                 "fitness": t.fitness,

@@ -41,6 +41,11 @@ from mmstab.robot import FloatArray, Robot
 from mmstab.stability import mu_max as stowed_flat_mu
 from mmstab.terrain import Ramp
 
+#: Largest CoM error of a realised target [m] before the fallback to a sample.
+REALISE_TOL = 1e-4
+#: Samples of V near an unrealisable target among which the fallback chooses.
+FALLBACK_NEIGHBOURS = 64
+
 
 class PoseTarget(NamedTuple):
     """The planner's answer at one base pose.
@@ -54,6 +59,8 @@ class PoseTarget(NamedTuple):
         best_start: index of the run kept (-1 when exhaustive).
         seconds: wall time of the search at this pose [s].
         exhaustive: the exhaustive result (``method: exhaustive``), else None.
+        fallback: no collision-free posture realised the search's answer, so the best of
+            V's samples near it replaced it (:func:`solve_path`).
     """
 
     pose: FloatArray
@@ -64,6 +71,7 @@ class PoseTarget(NamedTuple):
     best_start: int
     seconds: float
     exhaustive: ExhaustiveResult | None = None
+    fallback: bool = False
 
 
 def gravity_body_at(terrain: Ramp, poses: ArrayLike) -> FloatArray:
@@ -173,6 +181,51 @@ def solve_pose(
     )
 
 
+def _fall_back_to_a_sample(
+    robot: Robot,
+    ramp: Ramp,
+    region: CoMRegion,
+    target: PoseTarget,
+    previous_com: FloatArray,
+    settings: PlannerSettings,
+    mu_max: float,
+    realise: Callable[[FloatArray, FloatArray], tuple[FloatArray, bool]],
+    previous_q: FloatArray,
+) -> tuple[PoseTarget, FloatArray, bool]:
+    """No collision-free posture realises an off-grid target: take the best nearby sample.
+
+    V's samples are CoMs of collision-free grid postures, so each is realisable; the one
+    with the best Eq. 6 fitness among the ``FALLBACK_NEIGHBOURS`` samples nearest to the
+    target replaces it (``PoseTarget.fallback``). Without samples the target stays.
+    """
+    try:
+        index = sample_index(region)
+    except MmstabError:
+        q, ok = realise(target.target_com, previous_q)
+        return target, q, ok
+    k = min(FALLBACK_NEIGHBOURS, len(index.samples))
+    _, idx = index.tree.query(target.target_com, k=k)
+    near = index.samples[np.atleast_1d(idx)]
+    fitness = pose_fitness(
+        robot,
+        gravity_body_at(ramp, target.pose)[0],
+        previous_com,
+        settings,
+        mu_max,
+        float(region.diameter),
+    )
+    values = fitness(near)
+    best = int(np.argmax(values))
+    q, ok = realise(near[best], previous_q)
+    replaced = target._replace(
+        target_com=near[best].copy(),
+        fitness=float(values[best]),
+        mu=float(fitness.mu(near[best])[0]),
+        fallback=True,
+    )
+    return replaced, q, ok
+
+
 class Plan(NamedTuple):
     """A planned sequence of arm CoMs along the base path, with realising postures.
 
@@ -224,13 +277,17 @@ def solve_path(
     targets, postures, free = [], [], []
     for pose in poses:
         t = solve_pose(robot, ramp, region, pose, previous_com, settings, rng, mu_max, starts)
-        targets.append(t)
-        previous_com = t.target_com
         if realise is not None:
             q, ok = realise(t.target_com, previous_q)
+            if not (ok and np.linalg.norm(robot.arm_com(q) - t.target_com) <= REALISE_TOL):
+                t, q, ok = _fall_back_to_a_sample(
+                    robot, ramp, region, t, previous_com, settings, mu_max, realise, previous_q
+                )
             previous_q = q
         else:
             q, ok = np.full(4, np.nan), False
+        targets.append(t)
+        previous_com = t.target_com
         postures.append(q)
         free.append(ok)
     target_com = np.array([t.target_com for t in targets])
