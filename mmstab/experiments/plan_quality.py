@@ -118,5 +118,5 @@ def draw_lap_quality(quality: dict[str, Any], path: str | Path, title: str) -> P
     ax.plot(p["fraction"], p["mu_planned"], "x", color="C3", ms=8, label="planned (Eq. 6)")
     ax.set(xlabel="path fraction", ylabel="mu [N rad]", title=title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return write_figure(Path(path), fig)
