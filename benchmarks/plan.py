@@ -12,6 +12,8 @@ writes ``results/bench/plan.json``. Times are medians (the machine may be shared
   random sample of V (``--seed``).
 - Both for the problem's planner settings and for the first release's (``seeding:
   starts``, sigma0 0.05 m, population 16, 20 iterations), the peer in the same run.
+- ``--alternatives``: other CMA-ES set-ups (``ALTERNATIVES``) on the same poses, written to
+  ``plan_alternatives.json``.
 - ``v_loss``: on the random set, the best mu over all collision-free grid CoMs against
   the best inside V [%] (what V's hull difference costs).
 """
@@ -55,6 +57,28 @@ FIRST_RELEASE = {
     "restarts": 0,
 }
 MAX_SLOPE = 0.4  # [rad]
+#: Other searches (``--alternatives``), each as changes to the problem's planner settings.
+ALTERNATIVES = {
+    "coarse seed + 1 IPOP restart": {"restarts": 1},
+    "8 starts around the turret, sigma0 0.15 d, pop 16, 30 it": {
+        "seeding": "starts",
+        "starts": tuple(np.arange(8) * np.pi / 4),
+        "sigma0": 0.15,
+        "sigma0_unit": "diameter",
+        "popsize": 16,
+        "max_iterations": 30,
+        "restarts": 0,
+    },
+    "paper starts, sigma0 0.15 d, pop 16, 30 it, 2 IPOP restarts": {
+        "seeding": "starts",
+        "starts": (2.0, 5.0),
+        "sigma0": 0.15,
+        "sigma0_unit": "diameter",
+        "popsize": 16,
+        "max_iterations": 30,
+        "restarts": 2,
+    },
+}
 
 
 def _stats(values: list[float]) -> dict[str, float]:
@@ -148,6 +172,11 @@ def main() -> None:
     ap.add_argument("--random", type=int, default=100, help="random poses")
     ap.add_argument("--seed", type=int, default=12, help="seed of the random poses")
     ap.add_argument("--out", default="results/bench/plan.json")
+    ap.add_argument(
+        "--alternatives",
+        action="store_true",
+        help="also run ALTERNATIVES (slow) -> plan_alternatives.json beside --out",
+    )
     args = ap.parse_args()
     problem = load_problem(args.problem)
     ws = load_or_build_workspace(problem, progress=False)
@@ -181,6 +210,20 @@ def main() -> None:
         "seconds": time.perf_counter() - t0,
     }
     write_json(Path(args.out), result)
+    if args.alternatives:
+        alt = {
+            name: compare(problem, region, settings._replace(**changes), 1, cases)
+            for name, changes in ALTERNATIVES.items()
+        }
+        alt["default"] = current
+        write_json(Path(args.out).with_name("plan_alternatives.json"), alt)
+        for name, r in alt.items():
+            c = r["random"]
+            print(
+                f"{name}: random {c['median_ms_per_pose']:.1f} ms/pose (exhaustive "
+                f"{c['median_ms_per_pose_exhaustive']:.1f}), gap median "
+                f"{c['fitness_gap_pct']['median']:+.3f} %, max {c['fitness_gap_pct']['max']:+.3f} %"
+            )
     for name, r in (("planner", current), ("first release", first)):
         for where in ("lap", "random"):
             c = r[where]
