@@ -22,7 +22,7 @@ setup: $(STAMP)
 
 ## the main job on the default problem: the paper's pipeline, every stage and figure
 ## (workspace V -> stability sweeps -> CMA-ES plan -> tracking on the ramp -> animation)
-demo: setup fig3 fig5 fig6 fig7 fig8 tracking animation
+demo: setup fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 
 test: setup system
 	$(PY) -m pytest -q
@@ -54,7 +54,7 @@ fig5: setup
 fig6: setup
 	$(MMSTAB) fig6 $(PROBLEM)
 
-figures: fig3 fig5 fig6 fig7 fig8 tracking animation
+figures: fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 
 ## benchmark (not a test): µs per controller step per QP plugin -> results/bench/controller.json
 bench-controller: setup
@@ -85,8 +85,19 @@ fig7: setup
 fig8: setup
 	$(MMSTAB) fig8 $(PROBLEM)
 
+## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
+## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
+.PHONY: plan-reliable
+plan-reliable: setup
+	$(MMSTAB) fig8 problems/ramp_reliable.yaml -o results/fig8_reliable
+
 bench-plan: setup
 	$(PY) benchmarks/plan.py $(PROBLEM)
+
+## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
+.PHONY: fidelity
+fidelity: setup
+	$(MMSTAB) fidelity $(PROBLEM)
 
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track

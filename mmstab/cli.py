@@ -115,6 +115,19 @@ def _fig8(args: argparse.Namespace) -> None:
     print(f"fig8: arm side per pose {s['sides']}")
 
 
+def _fidelity(args: argparse.Namespace) -> None:
+    from mmstab.experiments.fidelity import run_fidelity
+
+    s = run_fidelity(_problem(args), args.out, args.results)
+    f6, f8, f11, f12 = s["fig6"], s["fig8"], s["fig11"], s["fig12"]
+    below = ", ".join(f"{i['start_s']:.2f}-{i['end_s']:.2f} s" for i in f12["below_stowed"])
+    print(
+        f"fidelity: fig6 {f6['poses_with_two_maxima']}/{f6['poses']} sweeps with two maxima; "
+        f"fig8 sides {f8['sides']}; fig11 saturates: {f11['saturates']}; "
+        f"fig12 below the stowed arm: {below or 'never'}"
+    )
+
+
 def _codegen(args: argparse.Namespace) -> None:
     from mmstab.codegen import build_programs, check_plugin, generate
 
@@ -156,6 +169,7 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
+    ("fidelity", "paper claims vs the saved results of fig6, fig8, tracking", _fidelity),
 ]
 
 #: Options beyond ``problem`` and ``--out``, by command name.
@@ -176,6 +190,9 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             },
         ),
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+    ],
+    "fidelity": [
+        ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
     ],
     "codegen": [
         (

@@ -70,6 +70,7 @@ class Problem:
 def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Problem:
     """Validate a problem mapping read from ``path`` (robot path relative to it)."""
     p = Path(path)
+    data = schema.with_defaults(data)
     validate(p, data, schema.problem_schema())
     robot_path = (p.parent / data["robot"]).resolve()
     if not robot_path.is_file():

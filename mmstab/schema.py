@@ -88,7 +88,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         poses={"type": "integer", "minimum": 1},
         roll_pose=VEC3,
     ),
-    "planner": obj(
+    "planner": obj(  # CMA-ES or exhaustive arm-CoM planner, paper Eq. 6 (docs/planner.md)
         w_stability=WEIGHT01,
         w_motion=WEIGHT01,
         poses=INT_POS,
@@ -100,6 +100,14 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         tol_x=POS,
         max_resample=INT_POS,
         seed=SEED,
+        method={"enum": ["cmaes", "exhaustive"]},
+        seeding={"enum": ["starts", "coarse"]},
+        coarse_samples={"type": "integer", "minimum": 16},
+        coarse_basins=INT_POS,
+        coarse_neighbours={"type": "integer", "minimum": 0},
+        coarse_seeds=INT_POS,
+        sigma0_unit={"enum": ["m", "diameter"]},
+        restarts={"type": "integer", "minimum": 0, "maximum": 8},
     ),
     "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/controller.py)
         dt=POS,
@@ -121,6 +129,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         grid=vec(4, {"type": "integer", "minimum": 2}),
         precision_samples=INT_POS,
         seed=SEED,
+        method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
     ),
     "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)
         plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},  # qpoases: refused, clearly
@@ -133,6 +142,32 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         height={"type": "integer", "minimum": 64, "maximum": 1080},
     ),
 }
+
+
+#: Keys a problem file may omit, by section, and the value they then take: each is the
+#: behaviour of files written before the key existed (``problem_from_dict`` fills them in).
+SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
+    "planner": {
+        "method": "cmaes",
+        "seeding": "starts",
+        "coarse_samples": 4096,
+        "coarse_basins": 4,
+        "coarse_neighbours": 256,
+        "coarse_seeds": 1,
+        "sigma0_unit": "m",
+        "restarts": 0,
+    },
+    "workspace": {"method": "hull_difference"},
+}
+
+
+def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a problem mapping with the omitted optional keys filled in."""
+    out = dict(data)
+    for name, defaults in SECTION_DEFAULTS.items():
+        if isinstance(out.get(name), dict):
+            out[name] = {**defaults, **out[name]}
+    return out
 
 
 def problem_schema() -> dict[str, Any]:

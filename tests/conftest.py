@@ -51,3 +51,26 @@ def write_problem(tmp_path: Path, edit=None, name: str = "problem.yaml") -> Path
     path = tmp_path / name
     path.write_text(yaml.safe_dump(prob))
     return path
+
+
+#: The first release's planner search (the plan the tracking tests were written for; the
+#: default search of problems/ramp.yaml now differs, docs/planner.md).
+FIRST_RELEASE_PLANNER = {
+    "method": "cmaes",
+    "seeding": "starts",
+    "starts": [2.0, 5.0],
+    "sigma0": 0.05,
+    "sigma0_unit": "m",
+    "popsize": 16,
+    "max_iterations": 20,
+    "restarts": 0,
+}
+
+
+def with_first_release_planner(problem):
+    """The same problem with the first release's planner search."""
+    from mmstab.problem import problem_from_dict
+
+    data = copy.deepcopy(problem.data)
+    data["planner"].update(FIRST_RELEASE_PLANNER)
+    return problem_from_dict(data, problem.path)

@@ -116,7 +116,7 @@ class _Nowhere:
 
 def test_no_sample_in_V_is_a_clear_error(coarse):
     problem, _ = coarse
-    s = _settings(problem, max_resample=5)
+    s = _settings(problem, max_resample=5, seeding="starts")
     with pytest.raises(MmstabError, match="no CMA-ES sample fell in the workspace V"):
         solve_pose(
             problem.robot,
@@ -138,7 +138,16 @@ def test_weights_must_sum_to_one(tmp_path):
 
 @pytest.mark.slow
 def test_fig7_fig8_subprocess(tmp_path):
-    path = write_problem(tmp_path, _coarse)
+    import yaml
+    from conftest import PROBLEMS
+
+    reliable = yaml.safe_load((PROBLEMS / "ramp_reliable.yaml").read_text())["planner"]
+
+    def coarse_reliable(p, r):  # the reliable search (problems/ramp_reliable.yaml), coarse V
+        _coarse(p, r)
+        p["planner"] = reliable
+
+    path = write_problem(tmp_path, coarse_reliable)
     env = {**os.environ, "MPLBACKEND": "Agg"}
     for fig in ("fig7", "fig8"):
         subprocess.run(
@@ -150,14 +159,19 @@ def test_fig7_fig8_subprocess(tmp_path):
         )
         assert (tmp_path / fig / f"{fig}.png").stat().st_size > 10_000
     s7 = json.loads((tmp_path / "fig7" / "summary.json").read_text())
-    assert len(s7["runs"]) == 2 and s7["mu_planned"] > 0
+    planner = load_problem(path).section("planner")  # coarse seeds x (1 + IPOP restarts) runs
+    assert len(s7["runs"]) == planner["coarse_seeds"] * (1 + planner["restarts"])
+    assert s7["mu_planned"] > 0
     assert max(r["best_fitness"] for r in s7["runs"]) == pytest.approx(s7["fitness"])
     s8 = json.loads((tmp_path / "fig8" / "summary.json").read_text())
     assert len(s8["poses"]) == 10
+    assert (tmp_path / "fig8" / "fig8_mu.png").stat().st_size > 10_000
+    assert s8["lap_quality"]["fitness_gap_pct"]["max"] <= 0.5
     for p in s8["poses"]:
         assert p["side"] in ("left", "right")
         assert p["mu_planned"] > p["mu_arm_removed"]
         assert p["evaluations"] > 0
+        assert p["mu_best_valid"] >= p["mu_best_in_V"] - 1e-9
 
 
 def test_empty_workspace_is_a_clear_error(problem):

@@ -482,9 +482,12 @@ def test_self_collisions_reports_intervals_and_pairs(problem):
 # --------------------------------------------------------------------- posture reference
 @pytest.fixture(scope="module")
 def default_plan(problem):
+    """The plan with the first release's planner search, which these numbers describe."""
+    from conftest import with_first_release_planner
+
     from mmstab.planner import plan_path
 
-    return plan_path(problem)
+    return plan_path(with_first_release_planner(problem))
 
 
 @pytest.fixture(scope="module")

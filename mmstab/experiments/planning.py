@@ -1,4 +1,8 @@
-"""Paper Fig. 7 (CMA-ES at one rolled pose) and Fig. 8 (ten poses along the circle)."""
+"""Paper Fig. 7 (the planner at one rolled pose) and Fig. 8 (ten poses along the circle).
+
+Fig. 8 also writes ``fig8_mu.png``: planned vs best-achievable mu along the lap
+(:mod:`mmstab.experiments.plan_quality`).
+"""
 
 from __future__ import annotations
 
@@ -18,8 +22,9 @@ from mmstab.drawing import (
     set_equal_aspect,
 )
 from mmstab.experiments.common import output_dir, save_settings
+from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
 from mmstab.ik import PostureSolver
-from mmstab.planner import Plan, PlannerSettings, solve_pose
+from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
 from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
 from mmstab.problem import Problem
 from mmstab.stability import mu_max
@@ -37,12 +42,12 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     settings = PlannerSettings.from_section(problem.section("planner"))
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
-    target = solve_pose(
-        robot, problem.terrain, ws, pose, robot.arm_com(robot.stowed), settings, rng
-    )
+    region = planning_region(ws, problem.section("workspace")["method"])
+    stowed = robot.arm_com(robot.stowed)
+    target = solve_pose(robot, problem.terrain, region, pose, stowed, settings, rng)
     solver = PostureSolver(robot, ws)
     realised = solver.posture(target.target_com, robot.stowed)
-    best = target.runs[target.best_start]
+    first = target.runs[target.best_start].first_samples if target.runs else np.empty((0, 3))
     d = output_dir(out, "fig7")
 
     fig = new_figure(figsize=(12, 4.2))[0]
@@ -51,12 +56,13 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     ax_b = fig.add_subplot(1, 3, 2, projection="3d")
     ax_c = fig.add_subplot(1, 3, 3)
     draw_robot(ax_a, robot, robot.stowed, alpha=0.15)  # the base, for scale
-    for com in best.first_samples:
+    for com in first:
         draw_arm_3d(ax_a, robot, ws.nearest_valid_posture(com), color="0.5", lw=0.8)
-    ax_a.scatter(*best.first_samples.T, color="C0", s=12, label="sampled arm CoMs")
-    ax_a.scatter(*best.first_samples.mean(axis=0), color="C3", marker="*", s=80, label="mean")
-    ax_a.set_title("(a) first population (body frame)")
-    ax_a.legend(fontsize=7)
+    if len(first):
+        ax_a.scatter(*first.T, color="C0", s=12, label="sampled arm CoMs")
+        ax_a.scatter(*first.mean(axis=0), color="C3", marker="*", s=80, label="mean")
+        ax_a.legend(fontsize=7)
+    ax_a.set_title("(a) first population (body frame)" if len(first) else "(a) exhaustive: no CMA")
     draw_robot(ax_b, robot, realised.q, support=True)
     set_equal_aspect(ax_b, mesh_points(robot_meshes(robot, realised.q)))
     ax_b.scatter(*target.target_com, color="C3", marker="*", s=80, label="optimal arm CoM")
@@ -64,8 +70,9 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     ax_b.legend(fontsize=7)
     for ax in (ax_a, ax_b):
         ax.set(xlabel="x_B [m]", ylabel="y_B [m]", zlabel="z_B [m]")
-    for k, run in enumerate(target.runs):
-        ax_c.plot(run.history, label=f"start link0 = {settings.starts[k]:.1f} rad")
+    for run in target.runs:
+        start = ", ".join(f"{x:.2f}" for x in run.start_com)
+        ax_c.plot(run.history, label=f"start [{start}] m, population {run.popsize}")
     ax_c.set(xlabel="CMA-ES iteration", ylabel="best fitness (Eq. 6)", title="(c) fitness")
     ax_c.legend(fontsize=8)
     ax_c.grid(alpha=0.3)
@@ -76,7 +83,9 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         "target_com": target.target_com,
         "mu_planned": target.mu,
         "fitness": target.fitness,
-        "best_start": settings.starts[target.best_start],
+        "method": settings.method,
+        "seeding": settings.seeding,
+        "best_run": target.best_start,
         "runs": [
             {
                 "start_com": r.start_com,
@@ -85,6 +94,8 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
                 "evaluations": r.evaluations,
                 "resamples": r.resamples,
                 "iterations": r.iterations,
+                "popsize": r.popsize,
+                "sigma0_m": r.sigma0,
                 "history": r.history,
             }
             for r in target.runs
@@ -118,11 +129,13 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
                 "mu_realised": mu_realised[k],
                 "mu_stowed": mu_stowed[k],
                 "mu_arm_removed": mu_removed[k],
+                "fallback": bool(t.fallback),
                 "side": _side(t.target_com),
                 "front": bool(t.target_com[0] > 0),
                 "fitness": t.fitness,
-                "best_start": plan.settings.starts[t.best_start],
-                "evaluations": sum(r.evaluations for r in t.runs),
+                "start_com": t.runs[t.best_start].start_com if t.runs else None,
+                "evaluations": sum(r.evaluations for r in t.runs)
+                + (t.exhaustive.evaluations if t.exhaustive is not None else 0),
                 "resamples": sum(r.resamples for r in t.runs),
                 "seconds": t.seconds,
             }
@@ -137,9 +150,24 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
 
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
-    plan = plan_of(problem, progress=True)
+    ws = workspace(problem)
+    plan = plan_of(problem, ws=ws, progress=True)
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
+    quality = lap_quality(
+        problem, planning_region(ws, problem.section("workspace")["method"]), plan
+    )
+    for k, p in enumerate(summary["poses"]):
+        for key, values in quality["per_pose"].items():
+            if key != "fraction":
+                p[key] = values[k]
+    summary["lap_quality"] = {k: v for k, v in quality.items() if k != "per_pose"}
+    draw_lap_quality(
+        quality,
+        d / "fig8_mu.png",
+        f"planned vs best-achievable mu along the lap ({plan.settings.method}, "
+        f"{plan.settings.seeding if plan.settings.method == 'cmaes' else 'all samples'})",
+    )
     fig = new_figure(figsize=(11, 5))[0]
     fig.clf()
     ax = fig.add_subplot(1, 2, 1, projection="3d")

@@ -44,6 +44,11 @@ PLANNER = {
     "tol_x": 1.0e-4,
     "max_resample": 3,
     "seed": 7,
+    # the first release's search, explicit since the planner gained other searches (issue 12)
+    "method": "cmaes",
+    "seeding": "starts",
+    "sigma0_unit": "m",
+    "restarts": 0,
 }
 TRACK_SECONDS = 1.5  #: length of the pinned tracking run [s]
 STEP_STATES = 12  #: fixed states the step is pinned on

@@ -1,0 +1,122 @@
+"""How good a plan is: against the exhaustive reference and the best achievable stability.
+
+Along the lap of a plan (``results/fig8/``): per planned pose the exhaustive Eq. 6 optimum
+over V's samples at the same previous CoM (the planner's fitness gap), and on a dense set of
+poses the best force-angle measure mu over V's samples, over every collision-free grid CoM
+(inside V or not: what V's hull difference costs) and with the arm stowed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.config import write_figure
+from mmstab.planner import (
+    Plan,
+    best_mu,
+    gravity_body_at,
+    pose_fitness,
+    region_samples,
+    solve_exhaustive,
+)
+from mmstab.plotting import new_figure
+from mmstab.problem import Problem
+from mmstab.stability import mu_max, robot_force_angle
+
+#: Poses of the dense lap curve.
+DENSE_POSES = 72
+
+
+def _pct(reference: np.ndarray, value: np.ndarray) -> np.ndarray:
+    return 100.0 * (reference - value) / np.abs(reference)
+
+
+def lap_quality(
+    problem: Problem, region: Any, plan: Plan, dense: int = DENSE_POSES
+) -> dict[str, Any]:
+    """Planned vs exhaustive vs best achievable along the problem's lap.
+
+    Args:
+        problem: the problem (robot, terrain, circle).
+        region: the workspace the plan used (its samples: ``valid_com_in_V``; all
+            collision-free grid CoMs: ``valid_com``).
+        plan: the plan.
+        dense: poses of the dense curve over one lap.
+
+    Returns:
+        ``per_pose`` lists (fitness and mu of plan and reference, gap [%], best mu in V and
+        over all valid CoMs [N rad]), the ``dense`` curve and summary statistics.
+    """
+    robot = problem.robot
+    samples, valid = region_samples(region), np.asarray(region.valid_com)
+    g = gravity_body_at(problem.terrain, plan.poses)
+    norm = mu_max(robot)
+    previous = np.vstack([robot.arm_com(robot.stowed)[None], plan.target_com[:-1]])
+    fit_ref, mu_ref, seconds = [], [], []
+    for k in range(len(plan.poses)):
+        fitness = pose_fitness(robot, g[k], previous[k], plan.settings, norm, region.diameter)
+        ex = solve_exhaustive(fitness, samples)
+        fit_ref.append(ex.best_fitness)
+        mu_ref.append(float(fitness.mu(ex.best_com)[0]))
+        seconds.append(ex.seconds)
+    fit_plan = np.array([t.fitness for t in plan.targets])
+    mu_plan = np.array([t.mu for t in plan.targets])
+    best_V = np.array([best_mu(robot, gk, samples)[0] for gk in g])
+    best_valid = np.array([best_mu(robot, gk, valid)[0] for gk in g])
+    fractions = np.arange(dense) / dense
+    poses = problem.circle.pose_at(fractions)
+    gd = gravity_body_at(problem.terrain, poses)
+    dense_V = np.array([best_mu(robot, gk, samples)[0] for gk in gd])
+    dense_valid = np.array([best_mu(robot, gk, valid)[0] for gk in gd])
+    stowed = np.broadcast_to(robot.arm_com(robot.stowed), (dense, 3))
+    dense_stowed = robot_force_angle(robot, gd, stowed).mu
+    gap = _pct(np.array(fit_ref), fit_plan)
+    v_loss = _pct(dense_valid, dense_V)
+    return {
+        "per_pose": {
+            "fraction": plan.fractions,
+            "fitness_planned": fit_plan,
+            "fitness_exhaustive": np.array(fit_ref),
+            "fitness_gap_pct": gap,
+            "mu_planned": mu_plan,
+            "mu_exhaustive": np.array(mu_ref),
+            "mu_best_in_V": best_V,
+            "mu_best_valid": best_valid,
+            "exhaustive_seconds": np.array(seconds),
+        },
+        "dense": {
+            "fraction": fractions,
+            "mu_best_in_V": dense_V,
+            "mu_best_valid": dense_valid,
+            "mu_stowed": dense_stowed,
+        },
+        "fitness_gap_pct": {"median": float(np.median(gap)), "max": float(np.max(gap))},
+        "v_loss_pct": {"median": float(np.median(v_loss)), "max": float(np.max(v_loss))},
+        "samples_in_V": len(samples),
+        "valid_samples": len(valid),
+    }
+
+
+def draw_lap_quality(quality: dict[str, Any], path: str | Path, title: str) -> Path:
+    """The figure: planned and reference mu at the plan's poses over the dense curves."""
+    fig, ax = new_figure(figsize=(8, 4.2))
+    d, p = quality["dense"], quality["per_pose"]
+    ax.plot(d["fraction"], d["mu_best_valid"], "k--", lw=1, label="best, all collision-free CoMs")
+    ax.plot(d["fraction"], d["mu_best_in_V"], "C0-", label="best in V (grid samples)")
+    ax.plot(d["fraction"], d["mu_stowed"], "C2:", label="arm stowed")
+    ax.plot(
+        p["fraction"],
+        p["mu_exhaustive"],
+        "s",
+        mfc="none",
+        color="C1",
+        label="Eq. 6 optimum in V (exhaustive)",
+    )
+    ax.plot(p["fraction"], p["mu_planned"], "x", color="C3", ms=8, label="planned (Eq. 6)")
+    ax.set(xlabel="path fraction", ylabel="mu [N rad]", title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return write_figure(Path(path), fig)

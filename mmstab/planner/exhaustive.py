@@ -1,0 +1,152 @@
+"""The exhaustive reference: Eq. 6 over every sample of V at a pose, in one batch.
+
+V's samples are the collision-free grid CoMs that V contains (``Workspace.valid_com_in_V``).
+Their best is the ground truth the CMA-ES planner is measured against (tests, ``make
+bench-plan``); ``planner.method: exhaustive`` plans with it. The same batched scoring of a
+strided subset seeds CMA-ES (``planner.seeding: coarse``).
+"""
+
+from __future__ import annotations
+
+import time
+import weakref
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+from mmstab.planner.fitness import Fitness, linear_fitness, region_samples
+from mmstab.robot import FloatArray, Robot
+from mmstab.stability import base_polygon
+
+#: Coarse seeds lie at least this share of V's diameter apart (distinct basins).
+SEED_SEPARATION = 0.25
+
+
+class ExhaustiveResult(NamedTuple):
+    """The best sample of V at one pose.
+
+    Attributes:
+        best_com: the best sample's arm CoM, body frame (3,) [m].
+        best_fitness: its Eq. 6 fitness.
+        best_index: its row in the samples.
+        evaluations: samples scored.
+        seconds: wall time of the scoring [s].
+    """
+
+    best_com: FloatArray
+    best_fitness: float
+    best_index: int
+    evaluations: int
+    seconds: float
+
+
+def solve_exhaustive(fitness: Fitness, samples: ArrayLike) -> ExhaustiveResult:
+    """Score every sample (N, 3) [m] with Eq. 6 in one vectorised call; keep the best.
+
+    Raises:
+        ValueError: no samples.
+    """
+    t0 = time.perf_counter()
+    pts = np.asarray(samples, dtype=float).reshape(-1, 3)
+    if len(pts) == 0:
+        raise ValueError("no samples to score")
+    values = fitness.linear()(pts)
+    k = int(np.argmax(values))
+    return ExhaustiveResult(
+        best_com=pts[k].copy(),
+        best_fitness=float(values[k]),
+        best_index=k,
+        evaluations=len(pts),
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def best_mu(robot: Robot, gravity_body: ArrayLike, samples: ArrayLike) -> tuple[float, int]:
+    """The largest force-angle measure over arm-CoM samples (N, 3) [m] at a pose.
+
+    Args:
+        robot: the robot.
+        gravity_body: gravity in B at the pose (3,) [m/s^2].
+        samples: arm CoMs, body frame (N, 3) [m].
+
+    Returns:
+        (mu [N rad], row of the sample reaching it).
+    """
+    polygon = base_polygon(robot).vertices
+    mu = linear_fitness(robot, polygon, gravity_body, np.zeros(3), 1.0, 0.0).mu(samples)
+    k = int(np.argmax(mu))
+    return float(mu[k]), k
+
+
+def coarse_samples(samples: ArrayLike, count: int) -> FloatArray:
+    """Every k-th sample, k chosen so that about ``count`` of them remain (M, 3) [m]."""
+    pts = np.asarray(samples, dtype=float).reshape(-1, 3)
+    stride = max(1, -(-len(pts) // max(int(count), 1)))
+    return pts[::stride]
+
+
+class SampleIndex(NamedTuple):
+    """V's samples (N, 3) [m] and a k-d tree over them (for the local refinement)."""
+
+    samples: FloatArray
+    tree: cKDTree
+
+
+_INDEXES: weakref.WeakKeyDictionary[Any, SampleIndex] = weakref.WeakKeyDictionary()
+
+
+def sample_index(region: Any) -> SampleIndex:
+    """The region's :class:`SampleIndex`, built once per region object (cached)."""
+    try:
+        return _INDEXES[region]
+    except (KeyError, TypeError):
+        pass
+    samples = region_samples(region)
+    index = SampleIndex(samples, cKDTree(samples))
+    try:
+        _INDEXES[region] = index
+    except TypeError:  # not weak-referenceable: no cache
+        pass
+    return index
+
+
+def coarse_seeds(
+    fitness: Fitness, index: SampleIndex, count: int, basins: int, neighbours: int, seeds: int
+) -> FloatArray:
+    """CMA-ES start means from a coarse evaluation of Eq. 6 over V's samples (S, 3) [m].
+
+    Args:
+        fitness: Eq. 6 at the pose.
+        index: V's samples and their k-d tree.
+        count: how many samples the coarse pass scores (evenly strided).
+        basins: how many distinct coarse optima to refine.
+        neighbours: each optimum moves to the best of its ``neighbours`` nearest samples
+            (0: no refinement).
+        seeds: how many of the refined optima to return, best first.
+
+    Greedy: the best coarse sample, then the best one at least ``SEED_SEPARATION`` times
+    V's diameter from every one taken so far, and so on; then the local refinement (V's
+    optima lie in its thin corners, which a strided subset reaches only nearby).
+    """
+    pts = coarse_samples(index.samples, count)
+    linear = fitness.linear()
+    values = linear(pts)
+    alive = np.ones(len(pts), dtype=bool)
+    min_dist2 = (SEED_SEPARATION * fitness.diameter) ** 2
+    chosen: list[FloatArray] = []
+    while len(chosen) < basins and alive.any():
+        k = int(np.argmax(np.where(alive, values, -np.inf)))
+        chosen.append(pts[k])
+        alive &= np.sum((pts - pts[k]) ** 2, axis=1) >= min_dist2
+    out = np.array(chosen).reshape(-1, 3)
+    k = min(int(neighbours), len(index.samples))
+    if k > 0 and len(out):
+        _, idx = index.tree.query(out, k=k)
+        idx = np.asarray(idx).reshape(len(out), k)
+        local = linear(index.samples[idx.ravel()]).reshape(idx.shape)
+        out = index.samples[idx[np.arange(len(out)), np.argmax(local, axis=1)]]
+    _, first = np.unique(out, axis=0, return_index=True)
+    out = out[np.sort(first)]
+    return out[np.argsort(-linear(out), kind="stable")][:seeds]

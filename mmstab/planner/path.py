@@ -1,0 +1,331 @@
+"""The planner per base pose and along a path (paper Section II-D, Eq. 6).
+
+Per base pose the planner searches the arm CoM g_a (body frame) inside the workspace V
+that maximises Eq. 6 (``mmstab.planner.fitness``), by ``planner.method``:
+
+- ``cmaes``: CMA-ES (``mmstab.planner.cmaes``) from each start mean, the best run kept.
+  The start means are the FK CoMs of ``starts`` (link0 angles, other joints zero; the
+  paper) or, with ``seeding: coarse``, the best distinct samples of a coarse batched
+  evaluation of Eq. 6 over V's samples. sigma0 is in metres or in V's diameters.
+- ``exhaustive``: Eq. 6 over every valid grid CoM inside V in one batch
+  (``mmstab.planner.exhaustive``), the reference.
+
+No IK inside the search (as in the paper); afterwards :mod:`mmstab.ik` finds a
+collision-free posture that realises the target. The previous CoM of the first pose is the
+stowed arm's: the robot starts with its arm folded. Every run draws from its own
+``numpy.random.Generator``; the global NumPy state is untouched.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mmstab.config import MmstabError
+from mmstab.planner.cmaes import SearchResult, solve_ipop
+from mmstab.planner.exhaustive import (
+    ExhaustiveResult,
+    coarse_seeds,
+    sample_index,
+    solve_exhaustive,
+)
+from mmstab.planner.fitness import CoMRegion, pose_fitness, region_samples
+from mmstab.planner.regions import planning_region
+from mmstab.planner.settings import PlannerSettings
+from mmstab.problem import Problem
+from mmstab.robot import FloatArray, Robot
+from mmstab.stability import mu_max as stowed_flat_mu
+from mmstab.terrain import Terrain
+
+#: Largest CoM error of a realised target [m] before the fallback to a sample.
+REALISE_TOL = 1e-4
+#: Samples of V near an unrealisable target among which the fallback chooses.
+FALLBACK_NEIGHBOURS = 64
+
+
+class PoseTarget(NamedTuple):
+    """The planner's answer at one base pose.
+
+    Attributes:
+        pose: base pose (x, y, heading) in S [m, m, rad].
+        target_com: chosen arm CoM, body frame (3,) [m].
+        fitness: its Eq. 6 fitness.
+        mu: force-angle measure at the target [N rad].
+        runs: the CMA-ES runs (per start, then its IPOP restarts); empty when exhaustive.
+        best_start: index of the run kept (-1 when exhaustive).
+        seconds: wall time of the search at this pose [s].
+        exhaustive: the exhaustive result (``method: exhaustive``), else None.
+        fallback: no collision-free posture realised the search's answer, so the best of
+            V's samples near it replaced it (:func:`solve_path`).
+    """
+
+    pose: FloatArray
+    target_com: FloatArray
+    fitness: float
+    mu: float
+    runs: tuple[SearchResult, ...]
+    best_start: int
+    seconds: float
+    exhaustive: ExhaustiveResult | None = None
+    fallback: bool = False
+
+
+def gravity_body_at(terrain: Terrain, poses: ArrayLike) -> FloatArray:
+    """Gravity in the body frame at base poses (N, 3) or (3,) -> (N, 3) [m/s^2].
+
+    The planner's one use of the terrain (every other stage of the planner and its
+    experiments goes through here).
+    """
+    return terrain.gravity_body(np.atleast_2d(np.asarray(poses, dtype=float)))
+
+
+def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> FloatArray:
+    """Start means of CMA-ES, body frame (S, 3) [m].
+
+    The FK arm CoMs of link0 at each angle with the other joints at zero (paper); a start
+    outside V (a coarse grid's hull may miss the stretched arm) moves to the nearest valid
+    CoM inside V, when the region has that cloud (``valid_com_in_V``).
+    """
+    q = np.zeros((len(starts), 4))
+    q[:, 0] = starts
+    coms = robot.arm_com(q)
+    outside = ~region.contains(coms)
+    if outside.any() and hasattr(region, "valid_com_in_V"):
+        inside = region.valid_com_in_V
+        if len(inside):
+            for k in np.flatnonzero(outside):
+                coms[k] = inside[np.argmin(np.sum((inside - coms[k]) ** 2, axis=1))]
+    return coms
+
+
+def solve_pose(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    pose: ArrayLike,
+    previous_com: ArrayLike,
+    settings: PlannerSettings,
+    rng: np.random.Generator,
+    mu_max: float | None = None,
+    starts: FloatArray | None = None,
+) -> PoseTarget:
+    """Best arm CoM at one base pose: CMA-ES from each start mean (best run kept) or exhaustive.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        region: the workspace V (``contains``, ``diameter``).
+        pose: base pose (x, y, heading) in S [m, m, rad].
+        previous_com: arm CoM at the previous pose, body frame [m] (Eq. 6 penalty).
+        settings: planner settings.
+        rng: the planner's generator.
+        mu_max: normaliser [N rad]; default: flat ground, arm stowed.
+        starts: CMA-ES start means (S, 3) [m]; default :func:`start_coms` of
+            ``settings.starts``, or the coarse seeds with ``seeding: coarse``.
+    """
+    t0 = time.perf_counter()
+    pose = np.asarray(pose, dtype=float)
+    fitness = pose_fitness(
+        robot,
+        gravity_body_at(terrain, pose)[0],
+        previous_com,
+        settings,
+        stowed_flat_mu(robot) if mu_max is None else mu_max,
+        float(region.diameter),
+    )
+    if settings.method == "exhaustive":
+        ex = solve_exhaustive(fitness, region_samples(region))
+        return PoseTarget(
+            pose=pose,
+            target_com=ex.best_com,
+            fitness=ex.best_fitness,
+            mu=float(fitness.mu(ex.best_com)[0]),
+            runs=(),
+            best_start=-1,
+            seconds=time.perf_counter() - t0,
+            exhaustive=ex,
+        )
+    coarse = settings.seeding == "coarse"
+    if starts is None:
+        if coarse:
+            starts = coarse_seeds(
+                fitness,
+                sample_index(region),
+                settings.coarse_samples,
+                settings.coarse_basins,
+                settings.coarse_neighbours,
+                settings.coarse_seeds,
+            )
+        else:
+            starts = start_coms(robot, region, settings.starts)
+    sigma0 = settings.sigma0_metres(fitness.diameter)
+    runs = tuple(
+        run
+        for c in starts
+        for run in solve_ipop(fitness, region, c, rng, sigma0, settings.restarts, coarse)
+    )
+    best = int(np.argmax([r.best_fitness for r in runs]))
+    target = runs[best].best_com
+    return PoseTarget(
+        pose=pose,
+        target_com=target,
+        fitness=runs[best].best_fitness,
+        mu=float(fitness.mu(target)[0]),
+        runs=runs,
+        best_start=best,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _fall_back_to_a_sample(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    target: PoseTarget,
+    previous_com: FloatArray,
+    settings: PlannerSettings,
+    mu_max: float,
+    realise: Callable[[FloatArray, FloatArray], tuple[FloatArray, bool]],
+    previous_q: FloatArray,
+) -> tuple[PoseTarget, FloatArray, bool]:
+    """No collision-free posture realises an off-grid target: take the best nearby sample.
+
+    V's samples are CoMs of collision-free grid postures, so each is realisable; the one
+    with the best Eq. 6 fitness among the ``FALLBACK_NEIGHBOURS`` samples nearest to the
+    target replaces it (``PoseTarget.fallback``). Without samples the target stays.
+    """
+    try:
+        index = sample_index(region)
+    except MmstabError:
+        q, ok = realise(target.target_com, previous_q)
+        return target, q, ok
+    k = min(FALLBACK_NEIGHBOURS, len(index.samples))
+    _, idx = index.tree.query(target.target_com, k=k)
+    near = index.samples[np.atleast_1d(idx)]
+    fitness = pose_fitness(
+        robot,
+        gravity_body_at(terrain, target.pose)[0],
+        previous_com,
+        settings,
+        mu_max,
+        float(region.diameter),
+    )
+    values = fitness(near)
+    best = int(np.argmax(values))
+    q, ok = realise(near[best], previous_q)
+    replaced = target._replace(
+        target_com=near[best].copy(),
+        fitness=float(values[best]),
+        mu=float(fitness.mu(near[best])[0]),
+        fallback=True,
+    )
+    return replaced, q, ok
+
+
+class Plan(NamedTuple):
+    """A planned sequence of arm CoMs along the base path, with realising postures.
+
+    Attributes:
+        poses: base poses (K, 3) in S [m, m, rad].
+        fractions: path fraction of each pose (K,) in [0, 1).
+        target_com: chosen arm CoMs, body frame (K, 3) [m].
+        postures: arm postures realising them (K, 4) [rad].
+        realised_com_error: |g_a(posture) - target| (K,) [m].
+        collision_free: whether each posture is collision-free (K,).
+        targets: the per-pose planner results.
+        settings: the settings used.
+    """
+
+    poses: FloatArray
+    fractions: FloatArray
+    target_com: FloatArray
+    postures: FloatArray
+    realised_com_error: FloatArray
+    collision_free: NDArray[np.bool_]
+    targets: tuple[PoseTarget, ...]
+    settings: PlannerSettings
+
+
+def solve_path(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    poses: ArrayLike,
+    settings: PlannerSettings,
+    realise: Callable[[FloatArray, FloatArray], tuple[FloatArray, bool]] | None = None,
+) -> Plan:
+    """Plan poses in sequence, each penalised against the previous target (Eq. 6).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        region: the workspace V.
+        poses: base poses (K, 3) in S.
+        settings: planner settings (its ``seed`` seeds the planner's generator).
+        realise: ``(target_com, previous_posture) -> (posture, collision_free)``; default
+            none: postures are NaN (CMA only, e.g. for benchmarks).
+    """
+    poses = np.asarray(poses, dtype=float)
+    rng = np.random.default_rng(settings.seed)
+    mu_max = stowed_flat_mu(robot)
+    starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
+    previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
+    targets, postures, free = [], [], []
+    for pose in poses:
+        t = solve_pose(robot, terrain, region, pose, previous_com, settings, rng, mu_max, starts)
+        if realise is not None:
+            q, ok = realise(t.target_com, previous_q)
+            if not (ok and np.linalg.norm(robot.arm_com(q) - t.target_com) <= REALISE_TOL):
+                t, q, ok = _fall_back_to_a_sample(
+                    robot, terrain, region, t, previous_com, settings, mu_max, realise, previous_q
+                )
+            previous_q = q
+        else:
+            q, ok = np.full(4, np.nan), False
+        targets.append(t)
+        previous_com = t.target_com
+        postures.append(q)
+        free.append(ok)
+    target_com = np.array([t.target_com for t in targets])
+    postures_arr = np.array(postures)
+    realised = robot.arm_com(np.nan_to_num(postures_arr))
+    error = np.where(
+        np.isnan(postures_arr).any(axis=1), np.nan, np.linalg.norm(realised - target_com, axis=1)
+    )
+    return Plan(
+        poses=poses,
+        fractions=np.arange(len(poses)) / len(poses),
+        target_com=target_com,
+        postures=postures_arr,
+        realised_com_error=error,
+        collision_free=np.array(free, dtype=bool),
+        targets=tuple(targets),
+        settings=settings,
+    )
+
+
+def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -> Plan:
+    """Plan the problem's circle: workspace (cached), the planner per pose, IK per target.
+
+    The region searched is ``workspace.method``'s (:func:`mmstab.planner.regions.planning_region`).
+
+    Args:
+        problem: a loaded problem (sections ``planner``, ``workspace``, ``path``).
+        workspace: a prebuilt :class:`mmstab.workspace.Workspace`; default: load or build.
+        progress: show progress bars.
+    """
+    from mmstab.ik import PostureSolver
+    from mmstab.workspace import load_or_build_workspace
+
+    ws = workspace if workspace is not None else load_or_build_workspace(problem, progress=progress)
+    if len(ws.valid_com_in_V) == 0:
+        raise MmstabError(f"{problem.path}: the workspace V is empty; no arm CoM can be planned")
+    region = planning_region(ws, problem.section("workspace")["method"])
+    settings = PlannerSettings.from_section(problem.section("planner"))
+    solver = PostureSolver(problem.robot, ws)
+    poses = problem.circle.poses(settings.poses)
+    return solve_path(problem.robot, problem.terrain, region, poses, settings, solver.realise)

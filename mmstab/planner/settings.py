@@ -1,0 +1,109 @@
+"""The ``planner`` section of a problem: settings of Eq. 6 and of the search.
+
+Keys added after the first release (``method``, ``seeding``, ``coarse_*``,
+``sigma0_unit``, ``restarts``) may be omitted from a problem file; their defaults
+(``mmstab.schema.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
+plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable search
+(``docs/planner.md``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from mmstab.config import ConfigError
+from mmstab.problem import SECTION_CHECKS
+from mmstab.schema import SECTION_DEFAULTS
+
+
+class PlannerSettings(NamedTuple):
+    """The ``planner`` section of a problem (see ``problems/ramp.yaml``).
+
+    Attributes:
+        w_stability: omega_1 of Eq. 6 (>= 0).
+        w_motion: omega_2 of Eq. 6 (>= 0); w_stability + w_motion = 1.
+        poses: number of base poses along the circle.
+        starts: link0 angles of the starts (other joints zero) [rad]; used when
+            ``seeding`` is ``"starts"``.
+        sigma0: initial CMA step size, in metres or in V's diameters (``sigma0_unit``).
+        popsize: CMA population size (of the first run of each start).
+        max_iterations: CMA iteration budget per run.
+        tol_fitness: stop when the fitness changes less than this over recent iterations.
+        tol_x: stop when the search distribution is narrower than this [m].
+        max_resample: re-ask rounds per generation for samples outside V; those still
+            outside are then ranked below the feasible ones (see ``ask_generation``).
+        seed: seed of the planner's own random generator.
+        method: ``"cmaes"`` (CMA-ES in V) or ``"exhaustive"`` (Eq. 6 over every valid
+            grid CoM inside V, the reference).
+        seeding: ``"starts"`` (the FK CoMs of ``starts``) or ``"coarse"`` (the best
+            samples of a coarse evaluation of Eq. 6 over V's samples).
+        coarse_samples: how many of V's samples the coarse evaluation scores (evenly
+            strided).
+        coarse_basins: how many distinct optima of the coarse pass are refined.
+        coarse_neighbours: each is refined to the best of its this many nearest samples
+            of V (0: not refined).
+        coarse_seeds: how many refined optima (best first) start a CMA-ES run.
+        sigma0_unit: ``"m"`` (sigma0 in metres) or ``"diameter"`` (sigma0 times V's
+            diameter).
+        restarts: IPOP restarts per start: each reruns CMA-ES from the same start with the
+            population doubled; the best run is kept.
+    """
+
+    w_stability: float
+    w_motion: float
+    poses: int
+    starts: tuple[float, ...]
+    sigma0: float
+    popsize: int
+    max_iterations: int
+    tol_fitness: float
+    tol_x: float
+    max_resample: int
+    seed: int
+    method: str
+    seeding: str
+    coarse_samples: int
+    coarse_basins: int
+    coarse_neighbours: int
+    coarse_seeds: int
+    sigma0_unit: str
+    restarts: int
+
+    @classmethod
+    def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
+        """Build from a validated ``planner`` section (omitted new keys: their defaults)."""
+        cfg = {**SECTION_DEFAULTS["planner"], **cfg}
+        return cls(
+            w_stability=float(cfg["w_stability"]),
+            w_motion=float(cfg["w_motion"]),
+            poses=int(cfg["poses"]),
+            starts=tuple(float(s) for s in cfg["starts"]),
+            sigma0=float(cfg["sigma0"]),
+            popsize=int(cfg["popsize"]),
+            max_iterations=int(cfg["max_iterations"]),
+            tol_fitness=float(cfg["tol_fitness"]),
+            tol_x=float(cfg["tol_x"]),
+            max_resample=int(cfg["max_resample"]),
+            seed=int(cfg["seed"]),
+            method=str(cfg["method"]),
+            seeding=str(cfg["seeding"]),
+            coarse_samples=int(cfg["coarse_samples"]),
+            coarse_basins=int(cfg["coarse_basins"]),
+            coarse_neighbours=int(cfg["coarse_neighbours"]),
+            coarse_seeds=int(cfg["coarse_seeds"]),
+            sigma0_unit=str(cfg["sigma0_unit"]),
+            restarts=int(cfg["restarts"]),
+        )
+
+    def sigma0_metres(self, diameter: float) -> float:
+        """The initial CMA step size [m] for a workspace of ``diameter`` [m]."""
+        return self.sigma0 * diameter if self.sigma0_unit == "diameter" else self.sigma0
+
+
+def _check_section(path: Path, cfg: dict[str, Any]) -> None:
+    if abs(cfg["w_stability"] + cfg["w_motion"] - 1.0) > 1e-9:
+        raise ConfigError(path, "planner.w_motion", "w_stability + w_motion must equal 1")
+
+
+SECTION_CHECKS["planner"] = _check_section
