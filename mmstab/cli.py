@@ -233,7 +233,8 @@ def _codegen(args: argparse.Namespace, problem: Any) -> None:
 def _animation(args: argparse.Namespace, problem: Any) -> int | None:
     from mmstab.experiments.animation import run_animation
 
-    _announce(problem, "planner", "controller", "animation")
+    stored = (Path(args.out or DEFAULT_OUT["animation"]) / "run.npz").is_file()
+    _announce(problem, *(("animation",) if stored else ("planner", "controller", "animation")))
     s = run_animation(problem, args.out, allow_unstable=args.allow_unstable)
     print(f"animation: {s['frames']} frames -> {s['gif']}")
     return _tipped(s)

@@ -153,6 +153,15 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     assert line.startswith("mmstab: unstable: the robot would tip over at t = ")
     assert f"t = {t['time_s']:.4g} s" in line and t["mu"] < 0
     assert s["duration_s"] == t["time_s"]
+    # the animation renders that stored run up to the tip, and says so (exit 3)
+    assert main(["animation", str(problem.path), "-o", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert "planner" not in err  # nothing planned: the stored run is rendered
+    line = _one_line("\n".join(x for x in err.splitlines() if "animation.frames" not in x))
+    a = json.loads((out / "animation.json").read_text())
+    assert a["tipped"]["time_s"] == pytest.approx(t["time_s"]) and a["tipped"]["mu"] < 0
+    assert a["tipped"]["step"] == t["step"] and a["simulated_s"] == pytest.approx(t["time_s"])
+    assert line.startswith("mmstab: unstable: the robot would tip over at t = ")
 
 
 def test_tipping_at_the_start_is_refused_before_building(tmp_path):
