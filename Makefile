@@ -175,3 +175,8 @@ terrain: setup
 ## ms per resting pose, batched vs one by one -> results/bench/terrain.json
 bench-terrain: setup
 	$(PY) benchmarks/bench_terrain.py $(TERRAINS)
+
+## edges (issue 13): are the size estimates of mmstab/sizes.py bounds here? -> results/bench/sizes.json
+.PHONY: bench-sizes
+bench-sizes: setup
+	$(PY) benchmarks/sizes.py $(PROBLEM)

@@ -1,5 +1,3 @@
-import sys
+from mmstab.cli import entry
 
-from mmstab.cli import main
-
-sys.exit(main())
+entry()

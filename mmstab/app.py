@@ -106,7 +106,7 @@ def with_plugin(problem: Problem, plugin: str | None) -> Problem:
         raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {', '.join(PLUGINS)}")
     data = copy.deepcopy(problem.data)
     data["controller"]["plugin"] = plugin
-    return problem_from_dict(data, problem.path)
+    return problem_from_dict(data, problem.path, force_size=problem.force_size)
 
 
 def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
@@ -137,6 +137,7 @@ def track(
     duration: float | None = None,
     initial_arm: InitialArm = "stowed",
     progress: bool = True,
+    allow_unstable: bool = True,
 ) -> TrackResult:
     """One tracking run: the step chosen, the plan made (unless given), the loop simulated.
 
@@ -149,12 +150,16 @@ def track(
         duration: simulated time [s] (default the problem's ``controller.duration``).
         initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
         progress: show progress bars.
+        allow_unstable: go on when the plan made here is unstable (some pose's μ at or
+            below ``planner.margin``, :mod:`mmstab.verdict`); else stop before tracking.
 
     Returns:
-        The problem as run (its plugin replaced), the plan and the run.
+        The problem as run (its plugin replaced), the plan and the run (which stops where
+        the robot would tip over, ``run.tipped``).
 
     Raises:
         MmstabError: an unknown backend or plugin, or a failed build (before planning).
+        UnstableError: the plan made here is unstable and ``allow_unstable`` is False.
     """
     from mmstab.tracking import simulate
 
@@ -168,7 +173,11 @@ def track(
     else:
         problem = with_plugin(problem, plugin)
     if arm_plan is None:
-        arm_plan = plan(problem, progress=progress)
+        from mmstab.verdict import check_plan, plan_stability
+
+        made = plan(problem, progress=progress)
+        check_plan(plan_stability(problem, made), len(made.poses), allow_unstable)
+        arm_plan = made
     run = simulate(
         problem, arm_plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
     )

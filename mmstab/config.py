@@ -24,6 +24,12 @@ class MmstabError(Exception):
     """An error the user can fix; reported as one line, without a traceback."""
 
 
+class UnstableError(MmstabError):
+    """The physics cannot hold: the best plan or the tracked robot tips (exit status 3)."""
+
+    exit_status = 3
+
+
 class ConfigError(MmstabError):
     """A problem or robot file is invalid.
 
@@ -111,18 +117,53 @@ def check_order(path: Path, field: str, lower: float, upper: float) -> None:
 
 
 # ---------------------------------------------------------------------------- writing results
+def writable_dir_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why files cannot be written in folder ``path`` (created if missing), or None.
+
+    Looks at the nearest existing folder on the way up: it must be a folder and accept a
+    new file (a probe file is created and removed there). Nothing else is created.
+    """
+    p = Path(path)
+    probe = p
+    while not probe.exists() and not probe.is_symlink() and probe.parent != probe:
+        probe = probe.parent
+    if not probe.is_dir():
+        return f"{probe} is not a folder"
+    try:
+        fd, tmp = tempfile.mkstemp(dir=probe, prefix=".mmstab-probe-")
+    except OSError as exc:
+        return f"cannot write in {probe} ({exc.strerror or exc})"
+    os.close(fd)
+    os.unlink(tmp)
+    return None
+
+
+def check_output_dir(path: str | os.PathLike[str], what: str = "output folder") -> Path:
+    """Refuse, before any work, an output folder that cannot be created or written.
+
+    Raises:
+        MmstabError: one line naming the folder and why.
+    """
+    why = writable_dir_problem(path)
+    if why is not None:
+        raise MmstabError(f"{what} {path}: {why}")
+    return Path(path)
+
+
 def _atomic(path: Path, write: Callable[[Path], None]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
     umask = os.umask(0)
     os.umask(umask)
+    tmp = ""
     try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+        os.close(fd)
         write(Path(tmp))
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results are ordinary files
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+    except BaseException:  # KeyboardInterrupt too: never a half-written file
+        if tmp:
+            Path(tmp).unlink(missing_ok=True)
         raise
     return path
 

@@ -15,6 +15,7 @@ import casadi as ca
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mmstab.pool import raise_if_interrupted, run_interruptibly
 from mmstab.robot import FloatArray, Robot
 
 #: A posture "realises" a target when its CoM is this close [m].
@@ -45,7 +46,8 @@ class PostureSolver:
         self.robot = robot
         self.checker = CollisionChecker(robot)
         self.valid_q = np.empty((0, 4)) if workspace is None else np.asarray(workspace.valid_q)
-        self._tree = cKDTree(np.asarray(workspace.valid_com)) if len(self.valid_q) else None
+        valid_com = np.asarray(workspace.valid_com) if len(self.valid_q) else None
+        self._tree = None if valid_com is None else run_interruptibly(cKDTree, valid_com)
         self.n_seeds = seeds
         kin = robot.kinematics
         target, q_ref = ca.SX.sym("target", 3), ca.SX.sym("q_ref", 4)
@@ -71,6 +73,7 @@ class PostureSolver:
             lbx=self.robot.joint_lower,
             ubx=self.robot.joint_upper,
         )
+        raise_if_interrupted()  # CasADi's IPOPT interface swallows a Ctrl-C
         return np.asarray(sol["x"]).ravel()
 
     def seeds(self, target_com: FloatArray, previous_q: FloatArray) -> list[FloatArray]:

@@ -8,22 +8,15 @@ place where a problem's inputs are checked; stages read their section from
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from mmstab import schema
-from mmstab.codegen import check_settings as _check_codegen
 from mmstab.config import ConfigError, read_yaml, validate
-from mmstab.controller import check_settings as _check_controller
 from mmstab.robot import Robot, load_robot
+from mmstab.settings import check_problem
 from mmstab.terrain import CirclePath, Terrain, from_section
-
-#: Semantic checks of a section beyond the schema: (problem path, section) -> None or raise.
-SECTION_CHECKS: dict[str, Callable[[Path, dict[str, Any]], None]] = {}
-SECTION_CHECKS["controller"] = _check_controller
-SECTION_CHECKS["codegen"] = _check_codegen
 
 
 @dataclass(frozen=True)
@@ -36,6 +29,7 @@ class Problem:
         robot: the robot it names.
         terrain: the ground (:func:`mmstab.terrain.from_section` of the ``terrain:`` section).
         circle: the base reference path, in the terrain's map frame.
+        force_size: sizes beyond the time bounds were accepted (``--force-size``).
     """
 
     path: Path
@@ -43,6 +37,7 @@ class Problem:
     robot: Robot
     terrain: Terrain
     circle: CirclePath
+    force_size: bool = False
 
     @property
     def ramp(self) -> Terrain:
@@ -67,16 +62,22 @@ class Problem:
         return {**self.data, "robot": read_yaml(self.robot_path())}
 
 
-def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Problem:
-    """Validate a problem mapping read from ``path`` (robot path relative to it)."""
+def problem_from_dict(
+    data: dict[str, Any], path: str | os.PathLike[str], *, force_size: bool = False
+) -> Problem:
+    """Validate a problem mapping read from ``path`` (robot path relative to it).
+
+    Every check runs here, whatever the command: the schema, the registry of
+    :mod:`mmstab.settings` and the size bounds of :mod:`mmstab.sizes` (``force_size``
+    accepts sizes beyond the time bounds, not beyond the memory).
+    """
     p = Path(path)
     data = schema.with_defaults(data)
     validate(p, data, schema.problem_schema())
     robot_path = (p.parent / data["robot"]).resolve()
     if not robot_path.is_file():
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
-    for name, check in SECTION_CHECKS.items():
-        check(p, data[name])
+    check_problem(p, data, force_size=force_size)
     c = data["path"]
     robot = load_robot(robot_path)
     return Problem(
@@ -90,13 +91,14 @@ def problem_from_dict(data: dict[str, Any], path: str | os.PathLike[str]) -> Pro
             start_angle=float(c["start_angle"]),
             direction=c["direction"],
         ),
+        force_size=force_size,
     )
 
 
-def load_problem(path: str | os.PathLike[str]) -> Problem:
-    """Load and validate a problem YAML file.
+def load_problem(path: str | os.PathLike[str], *, force_size: bool = False) -> Problem:
+    """Load and validate a problem YAML file (see :func:`problem_from_dict`).
 
     Raises:
         ConfigError: naming the file (problem or robot) and the field at fault.
     """
-    return problem_from_dict(read_yaml(path), path)
+    return problem_from_dict(read_yaml(path), path, force_size=force_size)

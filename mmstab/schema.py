@@ -1,7 +1,8 @@
 """JSON schemas of the robot description and of a problem file.
 
-Every key is required and no other key is allowed, so that a typo is an error and a
-saved problem says everything a run depended on. Units: metres, radians, kg, seconds.
+Every key is required (except the few marked optional, whose default is documented) and
+no other key is allowed, so that a typo is an error and a saved problem says everything a
+run depended on. Units: metres, radians, kg, seconds.
 Semantic checks the schema cannot express (inverted limits, a flipper under the
 ground) live beside the loaders.
 """
@@ -30,6 +31,11 @@ def obj(**props: Any) -> dict[str, Any]:
         "required": list(props),
         "additionalProperties": False,
     }
+
+
+def with_optional(schema: dict[str, Any], **props: Any) -> dict[str, Any]:
+    """A closed object schema with extra keys that may be left out (their default applies)."""
+    return {**schema, "properties": {**schema["properties"], **props}}
 
 
 def vec(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
@@ -88,26 +94,29 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         poses={"type": "integer", "minimum": 1},
         roll_pose=VEC3,
     ),
-    "planner": obj(  # CMA-ES or exhaustive arm-CoM planner, paper Eq. 6 (docs/planner.md)
-        w_stability=WEIGHT01,
-        w_motion=WEIGHT01,
-        poses=INT_POS,
-        starts={"type": "array", "items": NUM, "minItems": 1},
-        sigma0=POS,
-        popsize={"type": "integer", "minimum": 2},
-        max_iterations=INT_POS,
-        tol_fitness=POS,
-        tol_x=POS,
-        max_resample=INT_POS,
-        seed=SEED,
-        method={"enum": ["cmaes", "exhaustive"]},
-        seeding={"enum": ["starts", "coarse"]},
-        coarse_samples={"type": "integer", "minimum": 16},
-        coarse_basins=INT_POS,
-        coarse_neighbours={"type": "integer", "minimum": 0},
-        coarse_seeds=INT_POS,
-        sigma0_unit={"enum": ["m", "diameter"]},
-        restarts={"type": "integer", "minimum": 0, "maximum": 8},
+    "planner": with_optional(  # CMA-ES or exhaustive arm-CoM planner, Eq. 6 (docs/planner.md)
+        obj(
+            w_stability=WEIGHT01,
+            w_motion=WEIGHT01,
+            poses=INT_POS,
+            starts={"type": "array", "items": NUM, "minItems": 1},
+            sigma0=POS,
+            popsize={"type": "integer", "minimum": 2},
+            max_iterations=INT_POS,
+            tol_fitness=POS,
+            tol_x=POS,
+            max_resample=INT_POS,
+            seed=SEED,
+            method={"enum": ["cmaes", "exhaustive"]},
+            seeding={"enum": ["starts", "coarse"]},
+            coarse_samples={"type": "integer", "minimum": 16},
+            coarse_basins=INT_POS,
+            coarse_neighbours={"type": "integer", "minimum": 0},
+            coarse_seeds=INT_POS,
+            sigma0_unit={"enum": ["m", "diameter"]},
+            restarts={"type": "integer", "minimum": 0, "maximum": 8},
+        ),
+        margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
     ),
     "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/controller.py)
         dt=POS,

@@ -13,15 +13,16 @@ and ``WORKSPACE_VERSION``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
 import os
+import sys
 import threading
 import time
-import zipfile
 from collections.abc import Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -34,8 +35,10 @@ from tqdm import tqdm
 
 from mmstab.collision import CollisionChecker
 from mmstab.config import MmstabError, write_npz
+from mmstab.pool import ChunkPool, run_interruptibly
 from mmstab.problem import Problem
 from mmstab.robot import FloatArray, Robot
+from mmstab.sizes import announce, workspace_estimate
 
 #: Bump when labelling or the cache format changes: old cache files are then ignored.
 WORKSPACE_VERSION = 1
@@ -43,12 +46,16 @@ WORKSPACE_VERSION = 1
 DEFAULT_CACHE_DIR = Path("results") / "workspace"
 #: Postures per chunk handed to a worker.
 DEFAULT_CHUNK = 16384
-#: From this many postures on, ``build_workspace`` uses a 2-process pool by default.
+#: From this many postures on, ``build_workspace`` uses a process pool by default.
 PARALLEL_MIN_POSTURES = 50_000
+#: Processes of that pool (:class:`mmstab.pool.ChunkPool`).
+PARALLEL_WORKERS = 2
 #: Half-space slack of the membership tests [m].
 HULL_TOL = 1e-9
 #: A joint whose range is a full turn within this [rad] does not sample its upper end.
 FULL_TURN_TOL = 1e-6
+#: Points per block when a cloud is reduced to its hull's candidates (``hull_candidates``).
+HULL_BLOCK = 65536
 #: A cloud whose smallest principal spread is below this share of the largest is flat.
 FLAT_TOL = 1e-9
 
@@ -119,6 +126,27 @@ class HalfSpaces(NamedTuple):
     b: FloatArray
 
 
+def hull_candidates(points: FloatArray, block: int = HULL_BLOCK) -> FloatArray:
+    """The points of a cloud that may be vertices of its convex hull (M, 3) [m].
+
+    Each block's own hull vertices: a vertex of the whole hull is a vertex of the hull of
+    any block holding it, so ``hull(candidates) = hull(points)`` (on the default grid the
+    half-spaces come out identical). Qhull cannot be interrupted; one block takes tens of
+    milliseconds, so a Ctrl-C is handled between blocks instead of after one long call on
+    millions of points. A block without a hull (flat, too small) is kept whole.
+    """
+    if len(points) <= block:
+        return points
+    keep = []
+    for s in range(0, len(points), block):
+        b = points[s : s + block]
+        try:
+            keep.append(b[ConvexHull(b).vertices])
+        except QhullError:
+            keep.append(b)
+    return np.vstack(keep)
+
+
 def convex_hull(points: ArrayLike, what: str) -> ConvexHull:
     """Convex hull of a 3-D cloud, or a clear error when the cloud is degenerate.
 
@@ -130,15 +158,17 @@ def convex_hull(points: ArrayLike, what: str) -> ConvexHull:
         MmstabError: fewer than 4 points, or all on a plane or line.
     """
     pts = np.asarray(points, dtype=float)
-    if len(pts) < 4:
+    n = len(pts)
+    if n < 4:
         raise MmstabError(
-            f"{what}: {len(pts)} points cannot span a 3-D convex hull (need 4 not on a "
+            f"{what}: {n} points cannot span a 3-D convex hull (need 4 not on a "
             "plane); refine the workspace grid"
         )
+    pts = hull_candidates(pts)
     spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
     if spread[-1] <= FLAT_TOL * spread[0]:
         raise MmstabError(
-            f"{what}: the {len(pts)} points lie on a plane or a line, so their convex hull "
+            f"{what}: the {n} points lie on a plane or a line, so their convex hull "
             "has no volume; refine the workspace grid"
         )
     try:
@@ -251,7 +281,7 @@ class Workspace:
 
     @functools.cached_property
     def _valid_tree(self) -> cKDTree:
-        return cKDTree(self.valid_com)
+        return run_interruptibly(cKDTree, self.valid_com)  # seconds for millions: Ctrl-C
 
     def nearest_valid_posture(self, point: ArrayLike) -> FloatArray:
         """The collision-free grid posture whose arm CoM is nearest to a point.
@@ -273,12 +303,14 @@ class Workspace:
     @functools.cached_property
     def volume_all(self) -> float:
         """Volume of hull(all CoMs) [m^3]."""
-        return float(ConvexHull(np.vstack([self.valid_com, self.invalid_com])).volume)
+        return float(convex_hull(np.vstack([self.valid_com, self.invalid_com]), "all CoMs").volume)
 
     @functools.cached_property
     def volume_invalid(self) -> float:
         """Volume of hull(invalid CoMs) [m^3]; 0 when no posture collides."""
-        return float(ConvexHull(self.invalid_com).volume) if len(self.b_bad) else 0.0
+        if not len(self.b_bad):
+            return 0.0
+        return float(convex_hull(self.invalid_com, "invalid CoMs").volume)
 
     @property
     def volume_V(self) -> float:
@@ -385,7 +417,9 @@ def build_workspace(
         robot: the robot.
         grid: samples per joint, four integers >= 2.
         executor: runs the chunks (any ``concurrent.futures.Executor``); default: a
-            2-process pool from ``PARALLEL_MIN_POSTURES`` postures on, else this process.
+            :class:`~mmstab.pool.ChunkPool` of ``PARALLEL_WORKERS`` processes from
+            ``PARALLEL_MIN_POSTURES`` postures on (stopped at once by Ctrl-C), else this
+            process.
         chunk: postures per chunk.
         progress: show a tqdm progress bar.
     """
@@ -393,27 +427,25 @@ def build_workspace(
     jg = joint_grid(robot, grid)
     n = jg.size
     bounds = [(s, min(s + chunk, n)) for s in range(0, n, chunk)]
-    own = None
-    if executor is None and n >= PARALLEL_MIN_POSTURES and (os.cpu_count() or 1) > 1:
-        executor = own = ProcessPoolExecutor(max_workers=2)
     free = np.empty(n, dtype=bool)
     com = np.empty((n, 3))
-    try:
+    with contextlib.ExitStack() as stack:
         results: Iterator[tuple[int, NDArray[np.bool_], FloatArray]]
-        if executor is None:
-            results = (label_chunk(robot, jg, a, b) for a, b in bounds)
-        else:
-            light = dataclasses.replace(robot)  # without the cached CasADi kinematics
+        light = dataclasses.replace(robot)  # without the cached CasADi kinematics
+        if executor is not None:
             futures = [executor.submit(label_chunk, light, jg, a, b) for a, b in bounds]
             results = (f.result() for f in as_completed(futures))
+        elif n >= PARALLEL_MIN_POSTURES and (os.cpu_count() or 1) > 1:
+            # killable on Ctrl-C, workers included (mmstab.pool)
+            pool = stack.enter_context(ChunkPool(label_chunk, (light, jg), PARALLEL_WORKERS))
+            results = pool.run(bounds)
+        else:
+            results = (label_chunk(robot, jg, a, b) for a, b in bounds)
         with tqdm(total=n, unit="posture", desc="workspace", disable=not progress) as bar:
             for start, f, c in results:
                 free[start : start + len(f)] = f
                 com[start : start + len(f)] = c
                 bar.update(len(f))
-    finally:
-        if own is not None:
-            own.shutdown(cancel_futures=True)
     q = grid_postures(jg)
     return workspace_from_clouds(
         grid, q[free], com[free], q[~free], com[~free], time.perf_counter() - t0
@@ -449,6 +481,13 @@ def load_workspace(path: str | os.PathLike[str]) -> Workspace:
     return Workspace(**kw)
 
 
+def _short(exc: BaseException, width: int = 60) -> str:
+    """``Type: first line of the message`` within about ``width`` characters."""
+    text = (str(exc).splitlines() or [""])[0]
+    text = text if len(text) <= width else text[: width - 3] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
 def load_or_build_workspace(
     problem: Problem,
     force: bool = False,
@@ -471,8 +510,14 @@ def load_or_build_workspace(
     if not force and path.is_file():
         try:
             return load_workspace(path)
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile):
-            pass  # unreadable or stale cache: rebuild below
+        except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
+            why = _short(exc)
+            print(
+                f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
+                file=sys.stderr,
+            )
+    if progress:
+        announce(workspace_estimate(grid))
     ws = build_workspace(problem.robot, grid, executor=executor, progress=progress)
     save_workspace(path, ws)
     return ws

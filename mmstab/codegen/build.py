@@ -7,10 +7,11 @@ import dataclasses
 import hashlib
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
 
@@ -87,6 +88,19 @@ def _write_text(path: Path, text: str) -> None:
     _atomic(path, write)
 
 
+def _read_meta(path: Path) -> dict[str, Any]:
+    """``build.json``, or {} (with a one-line notice) when it cannot be read: rebuild."""
+    try:
+        meta = json.loads(path.read_text())
+        if isinstance(meta, dict):
+            return meta
+        why = "not a JSON object"
+    except (OSError, ValueError) as exc:
+        why = f"{type(exc).__name__}: {exc}".splitlines()[0][:120]
+    print(f"mmstab: notice: codegen cache {path} unreadable ({why}); rebuilding", file=sys.stderr)
+    return {}
+
+
 def cache_key(functions: Sequence[ca.Function], plugin: str) -> str:
     """SHA-256 of what the generated library depends on (module docstring, "Cache")."""
     h = hashlib.sha256()
@@ -133,8 +147,8 @@ def generate(
     meta_path = out / "build.json"
     files = (c_file, h_file, l_file, library)
     if not force and meta_path.is_file() and all(p.is_file() for p in files):
-        meta = json.loads(meta_path.read_text())
-        if meta.get("key") == key:
+        meta = _read_meta(meta_path)
+        if meta.get("key") == key and isinstance(meta.get("compiler_stderr"), str):
             return GeneratedController(
                 *(out, *files), plugin, key, names, False, meta["compiler_stderr"]
             )

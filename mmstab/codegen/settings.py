@@ -1,16 +1,15 @@
-"""The ``codegen:`` section: settings and the plugin check (before CasADi is called)."""
+"""The ``codegen:`` section: settings (the plugin check lives in :mod:`mmstab.settings`)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
-from mmstab.config import ConfigError, MmstabError
-from mmstab.controller.settings import CODEGEN_PLUGINS
-
-QPOASES_MESSAGE = "CasADi cannot generate C for qpOASES; use qrqp, daqp or osqp"
+from mmstab.settings import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
+from mmstab.settings import QPOASES_MESSAGE as QPOASES_MESSAGE
+from mmstab.settings import check_codegen
+from mmstab.settings import check_plugin as check_plugin
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,21 +30,5 @@ class CodegenSettings:
         return cls(plugin=str(section["plugin"]), directory=str(section["directory"]))
 
 
-def check_plugin(plugin: str) -> None:
-    """Raise :class:`MmstabError` unless CasADi can generate C for ``plugin``."""
-    if plugin == "qpoases":
-        raise MmstabError(QPOASES_MESSAGE)
-    if plugin not in CODEGEN_PLUGINS:
-        raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {CODEGEN_PLUGINS}")
-
-
-def check_settings(path: Path, section: Mapping[str, Any]) -> None:
-    """Semantic check of the ``codegen:`` section (a plugin CasADi can generate C for).
-
-    Raises:
-        ConfigError: naming ``codegen.plugin``.
-    """
-    try:
-        check_plugin(str(section["plugin"]))
-    except MmstabError as exc:
-        raise ConfigError(path, "codegen.plugin", str(exc)) from None
+#: The ``codegen:`` check of the settings registry (:func:`mmstab.settings.check_codegen`).
+check_settings = check_codegen

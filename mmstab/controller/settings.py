@@ -1,17 +1,14 @@
-"""The ``controller:`` section of a problem file: settings and their semantic checks."""
+"""The ``controller:`` section of a problem file (its checks: :mod:`mmstab.settings`)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from mmstab.config import ConfigError
-
-PLUGINS = ("qpoases", "osqp", "qrqp", "daqp")
-#: Plugins CasADi can generate C for (qpOASES emits ``#error``).
-CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp")
+from mmstab.settings import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
+from mmstab.settings import PLUGINS as PLUGINS
+from mmstab.settings import check_controller
 
 
 @dataclass(frozen=True)
@@ -85,20 +82,5 @@ class ControllerSettings:
         )
 
 
-def check_settings(path: Path, section: Mapping[str, Any]) -> None:
-    """Semantic checks of the ``controller:`` section beyond its schema.
-
-    Raises:
-        ConfigError: naming the field (``controller.duration``, ``controller.kp``,
-            ``controller.posture_gain``).
-    """
-    dt = float(section["dt"])
-    if float(section["duration"]) < dt:
-        raise ConfigError(path, "controller.duration", f"must be at least dt = {dt} s")
-    for gain in ("kp", "posture_gain"):
-        if max(section[gain]) * dt >= 1.0:
-            raise ConfigError(
-                path,
-                f"controller.{gain}",
-                f"{gain} * dt must stay below 1 (the discrete loop overshoots); dt = {dt} s",
-            )
+#: The ``controller:`` check of the settings registry (:func:`mmstab.settings.check_controller`).
+check_settings = check_controller

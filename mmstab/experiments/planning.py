@@ -29,6 +29,7 @@ from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
 from mmstab.problem import Problem
 from mmstab.stability import mu_max
 from mmstab.terrain import roll_pitch
+from mmstab.verdict import plan_verdict, planner_margin
 
 
 def _side(com_body: np.ndarray) -> str:
@@ -105,6 +106,7 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         "collision_free": realised.collision_free,
         "seconds": target.seconds,
     }
+    summary["stability"] = plan_verdict([summary], planner_margin(problem.section("planner")))
     save_settings(d, problem)
     write_json(d / "summary.json", summary)
     return summary
@@ -154,6 +156,9 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     plan = plan_of(problem, ws=ws, progress=True)
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
+    summary["stability"] = plan_verdict(
+        summary["poses"], planner_margin(problem.section("planner"))
+    )
     quality = lap_quality(
         problem, planning_region(ws, problem.section("workspace")["method"]), plan
     )

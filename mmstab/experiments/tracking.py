@@ -42,8 +42,12 @@ def run_tracking(
     plan: TrackingPlan | None = None,
     initial_arm: InitialArm = "stowed",
     progress: bool = True,
+    allow_unstable: bool = True,
 ) -> dict[str, Any]:
     """Plan (unless given), track one lap, write Fig. 9-12 and the summary.
+
+    The run stops at the first sample where the robot would tip over (μ < 0); the summary's
+    ``tipped`` says when and where (None when it did not).
 
     Args:
         problem: the problem.
@@ -55,6 +59,9 @@ def run_tracking(
         plan: an arm plan; default :func:`mmstab.app.plan` on the problem.
         initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
         progress: show progress bars.
+        allow_unstable: go on when the plan made here is unstable (some pose's μ at or
+            below ``planner.margin``); else :class:`~mmstab.config.UnstableError` before
+            tracking.
 
     Returns:
         The summary written to ``summary.json``.
@@ -67,6 +74,7 @@ def run_tracking(
         duration=duration,
         initial_arm=initial_arm,
         progress=progress,
+        allow_unstable=allow_unstable,
     )
     d = output_dir(out, "tracking")
     every = max(int(round(SAVE_EVERY_S / run.dt)), 1)

@@ -9,11 +9,8 @@ plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable 
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, NamedTuple
 
-from mmstab.config import ConfigError
-from mmstab.problem import SECTION_CHECKS
 from mmstab.schema import SECTION_DEFAULTS
 
 
@@ -99,11 +96,3 @@ class PlannerSettings(NamedTuple):
     def sigma0_metres(self, diameter: float) -> float:
         """The initial CMA step size [m] for a workspace of ``diameter`` [m]."""
         return self.sigma0 * diameter if self.sigma0_unit == "diameter" else self.sigma0
-
-
-def _check_section(path: Path, cfg: dict[str, Any]) -> None:
-    if abs(cfg["w_stability"] + cfg["w_motion"] - 1.0) > 1e-9:
-        raise ConfigError(path, "planner.w_motion", "w_stability + w_motion must equal 1")
-
-
-SECTION_CHECKS["planner"] = _check_section

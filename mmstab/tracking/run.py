@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal, NamedTuple, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -55,6 +55,26 @@ class Failure(NamedTuple):
     status: QPStatus
 
 
+class Tipping(NamedTuple):
+    """Where a run tipped over: the first sample with μ < 0 (the run stops there).
+
+    Attributes:
+        step: sample index.
+        time: its time [s].
+        pose: base pose (x, y, heading) in M [m, m, rad].
+        mu: μ there (arm as it moved) [N rad].
+    """
+
+    step: int
+    time: float
+    pose: FloatArray
+    mu: float
+
+    def summary(self) -> dict[str, Any]:
+        """The ``tipped`` record of ``summary.json``."""
+        return {"step": self.step, "time_s": self.time, "pose": self.pose, "mu": self.mu}
+
+
 @dataclasses.dataclass(frozen=True)
 class TrackingRun:
     """A simulated run: N control periods, N+1 samples.
@@ -87,6 +107,7 @@ class TrackingRun:
         initial_arm: ``stowed`` or ``planned``.
         wall_seconds: wall time of the control loop [s].
         build_seconds: wall time to build the controller and the reference [s].
+        tipped: where the robot would tip over (μ < 0), the run's last sample; None if not.
     """
 
     t: FloatArray
@@ -116,6 +137,7 @@ class TrackingRun:
     initial_arm: str
     wall_seconds: float
     build_seconds: float
+    tipped: Tipping | None = None
 
     @property
     def steps(self) -> int:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
@@ -11,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.approach import run_reference
-from mmstab.config import MmstabError
+from mmstab.config import MmstabError, UnstableError
 from mmstab.controller import (
     ARM,
     JOINT_COUNT,
@@ -29,13 +30,14 @@ from mmstab.posture import PostureReference
 from mmstab.problem import Problem
 from mmstab.reference import initial_state
 from mmstab.robot import FloatArray
-from mmstab.stability import stability_along
+from mmstab.stability import robot_force_angle, stability_along
 from mmstab.terrain import wrap_angle
 from mmstab.tracking.backend import StepBackend, as_backend, build_advance
 from mmstab.tracking.run import (
     STATE_NAMES,
     Failure,
     InitialArm,
+    Tipping,
     TrackingPlan,
     TrackingRun,
     check_plan,
@@ -85,9 +87,11 @@ def simulate(
             built from the initial arm posture (:func:`mmstab.approach.arm_references`).
 
     Returns:
-        The recorded run.
+        The recorded run; it stops at the first sample where the robot would tip over
+        (μ < 0 with the arm as it moved; ``tipped`` says when and where).
 
     Raises:
+        UnstableError: the robot would tip over at the initial state.
         MmstabError: bad plan, plugin, duration, step signature or initial state, or a state
             that becomes non-finite during the run (naming the time and the components).
     """
@@ -113,6 +117,22 @@ def simulate(
         raise MmstabError(f"initial state must have shape ({STATE_SIZE},), got {s0.shape}")
     if not np.all(np.isfinite(s0)):
         raise MmstabError(f"initial state is not finite ({_describe_nonfinite(s0)})")
+
+    def mu_of(states: FloatArray) -> FloatArray:  # μ with the arm as it is [N rad]
+        gravity = problem.terrain.gravity_body(states[:, :3])
+        com = np.atleast_2d(robot.arm_com(states[:, ARM]))
+        return robot_force_angle(robot, gravity, com).mu
+
+    def first_tip(chunk: FloatArray) -> int | None:  # first sample with μ < 0 (the robot tips)
+        bad = np.flatnonzero(mu_of(chunk) < 0)
+        return int(bad[0]) if bad.size else None
+
+    mu0 = mu_of(s0[None])
+    if mu0[0] < 0:
+        raise UnstableError(
+            f"the robot would tip over at t = 0 s, at the start: base at ({s0[0]:.3f}, "
+            f"{s0[1]:.3f}) m heading {s0[2]:.3f} rad, mu = {mu0[0]:.4g} N rad"
+        )
 
     t_build = time.perf_counter()
     if step is None:
@@ -142,9 +162,13 @@ def simulate(
         steps,
         settings.dt,
         progress,
+        first_tip,
     )
+    t, n = t[: len(states)], len(states)  # shorter when the robot tipped
+    ref = ref._replace(**{k: np.asarray(v)[:n] for k, v in ref._asdict().items()})
 
     xi, com_B = task_batch(model, problem.terrain, states)
+    mu = stability_along(robot, problem.terrain, states[:, :3], com_B)
     failed = np.flatnonzero(statuses != QPStatus.SUCCESS)
     return TrackingRun(
         t=t,
@@ -160,7 +184,7 @@ def simulate(
         heading_error=wrap_angle(ref.xi_des[:, 2] - xi[:, 2]),
         arm_com_error=np.linalg.norm(ref.xi_des[:, 3:] - xi[:, 3:], axis=1),
         arm_com_body=com_B,
-        mu=stability_along(robot, problem.terrain, states[:, :3], com_B),
+        mu=mu,
         failures=tuple(Failure(int(k), float(t[k]), QPStatus(int(statuses[k]))) for k in failed),
         posture=arm.posture,
         approach=arm.approach,
@@ -174,6 +198,9 @@ def simulate(
         initial_arm=initial_arm if state0 is None else "given",
         wall_seconds=wall,
         build_seconds=build_seconds,
+        tipped=None
+        if n == steps + 1
+        else Tipping(n - 1, float(t[-1]), states[-1, :3].copy(), float(mu.reconfigured[-1])),
     )
 
 
@@ -185,6 +212,7 @@ def _run_loop(
     steps: int,
     dt: float,
     progress: bool,
+    first_tip: Callable[[FloatArray], int | None] | None = None,
 ) -> tuple[FloatArray, FloatArray, NDArray[np.int8], float]:
     """The control loop: ``steps`` calls of ``advance`` on buffers bound once.
 
@@ -197,9 +225,12 @@ def _run_loop(
         steps: number of control periods.
         dt: control period [s] (for messages).
         progress: show a progress bar.
+        first_tip: states (n, 9) -> index of the first that tips over, or None; checked
+            after every chunk of steps: the run stops at that sample (shorter arrays).
 
     Returns:
-        (states (steps+1, 9), applied q̇ (steps, 6) [rad/s], statuses (steps,), wall time [s]).
+        (states (m+1, 9), applied q̇ (m, 6) [rad/s], statuses (m,), wall time [s]), m = steps
+        unless the robot tipped.
 
     Raises:
         MmstabError: the state became non-finite.
@@ -239,6 +270,11 @@ def _run_loop(
                 states[k + 1] = nxt
                 s_buf[:] = nxt
             bar.update(k1 - k0)
+            tip = None if first_tip is None else first_tip(states[k0 + 1 : k1 + 1])
+            if tip is not None:
+                m = k0 + 1 + tip  # the sample where it tips: the run's last
+                states, qdots, statuses = states[: m + 1], qdots[:m], statuses[:m]
+                break
     wall = time.perf_counter() - start
     bar.close()
     return states, qdots, statuses, wall

@@ -87,4 +87,5 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "initial_arm": run.initial_arm,
         "posture_reference": run.posture.summary(run.lap_time),
         "approach": None if run.approach is None else run.approach.summary(),
+        "tipped": None if run.tipped is None else run.tipped.summary(),
     }
