@@ -41,7 +41,7 @@ class PostureSolver:
     """
 
     def __init__(self, robot: Robot, workspace: Any, seeds: int = 6):
-        from mmstab.workspace import CollisionChecker
+        from mmstab.collision import CollisionChecker
 
         self.robot = robot
         self.checker = CollisionChecker(robot)

@@ -54,7 +54,7 @@ def test_same_seed_same_plan_and_global_state_untouched(coarse):
 
 def test_plan_targets_in_V_and_realised_collision_free(coarse):
     problem, ws = coarse
-    from mmstab.workspace import CollisionChecker
+    from mmstab.collision import CollisionChecker
 
     plan = plan_path(problem, workspace=ws)
     assert len(plan.poses) == problem.section("planner")["poses"]

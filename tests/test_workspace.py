@@ -276,7 +276,7 @@ def test_cache_reused_then_invalidated_by_a_robot_change(tmp_path, monkeypatch):
         built.append(args[1])
         return real_build(*args, **kwargs)
 
-    monkeypatch.setattr(wsm, "build_workspace", counting_build)
+    monkeypatch.setattr(wsm.cache, "build_workspace", counting_build)
     first = load_or_build_workspace(problem, progress=False, cache_dir=cache)
     files = list(cache.glob("*.npz"))
     assert len(built) == 1 and len(files) == 1

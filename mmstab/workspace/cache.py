@@ -1,0 +1,102 @@
+"""The workspace cache under ``results/workspace/<key>.npz``."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import sys
+from collections.abc import Sequence
+from concurrent.futures import Executor
+from pathlib import Path
+
+import numpy as np
+
+from mmstab.config import write_npz
+from mmstab.problem import Problem
+from mmstab.robot import Robot
+from mmstab.sizes import announce, workspace_estimate
+from mmstab.workspace.build import build_workspace
+from mmstab.workspace.region import Workspace
+
+#: Bump when labelling or the cache format changes: old cache files are then ignored.
+WORKSPACE_VERSION = 1
+#: Where ``load_or_build_workspace`` keeps built workspaces (relative to the working folder).
+DEFAULT_CACHE_DIR = Path("results") / "workspace"
+
+
+# ---------------------------------------------------------------------------------- cache
+def workspace_key(robot: Robot, grid: Sequence[int]) -> str:
+    """Cache key of a robot description, a grid and the code version."""
+    text = f"v{WORKSPACE_VERSION}|{robot.source_hash}|{[int(n) for n in grid]}"
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def save_workspace(path: str | os.PathLike[str], ws: Workspace) -> Path:
+    """Write a workspace to ``.npz`` atomically."""
+    arrays = {f.name: getattr(ws, f.name) for f in dataclasses.fields(ws)}
+    return write_npz(path, version=WORKSPACE_VERSION, **arrays)
+
+
+def load_workspace(path: str | os.PathLike[str]) -> Workspace:
+    """Read a workspace written by :func:`save_workspace`.
+
+    Raises:
+        ValueError: the file is from another ``WORKSPACE_VERSION``.
+    """
+    with np.load(path) as z:
+        if int(z["version"]) != WORKSPACE_VERSION:
+            raise ValueError(f"{path}: workspace cache version {int(z['version'])}")
+        kw = {f.name: z[f.name] for f in dataclasses.fields(Workspace)}
+    kw["grid"] = tuple(int(n) for n in kw["grid"])
+    kw["diameter"] = float(kw["diameter"])
+    kw["build_seconds"] = float(kw["build_seconds"])
+    return Workspace(**kw)
+
+
+def _short(exc: BaseException, width: int = 60) -> str:
+    """``Type: first line of the message`` within about ``width`` characters."""
+    text = (str(exc).splitlines() or [""])[0]
+    text = text if len(text) <= width else text[: width - 3] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def load_or_build_workspace(
+    problem: Problem,
+    force: bool = False,
+    progress: bool = True,
+    cache_dir: str | os.PathLike[str] | None = None,
+    executor: Executor | None = None,
+) -> Workspace:
+    """The problem's workspace: from the cache when robot and grid are unchanged, else built.
+
+    Args:
+        problem: the problem (robot and ``workspace.grid``).
+        force: rebuild (and overwrite the cache) even when a cached copy matches.
+        progress: show a progress bar while building.
+        cache_dir: cache folder (default ``results/workspace``).
+        executor: passed to :func:`build_workspace`.
+    """
+    grid = tuple(problem.section("workspace")["grid"])
+    path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR)
+    path = path / f"{workspace_key(problem.robot, grid)}.npz"
+    if not force and path.is_file():
+        try:
+            return load_workspace(path)
+        except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
+            why = _short(exc)
+            print(
+                f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
+                file=sys.stderr,
+            )
+    if progress:
+        announce(workspace_estimate(grid))
+    ws = build_workspace(problem.robot, grid, executor=executor, progress=progress)
+    save_workspace(path, ws)
+    return ws
+
+
+def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:
+    """Where ``load_or_build_workspace`` keeps the problem's workspace."""
+    base = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR)
+    return base / f"{workspace_key(problem.robot, problem.section('workspace')['grid'])}.npz"
