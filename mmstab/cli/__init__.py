@@ -1,0 +1,135 @@
+"""The ``mmstab`` command line: one subcommand per pipeline stage or experiment.
+
+Every subcommand takes a problem (or robot) YAML file. Before any work, every command loads
+and checks the whole problem (schema, the settings registry of :mod:`mmstab.settings`, the
+size bounds of :mod:`mmstab.sizes`), its options and that its output folders can be written.
+
+Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
+nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
+the tracked robot tips over; ``--allow-unstable`` accepts an unstable plan); 130
+interrupted (Ctrl-C: workers stopped, no file half-written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from mmstab.cli.checks import check_options, check_outputs
+from mmstab.cli.commands import COMMANDS, EXTRA_OPTIONS, PROBLEM_COMMANDS, _urdf, _urdf_out
+from mmstab.cli.status import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE
+from mmstab.cli.terrain import _add_terrain_commands
+
+__all__ = ["build_parser", "check_options", "check_outputs", "entry", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for tests and docs)."""
+    parser = argparse.ArgumentParser(
+        prog="mmstab",
+        description="Stability-aware planning and control of a tracked mobile manipulator.",
+        epilog="exit status: 0 done, 2 bad input, 3 unstable, 130 interrupted (docs/cli.md)",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, help_text, handler in COMMANDS:
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.add_argument("problem", help="problem YAML file (e.g. problems/ramp.yaml)")
+        p.add_argument("-o", "--out", default=None, help="output folder (default results/NAME)")
+        p.add_argument(
+            "--force-size",
+            action="store_true",
+            help="run sizes whose time estimate exceeds the bound (not beyond the memory)",
+        )
+        for flag, kwargs in EXTRA_OPTIONS.get(name, []):
+            p.add_argument(flag, **kwargs)
+        p.set_defaults(handler=handler)
+    # commands that take a robot description rather than a problem
+    help_text = "export the robot description as URDF (base_link = body frame B)"
+    p = sub.add_parser("urdf", help=help_text, description=help_text)
+    p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
+    p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
+    p.set_defaults(handler=_urdf)
+    from mmstab.viewer.cli import add_view_command  # issue 18: the browser viewer
+
+    add_view_command(sub)
+    _add_terrain_commands(sub)
+    return parser
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.handler is _urdf:
+        from mmstab.config import MmstabError, check_output_dir
+
+        out = Path(_urdf_out(args, "robot"))
+        if args.out is not None:
+            if out.is_dir():
+                raise MmstabError(f"output file {out}: is a folder")
+            check_output_dir(out.parent, f"output file {out}: folder")
+        return args.handler(args, None) or EXIT_OK
+    if args.command not in PROBLEM_COMMANDS:  # rest, stability-map, terrain, view
+        return args.handler(args) or EXIT_OK  # they load the problem (all checks) themselves
+    from mmstab.problem import load_problem
+
+    problem = load_problem(args.problem, force_size=args.force_size)
+    check_options(args, problem)
+    check_outputs(args, problem)
+    return args.handler(args, problem) or EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status (0, 2, 3 or 130; module docstring)."""
+    previous = None
+    try:
+        from mmstab.pool import note_interrupts
+
+        previous = note_interrupts()  # remembered even where C code swallows it
+        return _main(argv)
+    except KeyboardInterrupt:  # at any moment, imports included
+        print("mmstab: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    from mmstab.config import MmstabError, UnstableError
+
+    try:
+        return _run(build_parser().parse_args(argv))
+    except UnstableError as exc:
+        print(f"mmstab: unstable: {exc}", file=sys.stderr)
+        return EXIT_UNSTABLE
+    except MmstabError as exc:
+        print(f"mmstab: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        print("mmstab: error: out of memory (reduce the sizes in the problem)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+def entry() -> None:
+    """The ``mmstab`` program: exit with :func:`main`'s status; after a Ctrl-C, at once.
+
+    An interrupted run has already removed its temporary files while unwinding, and its
+    workers are dead; the interpreter's own shutdown (a fraction of a second, more on a
+    loaded machine) is skipped, and so is any stray ``KeyboardInterrupt`` that C code
+    left pending.
+    """
+    try:
+        status = main()
+    except KeyboardInterrupt:
+        status = EXIT_INTERRUPTED
+    if status == EXIT_INTERRUPTED:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(status)
+    sys.exit(status)

@@ -1,0 +1,294 @@
+"""The problem commands of ``mmstab``: their handlers, default outputs and options."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from mmstab.cli.status import EXIT_UNSTABLE
+
+#: Default output folder of each command (``-o`` overrides it).
+DEFAULT_OUT = {
+    "fig5": "results/fig5",
+    "fig6": "results/fig6",
+    "fig3": "results/fig3",
+    "plan": "results/plan",
+    "fig7": "results/fig7",
+    "fig8": "results/fig8",
+    "track": "results/tracking",
+    "animation": "results/tracking",
+    "fidelity": "results/fidelity",
+}
+#: Commands that load or build the workspace (its cache folder must be writable to build).
+USES_WORKSPACE = {"workspace", "fig3", "plan", "fig7", "fig8", "track", "animation"}
+#: Commands that run the planner (``--allow-unstable``).
+PLANS = ("plan", "fig7", "fig8", "track", "animation")
+
+Handler = Callable[[argparse.Namespace, Any], int | None]
+
+
+def _problem(args: argparse.Namespace) -> Any:
+    """The problem of a command outside :data:`COMMANDS` (checked at load, as everywhere)."""
+    from mmstab.problem import load_problem
+
+    return load_problem(args.problem, force_size=getattr(args, "force_size", False))
+
+
+def _announce(problem: Any, *sections: str, duration: float | None = None) -> None:
+    """Show the time estimates of long stages before they start (``--duration`` if given)."""
+    from mmstab.sizes import announce, estimates, steps_estimate
+
+    found = estimates(problem.data)
+    if duration is not None:
+        dt = problem.section("controller")["dt"]
+        found["controller"] = steps_estimate("--duration", duration, dt)
+    for name in sections:
+        announce(found[name])
+
+
+def _fig5(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.experiments.sweeps import run_fig5
+
+    s = run_fig5(problem, args.out)
+    maxima = [round(float(x), 2) for x in s["local_maxima_rad"]]
+    print(f"fig5: local maxima at link0 = {maxima} rad")
+
+
+def _fig6(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.experiments.sweeps import run_fig6
+
+    _announce(problem, "sweep")
+    s = run_fig6(problem, args.out)
+    print(f"fig6: {s['poses_with_two_maxima']} of {len(s['poses'])} poses with two maxima")
+
+
+def _workspace(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.app import workspace
+    from mmstab.workspace import workspace_cache_path
+
+    path = workspace_cache_path(problem, args.out)
+    before = path.stat().st_mtime_ns if path.is_file() else None
+    ws = workspace(problem, force=args.force, cache_dir=args.out)
+    how = "loaded" if path.stat().st_mtime_ns == before else "built"
+    print(
+        f"workspace: {ws.postures} postures, {len(ws.valid_com)} valid, "
+        f"{len(ws.invalid_com)} invalid, diameter {ws.diameter:.3f} m "
+        f"(build {ws.build_seconds:.1f} s); {how}: {path}"
+    )
+
+
+def _fig3(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.experiments.fig3 import run_fig3
+
+    _announce(problem, "precision")
+    s = run_fig3(problem, args.out, force=args.force)
+    print(
+        f"fig3: {s['valid']} valid / {s['invalid']} invalid, volume V {s['volume_V']:.4f} m^3, "
+        f"recall {s['recall']:.3f}, precision {s['precision']:.3f}"
+    )
+
+
+def _tipped(summary: dict[str, Any]) -> int | None:
+    from mmstab.verdict import describe_tipping
+
+    if summary.get("tipped") is None:
+        return None
+    print(f"mmstab: unstable: {describe_tipping(summary['tipped'])}", file=sys.stderr)
+    return EXIT_UNSTABLE
+
+
+def _track(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.tracking import run_tracking
+
+    _announce(problem, "planner", "controller", duration=args.duration)
+    s = run_tracking(
+        problem,
+        args.out,
+        args.plugin,
+        backend=args.backend,
+        duration=args.duration,
+        allow_unstable=args.allow_unstable,
+    )
+    print(
+        f"track: {s['steps']} steps ({s['plugin']}, {s['backend']}) in {s['wall_seconds']:.2f} s "
+        f"({s['us_per_step']:.1f} us/step); max error base {s['base_error_max_m']:.3g} m, "
+        f"arm CoM {s['arm_com_error_max_m']:.3g} m; final {s['base_error_final_m']:.2g} m, "
+        f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}; arm self-collision "
+        f"{100 * s['arm_self_collision']['colliding_share']:.1f} % of the samples; posture "
+        f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
+        f"samples {s['posture_reference']['reference']['colliding_samples']}"
+    )
+    return _tipped(s)
+
+
+def _urdf(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.robot import load_robot
+    from mmstab.urdf import write_urdf
+
+    robot = load_robot(args.robot)
+    print(f"urdf: wrote {write_urdf(robot, _urdf_out(args, robot.name))}")
+
+
+def _urdf_out(args: argparse.Namespace, name: str) -> str:
+    return str(args.out) if args.out is not None else f"results/urdf/{name}.urdf"
+
+
+def _plan_verdict(s: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """Report an unstable plan on stderr; exit status 3 unless ``--allow-unstable``."""
+    from mmstab.verdict import describe_plan_verdict
+
+    verdict = s["stability"]
+    if verdict["stable"]:
+        return None
+    total = len(s["poses"]) if isinstance(s.get("poses"), list) else 1
+    line = describe_plan_verdict(verdict, total)
+    if args.allow_unstable:
+        print(f"mmstab: warning: {line} (--allow-unstable)", file=sys.stderr)
+        return None
+    print(f"mmstab: unstable: {line}; pass --allow-unstable to accept it", file=sys.stderr)
+    return EXIT_UNSTABLE
+
+
+def _plan(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.planning import run_fig8
+
+    _announce(problem, "planner")
+    s = run_fig8(problem, args.out or DEFAULT_OUT["plan"])
+    for k, p in enumerate(s["poses"]):
+        print(
+            f"pose {k}: side {p['side']:5s} mu {p['mu_planned']:7.1f} "
+            f"(stowed {p['mu_stowed']:7.1f}, arm removed {p['mu_arm_removed']:7.1f}) "
+            f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
+            f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
+        )
+    return _plan_verdict(s, args)
+
+
+def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.planning import run_fig7
+
+    s = run_fig7(problem, args.out)
+    com = [round(float(x), 3) for x in s["target_com"]]
+    print(f"fig7: target arm CoM {com} m, mu {s['mu_planned']:.1f} N rad")
+    return _plan_verdict(s, args)
+
+
+def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.planning import run_fig8
+
+    _announce(problem, "planner")
+    s = run_fig8(problem, args.out)
+    print(f"fig8: arm side per pose {s['sides']}")
+    return _plan_verdict(s, args)
+
+
+def _fidelity(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.experiments.fidelity import run_fidelity
+
+    s = run_fidelity(problem, args.out, args.results)
+    f6, f8, f11, f12 = s["fig6"], s["fig8"], s["fig11"], s["fig12"]
+    below = ", ".join(f"{i['start_s']:.2f}-{i['end_s']:.2f} s" for i in f12["below_stowed"])
+    print(
+        f"fidelity: fig6 {f6['poses_with_two_maxima']}/{f6['poses']} sweeps with two maxima; "
+        f"fig8 sides {f8['sides']}; fig11 saturates: {f11['saturates']}; "
+        f"fig12 below the stowed arm: {below or 'never'}"
+    )
+
+
+def _codegen(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.codegen import build_programs, generate
+
+    gen = generate(problem, args.out, args.plugin, force=args.force)
+    how = "generated and compiled" if gen.rebuilt else "up to date"
+    print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
+    if args.example:
+        from mmstab import rollout as ro
+        from mmstab.app import plan as plan_of
+        from mmstab.reference import initial_state
+
+        plan = plan_of(problem)  # the problem's path with the planned arm CoMs
+        state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
+        inputs = ro.run_inputs(problem, plan, state0=state0)
+        run = ro.write_run_file(ro.run_file_path(gen.directory), inputs)
+        progs = build_programs(gen)
+        print(f"codegen: example {progs.loop} and timing {progs.bench}; run file {run}")
+
+
+def _animation(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.animation import run_animation
+
+    stored = (Path(args.out or DEFAULT_OUT["animation"]) / "run.npz").is_file()
+    _announce(problem, *(("animation",) if stored else ("planner", "controller", "animation")))
+    s = run_animation(problem, args.out, allow_unstable=args.allow_unstable)
+    print(f"animation: {s['frames']} frames -> {s['gif']}")
+    return _tipped(s)
+
+
+# (name, help, handler)
+COMMANDS: list[tuple[str, str, Handler]] = [
+    ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
+    ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
+    ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
+    ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
+    ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
+    ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
+    ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
+    ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
+    ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
+    ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
+    ("fidelity", "paper claims vs the saved results of fig6, fig8, tracking", _fidelity),
+]
+
+_ALLOW_UNSTABLE = (
+    "--allow-unstable",
+    {
+        "action": "store_true",
+        "help": "accept a plan with poses at or below the stability margin (exit 0, warning)",
+    },
+)
+
+#: Commands of :data:`COMMANDS`: handlers of (args, the problem loaded and checked).
+PROBLEM_COMMANDS = frozenset(name for name, _, _ in COMMANDS)
+
+#: Options beyond ``problem``, ``--out`` and ``--force-size``, by command name.
+EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
+    "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
+    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+    "plan": [_ALLOW_UNSTABLE],
+    "fig7": [_ALLOW_UNSTABLE],
+    "fig8": [_ALLOW_UNSTABLE],
+    "animation": [_ALLOW_UNSTABLE],
+    "track": [
+        (
+            "--plugin",
+            {"help": "QP plugin: qpoases, osqp, qrqp or daqp (default: the problem's)"},
+        ),
+        (
+            "--backend",
+            {
+                "choices": ("interpreted", "generated"),
+                "default": "interpreted",
+                "help": "controller step: CasADi interpreted, or the generated C library",
+            },
+        ),
+        ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+        _ALLOW_UNSTABLE,
+    ],
+    "fidelity": [
+        ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
+    ],
+    "codegen": [
+        (
+            "--plugin",
+            {"default": None, "help": "QP plugin: qrqp, daqp or osqp (default codegen.plugin)"},
+        ),
+        ("--force", {"action": "store_true", "help": "regenerate even if up to date"}),
+        (
+            "--example",
+            {"action": "store_true", "help": "also build the embedded example (embedded/)"},
+        ),
+    ],
+}

@@ -1,0 +1,4 @@
+"""Exit statuses of ``mmstab`` (``docs/cli.md``)."""
+
+#: Exit statuses.
+EXIT_OK, EXIT_BAD_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130

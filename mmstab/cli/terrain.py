@@ -1,0 +1,153 @@
+"""Terrain commands of ``mmstab`` (issue 14): ``rest``, ``stability-map``, ``terrain export``."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from mmstab.cli.commands import _problem
+
+
+# ------------------------------------------------- terrain (issue 14): rest, maps, export
+def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
+    """``--arm``: ``stowed`` (or absent) -> None; four angles [rad] within the joint limits."""
+    import numpy as np
+
+    from mmstab.config import MmstabError
+
+    if arm is None or arm == ["stowed"]:
+        return None
+    try:
+        q = np.array([float(a) for a in arm])
+    except ValueError:
+        raise MmstabError(f"--arm: expected 'stowed' or 4 angles [rad], got {arm}") from None
+    if q.shape != (4,) or not np.isfinite(q).all():
+        raise MmstabError(f"--arm: expected 'stowed' or 4 finite angles [rad], got {arm}")
+    bad = np.flatnonzero((q < robot.joint_lower) | (q > robot.joint_upper))
+    if bad.size:
+        i = int(bad[0])
+        raise MmstabError(
+            f"--arm: joint {i} = {q[i]} rad is outside its limits "
+            f"[{robot.joint_lower[i]}, {robot.joint_upper[i]}]"
+        )
+    return q
+
+
+def _finite(name: str, values: Sequence[float]) -> None:
+    import math
+
+    from mmstab.config import MmstabError
+
+    if not all(math.isfinite(v) for v in values):
+        raise MmstabError(f"{name}: must be finite, got {list(values)}")
+
+
+def _rest(args: argparse.Namespace) -> None:
+    import json
+
+    import numpy as np
+
+    from mmstab.stance import stance
+
+    _finite("--pose", args.pose)
+    if args.flipper is not None:
+        _finite("--flipper", [args.flipper])
+    problem = _problem(args)
+    q = _arm_posture(problem.robot, args.arm)
+    st = stance(problem.terrain, problem.robot, args.pose, args.flipper, q)
+    if args.json:
+        print(json.dumps(st.to_json(), allow_nan=True))
+        return
+    np.set_printoptions(precision=4, suppress=True)
+    print(
+        f"rest: roll {st.roll:+.5f} rad ({np.degrees(st.roll):+.2f} deg), pitch {st.pitch:+.5f}"
+        f" rad ({np.degrees(st.pitch):+.2f} deg), z {st.z:+.4f} m"
+    )
+    print(f"rest: mu {st.mu:.2f} N rad; flags: {', '.join(st.flags) or 'none'}")
+    print(f"rest: {len(st.contacts)} contacts; support polygon (G, m):")
+    print(np.array2string(st.support_polygon, prefix="  "))
+    print(f"rest: G_T_B =\n{st.G_T_B}")
+
+
+def _stability_map(args: argparse.Namespace) -> None:
+    from mmstab.config import MmstabError, check_output_dir
+    from mmstab.experiments.terrain import run_stability_map
+
+    if not args.spacing > 0 or args.headings < 1:
+        raise MmstabError("--spacing must be > 0 [m] and --headings >= 1")
+    problem = _problem(args)
+    check_output_dir(args.out or f"results/terrain/{problem.name}")
+    s = run_stability_map(problem, args.out, args.spacing, args.headings)
+    print(
+        f"stability-map: {s['poses']} poses ({s['rest_ms_per_pose']:.3f} ms/pose at rest), "
+        f"stable share {s['share_stable']:.3f}; cells stable at every heading "
+        f"{s['cells_stable_at_every_heading']}, at none {s['cells_unstable_at_every_heading']}"
+    )
+
+
+def _terrain_export(args: argparse.Namespace) -> None:
+
+    from mmstab.config import MmstabError, check_output_dir
+    from mmstab.terrain.factory import as_heightmap
+    from mmstab.terrain.io import save_npz
+
+    if Path(args.out).suffix.lower() != ".npz":
+        raise MmstabError(f"-o {args.out}: the export is an .npz file")
+    _finite("--size", args.size)
+    if min(args.size) <= 0 or not args.resolution > 0:
+        raise MmstabError("--size and --resolution must be positive [m]")
+    problem = _problem(args)
+    check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
+    hm = as_heightmap(problem.terrain, tuple(args.size), args.resolution)
+    path = save_npz(args.out, hm)
+    ny, nx = hm.shape
+    print(f"terrain export: {nx} x {ny} cells at {hm.resolution} m -> {path}")
+
+
+def _add_terrain_commands(sub: Any) -> None:
+    """``rest``, ``stability-map`` and ``terrain export`` (mmstab.terrain)."""
+    h = "the resting pose of the base at one pose: roll, pitch, z, contacts, polygon, mu, flags"
+    p = sub.add_parser("rest", help=h, description=h)
+    p.add_argument("problem", help="problem YAML file (e.g. problems/kerb.yaml)")
+    p.add_argument(
+        "--pose",
+        nargs=3,
+        type=float,
+        required=True,
+        metavar=("X", "Y", "YAW"),
+        help="base pose [m, m, rad]: in G on a heightmap, (x, y, heading) in S on the ramp",
+    )
+    p.add_argument("--flipper", type=float, default=None, help="flipper angle [rad]")
+    p.add_argument(
+        "--arm", nargs="+", default=None, metavar="Q", help="'stowed' or 4 joint angles [rad]"
+    )
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.set_defaults(handler=_rest)
+
+    h = "mu of the stowed arm over a grid of positions x headings: worst and best heading"
+    p = sub.add_parser("stability-map", help=h, description=h)
+    p.add_argument("problem", help="problem YAML file")
+    p.add_argument("-o", "--out", default=None, help="output folder (default results/terrain/NAME)")
+    p.add_argument("--spacing", type=float, default=0.25, help="grid spacing [m] (0.25)")
+    p.add_argument("--headings", type=int, default=8, help="headings per cell (8)")
+    p.set_defaults(handler=_stability_map)
+
+    h = "terrain files"
+    p = sub.add_parser("terrain", help=h, description=h)
+    tsub = p.add_subparsers(dest="terrain_command", required=True, metavar="ACTION")
+    h = "write the problem's terrain as .npz (elevation, resolution, origin)"
+    e = tsub.add_parser("export", help=h, description=h)
+    e.add_argument("problem", help="problem YAML file")
+    e.add_argument("-o", "--out", required=True, help="output .npz file")
+    e.add_argument(
+        "--size",
+        nargs=2,
+        type=float,
+        default=[6.0, 6.0],
+        metavar=("X", "Y"),
+        help="extent sampled for a ramp [m] (6 6)",
+    )
+    e.add_argument("--resolution", type=float, default=0.05, help="ramp cell size [m] (0.05)")
+    e.set_defaults(handler=_terrain_export)
