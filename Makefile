@@ -13,7 +13,7 @@ export MPLBACKEND ?= Agg
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet --editable '.[dev,peer]'
+	$(PY) -m pip install --quiet --editable '.[dev,peer,atlas]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -107,3 +107,11 @@ bench: $(BENCH_STAMP)
 .PHONY: animation
 animation: setup
 	$(MMSTAB) animation $(PROBLEM)
+
+## issue 17: tip-over envelope atlas on Dask (docs/atlas.md) -> results/atlas/; benchmark
+.PHONY: atlas bench-atlas
+atlas: setup
+	$(MMSTAB) atlas $(PROBLEM)
+
+bench-atlas: setup
+	$(PY) benchmarks/atlas.py $(PROBLEM)

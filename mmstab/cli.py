@@ -142,6 +142,27 @@ def _animation(args: argparse.Namespace) -> None:
     print(f"animation: {s['frames']} frames -> {s['gif']}")
 
 
+def _atlas(args: argparse.Namespace) -> None:
+    from mmstab.atlas.runner import run_atlas
+
+    s = run_atlas(
+        _problem(args), args.out, args.scheduler, args.workers, processes=not args.threads
+    )
+    r = s["run"]
+    print(
+        f"atlas: {s['cells']} cells ({r['cells_computed']} computed now, "
+        f"{r['cells_already_stored']} resumed) on {r['workers']} workers, "
+        f"{r['cells_per_second']:.1f} cells/s; figures and summary in {args.out or 'results/atlas'}"
+    )
+    for v in s["variants"]:
+        lim = v["mean_limit_deg"]
+        print(
+            f"  {v['robot']}, flippers {v['flipper']}: mean steepest slope with mu >= "
+            f"{s['margin_N_rad']:g} N rad: planned {lim['planned']} deg, stowed {lim['stowed']} "
+            f"deg, arm removed {lim['arm removed']} deg"
+        )
+
+
 # (name, help, handler, takes a problem file)
 COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -154,6 +175,7 @@ COMMANDS: list[tuple[str, str, Callable[[argparse.Namespace], None]]] = [
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
+    ("atlas", "tip-over envelope atlas over slope x heading x robot x flippers (Dask)", _atlas),
 ]
 
 #: Options beyond ``problem`` and ``--out``, by command name.
@@ -174,6 +196,17 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             },
         ),
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+    ],
+    "atlas": [
+        (
+            "--scheduler",
+            {"default": None, "help": "address of a running Dask scheduler (default: local)"},
+        ),
+        ("--workers", {"type": int, "default": None, "help": "local workers (default: cores)"}),
+        (
+            "--threads",
+            {"action": "store_true", "help": "local workers as threads of one process"},
+        ),
     ],
     "codegen": [
         (
