@@ -330,3 +330,21 @@ def test_payload_is_picklable_without_kinematics(tiny_problem):
     q = pickle.loads(pickle.dumps(p))
     assert isinstance(q, VariantPayload) and q.key == p.key
     assert q.robot.base.flippers.angle == pytest.approx(flipper_ground_angle(tiny_problem.robot))
+
+
+def test_unreachable_scheduler_is_one_line(tmp_path, capsys, tiny_problem, monkeypatch):
+    import mmstab.atlas.driver as driver
+
+    monkeypatch.setattr(driver, "CONNECT_TIMEOUT", 1.0)
+    argv = [
+        "atlas",
+        str(tiny_problem.path),
+        "-o",
+        str(tmp_path),
+        "--scheduler",
+        "tcp://127.0.0.1:9",
+    ]
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err[0]

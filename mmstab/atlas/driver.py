@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, NamedTuple
 
+import dask
 from tqdm import tqdm
 
 from mmstab.atlas.cell import ChunkResult, ChunkTask, VariantPayload, compute_chunk
@@ -27,6 +28,15 @@ from mmstab.config import MmstabError
 
 #: Seconds to wait for an existing scheduler to answer.
 CONNECT_TIMEOUT = 15.0
+#: Dask settings of the local cluster's workers. Measured per cell on one worker process
+#: (``docs/atlas.md``): Dask's default ``MALLOC_TRIM_THRESHOLD_=65536`` (glibc returns
+#: freed memory at once, so the planner's many small NumPy temporaries page-fault) and the
+#: worker's statistical profiler (10 ms stack samples of a Python-bound task) made a cell
+#: 0.14 s instead of 0.08 s. Give the same to ``dask worker`` (docs/atlas.md).
+WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 128 * 2**20,
+    "distributed.worker.profile.enabled": False,
+}
 
 
 class RunStats(NamedTuple):
@@ -81,7 +91,7 @@ def dask_client(
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise MmstabError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
         with client:
             yield client
@@ -90,6 +100,7 @@ def dask_client(
     if n < 1:
         raise MmstabError(f"--workers must be at least 1, got {n}")
     with (
+        dask.config.set(WORKER_CONFIG),
         LocalCluster(
             n_workers=n if processes else 1,
             threads_per_worker=1 if processes else n,
@@ -151,7 +162,6 @@ def run_chunks(
         for future in queue:
             result = future.result()
             on_result(result)
-            future.release()
             chunks += 1
             cells += result.block.cells
             bar.update(result.block.cells)

@@ -143,7 +143,11 @@ def envelope_figure(ds: Any, path: Path) -> Path:
             if closed:
                 th, lim = np.append(th, th[0] + 2 * math.pi), np.append(lim, lim[0])
             ax.plot(th, lim, style, lw=1.6, label=label, marker="." if len(th) < 40 else None)
+        top = float(np.degrees(ds["slope"].values[-1]))
+        ring = np.linspace(0, 2 * math.pi, 200)
+        ax.plot(ring, np.full_like(ring, top), color="0.6", lw=0.8, label="axis end (censored)")
         ax.set_rmin(0.0)
+        ax.set_rmax(top * 1.04)
         ax.set_title(f"{rb}, flippers {fl}", fontsize=9)
         ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
     fig.suptitle(

@@ -8,6 +8,7 @@ chunk is stored.
 from __future__ import annotations
 
 import sys
+import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -89,6 +90,7 @@ def write_outputs(store: AtlasStore, out: Path, run: dict[str, Any]) -> dict[str
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN envelopes
         ds = lazy.load()
         ds.attrs["margin"] = store.spec.margin
+        run = {**run, "history": list(ds.attrs.get("runs", []))}
         s = summary(ds, run)
         heatmap_figure(ds, out / "mu_polar.png")
         envelope_figure(ds, out / "envelope.png")
@@ -135,16 +137,24 @@ def run_atlas(
     stats = RunStats(0, 0, 0.0, 0, 0)
     if missing:
         needed = sorted({b.variant for b in missing})
-        payloads = [payload(spec, spec.variant(i), progress, workspace_cache) for i in needed]
         tasks = [ChunkTask(b, spec.slopes[b.slope], spec.headings[b.heading]) for b in missing]
+
+        written = [0, 0]  # chunks, cells stored by this run (for an interrupted run's log)
 
         def on_result(result: ChunkResult) -> None:
             store.write_chunk(result)
+            written[0] += 1
+            written[1] += result.block.cells
             if on_chunk is not None:
                 on_chunk(result)
 
+        t0 = time.perf_counter()
         try:
             with dask_client(scheduler, workers, processes) as client:
+                # V of each variant, loaded or built once the cluster answers
+                payloads = [
+                    payload(spec, spec.variant(i), progress, workspace_cache) for i in needed
+                ]
                 stats = run_chunks(
                     client,
                     payloads,
@@ -155,6 +165,8 @@ def run_atlas(
                     done_cells=stored_cells,
                 )
         except KeyboardInterrupt:
+            partial = RunStats(written[0], written[1], time.perf_counter() - t0, 0, 0)
+            store.log_run({**_run_record(scheduler, partial), "interrupted": True})
             left = len(store.missing())
             print(
                 f"atlas: interrupted; {left} of {len(spec.blocks())} chunks left in "
@@ -162,16 +174,21 @@ def run_atlas(
                 file=sys.stderr,
             )
             raise
-    run = {
+    run = {**_run_record(scheduler, stats), "cells_already_stored": stored_cells}
+    if stats.cells:
+        store.log_run(run)
+    if not figures:
+        return {"run": run}
+    return write_outputs(store, d, run)
+
+
+def _run_record(scheduler: str | None, stats: RunStats) -> dict[str, Any]:
+    return {
         "scheduler": scheduler or "local",
         "workers": stats.workers,
         "threads": stats.threads,
         "chunks_computed": stats.chunks,
         "cells_computed": stats.cells,
-        "cells_already_stored": stored_cells,
         "seconds": round(stats.seconds, 3),
         "cells_per_second": round(stats.cells_per_second, 3),
     }
-    if not figures:
-        return {"run": run}
-    return write_outputs(store, d, run)

@@ -98,6 +98,7 @@ class AtlasSpec:
         margin: the envelope's threshold on mu [N rad].
         settings: the problem's planner settings (its seed seeds every cell).
         workspace_grid: the problem's workspace grid (joint samples).
+        planner_section: the problem's ``planner`` section as validated (for the key).
     """
 
     path: Path
@@ -110,6 +111,7 @@ class AtlasSpec:
     margin: float
     settings: PlannerSettings
     workspace_grid: tuple[int, ...]
+    planner_section: dict[str, Any]
 
     @property
     def shape(self) -> tuple[int, int, int, int]:
@@ -166,7 +168,7 @@ class AtlasSpec:
             "slopes": self.slopes.tolist(),
             "headings": self.headings.tolist(),
             "chunks": list(self.chunks),
-            "settings": self.settings._asdict(),
+            "planner": self.planner_section,
             "workspace_grid": list(self.workspace_grid),
         }
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:20]
@@ -323,6 +325,7 @@ def atlas_spec(problem: Problem) -> AtlasSpec:
         margin=float(sec["margin"]),
         settings=PlannerSettings.from_section(problem.section("planner")),
         workspace_grid=tuple(int(n) for n in problem.section("workspace")["grid"]),
+        planner_section=dict(problem.section("planner")),
     )
     if spec.cells > MAX_CELLS:
         raise ConfigError(path, "atlas.axes", f"{spec.cells} cells; at most {MAX_CELLS}")

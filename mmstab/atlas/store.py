@@ -168,6 +168,20 @@ class AtlasStore:
         done = self.done()
         return [b for b in self.spec.blocks() if not done[(*b.variant, *b.block)]]
 
+    def runs(self) -> list[dict[str, Any]]:
+        """The log of the runs that filled the store (``attrs['runs']``)."""
+        with self.open() as ds:
+            return list(ds.attrs.get("runs", []))
+
+    def log_run(self, run: dict[str, Any]) -> None:
+        """Append one run's statistics to ``attrs['runs']`` (Ctrl-C deferred)."""
+        import zarr
+
+        with deferred_interrupt():
+            group = zarr.open_group(self.path, mode="r+")
+            runs: list[Any] = list(group.attrs.get("runs", []))  # type: ignore[arg-type]
+            group.attrs["runs"] = [*runs, run]
+
     def write_chunk(self, result: ChunkResult) -> None:
         """Store a computed chunk: its cells, then its completion marker (Ctrl-C deferred)."""
         xr = _xr()
