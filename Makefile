@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 MMSTAB := $(VENV)/bin/mmstab
 STAMP := $(VENV)/.installed-stamp
 # optional extras every set-up installs (the tests use them all)
-EXTRAS := dev,peer,view,validate
+EXTRAS := dev,peer,view,validate,atlas
 PROBLEM ?= problems/ramp.yaml
 export MPLBACKEND ?= Agg
 
@@ -180,3 +180,10 @@ bench-terrain: setup
 .PHONY: bench-sizes
 bench-sizes: setup
 	$(PY) benchmarks/sizes.py $(PROBLEM)
+## issue 17: tip-over envelope atlas on Dask (docs/atlas.md) -> results/atlas/; benchmark
+.PHONY: atlas bench-atlas
+atlas: setup
+	$(MMSTAB) atlas $(PROBLEM)
+
+bench-atlas: setup
+	$(PY) benchmarks/atlas.py $(PROBLEM)

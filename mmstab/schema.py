@@ -179,9 +179,46 @@ def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+# The tip-over envelope atlas (mmstab atlas; docs/atlas.md). An axis is a list of values or
+# an evenly spaced range (a full-turn heading range omits its end); every axis is optional.
+_RANGE = obj(start=NUM, stop=NUM, num={"type": "integer", "minimum": 1, "maximum": 10000})
+_AXIS = {"oneOf": [{"type": "array", "items": NUM, "minItems": 1, "maxItems": 10000}, _RANGE]}
+_FLIPPER = {"oneOf": [NUM, {"enum": ["robot", "ground"]}]}
+ATLAS: dict[str, Any] = {
+    "type": "object",
+    "properties": {
+        "axes": {
+            "type": "object",
+            "properties": {
+                "slope": _AXIS,  # [rad], increasing, within terrain.slope's bounds
+                "heading": _AXIS,  # [rad] about the slope normal; 0 = across, pi/2 = uphill
+                "flipper_angle": {"type": "array", "items": _FLIPPER, "minItems": 1},
+                "robots": {  # robot files, relative to the problem file
+                    "type": "array",
+                    "items": {"type": "string", "minLength": 1},
+                    "minItems": 1,
+                },
+                "payload": _AXIS,  # [kg]: accepted, refused until payloads exist (issue 16)
+                "terrain_seeds": {"type": "array", "items": SEED, "minItems": 1},  # issue 14
+            },
+            "additionalProperties": False,
+        },
+        "chunks": obj(slope=INT_POS, heading=INT_POS),  # cells per stored chunk, per axis
+        "margin": NUM,  # [N rad]: the operator's envelope keeps mu >= margin
+    },
+    "required": ["axes", "chunks", "margin"],
+    "additionalProperties": False,
+}
+
+#: Sections a problem may leave out; the command that needs one says so when it is missing.
+OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {"atlas": ATLAS}
+
+
 def problem_schema() -> dict[str, Any]:
     """The closed schema of a whole problem file."""
-    return obj(**PROBLEM_SECTIONS)
+    schema = obj(**PROBLEM_SECTIONS)
+    schema["properties"].update(OPTIONAL_SECTIONS)
+    return schema
 
 
 # --------------------------------------------------------------- terrain (heightmaps)

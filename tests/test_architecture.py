@@ -63,6 +63,7 @@ LAYERS: dict[str, int] = {
     "mmstab.runstore": 9,
     "mmstab.verdict": 9,
     "mmstab.experiments": 10,
+    "mmstab.atlas": 10,
     "mmstab.viewer": 10,
     "mmstab.cli": 11,
     "mmstab.__main__": 11,
@@ -154,10 +155,14 @@ def test_each_module_imports_alone():
 
 
 def test_no_stage_knows_the_ramp():
-    """Above mmstab.terrain, the ground is a Terrain: no Ramp, no slope angle."""
+    """Above mmstab.terrain, the ground is a Terrain: no Ramp, no slope angle.
+
+    The one exception is the atlas, whose axes *are* ramp slopes (an envelope over planar
+    slopes x headings); it builds its ramps and hands them to the stages as Terrains.
+    """
     offenders = []
     for path in PACKAGE.rglob("*.py"):
-        if path.is_relative_to(PACKAGE / "terrain"):
+        if path.is_relative_to(PACKAGE / "terrain") or path.is_relative_to(PACKAGE / "atlas"):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Name) and node.id == "Ramp":

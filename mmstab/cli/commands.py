@@ -21,9 +21,10 @@ DEFAULT_OUT = {
     "track": "results/tracking",
     "animation": "results/tracking",
     "fidelity": "results/fidelity",
+    "atlas": "results/atlas",
 }
 #: Commands that load or build the workspace (its cache folder must be writable to build).
-USES_WORKSPACE = {"workspace", "fig3", "plan", "fig7", "fig8", "track", "animation"}
+USES_WORKSPACE = {"workspace", "fig3", "plan", "fig7", "fig8", "track", "animation", "atlas"}
 #: Commands that run the planner (``--allow-unstable``).
 PLANS = ("plan", "fig7", "fig8", "track", "animation")
 
@@ -227,6 +228,25 @@ def _animation(args: argparse.Namespace, problem: Any) -> int | None:
     return _tipped(s)
 
 
+def _atlas(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.atlas.runner import run_atlas
+
+    s = run_atlas(problem, args.out, args.scheduler, args.workers, processes=not args.threads)
+    r = s["run"]
+    print(
+        f"atlas: {s['cells']} cells ({r['cells_computed']} computed now, "
+        f"{r['cells_already_stored']} resumed) on {r['workers']} workers, "
+        f"{r['cells_per_second']:.1f} cells/s; figures and summary in {args.out or 'results/atlas'}"
+    )
+    for v in s["variants"]:
+        lim = v["mean_limit_deg"]
+        print(
+            f"  {v['robot']}, flippers {v['flipper']}: mean steepest slope with mu >= "
+            f"{s['margin_N_rad']:g} N rad: planned {lim['planned']} deg, stowed {lim['stowed']} "
+            f"deg, arm removed {lim['arm removed']} deg"
+        )
+
+
 # (name, help, handler)
 COMMANDS: list[tuple[str, str, Handler]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -239,6 +259,7 @@ COMMANDS: list[tuple[str, str, Handler]] = [
     ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
+    ("atlas", "tip-over envelope atlas over slope x heading x robot x flippers (Dask)", _atlas),
     ("fidelity", "paper claims vs the saved results of fig6, fig8, tracking", _fidelity),
 ]
 
@@ -279,6 +300,17 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     ],
     "fidelity": [
         ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
+    ],
+    "atlas": [
+        (
+            "--scheduler",
+            {"default": None, "help": "address of a running Dask scheduler (default: local)"},
+        ),
+        ("--workers", {"type": int, "default": None, "help": "local workers (default: cores)"}),
+        (
+            "--threads",
+            {"action": "store_true", "help": "local workers as threads of one process"},
+        ),
     ],
     "codegen": [
         (

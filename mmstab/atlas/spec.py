@@ -1,0 +1,334 @@
+"""The ``atlas:`` section of a problem, checked once: axes, robot variants, chunks.
+
+The atlas is a grid of independent cells over ``robot x flipper x slope x heading``; each
+cell is one base pose on a planar ramp (position does not matter on a plane). Axes the
+section leaves out have one value: the problem's robot, the robot file's flipper angle,
+``terrain.slope`` and heading 0. Axes whose physics has not landed yet (payload mass,
+heightmap terrain seeds) are accepted by the schema and refused here with one clear line.
+
+Headings are about the slope normal in the slope frame S: 0 = body x across the slope
+(+x_S), pi/2 = facing uphill (+y_S). Slopes [rad], headings [rad], flipper angles [rad]
+(0 = straight forward, positive raises the tip; ``"ground"``: lowered until the flipper
+tips rest on the ground, so they join the support polygon; ``"robot"``: the file's angle).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from mmstab.config import ConfigError, MmstabError
+from mmstab.planner import PlannerSettings
+from mmstab.problem import Problem
+from mmstab.robot import FLIPPER_CONTACT_TOL, Robot, load_robot
+from mmstab.robot import FloatArray as FloatArray
+
+#: Largest atlas one section may ask for (cells).
+MAX_CELLS = 1_000_000
+#: Slopes the ramp accepts [rad] (as ``terrain.slope`` in the problem schema).
+MAX_SLOPE = 1.2
+#: Axes the schema accepts whose physics has not landed yet, and what they wait for.
+NOT_AVAILABLE = {
+    "payload": "payload mass is not available yet (needs payloads, issue 16)",
+    "terrain_seeds": "terrain seeds are not available yet (needs heightmap terrain, issue 14)",
+}
+#: Bump when what a cell computes changes: stores of another version are not resumed.
+ATLAS_VERSION = 1
+
+
+class Variant(NamedTuple):
+    """One robot at one flipper angle: the unit that owns a workspace V.
+
+    Attributes:
+        position: (robot index, flipper index) in the atlas.
+        robot_label: the robot coordinate (its name).
+        flipper_label: the flipper coordinate (``"robot"``, ``"ground"`` or the angle).
+        flipper_angle: the angle [rad].
+        robot: the robot with that flipper angle (``source_hash`` changed if the angle is).
+    """
+
+    position: tuple[int, int]
+    robot_label: str
+    flipper_label: str
+    flipper_angle: float
+    robot: Robot
+
+
+class Block(NamedTuple):
+    """One stored chunk: a variant and a slope x heading rectangle of cells.
+
+    Attributes:
+        variant: (robot index, flipper index).
+        slope: slice of slope indices.
+        heading: slice of heading indices.
+        block: (slope block, heading block) index of the chunk.
+    """
+
+    variant: tuple[int, int]
+    slope: slice
+    heading: slice
+    block: tuple[int, int]
+
+    @property
+    def cells(self) -> int:
+        """Cells in the chunk."""
+        return (self.slope.stop - self.slope.start) * (self.heading.stop - self.heading.start)
+
+
+@dataclass(frozen=True)
+class AtlasSpec:
+    """A validated atlas.
+
+    Attributes:
+        path: the problem file (for error messages).
+        variants: robot x flipper variants, row-major (robot slowest).
+        robot_labels: the robot coordinate values.
+        flipper_labels: the flipper coordinate values.
+        slopes: slope axis [rad], increasing.
+        headings: heading axis [rad], increasing, spanning less than a full turn.
+        chunks: cells per chunk along (slope, heading).
+        margin: the envelope's threshold on mu [N rad].
+        settings: the problem's planner settings (its seed seeds every cell).
+        workspace_grid: the problem's workspace grid (joint samples).
+        planner_section: the problem's ``planner`` section as validated (for the key).
+    """
+
+    path: Path
+    variants: tuple[Variant, ...]
+    robot_labels: tuple[str, ...]
+    flipper_labels: tuple[str, ...]
+    slopes: FloatArray
+    headings: FloatArray
+    chunks: tuple[int, int]
+    margin: float
+    settings: PlannerSettings
+    workspace_grid: tuple[int, ...]
+    planner_section: dict[str, Any]
+
+    @property
+    def shape(self) -> tuple[int, int, int, int]:
+        """(robots, flippers, slopes, headings)."""
+        return (
+            len(self.robot_labels),
+            len(self.flipper_labels),
+            len(self.slopes),
+            len(self.headings),
+        )
+
+    @property
+    def cells(self) -> int:
+        """Number of cells."""
+        return int(np.prod(self.shape))
+
+    @property
+    def block_shape(self) -> tuple[int, int]:
+        """Number of chunks along (slope, heading)."""
+        return (
+            -(-len(self.slopes) // self.chunks[0]),
+            -(-len(self.headings) // self.chunks[1]),
+        )
+
+    def variant(self, index: tuple[int, int]) -> Variant:
+        """The variant at (robot index, flipper index)."""
+        return self.variants[index[0] * len(self.flipper_labels) + index[1]]
+
+    def blocks(self) -> list[Block]:
+        """Every chunk, variant by variant, slope blocks then heading blocks."""
+        out = []
+        cs, ch = self.chunks
+        nb_s, nb_h = self.block_shape
+        for v in self.variants:
+            for bs, bh in itertools.product(range(nb_s), range(nb_h)):
+                out.append(
+                    Block(
+                        variant=v.position,
+                        slope=slice(bs * cs, min((bs + 1) * cs, len(self.slopes))),
+                        heading=slice(bh * ch, min((bh + 1) * ch, len(self.headings))),
+                        block=(bs, bh),
+                    )
+                )
+        return out
+
+    def key(self) -> str:
+        """Hash of everything a cell's numbers depend on (a store resumes only its own)."""
+        data = {
+            "version": ATLAS_VERSION,
+            "variants": [
+                (v.robot_label, v.flipper_label, v.flipper_angle, v.robot.source_hash)
+                for v in self.variants
+            ],
+            "slopes": self.slopes.tolist(),
+            "headings": self.headings.tolist(),
+            "chunks": list(self.chunks),
+            "planner": self.planner_section,
+            "workspace_grid": list(self.workspace_grid),
+        }
+        return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:20]
+
+
+# ------------------------------------------------------------------------------------- axes
+def axis_values(path: Path, field: str, node: Any, periodic: bool = False) -> FloatArray:
+    """Values of an axis: a list, or ``{start, stop, num}`` evenly spaced with both ends.
+
+    A periodic axis (heading) whose range spans exactly one turn omits its end, which is
+    the same heading as its start.
+    """
+    if isinstance(node, list):
+        return np.array(node, dtype=float)
+    start, stop, num = float(node["start"]), float(node["stop"]), int(node["num"])
+    if num == 1:
+        return np.array([start])
+    if stop <= start:
+        raise ConfigError(path, f"{field}.stop", f"must be above start ({start})")
+    full_turn = periodic and math.isclose(stop - start, 2 * math.pi, abs_tol=1e-9)
+    return np.linspace(start, stop, num, endpoint=not full_turn)
+
+
+def _increasing(path: Path, field: str, values: FloatArray) -> None:
+    if np.any(np.diff(values) <= 0):
+        raise ConfigError(path, field, "values must be strictly increasing")
+
+
+def flipper_ground_angle(robot: Robot) -> float:
+    """The flipper angle [rad] at which the lowest flipper corner touches the ground.
+
+    Lowered from the file's angle (bisection on the lowest corner's height); the file's
+    angle itself if the flippers already touch.
+    """
+
+    def lowest(angle: float) -> float:
+        return float(
+            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
+        )
+
+    hi = robot.base.flippers.angle
+    if lowest(hi) <= FLIPPER_CONTACT_TOL:
+        return hi
+    lo = -math.pi / 2
+    if lowest(lo) > 0:
+        raise MmstabError(f"robot {robot.name}: the flippers cannot reach the ground")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if lowest(mid) < 0 else (lo, mid)
+    return hi  # the side where the lowest corner is at or just above the ground
+
+
+def with_flipper_angle(robot: Robot, angle: float) -> Robot:
+    """The robot with its flippers at ``angle`` [rad]; a new ``source_hash`` if it changed."""
+    if angle == robot.base.flippers.angle:
+        return robot
+    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
+    base = dataclasses.replace(robot.base, flippers=flippers)
+    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={angle!r}".encode()).hexdigest()
+    return dataclasses.replace(robot, base=base, source_hash=digest)
+
+
+def _robots(problem: Problem, axes: dict[str, Any]) -> list[tuple[str, Robot]]:
+    if "robots" not in axes:
+        return [(problem.robot.name, problem.robot)]
+    out: list[tuple[str, Robot]] = []
+    for i, rel in enumerate(axes["robots"]):
+        p = (problem.path.parent / rel).resolve()
+        if not p.is_file():
+            raise ConfigError(problem.path, f"atlas.axes.robots[{i}]", f"no robot file at {p}")
+        robot = load_robot(p)
+        label = robot.name if robot.name not in [n for n, _ in out] else Path(rel).stem
+        if label in [n for n, _ in out]:
+            raise ConfigError(problem.path, f"atlas.axes.robots[{i}]", f"{rel} is listed twice")
+        out.append((label, robot))
+    return out
+
+
+def _variants(
+    problem: Problem, robots: list[tuple[str, Robot]], entries: list[Any]
+) -> tuple[tuple[Variant, ...], tuple[str, ...]]:
+    labels = []
+    for e in entries:
+        label = e if isinstance(e, str) else f"{float(e):g}"
+        if label in labels:
+            raise ConfigError(problem.path, "atlas.axes.flipper_angle", f"{label} is listed twice")
+        labels.append(label)
+    variants = []
+    for (ri, (rlabel, robot)), (fi, e) in itertools.product(enumerate(robots), enumerate(entries)):
+        field = f"atlas.axes.flipper_angle[{fi}]"
+        if e == "robot":
+            angle = robot.base.flippers.angle
+        elif e == "ground":
+            try:
+                angle = flipper_ground_angle(robot)
+            except MmstabError as exc:
+                raise ConfigError(problem.path, field, str(exc)) from None
+        else:
+            angle = float(e)
+        variant = with_flipper_angle(robot, angle)
+        low = float(variant.base.flippers.box("left").corners()[:, 2].min())
+        if low < -FLIPPER_CONTACT_TOL:
+            raise ConfigError(
+                problem.path,
+                field,
+                f"{angle} rad puts the flippers of {rlabel} {-low:.3f} m below the ground "
+                f"(use 'ground' for the angle at which they touch it)",
+            )
+        variants.append(Variant((ri, fi), rlabel, labels[fi], float(angle), variant))
+    return tuple(variants), tuple(labels)
+
+
+def atlas_spec(problem: Problem) -> AtlasSpec:
+    """Check the problem's ``atlas`` section beyond its schema and build the atlas.
+
+    Raises:
+        ConfigError: naming the problem file and the field (missing section, an axis
+            not available yet, decreasing values, flippers below the ground, too many cells).
+    """
+    path = problem.path
+    if "atlas" not in problem.data:
+        raise ConfigError(path, "atlas", "missing section (see docs/atlas.md)")
+    sec = problem.section("atlas")
+    axes = sec["axes"]
+    for name, why in NOT_AVAILABLE.items():
+        if name in axes:
+            raise ConfigError(path, f"atlas.axes.{name}", why)
+    if "slope" not in axes and "slope" not in problem.section("terrain"):
+        raise ConfigError(path, "atlas.axes.slope", "required: the problem's terrain is no ramp")
+    slopes = (
+        axis_values(path, "atlas.axes.slope", axes["slope"])
+        if "slope" in axes
+        else np.array([float(problem.section("terrain")["slope"])])
+    )
+    _increasing(path, "atlas.axes.slope", slopes)
+    if slopes.min() < 0 or slopes.max() > MAX_SLOPE:
+        raise ConfigError(path, "atlas.axes.slope", f"slopes must lie in [0, {MAX_SLOPE}] rad")
+    headings = (
+        axis_values(path, "atlas.axes.heading", axes["heading"], periodic=True)
+        if "heading" in axes
+        else np.zeros(1)
+    )
+    _increasing(path, "atlas.axes.heading", headings)
+    if headings[-1] - headings[0] >= 2 * math.pi - 1e-9:
+        raise ConfigError(path, "atlas.axes.heading", "headings must span less than one turn")
+    robots = _robots(problem, axes)
+    variants, flipper_labels = _variants(problem, robots, axes.get("flipper_angle", ["robot"]))
+    spec = AtlasSpec(
+        path=path,
+        variants=variants,
+        robot_labels=tuple(label for label, _ in robots),
+        flipper_labels=flipper_labels,
+        slopes=slopes,
+        headings=headings,
+        chunks=(int(sec["chunks"]["slope"]), int(sec["chunks"]["heading"])),
+        margin=float(sec["margin"]),
+        settings=PlannerSettings.from_section(problem.section("planner")),
+        workspace_grid=tuple(int(n) for n in problem.section("workspace")["grid"]),
+        planner_section=dict(problem.section("planner")),
+    )
+    if spec.cells > MAX_CELLS:
+        raise ConfigError(path, "atlas.axes", f"{spec.cells} cells; at most {MAX_CELLS}")
+    return spec
