@@ -18,15 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.robot import FloatArray
 from mmstab.runstore import Run
 from mmstab.stability import mu_max
 from mmstab.viewer.ground import (
-    extent_around,
-    grid_lines,
-    polyline_segments,
     problem_ground,
-    terrain_mesh,
 )
 from mmstab.viewer.scene import (
     ARM_MODES,
@@ -37,8 +32,8 @@ from mmstab.viewer.scene import (
     polygon_fan,
     robot_body_meshes,
     route_points,
-    targets_G,
 )
+from mmstab.viewer.static import _wrap, _wrap_pose, add_static_scene, wxyz
 
 #: Scene nodes the viewer always adds (the run adds ``/route/travelled`` and ``/plan/...``).
 NODES = (
@@ -63,10 +58,6 @@ NODES = (
 )
 #: Nodes added with a run.
 RUN_NODES = ("/route/travelled", "/plan/arm_com_targets")
-#: Colour of the planned arm-CoM targets.
-TARGET_RGB = (190, 0, 170)
-#: Margin of the terrain patch around the route [m].
-TERRAIN_MARGIN = 1.0
 #: Playback speeds offered (run seconds per wall-clock second).
 SPEEDS = ("0.25x", "0.5x", "1x", "2x", "5x")
 #: The support polygon and the CoM's projection are drawn this far above the ground [m].
@@ -75,13 +66,6 @@ SUPPORT_LIFT = 3e-3
 BASE_OPACITY = 0.45
 #: Playback frame period [s].
 FRAME_S = 0.05
-
-
-def wxyz(R: FloatArray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (3, 3)."""
-    from viser import transforms
-
-    return np.asarray(transforms.SO3.from_matrix(np.asarray(R, dtype=float)).wxyz)
 
 
 class Viewer:
@@ -152,42 +136,7 @@ class Viewer:
     def _build_scene(self) -> None:
         scene: Any = self.server.scene
         problem, ground = self.problem, self.ground
-        scene.set_up_direction("+z")
-        # plain lights, no environment map: its image-based lighting takes seconds to set
-        # up in software WebGL (remote desktops, CI) and washes out the terrain's colours
-        scene.configure_environment_map(hdri=None)
-        scene.add_light_hemisphere(
-            "/lights/sky", sky_color=(255, 255, 255), ground_color=(120, 110, 100), intensity=2.0
-        )
-        reference = problem.circle.poses(240)
-        poses_for_extent = reference if self.run is None else np.vstack([reference, self.run.poses])
-        self.extent = extent_around(poses_for_extent, TERRAIN_MARGIN)
-        mesh = terrain_mesh(ground, self.extent)
-        import trimesh
-
-        tm = trimesh.Trimesh(mesh.vertices, mesh.faces, vertex_colors=mesh.colors, process=False)
-        scene.add_mesh_trimesh("/terrain", tm, cast_shadow=False)
-        scene.add_line_segments(
-            "/terrain/grid", grid_lines(ground, self.extent), (150, 150, 140), thickness=0.004
-        )
-        loop = route_points(ground, np.vstack([reference, reference[:1]]))
-        scene.add_line_segments(
-            "/route/reference", polyline_segments(loop), (70, 70, 70), thickness=0.012
-        )
-        if self.run is not None:
-            travelled = route_points(ground, self.run.poses)
-            scene.add_line_segments(
-                "/route/travelled", polyline_segments(travelled), (31, 119, 180), thickness=0.012
-            )
-            plan_poses = problem.circle.pose_at(self.run.plan_fractions)
-            targets = targets_G(ground, plan_poses, self.run.plan_target_com)
-            scene.add_point_cloud(
-                "/plan/arm_com_targets",
-                targets.astype(np.float32),
-                TARGET_RGB,
-                point_size=0.04,
-                point_shape="circle",
-            )
+        self.extent, reference = add_static_scene(self.server, problem, ground, self.run)
         self._robot = scene.add_frame("/robot", show_axes=False)
         self._links: list[Any] = []
         self._base_bodies: list[Any] = []
@@ -455,11 +404,3 @@ class Viewer:
                 shown = max(int(np.searchsorted(t, clock, side="right")) - 1, 0)
                 if shown != self.index:
                     self.show_sample(shown)
-
-
-def _wrap(angle: float) -> float:
-    return float(np.pi - np.mod(np.pi - angle, 2 * np.pi))
-
-
-def _wrap_pose(pose: FloatArray) -> FloatArray:
-    return np.array([pose[0], pose[1], _wrap(pose[2])])
