@@ -143,18 +143,7 @@ class Heightmap:
         inside = (u >= -eps) & (u <= nx - 1 + eps) & (v >= -eps) & (v <= ny - 1 + eps)
         ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
         iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
-        fx, fy = u - ix, v - iy
-        flat = self.elevation.ravel()
-        k = iy * nx + ix
-        h00, h10 = flat[k], flat[k + 1]
-        h01, h11 = flat[k + nx], flat[k + nx + 1]
-        ax = h10 - h00
-        bx = h11 - h01
-        low = h00 + fx * ax
-        high = h01 + fx * bx
-        height = low + fy * (high - low)
-        dh_dx = (ax + fy * (bx - ax)) / self.resolution
-        dh_dy = (high - low) / self.resolution
+        height, dh_dx, dh_dy = self._bilinear(u, v, ix, iy)
         valid = inside & np.isfinite(height)
         if not valid.all():
             bad = ~valid
@@ -186,24 +175,28 @@ class Heightmap:
         )
         ix = np.minimum(np.maximum(u, 0.0).astype(np.intp), nx - 2)  # floor for u >= 0
         iy = np.minimum(np.maximum(v, 0.0).astype(np.intp), ny - 2)
+        height, dh_dx, dh_dy = self._bilinear(u, v, ix, iy)
+        valid &= np.isfinite(height.sum(axis=1))
+        return height, dh_dx, dh_dy, valid
+
+    def _bilinear(
+        self, u: FloatArray, v: FloatArray, ix: NDArray[np.intp], iy: NDArray[np.intp]
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Bilinear height [m] and slopes d/dx, d/dy at grid coordinates ``u``, ``v`` [cells].
+
+        ``ix``, ``iy`` are the lower-left cells of the points (clipped into the map).
+        """
+        nx = self.shape[1]
         fx, fy = u - ix, v - iy
         flat = self.elevation.ravel()
         k = iy * nx + ix
         h00, h10 = flat[k], flat[k + 1]
         h01, h11 = flat[k + nx], flat[k + nx + 1]
-        ax = h10 - h00
-        bx = h11 - h01
+        ax, bx = h10 - h00, h11 - h01
         low = h00 + fx * ax
-        high = h01 + fx * bx
-        dy = high - low
-        height = low + fy * dy
-        valid &= np.isfinite(height.sum(axis=1))
-        return (
-            height,
-            (ax + fy * (bx - ax)) * (1.0 / self.resolution),
-            dy * (1.0 / self.resolution),
-            valid,
-        )
+        dy = h01 + fx * bx - low
+        inv = 1.0 / self.resolution
+        return low + fy * dy, (ax + fy * (bx - ax)) * inv, dy * inv
 
     def check(self, sample: HeightSample, xy: ArrayLike, what: str = "point") -> None:
         """Raise :class:`OffMapError` naming the first invalid point of ``sample``."""
