@@ -208,7 +208,7 @@ def full_run(tiny_problem, cluster, tmp_path_factory):
         assert main(argv) == 0
     import xarray as xr
 
-    ds = xr.open_zarr(out / "atlas.zarr", consolidated=False).load()
+    ds = xr.open_zarr(out / "atlas.zarr", consolidated=False, chunks=None).load()
     return out, ds, quiet_counts(client) - before
 
 
@@ -261,7 +261,9 @@ def test_interrupted_run_resumes_to_the_same_store(full_run, tiny_problem, clust
             workspace_cache=tmp_path,
             on_chunk=stop_after_three,
         )
-    with xr.open_zarr(tmp_path / "atlas.zarr", consolidated=False) as ds:  # a valid store
+    with xr.open_zarr(
+        tmp_path / "atlas.zarr", consolidated=False, chunks=None
+    ) as ds:  # a valid store
         done = ds["chunk_done"].values.astype(bool)
     assert done.sum() == 3 and not (tmp_path / "summary.json").exists()
     missing_cells = sum(b.cells for b in atlas_spec(tiny_problem).blocks()) - sum(
@@ -272,7 +274,7 @@ def test_interrupted_run_resumes_to_the_same_store(full_run, tiny_problem, clust
     assert quiet_counts(client) - before == missing_cells  # no stored cell computed again
     assert s["run"]["cells_computed"] == missing_cells
     assert s["run"]["cells_already_stored"] == 24 - missing_cells
-    with xr.open_zarr(tmp_path / "atlas.zarr", consolidated=False) as ds:
+    with xr.open_zarr(tmp_path / "atlas.zarr", consolidated=False, chunks=None) as ds:
         for n in ("mu_planned", "mu_stowed", "mu_arm_removed", "arm_com", "chunk_done"):
             np.testing.assert_array_equal(ds[n].values, reference[n].values, err_msg=n)
     # a third run finds nothing to do

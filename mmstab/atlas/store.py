@@ -144,7 +144,9 @@ class AtlasStore:
 
     def open(self) -> Any:
         """The store as a lazy ``xarray.Dataset``."""
-        return _xr().open_zarr(self.path, consolidated=False)
+        # chunks=None: plain lazy arrays, read here; dask arrays would be computed on the
+        # active distributed client, whose workers may be busy or gone (seen to hang)
+        return _xr().open_zarr(self.path, consolidated=False, chunks=None)
 
     def check(self) -> None:
         """Raise unless the store was made by this atlas (same ``atlas_key``)."""
