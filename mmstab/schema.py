@@ -115,6 +115,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             coarse_seeds=INT_POS,
             sigma0_unit={"enum": ["m", "diameter"]},
             restarts={"type": "integer", "minimum": 0, "maximum": 8},
+            turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
     ),
@@ -165,6 +166,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "coarse_seeds": 1,
         "sigma0_unit": "m",
         "restarts": 0,
+        "turret_window": None,
     },
     "workspace": {"method": "hull_difference"},
 }

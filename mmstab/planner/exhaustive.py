@@ -13,7 +13,7 @@ import weakref
 from typing import Any, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from mmstab.planner.fitness import Fitness, linear_fitness, region_samples
@@ -83,8 +83,12 @@ def best_mu(robot: Robot, gravity_body: ArrayLike, samples: ArrayLike) -> tuple[
 def coarse_samples(samples: ArrayLike, count: int) -> FloatArray:
     """Every k-th sample, k chosen so that about ``count`` of them remain (M, 3) [m]."""
     pts = np.asarray(samples, dtype=float).reshape(-1, 3)
-    stride = max(1, -(-len(pts) // max(int(count), 1)))
-    return pts[::stride]
+    return pts[:: coarse_stride(len(pts), count)]
+
+
+def coarse_stride(total: int, count: int) -> int:
+    """The stride that leaves about ``count`` of ``total`` samples."""
+    return max(1, -(-total // max(int(count), 1)))
 
 
 class SampleIndex(NamedTuple):
@@ -113,7 +117,13 @@ def sample_index(region: Any) -> SampleIndex:
 
 
 def coarse_seeds(
-    fitness: Fitness, index: SampleIndex, count: int, basins: int, neighbours: int, seeds: int
+    fitness: Fitness,
+    index: SampleIndex,
+    count: int,
+    basins: int,
+    neighbours: int,
+    seeds: int,
+    allowed: NDArray[np.bool_] | None = None,
 ) -> FloatArray:
     """CMA-ES start means from a coarse evaluation of Eq. 6 over V's samples (S, 3) [m].
 
@@ -125,12 +135,16 @@ def coarse_seeds(
         neighbours: each optimum moves to the best of its ``neighbours`` nearest samples
             (0: no refinement).
         seeds: how many of the refined optima to return, best first.
+        allowed: which of the samples may be chosen (M,) (``planner.turret_window``);
+            default all.
 
     Greedy: the best coarse sample, then the best one at least ``SEED_SEPARATION`` times
     V's diameter from every one taken so far, and so on; then the local refinement (V's
     optima lie in its thin corners, which a strided subset reaches only nearby).
     """
     pts = coarse_samples(index.samples, count)
+    if allowed is not None:  # the same stride, then only the allowed samples
+        pts = pts[allowed[:: coarse_stride(len(index.samples), count)]]
     linear = fitness.linear()
     values = linear(pts)
     alive = np.ones(len(pts), dtype=bool)
@@ -146,6 +160,8 @@ def coarse_seeds(
         _, idx = index.tree.query(out, k=k)
         idx = np.asarray(idx).reshape(len(out), k)
         local = linear(index.samples[idx.ravel()]).reshape(idx.shape)
+        if allowed is not None:
+            local = np.where(allowed[idx], local, -np.inf)
         out = index.samples[idx[np.arange(len(out)), np.argmax(local, axis=1)]]
     _, first = np.unique(out, axis=0, return_index=True)
     out = out[np.sort(first)]

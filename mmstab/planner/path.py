@@ -36,6 +36,14 @@ from mmstab.planner.exhaustive import (
 from mmstab.planner.fitness import CoMRegion, pose_fitness, region_samples
 from mmstab.planner.regions import planning_region
 from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.turret import (
+    Window,
+    WindowedRegion,
+    sample_postures,
+    sample_turret,
+    turret_window,
+    windowed_region,
+)
 from mmstab.problem import Problem
 from mmstab.robot import FloatArray, Robot
 from mmstab.stability import mu_max as stowed_flat_mu
@@ -61,6 +69,8 @@ class PoseTarget(NamedTuple):
         exhaustive: the exhaustive result (``method: exhaustive``), else None.
         fallback: no collision-free posture realised the search's answer, so the best of
             V's samples near it replaced it (:func:`solve_path`).
+        window: the turret angles the pose could choose from [rad]
+            (``planner.turret_window``), else None.
     """
 
     pose: FloatArray
@@ -72,6 +82,7 @@ class PoseTarget(NamedTuple):
     seconds: float
     exhaustive: ExhaustiveResult | None = None
     fallback: bool = False
+    window: Window | None = None
 
 
 def gravity_body_at(terrain: Terrain, poses: ArrayLike) -> FloatArray:
@@ -112,6 +123,8 @@ def solve_pose(
     rng: np.random.Generator,
     mu_max: float | None = None,
     starts: FloatArray | None = None,
+    previous_q: ArrayLike | None = None,
+    closing_q: ArrayLike | None = None,
 ) -> PoseTarget:
     """Best arm CoM at one base pose: CMA-ES from each start mean (best run kept) or exhaustive.
 
@@ -126,9 +139,20 @@ def solve_pose(
         mu_max: normaliser [N rad]; default: flat ground, arm stowed.
         starts: CMA-ES start means (S, 3) [m]; default :func:`start_coms` of
             ``settings.starts``, or the coarse seeds with ``seeding: coarse``.
+        previous_q: the previous pose's posture [rad]; with ``settings.turret_window``
+            the search keeps link0 within the window of its link0 (``mmstab.planner.turret``).
+        closing_q: the first pose's posture [rad] when this is the last pose of a closed
+            path (the window then also keeps link0 near its link0).
     """
     t0 = time.perf_counter()
     pose = np.asarray(pose, dtype=float)
+    window = None
+    if settings.turret_window is not None and previous_q is not None:
+        first = None if closing_q is None else float(np.asarray(closing_q, dtype=float)[0])
+        window = turret_window(
+            float(np.asarray(previous_q, dtype=float)[0]), settings.turret_window, first
+        )
+        region = windowed_region(region, window)
     fitness = pose_fitness(
         robot,
         gravity_body_at(terrain, pose)[0],
@@ -148,17 +172,19 @@ def solve_pose(
             best_start=-1,
             seconds=time.perf_counter() - t0,
             exhaustive=ex,
+            window=window,
         )
     coarse = settings.seeding == "coarse"
     if starts is None:
         if coarse:
             starts = coarse_seeds(
                 fitness,
-                sample_index(region),
+                region.index if isinstance(region, WindowedRegion) else sample_index(region),
                 settings.coarse_samples,
                 settings.coarse_basins,
                 settings.coarse_neighbours,
                 settings.coarse_seeds,
+                region.allowed if isinstance(region, WindowedRegion) else None,
             )
         else:
             starts = start_coms(robot, region, settings.starts)
@@ -178,6 +204,7 @@ def solve_pose(
         runs=runs,
         best_start=best,
         seconds=time.perf_counter() - t0,
+        window=window,
     )
 
 
@@ -196,7 +223,9 @@ def _fall_back_to_a_sample(
 
     V's samples are CoMs of collision-free grid postures, so each is realisable; the one
     with the best Eq. 6 fitness among the ``FALLBACK_NEIGHBOURS`` samples nearest to the
-    target replaces it (``PoseTarget.fallback``). Without samples the target stays.
+    target replaces it (``PoseTarget.fallback``). Without samples the target stays. With a
+    turret window (``target.window``) only samples in it count, and when IK from the
+    previous posture still leaves the window, the sample's own grid posture is taken.
     """
     try:
         index = sample_index(region)
@@ -205,7 +234,13 @@ def _fall_back_to_a_sample(
         return target, q, ok
     k = min(FALLBACK_NEIGHBOURS, len(index.samples))
     _, idx = index.tree.query(target.target_com, k=k)
-    near = index.samples[np.atleast_1d(idx)]
+    rows = np.atleast_1d(idx)
+    if target.window is not None:
+        turret = sample_turret(region)
+        rows = rows[target.window.contains(turret[rows])]
+        if len(rows) == 0:  # no neighbour in the window: the window's samples
+            rows = np.flatnonzero(target.window.contains(turret))
+    near = index.samples[rows]
     fitness = pose_fitness(
         robot,
         gravity_body_at(terrain, target.pose)[0],
@@ -217,6 +252,8 @@ def _fall_back_to_a_sample(
     values = fitness(near)
     best = int(np.argmax(values))
     q, ok = realise(near[best], previous_q)
+    if target.window is not None and not (ok and target.window.contains(q[0])):
+        q, ok = sample_postures(region)[rows[best]].copy(), True
     replaced = target._replace(
         target_com=near[best].copy(),
         fitness=float(values[best]),
@@ -257,6 +294,7 @@ def solve_path(
     poses: ArrayLike,
     settings: PlannerSettings,
     realise: Callable[[FloatArray, FloatArray], tuple[FloatArray, bool]] | None = None,
+    closed: bool = False,
 ) -> Plan:
     """Plan poses in sequence, each penalised against the previous target (Eq. 6).
 
@@ -268,24 +306,47 @@ def solve_path(
         settings: planner settings (its ``seed`` seeds the planner's generator).
         realise: ``(target_com, previous_posture) -> (posture, collision_free)``; default
             none: postures are NaN (CMA only, e.g. for benchmarks).
+        closed: the path is a loop (the circle): with ``settings.turret_window`` the last
+            pose's turret is also kept near the first pose's.
+
+    With ``settings.turret_window``, every pose after the first keeps link0 within the
+    window of the previous pose's (the realised posture's link0; without ``realise``, the
+    link0 of the target's nearest sample of V).
     """
     poses = np.asarray(poses, dtype=float)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
     previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
+    windowed = settings.turret_window is not None
     targets, postures, free = [], [], []
-    for pose in poses:
-        t = solve_pose(robot, terrain, region, pose, previous_com, settings, rng, mu_max, starts)
+    turret_q: FloatArray | None = None  # the previous pose's posture, for the window
+    first_q: FloatArray | None = None
+    for k, pose in enumerate(poses):
+        closing = first_q if closed and k == len(poses) - 1 else None
+        t = solve_pose(
+            robot, terrain, region, pose, previous_com, settings, rng, mu_max, starts,
+            previous_q=turret_q, closing_q=closing,
+        )  # fmt: skip
         if realise is not None:
             q, ok = realise(t.target_com, previous_q)
-            if not (ok and np.linalg.norm(robot.arm_com(q) - t.target_com) <= REALISE_TOL):
+            if not (
+                ok
+                and np.linalg.norm(robot.arm_com(q) - t.target_com) <= REALISE_TOL
+                and (t.window is None or t.window.contains(q[0]))
+            ):
                 t, q, ok = _fall_back_to_a_sample(
                     robot, terrain, region, t, previous_com, settings, mu_max, realise, previous_q
                 )
             previous_q = q
+            turret_q = q
         else:
             q, ok = np.full(4, np.nan), False
+            if windowed:
+                _, row = sample_index(region).tree.query(t.target_com)
+                turret_q = sample_postures(region)[int(row)]
+        if windowed and first_q is None:
+            first_q = turret_q
         targets.append(t)
         previous_com = t.target_com
         postures.append(q)
@@ -328,4 +389,6 @@ def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -
     settings = PlannerSettings.from_section(problem.section("planner"))
     solver = PostureSolver(problem.robot, ws)
     poses = problem.circle.poses(settings.poses)
-    return solve_path(problem.robot, problem.terrain, region, poses, settings, solver.realise)
+    return solve_path(
+        problem.robot, problem.terrain, region, poses, settings, solver.realise, closed=True
+    )

@@ -1,7 +1,7 @@
 """The ``planner`` section of a problem: settings of Eq. 6 and of the search.
 
 Keys added after the first release (``method``, ``seeding``, ``coarse_*``,
-``sigma0_unit``, ``restarts``) may be omitted from a problem file; their defaults
+``sigma0_unit``, ``restarts``, ``turret_window``) may be omitted from a problem file; their defaults
 (``mmstab.schema.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
 plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable search
 (``docs/planner.md``).
@@ -45,6 +45,8 @@ class PlannerSettings(NamedTuple):
             diameter).
         restarts: IPOP restarts per start: each reruns CMA-ES from the same start with the
             population doubled; the best run is kept.
+        turret_window: largest change of link0 (the turret) between consecutive planned
+            poses [rad]; None: unbounded (``mmstab.planner.turret``).
     """
 
     w_stability: float
@@ -66,6 +68,7 @@ class PlannerSettings(NamedTuple):
     coarse_seeds: int
     sigma0_unit: str
     restarts: int
+    turret_window: float | None = None
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -91,6 +94,7 @@ class PlannerSettings(NamedTuple):
             coarse_seeds=int(cfg["coarse_seeds"]),
             sigma0_unit=str(cfg["sigma0_unit"]),
             restarts=int(cfg["restarts"]),
+            turret_window=None if cfg["turret_window"] is None else float(cfg["turret_window"]),
         )
 
     def sigma0_metres(self, diameter: float) -> float:
