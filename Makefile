@@ -91,6 +91,11 @@ fig8: setup
 plan-reliable: setup
 	$(MMSTAB) fig8 problems/ramp_reliable.yaml -o results/fig8_reliable
 
+## the paper's search (CMA-ES from two starts, the first release's default) on the same lap
+.PHONY: plan-paper
+plan-paper: setup
+	$(MMSTAB) fig8 problems/ramp_paper.yaml -o results/fig8_paper
+
 bench-plan: setup
 	$(PY) benchmarks/plan.py $(PROBLEM)
 

@@ -107,7 +107,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             tol_x=POS,
             max_resample=INT_POS,
             seed=SEED,
-            method={"enum": ["cmaes", "exhaustive"]},
+            method={"enum": ["cmaes", "exhaustive", "sequence"]},
             seeding={"enum": ["starts", "coarse"]},
             coarse_samples={"type": "integer", "minimum": 16},
             coarse_basins=INT_POS,
@@ -116,6 +116,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             sigma0_unit={"enum": ["m", "diameter"]},
             restarts={"type": "integer", "minimum": 0, "maximum": 8},
             turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
+            sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
     ),
@@ -167,6 +168,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "sigma0_unit": "m",
         "restarts": 0,
         "turret_window": None,
+        "sequence_candidates": 256,
     },
     "workspace": {"method": "hull_difference"},
 }

@@ -64,6 +64,7 @@ FIRST_RELEASE_PLANNER = {
     "popsize": 16,
     "max_iterations": 20,
     "restarts": 0,
+    "turret_window": None,
 }
 
 

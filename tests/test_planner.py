@@ -40,7 +40,7 @@ def _settings(problem, **changes):
 
 def test_same_seed_same_plan_and_global_state_untouched(coarse):
     problem, ws = coarse
-    s = _settings(problem, poses=3)
+    s = _settings(problem, poses=3, method="cmaes", turret_window=None)
     poses = problem.circle.poses(3)
     np.random.seed(99)  # noqa: NPY002 - the global state must stay untouched
     before = np.random.get_state()[1].copy()  # noqa: NPY002
@@ -116,7 +116,7 @@ class _Nowhere:
 
 def test_no_sample_in_V_is_a_clear_error(coarse):
     problem, _ = coarse
-    s = _settings(problem, max_resample=5, seeding="starts")
+    s = _settings(problem, max_resample=5, seeding="starts", method="cmaes", turret_window=None)
     with pytest.raises(MmstabError, match="no CMA-ES sample fell in the workspace V"):
         solve_pose(
             problem.robot,

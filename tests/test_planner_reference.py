@@ -28,6 +28,7 @@ COARSE = [10, 8, 8, 8]
 RANDOM_POSES = 40
 MAX_SLOPE = 0.4  # [rad]
 RELIABLE_YAML = PROBLEMS / "ramp_reliable.yaml"
+PAPER_YAML = PROBLEMS / "ramp_paper.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -47,8 +48,11 @@ def reliable_settings():
 
 
 def _settings(problem, ws, **changes):
-    """The reliable search, its coarse pass scaled to the coarse grid's V."""
-    s = reliable_settings()
+    """The reliable search without turret window, its coarse pass scaled to the coarse V.
+
+    (The windowed search is measured against the windowed reference in test_turret_window.)
+    """
+    s = reliable_settings()._replace(turret_window=None)
     n = len(ws.valid_com_in_V)
     return s._replace(coarse_samples=max(n // 8, 16), coarse_neighbours=32)._replace(**changes)
 
@@ -68,20 +72,23 @@ def _random_cases(problem, ws, n, seed):
 def test_reliable_problem_uses_the_new_search_and_old_files_the_old_one(tmp_path, problem):
     s = reliable_settings()
     assert (s.method, s.seeding, s.sigma0_unit) == ("cmaes", "coarse", "diameter")
-    # the default problem keeps the paper's search (its plan is what the tracked lap follows)
+    # the default problem plans the whole lap at once; ramp_paper.yaml keeps the paper's search
     d = PlannerSettings.from_section(problem.section("planner"))
-    assert (d.method, d.seeding, d.starts, d.sigma0, d.popsize) == (
+    assert (d.method, d.turret_window) == ("sequence", 0.8)
+    paper = PlannerSettings.from_section(load_problem(PAPER_YAML).section("planner"))
+    assert (paper.method, paper.seeding, paper.starts, paper.sigma0, paper.popsize) == (
         "cmaes",
         "starts",
         (2.0, 5.0),
         0.05,
         16,
     )
-    # the two problem files differ in the planner section alone
+    # the three problem files differ in the planner section alone
     import yaml
 
-    a, b = (yaml.safe_load(f.read_text()) for f in (RAMP_YAML, RELIABLE_YAML))
+    a, b, c = (yaml.safe_load(f.read_text()) for f in (RAMP_YAML, RELIABLE_YAML, PAPER_YAML))
     assert {k for k in a if a[k] != b[k]} == {"planner"}
+    assert {k for k in a if a[k] != c[k]} == {"planner"}
 
     def old(p, r):  # the first release's planner section: none of the new keys
         for key in (
@@ -93,6 +100,8 @@ def test_reliable_problem_uses_the_new_search_and_old_files_the_old_one(tmp_path
             "coarse_seeds",
             "sigma0_unit",
             "restarts",
+            "turret_window",
+            "sequence_candidates",
         ):
             p["planner"].pop(key)
 

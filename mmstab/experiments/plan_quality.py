@@ -1,7 +1,9 @@
 """How good a plan is: against the exhaustive reference and the best achievable stability.
 
 Along the lap of a plan (``results/fig8/``): per planned pose the exhaustive Eq. 6 optimum
-over V's samples at the same previous CoM (the planner's fitness gap), and on a dense set of
+over V's samples at the same previous CoM (the planner's fitness gap; within the pose's
+turret window when the plan has one; for ``method: sequence``, whose previous CoM is its own
+choice, the gap is the price of its joint-space constraints), and on a dense set of
 poses the best force-angle measure mu over V's samples, over every collision-free grid CoM
 (inside V or not: what V's hull difference costs) and with the arm stowed.
 """
@@ -22,6 +24,7 @@ from mmstab.planner import (
     region_samples,
     solve_exhaustive,
 )
+from mmstab.planner.turret import windowed_region
 from mmstab.plotting import new_figure
 from mmstab.problem import Problem
 from mmstab.stability import mu_max, robot_force_angle
@@ -56,9 +59,13 @@ def lap_quality(
     norm = mu_max(robot)
     previous = np.vstack([robot.arm_com(robot.stowed)[None], plan.target_com[:-1]])
     fit_ref, mu_ref, seconds = [], [], []
-    for k in range(len(plan.poses)):
+    for k, target in enumerate(plan.targets):
         fitness = pose_fitness(robot, g[k], previous[k], plan.settings, norm, region.diameter)
-        ex = solve_exhaustive(fitness, samples)
+        # against the exhaustive optimum under the pose's own turret window (if any)
+        window = target.window
+        ex = solve_exhaustive(
+            fitness, samples if window is None else windowed_region(region, window).valid_com_in_V
+        )
         fit_ref.append(ex.best_fitness)
         mu_ref.append(float(fitness.mu(ex.best_com)[0]))
         seconds.append(ex.seconds)

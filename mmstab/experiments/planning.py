@@ -41,6 +41,8 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     robot = problem.robot
     ws = workspace(problem)
     settings = PlannerSettings.from_section(problem.section("planner"))
+    if settings.method == "sequence":  # one pose: the per-pose search the figure shows
+        settings = settings._replace(method="cmaes")
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
     region = planning_region(ws, problem.section("workspace")["method"])

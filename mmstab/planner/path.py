@@ -35,6 +35,7 @@ from mmstab.planner.exhaustive import (
 )
 from mmstab.planner.fitness import CoMRegion, pose_fitness, region_samples
 from mmstab.planner.regions import planning_region
+from mmstab.planner.sequence import solve_sequence
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turret import (
     Window,
@@ -161,7 +162,7 @@ def solve_pose(
         stowed_flat_mu(robot) if mu_max is None else mu_max,
         float(region.diameter),
     )
-    if settings.method == "exhaustive":
+    if settings.method in ("exhaustive", "sequence"):  # sequence: per pose, the reference
         ex = solve_exhaustive(fitness, region_samples(region))
         return PoseTarget(
             pose=pose,
@@ -314,6 +315,8 @@ def solve_path(
     link0 of the target's nearest sample of V).
     """
     poses = np.asarray(poses, dtype=float)
+    if settings.method == "sequence":
+        return _solve_sequence_path(robot, terrain, region, poses, settings, closed)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
@@ -365,6 +368,45 @@ def solve_path(
         realised_com_error=error,
         collision_free=np.array(free, dtype=bool),
         targets=tuple(targets),
+        settings=settings,
+    )
+
+
+def _solve_sequence_path(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    poses: FloatArray,
+    settings: PlannerSettings,
+    closed: bool,
+) -> Plan:
+    """:func:`solve_path` with ``method: sequence``: V's postures, chosen along the path."""
+    t0 = time.perf_counter()
+    mu_max = stowed_flat_mu(robot)
+    seq = solve_sequence(robot, gravity_body_at(terrain, poses), region, settings, mu_max, closed)
+    samples = sample_index(region).samples
+    postures = sample_postures(region)[seq.rows]
+    seconds = (time.perf_counter() - t0) / max(len(poses), 1)
+    targets = tuple(
+        PoseTarget(
+            pose=pose,
+            target_com=samples[row].copy(),
+            fitness=float(seq.fitness[k]),
+            mu=float(seq.mu[k]),
+            runs=(),
+            best_start=-1,
+            seconds=seconds,
+        )
+        for k, (pose, row) in enumerate(zip(poses, seq.rows, strict=True))
+    )
+    return Plan(
+        poses=poses,
+        fractions=np.arange(len(poses)) / len(poses),
+        target_com=samples[seq.rows].copy(),
+        postures=postures,
+        realised_com_error=np.linalg.norm(robot.arm_com(postures) - samples[seq.rows], axis=1),
+        collision_free=np.ones(len(poses), dtype=bool),
+        targets=targets,
         settings=settings,
     )
 

@@ -1,7 +1,8 @@
 """The ``planner`` section of a problem: settings of Eq. 6 and of the search.
 
 Keys added after the first release (``method``, ``seeding``, ``coarse_*``,
-``sigma0_unit``, ``restarts``, ``turret_window``) may be omitted from a problem file; their defaults
+``sigma0_unit``, ``restarts``, ``turret_window``, ``sequence_candidates``) may be omitted
+from a problem file; their defaults
 (``mmstab.schema.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
 plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable search
 (``docs/planner.md``).
@@ -31,8 +32,9 @@ class PlannerSettings(NamedTuple):
         max_resample: re-ask rounds per generation for samples outside V; those still
             outside are then ranked below the feasible ones (see ``ask_generation``).
         seed: seed of the planner's own random generator.
-        method: ``"cmaes"`` (CMA-ES in V) or ``"exhaustive"`` (Eq. 6 over every valid
-            grid CoM inside V, the reference).
+        method: ``"cmaes"`` (CMA-ES in V), ``"exhaustive"`` (Eq. 6 over every valid
+            grid CoM inside V, the reference) or ``"sequence"`` (the whole path at once
+            over V's postures, ``mmstab.planner.sequence``; per pose as exhaustive).
         seeding: ``"starts"`` (the FK CoMs of ``starts``) or ``"coarse"`` (the best
             samples of a coarse evaluation of Eq. 6 over V's samples).
         coarse_samples: how many of V's samples the coarse evaluation scores (evenly
@@ -47,6 +49,8 @@ class PlannerSettings(NamedTuple):
             population doubled; the best run is kept.
         turret_window: largest change of link0 (the turret) between consecutive planned
             poses [rad]; None: unbounded (``mmstab.planner.turret``).
+        sequence_candidates: samples per pose among which ``method: sequence`` chooses
+            (``mmstab.planner.sequence``).
     """
 
     w_stability: float
@@ -69,6 +73,7 @@ class PlannerSettings(NamedTuple):
     sigma0_unit: str
     restarts: int
     turret_window: float | None = None
+    sequence_candidates: int = 256
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -95,6 +100,7 @@ class PlannerSettings(NamedTuple):
             sigma0_unit=str(cfg["sigma0_unit"]),
             restarts=int(cfg["restarts"]),
             turret_window=None if cfg["turret_window"] is None else float(cfg["turret_window"]),
+            sequence_candidates=int(cfg["sequence_candidates"]),
         )
 
     def sigma0_metres(self, diameter: float) -> float:

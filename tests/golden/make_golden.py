@@ -49,6 +49,7 @@ PLANNER = {
     "seeding": "starts",
     "sigma0_unit": "m",
     "restarts": 0,
+    "turret_window": None,
 }
 TRACK_SECONDS = 1.5  #: length of the pinned tracking run [s]
 STEP_STATES = 12  #: fixed states the step is pinned on

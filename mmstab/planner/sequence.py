@@ -1,0 +1,251 @@
+"""The whole path at once: Eq. 6 summed along the path over V's postures (``method: sequence``).
+
+The per-pose planner chooses a CoM; the arm must then move between the chosen CoMs, and
+two good CoMs at neighbouring poses can lie on either side of a flipper or of the turret's
+end stop, which no arm motion between them avoids. ``method: sequence`` chooses one of V's
+samples per pose (each the CoM of a collision-free grid posture, so the posture comes with
+it) to maximise the sum of Eq. 6 along the path,
+
+    Σ_k  w_stability μ_k(g_k) / μ_max − w_motion |g_k − g_{k−1}|² / d²
+
+(g_{−1}: the stowed arm on an open path, the last pose's choice on a closed one),
+
+subject to, between consecutive poses (and, on a closed path, from the last to the first):
+the turret moving at most ``turret_window`` [rad] (when set), and the straight joint-space
+move between the two postures being collision-free. It is Eq. 6 with the previous CoM
+being the path's own choice, solved exactly over each pose's ``sequence_candidates`` best
+samples by dynamic programming (Viterbi). Collision checks are lazy: the best sequence's
+moves are checked, colliding ones are forbidden, and the search repeats (as lazy PRM).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.collision import CollisionChecker
+from mmstab.config import MmstabError
+from mmstab.planner.exhaustive import sample_index
+from mmstab.planner.fitness import CoMRegion, pose_fitness
+from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.turret import sample_postures
+from mmstab.robot import FloatArray, Robot
+
+#: Postures checked along each straight joint-space move between consecutive poses.
+SEGMENT_STEPS = 24
+#: Rounds of "search, check the chosen moves, forbid the colliding ones" at most.
+MAX_ROUNDS = 400
+#: First-pose candidates tried as the start of a closed path (best first).
+CLOSED_STARTS = 4
+#: Turret-angle bins over which each pose's candidates are spread.
+TURRET_BINS = 24
+
+
+class SequenceResult(NamedTuple):
+    """The chosen samples along the path.
+
+    Attributes:
+        rows: the chosen sample per pose, rows of V's samples (K,).
+        fitness: Eq. 6 per pose, with the previous pose's choice as previous CoM (K,).
+        mu: force-angle measure per pose [N rad] (K,).
+        total: the sum of ``fitness``.
+        rounds: search rounds (one more than the times colliding moves were found).
+        forbidden: moves found colliding and forbidden.
+        seconds: wall time [s].
+    """
+
+    rows: NDArray[np.intp]
+    fitness: FloatArray
+    mu: FloatArray
+    total: float
+    rounds: int
+    forbidden: int
+    seconds: float
+
+
+def segments_collide(checker: Any, q_from: FloatArray, q_to: FloatArray) -> NDArray[np.bool_]:
+    """Whether straight joint-space moves q_from -> q_to (N, 4) [rad] collide anywhere.
+
+    Checked at ``SEGMENT_STEPS`` interior postures of each move in one batch (the ends are
+    V's collision-free postures).
+    """
+    a, b = np.broadcast_arrays(np.atleast_2d(q_from), np.atleast_2d(q_to))
+    u = (np.arange(1, SEGMENT_STEPS + 1) / (SEGMENT_STEPS + 1))[None, :, None]
+    q = (a[:, None, :] * (1 - u) + b[:, None, :] * u).reshape(-1, 4)
+    hit = np.asarray(checker.collides(q), dtype=bool).reshape(len(a), SEGMENT_STEPS)
+    return hit.any(axis=1)
+
+
+def _viterbi(
+    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]]
+) -> tuple[NDArray[np.intp], float]:
+    """Best candidate per pose: max Σ value[k][c_k] − motion[k][c_{k−1}, c_k] over allowed moves.
+
+    Args:
+        value: (K, M) per-pose values of each candidate (the first pose's motion included).
+        motion: K−1 matrices (M, M): cost of the move from candidate a to b.
+        allowed: K−1 boolean matrices (M, M).
+
+    Returns:
+        (candidate per pose (K,), total); total is -inf when no sequence is allowed.
+    """
+    K, M = value.shape
+    score = value[0].copy()
+    back = np.zeros((K, M), dtype=np.intp)
+    for k in range(1, K):
+        total = np.where(allowed[k - 1], score[:, None] - motion[k - 1], -np.inf)
+        back[k] = np.argmax(total, axis=0)
+        score = total[back[k], np.arange(M)] + value[k]
+    last = int(np.argmax(score))
+    path = np.empty(K, dtype=np.intp)
+    path[-1] = last
+    for k in range(K - 1, 0, -1):
+        path[k - 1] = back[k, path[k]]
+    return path, float(score[last])
+
+
+def solve_sequence(
+    robot: Robot,
+    gravity_body: FloatArray,
+    region: CoMRegion,
+    settings: PlannerSettings,
+    mu_max: float,
+    closed: bool,
+    checker: CollisionChecker | None = None,
+) -> SequenceResult:
+    """Choose one of V's samples per pose (module text).
+
+    Args:
+        robot: the robot.
+        gravity_body: gravity in the body frame at each pose (K, 3) [m/s^2].
+        region: the workspace V (its samples and their postures).
+        settings: planner settings (weights, ``turret_window``, ``sequence_candidates``).
+        mu_max: Eq. 6's normaliser [N rad].
+        closed: the path is a loop: the move from the last pose to the first is checked too.
+        checker: collision checker (default: the robot's).
+
+    Raises:
+        MmstabError: no sequence satisfies the constraints among the candidates.
+    """
+    t0 = time.perf_counter()
+    checker = CollisionChecker(robot) if checker is None else checker
+    samples = sample_index(region).samples
+    postures = sample_postures(region)
+    diameter = float(region.diameter)
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    K, M = len(g), min(settings.sequence_candidates, len(samples))
+    stowed = robot.arm_com(robot.stowed)
+    stab = settings._replace(w_motion=0.0)
+    cand = np.empty((K, M), dtype=np.intp)
+    value = np.empty((K, M))
+    bins = _turret_bins(postures[:, 0], TURRET_BINS)
+    for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
+        lin = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter).linear()
+        v = lin(samples)
+        cand[k] = _diverse_top(v, bins, M)
+        value[k] = v[cand[k]]
+    w = settings.w_motion / diameter**2
+    if not closed:  # open path: the first pose moves from the stowed arm; closed: from the last
+        value[0] -= w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
+    motion, allowed = [], []
+    pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
+    for a, b in pairs:
+        ca, cb = samples[cand[a]], samples[cand[b]]
+        motion.append(w * np.sum((ca[:, None, :] - cb[None, :, :]) ** 2, axis=2))
+        ok = np.ones((M, M), dtype=bool)
+        if settings.turret_window is not None:
+            d0 = postures[cand[a], 0][:, None] - postures[cand[b], 0][None, :]
+            ok &= np.abs(d0) <= settings.turret_window + 1e-9
+        allowed.append(ok)
+    checked: set[tuple[int, int, int]] = set()
+    forbidden, rounds = 0, 0
+    while rounds < MAX_ROUNDS:
+        rounds += 1
+        path, total = _best(value, motion, allowed, closed)
+        if not np.isfinite(total):
+            raise MmstabError(
+                "planner: no sequence of V's postures has collision-free moves within the "
+                "turret window (raise planner.sequence_candidates or turret_window)"
+            )
+        moves = [(i, path[a], path[b]) for i, (a, b) in enumerate(pairs)]
+        todo = [m for m in moves if m not in checked]
+        if not todo:
+            break
+        qa = np.array([postures[cand[pairs[i][0], x]] for i, x, _ in todo])
+        qb = np.array([postures[cand[pairs[i][1], y]] for i, _, y in todo])
+        hit = segments_collide(checker, qa, qb)
+        checked.update(todo)
+        for (i, x, y), h in zip(todo, hit, strict=True):
+            if h:
+                allowed[i][x, y] = False
+                forbidden += 1
+        if not hit.any():
+            break
+    else:
+        raise MmstabError(f"planner: sequence search did not settle in {MAX_ROUNDS} rounds")
+    rows = cand[np.arange(K), path]
+    fitness = value[np.arange(K), path].copy()
+    for i, (a, b) in enumerate(pairs):
+        fitness[b] -= motion[i][path[a], path[b]]
+    mu = np.array(
+        [
+            pose_fitness(robot, g[k], stowed, stab, mu_max, diameter).mu(samples[rows[k]])[0]
+            for k in range(K)
+        ]
+    )
+    return SequenceResult(
+        rows=rows,
+        fitness=fitness,
+        mu=mu,
+        total=float(fitness.sum()),
+        rounds=rounds,
+        forbidden=forbidden,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _turret_bins(turret: FloatArray, count: int) -> NDArray[np.intp]:
+    """Bin of each sample's turret angle: ``count`` equal bins over its range."""
+    lo, hi = float(turret.min()), float(turret.max())
+    width = max(hi - lo, 1e-12) / count
+    return np.minimum(((turret - lo) / width).astype(np.intp), count - 1)
+
+
+def _diverse_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+    """``count`` rows: the best of every turret bin in turn (round robin), best first.
+
+    The best samples of a pose crowd into one basin; the sequence needs good ones at every
+    turret angle so that a neighbour pose's choice has candidates within the window.
+    """
+    order = np.argsort(-values, kind="stable")
+    b = bins[order]
+    rank = np.empty(len(order), dtype=np.intp)  # rank of each sample within its bin
+    for k in np.unique(b):
+        at = np.flatnonzero(b == k)
+        rank[at] = np.arange(len(at))
+    chosen = order[np.lexsort((-values[order], rank))][:count]
+    return chosen[np.argsort(-values[chosen], kind="stable")]
+
+
+def _best(
+    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
+) -> tuple[NDArray[np.intp], float]:
+    """The best sequence; on a closed path, over the first pose's ``CLOSED_STARTS`` best starts."""
+    K = len(value)
+    if not closed or K == 1:
+        return _viterbi(value, motion[: K - 1], allowed[: K - 1])
+    best_path, best_total = np.zeros(K, dtype=np.intp), -np.inf
+    for start in np.argsort(-value[0], kind="stable")[:CLOSED_STARTS]:
+        v = value.copy()
+        v[0] = -np.inf
+        v[0, start] = value[0, start]
+        # the closing move ends at the start: fold it into the last pose's values
+        close = np.where(allowed[K - 1][:, start], -motion[K - 1][:, start], -np.inf)
+        v[K - 1] = v[K - 1] + close
+        path, total = _viterbi(v, motion[: K - 1], allowed[: K - 1])
+        if total > best_total:
+            best_path, best_total = path, total
+    return best_path, best_total

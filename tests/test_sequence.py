@@ -1,0 +1,125 @@
+"""``method: sequence`` (issue 12): V's postures chosen along the whole path at once."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from test_turret_window import coarse  # noqa: F401  (module fixture: coarse problem + V)
+
+from mmstab.collision import CollisionChecker
+from mmstab.config import MmstabError
+from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
+from mmstab.planner.exhaustive import sample_index
+from mmstab.planner.sequence import _viterbi, segments_collide, solve_sequence
+from mmstab.planner.turret import sample_postures
+from mmstab.stability import mu_max
+
+WINDOW = 0.8  # [rad]
+
+
+def _settings(problem, **changes):
+    s = PlannerSettings.from_section(problem.section("planner"))
+    base = {"method": "sequence", "turret_window": WINDOW, "sequence_candidates": 64}
+    return s._replace(**{**base, **changes})
+
+
+def test_viterbi_equals_brute_force(rng):
+    K, M = 4, 5
+    value = rng.normal(size=(K, M))
+    motion = [rng.uniform(0, 1, (M, M)) for _ in range(K - 1)]
+    allowed = [rng.uniform(size=(M, M)) > 0.3 for _ in range(K - 1)]
+    best, best_path = -np.inf, None
+    for path in itertools.product(range(M), repeat=K):
+        if not all(allowed[k][path[k], path[k + 1]] for k in range(K - 1)):
+            continue
+        total = sum(value[k, path[k]] for k in range(K)) - sum(
+            motion[k][path[k], path[k + 1]] for k in range(K - 1)
+        )
+        if total > best:
+            best, best_path = total, path
+    path, total = _viterbi(value, motion, allowed)
+    assert total == pytest.approx(best, abs=1e-12)
+    assert tuple(path) == best_path
+
+
+def test_sequence_moves_are_collision_free_and_within_the_window(coarse):  # noqa: F811
+    problem, ws = coarse
+    robot = problem.robot
+    s = _settings(problem)
+    poses = problem.circle.poses(s.poses)
+    plan = solve_path(robot, problem.terrain, ws, poses, s, closed=True)
+    q = plan.postures
+    assert plan.collision_free.all()
+    np.testing.assert_allclose(robot.arm_com(q), plan.target_com, atol=1e-12)
+    assert not CollisionChecker(robot).collides(q).any()
+    nxt = np.roll(q, -1, axis=0)  # every move, the closing one included
+    assert np.all(np.abs(nxt[:, 0] - q[:, 0]) <= WINDOW + 1e-9)
+    assert not segments_collide(CollisionChecker(robot), q, nxt).any()
+    # fitness per pose is Eq. 6 with the previous pose's choice as previous CoM
+    for k, t in enumerate(plan.targets):
+        fitness = pose_fitness(
+            robot,
+            gravity_body_at(problem.terrain, t.pose)[0],
+            plan.target_com[k - 1],  # k = 0: the closing move from the last pose
+            s,
+            mu_max(robot),
+            ws.diameter,
+        )
+        assert t.fitness == pytest.approx(fitness(t.target_com)[0], abs=1e-9)
+        assert t.mu == pytest.approx(fitness.mu(t.target_com)[0], abs=1e-9)
+
+
+def test_sequence_without_constraints_is_the_per_pose_optimum_of_its_sum(coarse):  # noqa: F811
+    """With no motion term, no window and only one pose, it is the exhaustive optimum."""
+    problem, ws = coarse
+    robot = problem.robot
+    s = _settings(problem, w_stability=1.0, w_motion=0.0, turret_window=None)
+    pose = problem.circle.poses(10)[3]
+    g = gravity_body_at(problem.terrain, pose)
+    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=False)
+    f = pose_fitness(robot, g[0], robot.arm_com(robot.stowed), s, mu_max(robot), ws.diameter)
+    assert seq.mu[0] == pytest.approx(f.mu(sample_index(ws).samples).max(), abs=1e-9)
+
+
+def test_sequence_is_refused_when_nothing_fits(coarse):  # noqa: F811
+    problem, ws = coarse
+    s = _settings(problem, turret_window=1e-6, sequence_candidates=1)
+    g = gravity_body_at(problem.terrain, problem.circle.poses(3))
+    postures = sample_postures(ws)
+    assert len(np.unique(postures[:, 0])) > 1
+    with pytest.raises(MmstabError, match="no sequence"):
+        solve_sequence(problem.robot, g, ws, s, mu_max(problem.robot), closed=True)
+
+
+@pytest.mark.slow
+def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
+    """The default problem's plan (method sequence), on a coarse V, tracked for a full lap."""
+    from conftest import write_problem
+
+    from mmstab.experiments.tracking import self_collisions
+    from mmstab.planner import plan_path
+    from mmstab.problem import load_problem
+    from mmstab.tracking import simulate, summarize
+    from mmstab.workspace import load_or_build_workspace
+
+    path = write_problem(tmp_path, lambda p, r: p["workspace"].__setitem__("grid", COARSE))
+    problem = load_problem(path)
+    assert problem.section("planner")["method"] == "sequence"
+    ws = load_or_build_workspace(problem, progress=False, cache_dir=tmp_path / "cache")
+    plan = plan_path(problem, workspace=ws)
+    run = simulate(problem, plan, progress=False)
+    s = summarize(run)
+    assert s["qp_failures"] == 0
+    keep = np.arange(0, run.t.size, 10)  # every 10 ms, as the tracking experiment checks
+    assert self_collisions(problem, run.t[keep], run.state[keep, 5:])["colliding_samples"] == 0
+    assert s["last_saturated_time_s"] is None or s["last_saturated_time_s"] <= 1.0  # approach
+    assert s["after_transient"]["arm_com_error_max_m"] < 0.005
+    assert s["after_transient"]["base_error_max_m"] < 0.005
+    # after the approach the reconfigured arm stays above the stowed and the removed arm
+    mu = s["after_transient"]["mu_min"]
+    assert mu["reconfigured"] > mu["stowed"] > mu["arm_removed"]
+
+
+COARSE = [10, 8, 8, 8]
