@@ -97,7 +97,7 @@ plan-paper: setup
 	$(MMSTAB) fig8 problems/ramp_paper.yaml -o results/fig8_paper
 
 bench-plan: setup
-	$(PY) benchmarks/plan.py $(PROBLEM)
+	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
