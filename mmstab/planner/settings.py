@@ -45,6 +45,8 @@ class PlannerSettings(NamedTuple):
             diameter).
         restarts: IPOP restarts per start: each reruns CMA-ES from the same start with the
             population doubled; the best run is kept.
+        flipper_angles: flipper angles searched per pose over the robot's flipper limits
+            (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
     """
 
     w_stability: float
@@ -66,6 +68,7 @@ class PlannerSettings(NamedTuple):
     coarse_seeds: int
     sigma0_unit: str
     restarts: int
+    flipper_angles: int = 0
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -91,6 +94,7 @@ class PlannerSettings(NamedTuple):
             coarse_seeds=int(cfg["coarse_seeds"]),
             sigma0_unit=str(cfg["sigma0_unit"]),
             restarts=int(cfg["restarts"]),
+            flipper_angles=int(cfg.get("flipper_angles", 0)),
         )
 
     def sigma0_metres(self, diameter: float) -> float:
