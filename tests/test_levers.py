@@ -15,7 +15,7 @@ import pytest
 from conftest import write_problem
 
 from mmstab.config import MmstabError
-from mmstab.dynamics import dynamic_force_angle, net_wrench
+from mmstab.dynamics import dynamic_force_angle, net_wrench, robot_mu
 from mmstab.experiments import levers as L
 from mmstab.payload import Payload, attach_payload
 from mmstab.planner import PlannerSettings, plan_path, pose_fitness, solve_pose
@@ -349,3 +349,17 @@ def test_levers_subprocess_small(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 2 and "levers" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_verdict_measure_agrees_with_the_planner_on_V_samples(small):
+    """robot_mu (plan and tracking verdicts) = the planner's WrenchFitness where exact."""
+    problem, ws = small
+    robot = problem.robot
+    pulled = attach_payload(robot, Payload(1.5, np.zeros(3), np.array([20.0, -40, 10, 1, 2, 3])))
+    g = Ramp(0.3).gravity_body(np.array([0.0, 0.0, 2.0]))[0]
+    q = ws.valid_q[::53]
+    f = pose_fitness(pulled, g, robot.arm_com(robot.stowed), _exhaustive(problem), 500.0, 0.9)
+    planner_mu = with_tool_wrench(f, ws).mu(pulled.arm_com(q))
+    np.testing.assert_allclose(robot_mu(pulled, g, q), planner_mu, rtol=1e-12)
+    static = robot_force_angle(robot, g, robot.arm_com(q)).mu
+    np.testing.assert_array_equal(robot_mu(robot, g, q), static)  # no wrench: the old path

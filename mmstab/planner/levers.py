@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
 import math
 import weakref
 from typing import Any, NamedTuple, cast
@@ -151,9 +152,21 @@ def with_tool_wrench(fitness: Fitness, region: Any) -> Fitness:
 
 # --------------------------------------------------------------------------------- flippers
 def with_flipper_angle(robot: Robot, angle: float) -> Robot:
-    """The robot with its flippers at ``angle`` [rad] (same hash: V does not change)."""
+    """The robot with its flippers at ``angle`` [rad].
+
+    A changed angle changes ``source_hash`` (as the atlas does), so nothing cached for the
+    file's flippers (collision checkers) is reused; the planner keeps the workspace V it
+    is given, built at the file's flipper angle.
+    """
+    if float(angle) == robot.base.flippers.angle:
+        return robot
     flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
-    return dataclasses.replace(robot, base=dataclasses.replace(robot.base, flippers=flippers))
+    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={float(angle)!r}".encode())
+    return dataclasses.replace(
+        robot,
+        base=dataclasses.replace(robot.base, flippers=flippers),
+        source_hash=digest.hexdigest(),
+    )
 
 
 def flipper_ground_angle(robot: Robot) -> float:
