@@ -229,19 +229,24 @@ ATLAS: dict[str, Any] = {
 PAYLOAD: dict[str, Any] = with_optional(obj(mass=NUM, com=VEC3), wrench=vec(6))
 
 # make levers (docs/levers.md): the experiments' own settings.
-LEVERS: dict[str, Any] = obj(
-    margin=NUM,  # [N rad]: "safe" / "holds" means mu >= margin
-    speeds=vec_min(1, POS),  # lap-speed factors of the dynamic-mu comparison (1 = lap_time)
-    samples=INT_POS,  # samples along one lap for the dynamic measure
-    side_slope=NUM,  # [rad]: the payload experiment's side slope (heading 0: left uphill)
-    max_payload=POS,  # [kg]: the payload bisection's upper bracket
-    payload_com=VEC3,  # [m]: the payload's CoM in the wrist frame
-    payload_reach=NONNEG,  # [m]: "held at the front/side": the tool this far beyond the tracks
-    bisection_steps=INT_POS,  # steps of every bisection
-    max_slope=POS,  # [rad]: the steepest-slope bisection's upper bracket
-    robots={"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
-    variant_grid=vec(4, {"type": "integer", "minimum": 2}),  # workspace grid of the variants
-    flipper_angles={"type": "integer", "minimum": 1, "maximum": 64},  # per pose (planner key)
+LEVERS: dict[str, Any] = with_optional(
+    obj(
+        margin=NUM,  # [N rad]: "safe" / "holds" means mu >= margin
+        speeds=vec_min(1, POS),  # lap-speed factors of the dynamic-mu comparison (1 = lap_time)
+        samples=INT_POS,  # samples along one lap for the dynamic measure
+        side_slope={"type": "number", "minimum": 0, "maximum": 1.2},  # [rad]: payload, flippers
+        max_payload=POS,  # [kg]: the payload bisection's upper bracket
+        payload_com=VEC3,  # [m]: the payload's CoM in the wrist frame
+        payload_reach=NONNEG,  # [m]: "held at the front/side": the tool this far beyond the tracks
+        bisection_steps=INT_POS,  # steps of every bisection
+        max_slope={"type": "number", "exclusiveMinimum": 0, "maximum": 1.2},  # [rad] bracket
+        robots={"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
+        variant_grid=vec(4, {"type": "integer", "minimum": 2}),  # workspace grid of the variants
+        flipper_angles={"type": "integer", "minimum": 1, "maximum": 64},  # per pose (planner key)
+    ),
+    # optional: a problem file (relative to this one) whose terrain and circle give the
+    # variants' rough-ground lap; left out: no rough column
+    rough_problem={"type": "string", "minLength": 1},
 )
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.

@@ -7,12 +7,13 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
-from conftest import write_problem
+from conftest import PROBLEMS, write_problem
 
 from mmstab.config import MmstabError
 from mmstab.dynamics import dynamic_force_angle, net_wrench, robot_mu
@@ -311,9 +312,11 @@ def test_levers_subprocess_small(tmp_path):
             "robots": ["robots/cameleon.yaml"],
             "variant_grid": [8, 8, 6, 6],
             "flipper_angles": 2,
+            "rough_problem": "rough.yaml",
         }
 
     path = write_problem(tmp_path, edit)
+    shutil.copy(PROBLEMS / "rough.yaml", tmp_path / "rough.yaml")
     out = tmp_path / "out"
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
@@ -338,6 +341,9 @@ def test_levers_subprocess_small(tmp_path):
         s["flippers"]["ramp"]["mu_arm_flippers_mean"] >= s["flippers"]["ramp"]["mu_arm_only_mean"]
     )
     assert "levers: fastest safe lap" in proc.stdout
+    v = s["variants"]["robots"]["cameleon"]
+    assert v["rough_mu_stowed_min"] < v["lap_mu_stowed_min"]  # rough ground is harder
+    assert "rough lap" in (out / "variants.md").read_text()
     # bad input: a levers section without its keys is one line, exit 2
     bad = write_problem(tmp_path, lambda p, r: p.update(levers={"margin": 1.0}), "bad.yaml")
     proc = subprocess.run(

@@ -16,8 +16,10 @@ section, every number in ``results/levers/summary.json``:
   (links 1-3 folded, turret pointing there: the load rests over the base) and fixed (the
   arm stretched level, turret pointing there); bisection on the mass.
 - **variants**: per robot file, the planned and stowed μ along the lap (CMA-ES, V on
-  ``levers.variant_grid``), and the steepest side slope with μ >= margin, arm planned
-  (the best of V's samples, both sides downhill) and stowed; bisection on the slope.
+  ``levers.variant_grid``), optionally along the circle of a rough-ground problem
+  (``levers.rough_problem``: the planner on the heightmap, μ then measured on the resting
+  contacts), and the steepest side slope with μ >= margin, arm planned (the best of V's
+  samples, both sides downhill) and stowed; bisection on the slope.
 - **flippers**: μ along the lap, arm only vs arm + flippers
   (:func:`mmstab.planner.levers.solve_path_flippers`), on the problem's ramp and on the
   side slope's ramp; both with the exhaustive Eq. 6 search (no sampling noise between them).
@@ -44,9 +46,9 @@ from mmstab.payload import Payload, attach_payload
 from mmstab.planner import PlannerSettings, best_mu, solve_path
 from mmstab.planner.levers import solve_path_flippers, tool_points
 from mmstab.plotting import new_figure
-from mmstab.problem import Problem, problem_from_dict
+from mmstab.problem import Problem, load_problem, problem_from_dict
 from mmstab.robot import FloatArray, Robot
-from mmstab.stability import base_polygon, robot_force_angle
+from mmstab.stability import base_polygon, contact_force_angle, robot_force_angle
 from mmstab.terrain import GRAVITY_G, CirclePath, Terrain, from_section
 
 #: Directions the payload is held in: turret angle [rad] (0 = forward, positive = left).
@@ -68,6 +70,7 @@ class LeversSettings(NamedTuple):
     robots: tuple[str, ...]
     variant_grid: tuple[int, int, int, int]
     flipper_angles: int
+    rough_problem: str | None  # a problem file whose terrain and circle are the rough lap
 
 
 def levers_settings(problem: Problem) -> LeversSettings:
@@ -79,6 +82,9 @@ def levers_settings(problem: Problem) -> LeversSettings:
     if "levers" not in problem.data:
         raise ConfigError(problem.path, "levers", "missing section: make levers needs it")
     s = problem.section("levers")
+    rough = s.get("rough_problem")
+    if rough is not None and not (problem.path.parent / rough).is_file():
+        raise ConfigError(problem.path, "levers.rough_problem", f"no problem file {rough}")
     return LeversSettings(
         margin=float(s["margin"]),
         speeds=tuple(float(v) for v in s["speeds"]),
@@ -92,6 +98,7 @@ def levers_settings(problem: Problem) -> LeversSettings:
         robots=tuple(s["robots"]),
         variant_grid=tuple(int(n) for n in s["variant_grid"]),  # type: ignore[arg-type]
         flipper_angles=int(s["flipper_angles"]),
+        rough_problem=rough,
     )
 
 
@@ -390,6 +397,24 @@ def steepest_side_slope(
     return None if found != found else math.degrees(found)
 
 
+def contact_mu(
+    robot: Robot, terrain: Terrain, poses: FloatArray, arm_com_body: ArrayLike
+) -> FloatArray:
+    """μ [N rad] (N,) on the resting contacts (``Terrain.support``) at poses (N, 3) in M.
+
+    The 3-D contacts of the base at rest (its stowed-arm rest pose), not the planner's
+    track rectangle: on uneven ground the polygon is what the robot stands on.
+    """
+    coms = np.broadcast_to(np.asarray(arm_com_body, dtype=float), (len(poses), 3))
+    out = np.empty(len(poses))
+    for i, pose in enumerate(poses):
+        stand = terrain.support(robot, pose)
+        T = stand.G_T_B
+        com_G = T[:3, :3] @ robot.overall_com(coms[i]) + T[:3, 3]
+        out[i] = contact_force_angle(stand.contacts_G, com_G, robot.total_mass * GRAVITY_G).mu
+    return out
+
+
 def _best_mu_of(robot: Robot, gravity_body: FloatArray, samples: FloatArray) -> float:
     """The best μ over arm-CoM samples (N, 3) [m] at gravity ``gravity_body`` [m/s^2]."""
     return best_mu(robot, gravity_body, samples)[0]
@@ -412,6 +437,23 @@ def run_variants(problem: Problem, settings: LeversSettings) -> dict[str, Any]:
         stowed = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu
         planned = np.array([t.mu for t in plan.targets])
         samples = ws.valid_com_in_V
+        rough: dict[str, Any] = {}
+        if settings.rough_problem is not None:
+            rp = load_problem(problem.path.parent / settings.rough_problem)
+            ground = from_section(rp.path, rp.section("terrain"), robot)
+            rough_poses = rp.circle.poses(psettings.poses)
+            rough_plan = solve_path(robot, ground, ws, rough_poses, psettings)
+            planned_c = contact_mu(robot, ground, rough_poses, rough_plan.target_com)
+            stowed_c = contact_mu(robot, ground, rough_poses, robot.arm_com(robot.stowed))
+            own = np.array([t.mu for t in rough_plan.targets])
+            rough = {
+                "rough_mu_planner_own_min": float(own.min()),  # on the track rectangle
+                "rough_poses_tipping_on_contacts": int(np.sum(planned_c < 0)),
+                "rough_mu_planned_min": float(planned_c.min()),
+                "rough_mu_planned_mean": float(planned_c.mean()),
+                "rough_mu_stowed_min": float(stowed_c.min()),
+                "rough_mu_stowed_mean": float(stowed_c.mean()),
+            }
         out["robots"][robot.name] = {
             "file": robot_file,
             "arm_mass_kg": robot.arm_mass,
@@ -427,8 +469,11 @@ def run_variants(problem: Problem, settings: LeversSettings) -> dict[str, Any]:
                 lambda r, g: float(robot_force_angle(r, g, r.arm_com(r.stowed)).mu[0]),
                 settings,
             ),
+            **rough,
             "seconds": time.perf_counter() - t0,
         }
+    if settings.rough_problem is not None:
+        out["rough_problem"] = settings.rough_problem
     return out
 
 
@@ -438,13 +483,18 @@ def draw_variants(summary: dict[str, Any], path: Path) -> None:
     rows = [summary["robots"][n] for n in names]
     fig, (ax0, ax1) = new_figure(1, 2, figsize=(10, 3.6))
     x = np.arange(len(names))
-    for j, (key, label) in enumerate(
-        (("lap_mu_planned_min", "planned, lap min"), ("lap_mu_stowed_min", "stowed, lap min"))
-    ):
-        bars = ax0.bar(x + (j - 0.5) * 0.38, [r[key] for r in rows], 0.38, label=label)
-        ax0.bar_label(bars, fmt="%.0f", fontsize=7)
+    keys = [("lap_mu_planned_min", "ramp, planned"), ("lap_mu_stowed_min", "ramp, stowed")]
+    if "rough_problem" in summary:
+        keys += [
+            ("rough_mu_planned_min", "rough, planned"),
+            ("rough_mu_stowed_min", "rough, stowed"),
+        ]
+    w = 0.8 / len(keys)
+    for j, (key, label) in enumerate(keys):
+        bars = ax0.bar(x + (j - (len(keys) - 1) / 2) * w, [r[key] for r in rows], w, label=label)
+        ax0.bar_label(bars, fmt="%.0f", fontsize=6)
     ax0.set_xticks(x, names, fontsize=8)
-    ax0.set(ylabel="mu along the ramp lap [N rad]", title="ramp lap")
+    ax0.set(ylabel="lowest mu along the lap [N rad]", title="laps: ramp (and rough ground)")
     ax0.legend(fontsize=8, loc="lower right")
     for j, (key, label) in enumerate(
         (
@@ -462,10 +512,13 @@ def draw_variants(summary: dict[str, Any], path: Path) -> None:
 
 def variants_table(summary: dict[str, Any]) -> str:
     """The variants as a Markdown table."""
+    rough = "rough_problem" in summary
     lines = [
-        "| robot | arm mass [kg] | lap μ planned min / mean [N rad] | lap μ stowed min / mean "
-        "[N rad] | steepest side slope, planned / stowed [deg] |",
-        "|---|---|---|---|---|",
+        "| robot | arm mass [kg] | ramp lap μ planned min / mean [N rad] | ramp lap μ stowed "
+        "min / mean [N rad] | "
+        + ("rough lap μ planned / stowed, min [N rad] | " if rough else "")
+        + "steepest side slope, planned / stowed [deg] |",
+        "|---|---|---|---|---|" + ("---|" if rough else ""),
     ]
     for name, r in summary["robots"].items():
         slope = [r["steepest_side_slope_planned_deg"], r["steepest_side_slope_stowed_deg"]]
@@ -473,6 +526,11 @@ def variants_table(summary: dict[str, Any]) -> str:
             f"| {name} | {r['arm_mass_kg']:.1f} | {r['lap_mu_planned_min']:.1f} / "
             f"{r['lap_mu_planned_mean']:.1f} | {r['lap_mu_stowed_min']:.1f} / "
             f"{r['lap_mu_stowed_mean']:.1f} | "
+            + (
+                f"{r['rough_mu_planned_min']:.1f} / {r['rough_mu_stowed_min']:.1f} | "
+                if rough
+                else ""
+            )
             + " / ".join("-" if v is None else f"{v:.1f}" for v in slope)
             + " |"
         )
