@@ -299,6 +299,7 @@ def test_levers_subprocess_small(tmp_path):
     def edit(p, r):
         p["workspace"]["grid"] = SMALL_GRID
         p["planner"]["poses"] = 4
+        p["controller"]["lap_time"] = p["controller"]["duration"] = 6.0  # short runs
         p["levers"] = {
             "margin": 300.0,
             "speeds": [1.0, 4.0],
@@ -334,6 +335,8 @@ def test_levers_subprocess_small(tmp_path):
     d = s["dynamic"]["planned"]
     assert d["by_speed"]["4x"]["mu_dynamic_min"] < d["by_speed"]["1x"]["mu_dynamic_min"]
     assert s["dynamic"]["stowed"]["fastest_safe_speed_factor"] > 1.0
+    sim = s["dynamic"]["simulated_planned"]
+    assert not sim["1x"]["tipped"] and sim["4x"]["peak_acceleration_m_s2"] > 0
     fixed = s["payload"]["front"]["fixed"]["heaviest_kg"]
     assert 0.0 < fixed < 30.0
     assert s["variants"]["robots"]["cameleon"]["steepest_side_slope_planned_deg"] > 0

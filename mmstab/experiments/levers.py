@@ -9,7 +9,9 @@ section, every number in ``results/levers/summary.json``:
   drives the circle at constant speed, the arm follows a periodic cubic spline through the
   planned postures, every body's CoM is placed in M and differentiated twice in time
   (periodic central differences). Bodies are point masses (the description has no inertia
-  tensors), so the inertial moments about their own CoMs are zero.
+  tensors), so the inertial moments about their own CoMs are zero. A cross-check runs the
+  closed loop (``app.track``) at each speed and measures the simulated states' second
+  differences over ``SIM_WINDOW`` (:func:`simulated_check`).
 - **payload**: the heaviest payload held at the front, left and right on a side slope,
   arm planned (the best collision-free grid posture of V with the turret pointing there and
   the tool held out ``payload_reach`` beyond the tracks' footprint on that side), stowed
@@ -51,6 +53,8 @@ from mmstab.robot import FloatArray, Robot
 from mmstab.stability import base_polygon, contact_force_angle, robot_force_angle
 from mmstab.terrain import GRAVITY_G, CirclePath, Terrain, from_section
 
+#: Window of the second differences of simulated states [s] (module text).
+SIM_WINDOW = 0.02
 #: Directions the payload is held in: turret angle [rad] (0 = forward, positive = left).
 DIRECTIONS = {"front": 0.0, "left": math.pi / 2, "right": -math.pi / 2}
 
@@ -165,15 +169,7 @@ def lap_motion(
 ) -> LapMotion:
     """Every body's CoM along one lap (fractions k/samples) in M."""
     s = np.arange(samples) / samples
-    poses = circle.pose_at(s)
-    T = terrain.M_T_B(poses)
-    q = posture(s)
-    body = np.concatenate(
-        [np.broadcast_to(robot.base.com, (samples, 1, 3)), robot.kinematics.link_coms(q)], axis=1
-    )
-    positions = np.einsum("nij,nkj->nki", T[:, :3, :3], body) + T[:, None, :3, 3]
-    masses = np.array([robot.base.mass, *(link.mass for link in robot.links)])
-    return LapMotion(poses, T, masses, positions, q)
+    return body_motion(robot, terrain, circle.pose_at(s), posture(s))
 
 
 class LapMeasure(NamedTuple):
@@ -185,27 +181,96 @@ class LapMeasure(NamedTuple):
     peak_joint_speed: FloatArray  # per arm joint [rad/s]
 
 
-def lap_measure(robot: Robot, terrain: Terrain, motion: LapMotion, lap_time: float) -> LapMeasure:
-    """Static and dynamic μ of a lap driven in ``lap_time`` [s] (module text)."""
-    n = len(motion.poses)
-    h = lap_time / n
-    p = motion.positions
-    acc = (np.roll(p, -1, axis=0) - 2 * p + np.roll(p, 1, axis=0)) / h**2
+def body_motion(robot: Robot, terrain: Terrain, poses: ArrayLike, q: ArrayLike) -> LapMotion:
+    """Every body's CoM in M at base poses (N, 3) in M and arm postures (N, 4) [rad]."""
+    P = np.asarray(poses, dtype=float)
+    Q = np.asarray(q, dtype=float)
+    T = terrain.M_T_B(P).reshape(-1, 4, 4)
+    body = np.concatenate(
+        [np.broadcast_to(robot.base.com, (len(Q), 1, 3)), robot.kinematics.link_coms(Q)], axis=1
+    )
+    positions = np.einsum("nij,nkj->nki", T[:, :3, :3], body) + T[:, None, :3, 3]
+    masses = np.array([robot.base.mass, *(link.mass for link in robot.links)])
+    return LapMotion(P, T, masses, positions, Q)
+
+
+def measure_motion(
+    robot: Robot,
+    terrain: Terrain,
+    motion: LapMotion,
+    h: float,
+    window: int = 1,
+    periodic: bool = True,
+) -> LapMeasure:
+    """Static and dynamic μ of a sampled motion (step ``h`` [s] between samples).
+
+    Accelerations are second differences over ``window`` samples (``window * h`` [s]);
+    ``periodic``: the samples close a lap (``np.roll``); else the ``window`` samples at
+    each end are dropped.
+    """
+    p, k = motion.positions, int(window)
+    if periodic:
+        acc = (np.roll(p, -k, axis=0) - 2 * p + np.roll(p, k, axis=0)) / (k * h) ** 2
+        dq = (np.roll(motion.postures, -1, axis=0) - np.roll(motion.postures, 1, axis=0)) / (2 * h)
+        keep = np.arange(len(p))
+    else:
+        acc = (p[2 * k :] - 2 * p[k:-k] + p[: -2 * k]) / (k * h) ** 2
+        dq = np.diff(motion.postures, axis=0) / h
+        keep = np.arange(k, len(p) - k)
+    n = len(keep)
     g_M = terrain.G_T_M()[:3, :3].T @ GRAVITY_G
     polygon = base_polygon(robot).vertices
     com_b, f_b, n_b, f_s = (np.empty((n, 3)) for _ in range(4))
-    for i in range(n):
+    for j, i in enumerate(keep):
         R, t = motion.M_T_B[i, :3, :3], motion.M_T_B[i, :3, 3]
-        w = net_wrench(motion.masses, p[i], acc[i], g_M)
-        com_b[i], f_b[i], n_b[i] = R.T @ (w.com - t), R.T @ w.force, R.T @ w.moment
-        f_s[i] = R.T @ (motion.masses.sum() * g_M)
-    dq = (np.roll(motion.postures, -1, axis=0) - np.roll(motion.postures, 1, axis=0)) / (2 * h)
+        w = net_wrench(motion.masses, p[i], acc[j], g_M)
+        com_b[j], f_b[j], n_b[j] = R.T @ (w.com - t), R.T @ w.force, R.T @ w.moment
+        f_s[j] = R.T @ (motion.masses.sum() * g_M)
     return LapMeasure(
         static=dynamic_force_angle(polygon, com_b, f_s, np.zeros((n, 3))).mu,
         dynamic=dynamic_force_angle(polygon, com_b, f_b, n_b).mu,
         peak_acceleration=float(np.linalg.norm(acc, axis=2).max()),
         peak_joint_speed=np.abs(dq).max(axis=0),
     )
+
+
+def lap_measure(robot: Robot, terrain: Terrain, motion: LapMotion, lap_time: float) -> LapMeasure:
+    """Static and dynamic μ of a lap driven in ``lap_time`` [s] (module text)."""
+    return measure_motion(robot, terrain, motion, lap_time / len(motion.poses))
+
+
+def simulated_check(
+    problem: Problem, plan: Any, settings: LeversSettings, window: float = SIM_WINDOW
+) -> dict[str, Any]:
+    """The dynamic μ from closed-loop runs of the planned arm at each lap speed.
+
+    One tracking run per speed (``app.track``, the lap time divided by the factor, one
+    lap); accelerations are second differences of the simulated states over ``window``
+    [s]. The plant is velocity-level (the QP's joint speeds are applied as steps), so
+    these accelerations carry the controller's corrections; the arm's start-up approach
+    (``controller.approach_time``) is left out.
+    """
+    from mmstab.app import track
+
+    c = problem.section("controller")
+    out: dict[str, Any] = {"window_s": window, "after_s": float(c["approach_time"])}
+    for k in settings.speeds:
+        data = copy.deepcopy(problem.data)
+        data["controller"]["lap_time"] = data["controller"]["duration"] = c["lap_time"] / k
+        pk = problem_from_dict(data, problem.path, force_size=problem.force_size)
+        _, _, run = track(pk, plan, progress=False)
+        after = run.t >= float(c["approach_time"])
+        motion = body_motion(pk.robot, pk.terrain, run.state[after, :3], run.state[after, 5:9])
+        steps = max(1, int(round(window / run.dt)))
+        m = measure_motion(pk.robot, pk.terrain, motion, run.dt, steps, periodic=False)
+        out[f"{k:g}x"] = {
+            "lap_time_s": c["lap_time"] / k,
+            "tipped": run.tipped is not None,
+            "mu_dynamic_min": float(m.dynamic.min()),
+            "mu_static_min": float(m.static.min()),
+            "peak_acceleration_m_s2": m.peak_acceleration,
+        }
+    return out
 
 
 def run_dynamic(
@@ -604,6 +669,7 @@ def run_levers(problem: Problem, out: str | Path | None = None) -> dict[str, Any
     plan = plan_of(problem, ws=ws)
     summary: dict[str, Any] = {"problem": str(problem.path), "margin_N_rad": settings.margin}
     dyn, dyn_curves = run_dynamic(problem, plan.postures, settings)
+    dyn["simulated_planned"] = simulated_check(problem, plan, settings)
     summary["dynamic"] = dyn
     draw_dynamic(dyn_curves, settings, d / "dynamic.png")
     summary["payload"] = run_payload(problem, ws.valid_q, settings)
