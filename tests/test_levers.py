@@ -372,3 +372,34 @@ def test_verdict_measure_agrees_with_the_planner_on_V_samples(small):
     np.testing.assert_allclose(robot_mu(pulled, g, q), planner_mu, rtol=1e-12)
     static = robot_force_angle(robot, g, robot.arm_com(q)).mu
     np.testing.assert_array_equal(robot_mu(robot, g, q), static)  # no wrench: the old path
+
+
+@pytest.mark.parametrize(
+    ("limits", "field"),
+    [
+        ({"lower": 1.0, "upper": -1.0, "rate": 0.5}, "base.flippers.limits"),
+        ({"lower": -0.8, "upper": 0.5, "rate": 0.5}, "base.flippers.angle"),  # 0.6 outside
+        ({"lower": -0.8, "upper": 1.2, "rate": 0.0}, "base.flippers.limits.rate"),
+        ({"lower": -0.8, "upper": 1.2}, "base.flippers.limits.rate"),
+    ],
+)
+def test_bad_flipper_limits(tmp_path, limits, field):
+    from mmstab.config import ConfigError
+
+    def edit(p, r):
+        r["base"]["flippers"]["limits"] = limits
+
+    with pytest.raises(ConfigError, match=f"{field}:"):
+        load_problem(write_problem(tmp_path, edit))
+
+
+def test_flipper_limits_are_not_hashed(tmp_path, problem):
+    def edit(p, r):
+        r["base"]["flippers"]["limits"] = {"lower": -0.5, "upper": 1.0, "rate": 2.0}
+
+    other = load_problem(write_problem(tmp_path, edit))
+    assert other.robot.base.flippers.limits.rate == 2.0
+    assert other.robot.source_hash == problem.robot.source_hash  # the same cached V
+    lowered = with_flipper_angle(problem.robot, -0.2)
+    assert lowered.source_hash != problem.robot.source_hash  # but not a moved flipper
+    assert with_flipper_angle(problem.robot, problem.robot.base.flippers.angle) is problem.robot
