@@ -551,8 +551,8 @@ def draw_variants(summary: dict[str, Any], path: Path) -> None:
     keys = [("lap_mu_planned_min", "ramp, planned"), ("lap_mu_stowed_min", "ramp, stowed")]
     if "rough_problem" in summary:
         keys += [
-            ("rough_mu_planned_min", "rough, planned"),
-            ("rough_mu_stowed_min", "rough, stowed"),
+            ("rough_mu_planned_min", "rough, planned (on the contacts)"),
+            ("rough_mu_stowed_min", "rough, stowed (on the contacts)"),
         ]
     w = 0.8 / len(keys)
     for j, (key, label) in enumerate(keys):
@@ -560,7 +560,9 @@ def draw_variants(summary: dict[str, Any], path: Path) -> None:
         ax0.bar_label(bars, fmt="%.0f", fontsize=6)
     ax0.set_xticks(x, names, fontsize=8)
     ax0.set(ylabel="lowest mu along the lap [N rad]", title="laps: ramp (and rough ground)")
-    ax0.legend(fontsize=8, loc="lower right")
+    low, high = ax0.get_ylim()
+    ax0.set_ylim(low, high + 0.45 * (high - low))  # room for the legend above the bars
+    ax0.legend(fontsize=7, loc="upper center", ncols=2)
     for j, (key, label) in enumerate(
         (
             ("steepest_side_slope_planned_deg", "arm planned"),
