@@ -403,3 +403,20 @@ def test_flipper_limits_are_not_hashed(tmp_path, problem):
     lowered = with_flipper_angle(problem.robot, -0.2)
     assert lowered.source_hash != problem.robot.source_hash  # but not a moved flipper
     assert with_flipper_angle(problem.robot, problem.robot.base.flippers.angle) is problem.robot
+
+
+def test_controller_com_task_carries_the_payload(robot):
+    """The CoM task's value and Jacobian are those of the loaded arm (placed in M)."""
+    from mmstab.tasks.model import TaskModel
+
+    loaded = attach_payload(robot, Payload(3.0, np.array([0.05, 0.0, 0.0])))
+    state = np.array([0.3, -0.2, 0.4, 0.0, 0.0, 0.5, 0.6, -0.7, 0.3])  # pose, sprockets, arm
+    plain, heavy = TaskModel(robot, 0.2), TaskModel(loaded, 0.2)
+    c, s = math.cos(0.4), math.sin(0.4)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    for model, r in ((plain, robot), (heavy, loaded)):
+        expected = np.r_[0.3, -0.2, 0.0] + R @ r.arm_com(state[5:])
+        np.testing.assert_allclose(model.task(state)[3:], expected, atol=1e-12)
+    assert np.linalg.norm(heavy.task(state)[3:] - plain.task(state)[3:]) > 0.01
+    J_arm = heavy.jacobian(state)[3:, 2:]  # the CoM rows, arm columns
+    np.testing.assert_allclose(J_arm, R @ loaded.kinematics.arm_com_jacobian(state[5:]), atol=1e-12)
