@@ -194,3 +194,8 @@ atlas: setup
 
 bench-atlas: setup
 	$(PY) benchmarks/atlas.py $(ATLAS_PROBLEM)
+
+## issue 16: payload, flippers, lap speed, robot variants (docs/levers.md) -> results/levers/
+.PHONY: levers
+levers: setup
+	$(MMSTAB) levers problems/levers.yaml

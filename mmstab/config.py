@@ -182,6 +182,11 @@ def _jsonable(obj: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(obj)}")
 
 
+def write_text(path: str | os.PathLike[str], text: str) -> Path:
+    """Write ``text`` to ``path``, atomically (temp file + rename)."""
+    return _atomic(Path(path), lambda t: _write_text(t, text))
+
+
 def write_json(path: str | os.PathLike[str], data: Any) -> Path:
     """Write ``data`` as indented JSON, atomically (temp file + rename)."""
     text = json.dumps(data, indent=2, default=_jsonable, allow_nan=False) + "\n"

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.robot import FloatArray, Robot
-from mmstab.stability import ForceAngle, base_polygon
+from mmstab.stability import ForceAngle, base_polygon, robot_force_angle
 
 
 class Wrench(NamedTuple):
@@ -179,3 +179,26 @@ def robot_force_angle_wrench(
     force = robot.total_mass * g + w[:, :3]
     moment = np.cross(np.atleast_2d(np.asarray(tool_body, dtype=float)) - com, w[:, :3]) + w[:, 3:]
     return dynamic_force_angle(base_polygon(robot).vertices, com, force, moment)
+
+
+def robot_mu(robot: Robot, gravity_body: ArrayLike, q: ArrayLike) -> FloatArray:
+    """μ [N rad] (N,) of the robot at postures ``q`` (N, 4) [rad], with its tool wrench.
+
+    Without a wrench (``Robot.tool_wrench`` None) this is ``robot_force_angle`` of the
+    postures' arm CoMs; with one, :func:`robot_force_angle_wrench` at the postures' tool
+    points (the wrist frame's origin). What the verdicts of a plan and of a tracking run
+    use, so that a problem's ``payload.wrench`` reaches them.
+
+    Args:
+        robot: the robot (payload attached).
+        gravity_body: gravity in B (N, 3) or (3,) [m/s^2].
+        q: arm postures (N, 4) or (4,) [rad].
+    """
+    qa = np.atleast_2d(np.asarray(q, dtype=float))
+    com = np.atleast_2d(robot.arm_com(qa))
+    if robot.tool_wrench is None:
+        return robot_force_angle(robot, gravity_body, com).mu
+    tool = robot.kinematics.link_frames(qa)[:, -1, :3, 3]
+    wrench = np.broadcast_to(np.asarray(robot.tool_wrench, dtype=float), (len(qa), 6))
+    g = np.broadcast_to(np.asarray(gravity_body, dtype=float), (len(qa), 3))
+    return robot_force_angle_wrench(robot, g, com, tool, wrench).mu

@@ -5,6 +5,11 @@ overall CoM (Eq. 5) and everything built on them (workspace, planner, controller
 is part of the last link: the link's mass becomes ``m + m_p`` and its CoM the mass-weighted
 mean of the two, in the wrist frame. :func:`attach_payload` returns that robot; the
 description's hash changes with the payload, so cached workspaces are not reused.
+
+The problem's optional ``payload:`` section (``mass`` [kg], ``com`` [m] in the wrist frame,
+optional ``wrench``: ``[fx, fy, fz [N], nx, ny, nz [N m]]`` in the body frame B at the tool
+point, the wrist frame's origin) is read by :func:`payload_from_section`; the wrench rides
+on the robot (``Robot.tool_wrench``) into the planner's measure and the verdicts.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ import dataclasses
 import hashlib
 import math
 import os
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -28,10 +33,13 @@ class Payload(NamedTuple):
     Attributes:
         mass: payload mass [kg] (>= 0).
         com_wrist: its CoM in the wrist (last link's DH) frame (3,) [m].
+        wrench_body: external wrench at the tool, body frame, ``[f [N], n [N m]]`` (6,),
+            or None.
     """
 
     mass: float
     com_wrist: FloatArray
+    wrench_body: FloatArray | None = None
 
 
 def check_payload(
@@ -50,8 +58,30 @@ def check_payload(
     return Payload(mass=float(mass), com_wrist=com)
 
 
+def payload_from_section(path: str | os.PathLike[str], section: dict[str, Any]) -> Payload:
+    """The problem's ``payload:`` section (schema-checked) as a :class:`Payload`.
+
+    Raises:
+        ConfigError: a negative or non-finite mass, a bad CoM, a wrench that is not 6
+            finite numbers (one line naming the file and field).
+    """
+    p = check_payload(path, "payload", section["mass"], section["com"])
+    if "wrench" not in section:
+        return p
+    w = section["wrench"]
+    wrench = np.asarray(w, dtype=float) if isinstance(w, list) else None
+    if wrench is None or wrench.shape != (6,) or not np.all(np.isfinite(wrench)):
+        raise ConfigError(path, "payload.wrench", f"must be 6 finite numbers [N, N m], got {w!r}")
+    return p._replace(wrench_body=wrench)
+
+
 def attach_payload(robot: Robot, payload: Payload) -> Robot:
-    """The robot with ``payload`` folded into its last arm link (a new Robot)."""
+    """The robot with ``payload`` folded into its last arm link (a new Robot).
+
+    The payload's wrench, if any, becomes ``Robot.tool_wrench``.
+    """
+    if payload.wrench_body is not None:
+        robot = dataclasses.replace(robot, tool_wrench=np.asarray(payload.wrench_body, float))
     if payload.mass == 0:
         return robot
     last = robot.links[-1]

@@ -14,6 +14,7 @@ from typing import Any
 
 from mmstab import schema
 from mmstab.config import ConfigError, read_yaml, validate
+from mmstab.payload import attach_payload, payload_from_section
 from mmstab.robot import Robot, load_robot
 from mmstab.settings import check_problem
 from mmstab.terrain import CirclePath, Terrain, from_section
@@ -80,6 +81,8 @@ def problem_from_dict(
     check_problem(p, data, force_size=force_size)
     c = data["path"]
     robot = load_robot(robot_path)
+    if "payload" in data:  # optional: without it the robot is the file's, unchanged
+        robot = attach_payload(robot, payload_from_section(p, data["payload"]))
     return Problem(
         path=p,
         data=data,

@@ -13,7 +13,7 @@ import hashlib
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -146,12 +146,21 @@ class Tracks:
         )
 
 
+class FlipperLimits(NamedTuple):
+    """Flipper range [rad] and rate limit [rad/s] (the planner's flipper search)."""
+
+    lower: float
+    upper: float
+    rate: float
+
+
 @dataclass(frozen=True)
 class Flippers:
     """Two coupled flippers; ``pivot`` is the left one's hinge [m], mirrored for the right.
 
     ``angle`` [rad] turns the flipper about the body's y axis at the hinge: 0 points it
-    straight forward, positive raises its tip.
+    straight forward, positive raises its tip. ``limits`` (optional in the file): the
+    range ``(lower, upper)`` [rad] and rate [rad/s] the planner may move them in.
     """
 
     length: float
@@ -159,6 +168,7 @@ class Flippers:
     thickness: float
     pivot: FloatArray
     angle: float
+    limits: FlipperLimits | None = None
 
     def box(self, side: Literal["left", "right"]) -> Box:
         """Collision box of one flipper in the body frame."""
@@ -218,6 +228,9 @@ class Robot:
         mount_T: pose of the arm's mounting frame in the body frame (4x4) [m].
         stowed: the folded arm posture (4,) [rad].
         source_hash: SHA-256 of the description's content, for cache keys.
+        tool_wrench: external wrench at the tool (the wrist frame's origin), body frame,
+            ``[f (3) [N], n (3) [N m]]`` (6,), or None (``mmstab.payload``). It loads the
+            force-angle measure, not the arm's masses, so it is not in ``source_hash``.
     """
 
     name: str
@@ -226,6 +239,7 @@ class Robot:
     mount_T: FloatArray
     stowed: FloatArray
     source_hash: str = ""
+    tool_wrench: FloatArray | None = None
 
     @property
     def arm_mass(self) -> float:
@@ -326,6 +340,13 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
         if not link.lower <= qi <= link.upper:
             raise ConfigError(p, f"arm.stowed[{i}]", f"{qi} is outside the joint limits")
     tr, fl = b["tracks"], b["flippers"]
+    limits = None
+    if "limits" in fl:
+        lim = fl["limits"]
+        check_order(p, "base.flippers.limits", lim["lower"], lim["upper"])
+        if not lim["lower"] <= fl["angle"] <= lim["upper"]:
+            raise ConfigError(p, "base.flippers.angle", "is outside base.flippers.limits")
+        limits = FlipperLimits(float(lim["lower"]), float(lim["upper"]), float(lim["rate"]))
     base = Base(
         mass=float(b["mass"]),
         com=np.array(b["com"], float),
@@ -339,6 +360,7 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
             thickness=float(fl["thickness"]),
             pivot=np.array(fl["pivot"], float),
             angle=float(fl["angle"]),
+            limits=limits,
         ),
     )
     lowest = min(base.flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
@@ -347,7 +369,9 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
             p, "base.flippers.angle", f"flippers reach {-lowest:.3f} m below the ground; raise them"
         )
     mount = data["arm"]["mount"]
-    digest = hashlib.sha256(repr(sorted(_flatten(data))).encode()).hexdigest()
+    # The flipper limits change no cached artefact (V, generated code), so they are not hashed.
+    hashed = [kv for kv in _flatten(data) if not kv[0].startswith(".base.flippers.limits")]
+    digest = hashlib.sha256(repr(sorted(hashed)).encode()).hexdigest()
     return Robot(
         name=data["name"],
         base=base,

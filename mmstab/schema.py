@@ -43,6 +43,11 @@ def vec(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
     return {"type": "array", "items": item, "minItems": n, "maxItems": n}
 
 
+def vec_min(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
+    """Array of at least ``n`` items."""
+    return {"type": "array", "items": item, "minItems": n}
+
+
 BOX = obj(type={"const": "box"}, size=VEC3_POS, center=VEC3, rpy=VEC3)
 CAPSULE = obj(type={"const": "capsule"}, radius=POS, p0=VEC3, p1=VEC3)
 
@@ -70,7 +75,12 @@ ROBOT = obj(
             sprocket_radius=POS,
             velocity_limit=POS,
         ),
-        flippers=obj(length=POS, width=POS, thickness=POS, pivot=VEC3, angle=NUM),
+        flippers=with_optional(
+            obj(length=POS, width=POS, thickness=POS, pivot=VEC3, angle=NUM),
+            # optional: the range [rad] and rate [rad/s] the planner may move them in
+            # (planner.flipper_angles); not part of the description's hash (no cache uses it)
+            limits=obj(lower=NUM, upper=NUM, rate=POS),
+        ),
     ),
     arm=obj(
         mount=obj(xyz=VEC3, rpy=VEC3),
@@ -119,6 +129,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
+        # optional: flipper angles searched per pose between the robot's flipper limits,
+        # rate-limited along the path (docs/levers.md); 0 = flippers fixed (the default)
+        flipper_angles={"type": "integer", "minimum": 0, "maximum": 64},
     ),
     "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/controller.py)
         dt=POS,
@@ -214,8 +227,38 @@ ATLAS: dict[str, Any] = {
     "additionalProperties": False,
 }
 
+# A payload held at the wrist and an optional wrench at the tool (docs/levers.md); left out:
+# no payload. ``com`` is in the wrist (last DH) frame; ``wrench`` is [fx, fy, fz [N],
+# nx, ny, nz [N m]] in the body frame B, acting at the tool point (the wrist frame's origin).
+PAYLOAD: dict[str, Any] = with_optional(obj(mass=NUM, com=VEC3), wrench=vec(6))
+
+# make levers (docs/levers.md): the experiments' own settings.
+LEVERS: dict[str, Any] = with_optional(
+    obj(
+        margin=NUM,  # [N rad]: "safe" / "holds" means mu >= margin
+        speeds=vec_min(1, POS),  # lap-speed factors of the dynamic-mu comparison (1 = lap_time)
+        samples=INT_POS,  # samples along one lap for the dynamic measure
+        side_slope={"type": "number", "minimum": 0, "maximum": 1.2},  # [rad]: payload, flippers
+        max_payload=POS,  # [kg]: the payload bisection's upper bracket
+        payload_com=VEC3,  # [m]: the payload's CoM in the wrist frame
+        payload_reach=NONNEG,  # [m]: "held at the front/side": the tool this far beyond the tracks
+        bisection_steps=INT_POS,  # steps of every bisection
+        max_slope={"type": "number", "exclusiveMinimum": 0, "maximum": 1.2},  # [rad] bracket
+        robots={"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
+        variant_grid=vec(4, {"type": "integer", "minimum": 2}),  # workspace grid of the variants
+        flipper_angles={"type": "integer", "minimum": 1, "maximum": 64},  # per pose (planner key)
+    ),
+    # optional: a problem file (relative to this one) whose terrain and circle give the
+    # variants' rough-ground lap; left out: no rough column
+    rough_problem={"type": "string", "minLength": 1},
+)
+
 #: Sections a problem may leave out; the command that needs one says so when it is missing.
-OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {"atlas": ATLAS}
+OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {
+    "atlas": ATLAS,
+    "payload": PAYLOAD,
+    "levers": LEVERS,
+}
 
 
 def problem_schema() -> dict[str, Any]:

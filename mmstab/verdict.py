@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mmstab.config import UnstableError
+from mmstab.dynamics import robot_mu
 from mmstab.stability import stability_along
 
 if TYPE_CHECKING:
@@ -88,6 +89,9 @@ def plan_stability(problem: Problem, plan: Plan) -> dict[str, Any]:
     robot = problem.robot
     arm = np.atleast_2d(robot.arm_com(np.asarray(plan.postures)))
     realised = stability_along(robot, problem.terrain, plan.poses, arm).reconfigured
+    if robot.tool_wrench is not None:  # payload.wrench: at the postures' tool points
+        gravity = problem.terrain.gravity_body(plan.poses)
+        realised = robot_mu(robot, gravity, np.asarray(plan.postures))
     poses = [
         {"pose": t.pose, "mu_planned": float(t.mu), "mu_realised": float(m)}
         for t, m in zip(plan.targets, realised, strict=True)

@@ -22,9 +22,20 @@ DEFAULT_OUT = {
     "animation": "results/tracking",
     "fidelity": "results/fidelity",
     "atlas": "results/atlas",
+    "levers": "results/levers",
 }
 #: Commands that load or build the workspace (its cache folder must be writable to build).
-USES_WORKSPACE = {"workspace", "fig3", "plan", "fig7", "fig8", "track", "animation", "atlas"}
+USES_WORKSPACE = {
+    "workspace",
+    "fig3",
+    "plan",
+    "fig7",
+    "fig8",
+    "track",
+    "animation",
+    "atlas",
+    "levers",
+}
 #: Commands that run the planner (``--allow-unstable``).
 PLANS = ("plan", "fig7", "fig8", "track", "animation")
 
@@ -247,6 +258,26 @@ def _atlas(args: argparse.Namespace, problem: Any) -> None:
         )
 
 
+def _levers(args: argparse.Namespace, problem: Any) -> None:
+    from mmstab.experiments.levers import run_levers
+
+    s = run_levers(problem, args.out)
+    d, p = s["dynamic"], s["payload"]
+    lap = {k: d[k]["fastest_safe_lap_time_s"] for k in ("planned", "stowed")}
+    print(
+        f"levers: fastest safe lap (mu >= {s['margin_N_rad']:g} N rad): planned arm "
+        f"{lap['planned']:.2f} s, stowed {lap['stowed']:.2f} s (the tracks allow "
+        f"{d['track_speed_limit_lap_time_s']:.2f} s); heaviest payload planned front/left/right "
+        + "/".join(
+            "-"
+            if p[k]["planned"]["heaviest_kg"] is None
+            else f"{p[k]['planned']['heaviest_kg']:.1f}"
+            for k in ("front", "left", "right")
+        )
+        + f" kg; {s['seconds']:.0f} s; figures and summary in {args.out or 'results/levers'}"
+    )
+
+
 # (name, help, handler)
 COMMANDS: list[tuple[str, str, Handler]] = [
     ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
@@ -261,6 +292,7 @@ COMMANDS: list[tuple[str, str, Handler]] = [
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
     ("atlas", "tip-over envelope atlas over slope x heading x robot x flippers (Dask)", _atlas),
     ("fidelity", "paper claims vs the saved results of fig6, fig8, tracking", _fidelity),
+    ("levers", "payload, flippers, lap speed and robot variants as stability levers", _levers),
 ]
 
 _ALLOW_UNSTABLE = (

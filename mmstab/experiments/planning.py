@@ -21,6 +21,7 @@ from mmstab.drawing import (
     robot_meshes,
     set_equal_aspect,
 )
+from mmstab.dynamics import robot_mu
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
 from mmstab.ik import PostureSolver
@@ -119,6 +120,9 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     robot = problem.robot
     mu = stability_along(problem, plan.poses, robot.arm_com(plan.postures))
     mu_realised, mu_stowed, mu_removed = mu.reconfigured, mu.stowed, mu.arm_removed
+    if robot.tool_wrench is not None:  # payload.wrench: at the postures' tool points
+        gravity = problem.terrain.gravity_body(plan.poses)
+        mu_realised = robot_mu(robot, gravity, np.asarray(plan.postures))
     poses = []
     for k, t in enumerate(plan.targets):
         poses.append(

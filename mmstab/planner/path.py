@@ -34,6 +34,7 @@ from mmstab.planner.exhaustive import (
     solve_exhaustive,
 )
 from mmstab.planner.fitness import CoMRegion, pose_fitness, region_samples
+from mmstab.planner.levers import with_tool_wrench
 from mmstab.planner.regions import planning_region
 from mmstab.planner.sequence import solve_sequence
 from mmstab.planner.settings import PlannerSettings
@@ -162,6 +163,7 @@ def solve_pose(
         stowed_flat_mu(robot) if mu_max is None else mu_max,
         float(region.diameter),
     )
+    fitness = with_tool_wrench(fitness, region)  # itself unless payload.wrench is set
     if settings.method in ("exhaustive", "sequence"):  # sequence: per pose, the reference
         ex = solve_exhaustive(fitness, region_samples(region))
         return PoseTarget(
@@ -250,6 +252,7 @@ def _fall_back_to_a_sample(
         mu_max,
         float(region.diameter),
     )
+    fitness = with_tool_wrench(fitness, region)
     values = fitness(near)
     best = int(np.argmax(values))
     q, ok = realise(near[best], previous_q)
@@ -429,6 +432,12 @@ def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -
         raise MmstabError(f"{problem.path}: the workspace V is empty; no arm CoM can be planned")
     region = planning_region(ws, problem.section("workspace")["method"])
     settings = PlannerSettings.from_section(problem.section("planner"))
+    if settings.flipper_angles:
+        raise MmstabError(
+            f"{problem.path}: planner.flipper_angles plans the flippers, which the tracking "
+            "controller does not move; they are planned by make levers "
+            "(mmstab.planner.levers.solve_path_flippers)"
+        )
     solver = PostureSolver(problem.robot, ws)
     poses = problem.circle.poses(settings.poses)
     return solve_path(

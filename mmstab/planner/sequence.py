@@ -30,6 +30,7 @@ from mmstab.collision import CollisionChecker
 from mmstab.config import MmstabError
 from mmstab.planner.exhaustive import sample_index
 from mmstab.planner.fitness import CoMRegion, pose_fitness
+from mmstab.planner.levers import with_tool_wrench
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turret import sample_postures
 from mmstab.robot import FloatArray, Robot
@@ -76,7 +77,7 @@ def segments_collide(checker: Any, q_from: FloatArray, q_to: FloatArray) -> NDAr
     u = (np.arange(1, SEGMENT_STEPS + 1) / (SEGMENT_STEPS + 1))[None, :, None]
     q = (a[:, None, :] * (1 - u) + b[:, None, :] * u).reshape(-1, 4)
     hit = np.asarray(checker.collides(q), dtype=bool).reshape(len(a), SEGMENT_STEPS)
-    return hit.any(axis=1)
+    return np.asarray(hit.any(axis=1), dtype=bool)
 
 
 def _viterbi(
@@ -143,8 +144,8 @@ def solve_sequence(
     value = np.empty((K, M))
     bins = _turret_bins(postures[:, 0], TURRET_BINS)
     for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
-        lin = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter).linear()
-        v = lin(samples)
+        fit = with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region)
+        v = fit.linear()(samples)
         cand[k] = _diverse_top(v, bins, M)
         value[k] = v[cand[k]]
     w = settings.w_motion / diameter**2
@@ -192,7 +193,9 @@ def solve_sequence(
         fitness[b] -= motion[i][path[a], path[b]]
     mu = np.array(
         [
-            pose_fitness(robot, g[k], stowed, stab, mu_max, diameter).mu(samples[rows[k]])[0]
+            with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region).mu(
+                samples[rows[k]]
+            )[0]
             for k in range(K)
         ]
     )

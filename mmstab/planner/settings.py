@@ -51,6 +51,8 @@ class PlannerSettings(NamedTuple):
             poses [rad]; None: unbounded (``mmstab.planner.turret``).
         sequence_candidates: samples per pose among which ``method: sequence`` chooses
             (``mmstab.planner.sequence``).
+        flipper_angles: flipper angles searched per pose over the robot's flipper limits
+            (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
     """
 
     w_stability: float
@@ -74,6 +76,7 @@ class PlannerSettings(NamedTuple):
     restarts: int
     turret_window: float | None = None
     sequence_candidates: int = 256
+    flipper_angles: int = 0
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -101,6 +104,7 @@ class PlannerSettings(NamedTuple):
             restarts=int(cfg["restarts"]),
             turret_window=None if cfg["turret_window"] is None else float(cfg["turret_window"]),
             sequence_candidates=int(cfg["sequence_candidates"]),
+            flipper_angles=int(cfg.get("flipper_angles", 0)),
         )
 
     def sigma0_metres(self, diameter: float) -> float:

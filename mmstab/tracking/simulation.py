@@ -26,6 +26,7 @@ from mmstab.controller import (
     build_controller,
     quiet_stdout,
 )
+from mmstab.dynamics import robot_mu
 from mmstab.posture import PostureReference
 from mmstab.problem import Problem
 from mmstab.reference import initial_state
@@ -120,6 +121,8 @@ def simulate(
 
     def mu_of(states: FloatArray) -> FloatArray:  # μ with the arm as it is [N rad]
         gravity = problem.terrain.gravity_body(states[:, :3])
+        if robot.tool_wrench is not None:  # payload.wrench: at the tool points
+            return robot_mu(robot, gravity, states[:, ARM])
         com = np.atleast_2d(robot.arm_com(states[:, ARM]))
         return robot_force_angle(robot, gravity, com).mu
 
@@ -169,6 +172,8 @@ def simulate(
 
     xi, com_B = task_batch(model, problem.terrain, states)
     mu = stability_along(robot, problem.terrain, states[:, :3], com_B)
+    if robot.tool_wrench is not None:
+        mu = mu._replace(reconfigured=mu_of(states))
     failed = np.flatnonzero(statuses != QPStatus.SUCCESS)
     return TrackingRun(
         t=t,
