@@ -238,7 +238,7 @@ def test_qpoases_is_refused_before_casadi_is_called(problem, tmp_path, monkeypat
 
     monkeypatch.setattr(codegen_build, "build_controller", never)
     monkeypatch.setattr(codegen_build.ca, "CodeGenerator", never)
-    with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use qrqp"):
+    with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use box, qrqp"):
         generate(problem, tmp_path / "out", "qpoases")
     with pytest.raises(MmstabError, match="unknown QP plugin"):
         generate(problem, tmp_path / "out", "gurobi")

@@ -67,6 +67,8 @@ from mmstab.codegen.embedded import (
     build_programs,
 )
 from mmstab.codegen.functions import (
+    JACOBIAN_NAME,
+    QP_NAME,
     ROLLOUT_CHUNK,
     ROLLOUT_NAME,
     STEP_NAME,
@@ -93,7 +95,9 @@ __all__ = [
     "EXAMPLE_PROGRAM",
     "FORMAT_VERSION",
     "LAYOUT_HEADER",
+    "JACOBIAN_NAME",
     "PLANT_NAME",
+    "QP_NAME",
     "QPOASES_MESSAGE",
     "ROLLOUT_CHUNK",
     "ROLLOUT_NAME",

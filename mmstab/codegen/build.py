@@ -21,6 +21,7 @@ from mmstab.codegen.postprocess import postprocess
 from mmstab.codegen.settings import CodegenSettings, check_plugin
 from mmstab.config import _atomic, write_json
 from mmstab.controller import ControllerSettings, build_controller
+from mmstab.controller.boxqp import boxqp_source
 from mmstab.layout import layout_header
 from mmstab.robot import Robot
 
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
-FORMAT_VERSION = 3  #: bump when the generated content or post-processing changes
+FORMAT_VERSION = 4  #: bump when the generated content or post-processing changes
 
 
 class GeneratedController(NamedTuple):
@@ -158,7 +159,8 @@ def generate(
         for f in functions:
             gen.add(f)
         gen.generate(f"{tmp}/")
-        c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name())
+        solver = boxqp_source() if plugin == "box" else None
+        c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
     for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout_header())):
         _write_text(path, text)

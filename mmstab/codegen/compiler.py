@@ -23,7 +23,7 @@ def casadi_paths() -> tuple[str, str]:
 
 def plugin_flags(plugin: str) -> tuple[list[str], list[str]]:
     """Compile flags (include path) and link flags (libraries, rpath) a plugin's C needs."""
-    if plugin == "qrqp":
+    if plugin in ("qrqp", "box"):  # self-contained C
         return [], ["-lm"]
     include, libdir = casadi_paths()
     return [f"-I{include}"], [f"-L{libdir}", f"-Wl,-rpath,{libdir}", f"-l{plugin}", "-lm"]
