@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
-FORMAT_VERSION = 4  #: bump when the generated content or post-processing changes
+FORMAT_VERSION = 5  #: bump when the generated content or post-processing changes
 
 
 class GeneratedController(NamedTuple):
@@ -162,7 +162,8 @@ def generate(
         solver = boxqp_source() if plugin == "box" else None
         c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout_header())):
+    layout = layout_header(settings.kkt_tol)
+    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout)):
         _write_text(path, text)
     stderr = compile_c([c_file], library, plugin, shared=True)
     for stale in out.glob(f"lib{STEP_NAME}_*.so"):
