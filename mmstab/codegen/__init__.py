@@ -58,7 +58,13 @@ from mmstab.codegen.build import (
     load_step,
     work_sizes,
 )
-from mmstab.codegen.compiler import CFLAGS, compile_c, compile_command, plugin_flags
+from mmstab.codegen.compiler import (
+    CFLAGS,
+    NATIVE_CFLAGS,
+    compile_c,
+    compile_command,
+    plugin_flags,
+)
 from mmstab.codegen.embedded import (
     BENCH_PROGRAM,
     EMBEDDED_DIR,
@@ -95,6 +101,7 @@ __all__ = [
     "EXAMPLE_PROGRAM",
     "FORMAT_VERSION",
     "LAYOUT_HEADER",
+    "NATIVE_CFLAGS",
     "JACOBIAN_NAME",
     "PLANT_NAME",
     "QP_NAME",

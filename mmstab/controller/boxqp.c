@@ -42,7 +42,10 @@
 /* Solve A z = b for the leading m x m block of A (symmetric positive definite; lower triangle
  * read) by an LDL' factorisation: one division per row and no square root. Returns 0, or 1 when
  * a pivot is not positive (or not finite). */
-static int mmstab_boxqp_ldl(casadi_real A[MMSTAB_BOXQP_N][MMSTAB_BOXQP_N], casadi_real* b,
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* inlined with m = 6 known: loops unrolled */
+#endif
+static inline int mmstab_boxqp_ldl(casadi_real A[MMSTAB_BOXQP_N][MMSTAB_BOXQP_N], casadi_real* b,
                             int m) {
   enum { N = MMSTAB_BOXQP_N };
   casadi_real LD[N][N], rd[N], s; /* A's lower triangle becomes L; LD = L diag(d) */

@@ -15,6 +15,7 @@ the QP is strictly convex. The targets come from the step's reference and parame
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import casadi as ca
@@ -53,9 +54,22 @@ class QPData(NamedTuple):
     status: int
 
 
+def tree_reduce(x: ca.SX, op: Callable[[ca.SX, ca.SX], ca.SX]) -> ca.SX:
+    """``op`` folded over the elements of ``x`` as a balanced tree (``x`` not empty).
+
+    A left fold (``ca.sum1``, ``ca.mmin``) is a chain of n dependent operations: ~4 cycles of
+    latency each, 0.15 µs for the ~100 numbers the step checks; the tree's depth is log₂ n.
+    """
+    items = [x[i] for i in range(x.numel())]
+    while len(items) > 1:
+        pairs = [op(a, b) for a, b in zip(items[::2], items[1::2], strict=False)]
+        items = pairs + ([items[-1]] if len(items) % 2 else [])
+    return items[0]
+
+
 def all_true(x: ca.SX) -> ca.SX:
     """1 if every element of ``x`` is nonzero (1 for an empty ``x``)."""
-    return ca.mmin(x) if x.numel() else ca.SX(1)
+    return tree_reduce(ca.vec(x), ca.fmin) if x.numel() else ca.SX(1)
 
 
 def all_finite(x: ca.SX) -> ca.SX:
@@ -71,7 +85,7 @@ def all_finite(x: ca.SX) -> ca.SX:
         return ca.SX(1)
     if x.numel() > 2**20:
         raise ValueError("all_finite: too many elements for the scaled sum")
-    return ca.fabs(ca.sum1(ca.vec(x) * 2.0**-1000)) < ca.inf
+    return ca.fabs(tree_reduce(ca.vec(x) * 2.0**-1000, ca.plus)) < ca.inf
 
 
 def targets(R: StepReference, P: ControllerParams) -> tuple[TaskTarget, TaskTarget, TaskTarget]:

@@ -111,8 +111,13 @@ class Controller:
         p = ca.MX.sym("params", PARAMS_SIZE)
         # the certificate judges the whole cost: task, regularisation and posture terms
         H, g, lbx, ubx, _, _, cost0, status = self.qp(state, ref, p)
-        Hs, gs, lbs, ubs = guard(H, g, lbx, ubx, status)
-        x = self.conic(h=Hs, g=gs, lbx=lbs, ubx=ubs)["x"]
+        if settings.plugin == "box":
+            # no guard: the solver takes any numbers (NaN, crossed bounds) and returns within
+            # its iteration limit, and the certificate ignores x unless the status is SUCCESS
+            x = self.conic(h=H, g=g, lbx=lbx, ubx=ubx)["x"]
+        else:
+            Hs, gs, lbs, ubs = guard(H, g, lbx, ubx, status)
+            x = self.conic(h=Hs, g=gs, lbx=lbs, ubx=ubs)["x"]
         self.step = ca.Function(
             "controller_step",
             [state, ref, p],
