@@ -123,8 +123,14 @@ $(BENCH_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet --editable '.[$(EXTRAS),bench]'
 	touch $(BENCH_STAMP)
 
-## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
-bench: $(BENCH_STAMP)
+## every benchmark, each JSON in results/bench/ refreshed (about 10 minutes; not part of make test)
+BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
+	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas
+.PHONY: $(BENCHES)
+bench: $(BENCHES)
+
+## µs per step: interpreted vs generated vs pure C vs mink, time split -> results/bench/bench.json
+bench-codegen: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_codegen.py $(PROBLEM)
 
 ## issue 7: the tracking run animated -> results/tracking/animation.gif

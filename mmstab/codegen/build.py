@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
-FORMAT_VERSION = 5  #: bump when the generated content or post-processing changes
+FORMAT_VERSION = 6  #: bump when the generated content or post-processing changes
 
 
 class GeneratedController(NamedTuple):
