@@ -361,7 +361,9 @@ def test_rollout_backends_equal_the_python_step_loop(problem, generated_default)
     assert ref.states.shape == (steps + 1, 9) and ref.qdot.shape == (steps, 6)
     assert np.abs(ref.qdot).max() > 1.0  # the start transient moves the joints
     for backend in ("casadi", "generated"):
-        r = rollout(problem, plan, backend=backend, inputs=inputs, out_dir=generated_default.directory)
+        r = rollout(
+            problem, plan, backend=backend, inputs=inputs, out_dir=generated_default.directory
+        )
         assert np.max(np.abs(r.states - ref.states)) <= 1e-9
         assert np.max(np.abs(r.qdot - ref.qdot)) <= 1e-9
         np.testing.assert_array_equal(r.status, ref.status)

@@ -131,7 +131,8 @@ def generate(
         source: a problem, or (robot, controller settings).
         out_dir: output folder (default ``codegen.directory/plugin``, ``results/codegen/plugin``
             for a (robot, settings) source).
-        plugin: QP plugin (default the problem's ``codegen.plugin``, for a tuple the settings' plugin if C can be generated for it, else box).
+        plugin: QP plugin (default the problem's ``codegen.plugin``; for a tuple the
+            settings' plugin if C can be generated for it, else box).
         force: regenerate and recompile even if up to date.
         native: compile with ``-march=native`` (opt-in; the library then runs on this CPU
             family only; part of the cache key).

@@ -68,7 +68,10 @@ class Task(abc.ABC):
         J = self.jacobian(model)
         JtW = J.T @ ca.diag(target.weight)
         return TaskObjective(
-            weighted_gram(J, target.weight), -JtW @ rate, 0.5 * ca.dot(rate, target.weight * rate), rate
+            weighted_gram(J, target.weight),
+            -JtW @ rate,
+            0.5 * ca.dot(rate, target.weight * rate),
+            rate,
         )
 
 
