@@ -86,13 +86,14 @@ fig8: setup
 	$(MMSTAB) fig8 $(PROBLEM)
 
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
+## (and other CMA-ES set-ups on the same poses -> results/bench/plan_alternatives.json)
 ## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
 	$(MMSTAB) fig8 problems/ramp_reliable.yaml -o results/fig8_reliable
 
 bench-plan: setup
-	$(PY) benchmarks/plan.py $(PROBLEM)
+	$(PY) benchmarks/plan.py $(PROBLEM) --alternatives
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity

@@ -28,6 +28,7 @@ import argparse
 import contextlib
 import importlib.metadata
 import json
+import os
 import subprocess
 import time
 from typing import Any
@@ -313,6 +314,7 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=5, help="passes over the run for (c)")
     ap.add_argument("--work", default="results/codegen/bench", help="generated code folder")
     args = ap.parse_args()
+    load_start = [round(x, 2) for x in os.getloadavg()]
     problem = load_problem(args.problem)
     plan = example_plan(problem.robot)
     state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
@@ -415,6 +417,7 @@ def main() -> None:
             "replayed_calls": len(idx),
             "default_codegen_plugin": default_plugin,
             "machine": machine_info(
+                load_average_start=load_start,
                 cc=subprocess.run(
                     ["cc", "--version"], capture_output=True, text=True
                 ).stdout.splitlines()[0]
