@@ -420,7 +420,7 @@ def main() -> None:
                 load_average_start=load_start,
                 cc=subprocess.run(
                     ["cc", "--version"], capture_output=True, text=True
-                ).stdout.splitlines()[0]
+                ).stdout.splitlines()[0],
             ),
             **result,
         },
