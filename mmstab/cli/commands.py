@@ -285,7 +285,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "track": [
         (
             "--plugin",
-            {"help": "QP plugin: qpoases, osqp, qrqp or daqp (default: the problem's)"},
+            {"help": "QP plugin: qpoases, osqp, qrqp, daqp or box (default: the problem's)"},
         ),
         (
             "--backend",
