@@ -155,6 +155,7 @@ view-screenshot: setup
 ## seconds to the first page: mmstab view vs bare viser vs MeshCat -> results/bench/view.json
 ## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
 bench-view: setup
+	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))
 
 ## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/summary.json, validation.png
