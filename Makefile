@@ -124,7 +124,7 @@ $(BENCH_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet --editable '.[$(EXTRAS),bench]'
 	touch $(BENCH_STAMP)
 
-## every benchmark, each JSON in results/bench/ refreshed (about 10 minutes; not part of make test)
+## every benchmark, each JSON in results/bench/ refreshed (12 min here under load; not part of make test)
 BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
 	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas
 .PHONY: $(BENCHES)
