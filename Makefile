@@ -86,6 +86,7 @@ fig8: setup
 	$(MMSTAB) fig8 $(PROBLEM)
 
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
+## (and other CMA-ES set-ups on the same poses -> results/bench/plan_alternatives.json)
 ## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
@@ -97,7 +98,7 @@ plan-paper: setup
 	$(MMSTAB) fig8 problems/ramp_paper.yaml -o results/fig8_paper
 
 bench-plan: setup
-	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml
+	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml --alternatives
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
@@ -128,8 +129,14 @@ $(BENCH_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet --editable '.[$(EXTRAS),bench]'
 	touch $(BENCH_STAMP)
 
-## µs per step: interpreted vs generated vs pure C vs mink -> results/bench/bench.json
-bench: $(BENCH_STAMP)
+## every benchmark, each JSON in results/bench/ refreshed (12 min here under load; not part of make test)
+BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
+	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas
+.PHONY: $(BENCHES)
+bench: $(BENCHES)
+
+## µs per step: interpreted vs generated vs pure C vs mink, time split -> results/bench/bench.json
+bench-codegen: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_codegen.py $(PROBLEM)
 
 ## issue 7: the tracking run animated -> results/tracking/animation.gif
@@ -153,6 +160,7 @@ view-screenshot: setup
 ## seconds to the first page: mmstab view vs bare viser vs MeshCat -> results/bench/view.json
 ## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
 bench-view: setup
+	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))
 
 ## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/summary.json, validation.png

@@ -14,7 +14,10 @@ that one trajectory:
     base: slide x, slide y, hinge yaw; the 4 arm hinges with the same DH geometry and masses).
 
 Also the whole default run's wall time per :func:`mmstab.rollout.rollout` backend and for the
-C loop. Medians; the machine is shared, so expect noise.
+C loop; the time split of the default plugin's step (``embedded/bench.c``: the task Jacobian,
+the QP assembly, the solver alone, the rest = glue) and the step's operation count with the
+time it would take at two scalar floating-point operations per clock cycle (the limit).
+Medians; the machine is shared, so expect noise.
 
 Usage: python benchmarks/bench_codegen.py [PROBLEM.yaml] [-o JSON] [--calls N]
 """
@@ -25,6 +28,7 @@ import argparse
 import contextlib
 import importlib.metadata
 import json
+import os
 import subprocess
 import time
 from typing import Any
@@ -44,6 +48,7 @@ from mmstab.controller import (
     build_controller,
     quiet_stdout,
 )
+from mmstab.controller.certificate import build_guard_and_certificate
 from mmstab.problem import Problem, load_problem
 from mmstab.reference import initial_state
 from mmstab.robot import Robot
@@ -246,6 +251,59 @@ def heap_allocations_per_step(loop: str, problem: Problem, plan: Any, work: str)
     return (counts[1] - counts[0]) / 1000
 
 
+def step_operations(problem: Problem, plugin: str) -> dict:
+    """Operations of one step: CasADi's instructions of its SX parts + the box solver's flops.
+
+    The solver's count is its unconstrained path (one 6 × 6 LDLᵀ solve: factorisation n³/3 +
+    triangular solves 2n² + the bound check), what almost every step of the run takes.
+    """
+    ctrl = build_controller(problem.robot, controller_settings(problem, plugin))
+    sx_parts = [ctrl.qp]  # J, H, g, bounds, pre-solve checks
+    _, certificate = build_guard_and_certificate(ctrl.settings.kkt_tol)
+    sx_parts.append(certificate)
+    counted = {f.name(): f.n_instructions() - f.nnz_in() - f.nnz_out() for f in sx_parts}
+    n = 6
+    counted["solver (unconstrained path)"] = n**3 // 3 + 2 * n**2 + 2 * n if plugin == "box" else 0
+    ops = sum(counted.values())
+    mhz = _cpu_mhz()
+    return {
+        "operations": ops,
+        "parts": counted,
+        "cpu_mhz": mhz,
+        "limit_us": ops / (2 * mhz) if mhz else None,
+        "limit_note": "operations / (2 scalar FP operations per cycle at cpu_mhz): no SIMD",
+    }
+
+
+def _cpu_mhz() -> float | None:
+    try:
+        text = open("/proc/cpuinfo").read()
+    except OSError:
+        return None
+    rates = [float(ln.split(":")[1]) for ln in text.splitlines() if ln.startswith("cpu MHz")]
+    return max(rates) if rates else None
+
+
+def time_split(c: dict) -> dict:
+    """Fractions of the C step's median in the Jacobian, the QP (assembly, solver) and glue."""
+    step, split = c["median_us"], c["split_us"]
+    solver = max(split["solver"], 0.0)
+    parts = {
+        "jacobian": split["jacobian"],
+        "qp_assembly": split["qp_data"] - split["jacobian"],
+        "qp_solver": solver,
+        "glue": step - split["qp_data"] - solver,
+    }
+    return {
+        "step_us": step,
+        "us": parts,
+        "fraction": {k: v / step for k, v in parts.items()},
+        "method": "manual split (embedded/bench.c): controller_jacobian, controller_qp_data "
+        "(J + assembly + pre-solve checks) and mmstab_boxqp on the recorded QPs timed alone in "
+        "the same batches; glue = step - qp_data - solver (the certificate, CasADi's copies)",
+    }
+
+
 def main() -> None:
     """Measure everything and write the JSON summary."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -256,6 +314,7 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=5, help="passes over the run for (c)")
     ap.add_argument("--work", default="results/codegen/bench", help="generated code folder")
     args = ap.parse_args()
+    load_start = [round(x, 2) for x in os.getloadavg()]
     problem = load_problem(args.problem)
     plan = example_plan(problem.robot)
     state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
@@ -294,6 +353,15 @@ def main() -> None:
             f"C whole run {rc['loop_s']:.4f} s, "
             f"{rc['heap_allocations_per_step']:g} heap allocations per step"
         )
+    # the opt-in -march=native build of the default plugin, same run file
+    gen = generate(problem, f"{args.work}/{default_plugin}_native", default_plugin, native=True)
+    progs = build_programs(gen)
+    run_file = write_run_file(run_file_path(gen.directory), inputs)
+    result["generated_c_native"] = {
+        default_plugin: _run_c(str(progs.bench), str(run_file), args.passes)
+    }
+    rn = result["generated_c_native"][default_plugin]
+    print(f"(c) pure C {default_plugin} -march=native median {rn['median_us']:6.3f} us")
     try:
         result["mink"] = bench_mink(problem, inputs, args.mink_steps)
         print(
@@ -334,6 +402,11 @@ def main() -> None:
     c_med = result["generated_c"][default_plugin]["median_us"]
     if "solve_ik_us" in result["mink"]:
         result["speedup_c_vs_mink"] = result["mink"]["solve_ik_us"] / c_med
+    if default_plugin == "box":
+        result["time_split"] = time_split(result["generated_c"][default_plugin])
+        print("time split of the C step:", result["time_split"]["fraction"])
+    result["limit"] = step_operations(problem, default_plugin)
+    print(f"step operations {result['limit']['operations']}, limit {result['limit']['limit_us']}")
     write_json(
         args.out,
         {
@@ -344,9 +417,10 @@ def main() -> None:
             "replayed_calls": len(idx),
             "default_codegen_plugin": default_plugin,
             "machine": machine_info(
+                load_average_start=load_start,
                 cc=subprocess.run(
                     ["cc", "--version"], capture_output=True, text=True
-                ).stdout.splitlines()[0]
+                ).stdout.splitlines()[0],
             ),
             **result,
         },

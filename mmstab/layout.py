@@ -170,12 +170,16 @@ REFERENCE_SIZE = StepReference.size()
 PARAMS_SIZE = ControllerParams.size()
 
 
-def layout_header() -> str:
+def layout_header(kkt_tol: float | None = None) -> str:
     """``controller_layout.h``: the step's argument sizes and packed layouts as C macros.
 
     ``MMSTAB_N_*`` sizes (state, joints, task, arm joints, reference, params, local ground),
     then the offset of each field of the reference (``MMSTAB_REF_*``) and of the parameters
     (``MMSTAB_PARAM_*``), from :class:`StepReference` and :class:`ControllerParams`.
+
+    Args:
+        kkt_tol: the certificate's tolerance [rad/s], written as ``MMSTAB_KKT_TOL`` (the
+            embedded example checks every step's KKT conditions with it); None: not written.
     """
     sizes = {
         "STATE": STATE_SIZE,
@@ -203,6 +207,12 @@ def layout_header() -> str:
             for k, v in ControllerParams.offsets().items()
         ),
         "",
+        *(
+            ["/* the step's certificate tolerance [rad/s] (controller.kkt_tol) */"]
+            + [f"#define MMSTAB_KKT_TOL {kkt_tol!r}", ""]
+            if kkt_tol is not None
+            else []
+        ),
         "#endif /* MMSTAB_CONTROLLER_LAYOUT_H */",
         "",
     ]

@@ -142,7 +142,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         w_b=vec(6, POS),
         posture_gain=vec(4, NONNEG),
         posture_weight=vec(4, NONNEG),
-        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},
         feedforward={"type": "boolean"},
         base_offset=NONNEG,
         approach_time=NONNEG,
@@ -156,7 +156,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
     ),
     "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)
-        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp"]},  # qpoases: refused, clearly
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},  # qpoases: refused, clearly
         directory={"type": "string", "minLength": 1},
     ),
     "animation": obj(  # make animation: the tracking run as a GIF

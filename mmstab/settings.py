@@ -23,12 +23,13 @@ from typing import Any
 from mmstab.config import ConfigError, MmstabError
 from mmstab.sizes import Estimate, check_sizes, check_steps
 
-#: QP plugins of the tracking controller (CasADi ``conic`` plugins).
-PLUGINS = ("qpoases", "osqp", "qrqp", "daqp")
+#: QP plugins of the tracking controller (CasADi ``conic`` plugins, and ``box``: mmstab's own
+#: box-QP solver, :mod:`mmstab.controller.boxqp`).
+PLUGINS = ("qpoases", "osqp", "qrqp", "daqp", "box")
 #: Plugins CasADi can generate C for (qpOASES emits ``#error``).
-CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp")
+CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp", "box")
 #: Why ``codegen`` refuses qpOASES.
-QPOASES_MESSAGE = "CasADi cannot generate C for qpOASES; use qrqp, daqp or osqp"
+QPOASES_MESSAGE = "CasADi cannot generate C for qpOASES; use box, qrqp, daqp or osqp"
 #: Tolerance of ``w_stability + w_motion = 1``.
 WEIGHT_SUM_TOL = 1e-9
 

@@ -57,13 +57,23 @@ def generated(request, problem, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def generated_qrqp(problem, tmp_path_factory):
-    return generate(problem, tmp_path_factory.mktemp("codegen_qrqp_default"))
+def generated_default(problem, tmp_path_factory):
+    """The problem's own plugin (codegen.plugin: box)."""
+    gen = generate(problem, tmp_path_factory.mktemp("codegen_default"))
+    assert gen.plugin == "box"
+    return gen
 
 
 @pytest.fixture(scope="session")
-def programs(generated_qrqp, tmp_path_factory):
-    return build_programs(generated_qrqp, tmp_path_factory.mktemp("programs"))
+def programs(generated_default, tmp_path_factory):
+    return build_programs(generated_default, tmp_path_factory.mktemp("programs"))
+
+
+@pytest.fixture(scope="session", params=("box", "qrqp"))
+def heap_free(request, problem, tmp_path_factory):
+    """The plugins whose generated step must not touch the heap, with their programs."""
+    gen = generate(problem, tmp_path_factory.mktemp(f"heap_free_{request.param}"), request.param)
+    return gen, build_programs(gen, tmp_path_factory.mktemp(f"programs_{request.param}"))
 
 
 def random_cases(robot, rng: np.random.Generator, n: int):
@@ -145,12 +155,12 @@ def test_c_compiles_without_any_warning(generated):
     assert "#error" not in text
 
 
-def test_qrqp_library_references_no_allocator(generated_qrqp):
+def test_heap_free_library_references_no_allocator(heap_free):
     nm = shutil.which("nm")
     if nm is None:
         pytest.skip("no nm")
     out = subprocess.run(
-        [nm, "-D", "--undefined-only", str(generated_qrqp.library)],
+        [nm, "-D", "--undefined-only", str(heap_free[0].library)],
         capture_output=True,
         text=True,
         check=True,
@@ -160,19 +170,19 @@ def test_qrqp_library_references_no_allocator(generated_qrqp):
     assert not symbols & {"malloc", "calloc", "realloc", "free", "posix_memalign"}
 
 
-def test_work_sizes_come_from_the_generated_work_function(generated_qrqp):
-    header = generated_qrqp.header.read_text()
-    sizes = codegen.work_sizes(generated_qrqp.library)
+def test_work_sizes_come_from_the_generated_work_function(generated_default):
+    header = generated_default.header.read_text()
+    sizes = codegen.work_sizes(generated_default.library)
     assert sizes.w > 0 and sizes.arg >= 3 and sizes.res >= 3
     for what, value in zip(("ARG", "RES", "IW", "W"), sizes, strict=True):
         assert f"#define {STEP_NAME}_SZ_{what} {value}\n" in header
-    meta = (generated_qrqp.directory / "build.json").read_text()
+    meta = (generated_default.directory / "build.json").read_text()
     assert f'"w": {sizes.w}' in meta
 
 
-def test_layout_header_matches_the_python_layouts(generated_qrqp):
+def test_layout_header_matches_the_python_layouts(generated_default):
     """controller_layout.h: the sizes and offsets C uses are the Python ones."""
-    text = generated_qrqp.layout.read_text()
+    text = generated_default.layout.read_text()
     defines = [line.split() for line in text.splitlines() if line.startswith("#define MMSTAB_")]
     macros = {d[1]: d[2] for d in defines if len(d) == 3}
     expected = {"STATE": STATE_SIZE, "REFERENCE": REFERENCE_SIZE, "PARAMS": PARAMS_SIZE}
@@ -219,7 +229,7 @@ def test_load_step_uses_the_problem_codegen_section(tmp_path):
     assert step.name() == STEP_NAME
     assert [step.size1_in(i) for i in range(3)] == [STATE_SIZE, REFERENCE_SIZE, PARAMS_SIZE]
     assert [step.size1_out(i) for i in range(3)] == [6, 1, 1]
-    assert (tmp_path / "gen" / "qrqp" / f"{STEP_NAME}.c").is_file()
+    assert (tmp_path / "gen" / "box" / f"{STEP_NAME}.c").is_file()
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.1, -1.4, 0.2, 0.0, 0.0, 2.0, 0.3, -0.5, 0.2]
     ref = np.r_[
@@ -238,7 +248,7 @@ def test_qpoases_is_refused_before_casadi_is_called(problem, tmp_path, monkeypat
 
     monkeypatch.setattr(codegen_build, "build_controller", never)
     monkeypatch.setattr(codegen_build.ca, "CodeGenerator", never)
-    with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use qrqp"):
+    with pytest.raises(MmstabError, match="CasADi cannot generate C for qpOASES; use box, qrqp"):
         generate(problem, tmp_path / "out", "qpoases")
     with pytest.raises(MmstabError, match="unknown QP plugin"):
         generate(problem, tmp_path / "out", "gurobi")
@@ -292,6 +302,9 @@ def test_embedded_example_matches_the_python_closed_loop(problem, programs, tmp_
     np.testing.assert_allclose(_parse(proc.stdout, "final_state"), py.states[-1], atol=1e-6, rtol=0)
     np.testing.assert_allclose(_parse(proc.stdout, "final_error"), py.errors[-1], atol=1e-6, rtol=0)
     assert f"failures: {py.failures} of 2000" in proc.stdout
+    # every answer passed the example's own KKT check (at the certificate's tolerance)
+    ok = 2000 - py.failures
+    assert f"kkt: {ok} of {ok} answers checked, 0 over tolerance 1e-06 rad/s" in proc.stdout
     # the run really converges from its 5 cm off the path; the arm starts on its approach
     # reference (from the stowed posture), so its CoM error at t = 0 is the base's offset
     assert np.hypot(*py.errors[0, :2]) == pytest.approx(0.05, rel=1e-9)
@@ -301,7 +314,7 @@ def test_embedded_example_matches_the_python_closed_loop(problem, programs, tmp_
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="LD_PRELOAD counter: glibc")
-def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path):
+def test_heap_free_closed_loop_allocates_nothing_per_step(problem, heap_free, tmp_path):
     counter = tmp_path / "malloc_count.so"
     src = codegen.EMBEDDED_DIR / "malloc_count.c"
     subprocess.run(
@@ -314,7 +327,7 @@ def test_qrqp_closed_loop_allocates_nothing_per_step(problem, programs, tmp_path
             tmp_path / f"run{steps}.bin", run_inputs(problem, plan, steps=steps)
         )
         proc = subprocess.run(
-            [str(programs.loop), str(run_file)],
+            [str(heap_free[1].loop), str(run_file)],
             capture_output=True,
             text=True,
             check=True,
@@ -339,7 +352,7 @@ def test_embedded_example_refuses_a_bad_run_file(programs, tmp_path):
 
 
 # ----------------------------------------------------------------------------------- rollout
-def test_rollout_backends_equal_the_python_step_loop(problem, generated_qrqp):
+def test_rollout_backends_equal_the_python_step_loop(problem, generated_default):
     plan = example_plan(problem.robot)
     state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
     steps = ROLLOUT_CHUNK + 250  # a full chunk and a padded one
@@ -348,7 +361,9 @@ def test_rollout_backends_equal_the_python_step_loop(problem, generated_qrqp):
     assert ref.states.shape == (steps + 1, 9) and ref.qdot.shape == (steps, 6)
     assert np.abs(ref.qdot).max() > 1.0  # the start transient moves the joints
     for backend in ("casadi", "generated"):
-        r = rollout(problem, plan, backend=backend, inputs=inputs, out_dir=generated_qrqp.directory)
+        r = rollout(
+            problem, plan, backend=backend, inputs=inputs, out_dir=generated_default.directory
+        )
         assert np.max(np.abs(r.states - ref.states)) <= 1e-9
         assert np.max(np.abs(r.qdot - ref.qdot)) <= 1e-9
         np.testing.assert_array_equal(r.status, ref.status)
@@ -368,9 +383,9 @@ def test_python_step_loop_is_controller_step_and_f_integrate(problem):
     assert r.times[-1] == pytest.approx(20 * inputs.dt)
 
 
-def test_generated_plant_equals_the_simulation_plant(generated_qrqp, problem, rng):
+def test_generated_plant_equals_the_simulation_plant(generated_default, problem, rng):
     """controller_plant (what the C example moves the robot with) is the Python plant."""
-    plant = generated_qrqp.load(PLANT_NAME)
+    plant = generated_default.load(PLANT_NAME)
     ctrl = build_controller(problem.robot, controller_settings(problem))
     r, b = problem.robot.base.tracks.sprocket_radius, problem.robot.base.tracks.separation
     for k in range(40):
@@ -389,8 +404,8 @@ def test_generated_plant_equals_the_simulation_plant(generated_qrqp, problem, rn
         assert np.linalg.norm(chord) == pytest.approx(abs(v) * 1e-3, rel=1e-6, abs=1e-15)
 
 
-def test_example_task_function_is_exported(generated_qrqp, problem):
-    task = generated_qrqp.load(TASK_NAME)
+def test_example_task_function_is_exported(generated_default, problem):
+    task = generated_default.load(TASK_NAME)
     ctrl = build_controller(problem.robot, controller_settings(problem))
     state = np.r_[0.3, -1.2, 0.7, 1.0, 2.0, 2.2, 0.1, -0.3, 0.4]
     ground = np.array([0.1, 0.05, -0.2])
@@ -398,7 +413,7 @@ def test_example_task_function_is_exported(generated_qrqp, problem):
         np.asarray(task(state, ground)).ravel(), ctrl.model.task(state, ground), atol=1e-14
     )
     with pytest.raises(ValueError, match="not exported"):
-        generated_qrqp.load("nope")
+        generated_default.load("nope")
     assert isinstance(task, ca.Function)
 
 

@@ -277,7 +277,8 @@ def test_limits_never_exceeded(robot, controllers, rng, plugin):
 
 def test_plugins_agree_and_match_their_own_status(robot, controllers, rng):
     states = random_states(robot, rng, 60)
-    tol = {"qpoases": 1e-9, "qrqp": 1e-9, "daqp": 1e-9, "osqp": 1e-5}  # OSQP: first order
+    # OSQP: first order
+    tol = {"qpoases": 1e-9, "qrqp": 1e-9, "daqp": 1e-9, "box": 1e-9, "osqp": 1e-5}
     for state in states:
         step_ref = random_reference(robot, controllers["qpoases"], state, rng)
         ref = controllers["qpoases"].solve(state, *step_ref)

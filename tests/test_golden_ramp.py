@@ -81,11 +81,12 @@ def test_step_interpreted_unchanged(golden_problem):
 
 
 @pytest.mark.slow
-def test_step_generated_c_unchanged(golden_problem, tmp_path):
+@pytest.mark.parametrize("plugin", ["qrqp", "box"])
+def test_step_generated_c_unchanged(golden_problem, tmp_path, plugin):
     from mmstab.codegen import STEP_NAME, generate
     from mmstab.controller import ControllerParams, ControllerSettings
 
-    gen = generate(golden_problem, tmp_path / "qrqp", "qrqp")
+    gen = generate(golden_problem, tmp_path / plugin, plugin)
     ext = gen.load(STEP_NAME)
     settings = ControllerSettings.from_section(golden_problem.section("controller"))
     p = ControllerParams.from_settings(golden_problem.robot, settings).pack()

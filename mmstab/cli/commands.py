@@ -213,7 +213,7 @@ def _fidelity(args: argparse.Namespace, problem: Any) -> None:
 def _codegen(args: argparse.Namespace, problem: Any) -> None:
     from mmstab.codegen import build_programs, generate
 
-    gen = generate(problem, args.out, args.plugin, force=args.force)
+    gen = generate(problem, args.out, args.plugin, force=args.force, native=args.native)
     how = "generated and compiled" if gen.rebuilt else "up to date"
     print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
     if args.example:
@@ -317,7 +317,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "track": [
         (
             "--plugin",
-            {"help": "QP plugin: qpoases, osqp, qrqp or daqp (default: the problem's)"},
+            {"help": "QP plugin: qpoases, osqp, qrqp, daqp or box (default: the problem's)"},
         ),
         (
             "--backend",
@@ -347,9 +347,19 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "codegen": [
         (
             "--plugin",
-            {"default": None, "help": "QP plugin: qrqp, daqp or osqp (default codegen.plugin)"},
+            {
+                "default": None,
+                "help": "QP plugin: box, qrqp, daqp or osqp (default codegen.plugin)",
+            },
         ),
         ("--force", {"action": "store_true", "help": "regenerate even if up to date"}),
+        (
+            "--native",
+            {
+                "action": "store_true",
+                "help": "compile with -march=native (this machine's instruction set only)",
+            },
+        ),
         (
             "--example",
             {"action": "store_true", "help": "also build the embedded example (embedded/)"},

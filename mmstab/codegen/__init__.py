@@ -58,7 +58,13 @@ from mmstab.codegen.build import (
     load_step,
     work_sizes,
 )
-from mmstab.codegen.compiler import CFLAGS, compile_c, compile_command, plugin_flags
+from mmstab.codegen.compiler import (
+    CFLAGS,
+    NATIVE_CFLAGS,
+    compile_c,
+    compile_command,
+    plugin_flags,
+)
 from mmstab.codegen.embedded import (
     BENCH_PROGRAM,
     EMBEDDED_DIR,
@@ -67,6 +73,8 @@ from mmstab.codegen.embedded import (
     build_programs,
 )
 from mmstab.codegen.functions import (
+    JACOBIAN_NAME,
+    QP_NAME,
     ROLLOUT_CHUNK,
     ROLLOUT_NAME,
     STEP_NAME,
@@ -93,7 +101,10 @@ __all__ = [
     "EXAMPLE_PROGRAM",
     "FORMAT_VERSION",
     "LAYOUT_HEADER",
+    "NATIVE_CFLAGS",
+    "JACOBIAN_NAME",
     "PLANT_NAME",
+    "QP_NAME",
     "QPOASES_MESSAGE",
     "ROLLOUT_CHUNK",
     "ROLLOUT_NAME",

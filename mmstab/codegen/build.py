@@ -18,9 +18,10 @@ import casadi as ca
 from mmstab.codegen.compiler import compile_c, compile_command
 from mmstab.codegen.functions import ROLLOUT_CHUNK, STEP_NAME, export_functions
 from mmstab.codegen.postprocess import postprocess
-from mmstab.codegen.settings import CodegenSettings, check_plugin
+from mmstab.codegen.settings import CODEGEN_PLUGINS, CodegenSettings, check_plugin
 from mmstab.config import _atomic, write_json
 from mmstab.controller import ControllerSettings, build_controller
+from mmstab.controller.boxqp import boxqp_source
 from mmstab.layout import layout_header
 from mmstab.robot import Robot
 
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
     from mmstab.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
-FORMAT_VERSION = 3  #: bump when the generated content or post-processing changes
+FORMAT_VERSION = 6  #: bump when the generated content or post-processing changes
 
 
 class GeneratedController(NamedTuple):
@@ -45,6 +46,7 @@ class GeneratedController(NamedTuple):
         functions: the exported Functions' names (step, task, plant, rollout chunk).
         rebuilt: False when the outputs were already up to date.
         compiler_stderr: what the compiler printed (empty: no warning).
+        native: compiled with ``-march=native`` (the embedded programs are too).
     """
 
     directory: Path
@@ -57,6 +59,7 @@ class GeneratedController(NamedTuple):
     functions: tuple[str, ...]
     rebuilt: bool
     compiler_stderr: str
+    native: bool = False
 
     def load(self, name: str = STEP_NAME) -> ca.Function:
         """One exported Function of the library as a CasADi ``Function`` (``casadi.external``)."""
@@ -70,7 +73,9 @@ def _resolve(
 ) -> tuple[Robot, ControllerSettings, CodegenSettings]:
     if isinstance(source, tuple):
         robot, settings = source
-        return robot, settings, CodegenSettings(plugin="qrqp", directory="results/codegen")
+        # the settings' plugin when C can be generated for it, else the default (box)
+        plugin = settings.plugin if settings.plugin in CODEGEN_PLUGINS else "box"
+        return robot, settings, CodegenSettings(plugin=plugin, directory="results/codegen")
     return (
         source.robot,
         ControllerSettings.from_section(source.section("controller")),
@@ -101,10 +106,11 @@ def _read_meta(path: Path) -> dict[str, Any]:
     return {}
 
 
-def cache_key(functions: Sequence[ca.Function], plugin: str) -> str:
+def cache_key(functions: Sequence[ca.Function], plugin: str, native: bool = False) -> str:
     """SHA-256 of what the generated library depends on (module docstring, "Cache")."""
     h = hashlib.sha256()
-    meta = [FORMAT_VERSION, ca.CasadiMeta.version(), plugin, compile_command(plugin), ROLLOUT_CHUNK]
+    command = compile_command(plugin, native)
+    meta = [FORMAT_VERSION, ca.CasadiMeta.version(), plugin, command, ROLLOUT_CHUNK]
     h.update(json.dumps(meta).encode())
     for f in functions:
         h.update(f.serialize().encode())
@@ -117,6 +123,7 @@ def generate(
     plugin: str | None = None,
     *,
     force: bool = False,
+    native: bool = False,
 ) -> GeneratedController:
     """Generate the controller step's C and compile it, unless already up to date.
 
@@ -124,8 +131,11 @@ def generate(
         source: a problem, or (robot, controller settings).
         out_dir: output folder (default ``codegen.directory/plugin``, ``results/codegen/plugin``
             for a (robot, settings) source).
-        plugin: QP plugin (default the problem's ``codegen.plugin``, qrqp for a tuple).
+        plugin: QP plugin (default the problem's ``codegen.plugin``; for a tuple the
+            settings' plugin if C can be generated for it, else box).
         force: regenerate and recompile even if up to date.
+        native: compile with ``-march=native`` (opt-in; the library then runs on this CPU
+            family only; part of the cache key).
 
     Returns:
         Paths of the C file, header and library, and the cache key.
@@ -141,7 +151,7 @@ def generate(
     ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin))
     functions = export_functions(ctrl)
     names = tuple(f.name() for f in functions)
-    key = cache_key(functions, plugin)
+    key = cache_key(functions, plugin, native)
     c_file, h_file, l_file = out / f"{STEP_NAME}.c", out / f"{STEP_NAME}.h", out / LAYOUT_HEADER
     library = out / f"lib{STEP_NAME}_{key[:16]}.so"
     meta_path = out / "build.json"
@@ -150,7 +160,7 @@ def generate(
         meta = _read_meta(meta_path)
         if meta.get("key") == key and isinstance(meta.get("compiler_stderr"), str):
             return GeneratedController(
-                *(out, *files), plugin, key, names, False, meta["compiler_stderr"]
+                *(out, *files), plugin, key, names, False, meta["compiler_stderr"], native
             )
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
@@ -158,11 +168,13 @@ def generate(
         for f in functions:
             gen.add(f)
         gen.generate(f"{tmp}/")
-        c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name())
+        solver = boxqp_source() if plugin == "box" else None
+        c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout_header())):
+    layout = layout_header(settings.kkt_tol)
+    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout)):
         _write_text(path, text)
-    stderr = compile_c([c_file], library, plugin, shared=True)
+    stderr = compile_c([c_file], library, plugin, shared=True, native=native)
     for stale in out.glob(f"lib{STEP_NAME}_*.so"):
         if stale != library:
             stale.unlink(missing_ok=True)
@@ -173,7 +185,7 @@ def generate(
             "plugin": plugin,
             "casadi": ca.CasadiMeta.version(),
             "format_version": FORMAT_VERSION,
-            "compile_command": compile_command(plugin),
+            "compile_command": compile_command(plugin, native),
             "library": library.name,
             "functions": list(names),
             "rollout_chunk": ROLLOUT_CHUNK,
@@ -181,7 +193,7 @@ def generate(
             "compiler_stderr": stderr,
         },
     )
-    return GeneratedController(*(out, *files), plugin, key, names, True, stderr)
+    return GeneratedController(*(out, *files), plugin, key, names, True, stderr, native)
 
 
 class WorkSizes(NamedTuple):

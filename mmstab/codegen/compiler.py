@@ -14,6 +14,8 @@ from mmstab.config import MmstabError
 
 #: Compiler flags for the generated C (warnings are errors); ``-fPIC -shared`` for the library.
 CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror")
+#: Opt-in flags (``native=True``): code for this machine's instruction set only (not portable).
+NATIVE_CFLAGS = ("-march=native",)
 
 
 def casadi_paths() -> tuple[str, str]:
@@ -23,7 +25,7 @@ def casadi_paths() -> tuple[str, str]:
 
 def plugin_flags(plugin: str) -> tuple[list[str], list[str]]:
     """Compile flags (include path) and link flags (libraries, rpath) a plugin's C needs."""
-    if plugin == "qrqp":
+    if plugin in ("qrqp", "box"):  # self-contained C
         return [], ["-lm"]
     include, libdir = casadi_paths()
     return [f"-I{include}"], [f"-L{libdir}", f"-Wl,-rpath,{libdir}", f"-l{plugin}", "-lm"]
@@ -41,6 +43,7 @@ def compile_c(
     *,
     shared: bool,
     include: Sequence[str | os.PathLike[str]] = (),
+    native: bool = False,
 ) -> str:
     """Compile C sources with :data:`CFLAGS` (warnings are errors); returns the compiler's stderr.
 
@@ -50,6 +53,7 @@ def compile_c(
         plugin: the QP plugin (adds its include path and libraries).
         shared: build a shared library (``-fPIC -shared``) rather than a program.
         include: extra include folders.
+        native: add :data:`NATIVE_CFLAGS` (opt-in: the binary runs on this CPU family only).
 
     Raises:
         MmstabError: no compiler, or the compilation failed (its messages included).
@@ -59,7 +63,8 @@ def compile_c(
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.")
     os.close(fd)
-    cmd = [compiler(), *CFLAGS, *(["-fPIC", "-shared"] if shared else [])]
+    cmd = [compiler(), *CFLAGS, *(NATIVE_CFLAGS if native else ())]
+    cmd += ["-fPIC", "-shared"] if shared else []
     cmd += [*cflags, *(f"-I{d}" for d in include), *map(str, sources), "-o", tmp, *ldflags]
     try:
         try:
@@ -74,7 +79,8 @@ def compile_c(
     return proc.stderr
 
 
-def compile_command(plugin: str) -> list[str]:
+def compile_command(plugin: str, native: bool = False) -> list[str]:
     """The compile command's fixed part for a plugin's library (part of the cache key)."""
     cflags, ldflags = plugin_flags(plugin)
-    return [compiler(), *CFLAGS, "-fPIC", "-shared", *cflags, *ldflags]
+    flags = [*CFLAGS, *(NATIVE_CFLAGS if native else ())]
+    return [compiler(), *flags, "-fPIC", "-shared", *cflags, *ldflags]

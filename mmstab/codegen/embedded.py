@@ -60,5 +60,6 @@ def build_programs(
             generated.plugin,
             shared=False,
             include=[generated.directory, src],
+            native=generated.native,
         )
     return ExamplePrograms(paths[0], paths[1], stderr)

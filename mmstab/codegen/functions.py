@@ -16,6 +16,8 @@ from mmstab.plant import PLANT_NAME
 STEP_NAME = "controller_step"  #: the exported step (and the .c/.h file stem)
 TASK_NAME = "controller_task"  #: state -> ξ, exported alongside
 ROLLOUT_NAME = "controller_rollout"  #: ROLLOUT_CHUNK closed-loop steps, exported alongside
+QP_NAME = "controller_qp_data"  #: the step's QP (H, g, bounds): the example's KKT check
+JACOBIAN_NAME = "controller_jacobian"  #: (state, ground) -> J: the benchmark's time split
 ROLLOUT_CHUNK = 1000  #: closed-loop steps per ``controller_rollout`` call
 
 
@@ -61,7 +63,7 @@ def rollout_chunk(ctrl: Controller, steps: int = ROLLOUT_CHUNK) -> ca.Function:
 
 
 def export_functions(ctrl: Controller) -> list[ca.Function]:
-    """The Functions written to the C file: step, task, plant, rollout chunk."""
+    """The Functions written to the C file: step, task, plant, rollout chunk, QP data, J."""
     step = ctrl.step
     if step.name() != STEP_NAME:  # the exported symbol is the Function's name
         raise RuntimeError(f"the controller's step is named {step.name()!r}, not {STEP_NAME!r}")
@@ -70,4 +72,11 @@ def export_functions(ctrl: Controller) -> list[ca.Function]:
     plant = ctrl.model.f_integrate
     if plant.name() != PLANT_NAME:
         raise RuntimeError(f"the plant is named {plant.name()!r}, not {PLANT_NAME!r}")
-    return [step, task, plant, rollout_chunk(ctrl)]
+    qp = ctrl.qp
+    qp_data = ca.Function(
+        QP_NAME, qp.sx_in(), qp.call(qp.sx_in()), qp.name_in(), qp.name_out(), {"cse": True}
+    )
+    jac = ca.Function(
+        JACOBIAN_NAME, [m.state, m.ground], [m.J], ["state", "ground"], ["J"], {"cse": True}
+    )
+    return [step, task, plant, rollout_chunk(ctrl), qp_data, jac]

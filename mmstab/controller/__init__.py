@@ -39,12 +39,14 @@ body for 29 % of the default lap.
 
 **Failure handling.** The one CasADi ``step`` Function certifies its own answer, so the status
 is the same interpreted and code-generated and does not depend on a plugin's exceptions:
-non-finite inputs (``NONFINITE_INPUT``) or contradictory bounds (``INFEASIBLE``) are detected
-*before* the solver, which is then fed a harmless dummy QP; the solver's answer must be finite,
-within the bounds to ``kkt_tol`` and satisfy the projected-Newton optimality residual
-``|q̇ − Π(q̇ − ∇f/diag H)|∞ ≤ kkt_tol`` (else ``SOLVER_FAILED``). The solution is then clipped to
-the bounds, so the limits hold to round-off. On any failure the returned q̇ is the documented
-safe action **hold still, q̇ = 0**, the result says so and :attr:`Controller.failures` counts it.
+non-finite inputs (``NONFINITE_INPUT``: NaN/inf in the state, reference or parameters) or
+contradictory bounds (``INFEASIBLE``) are detected *before* the solver, which is then fed a
+harmless dummy QP (the ``box`` plugin's solver takes any numbers and needs no dummy); the
+solver's answer must be finite, within the bounds to ``kkt_tol`` and satisfy the
+projected-Newton optimality residual ``|q̇ − Π(q̇ − ∇f/diag H)|∞ ≤ kkt_tol`` (else
+``SOLVER_FAILED``). The solution is then clipped to the bounds, so the limits hold to
+round-off. On any failure the returned q̇ is the documented safe action **hold still, q̇ = 0**,
+the result says so and :attr:`Controller.failures` counts it.
 :meth:`Controller.solve_direct` solves the same QP through the plugin's own status
 (``stats()['success']``), to cross-check the certificate.
 

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import casadi as ca
 
-from mmstab.controller.qp import all_finite
+from mmstab.controller.qp import all_finite, tree_reduce
 from mmstab.layout import JOINT_COUNT
 from mmstab.robot import FloatArray
 
@@ -60,13 +60,16 @@ def build_guard_and_certificate(kkt_tol: float) -> tuple[ca.Function, ca.Functio
     )
     x, cost0 = ca.SX.sym("x", n), ca.SX.sym("cost0")
     clipped = ca.fmin(ca.fmax(x, lbx), ubx)
-    violation = ca.mmax(ca.vertcat(lbx - x, x - ubx))
-    newton = clipped - ca.fmin(ca.fmax(clipped - (H @ clipped + g) / ca.diag(H), lbx), ubx)
+    violation = tree_reduce(ca.vertcat(lbx - x, x - ubx), ca.fmax)
+    grad = H @ clipped + g  # also gives the objective below: H q̇ computed once
+    newton = clipped - ca.fmin(ca.fmax(clipped - grad / ca.diag(H), lbx), ubx)
     certified = ca.logic_and(all_finite(x), violation <= kkt_tol)
-    certified = ca.logic_and(certified, ca.mmax(ca.fabs(newton)) <= kkt_tol)
+    certified = ca.logic_and(certified, tree_reduce(ca.fabs(newton), ca.fmax) <= kkt_tol)
     final = ca.if_else(ok, ca.if_else(certified, status, float(QPStatus.SOLVER_FAILED)), status)
-    qdot = ca.if_else(final == float(QPStatus.SUCCESS), clipped, 0)
-    objective = 0.5 * ca.dot(qdot, H @ qdot) + ca.dot(g, qdot) + cost0
+    success = final == float(QPStatus.SUCCESS)
+    qdot = ca.if_else(success, clipped, 0)
+    # ½ q̇ᵀHq̇ + gᵀq̇ = ½ q̇ᵀ(Hq̇ + g) + ½ gᵀq̇ at q̇ = clipped; cost0 alone at q̇ = 0
+    objective = ca.if_else(success, 0.5 * ca.dot(clipped, grad + g), 0) + cost0
     certificate = ca.Function(
         "certificate", [x, H, g, lbx, ubx, cost0, status], [qdot, final, objective]
     )

@@ -9,6 +9,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.controller.boxqp import build_boxqp
 from mmstab.controller.certificate import (
     ControlResult,
     QPStatus,
@@ -56,6 +57,7 @@ def _conic_options(settings: ControllerSettings) -> dict[str, Any]:
         },
         "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
         "daqp": {},
+        "box": {},
     }
     return {**opts[settings.plugin], "error_on_fail": False}
 
@@ -73,7 +75,8 @@ class Controller:
         qp: ``Function`` (state, reference, params) -> (H, g, lbx, ubx, xi_dot_des,
             q_dot_posture, cost0, status): the QP's matrices (:func:`mmstab.tasks.build_qp`),
             for inspection and tests.
-        conic: the CasADi ``conic`` (dense H, no linear constraints).
+        conic: the CasADi ``conic`` (dense H, no linear constraints), or for the ``box``
+            plugin the dedicated solver (:mod:`~mmstab.controller.boxqp`, same arguments).
         step: ``Function`` (state (9), reference (23) = [ξ_des, ξ̇_ref, q_ref, q̇_ref, ground]
             (:class:`StepReference`), params (42) (:class:`ControllerParams`)) ->
             (qdot (6) [rad/s], status (QPStatus as float), objective): J + QP assembly +
@@ -93,20 +96,28 @@ class Controller:
             (float(QPStatus.SUCCESS), float(QPStatus.NONFINITE_INPUT), float(QPStatus.INFEASIBLE)),
         )
         n = JOINT_COUNT
-        with quiet_stdout():
-            self.conic = ca.conic(
-                "controller_qp",
-                settings.plugin,
-                {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity(0, n)},
-                _conic_options(settings),
-            )
+        if settings.plugin == "box":  # the dedicated box-QP solver (same signature)
+            self.conic = build_boxqp()
+        else:
+            with quiet_stdout():
+                self.conic = ca.conic(
+                    "controller_qp",
+                    settings.plugin,
+                    {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity(0, n)},
+                    _conic_options(settings),
+                )
         guard, certificate = build_guard_and_certificate(settings.kkt_tol)
         state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
         p = ca.MX.sym("params", PARAMS_SIZE)
         # the certificate judges the whole cost: task, regularisation and posture terms
         H, g, lbx, ubx, _, _, cost0, status = self.qp(state, ref, p)
-        Hs, gs, lbs, ubs = guard(H, g, lbx, ubx, status)
-        x = self.conic(h=Hs, g=gs, lbx=lbs, ubx=ubs)["x"]
+        if settings.plugin == "box":
+            # no guard: the solver takes any numbers (NaN, crossed bounds) and returns within
+            # its iteration limit, and the certificate ignores x unless the status is SUCCESS
+            x = self.conic(h=H, g=g, lbx=lbx, ubx=ubx)["x"]
+        else:
+            Hs, gs, lbs, ubs = guard(H, g, lbx, ubx, status)
+            x = self.conic(h=Hs, g=gs, lbx=lbs, ubx=ubs)["x"]
         self.step = ca.Function(
             "controller_step",
             [state, ref, p],
@@ -257,7 +268,11 @@ class Controller:
             return ControlResult(zero, QPStatus(qp.status), False, qp.cost0)
         with quiet_stdout() if self._quiet else contextlib.nullcontext():
             sol = self.conic(h=qp.H, g=qp.g, lbx=qp.lbx, ubx=qp.ubx)
-        if not self.conic.stats()["success"]:
+        if self.settings.plugin == "box":  # its own status is an output: 0 = optimal
+            success = float(sol["flag"]) == 0.0
+        else:
+            success = self.conic.stats()["success"]
+        if not success:
             return ControlResult(zero, QPStatus.SOLVER_FAILED, False, qp.cost0)
         qdot = np.asarray(sol["x"]).ravel()
         objective = 0.5 * qdot @ qp.H @ qdot + qp.g @ qdot + qp.cost0

@@ -67,4 +67,24 @@ class Task(abc.ABC):
         rate = target.gain * self.error(model, target.value) + target.feedforward * target.rate
         J = self.jacobian(model)
         JtW = J.T @ ca.diag(target.weight)
-        return TaskObjective(JtW @ J, -JtW @ rate, 0.5 * ca.dot(rate, target.weight * rate), rate)
+        return TaskObjective(
+            weighted_gram(J, target.weight),
+            -JtW @ rate,
+            0.5 * ca.dot(rate, target.weight * rate),
+            rate,
+        )
+
+
+def weighted_gram(J: ca.SX, weight: Any) -> ca.SX:
+    """Jᵀ diag(weight) J, each off-diagonal entry computed once and used for both triangles.
+
+    (``J.T @ W @ J`` builds H[i, j] and H[j, i] as two expressions: twice the work in the step.)
+    """
+    n = J.size2()
+    Jw = J * ca.repmat(weight, 1, n)  # rows scaled by the weights
+    entries: dict[tuple[int, int], ca.SX] = {}
+    for i in range(n):
+        for j in range(i, n):
+            entries[i, j] = ca.dot(Jw[:, i], J[:, j])
+    rows = [ca.horzcat(*(entries[min(i, j), max(i, j)] for j in range(n))) for i in range(n)]
+    return ca.vertcat(*rows)

@@ -35,5 +35,7 @@ class BasePointTask(Task):
     def error(self, model: TaskModel, target: Any) -> ca.SX:
         """Target − value, the heading row wrapped to (−π, π]."""
         e = target - self.value(model)
-        e[2] = ca.atan2(ca.sin(e[2]), ca.cos(e[2]))
+        # e − 2π·ceil(e/2π − ½): the wrap of atan2(sin e, cos e) up to round-off, one ceil
+        # where that took a sincos and an atan2 (the step's costliest calls)
+        e[2] = e[2] - 2 * ca.pi * ca.ceil(e[2] / (2 * ca.pi) - 0.5)
         return e
