@@ -73,7 +73,7 @@ class RestSettings(NamedTuple):
     approach: float = 0.02
     approach_factor: float = 0.8
     coarse_spacing: float = 0.09
-    coarse_tol: float = 1e-6
+    coarse_tol: float = 1e-3
     active_candidates: int = 24
     active_tol: float = 1e-10
 
@@ -151,22 +151,40 @@ def _products(R: FloatArray, c: FloatArray) -> FloatArray:
 def _lift(
     hm: Heightmap, c: FloatArray, com: FloatArray, xy: FloatArray, yaw: FloatArray, att: FloatArray
 ) -> tuple[Any, ...]:
-    """f_k (n, K), J_k and its lever part (n, K, 2), CoM height gradient (n, 2), valid (n,).
+    """f_k (n, K), the lever arms (n, K, 2), CoM height gradient (n, 2), valid (n,), rows.
 
-    ``c`` is (K, 3) shared by all poses or (n, K, 3) per pose. ``J_k = d f_k / d(roll,
-    pitch)``; the lever part ``-d (G_R_B c_k)_z / d(roll, pitch)`` leaves out the ground's
-    slope under the moving point: it is the horizontal moment arm of a vertical contact
-    force, the one that decides equilibrium.
+    ``c`` is (K, 3) shared by all poses or (n, K, 3) per pose. The lever arm ``-d (G_R_B
+    c_k)_z / d(roll, pitch)`` leaves out the ground's slope under the moving point: it is
+    the horizontal moment arm of a vertical contact force, the one that decides
+    equilibrium. ``rows`` (n, 9, K) are R, dR/droll, dR/dpitch times the candidates, from
+    which :func:`_jacobian` takes the full ``J_k = d f_k / d(roll, pitch)`` of the few
+    candidates the Newton step needs (the ground's slope is sampled only there).
     """
     R, dR_r, dR_p = rotations(yaw, att[:, 0], att[:, 1])
     # every row of R, dR/droll, dR/dpitch against every candidate
     m = _products(np.concatenate([R, dR_r, dR_p], axis=1), c)  # (n, 9, K)
-    h, hx, hy, valid = hm.sample_rows(xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1])
+    h, _, _, valid = hm.sample_rows(
+        xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1], slopes=False
+    )
     f = h - m[:, 2]
-    jac = [hx * m[:, j] + hy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
     grad = np.stack([np.einsum("nj,nj->n", dR[:, 2, :], com) for dR in (dR_r, dR_p)], axis=1)
     lever = np.stack([-m[:, 5], -m[:, 8]], axis=-1)
-    return f, np.stack(jac, axis=-1), lever, grad, valid
+    return f, lever, grad, valid, m
+
+
+def _jacobian(hm: Heightmap, m: FloatArray, xy: FloatArray, tri: NDArray[np.int_]) -> FloatArray:
+    """``J_k = d f_k / d(roll, pitch)`` (n, 3, 2) of the candidates ``tri`` (n, 3).
+
+    Args:
+        hm: the ground.
+        m: (n, 9, K) rows of :func:`_lift`.
+        xy: (n, 2) pose positions in G [m].
+        tri: (n, 3) candidate indices (artificial ones, >= K, are clipped: unused).
+    """
+    tri = np.minimum(tri, m.shape[2] - 1)
+    mt = np.take_along_axis(m, tri[:, None, :], axis=2)  # (n, 9, 3)
+    _, hx, hy, _ = hm.sample_rows(xy[:, 0, None] + mt[:, 0], xy[:, 1, None] + mt[:, 1])
+    return np.stack([hx * mt[:, j] + hy * mt[:, j + 1] - mt[:, j + 2] for j in (3, 6)], axis=-1)
 
 
 def _heights(
@@ -191,10 +209,15 @@ BLOCK = 128
 
 
 def _touch_step(f: FloatArray, J: FloatArray, tri: NDArray[np.int_]) -> FloatArray:
-    """Newton step (n, 2) [rad] bringing the three contacts ``tri`` to the same lift f."""
+    """Newton step (n, 2) [rad] bringing the three contacts ``tri`` to the same lift f.
+
+    Args:
+        f: (n, K) lifts [m].
+        J: (n, 3, 2) their derivatives by (roll, pitch) at ``tri`` (:func:`_jacobian`).
+        tri: (n, 3) the contacts.
+    """
     r = np.arange(f.shape[0])[:, None]
-    tri = np.minimum(tri, f.shape[1] - 1)  # an artificial vertex: the step is not used
-    fa, Ja = f[r, tri], J[r, tri]  # (n, 3), (n, 3, 2)
+    fa, Ja = f[r, np.minimum(tri, f.shape[1] - 1)], J  # (n, 3), (n, 3, 2)
     A = Ja[:, :1] - Ja[:, 1:]  # rows: J_a - J_b, J_a - J_c
     b = fa[:, 1:] - fa[:, :1]  # -(f_a - f_b), -(f_a - f_c)
     det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
@@ -364,19 +387,19 @@ def _solve(
         if idx.size == 0:
             break
         ci = c[idx] if per_pose else c
-        f, J, lever, grad, ok = _lift(hm, ci, com[idx], xy[idx], yaw[idx], att[idx])
+        f, lever, grad, ok, m = _lift(hm, ci, com[idx], xy[idx], yaw[idx], att[idx])
         if not ok.all():
             valid[idx[~ok]] = False
             active[idx[~ok]] = False
-            idx, f, J, lever, grad = idx[ok], f[ok], J[ok], lever[ok], grad[ok]
+            idx, f, lever, grad, m = idx[ok], f[ok], lever[ok], grad[ok], m[ok]
             if idx.size == 0:
                 break
-        f_last[idx] = f
         if it == settings.max_iterations:
-            break  # f_last now belongs to the final attitude
+            f_last[idx] = f  # at the final attitude
+            break
         warm = basis[idx] if it or basis0 is not None else None
         _, tip, basis[idx], bounded = support_lp(lever, f, -grad, warm, corners)
-        newton = _touch_step(f, J, basis[idx])
+        newton = _touch_step(f, _jacobian(hm, m, xy[idx], basis[idx]), basis[idx])
         # long Newton steps are shortened so they approach the rest from the side they
         # started on: an overshoot can put the CoM outside its support and tip a stable robot
         n_norm = np.linalg.norm(newton, axis=1, keepdims=True)
@@ -390,7 +413,8 @@ def _solve(
         over = ~done & ~back & (np.abs(att[idx]) > settings.max_tilt).any(axis=1)
         limit = settings.max_step * (0.5 ** max(0, it - 20))  # damp a late limit cycle
         step *= np.minimum(1.0, limit / np.maximum(norm, 1e-300))[:, None]
-        step[done | over] = 0.0  # f_last is at the final attitude
+        step[done | over] = 0.0
+        f_last[idx[done | over]] = f[done | over]  # at the final attitude
         half = 0.5 * last[idx]
         step = np.where(back[:, None], -half, step)
         last[idx] = np.where(back[:, None], half, np.where(bounded[:, None], step, 0.0))
