@@ -28,6 +28,11 @@ explicit tipping about support edges reaches (as Oehler & von Stryk's contact es
 for tracked robots). On a plane it is exact in a few rounds. Long steps are shortened so
 the rest is approached from one side (an overshoot could tip a marginally stable robot);
 a roll or pitch beyond ``max_tilt`` means the robot tips over.
+
+**Speed.** The first rounds use a sparse subset of the candidates; the rounds after that
+use each pose's highest candidates only, checked against all at the end, with a re-solve
+on all of them where the check fails (:func:`_solve_active`): the reference path's rests
+(``active_candidates=0``) at a fraction of the work (``docs/terrain.md``, Speed).
 """
 
 from __future__ import annotations
@@ -60,6 +65,9 @@ class RestSettings(NamedTuple):
         coarse_tol: ... until their step is below this [rad]; then all candidates.
         active_candidates: ... or only each pose's this many highest, checked against all
             (0 = all candidates every round, the reference path).
+        final_step: on the highest candidates, a Newton step below this [rad] on an
+            unchanged triangle is the last (quadratic convergence puts the next below
+            ``tol_step``).
         active_tol: a left-out candidate higher than the subset's highest by more than
             this [m] sends the pose to another pass.
     """
@@ -75,6 +83,7 @@ class RestSettings(NamedTuple):
     coarse_spacing: float = 0.09
     coarse_tol: float = 1e-3
     active_candidates: int = 24
+    final_step: float = 1e-6
     active_tol: float = 1e-10
 
 
@@ -316,7 +325,9 @@ def _solve_active(
     # the triangle in the subset's numbering (artificial vertices stay past the end)
     pos = np.argmax(sub[:, None, :] == basis0[:, :, None], axis=2)
     b_sub = np.where(basis0 < K, pos, basis0 - K + M)
-    att, _, v, converged, tips, iterations, _ = _solve(hm, c[sub], com, p, settings, att0, b_sub)
+    att, _, v, converged, tips, iterations, _ = _solve(
+        hm, c[sub], com, p, settings, att0, b_sub, settings.final_step
+    )
     f_out, ok = _heights(hm, c, xy, yaw, att)
     top_sub = np.take_along_axis(f_out, sub, axis=1).max(axis=1)
     valid &= v & ok
@@ -366,8 +377,13 @@ def _solve(
     settings: RestSettings,
     att0: FloatArray | None = None,
     basis0: NDArray[np.int_] | None = None,
+    final_step: float = 0.0,
 ) -> tuple[Any, ...]:
-    """One chunk: attitudes (n, 2), f at them (n, K), per-pose flags, rounds, triangles."""
+    """One chunk: attitudes (n, 2), f at them (n, K), per-pose flags, rounds, triangles.
+
+    ``final_step`` [rad] > 0: a Newton step this short on an unchanged triangle is the
+    last (f is then not at the final attitude: the caller recomputes it).
+    """
     n, K = p.shape[0], c.shape[-2]
     xy, yaw = p[:, :2], p[:, 2]
     att = np.zeros((n, 2)) if att0 is None else att0.copy()  # (roll, pitch): lowered level
@@ -398,6 +414,7 @@ def _solve(
             f_last[idx] = f  # at the final attitude
             break
         warm = basis[idx] if it or basis0 is not None else None
+        tri_before = basis[idx]
         _, tip, basis[idx], bounded = support_lp(lever, f, -grad, warm, corners)
         newton = _touch_step(f, _jacobian(hm, m, xy[idx], basis[idx]), basis[idx])
         # long Newton steps are shortened so they approach the rest from the side they
@@ -410,11 +427,16 @@ def _solve(
         # (tipping is believed only once it appears after a tiny step)
         back = ~bounded & (np.linalg.norm(last[idx], axis=1) > 1e-7)
         done = bounded & (norm <= settings.tol_step)
+        # Newton converges quadratically: after a tiny step on an unchanged triangle the next
+        # one would be below tol_step, so take it and stop (f is then recomputed by the
+        # caller, :func:`_solve_active`)
+        last_step = ~done & bounded & (norm <= final_step) & (basis[idx] == tri_before).all(axis=1)
         over = ~done & ~back & (np.abs(att[idx]) > settings.max_tilt).any(axis=1)
         limit = settings.max_step * (0.5 ** max(0, it - 20))  # damp a late limit cycle
         step *= np.minimum(1.0, limit / np.maximum(norm, 1e-300))[:, None]
         step[done | over] = 0.0
         f_last[idx[done | over]] = f[done | over]  # at the final attitude
+        done |= last_step
         half = 0.5 * last[idx]
         step = np.where(back[:, None], -half, step)
         last[idx] = np.where(back[:, None], half, np.where(bounded[:, None], step, 0.0))
