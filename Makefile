@@ -189,3 +189,8 @@ atlas: setup
 
 bench-atlas: setup
 	$(PY) benchmarks/atlas.py $(ATLAS_PROBLEM)
+
+## the atlas on generated rough ground, three terrain seeds x two payloads -> results/atlas_rough/
+.PHONY: atlas-rough
+atlas-rough: setup
+	$(MMSTAB) atlas problems/rough_atlas.yaml -o results/atlas_rough
