@@ -29,9 +29,10 @@ from mmstab.config import MmstabError
 #: Seconds to wait for an existing scheduler to answer.
 CONNECT_TIMEOUT = 15.0
 #: A run that gets no chunk back for this long submits its outstanding chunks again [s]
-#: (a rare stall leaves workers idle with one chunk outstanding: its worker's copy of the
-#: variant's robot + V ended in state "error" after a transfer from the peer worker, and
-#: the chunk waits on it for ever; see docs/atlas.md). Before the first chunk is back ...
+#: (a rare stall leaves workers idle with one chunk outstanding: seen once, its worker held
+#: no copy of the scattered variants, its fetch of one from the peer ended in state
+#: "error", and the chunk waited on it for ever; see docs/atlas.md). Before the first
+#: chunk is back ...
 STALL_SECONDS = 60.0
 #: ... after it, this many times the slowest chunk so far, but at least STALL_MIN_SECONDS.
 STALL_FACTOR = 4.0
@@ -121,6 +122,9 @@ def dask_client(
         ) as cluster,
         Client(cluster) as client,
     ):
+        # every worker registered before the variants are scattered to "all" of them (a
+        # worker that registers later gets no copy and must fetch each from a peer)
+        client.wait_for_workers(n if processes else 1, timeout=CONNECT_TIMEOUT * 4)
         yield client
 
 
