@@ -172,10 +172,14 @@ def _lift(
     R, dR_r, dR_p = rotations(yaw, att[:, 0], att[:, 1])
     # every row of R, dR/droll, dR/dpitch against every candidate
     m = _products(np.concatenate([R, dR_r, dR_p], axis=1), c)  # (n, 9, K)
-    h, _, _, valid = hm.sample_rows(
-        xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1], slopes=False
-    )
-    f = h - m[:, 2]
+    n = m.shape[0]
+    f, valid = np.empty((n, m.shape[2])), np.empty(n, dtype=bool)
+    for i in range(0, n, BLOCK):  # blocks of poses keep the sampler's temporaries in cache
+        b = slice(i, i + BLOCK)
+        h, _, _, valid[b] = hm.sample_rows(
+            xy[b, 0, None] + m[b, 0], xy[b, 1, None] + m[b, 1], slopes=False
+        )
+        f[b] = h - m[b, 2]
     grad = np.stack([np.einsum("nj,nj->n", dR[:, 2, :], com) for dR in (dR_r, dR_p)], axis=1)
     lever = np.stack([-m[:, 5], -m[:, 8]], axis=-1)
     return f, lever, grad, valid, m
@@ -213,7 +217,8 @@ def _heights(
     return f, valid
 
 
-#: Poses per block in :func:`_heights` (its (block, candidates) temporaries fit in cache).
+#: Poses per block in the samplers of :func:`_lift` and :func:`_heights` (their (block,
+#: candidates) temporaries stay in cache while a round works on the whole chunk).
 BLOCK = 128
 
 
@@ -343,8 +348,8 @@ def _solve_active(
     return att, f_out, valid, converged, tips, iterations
 
 
-#: Poses solved together (keeps the (poses, candidates) arrays in cache).
-CHUNK = 1024
+#: Poses solved together (large: the per-round Python overhead is paid once per chunk).
+CHUNK = 2048
 
 
 def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
