@@ -207,3 +207,8 @@ bench-atlas: setup
 .PHONY: levers
 levers: setup
 	$(MMSTAB) levers problems/levers.yaml
+
+## the atlas on generated rough ground, three terrain seeds x two payloads -> results/atlas_rough/
+.PHONY: atlas-rough
+atlas-rough: setup
+	$(MMSTAB) atlas problems/rough_atlas.yaml -o results/atlas_rough

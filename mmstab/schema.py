@@ -215,11 +215,13 @@ ATLAS: dict[str, Any] = {
                     "items": {"type": "string", "minLength": 1},
                     "minItems": 1,
                 },
-                "payload": _AXIS,  # [kg]: accepted, refused until payloads exist (issue 16)
-                "terrain_seeds": {"type": "array", "items": SEED, "minItems": 1},  # issue 14
+                "payload": _AXIS,  # [kg] at the wrist, increasing, >= 0
+                "terrain_seeds": {"type": "array", "items": SEED, "minItems": 1},  # generator
             },
             "additionalProperties": False,
         },
+        # the payload's CoM in the wrist frame [m] (default its origin)
+        "payload_com": {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3},
         "chunks": obj(slope=INT_POS, heading=INT_POS),  # cells per stored chunk, per axis
         "margin": NUM,  # [N rad]: the operator's envelope keeps mu >= margin
     },

@@ -87,9 +87,12 @@ def serial_cells(problem, tmp_path):
     for v in spec.variants:
         p = payload(spec, v, progress=False, cache_dir=tmp_path)
         for b in spec.blocks():
-            if b.variant != v.position:
+            if b.variant[:3] != v.position:
                 continue
-            r = compute_chunk(p, ChunkTask(b, spec.slopes[b.slope], spec.headings[b.heading]))
+            terrain = spec.terrains[b.variant[3]]
+            r = compute_chunk(
+                p, ChunkTask(b, spec.slopes[b.slope], spec.headings[b.heading], terrain)
+            )
             for n in CELL_VARIABLES:
                 out[n][(*b.variant, b.slope, b.heading)] = getattr(r, n)
     return out
@@ -129,7 +132,7 @@ def test_cells_do_not_depend_on_chunking_and_match_the_planner(tiny_problem):
     spec = atlas_spec(tiny_problem)
     v = spec.variants[0]
     p = payload(spec, v, progress=False, cache_dir=CACHE)
-    whole = [b for b in spec.blocks() if b.variant == v.position and b.block == (0, 0)][0]
+    whole = [b for b in spec.blocks() if b.variant[:3] == v.position and b.block == (0, 0)][0]
     r = compute_chunk(p, ChunkTask(whole, spec.slopes[whole.slope], spec.headings[whole.heading]))
     # the same cell alone, through the planner directly with the cell's own generator
     i, j = 1, 1
@@ -234,7 +237,7 @@ def test_cluster_run_stores_the_serial_cells_and_loads_each_variant_once(
     s = json.loads((out / "summary.json").read_text())
     assert s["cells"] == 24 and s["chunks_stored"] == s["chunks"] == 8
     v = s["variants"][0]
-    env = envelope(ds["slope"].values, ds["mu_stowed"].values[0, 0], 300.0)
+    env = envelope(ds["slope"].values, ds["mu_stowed"].values[0, 0, 0, 0], 300.0)
     np.testing.assert_allclose(
         np.array(v["envelope_deg"]["stowed"], dtype=float), np.degrees(env.limit)
     )
@@ -292,8 +295,10 @@ def _bad(atlas):
 
 
 BAD = [
-    ({**TINY_ATLAS, "axes": {"payload": [0.0, 2.0]}}, "atlas.axes.payload", "not available yet"),
-    ({**TINY_ATLAS, "axes": {"terrain_seeds": [1]}}, "atlas.axes.terrain_seeds", "not available"),
+    ({**TINY_ATLAS, "axes": {"payload": [-1.0, 2.0]}}, "atlas.axes.payload.mass", ">= 0"),
+    ({**TINY_ATLAS, "axes": {"payload": [2.0, 1.0]}}, "atlas.axes.payload", "increasing"),
+    ({**TINY_ATLAS, "payload_com": [0.0, 0.1]}, "atlas.payload_com", "too short"),
+    ({**TINY_ATLAS, "axes": {"terrain_seeds": [1]}}, "atlas.axes.terrain_seeds", "heightmap"),
     ({**TINY_ATLAS, "axes": {"flipper_angle": [-0.6]}}, "atlas.axes.flipper_angle[0]", "below"),
     ({**TINY_ATLAS, "axes": {"slope": [0.3, 0.1]}}, "atlas.axes.slope", "increasing"),
     ({**TINY_ATLAS, "axes": {"tilt": [0.1]}}, "atlas.axes.tilt", "unknown key"),
@@ -315,7 +320,7 @@ def test_store_of_another_atlas_is_not_resumed(tmp_path, capsys, tiny_problem):
     spec = atlas_spec(tiny_problem)
     from mmstab.atlas.store import AtlasStore
 
-    AtlasStore.open_or_create(tmp_path / "atlas.zarr", spec, np.ones(spec.shape[:2]))
+    AtlasStore.open_or_create(tmp_path / "atlas.zarr", spec, np.ones(spec.shape[:3]))
     path = write_problem(
         tmp_path, _bad({**TINY_ATLAS, "margin": 1.0, "chunks": {"slope": 1, "heading": 4}})
     )  # noqa: E501
@@ -350,3 +355,111 @@ def test_unreachable_scheduler_is_one_line(tmp_path, capsys, tiny_problem, monke
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err[0]
+
+
+# ----------------------------------------------------------- payload and terrain-seed axes
+PLANE = {"kind": "plane", "seed": 0, "size": [3.0, 3.0], "resolution": 0.1}
+ROUGH_SEEDED = {
+    "kind": "rough",
+    "seed": 3,
+    "size": [3.0, 3.0],
+    "resolution": 0.05,
+    "amplitude": 0.03,
+    "correlation_length": 0.3,
+    "hill_height": 0.0,
+    "hill_radius": 1.0,
+    "slope": 0.2,
+    "azimuth": 0.5,
+}
+SMALL_AXES = {"slope": [0.1, 0.4], "heading": [0.0, 2.0]}
+
+
+def _problem(tmp_path, atlas, terrain=None):
+    def edit(p, r):
+        tiny(p, r, {"chunks": {"slope": 2, "heading": 2}, "margin": 300.0, **atlas})
+        if terrain is not None:
+            p["terrain"] = {"generate": terrain}
+
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    return load_problem(write_problem(tmp_path, edit))
+
+
+def test_payload_axis_loads_the_wrist_and_has_its_own_workspace(tmp_path):
+    axes = {**SMALL_AXES, "payload": [0.0, 3.0]}
+    problem = _problem(tmp_path / "p", {"axes": axes, "payload_com": [0.0, 0.0, 0.05]})
+    spec = atlas_spec(problem)
+    assert spec.shape == (1, 1, 2, 1, 2, 2)
+    empty, loaded = spec.variants
+    assert empty.robot is problem.robot  # 0 kg: the robot, its hash and its V unchanged
+    assert loaded.robot.arm_mass == pytest.approx(problem.robot.arm_mass + 3.0)
+    pe, pl = (payload(spec, v, progress=False, cache_dir=tmp_path) for v in spec.variants)
+    # V, the arm-CoM workspace, depends on the arm's masses: the loaded arm has its own
+    assert pe.key != pl.key and len(list(tmp_path.glob("*.npz"))) == 2
+    assert not np.allclose(
+        pe.workspace.valid_com_in_V.mean(axis=0), pl.workspace.valid_com_in_V.mean(axis=0)
+    )
+    cells = serial_cells(problem, tmp_path)
+    # the 0 kg cells are the cells of the same atlas without the axis (same generators)
+    plain = serial_cells(_problem(tmp_path / "plain", {"axes": SMALL_AXES}), tmp_path)
+    for n in ("mu_planned", "mu_stowed", "mu_arm_removed"):
+        np.testing.assert_array_equal(cells[n][:, :, :1], plain[n], err_msg=n)
+    # the loaded robot by hand: the payload folded into the wrist moves the stowed CoM
+    r = loaded.robot
+    gravity = Ramp(0.4).gravity_body([0.0, 0.0, 2.0])
+    by_hand = robot_force_angle(r, gravity, r.arm_com(r.stowed)).mu[0]
+    assert cells["mu_stowed"][0, 0, 1, 0, 1, 1] == pytest.approx(by_hand, rel=1e-12)
+    assert abs(by_hand - cells["mu_stowed"][0, 0, 0, 0, 1, 1]) > 0.05  # stowed: near the base
+    assert np.isfinite(cells["mu_planned"]).all()
+
+
+def test_plane_heightmap_cells_are_the_ramps(tmp_path):
+    """A generated plane swept over its slope parameter is the ramp (issue 14's check)."""
+    ramp = _problem(tmp_path / "ramp", {"axes": SMALL_AXES})
+    plane = _problem(
+        tmp_path / "plane", {"axes": SMALL_AXES}, {**PLANE, "slope": 0.1, "azimuth": 0.7}
+    )
+    spec = atlas_spec(plane)
+    assert spec.terrain_labels == ("plane seed 0",) and not spec.on_ramp
+    a, b = serial_cells(ramp, tmp_path), serial_cells(plane, tmp_path)
+    for n in ("mu_stowed", "mu_arm_removed", "mu_planned"):
+        np.testing.assert_allclose(b[n], a[n], rtol=0, atol=1e-6, err_msg=n)
+
+
+def test_payload_and_seed_axes_on_the_cluster(cluster, tmp_path):
+    import json
+
+    import xarray as xr
+
+    from mmstab.atlas.cell import heightmap_yaw
+    from mmstab.terrain.generators import generate
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+
+    axes = {"slope": [0.1, 0.3], "heading": [0.0, 1.6], "payload": [0.0, 2.0]}
+    problem = _problem(tmp_path / "p", {"axes": {**axes, "terrain_seeds": [1, 2]}}, ROUGH_SEEDED)
+    address, _ = cluster
+    out = tmp_path / "out"
+    s = run_atlas(problem, out, address, progress=False, workspace_cache=tmp_path)
+    ds = xr.open_zarr(out / "atlas.zarr", consolidated=False, chunks=None).load()
+    assert ds["mu_planned"].shape == (1, 1, 2, 2, 2, 2) and ds["chunk_done"].values.all()
+    assert ds["terrain_seed"].values.tolist() == [1, 2]
+    serial = serial_cells(problem, tmp_path)
+    for n in ("mu_planned", "mu_stowed", "mu_arm_removed"):
+        np.testing.assert_allclose(ds[n].values, serial[n], rtol=0, atol=1e-9, err_msg=n)
+    # a cell by hand: the robot with 2 kg at rest at the map's centre of seed 2, slope 0.3
+    spec = atlas_spec(problem)
+    robot = spec.variants[1].robot
+    ground = HeightmapTerrain(generate({**ROUGH_SEEDED, "seed": 2, "slope": 0.3}))
+    yaw = heightmap_yaw(spec.terrains[1], 0.3, np.array([1.6]))[0]
+    gravity = ground.with_robot(robot).gravity_body([0.0, 0.0, yaw])
+    by_hand = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu[0]
+    assert ds["mu_stowed"].values[0, 0, 1, 1, 1, 1] == pytest.approx(by_hand, rel=1e-9)
+    # other seeds are other ground
+    seeds = ds["mu_stowed"].values[:, :, :, 0], ds["mu_stowed"].values[:, :, :, 1]
+    assert np.abs(seeds[0] - seeds[1]).max() > 1.0
+    assert len(s["variants"]) == 4
+    assert {(v["payload_kg"], v["terrain"]) for v in s["variants"]} == {
+        (p, f"rough seed {k}") for p in (0.0, 2.0) for k in (1, 2)
+    }
+    assert json.loads((out / "summary.json").read_text())["axes"]["payload_kg"] == [0.0, 2.0]
+    for name in ("mu_polar.png", "envelope.png"):
+        assert (out / name).stat().st_size > 0

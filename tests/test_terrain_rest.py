@@ -214,3 +214,44 @@ def test_lowered_flippers_lift_the_nose(robot, capsys):
     # on the ramp the same flippers would dig into the plane: a clear error
     assert main(["rest", "problems/ramp.yaml", "--pose", "0", "0", "0", "--flipper", "-0.4"]) == 2
     assert "into the ramp" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["rough", "kerb"])
+def test_fast_path_agrees_with_the_reference_path(robot, kind):
+    """Each pose's highest candidates checked against all (the default) vs all candidates in
+    every round (``active_candidates=0``), batched and one by one, on random poses."""
+    import dataclasses
+
+    section = (
+        ROUGH
+        if kind == "rough"
+        else {
+            "kind": "kerb",
+            "seed": 0,
+            "size": [3.0, 3.0],
+            "resolution": 0.02,
+            "height": 0.1,
+            "distance": 0.0,
+            "azimuth": 0.3,
+        }
+    )
+    fast = HeightmapTerrain(generate(section)).with_robot(robot)
+    assert 0 < fast.settings.active_candidates < len(fast.candidates.points)
+    ref = dataclasses.replace(fast, settings=fast.settings._replace(active_candidates=0))
+    rng = np.random.default_rng(7)
+    n = 300
+    poses = np.c_[rng.uniform(-0.7, 0.7, (n, 2)), rng.uniform(-np.pi, np.pi, n)]
+    a, b = ref.rest(poses), fast.rest(poses)
+    assert a.converged.mean() > 0.99
+    np.testing.assert_array_equal(a.converged, b.converged)
+    np.testing.assert_allclose(b.roll, a.roll, atol=1e-9)
+    np.testing.assert_allclose(b.pitch, a.pitch, atol=1e-9)
+    np.testing.assert_allclose(b.z, a.z, atol=1e-9)
+    np.testing.assert_array_equal(b.touching, a.touching)
+    for name in ("high_centred", "line_contact", "tips_over"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name))
+    # batched vs one by one on the fast path
+    for i in rng.choice(n, 5, replace=False):
+        one = fast.rest(poses[i])
+        np.testing.assert_allclose(one.G_T_B[0], b.G_T_B[i], atol=1e-12)
+        assert one.flags(0) == b.flags(i)

@@ -29,9 +29,16 @@ from mmstab.config import MmstabError
 #: Seconds to wait for an existing scheduler to answer.
 CONNECT_TIMEOUT = 15.0
 #: A run that gets no chunk back for this long submits its outstanding chunks again [s]
-#: (a rare stall left workers idle with one chunk outstanding; see docs/atlas.md).
+#: (a rare stall leaves workers idle with one chunk outstanding: seen once, its worker held
+#: no copy of the scattered variants, its fetch of one from the peer ended in state
+#: "error", and the chunk waited on it for ever; see docs/atlas.md). Before the first
+#: chunk is back ...
 STALL_SECONDS = 60.0
-#: Consecutive stalls after which the run gives up with one line.
+#: ... after it, this many times the slowest chunk so far, but at least STALL_MIN_SECONDS.
+STALL_FACTOR = 4.0
+STALL_MIN_SECONDS = 15.0
+#: The run gives up with one line after this many times max(STALL_SECONDS, the current
+#: patience) without a chunk back (a slow chunk is resubmitted, never given up on early).
 MAX_STALLS = 3
 #: Dask settings of the local cluster's workers. Measured per cell on one worker process
 #: (``docs/atlas.md``): Dask's default ``MALLOC_TRIM_THRESHOLD_=65536`` (glibc returns
@@ -115,6 +122,9 @@ def dask_client(
         ) as cluster,
         Client(cluster) as client,
     ):
+        # every worker registered before the variants are scattered to "all" of them (a
+        # worker that registers later gets no copy and must fetch each from a peer)
+        client.wait_for_workers(n if processes else 1, timeout=CONNECT_TIMEOUT * 4)
         yield client
 
 
@@ -159,13 +169,15 @@ def run_chunks(
     chunks = cells = 0
 
     def submit(task: ChunkTask) -> Any:
-        return client.submit(compute_chunk, by_variant[task.block.variant], task, pure=False)
+        variant = by_variant[task.block.variant[:3]]  # V is per robot x flipper x payload
+        return client.submit(compute_chunk, variant, task, pure=False)
 
     t0 = time.perf_counter()
     bar = tqdm(total=total, initial=done_cells, unit="cell", disable=not progress, desc="atlas")
     active: dict[Any, ChunkTask] = {}  # future -> its chunk
     stored: set[str] = set()
-    stalls = 0
+    patience = STALL_SECONDS  # [s] without a chunk back before resubmitting
+    last_back = time.perf_counter()
 
     def launch(task: ChunkTask) -> None:
         active[submit(task)] = task
@@ -175,25 +187,30 @@ def run_chunks(
     try:
         while active:
             try:
-                finished = wait(list(active), timeout=STALL_SECONDS, return_when="FIRST_COMPLETED")
+                finished = wait(list(active), timeout=patience, return_when="FIRST_COMPLETED")
             except DaskTimeoutError:
                 # no chunk came back for STALL_SECONDS: submit the outstanding ones again
                 # (cells are deterministic, so whichever copy answers first is the same)
-                stalls += 1
-                if stalls > MAX_STALLS:
+                quiet = time.perf_counter() - last_back
+                if quiet > MAX_STALLS * max(STALL_SECONDS, patience):
                     raise MmstabError(
-                        f"the Dask cluster returned no chunk for {stalls * STALL_SECONDS:.0f} s"
+                        f"the Dask cluster returned no chunk for {quiet:.0f} s"
                     ) from None
                 for task in list(active.values()):
                     launch(task)
                 continue
-            stalls = 0
             for future in finished.done:
                 task = active.pop(future)
                 key = repr(task.block)
                 if key in stored:
                     continue
                 result = future.result()
+                last_back = time.perf_counter()
+                patience = max(
+                    STALL_MIN_SECONDS,
+                    STALL_FACTOR * result.seconds,
+                    patience if chunks else 0.0,
+                )
                 stored.add(key)
                 on_result(result)
                 chunks += 1

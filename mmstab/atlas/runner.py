@@ -63,7 +63,12 @@ def variant_workspace(
 def payload(
     spec: AtlasSpec, variant: Variant, progress: bool, cache_dir: Path | None = None
 ) -> VariantPayload:
-    """What the workers need for one variant (its workspace loaded or built here)."""
+    """What the workers need for one variant (its workspace loaded or built here).
+
+    A payload changes the arm's masses and so V: each payload is a variant with its own V,
+    loaded from the workspace cache or built once here (then cached), and scattered once to
+    every worker.
+    """
     import dataclasses
 
     ws = variant_workspace(variant, spec.workspace_grid, progress, cache_dir)
@@ -80,7 +85,8 @@ def raise_empty(spec: AtlasSpec, variant: Variant) -> None:
 
     raise MmstabError(
         f"{spec.path}: atlas: the workspace V of {variant.robot_label} "
-        f"(flippers {variant.flipper_label}) is empty; no arm CoM can be planned"
+        f"(flippers {variant.flipper_label}, payload {variant.payload_kg:g} kg) is empty; "
+        "no arm CoM can be planned"
     )
 
 
@@ -129,15 +135,20 @@ def run_atlas(
 
     spec = atlas_spec(problem)
     d = output_dir(out, "atlas")
-    mu_maxes = np.array([mu_max(v.robot) for v in spec.variants]).reshape(spec.shape[:2])
+    mu_maxes = np.array([mu_max(v.robot) for v in spec.variants]).reshape(spec.shape[:3])
     store = AtlasStore.open_or_create(d / STORE_NAME, spec, mu_maxes)
     save_settings(d, problem)
     missing = store.missing()
     stored_cells = spec.cells - sum(b.cells for b in missing)
     stats = RunStats(0, 0, 0.0, 0, 0)
     if missing:
-        needed = sorted({b.variant for b in missing})
-        tasks = [ChunkTask(b, spec.slopes[b.slope], spec.headings[b.heading]) for b in missing]
+        needed = sorted({b.variant[:3] for b in missing})
+        tasks = [
+            ChunkTask(
+                b, spec.slopes[b.slope], spec.headings[b.heading], spec.terrains[b.variant[3]]
+            )
+            for b in missing
+        ]
 
         written = [0, 0]  # chunks, cells stored by this run (for an interrupted run's log)
 

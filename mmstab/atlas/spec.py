@@ -1,13 +1,20 @@
 """The ``atlas:`` section of a problem, checked once: axes, robot variants, chunks.
 
-The atlas is a grid of independent cells over ``robot x flipper x slope x heading``; each
-cell is one base pose on a planar ramp (position does not matter on a plane). Axes the
-section leaves out have one value: the problem's robot, the robot file's flipper angle,
-``terrain.slope`` and heading 0. Axes whose physics has not landed yet (payload mass,
-heightmap terrain seeds) are accepted by the schema and refused here with one clear line.
+The atlas is a grid of independent cells over ``robot x flipper x payload x terrain x
+slope x heading``. Axes the section leaves out have one value: the problem's robot, the
+robot file's flipper angle, no payload, the problem's terrain, its slope and heading 0.
 
-Headings are about the slope normal in the slope frame S: 0 = body x across the slope
-(+x_S), pi/2 = facing uphill (+y_S). Slopes [rad], headings [rad], flipper angles [rad]
+On the ramp (``terrain: {slope}``) a cell is one base pose on a planar ramp (position
+does not matter on a plane); headings are about the slope normal in the slope frame S: 0 =
+body x across the slope (+x_S), pi/2 = facing uphill (+y_S). On a generated heightmap
+(``terrain: {generate: {kind: plane|rough, ...}}``) the terrain axis holds generator
+seeds (``terrain_seeds``; default the section's seed) and the slope axis the generator's
+``slope``: a cell is the robot at rest at the map's centre, its heading measured from
+across the generator's uphill azimuth the same way (``docs/atlas.md``).
+
+A payload [kg] is a point mass at the wrist (``payload_com`` in the wrist frame [m],
+default its origin) folded into the last arm link (:mod:`mmstab.payload`): a robot variant
+of its own, with its own workspace V. Slopes [rad], headings [rad], flipper angles [rad]
 (0 = straight forward, positive raises the tip; ``"ground"``: lowered until the flipper
 tips rest on the ground, so they join the support polygon; ``"robot"``: the file's angle).
 """
@@ -26,6 +33,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mmstab.config import ConfigError, MmstabError
+from mmstab.payload import Payload, attach_payload, check_payload
 from mmstab.planner import PlannerSettings
 from mmstab.problem import Problem
 from mmstab.robot import FLIPPER_CONTACT_TOL, Robot, load_robot
@@ -35,44 +43,62 @@ from mmstab.robot import FloatArray as FloatArray
 MAX_CELLS = 1_000_000
 #: Slopes the ramp accepts [rad] (as ``terrain.slope`` in the problem schema).
 MAX_SLOPE = 1.2
-#: Axes the schema accepts whose physics has not landed yet, and what they wait for.
-NOT_AVAILABLE = {
-    "payload": "payload mass is not available yet (needs payloads, issue 16)",
-    "terrain_seeds": "terrain seeds are not available yet (needs heightmap terrain, issue 14)",
-}
+#: Generator kinds the terrain axis sweeps (they have a ``slope`` and an uphill ``azimuth``).
+TERRAIN_KINDS = ("plane", "rough")
 #: Bump when what a cell computes changes: stores of another version are not resumed.
-ATLAS_VERSION = 1
+ATLAS_VERSION = 2
 
 
 class Variant(NamedTuple):
-    """One robot at one flipper angle: the unit that owns a workspace V.
+    """One robot at one flipper angle with one payload: the unit that owns a workspace V.
 
     Attributes:
-        position: (robot index, flipper index) in the atlas.
+        position: (robot index, flipper index, payload index) in the atlas.
         robot_label: the robot coordinate (its name).
         flipper_label: the flipper coordinate (``"robot"``, ``"ground"`` or the angle).
         flipper_angle: the angle [rad].
-        robot: the robot with that flipper angle (``source_hash`` changed if the angle is).
+        payload_kg: the payload mass at the wrist [kg] (0: none).
+        robot: the robot with that flipper angle and payload (``source_hash`` changed if
+            either is).
     """
 
-    position: tuple[int, int]
+    position: tuple[int, int, int]
     robot_label: str
     flipper_label: str
     flipper_angle: float
+    payload_kg: float
     robot: Robot
+
+
+class TerrainCell(NamedTuple):
+    """One value of the terrain axis.
+
+    Attributes:
+        label: the coordinate (``"ramp"`` or ``"KIND seed N"``).
+        generate: the ``terrain.generate`` mapping with this seed (``None``: the ramp);
+            its ``slope`` is replaced by each cell's.
+    """
+
+    label: str
+    generate: dict[str, Any] | None
+
+    @property
+    def seed(self) -> int:
+        """The generator seed (-1 on the ramp)."""
+        return -1 if self.generate is None else int(self.generate["seed"])
 
 
 class Block(NamedTuple):
     """One stored chunk: a variant and a slope x heading rectangle of cells.
 
     Attributes:
-        variant: (robot index, flipper index).
+        variant: (robot index, flipper index, payload index, terrain index).
         slope: slice of slope indices.
         heading: slice of heading indices.
         block: (slope block, heading block) index of the chunk.
     """
 
-    variant: tuple[int, int]
+    variant: tuple[int, int, int, int]
     slope: slice
     heading: slice
     block: tuple[int, int]
@@ -89,9 +115,12 @@ class AtlasSpec:
 
     Attributes:
         path: the problem file (for error messages).
-        variants: robot x flipper variants, row-major (robot slowest).
+        variants: robot x flipper x payload variants, row-major (robot slowest).
         robot_labels: the robot coordinate values.
         flipper_labels: the flipper coordinate values.
+        payloads: the payload axis [kg], increasing (``[0.0]`` without the axis).
+        payload_com: the payload's CoM in the wrist frame (3,) [m].
+        terrains: the terrain axis.
         slopes: slope axis [rad], increasing.
         headings: heading axis [rad], increasing, spanning less than a full turn.
         chunks: cells per chunk along (slope, heading).
@@ -105,6 +134,9 @@ class AtlasSpec:
     variants: tuple[Variant, ...]
     robot_labels: tuple[str, ...]
     flipper_labels: tuple[str, ...]
+    payloads: FloatArray
+    payload_com: FloatArray
+    terrains: tuple[TerrainCell, ...]
     slopes: FloatArray
     headings: FloatArray
     chunks: tuple[int, int]
@@ -114,14 +146,26 @@ class AtlasSpec:
     planner_section: dict[str, Any]
 
     @property
-    def shape(self) -> tuple[int, int, int, int]:
-        """(robots, flippers, slopes, headings)."""
+    def shape(self) -> tuple[int, int, int, int, int, int]:
+        """(robots, flippers, payloads, terrains, slopes, headings)."""
         return (
             len(self.robot_labels),
             len(self.flipper_labels),
+            len(self.payloads),
+            len(self.terrains),
             len(self.slopes),
             len(self.headings),
         )
+
+    @property
+    def terrain_labels(self) -> tuple[str, ...]:
+        """The terrain coordinate values."""
+        return tuple(t.label for t in self.terrains)
+
+    @property
+    def on_ramp(self) -> bool:
+        """The cells stand on the planar ramp (no heightmap terrain)."""
+        return self.terrains[0].generate is None
 
     @property
     def cells(self) -> int:
@@ -136,20 +180,23 @@ class AtlasSpec:
             -(-len(self.headings) // self.chunks[1]),
         )
 
-    def variant(self, index: tuple[int, int]) -> Variant:
-        """The variant at (robot index, flipper index)."""
-        return self.variants[index[0] * len(self.flipper_labels) + index[1]]
+    def variant(self, index: tuple[int, ...]) -> Variant:
+        """The variant at (robot index, flipper index, payload index[, terrain index])."""
+        ri, fi, pi = index[:3]
+        return self.variants[(ri * len(self.flipper_labels) + fi) * len(self.payloads) + pi]
 
     def blocks(self) -> list[Block]:
-        """Every chunk, variant by variant, slope blocks then heading blocks."""
+        """Every chunk: variant by variant, terrain by terrain, slope then heading blocks."""
         out = []
         cs, ch = self.chunks
         nb_s, nb_h = self.block_shape
         for v in self.variants:
-            for bs, bh in itertools.product(range(nb_s), range(nb_h)):
+            for ti, bs, bh in itertools.product(
+                range(len(self.terrains)), range(nb_s), range(nb_h)
+            ):
                 out.append(
                     Block(
-                        variant=v.position,
+                        variant=(*v.position, ti),
                         slope=slice(bs * cs, min((bs + 1) * cs, len(self.slopes))),
                         heading=slice(bh * ch, min((bh + 1) * ch, len(self.headings))),
                         block=(bs, bh),
@@ -162,9 +209,11 @@ class AtlasSpec:
         data = {
             "version": ATLAS_VERSION,
             "variants": [
-                (v.robot_label, v.flipper_label, v.flipper_angle, v.robot.source_hash)
+                (v.robot_label, v.flipper_label, v.flipper_angle, v.payload_kg, v.robot.source_hash)
                 for v in self.variants
             ],
+            "payload_com": self.payload_com.tolist(),
+            "terrains": [(t.label, t.generate) for t in self.terrains],
             "slopes": self.slopes.tolist(),
             "headings": self.headings.tolist(),
             "chunks": list(self.chunks),
@@ -248,7 +297,11 @@ def _robots(problem: Problem, axes: dict[str, Any]) -> list[tuple[str, Robot]]:
 
 
 def _variants(
-    problem: Problem, robots: list[tuple[str, Robot]], entries: list[Any]
+    problem: Problem,
+    robots: list[tuple[str, Robot]],
+    entries: list[Any],
+    payloads: FloatArray,
+    payload_com: FloatArray,
 ) -> tuple[tuple[Variant, ...], tuple[str, ...]]:
     labels = []
     for e in entries:
@@ -277,31 +330,82 @@ def _variants(
                 f"{angle} rad puts the flippers of {rlabel} {-low:.3f} m below the ground "
                 f"(use 'ground' for the angle at which they touch it)",
             )
-        variants.append(Variant((ri, fi), rlabel, labels[fi], float(angle), variant))
+        for pi, mass in enumerate(payloads):
+            loaded = attach_payload(variant, Payload(float(mass), payload_com))
+            variants.append(
+                Variant((ri, fi, pi), rlabel, labels[fi], float(angle), float(mass), loaded)
+            )
     return tuple(variants), tuple(labels)
+
+
+def _payloads(path: Path, sec: dict[str, Any]) -> tuple[FloatArray, FloatArray]:
+    """The payload axis [kg] and the payload's CoM in the wrist frame [m]."""
+    axes = sec["axes"]
+    masses = (
+        axis_values(path, "atlas.axes.payload", axes["payload"])
+        if "payload" in axes
+        else np.zeros(1)
+    )
+    com = np.asarray(sec.get("payload_com", [0.0, 0.0, 0.0]), dtype=float)
+    if com.shape != (3,) or not np.isfinite(com).all():
+        raise ConfigError(path, "atlas.payload_com", "must be 3 finite numbers [m]")
+    _increasing(path, "atlas.axes.payload", masses)
+    for m in masses:
+        check_payload(path, "atlas.axes.payload", float(m), com)
+    return masses, com
+
+
+def _terrains(problem: Problem, axes: dict[str, Any]) -> tuple[TerrainCell, ...]:
+    """The terrain axis: the ramp, or the problem's generator at each seed."""
+    path = problem.path
+    section = problem.section("terrain")
+    gen = section.get("generate")
+    if gen is None:
+        if "terrain_seeds" in axes:
+            why = "seeds need a generated heightmap (terrain: {generate: {kind: rough, ...}})"
+            raise ConfigError(path, "atlas.axes.terrain_seeds", why)
+        if "slope" not in section:
+            raise ConfigError(
+                path, "atlas", "the terrain must be the ramp or a generated heightmap"
+            )
+        return (TerrainCell("ramp", None),)
+    if gen["kind"] not in TERRAIN_KINDS:
+        raise ConfigError(
+            path,
+            "terrain.generate.kind",
+            f"the atlas sweeps a generator's slope and azimuth: {', '.join(TERRAIN_KINDS)}, "
+            f"not {gen['kind']}",
+        )
+    seeds = [int(x) for x in axes.get("terrain_seeds", [gen["seed"]])]
+    if len(set(seeds)) != len(seeds):
+        raise ConfigError(path, "atlas.axes.terrain_seeds", "a seed is listed twice")
+    return tuple(TerrainCell(f"{gen['kind']} seed {seed}", {**gen, "seed": seed}) for seed in seeds)
 
 
 def atlas_spec(problem: Problem) -> AtlasSpec:
     """Check the problem's ``atlas`` section beyond its schema and build the atlas.
 
     Raises:
-        ConfigError: naming the problem file and the field (missing section, an axis
-            not available yet, decreasing values, flippers below the ground, too many cells).
+        ConfigError: naming the problem file and the field (missing section, a terrain
+            the atlas cannot sweep, decreasing values, a negative payload, flippers below
+            the ground, too many cells).
     """
     path = problem.path
     if "atlas" not in problem.data:
         raise ConfigError(path, "atlas", "missing section (see docs/atlas.md)")
     sec = problem.section("atlas")
     axes = sec["axes"]
-    for name, why in NOT_AVAILABLE.items():
-        if name in axes:
-            raise ConfigError(path, f"atlas.axes.{name}", why)
-    if "slope" not in axes and "slope" not in problem.section("terrain"):
-        raise ConfigError(path, "atlas.axes.slope", "required: the problem's terrain is no ramp")
+    terrains = _terrains(problem, axes)
+    # the slope axis: the ramp's slope, or the generator's ``slope`` parameter
+    default_slope = (
+        problem.section("terrain")["slope"]
+        if terrains[0].generate is None
+        else terrains[0].generate["slope"]
+    )
     slopes = (
         axis_values(path, "atlas.axes.slope", axes["slope"])
         if "slope" in axes
-        else np.array([float(problem.section("terrain")["slope"])])
+        else np.array([float(default_slope)])
     )
     _increasing(path, "atlas.axes.slope", slopes)
     if slopes.min() < 0 or slopes.max() > MAX_SLOPE:
@@ -314,13 +418,19 @@ def atlas_spec(problem: Problem) -> AtlasSpec:
     _increasing(path, "atlas.axes.heading", headings)
     if headings[-1] - headings[0] >= 2 * math.pi - 1e-9:
         raise ConfigError(path, "atlas.axes.heading", "headings must span less than one turn")
+    payloads, payload_com = _payloads(path, sec)
     robots = _robots(problem, axes)
-    variants, flipper_labels = _variants(problem, robots, axes.get("flipper_angle", ["robot"]))
+    variants, flipper_labels = _variants(
+        problem, robots, axes.get("flipper_angle", ["robot"]), payloads, payload_com
+    )
     spec = AtlasSpec(
         path=path,
         variants=variants,
         robot_labels=tuple(label for label, _ in robots),
         flipper_labels=flipper_labels,
+        payloads=payloads,
+        payload_com=payload_com,
+        terrains=terrains,
         slopes=slopes,
         headings=headings,
         chunks=(int(sec["chunks"]["slope"]), int(sec["chunks"]["heading"])),

@@ -1,12 +1,15 @@
 """The atlas's chunked Zarr store (through xarray): created whole, filled chunk by chunk.
 
-Layout (``DIR/atlas.zarr``), dims ``robot x flipper x slope x heading`` with the axes as
-coordinates (robot name, flipper label, slope [rad], heading [rad]); variables
+Layout (``DIR/atlas.zarr``), dims ``robot x flipper x payload x terrain x slope x
+heading`` with the axes as coordinates (robot name, flipper label, payload [kg], terrain
+label, slope [rad], heading [rad]); variables
 
 - ``mu_planned``, ``mu_stowed``, ``mu_arm_removed`` [N rad], ``planner_seconds`` [s];
 - ``arm_com`` [m] (extra dim ``xyz``): the planner's arm CoM in the body frame;
-- ``flipper_angle`` [rad] and ``mu_max`` [N rad] per (robot, flipper);
-- ``chunk_done`` (robot, flipper, slope_block, heading_block): 1 once a chunk is stored.
+- ``flipper_angle`` [rad] per (robot, flipper), ``mu_max`` [N rad] per (robot, flipper,
+  payload), ``terrain_seed`` per terrain (-1: the ramp);
+- ``chunk_done`` (robot, flipper, payload, terrain, slope_block, heading_block): 1 once a
+  chunk is stored.
 
 A store is created in a temporary folder and renamed into place, so it exists whole or
 not at all. A chunk is stored by region writes of its cells (one Zarr chunk per variable,
@@ -34,8 +37,9 @@ from mmstab.atlas.cell import ChunkResult
 from mmstab.atlas.spec import AtlasSpec, Block
 from mmstab.config import MmstabError
 
-DIMS = ("robot", "flipper", "slope", "heading")
-BLOCK_DIMS = ("robot", "flipper", "slope_block", "heading_block")
+VARIANT_DIMS = ("robot", "flipper", "payload", "terrain")
+DIMS = (*VARIANT_DIMS, "slope", "heading")
+BLOCK_DIMS = (*VARIANT_DIMS, "slope_block", "heading_block")
 #: Per-cell variables: name -> (unit, description).
 CELL_VARIABLES = {
     "mu_planned": ("N rad", "force-angle measure at the planner's arm CoM"),
@@ -56,7 +60,7 @@ def template(spec: AtlasSpec, mu_max: np.ndarray) -> Any:
 
     Args:
         spec: the atlas.
-        mu_max: Eq. 6 normaliser per (robot, flipper) [N rad].
+        mu_max: Eq. 6 normaliser per (robot, flipper, payload) [N rad].
     """
     xr = _xr()
     shape = spec.shape
@@ -69,28 +73,39 @@ def template(spec: AtlasSpec, mu_max: np.ndarray) -> Any:
         np.full((*shape, 3), np.nan),
         {"units": "m", "long_name": "planner's arm CoM, body frame"},
     )
-    angles = np.array([v.flipper_angle for v in spec.variants]).reshape(shape[:2])
+    angles = np.array([v.flipper_angle for v in spec.variants]).reshape(shape[:3])[:, :, 0]
     data["flipper_angle"] = xr.Variable(("robot", "flipper"), angles, {"units": "rad"})
-    data["mu_max"] = xr.Variable(("robot", "flipper"), mu_max, {"units": "N rad"})
-    data["chunk_done"] = xr.Variable(BLOCK_DIMS, np.zeros((*shape[:2], *nb), dtype=np.int8))
+    data["mu_max"] = xr.Variable(("robot", "flipper", "payload"), mu_max, {"units": "N rad"})
+    seeds = np.array([t.seed for t in spec.terrains])
+    data["terrain_seed"] = xr.Variable("terrain", seeds, {"long_name": "generator seed, -1 ramp"})
+    data["chunk_done"] = xr.Variable(BLOCK_DIMS, np.zeros((*shape[:4], *nb), dtype=np.int8))
     coords = {
         "robot": list(spec.robot_labels),
         "flipper": list(spec.flipper_labels),
+        "payload": xr.Variable(
+            "payload", spec.payloads, {"units": "kg", "long_name": "payload at the wrist"}
+        ),
+        "terrain": list(spec.terrain_labels),
         "slope": xr.Variable("slope", spec.slopes, {"units": "rad"}),
         "heading": xr.Variable(
             "heading", spec.headings, {"units": "rad", "long_name": "0 across, pi/2 uphill"}
         ),
         "xyz": ["x", "y", "z"],
     }
-    attrs = {"atlas_key": spec.key(), "chunks": list(spec.chunks)}
+    attrs = {
+        "atlas_key": spec.key(),
+        "chunks": list(spec.chunks),
+        "payload_com_wrist_m": spec.payload_com.tolist(),
+    }
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 def _encoding(spec: AtlasSpec) -> dict[str, dict[str, Any]]:
     cs, ch = spec.chunks
-    enc: dict[str, dict[str, Any]] = {n: {"chunks": (1, 1, cs, ch)} for n in CELL_VARIABLES}
-    enc["arm_com"] = {"chunks": (1, 1, cs, ch, 3)}
-    enc["chunk_done"] = {"chunks": (1, 1, 1, 1)}
+    one = (1,) * len(VARIANT_DIMS)
+    enc: dict[str, dict[str, Any]] = {n: {"chunks": (*one, cs, ch)} for n in CELL_VARIABLES}
+    enc["arm_com"] = {"chunks": (*one, cs, ch, 3)}
+    enc["chunk_done"] = {"chunks": (*one, 1, 1)}
     return enc
 
 
@@ -161,7 +176,7 @@ class AtlasStore:
             )
 
     def done(self) -> np.ndarray:
-        """The chunk markers (robot, flipper, slope_block, heading_block), bool."""
+        """The chunk markers (robot, flipper, payload, terrain, slope_block, heading_block)."""
         with self.open() as ds:
             return ds["chunk_done"].values.astype(bool)
 
@@ -188,25 +203,17 @@ class AtlasStore:
         """Store a computed chunk: its cells, then its completion marker (Ctrl-C deferred)."""
         xr = _xr()
         b = result.block
-        ri, fi = b.variant
-        region = {
-            "robot": slice(ri, ri + 1),
-            "flipper": slice(fi, fi + 1),
-            "slope": b.slope,
-            "heading": b.heading,
-        }
+        at = {d: slice(i, i + 1) for d, i in zip(VARIANT_DIMS, b.variant, strict=True)}
+        region = {**at, "slope": b.slope, "heading": b.heading}
+        lead = (None,) * len(VARIANT_DIMS)
         cells: dict[str, tuple[tuple[str, ...], Any]] = {
-            n: (DIMS, getattr(result, n)[None, None]) for n in CELL_VARIABLES
+            n: (DIMS, getattr(result, n)[lead]) for n in CELL_VARIABLES
         }
-        cells["arm_com"] = ((*DIMS, "xyz"), result.arm_com[None, None])
-        marker = {"chunk_done": (BLOCK_DIMS, np.ones((1, 1, 1, 1), dtype=np.int8))}
+        cells["arm_com"] = ((*DIMS, "xyz"), result.arm_com[lead])
+        ones = np.ones((1,) * len(BLOCK_DIMS), dtype=np.int8)
+        marker = {"chunk_done": (BLOCK_DIMS, ones)}
         bs, bh = b.block
-        block_region = {
-            "robot": slice(ri, ri + 1),
-            "flipper": slice(fi, fi + 1),
-            "slope_block": slice(bs, bs + 1),
-            "heading_block": slice(bh, bh + 1),
-        }
+        block_region = {**at, "slope_block": slice(bs, bs + 1), "heading_block": slice(bh, bh + 1)}
         with deferred_interrupt():
             xr.Dataset(cells).to_zarr(
                 self.path, region={**region, "xyz": slice(0, 3)}, consolidated=False

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -152,12 +152,15 @@ class Heightmap:
             dh_dy = np.where(bad, np.nan, dh_dy)
         return HeightSample(height, dh_dx, dh_dy, valid)
 
-    def sample_rows(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, ...]:
+    def sample_rows(
+        self, x: FloatArray, y: FloatArray, slopes: bool = True
+    ) -> tuple[FloatArray, ...]:
         """Fast bilinear samples for rows of points; validity per row (the resting-pose loop).
 
         Args:
             x: G x of the points (n, K) [m].
             y: G y of the points (n, K) [m].
+            slopes: also the slopes (``False``: those two come back ``None``).
 
         Returns:
             ``(height, dh_dx, dh_dy)`` each (n, K), and ``valid`` (n,): every point of the
@@ -175,16 +178,22 @@ class Heightmap:
         )
         ix = np.minimum(np.maximum(u, 0.0).astype(np.intp), nx - 2)  # floor for u >= 0
         iy = np.minimum(np.maximum(v, 0.0).astype(np.intp), ny - 2)
-        height, dh_dx, dh_dy = self._bilinear(u, v, ix, iy)
+        height, dh_dx, dh_dy = self._bilinear(u, v, ix, iy, slopes)
         valid &= np.isfinite(height.sum(axis=1))
         return height, dh_dx, dh_dy, valid
 
     def _bilinear(
-        self, u: FloatArray, v: FloatArray, ix: NDArray[np.intp], iy: NDArray[np.intp]
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        self,
+        u: FloatArray,
+        v: FloatArray,
+        ix: NDArray[np.intp],
+        iy: NDArray[np.intp],
+        slopes: bool = True,
+    ) -> tuple[Any, Any, Any]:
         """Bilinear height [m] and slopes d/dx, d/dy at grid coordinates ``u``, ``v`` [cells].
 
-        ``ix``, ``iy`` are the lower-left cells of the points (clipped into the map).
+        ``ix``, ``iy`` are the lower-left cells of the points (clipped into the map);
+        ``slopes=False`` leaves the slopes out (``None``).
         """
         nx = self.shape[1]
         fx, fy = u - ix, v - iy
@@ -195,6 +204,8 @@ class Heightmap:
         ax, bx = h10 - h00, h11 - h01
         low = h00 + fx * ax
         dy = h01 + fx * bx - low
+        if not slopes:
+            return low + fy * dy, None, None
         inv = 1.0 / self.resolution
         return low + fy * dy, (ax + fy * (bx - ax)) * inv, dy * inv
 

@@ -28,6 +28,11 @@ explicit tipping about support edges reaches (as Oehler & von Stryk's contact es
 for tracked robots). On a plane it is exact in a few rounds. Long steps are shortened so
 the rest is approached from one side (an overshoot could tip a marginally stable robot);
 a roll or pitch beyond ``max_tilt`` means the robot tips over.
+
+**Speed.** The first rounds use a sparse subset of the candidates; the rounds after that
+use each pose's highest candidates only, checked against all at the end, with a re-solve
+on all of them where the check fails (:func:`_solve_active`): the reference path's rests
+(``active_candidates=0``) at a fraction of the work (``docs/terrain.md``, Speed).
 """
 
 from __future__ import annotations
@@ -58,6 +63,13 @@ class RestSettings(NamedTuple):
         approach_factor: ... by this factor (approach the rest without overshooting it).
         coarse_spacing: the first rounds use candidates this far apart [m] ...
         coarse_tol: ... until their step is below this [rad]; then all candidates.
+        active_candidates: ... or only each pose's this many highest, checked against all
+            (0 = all candidates every round, the reference path).
+        final_step: on the highest candidates, a Newton step below this [rad] on an
+            unchanged triangle is the last (quadratic convergence puts the next below
+            ``tol_step``).
+        active_tol: a left-out candidate higher than the subset's highest by more than
+            this [m] sends the pose to another pass.
     """
 
     max_iterations: int = 40
@@ -69,7 +81,10 @@ class RestSettings(NamedTuple):
     approach: float = 0.02
     approach_factor: float = 0.8
     coarse_spacing: float = 0.09
-    coarse_tol: float = 1e-6
+    coarse_tol: float = 1e-3
+    active_candidates: int = 24
+    final_step: float = 1e-6
+    active_tol: float = 1e-10
 
 
 class RestPoses(NamedTuple):
@@ -132,33 +147,91 @@ def rotations(yaw: FloatArray, roll: FloatArray, pitch: FloatArray) -> tuple[Flo
     return RzRy @ Rx, RzRy @ dRx, Rz @ dRy @ Rx
 
 
+def _products(R: FloatArray, c: FloatArray) -> FloatArray:
+    """Rows of ``R`` (n, r, 3) against candidates ``c`` (K, 3) or per pose (n, K, 3) -> (n, r, K).
+
+    One small matrix product per pose (a stacked ``matmul``): each is far below the size
+    at which BLAS starts threads, which would only contend on a busy machine, and the
+    result of a pose does not depend on the batch it is in.
+    """
+    return R @ (c.T if c.ndim == 2 else c.transpose(0, 2, 1))
+
+
 def _lift(
     hm: Heightmap, c: FloatArray, com: FloatArray, xy: FloatArray, yaw: FloatArray, att: FloatArray
 ) -> tuple[Any, ...]:
-    """f_k (n, K), J_k and its lever part (n, K, 2), CoM height gradient (n, 2), valid (n,).
+    """f_k (n, K), the lever arms (n, K, 2), CoM height gradient (n, 2), valid (n,), rows.
 
-    ``J_k = d f_k / d(roll, pitch)``; the lever part ``-d (G_R_B c_k)_z / d(roll, pitch)``
-    leaves out the ground's slope under the moving point: it is the horizontal moment arm
-    of a vertical contact force, the one that decides equilibrium.
+    ``c`` is (K, 3) shared by all poses or (n, K, 3) per pose. The lever arm ``-d (G_R_B
+    c_k)_z / d(roll, pitch)`` leaves out the ground's slope under the moving point: it is
+    the horizontal moment arm of a vertical contact force, the one that decides
+    equilibrium. ``rows`` (n, 9, K) are R, dR/droll, dR/dpitch times the candidates, from
+    which :func:`_jacobian` takes the full ``J_k = d f_k / d(roll, pitch)`` of the few
+    candidates the Newton step needs (the ground's slope is sampled only there).
     """
     R, dR_r, dR_p = rotations(yaw, att[:, 0], att[:, 1])
     # every row of R, dR/droll, dR/dpitch against every candidate
-    M = np.concatenate([R, dR_r, dR_p], axis=1)  # (n, 9, 3)
-    # (elementwise, not BLAS: a 3-long inner product gains nothing from threads, which
-    # only contend on a busy machine)
-    m = M[:, :, 0, None] * c[:, 0] + M[:, :, 1, None] * c[:, 1] + M[:, :, 2, None] * c[:, 2]
-    h, hx, hy, valid = hm.sample_rows(xy[:, 0, None] + m[:, 0], xy[:, 1, None] + m[:, 1])
-    f = h - m[:, 2]
-    jac = [hx * m[:, j] + hy * m[:, j + 1] - m[:, j + 2] for j in (3, 6)]
+    m = _products(np.concatenate([R, dR_r, dR_p], axis=1), c)  # (n, 9, K)
+    n = m.shape[0]
+    f, valid = np.empty((n, m.shape[2])), np.empty(n, dtype=bool)
+    for i in range(0, n, BLOCK):  # blocks of poses keep the sampler's temporaries in cache
+        b = slice(i, i + BLOCK)
+        h, _, _, valid[b] = hm.sample_rows(
+            xy[b, 0, None] + m[b, 0], xy[b, 1, None] + m[b, 1], slopes=False
+        )
+        f[b] = h - m[b, 2]
     grad = np.stack([np.einsum("nj,nj->n", dR[:, 2, :], com) for dR in (dR_r, dR_p)], axis=1)
     lever = np.stack([-m[:, 5], -m[:, 8]], axis=-1)
-    return f, np.stack(jac, axis=-1), lever, grad, valid
+    return f, lever, grad, valid, m
+
+
+def _jacobian(hm: Heightmap, m: FloatArray, xy: FloatArray, tri: NDArray[np.int_]) -> FloatArray:
+    """``J_k = d f_k / d(roll, pitch)`` (n, 3, 2) of the candidates ``tri`` (n, 3).
+
+    Args:
+        hm: the ground.
+        m: (n, 9, K) rows of :func:`_lift`.
+        xy: (n, 2) pose positions in G [m].
+        tri: (n, 3) candidate indices (artificial ones, >= K, are clipped: unused).
+    """
+    tri = np.minimum(tri, m.shape[2] - 1)
+    mt = np.take_along_axis(m, tri[:, None, :], axis=2)  # (n, 9, 3)
+    _, hx, hy, _ = hm.sample_rows(xy[:, 0, None] + mt[:, 0], xy[:, 1, None] + mt[:, 1])
+    return np.stack([hx * mt[:, j] + hy * mt[:, j + 1] - mt[:, j + 2] for j in (3, 6)], axis=-1)
+
+
+def _heights(
+    hm: Heightmap, c: FloatArray, xy: FloatArray, yaw: FloatArray, att: FloatArray
+) -> tuple[FloatArray, BoolArray]:
+    """Only the lifts f_k (n, K) [m] of the candidates ``c`` (K, 3), and valid (n,)."""
+    n = xy.shape[0]
+    f, valid = np.empty((n, c.shape[0])), np.empty(n, dtype=bool)
+    R = rotations(yaw, att[:, 0], att[:, 1])[0]
+    for i in range(0, n, BLOCK):  # blocks of poses keep the temporaries in cache
+        s = slice(i, i + BLOCK)
+        m = _products(R[s], c)  # (b, 3, K)
+        h, _, _, valid[s] = hm.sample_rows(
+            xy[s, 0, None] + m[:, 0], xy[s, 1, None] + m[:, 1], slopes=False
+        )
+        f[s] = h - m[:, 2]
+    return f, valid
+
+
+#: Poses per block in the samplers of :func:`_lift` and :func:`_heights` (their (block,
+#: candidates) temporaries stay in cache while a round works on the whole chunk).
+BLOCK = 128
 
 
 def _touch_step(f: FloatArray, J: FloatArray, tri: NDArray[np.int_]) -> FloatArray:
-    """Newton step (n, 2) [rad] bringing the three contacts ``tri`` to the same lift f."""
+    """Newton step (n, 2) [rad] bringing the three contacts ``tri`` to the same lift f.
+
+    Args:
+        f: (n, K) lifts [m].
+        J: (n, 3, 2) their derivatives by (roll, pitch) at ``tri`` (:func:`_jacobian`).
+        tri: (n, 3) the contacts.
+    """
     r = np.arange(f.shape[0])[:, None]
-    fa, Ja = f[r, tri], J[r, tri]  # (n, 3), (n, 3, 2)
+    fa, Ja = f[r, np.minimum(tri, f.shape[1] - 1)], J  # (n, 3), (n, 3, 2)
     A = Ja[:, :1] - Ja[:, 1:]  # rows: J_a - J_b, J_a - J_c
     b = fa[:, 1:] - fa[:, :1]  # -(f_a - f_b), -(f_a - f_c)
     det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
@@ -208,7 +281,10 @@ def rest_poses(
         b0 = np.where(
             b0 < len(coarse), coarse[np.minimum(b0, len(coarse) - 1)], b0 - len(coarse) + len(c)
         )
-        *fine, it1, _ = _solve(heightmap, c, ci, pi, settings, a0, b0)
+        if 0 < settings.active_candidates < len(c):
+            *fine, it1 = _solve_active(heightmap, c, ci, pi, settings, a0, b0)
+        else:
+            *fine, it1, _ = _solve(heightmap, c, ci, pi, settings, a0, b0)
         out.append((*fine, it0 + it1))
     cat = [np.concatenate(a) for a in zip(*out, strict=True)]
     att, f, iterations = cat[0], cat[1], cat[5]
@@ -218,8 +294,62 @@ def rest_poses(
     return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings)
 
 
-#: Poses solved together (keeps the (poses, candidates) arrays in cache).
-CHUNK = 1024
+def _solve_active(
+    hm: Heightmap,
+    c: FloatArray,
+    com: FloatArray,
+    p: FloatArray,
+    settings: RestSettings,
+    att0: FloatArray,
+    basis0: NDArray[np.int_],
+) -> tuple[Any, ...]:
+    """The fine stage on each pose's highest candidates, checked against all of them.
+
+    Near the rest only candidates that lift the body nearly as high as the highest can
+    join the support, so each pose solves on its ``active_candidates`` highest at the
+    starting attitude (plus the footprint's corners and its current triangle). At a
+    converged rest the supporting facet is level (``d = 0``, ``t = max f``), so it is the
+    rest on *all* candidates exactly when no left-out candidate lifts the body higher. That
+    is checked; a pose where one does, or that did not converge or tipped on its subset,
+    is solved again on all candidates from the same start: the reference path
+    (:func:`_solve`). Returns what :func:`_solve` does without the triangles.
+    """
+    n, K = p.shape[0], c.shape[0]
+    M = settings.active_candidates
+    xy, yaw = p[:, :2], p[:, 2]
+    rows = np.arange(n)[:, None]
+    corners = _corners(c)
+    f0, valid = _heights(hm, c, xy, yaw, att0)
+    score = np.where(valid[:, None], f0, 0.0)
+    # the current triangle stays in; the footprint's corners come first (the cold start)
+    bk = np.minimum(basis0, K - 1)
+    score[rows, bk] = np.where(basis0 < K, np.inf, score[rows, bk])
+    score[:, corners] = -np.inf
+    top = np.argpartition(-score, M - 5, axis=1)[:, : M - 4]
+    sub = np.concatenate([np.broadcast_to(corners, (n, 4)), top], axis=1)  # (n, M) into K
+    # the triangle in the subset's numbering (artificial vertices stay past the end)
+    pos = np.argmax(sub[:, None, :] == basis0[:, :, None], axis=2)
+    b_sub = np.where(basis0 < K, pos, basis0 - K + M)
+    att, _, v, converged, tips, iterations, _ = _solve(
+        hm, c[sub], com, p, settings, att0, b_sub, settings.final_step
+    )
+    f_out, ok = _heights(hm, c, xy, yaw, att)
+    top_sub = np.take_along_axis(f_out, sub, axis=1).max(axis=1)
+    valid &= v & ok
+    held = converged & ~tips & (f_out.max(axis=1) <= top_sub + settings.active_tol)
+    redo = np.flatnonzero(valid & ~held)
+    if redo.size:
+        a, f, v, conv, tip, it, _ = _solve(
+            hm, c, com[redo], p[redo], settings, att0[redo], basis0[redo]
+        )
+        att[redo], f_out[redo], valid[redo] = a, f, v
+        converged[redo], tips[redo] = conv, tip
+        iterations[redo] += it
+    return att, f_out, valid, converged, tips, iterations
+
+
+#: Poses solved together (large: the per-round Python overhead is paid once per chunk).
+CHUNK = 2048
 
 
 def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
@@ -238,6 +368,12 @@ def coarse_subset(c: FloatArray, spacing: float) -> NDArray[np.int_]:
 _COARSE: dict[tuple[bytes, tuple[int, ...], float], NDArray[np.int_]] = {}
 
 
+def _corners(c: FloatArray) -> NDArray[np.int_]:
+    """Indices of the candidates (K, 3) at the footprint's four corners, counter-clockwise."""
+    u, v = c[:, 0] + c[:, 1], c[:, 0] - c[:, 1]
+    return np.array([np.argmax(u), np.argmax(v), np.argmin(u), np.argmin(v)])
+
+
 def _solve(
     hm: Heightmap,
     c: FloatArray,
@@ -246,16 +382,22 @@ def _solve(
     settings: RestSettings,
     att0: FloatArray | None = None,
     basis0: NDArray[np.int_] | None = None,
+    final_step: float = 0.0,
 ) -> tuple[Any, ...]:
-    """One chunk: attitudes (n, 2), f at them (n, K), per-pose flags, rounds, triangles."""
-    n, K = p.shape[0], c.shape[0]
+    """One chunk: attitudes (n, 2), f at them (n, K), per-pose flags, rounds, triangles.
+
+    ``final_step`` [rad] > 0: a Newton step this short on an unchanged triangle is the
+    last (f is then not at the final attitude: the caller recomputes it).
+    """
+    n, K = p.shape[0], c.shape[-2]
     xy, yaw = p[:, :2], p[:, 2]
     att = np.zeros((n, 2)) if att0 is None else att0.copy()  # (roll, pitch): lowered level
     f_last = np.full((n, K), np.nan)
     last = np.zeros((n, 2))  # the last Newton step taken [rad]
     basis: NDArray[np.int_] = np.tile(np.arange(K, K + 3), (n, 1)) if basis0 is None else basis0
-    u, v = c[:, 0] + c[:, 1], c[:, 0] - c[:, 1]
-    corners = np.array([np.argmax(u), np.argmax(v), np.argmin(u), np.argmin(v)])  # CCW-ish
+    per_pose = c.ndim == 3  # candidates (n, K, 3) per pose: no shared cold-start corners
+    # per-pose candidates (:func:`_solve_active`) hold the footprint's corners first
+    corners = np.arange(4) if per_pose else _corners(c)
     active = np.ones(n, dtype=bool)
     valid = np.ones(n, dtype=bool)
     converged = np.zeros(n, dtype=bool)
@@ -265,19 +407,21 @@ def _solve(
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
-        f, J, lever, grad, ok = _lift(hm, c, com[idx], xy[idx], yaw[idx], att[idx])
+        ci = c[idx] if per_pose else c
+        f, lever, grad, ok, m = _lift(hm, ci, com[idx], xy[idx], yaw[idx], att[idx])
         if not ok.all():
             valid[idx[~ok]] = False
             active[idx[~ok]] = False
-            idx, f, J, lever, grad = idx[ok], f[ok], J[ok], lever[ok], grad[ok]
+            idx, f, lever, grad, m = idx[ok], f[ok], lever[ok], grad[ok], m[ok]
             if idx.size == 0:
                 break
-        f_last[idx] = f
         if it == settings.max_iterations:
-            break  # f_last now belongs to the final attitude
+            f_last[idx] = f  # at the final attitude
+            break
         warm = basis[idx] if it or basis0 is not None else None
+        tri_before = basis[idx]
         _, tip, basis[idx], bounded = support_lp(lever, f, -grad, warm, corners)
-        newton = _touch_step(f, J, basis[idx])
+        newton = _touch_step(f, _jacobian(hm, m, xy[idx], basis[idx]), basis[idx])
         # long Newton steps are shortened so they approach the rest from the side they
         # started on: an overshoot can put the CoM outside its support and tip a stable robot
         n_norm = np.linalg.norm(newton, axis=1, keepdims=True)
@@ -288,10 +432,16 @@ def _solve(
         # (tipping is believed only once it appears after a tiny step)
         back = ~bounded & (np.linalg.norm(last[idx], axis=1) > 1e-7)
         done = bounded & (norm <= settings.tol_step)
+        # Newton converges quadratically: after a tiny step on an unchanged triangle the next
+        # one would be below tol_step, so take it and stop (f is then recomputed by the
+        # caller, :func:`_solve_active`)
+        last_step = ~done & bounded & (norm <= final_step) & (basis[idx] == tri_before).all(axis=1)
         over = ~done & ~back & (np.abs(att[idx]) > settings.max_tilt).any(axis=1)
         limit = settings.max_step * (0.5 ** max(0, it - 20))  # damp a late limit cycle
         step *= np.minimum(1.0, limit / np.maximum(norm, 1e-300))[:, None]
-        step[done | over] = 0.0  # f_last is at the final attitude
+        step[done | over] = 0.0
+        f_last[idx[done | over]] = f[done | over]  # at the final attitude
+        done |= last_step
         half = 0.5 * last[idx]
         step = np.where(back[:, None], -half, step)
         last[idx] = np.where(back[:, None], half, np.where(bounded[:, None], step, 0.0))
@@ -331,8 +481,6 @@ def _finish(
 ) -> RestPoses:
     n, K = p.shape[0], c.shape[0]
     R = rotations(p[:, 2], att[:, 0], att[:, 1])[0]
-    m = R[:, :, 0, None] * c[:, 0] + R[:, :, 1, None] * c[:, 1] + R[:, :, 2, None] * c[:, 2]
-    foot = np.stack([p[:, 0, None] + m[:, 0], p[:, 1, None] + m[:, 1]], axis=-1)  # (n, K, 2)
     z = np.max(f, axis=1)
     gap = z[:, None] - f
     touching = gap <= settings.contact_tol
@@ -341,11 +489,14 @@ def _finish(
     T[:, :3, 3] = np.concatenate([p[:, :2], z[:, None]], axis=1)
     codes = np.full(K, -1) if part is None else np.asarray(part)
     high = (touching & (codes == CHASSIS)[None, :]).any(axis=1)
-    # line contact: the touching points' footprint has no width
+    # line contact: the touching points' footprint has no width. Its covariance is the
+    # touching candidates' covariance in B turned into G (cheaper than placing them all).
     wgt = touching / np.maximum(touching.sum(axis=1), 1)[:, None]
-    mx, my = (foot[..., 0] * wgt).sum(axis=1), (foot[..., 1] * wgt).sum(axis=1)
-    dx, dy = foot[..., 0] - mx[:, None], foot[..., 1] - my[:, None]
-    sxx, syy, sxy = (dx * dx * wgt).sum(1), (dy * dy * wgt).sum(1), (dx * dy * wgt).sum(1)
+    mean = wgt @ c  # (n, 3)
+    second = (wgt @ (c[:, :, None] * c[:, None, :]).reshape(K, 9)).reshape(n, 3, 3)
+    cov_B = second - mean[:, :, None] * mean[:, None, :]
+    cov = R[:, :2] @ cov_B @ R[:, :2].transpose(0, 2, 1)  # (n, 2, 2) in G's x, y
+    sxx, syy, sxy = cov[:, 0, 0], cov[:, 1, 1], cov[:, 0, 1]
     smallest = (sxx + syy) / 2 - np.sqrt(((sxx - syy) / 2) ** 2 + sxy**2)  # 2x2 eigenvalue
     width = 2 * np.sqrt(np.maximum(smallest, 0.0))
     line = width < settings.line_width

@@ -25,6 +25,21 @@ def _bary(P: FloatArray, x: FloatArray) -> FloatArray:
     return np.stack([1.0 - lb - lc, lb, lc], axis=1)
 
 
+def _bary2(P: FloatArray, x: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`_bary` of two point sets (n, 2) in the same triangles (n, 3, 2)."""
+    a, b, c = P[:, 0], P[:, 1], P[:, 2]
+    ab, ac = b - a, c - a
+    den = ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]
+    den = np.where(np.abs(den) > 1e-300, den, 1e-300)
+    out = []
+    for pt in (x, y):
+        ax = pt - a
+        lb = (ax[:, 0] * ac[:, 1] - ax[:, 1] * ac[:, 0]) / den
+        lc = (ab[:, 0] * ax[:, 1] - ab[:, 1] * ax[:, 0]) / den
+        out.append(np.stack([1.0 - lb - lc, lb, lc], axis=1))
+    return out[0], out[1]
+
+
 def _plane(P: FloatArray, F: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(t (n,), d (n, 2)) of the plane ``value(J) = t - d . J`` through 3 lifted points."""
     a, b, c = P[:, 0], P[:, 1], P[:, 2]
@@ -67,10 +82,11 @@ def support_lp(
     """
     n, K = f.shape
     rows = np.arange(n)
+    fmax, fmin = f.max(axis=1), f.min(axis=1)
     scale = np.abs(J).max(axis=(1, 2)) + np.abs(q).max(axis=1) + 1.0
     ang = np.pi / 2 + 2 * np.pi / 3 * np.arange(3)
     art = q[:, None, :] + 100.0 * scale[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], -1)
-    big = 1e6 * (np.ptp(f, axis=1) + 1.0)
+    big = 1e6 * (fmax - fmin + 1.0)
     P = np.concatenate([J, art], axis=1)
     F = np.concatenate([f, -np.repeat(big[:, None], 3, axis=1)], axis=1)
     start = np.tile(np.arange(K, K + 3), (n, 1))
@@ -87,24 +103,24 @@ def support_lp(
         start[ok] = tri[ok]
         found |= ok
     basis = start
-    tol = 1e-12 * (np.abs(f).max(axis=1) + 1.0)
+    tol = 1e-12 * (np.maximum(fmax, -fmin) + 1.0)
     t = np.zeros(n)
     d = np.zeros((n, 2))
     idx = rows
+    Ji, fi = J, f  # of the problems still pivoting (copies only once some are done)
     for _ in range(4 * K + 12):
         b = basis[idx]
         Pb = P[idx[:, None], b]
         ti, di = _plane(Pb, F[idx[:, None], b])
         t[idx], d[idx] = ti, di
-        Ji = J[idx]
-        viol = f[idx] + Ji[..., 0] * di[:, 0, None] + Ji[..., 1] * di[:, 1, None] - ti[:, None]
+        viol = fi + (Ji @ di[:, :, None])[:, :, 0] - ti[:, None]
         e = np.argmax(viol, axis=1)
         go = viol[np.arange(idx.size), e] > tol[idx]
         if not go.any():
             break
-        idx, e, Pg = idx[go], e[go], Pb[go]
-        lam = _bary(Pg, q[idx])
-        mu = _bary(Pg, J[idx, e])
+        if not go.all():
+            idx, e, Pb, Ji, fi = idx[go], e[go], Pb[go], Ji[go], fi[go]
+        lam, mu = _bary2(Pb, q[idx], Ji[np.arange(idx.size), e])
         pos = mu > 1e-12
         ratio = np.where(pos, lam / np.where(pos, mu, 1.0), np.inf)
         leave = np.argmin(ratio, axis=1)
