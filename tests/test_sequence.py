@@ -14,7 +14,6 @@ from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve
 from mmstab.planner.exhaustive import sample_index
 from mmstab.planner.sequence import _viterbi, segments_collide, solve_sequence
 from mmstab.planner.turret import sample_postures
-from mmstab.problem import load_problem
 from mmstab.stability import mu_max
 
 WINDOW = 0.8  # [rad]
@@ -124,30 +123,3 @@ def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
 
 
 COARSE = [10, 8, 8, 8]
-
-
-def test_on_a_heightmap_the_planner_scores_the_real_contacts(coarse):  # noqa: F811
-    """μ of the plan = the 3-D contact force-angle on the resting contacts (independent)."""
-    from conftest import PROBLEMS
-
-    from mmstab.experiments.levers import contact_mu
-    from mmstab.planner import solve_pose, support_body_at
-    from mmstab.stability import base_polygon
-
-    problem, ws = coarse
-    robot = problem.robot
-    rough = load_problem(PROBLEMS / "rough.yaml").terrain
-    s = _settings(problem, method="exhaustive", turret_window=None)
-    poses = np.array([[0.8, -0.6, 0.3], [-0.9, 0.4, 2.0], [0.2, 1.1, -1.2], [-0.3, -1.0, 4.0]])
-    previous = robot.arm_com(robot.stowed)
-    changed = 0
-    for pose in poses:
-        t = solve_pose(robot, rough, ws, pose, previous, s, np.random.default_rng(0))
-        on_contacts = contact_mu(robot, rough, pose[None], t.target_com)[0]
-        assert t.mu == pytest.approx(on_contacts, abs=1e-6)
-        assert t.mu > 0  # the planned arm does not tip the base off its contacts
-        polygon = support_body_at(rough, robot, pose)
-        changed += polygon.shape != base_polygon(robot).vertices.shape or not np.allclose(
-            polygon, base_polygon(robot).vertices, atol=1e-3
-        )
-    assert changed  # the contacts are not the flat rectangle somewhere on this ground

@@ -23,7 +23,6 @@ from mmstab.planner import (
     pose_fitness,
     region_samples,
     solve_exhaustive,
-    support_body_at,
 )
 from mmstab.planner.turret import windowed_region
 from mmstab.plotting import new_figure
@@ -61,15 +60,7 @@ def lap_quality(
     previous = np.vstack([robot.arm_com(robot.stowed)[None], plan.target_com[:-1]])
     fit_ref, mu_ref, seconds = [], [], []
     for k, target in enumerate(plan.targets):
-        fitness = pose_fitness(
-            robot,
-            g[k],
-            previous[k],
-            plan.settings,
-            norm,
-            region.diameter,
-            support_body_at(problem.terrain, robot, plan.poses[k]),
-        )
+        fitness = pose_fitness(robot, g[k], previous[k], plan.settings, norm, region.diameter)
         # against the exhaustive optimum under the pose's own turret window (if any)
         window = target.window
         ex = solve_exhaustive(

@@ -38,7 +38,6 @@ from mmstab.planner.path import (
     solve_path,
     solve_pose,
     start_coms,
-    support_body_at,
 )
 from mmstab.planner.regions import SampleRegion, planning_region, sample_region
 from mmstab.planner.settings import PlannerSettings
@@ -74,5 +73,4 @@ __all__ = [
     "solve_pose",
     "solve_start",
     "start_coms",
-    "support_body_at",
 ]

@@ -192,7 +192,6 @@ def pose_fitness(
     settings: PlannerSettings,
     mu_max: float,
     diameter: float,
-    polygon_body: ArrayLike | None = None,
 ) -> Fitness:
     """Eq. 6 at a pose where gravity in the body frame is ``gravity_body`` (3,) [m/s^2].
 
@@ -203,14 +202,10 @@ def pose_fitness(
         settings: planner settings (the weights).
         mu_max: normaliser [N rad].
         diameter: d_workspace [m].
-        polygon_body: the ordered support polygon in B (n, 3) [m] at the pose (from the
-            terrain's contacts, :func:`mmstab.planner.support_body_at`); default the
-            base's flat track rectangle (the planar ground's support).
     """
-    polygon = base_polygon(robot).vertices if polygon_body is None else polygon_body
     return Fitness(
         robot=robot,
-        polygon=np.asarray(polygon, dtype=float).reshape(-1, 3),
+        polygon=base_polygon(robot).vertices,
         gravity_body=np.asarray(gravity_body, dtype=float).reshape(3),
         previous_com=np.asarray(previous_com, dtype=float),
         mu_max=float(mu_max),

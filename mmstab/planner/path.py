@@ -96,22 +96,6 @@ def gravity_body_at(terrain: Terrain, poses: ArrayLike) -> FloatArray:
     return terrain.gravity_body(np.atleast_2d(np.asarray(poses, dtype=float)))
 
 
-def support_body_at(terrain: Terrain, robot: Robot, pose: ArrayLike) -> FloatArray:
-    """The support polygon in the body frame at one pose (n, 3) [m].
-
-    The terrain's resting contacts (:meth:`Terrain.support`), taken into B and ordered
-    counter-clockwise about z_B as the base's own polygon. On planar ground it is the
-    track rectangle; on a heightmap it is what the base actually stands on (a kerb's edge,
-    three points of rough ground), so the planner's μ is the μ on the real contacts.
-    """
-    support = terrain.support(robot, np.asarray(pose, dtype=float))
-    B_T_G = np.linalg.inv(support.G_T_B)
-    polygon = support.polygon_G @ B_T_G[:3, :3].T + B_T_G[:3, 3]
-    x, y = polygon[:, 0], polygon[:, 1]
-    area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-    return polygon[::-1].copy() if area < 0 else polygon
-
-
 def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> FloatArray:
     """Start means of CMA-ES, body frame (S, 3) [m].
 
@@ -178,7 +162,6 @@ def solve_pose(
         settings,
         stowed_flat_mu(robot) if mu_max is None else mu_max,
         float(region.diameter),
-        support_body_at(terrain, robot, pose),
     )
     fitness = with_tool_wrench(fitness, region)  # itself unless payload.wrench is set
     if settings.method in ("exhaustive", "sequence"):  # sequence: per pose, the reference
@@ -268,7 +251,6 @@ def _fall_back_to_a_sample(
         settings,
         mu_max,
         float(region.diameter),
-        support_body_at(terrain, robot, target.pose),
     )
     fitness = with_tool_wrench(fitness, region)
     values = fitness(near)
@@ -404,10 +386,7 @@ def _solve_sequence_path(
     """:func:`solve_path` with ``method: sequence``: V's postures, chosen along the path."""
     t0 = time.perf_counter()
     mu_max = stowed_flat_mu(robot)
-    polygons = [support_body_at(terrain, robot, pose) for pose in poses]
-    seq = solve_sequence(
-        robot, gravity_body_at(terrain, poses), region, settings, mu_max, closed, polygons
-    )
+    seq = solve_sequence(robot, gravity_body_at(terrain, poses), region, settings, mu_max, closed)
     samples = sample_index(region).samples
     postures = sample_postures(region)[seq.rows]
     seconds = (time.perf_counter() - t0) / max(len(poses), 1)

@@ -115,7 +115,6 @@ def solve_sequence(
     settings: PlannerSettings,
     mu_max: float,
     closed: bool,
-    polygons_body: list[FloatArray] | None = None,
     checker: CollisionChecker | None = None,
 ) -> SequenceResult:
     """Choose one of V's samples per pose (module text).
@@ -127,8 +126,6 @@ def solve_sequence(
         settings: planner settings (weights, ``turret_window``, ``sequence_candidates``).
         mu_max: Eq. 6's normaliser [N rad].
         closed: the path is a loop: the move from the last pose to the first is checked too.
-        polygons_body: support polygon in B at each pose (K of (n, 3)) [m]; default the
-            base's flat rectangle (:func:`mmstab.planner.fitness.pose_fitness`).
         checker: collision checker (default: the robot's).
 
     Raises:
@@ -143,17 +140,11 @@ def solve_sequence(
     K, M = len(g), min(settings.sequence_candidates, len(samples))
     stowed = robot.arm_com(robot.stowed)
     stab = settings._replace(w_motion=0.0)
-
-    def polygon(k: int) -> FloatArray | None:
-        return None if polygons_body is None else polygons_body[k]
-
     cand = np.empty((K, M), dtype=np.intp)
     value = np.empty((K, M))
     bins = _turret_bins(postures[:, 0], TURRET_BINS)
     for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
-        fit = with_tool_wrench(
-            pose_fitness(robot, g[k], stowed, stab, mu_max, diameter, polygon(k)), region
-        )
+        fit = with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region)
         v = fit.linear()(samples)
         cand[k] = _diverse_top(v, bins, M)
         value[k] = v[cand[k]]
@@ -202,9 +193,9 @@ def solve_sequence(
         fitness[b] -= motion[i][path[a], path[b]]
     mu = np.array(
         [
-            with_tool_wrench(
-                pose_fitness(robot, g[k], stowed, stab, mu_max, diameter, polygon(k)), region
-            ).mu(samples[rows[k]])[0]
+            with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region).mu(
+                samples[rows[k]]
+            )[0]
             for k in range(K)
         ]
     )

@@ -4,8 +4,8 @@ Keys added after the first release (``method``, ``seeding``, ``coarse_*``,
 ``sigma0_unit``, ``restarts``, ``turret_window``, ``sequence_candidates``) may be omitted
 from a problem file; their defaults
 (``mmstab.schema.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
-plans as before (to rounding: the support polygon now comes through the terrain, 1e-15).
-``problems/ramp.yaml`` plans with ``method: sequence`` (``docs/planner.md``).
+plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable search
+(``docs/planner.md``).
 """
 
 from __future__ import annotations
