@@ -189,3 +189,16 @@ atlas: setup
 
 bench-atlas: setup
 	$(PY) benchmarks/atlas.py $(ATLAS_PROBLEM)
+
+## issue 15: plan and track along a route over rough ground (docs/routes.md) -> results/rough/,
+## results/kerb/: the plan (plan/), the tracking run, its figures and the animation
+.PHONY: rough kerb
+rough: setup
+	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable
+	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable
+	$(MMSTAB) animation problems/rough.yaml -o results/rough
+
+kerb: setup
+	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable
+	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable
+	$(MMSTAB) animation problems/kerb.yaml -o results/kerb

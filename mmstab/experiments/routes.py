@@ -144,18 +144,30 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
     """The terrain, the route and the robot at rest in its planned posture at snapshots."""
     import matplotlib.pyplot as plt
 
-    from mmstab.drawing import draw_ground, draw_path_on_ground, draw_robot, set_equal_aspect
-    from mmstab.drawing import Extent
+    from mmstab.drawing import draw_path_on_ground, draw_robot, set_equal_aspect
 
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
-    fig = plt.figure(figsize=(12, 5.2), constrained_layout=True)
+    fig = plt.figure(figsize=(12, 5.6), constrained_layout=True)
     ax = fig.add_subplot(1, 1, 1, projection="3d")
-    ax.computed_zorder = False
+    ax.computed_zorder = False  # the ground first, the robots over it
     path = route.route.sample(np.linspace(0, route.length, 400)).pose[:, :2]
-    lo, hi = path.min(axis=0) - 1.5, path.max(axis=0) + 1.5
-    draw_ground(ax, problem.terrain, Extent(lo[0], hi[0], lo[1], hi[1]))
+    lo, hi = path.min(axis=0) - 0.6, path.max(axis=0) + 0.6  # the footprint is on the map
+    x, y = np.meshgrid(np.arange(lo[0], hi[0], 0.05), np.arange(lo[1], hi[1], 0.05))
+    ground = problem.terrain.surface_G(x, y)
+    ax.plot_surface(
+        ground[..., 0],
+        ground[..., 1],
+        ground[..., 2],
+        cmap="terrain",
+        alpha=0.85,
+        linewidth=0,
+        antialiased=False,
+        rstride=1,
+        cstride=1,
+        zorder=0,
+    )
     draw_path_on_ground(ax, problem.terrain, path, color="k", linewidths=1.2)
     idx = np.unique(np.linspace(0, len(plan.s) - 1, SNAPSHOTS).round().astype(int))
     pts = []
@@ -165,8 +177,7 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
         draw_robot(ax, problem.robot, q, T)
         pts.append(T[:3, 3])
         ax.text(*(T[:3, 3] + [0, 0, 0.7]), f"{plan.s[k]:.1f} m", fontsize=8, ha="center")
-    ground = problem.terrain.surface_G(np.array([lo[0], hi[0]]), np.array([lo[1], hi[1]]))
-    set_equal_aspect(ax, np.vstack([np.array(pts), ground]))
+    set_equal_aspect(ax, np.vstack([np.array(pts), ground.reshape(-1, 3)]), zoom=1.15)
     ax.view_init(elev=35, azim=-70)
     ax.set(xlabel="$x_G$ [m]", ylabel="$y_G$ [m]", zlabel="$z_G$ [m]")
     ax.set_title(

@@ -215,7 +215,14 @@ def solve_route(
             q, ok = realise(target.target_com, previous_q)
             if not (ok and np.linalg.norm(robot.arm_com(q) - target.target_com) <= REALISE_TOL):
                 target, q, ok = _nearest_realisable(
-                    robot, ground, region, target, previous_com, settings, mu_max, realise,
+                    robot,
+                    ground,
+                    region,
+                    target,
+                    previous_com,
+                    settings,
+                    mu_max,
+                    realise,
                     previous_q,
                 )
             previous_q = q
