@@ -86,6 +86,7 @@ fig8: setup
 	$(MMSTAB) fig8 $(PROBLEM)
 
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
+## (and along the rough route, warm-started: its "route" entry, benchmarks/plan_route.py)
 ## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
@@ -93,6 +94,7 @@ plan-reliable: setup
 
 bench-plan: setup
 	$(PY) benchmarks/plan.py $(PROBLEM)
+	$(PY) benchmarks/plan_route.py problems/rough.yaml
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity

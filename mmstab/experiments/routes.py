@@ -177,7 +177,7 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
         draw_robot(ax, problem.robot, q, T)
         pts.append(T[:3, 3])
         ax.text(*(T[:3, 3] + [0, 0, 0.7]), f"{plan.s[k]:.1f} m", fontsize=8, ha="center")
-    set_equal_aspect(ax, np.vstack([np.array(pts), ground.reshape(-1, 3)]), zoom=1.15)
+    set_equal_aspect(ax, np.vstack([np.array(pts), ground.reshape(-1, 3)]))
     ax.view_init(elev=35, azim=-70)
     ax.set(xlabel="$x_G$ [m]", ylabel="$y_G$ [m]", zlabel="$z_G$ [m]")
     ax.set_title(

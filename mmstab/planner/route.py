@@ -277,7 +277,7 @@ def _warm_pose(
     linear = fit.linear()  # the same Eq. 6, affine per tip-over axis: cheaper per batch
     runs = [
         warm_cma(
-            linear,
+            linear.__call__,
             region,
             c,
             sigma,

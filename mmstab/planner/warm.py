@@ -45,7 +45,7 @@ class WarmResult(NamedTuple):
 
 
 def warm_cma(
-    fitness: Callable[[FloatArray], FloatArray],
+    fitness: Callable[..., FloatArray],
     region: CoMRegion,
     start_com: FloatArray,
     sigma0: float,

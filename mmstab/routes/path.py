@@ -87,8 +87,8 @@ class RoutePath:
 
     def s_at(self, u: ArrayLike) -> FloatArray:
         """Arc length [m] reached at time fractions ``u`` (clipped to [0, 1])."""
-        u = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), 0.0, 1.0)
-        return np.asarray(self.profile.s_at(u * self.lap_time))
+        uu = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), 0.0, 1.0)
+        return np.asarray(self.profile.s_at(uu * self.lap_time))
 
     def speed_at_t(self, t: ArrayLike) -> FloatArray:
         """Reference speed [m/s] at times ``t`` [s] (the derivative of ``profile.s_at``)."""
