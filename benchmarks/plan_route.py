@@ -16,13 +16,15 @@ Per warm-started pose (every pose after the first), in the same run:
   CMA-ES found an off-grid CoM better than every sample).
 
 The resting poses are computed once per run in one batch; their share is counted in every
-pose's time. No IK (postures) here: the search alone.
+pose's time. No IK (postures) here: the search alone. Wall times and, less sensitive to
+other processes on a shared machine, CPU times of this process (with the load average).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -96,13 +98,15 @@ def main() -> None:
     poses = route.route.sample(s).pose
     robot, terrain = problem.robot, problem.terrain
     solve_route(robot, terrain, region, s, poses, settings)  # warm-up (caches, imports)
-    warm_ms, pycma_ms, first_ms = [], [], []
+    warm_ms, pycma_ms, first_ms, warm_cpu, pycma_cpu = [], [], [], [], []
     for _ in range(args.runs):
         plan = solve_route(robot, terrain, region, s, poses, settings)
         warm_ms.append(1e3 * float(np.median(plan.search_seconds[1:])))
+        warm_cpu.append(1e3 * float(np.median(plan.search_cpu_seconds[1:])))
         first_ms.append(1e3 * float(plan.search_seconds[0]))
         peer = solve_route(robot, terrain, region, s, poses, settings, search="solve_pose")
         pycma_ms.append(1e3 * float(np.median(peer.search_seconds[1:])))
+        pycma_cpu.append(1e3 * float(np.median(peer.search_cpu_seconds[1:])))
     gap, exhaustive_ms = gaps(problem, region, plan, samples)
     gap_pycma, _ = gaps(problem, region, peer, samples)
     entry = {
@@ -119,6 +123,11 @@ def main() -> None:
             "exhaustive": exhaustive_ms,
             "first_pose_cold": float(np.median(first_ms)),
         },
+        "cpu_ms_per_pose": {
+            "warm": float(np.median(warm_cpu)),
+            "warm_pycma": float(np.median(pycma_cpu)),
+        },
+        "load_average_1min": os.getloadavg()[0],
         "gap_pct": {
             "warm": {"max": max(gap), "median": float(np.median(gap))},
             "warm_pycma": {"max": max(gap_pycma), "median": float(np.median(gap_pycma))},
@@ -136,7 +145,8 @@ def main() -> None:
     print(
         f"bench-plan route: {len(s)} poses over {route.length:.1f} m; ms per warm pose "
         f"{ms['warm']:.2f} (pycma {ms['warm_pycma']:.2f}, cold {ms['cold_solve_pose']:.2f}, "
-        f"exhaustive {ms['exhaustive']:.2f}); gap max {max(gap):.3f} % -> {out}"
+        f"exhaustive {ms['exhaustive']:.2f}); CPU ms per warm pose "
+        f"{entry['cpu_ms_per_pose']['warm']:.2f}; gap max {max(gap):.3f} % -> {out}"
     )
 
 

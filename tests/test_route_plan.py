@@ -64,6 +64,11 @@ def test_route_and_circle_paths_load(tmp_path):
         _ = problem.circle
     ramp = load_problem(ROOT / "problems" / "ramp.yaml")
     assert ramp.route is None and ramp.circle.radius == 1.5
+    bad = copy.deepcopy(ramp.data)
+    bad["robot"] = str(ROOT / "problems" / "robots" / "cameleon.yaml")
+    bad["path"]["radius"] = -1.0  # a circle is still checked as before
+    with pytest.raises(ConfigError, match=r"p.yaml: path.radius"):
+        problem_from_dict(bad, tmp_path / "p.yaml")
     # the time parametrisation: from rest to rest, d pose/du is the finite difference
     r = problem.route
     u = np.linspace(0.05, 0.75, 50)
@@ -213,3 +218,35 @@ def test_a_bad_route_exits_2_with_one_line_and_writes_nothing(tmp_path):
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and "bad.yaml: path.waypoints[1]" in lines[0], out.stderr
     assert not (tmp_path / "plan").exists()
+
+
+class _Ball:
+    """A ball of radius 1 m at the origin as a CoM region (contains, violation, diameter)."""
+
+    diameter = 2.0
+
+    def contains(self, points):
+        return np.linalg.norm(np.atleast_2d(points), axis=1) <= 1.0
+
+    def violation(self, points):
+        return np.maximum(np.linalg.norm(np.atleast_2d(points), axis=1) - 1.0, 0.0)
+
+
+@pytest.mark.parametrize("target", [[0.3, -0.2, 0.1], [2.0, 0.0, 0.0]])
+def test_warm_cma_finds_a_known_optimum(target):
+    """Inside: the peak itself; outside V: the nearest point of the ball (the constrained one)."""
+    from mmstab.planner.warm import warm_cma
+
+    c = np.array(target)
+
+    def fitness(x):
+        return -np.sum((np.atleast_2d(x) - c) ** 2, axis=1)
+
+    rng = np.random.default_rng(0)
+    r = warm_cma(fitness, _Ball(), np.zeros(3), 0.1, rng, 16, 200, 3, 1e-6, 1e-14)
+    expected = c if np.linalg.norm(c) <= 1 else c / np.linalg.norm(c)
+    np.testing.assert_allclose(r.best_com, expected, atol=2e-3)
+    assert np.linalg.norm(r.best_com) <= 1.0 and r.iterations < 200
+    # the start is kept: started at the optimum with a tiny budget, it is never lost
+    r0 = warm_cma(fitness, _Ball(), expected, 0.1, rng, 16, 1, 3, 1e-6, 1e-14)
+    assert r0.best_fitness >= float(fitness(expected)[0])

@@ -5,7 +5,8 @@
 - ``summary.json``: ``mu_planned``, ``mu_stowed``, ``mu_removed`` (lists over the planned
   poses [N rad]), ``s`` (their arc lengths [m]), ``risk`` (the stretches below
   ``planner.margin``, and those where only the stowed arm is), ``ms_per_pose`` (median
-  search time per pose), the per-pose details and the stability verdict;
+  wall time of a warm-started pose's search; ``cpu_ms_per_pose`` its CPU time, less
+  sensitive to a shared machine), the per-pose details and the stability verdict;
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
   risk stretches shaded;
 - ``route_3d.png``: the terrain, the route and the robot at rest with its planned posture
@@ -66,6 +67,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         for k in range(len(plan.s))
     ]
     warm = plan.search_seconds[plan.warm] if plan.warm.any() else plan.search_seconds
+    warm_cpu = plan.search_cpu_seconds[plan.warm] if plan.warm.any() else plan.search_cpu_seconds
     return {
         "route": {
             "length_m": route.length,
@@ -87,6 +89,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "ms_per_pose": float(1e3 * np.median(warm)),
         "ms_per_pose_max": float(1e3 * np.max(warm)),
         "ms_first_pose": float(1e3 * plan.search_seconds[0]),
+        "cpu_ms_per_pose": float(1e3 * np.median(warm_cpu)),
         "settings": plan.settings._asdict(),
         "poses": poses,
         "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),

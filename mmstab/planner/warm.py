@@ -5,8 +5,9 @@ warm-started pose may take (10 ms, issue "routes"). This is the textbook (mu/mu_
 CMA-ES (Hansen, "The CMA Evolution Strategy: A Tutorial", 2016: weights, cumulation,
 rank-one and rank-mu updates, cumulative step-size adaptation) for the 3-D arm CoM, with
 the same handling of V as :mod:`mmstab.planner.cmaes`: samples outside V are re-asked up to
-``max_resample`` rounds, those still outside are ranked below every feasible one
-(:func:`~mmstab.planner.cmaes.ranking_values`). Its draws come from the caller's generator.
+``max_resample`` rounds (drawn up front, one membership test per iteration), those still
+outside are ranked below every feasible one (:func:`~mmstab.planner.cmaes.ranking_values`).
+Its draws come from the caller's generator.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from mmstab.planner.cmaes import ranking_values
 from mmstab.planner.fitness import CoMRegion
 from mmstab.robot import FloatArray
 
-#: Iterations over which the best fitness must improve by more than ``tol_fitness``.
+#: Iterations whose populations' fitness ranges must all be below ``tol_fitness`` to stop.
 FLAT_ITERATIONS = 3
 
 
@@ -68,7 +69,7 @@ def warm_cma(
         max_iterations: iteration budget.
         max_resample: re-ask rounds for samples outside V per iteration.
         tol_x: stop when sigma times the largest axis is below this [m].
-        tol_fitness: stop when the best fitness improved less than this over
+        tol_fitness: stop when the range of a population's fitness stayed below this for
             ``FLAT_ITERATIONS`` iterations.
     """
     n = 3
@@ -92,23 +93,27 @@ def warm_cma(
     best_com, best_f = mean.copy(), -np.inf
     if region.contains(mean[None])[0]:
         best_f = float(fitness(mean[None])[0])
-    history: list[float] = []
+    spread: list[float] = []
     evaluations = resamples = 0
+    share = 1.0  # share of the last draws inside V
     it = 0
     while it < max_iterations:
         it += 1
-        BD = B * D
-        z = rng.standard_normal((lam, n))
-        x = mean + sigma * z @ BD.T
-        inside = region.contains(x)
-        for _ in range(max_resample):
-            if inside.all():
-                break
-            out = ~inside
-            resamples += int(out.sum())
-            z[out] = rng.standard_normal((int(out.sum()), n))
-            x[out] = mean + sigma * z[out] @ BD.T
-            inside[out] = region.contains(x[out])
+        # the re-asks drawn up front, one membership test: the first lambda draws inside V
+        # (in drawing order) are the population, topped up with outside ones if too few;
+        # as many draws as the last share inside V asks for, at most max_resample + 1 rounds
+        draws = min(
+            int(np.ceil(1.2 * lam / max(share, 1.0 / (max_resample + 1)))), (max_resample + 1) * lam
+        )
+        z_all = rng.standard_normal((draws, n))
+        x_all = mean + sigma * z_all @ (B * D).T
+        inside_all = region.contains(x_all)
+        order_in = np.flatnonzero(inside_all)
+        take = np.r_[order_in[:lam], np.flatnonzero(~inside_all)[: lam - min(lam, order_in.size)]]
+        last = int(take.max()) + 1 if order_in.size >= lam else x_all.shape[0]
+        resamples += int(np.sum(~inside_all[:last])) - int(np.sum(~inside_all[take]))
+        x, inside = x_all[take], inside_all[take]
+        share = max(float(inside_all.mean()), 1e-3)
         f = fitness(x)
         evaluations += lam
         violation = region.violation(x) if not inside.all() else np.zeros(lam)
@@ -117,7 +122,6 @@ def warm_cma(
         k = int(np.argmax(feasible))
         if feasible[k] > best_f:
             best_f, best_com = float(feasible[k]), x[k].copy()
-        history.append(best_f)
 
         y = (x[order[:mu]] - mean) / sigma
         y_w = w @ y
@@ -137,7 +141,7 @@ def warm_cma(
         D = np.sqrt(np.maximum(D2, 1e-20))
         if sigma * D.max() < tol_x:
             break
-        if len(history) > FLAT_ITERATIONS and np.isfinite(history[-FLAT_ITERATIONS - 1]):
-            if history[-1] - history[-FLAT_ITERATIONS - 1] < tol_fitness:
-                break
+        spread.append(float(np.ptp(f[inside])) if inside.any() else np.inf)
+        if len(spread) >= FLAT_ITERATIONS and max(spread[-FLAT_ITERATIONS:]) < tol_fitness:
+            break  # the populations' values agree (pycma's tolfun)
     return WarmResult(best_com, best_f, it, evaluations, resamples, sigma)
