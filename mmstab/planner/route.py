@@ -2,13 +2,17 @@
 
 The base rests on the terrain at every pose (gravity in the body from
 :meth:`Terrain.gravity_body`), so the support and the tipping direction change along the
-way. Each pose is one call of :func:`mmstab.planner.path.solve_pose`:
+way. Per pose:
 
-- the first pose with the problem's own search (cold start);
+- the first pose: :func:`mmstab.planner.path.solve_pose` with the problem's own search
+  (cold start);
 - every later pose **warm-started** from the previous pose's answer: CMA-ES starts at the
   previous target CoM, with a step size from how far the answer moved between the two
   poses before (``warm_sigma``), the population as one batch, ``WARM_ITERATIONS``
   iterations at most, the start itself kept as a candidate (never worse than staying);
+  by default the compact CMA-ES of :mod:`mmstab.planner.warm` (pycma's set-up and
+  per-iteration cost exceed a warm pose's budget), or ``search="solve_pose"``: the same
+  starts and step size through :func:`~mmstab.planner.path.solve_pose` (pycma);
 - a **guard** against a new basin the warm start cannot see (the best posture switching
   sides): a coarse batched pass of Eq. 6 over V's samples (the planner's ``coarse_*``
   settings, affine form); when its best refined sample beats the previous answer and lies
@@ -42,7 +46,7 @@ from mmstab.stability import stability_along
 from mmstab.terrain import Terrain
 
 #: CMA-ES iterations of a warm-started pose (a cold start uses ``planner.max_iterations``).
-WARM_ITERATIONS = 12
+WARM_ITERATIONS = 8
 #: Smallest warm step size [m]: about the spacing of V's grid samples.
 WARM_SIGMA_MIN = 0.01
 #: The default ``planner.spacing`` of a route [m].
@@ -159,7 +163,7 @@ def solve_route(
     diameter = float(region.diameter)
     try:
         index = sample_index(region)
-    except Exception:  # a region without samples: no guard, no fallback
+    except MmstabError:  # a region without samples: no guard
         index = None
     # every resting pose in one batch (a heightmap's rest solve is far cheaper batched)
     t_gravity, c_gravity = time.perf_counter(), time.process_time()
@@ -349,7 +353,7 @@ def _nearest_realisable(
     """
     try:
         index = sample_index(region)
-    except Exception:
+    except MmstabError:
         q, ok = realise(target.target_com, previous_q)
         return target, q, ok
     _, idx = index.tree.query(target.target_com, k=min(neighbours, len(index.samples)))
