@@ -87,6 +87,7 @@ fig8: setup
 
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
 ## (and other CMA-ES set-ups on the same poses -> results/bench/plan_alternatives.json)
+## (and along the rough route, warm-started: its "route" entry, benchmarks/plan_route.py)
 ## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
@@ -99,6 +100,7 @@ plan-paper: setup
 
 bench-plan: setup
 	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml --alternatives
+	$(PY) benchmarks/plan_route.py problems/rough.yaml
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
@@ -212,3 +214,16 @@ levers: setup
 .PHONY: atlas-rough
 atlas-rough: setup
 	$(MMSTAB) atlas problems/rough_atlas.yaml -o results/atlas_rough
+
+## issue 15: plan and track along a route over rough ground (docs/routes.md) -> results/rough/,
+## results/kerb/: the plan (plan/), the tracking run, its figures and the animation
+.PHONY: rough kerb
+rough: setup
+	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable
+	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable
+	$(MMSTAB) animation problems/rough.yaml -o results/rough
+
+kerb: setup
+	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable
+	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable
+	$(MMSTAB) animation problems/kerb.yaml -o results/kerb

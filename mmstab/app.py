@@ -29,6 +29,7 @@ from mmstab.stability import stability_along as _stability_along
 
 if TYPE_CHECKING:
     from mmstab.planner import Plan
+    from mmstab.planner.route import RoutePlan
     from mmstab.tracking import InitialArm, StepBackend, TrackingPlan, TrackingRun
     from mmstab.workspace import Workspace
 
@@ -69,8 +70,13 @@ def workspace(
     return load_or_build_workspace(problem, force=force, progress=progress, cache_dir=cache_dir)
 
 
-def plan(problem: Problem, *, ws: Workspace | None = None, progress: bool = False) -> Plan:
+def plan(
+    problem: Problem, *, ws: Workspace | None = None, progress: bool = False
+) -> Plan | RoutePlan:
     """The stability plan along the problem's path (paper Section II-D).
+
+    A circle: ``planner.poses`` poses around it (:func:`mmstab.planner.plan_path`); a route:
+    poses ``planner.spacing`` apart, warm-started (:func:`mmstab.planner.route.plan_route`).
 
     Args:
         problem: the problem (``planner``, ``workspace`` and ``path`` sections).
@@ -81,8 +87,12 @@ def plan(problem: Problem, *, ws: Workspace | None = None, progress: bool = Fals
         MmstabError: an empty workspace.
     """
     from mmstab.planner import plan_path
+    from mmstab.planner.route import plan_route
 
-    return plan_path(problem, ws if ws is not None else workspace(problem, progress=progress))
+    ws = ws if ws is not None else workspace(problem, progress=progress)
+    if problem.route is not None:
+        return plan_route(problem, ws)
+    return plan_path(problem, ws)
 
 
 def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike) -> StabilityCases:

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.collision import CollisionChecker, SequenceCollisions, sequence_collisions
 from mmstab.reference import (
+    BasePath,
     PathSample,
     PlanLike,
     periodic_spline,
@@ -47,7 +48,7 @@ from mmstab.reference import (
     posture_reference,
 )
 from mmstab.robot import FloatArray, Robot
-from mmstab.terrain import CirclePath, Terrain
+from mmstab.terrain import Terrain
 
 #: At most this many repair rounds (each adds one via posture per colliding stretch).
 MAX_REPAIR_ROUNDS = 8
@@ -139,7 +140,7 @@ class PostureReference:
         """Its arm CoM g_a^B(q_ref(s)) (N, 3) [m] and d/ds (N, 3) [m]: the CoM reference."""
         return posture_com(self.robot, self(s))
 
-    def arm_reference(self, circle: CirclePath, terrain: Terrain) -> Any:
+    def arm_reference(self, circle: BasePath, terrain: Terrain) -> Any:
         """The arm-CoM reference in M: its CoM placed with the reference base pose.
 
         Args:

@@ -13,9 +13,10 @@ from pathlib import Path
 from typing import Any
 
 from mmstab import schema
-from mmstab.config import ConfigError, read_yaml, validate
+from mmstab.config import ConfigError, MmstabError, read_yaml, validate
 from mmstab.payload import attach_payload, payload_from_section
 from mmstab.robot import Robot, load_robot
+from mmstab.routes.path import RoutePath, is_route, route_path_from_section
 from mmstab.settings import check_problem
 from mmstab.terrain import CirclePath, Terrain, from_section
 
@@ -29,7 +30,8 @@ class Problem:
         data: its validated content (sections by name).
         robot: the robot it names.
         terrain: the ground (:func:`mmstab.terrain.from_section` of the ``terrain:`` section).
-        circle: the base reference path, in the terrain's map frame.
+        base_path: the base reference path in the terrain's map frame: a circle, or a route
+            (:class:`mmstab.routes.path.RoutePath`) when ``path:`` has waypoints or a file.
         force_size: sizes beyond the time bounds were accepted (``--force-size``).
     """
 
@@ -37,8 +39,27 @@ class Problem:
     data: dict[str, Any]
     robot: Robot
     terrain: Terrain
-    circle: CirclePath
+    base_path: CirclePath | RoutePath
     force_size: bool = False
+
+    @property
+    def circle(self) -> CirclePath:
+        """The circle of a circle problem.
+
+        Raises:
+            MmstabError: the problem's path is a route (a stage that only knows circles).
+        """
+        if isinstance(self.base_path, RoutePath):
+            raise MmstabError(
+                f"{self.path}: path: this command works on a circle; the problem's path is a "
+                "route (use mmstab plan / track / route figures)"
+            )
+        return self.base_path
+
+    @property
+    def route(self) -> RoutePath | None:
+        """The route of a route problem, else None."""
+        return self.base_path if isinstance(self.base_path, RoutePath) else None
 
     @property
     def ramp(self) -> Terrain:
@@ -80,20 +101,31 @@ def problem_from_dict(
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
     check_problem(p, data, force_size=force_size)
     c = data["path"]
+    if is_route(c):
+        form = schema.PATH_ROUTE_FILE if "file" in c else schema.PATH_ROUTE_WAYPOINTS
+        validate(p, {"path": c}, schema.obj(path=form))
+    else:
+        validate(p, {"path": c}, schema.obj(path=schema.PATH_CIRCLE))
     robot = load_robot(robot_path)
     if "payload" in data:  # optional: without it the robot is the file's, unchanged
         robot = attach_payload(robot, payload_from_section(p, data["payload"]))
-    return Problem(
-        path=p,
-        data=data,
-        robot=robot,
-        terrain=from_section(p, data["terrain"], robot),
-        circle=CirclePath(
+    terrain = from_section(p, data["terrain"], robot)
+    base_path: CirclePath | RoutePath
+    if is_route(c):
+        base_path = route_path_from_section(p, c, robot, terrain)
+    else:
+        base_path = CirclePath(
             center=tuple(c["center"]),
             radius=float(c["radius"]),
             start_angle=float(c["start_angle"]),
             direction=c["direction"],
-        ),
+        )
+    return Problem(
+        path=p,
+        data=data,
+        robot=robot,
+        terrain=terrain,
+        base_path=base_path,
         force_size=force_size,
     )
 

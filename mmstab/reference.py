@@ -33,7 +33,11 @@ from scipy.interpolate import CubicSpline
 
 from mmstab.layout import StepReference
 from mmstab.robot import FloatArray
+from mmstab.routes.path import RoutePath
 from mmstab.terrain import CirclePath, Terrain, place_local
+
+#: A base path: the circle, or a route parametrised by time fraction (``mmstab.routes.path``).
+BasePath = CirclePath | RoutePath
 
 #: A joint whose range is at least a full turn less this [rad] is unwrapped (the turret).
 FULL_TURN_TOL = 1e-6
@@ -60,9 +64,15 @@ class PathSample(NamedTuple):
     rate: FloatArray
 
 
-def circle_pose(circle: CirclePath, s: ArrayLike) -> PathSample:
-    """Reference base pose (x, y, γ) in M at fractions s, and its derivative d/ds (N, 3)."""
+def circle_pose(circle: BasePath, s: ArrayLike) -> PathSample:
+    """Reference base pose (x, y, γ) in M at fractions s, and its derivative d/ds (N, 3).
+
+    A route's fraction is its time fraction (:meth:`RoutePath.pose_rate`).
+    """
     s = np.atleast_1d(np.asarray(s, dtype=float))
+    if isinstance(circle, RoutePath):
+        value, rate = circle.pose_rate(s)
+        return PathSample(value, rate)
     dphi = circle.sign * 2 * np.pi  # d phi / ds [rad]
     phi = circle.start_angle + dphi * s
     rate = np.stack(
@@ -77,7 +87,7 @@ def circle_pose(circle: CirclePath, s: ArrayLike) -> PathSample:
 
 
 def place_on_path(
-    circle: CirclePath, terrain: Terrain, s: ArrayLike, point_body: PathSample
+    circle: BasePath, terrain: Terrain, s: ArrayLike, point_body: PathSample
 ) -> PathSample:
     """Body points placed in M with the reference base pose, and their rate d/ds.
 
@@ -98,7 +108,7 @@ def place_on_path(
 
 
 def base_reference(
-    circle: CirclePath, terrain: Terrain, s: ArrayLike, base_offset: float
+    circle: BasePath, terrain: Terrain, s: ArrayLike, base_offset: float
 ) -> PathSample:
     """Base task rows [g_bx, g_by, γ] at fractions s (N, 3), and d/ds.
 
@@ -117,7 +127,7 @@ def base_reference(
     )
 
 
-def initial_state(circle: CirclePath, arm: ArrayLike, lateral_offset: float = 0.0) -> FloatArray:
+def initial_state(circle: BasePath, arm: ArrayLike, lateral_offset: float = 0.0) -> FloatArray:
     """A run's first state: the path's start pose, shifted sideways, sprockets at zero.
 
     Args:
@@ -178,7 +188,7 @@ def periodic_spline(
 
 
 def arm_reference(
-    plan: PlanLike, circle: CirclePath, terrain: Terrain
+    plan: PlanLike, circle: BasePath, terrain: Terrain
 ) -> Callable[[ArrayLike], PathSample]:
     """The arm-CoM reference in M along the lap, from a plan's body-frame targets.
 
@@ -286,7 +296,7 @@ class ApproachLike(Protocol):
 
 
 def task_reference(
-    circle: CirclePath,
+    circle: BasePath,
     terrain: Terrain,
     lap_time: float,
     base_offset: float,

@@ -93,12 +93,7 @@ ROBOT = obj(
 PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
     "robot": {"type": "string", "minLength": 1},
     "terrain": {"type": "object"},  # one of three forms: mmstab.terrain.factory
-    "path": obj(
-        center=VEC2,
-        radius=POS,
-        start_angle=NUM,
-        direction={"enum": ["ccw", "cw"]},
-    ),
+    "path": {"type": "object"},  # a circle or a route: PATH_CIRCLE | PATH_ROUTE (problem.py)
     "sweep": obj(
         samples={"type": "integer", "minimum": 8},
         poses={"type": "integer", "minimum": 1},
@@ -132,6 +127,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         # optional: flipper angles searched per pose between the robot's flipper limits,
         # rate-limited along the path (docs/levers.md); 0 = flippers fixed (the default)
         flipper_angles={"type": "integer", "minimum": 0, "maximum": 64},
+        spacing=POS,  # optional, routes: planned poses this far apart [m]; 0.5
     ),
     "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/controller.py)
         dt=POS,
@@ -167,6 +163,25 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
     ),
 }
 
+
+# The ``path:`` section: a circle on the ground, or a route (``mmstab.routes.path``), told
+# apart by ``waypoints`` / ``file``.
+PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=NUM, direction={"enum": ["ccw", "cw"]})
+_ROUTE_BASE = with_optional(
+    obj(speed=POS, turn_radius=POS),  # reference speed on lines [m/s], corner arcs [m]
+    acceleration=POS,  # optional [m/s^2], default 0.3
+    lateral_acceleration=POS,  # optional [m/s^2], default 0.3
+)
+#: waypoints in the map frame [m] (at least two: checked by the route builder, by name)
+PATH_ROUTE_WAYPOINTS = with_optional(
+    {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "waypoints"]},
+    waypoints={"type": "array", "items": VEC2},
+)
+#: a CSV file of ``x,y[,yaw]`` lines, relative to the problem file
+PATH_ROUTE_FILE = with_optional(
+    {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "file"]},
+    file={"type": "string", "minLength": 1},
+)
 
 #: Keys a problem file may omit, by section, and the value they then take: each is the
 #: behaviour of files written before the key existed (``problem_from_dict`` fills them in).
@@ -300,8 +315,28 @@ TERRAIN_KINDS: dict[str, dict[str, Any]] = {
 }
 
 
+#: Optional features laid onto a generated map (any kind): a band ditch and a kerb across
+#: it, as the ``ditch`` and ``kerb`` kinds (their keys), added to its elevation.
+TERRAIN_FEATURES: dict[str, Any] = {
+    "ditch": obj(**TERRAIN_KINDS["ditch"]),
+    "kerb": obj(**TERRAIN_KINDS["kerb"]),
+}
+
+
 def terrain_generate_schema(kind: str) -> dict[str, Any]:
-    """Closed schema of ``terrain.generate`` for one generator kind."""
-    return obj(
-        kind={"const": kind}, seed=SEED, size=vec(2, POS), resolution=POS, **TERRAIN_KINDS[kind]
+    """Closed schema of ``terrain.generate`` for one generator kind (features optional)."""
+    return with_optional(
+        obj(
+            kind={"const": kind},
+            seed=SEED,
+            size=vec(2, POS),
+            resolution=POS,
+            **TERRAIN_KINDS[kind],
+        ),
+        features=obj_optional(TERRAIN_FEATURES),
     )
+
+
+def obj_optional(props: dict[str, Any]) -> dict[str, Any]:
+    """A closed object schema whose keys are all optional."""
+    return {"type": "object", "properties": props, "additionalProperties": False}

@@ -30,6 +30,7 @@ from mmstab.stability import stability_along
 
 if TYPE_CHECKING:
     from mmstab.planner import Plan
+    from mmstab.planner.route import RoutePlan
     from mmstab.problem import Problem
 
 #: ``planner.margin`` when the problem does not set it [N rad].
@@ -76,7 +77,7 @@ def plan_verdict(poses: Sequence[Mapping[str, Any]], margin: float) -> dict[str,
     }
 
 
-def plan_stability(problem: Problem, plan: Plan) -> dict[str, Any]:
+def plan_stability(problem: Problem, plan: Plan | RoutePlan) -> dict[str, Any]:
     """The verdict of a plan made by :func:`mmstab.planner.plan_path` (no summary needed).
 
     Args:

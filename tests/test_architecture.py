@@ -35,6 +35,7 @@ LAYERS: dict[str, int] = {
     "mmstab.terrain": 1,
     "mmstab.payload": 1,
     "mmstab.routes": 1,
+    "mmstab.routes.path": 1,  # a route as a problem's path (checked against the terrain)
     "mmstab.problem": 2,
     "mmstab.stability": 3,
     "mmstab.dynamics": 3,
@@ -44,6 +45,8 @@ LAYERS: dict[str, int] = {
     "mmstab.workspace_fidelity": 4,
     "mmstab.pool": 4,
     "mmstab.planner": 5,
+    "mmstab.planner.route": 5,  # the planner along a route (warm-started poses)
+    "mmstab.planner.warm": 5,  # the batched warm CMA-ES of a route pose
     "mmstab.tasks": 6,
     "mmstab.limits": 6,
     "mmstab.layout": 6,
@@ -63,6 +66,7 @@ LAYERS: dict[str, int] = {
     "mmstab.runstore": 9,
     "mmstab.verdict": 9,
     "mmstab.experiments": 10,
+    "mmstab.experiments.routes": 10,  # mmstab plan on a route: summary and figures
     "mmstab.atlas": 10,
     "mmstab.viewer": 10,
     "mmstab.cli": 11,

@@ -167,6 +167,8 @@ def _plan_verdict(s: dict[str, Any], args: argparse.Namespace) -> int | None:
 def _plan(args: argparse.Namespace, problem: Any) -> int | None:
     from mmstab.experiments.planning import run_fig8
 
+    if problem.route is not None:
+        return _plan_route(args, problem)
     _announce(problem, "planner")
     s = run_fig8(problem, args.out or DEFAULT_OUT["plan"])
     for k, p in enumerate(s["poses"]):
@@ -176,6 +178,27 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
+    return _plan_verdict(s, args)
+
+
+def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
+    from mmstab.experiments.routes import run_route_plan
+
+    s = run_route_plan(problem, args.out or DEFAULT_OUT["plan"])
+    r = s["risk"]
+
+    def spans(key: str) -> str:
+        found = [f"{x['start_s']:.1f}-{x['end_s']:.1f} m" for x in r[key]]
+        return ", ".join(found) or "none"
+
+    print(
+        f"plan: route {s['route']['length_m']:.2f} m, {len(s['s'])} poses, "
+        f"{s['ms_per_pose']:.1f} ms per warm pose (median; first {s['ms_first_pose']:.1f} ms); "
+        f"mu planned min {min(s['mu_planned']):.1f}, stowed min {min(s['mu_stowed']):.1f}, "
+        f"arm removed min {min(s['mu_removed']):.1f} N rad; below the margin "
+        f"{r['margin']:g}: {spans('below_margin')}; stowed below it, planned not: "
+        f"{spans('saved_by_planning')}"
+    )
     return _plan_verdict(s, args)
 
 
@@ -284,10 +307,10 @@ COMMANDS: list[tuple[str, str, Handler]] = [
     ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
     ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
     ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
-    ("plan", "plan the arm CoM along the circle (CMA-ES) and the postures realising it", _plan),
+    ("plan", "plan the arm CoM along the path (circle or route) and the postures", _plan),
     ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
-    ("track", "paper Fig. 9-12: track the circle and the planned arm CoM (one run)", _track),
+    ("track", "paper Fig. 9-12: track the path and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
     ("atlas", "tip-over envelope atlas over slope x heading x robot x flippers (Dask)", _atlas),

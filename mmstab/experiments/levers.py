@@ -506,7 +506,7 @@ def run_variants(problem: Problem, settings: LeversSettings) -> dict[str, Any]:
         if settings.rough_problem is not None:
             rp = load_problem(problem.path.parent / settings.rough_problem)
             ground = from_section(rp.path, rp.section("terrain"), robot)
-            rough_poses = rp.circle.poses(psettings.poses)
+            rough_poses = rp.base_path.poses(psettings.poses)
             rough_plan = solve_path(robot, ground, ws, rough_poses, psettings)
             planned_c = contact_mu(robot, ground, rough_poses, rough_plan.target_com)
             stowed_c = contact_mu(robot, ground, rough_poses, robot.arm_com(robot.stowed))

@@ -13,7 +13,7 @@ import numpy as np
 
 from mmstab.app import plan as plan_of
 from mmstab.app import stability_along, workspace
-from mmstab.config import write_figure, write_json, write_npz
+from mmstab.config import MmstabError, write_figure, write_json, write_npz
 from mmstab.drawing import (
     draw_poses_on_ground,
     draw_robot,
@@ -159,7 +159,10 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
     ws = workspace(problem)
+    _ = problem.circle  # Fig. 8 is a circle's figure: a route problem is refused here
     plan = plan_of(problem, ws=ws, progress=True)
+    if not isinstance(plan, Plan):
+        raise MmstabError(f"{problem.path}: path: Fig. 8 needs a circle")
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
     summary["stability"] = plan_verdict(

@@ -210,11 +210,20 @@ def generate(settings: dict[str, Any]) -> Heightmap:
     """Build the map a (validated) ``terrain.generate`` mapping describes.
 
     Args:
-        settings: ``kind``, ``seed``, ``size`` [m, m], ``resolution`` [m/cell], and the
-            kind's own keys (``schema.TERRAIN_KINDS``).
+        settings: ``kind``, ``seed``, ``size`` [m, m], ``resolution`` [m/cell], the
+            kind's own keys (``schema.TERRAIN_KINDS``) and optional ``features``: a
+            ``ditch`` and/or a ``kerb`` (their kinds' keys) added to the elevation.
     """
     grid = Grid.of_size(tuple(settings["size"]), settings["resolution"])
     rng = np.random.default_rng(settings["seed"])
     hm = KINDS[settings["kind"]](grid, settings, rng)
     name = f"generate.{settings['kind']}(seed {settings['seed']})"
-    return Heightmap.build(hm.elevation, hm.resolution, hm.origin, name)
+    elevation = hm.elevation
+    features = settings.get("features", {})
+    if features:  # a ditch and a kerb laid onto the map (drawn after the kind's randomness)
+        elevation = elevation.copy()
+        for feature in ("ditch", "kerb"):
+            if feature in features:
+                elevation += KINDS[feature](grid, features[feature], rng).elevation
+        name += " + " + " + ".join(f for f in ("ditch", "kerb") if f in features)
+    return Heightmap.build(elevation, hm.resolution, hm.origin, name)

@@ -99,6 +99,10 @@ def simulate(
     robot = problem.robot
     if settings is None:
         settings = ControllerSettings.from_section(problem.section("controller"))
+        if problem.route is not None:  # a route sets its own period and length (routes.path)
+            settings = dataclasses.replace(
+                settings, lap_time=problem.route.lap_time, duration=problem.route.duration
+            )
     if plugin is not None:
         if plugin not in PLUGINS:
             raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {PLUGINS}")
@@ -111,7 +115,7 @@ def simulate(
     check_plan(plan, robot)
     if state0 is None:
         arm = robot.stowed if initial_arm == "stowed" else np.asarray(plan.postures)[0]
-        s0 = initial_state(problem.circle, arm)
+        s0 = initial_state(problem.base_path, arm)
     else:
         s0 = np.asarray(state0, dtype=float)
     if s0.shape != (STATE_SIZE,):
@@ -149,7 +153,7 @@ def simulate(
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
     arm, ref = run_reference(
-        robot, problem.circle, problem.terrain, plan, s0[ARM], settings, t, posture
+        robot, problem.base_path, problem.terrain, plan, s0[ARM], settings, t, posture
     )
     reference = ref.pack()
     if not np.all(np.isfinite(reference)):

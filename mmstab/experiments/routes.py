@@ -1,0 +1,191 @@
+"""Routes over rough ground (``docs/routes.md``): the plan along a route and its figures.
+
+``mmstab plan PROBLEM`` on a route problem writes, in its output folder:
+
+- ``summary.json``: ``mu_planned``, ``mu_stowed``, ``mu_removed`` (lists over the planned
+  poses [N rad]), ``s`` (their arc lengths [m]), ``risk`` (the stretches below
+  ``planner.margin``, and those where only the stowed arm is), ``ms_per_pose`` (median
+  wall time of a warm-started pose's search; ``cpu_ms_per_pose`` its CPU time, less
+  sensitive to a shared machine), the per-pose details and the stability verdict;
+- ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
+  risk stretches shaded;
+- ``route_3d.png``: the terrain, the route and the robot at rest with its planned posture
+  at snapshots along the way.
+
+The tracking run of a route is ``mmstab track`` (:mod:`mmstab.experiments.tracking`, the
+same figures as the ramp's run).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.app import plan as make_plan
+from mmstab.config import MmstabError, write_figure, write_json
+from mmstab.experiments.common import output_dir, save_settings
+from mmstab.planner.route import RoutePlan, RouteRisk, route_risk
+from mmstab.problem import Problem
+from mmstab.stability import mu_max
+from mmstab.verdict import plan_verdict, planner_margin
+
+#: Robot snapshots drawn in the 3-D figure.
+SNAPSHOTS = 6
+
+
+def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[str, Any]:
+    """The numbers of a route plan (``summary.json``)."""
+    robot = problem.robot
+    route = problem.route
+    if route is None:
+        raise MmstabError(f"{problem.path}: path: not a route")
+    realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
+    from mmstab.stability import stability_along
+
+    mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
+    poses = [
+        {
+            "s": float(plan.s[k]),
+            "fraction": float(plan.fractions[k]),
+            "pose": plan.poses[k],
+            "target_com": plan.target_com[k],
+            "posture": plan.postures[k],
+            "realised_com_error_m": float(plan.realised_com_error[k]),
+            "collision_free": bool(plan.collision_free[k]),
+            "fallback": bool(plan.targets[k].fallback),
+            "mu_planned": float(plan.mu_planned[k]),
+            "mu_realised": float(mu_realised[k]),
+            "mu_stowed": float(plan.mu_stowed[k]),
+            "mu_arm_removed": float(plan.mu_removed[k]),
+            "fitness": float(plan.targets[k].fitness),
+            "warm": bool(plan.warm[k]),
+            "guard_start": bool(plan.guarded[k]),
+            "search_ms": float(1e3 * plan.search_seconds[k]),
+        }
+        for k in range(len(plan.s))
+    ]
+    warm = plan.search_seconds[plan.warm] if plan.warm.any() else plan.search_seconds
+    warm_cpu = plan.search_cpu_seconds[plan.warm] if plan.warm.any() else plan.search_cpu_seconds
+    return {
+        "route": {
+            "length_m": route.length,
+            "duration_s": route.duration,
+            "max_curvature_per_m": route.route.max_curvature,
+            "speed_max_m_s": float(route.profile.v.max()),
+        },
+        "mu_max": mu_max(robot),
+        "s": plan.s.tolist(),
+        "mu_planned": plan.mu_planned.tolist(),
+        "mu_stowed": plan.mu_stowed.tolist(),
+        "mu_removed": plan.mu_removed.tolist(),
+        "planned_minus_stowed_min": float(np.min(plan.mu_planned - plan.mu_stowed)),
+        "risk": {
+            "margin": risk.margin,
+            "below_margin": [r._asdict() for r in risk.below_margin],
+            "saved_by_planning": [r._asdict() for r in risk.saved_by_planning],
+        },
+        "ms_per_pose": float(1e3 * np.median(warm)),
+        "ms_per_pose_max": float(1e3 * np.max(warm)),
+        "ms_first_pose": float(1e3 * plan.search_seconds[0]),
+        "cpu_ms_per_pose": float(1e3 * np.median(warm_cpu)),
+        "settings": plan.settings._asdict(),
+        "poses": poses,
+        "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),
+    }
+
+
+def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
+    """Plan the problem's route, write the summary and the two figures (module docstring)."""
+    plan = make_plan(problem)
+    if not isinstance(plan, RoutePlan):
+        raise MmstabError(f"{problem.path}: path: not a route")
+    risk = route_risk(plan, planner_margin(problem.section("planner")))
+    d = output_dir(out, "plan")
+    summary = route_summary(problem, plan, risk)
+    write_figure(d / "route_mu.png", draw_route_mu(problem, plan, risk))
+    write_figure(d / "route_3d.png", draw_route_3d(problem, plan))
+    save_settings(d, problem)
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def shade_stretches(ax: Any, risk: RouteRisk, spacing: float) -> None:
+    """Shade the risk stretches on an axis of arc length [m] (half a spacing either side)."""
+    half = spacing / 2
+    for i, r in enumerate(risk.below_margin):
+        label = "planned below the margin" if i == 0 else None
+        ax.axvspan(r.start_s - half, r.end_s + half, color="C3", alpha=0.25, lw=0, label=label)
+    for i, r in enumerate(risk.saved_by_planning):
+        label = "stowed below the margin, planned not" if i == 0 else None
+        ax.axvspan(r.start_s - half, r.end_s + half, color="C1", alpha=0.18, lw=0, label=label)
+
+
+def draw_route_mu(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> Any:
+    """μ along the route: planned, stowed, arm removed, the margin, the risk stretches."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 4.2), constrained_layout=True)
+    spacing = float(np.median(np.diff(plan.s))) if len(plan.s) > 1 else 0.0
+    shade_stretches(ax, risk, spacing)
+    ax.plot(plan.s, plan.mu_planned, "o-", ms=3, color="C0", label="arm planned")
+    ax.plot(plan.s, plan.mu_stowed, "s:", ms=3, color="C2", label="arm stowed")
+    ax.plot(plan.s, plan.mu_removed, "--", color="0.4", label="arm removed")
+    ax.axhline(risk.margin, color="k", lw=0.9, ls="-.", label=f"margin {risk.margin:g} N rad")
+    ax.set(
+        xlabel="arc length along the route [m]",
+        ylabel="force-angle stability $\\mu$ [N rad]",
+        title=f"{problem.name}: stability along the route ({problem.terrain.label})",
+    )
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    return fig
+
+
+def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
+    """The terrain, the route and the robot at rest in its planned posture at snapshots."""
+    import matplotlib.pyplot as plt
+
+    from mmstab.drawing import draw_path_on_ground, draw_robot, set_equal_aspect
+
+    route = problem.route
+    if route is None:
+        raise MmstabError(f"{problem.path}: path: not a route")
+    fig = plt.figure(figsize=(12, 5.6), constrained_layout=True)
+    ax = fig.add_subplot(1, 1, 1, projection="3d")
+    ax.computed_zorder = False  # the ground first, the robots over it
+    path = route.route.sample(np.linspace(0, route.length, 400)).pose[:, :2]
+    lo, hi = path.min(axis=0) - 0.6, path.max(axis=0) + 0.6  # the footprint is on the map
+    x, y = np.meshgrid(np.arange(lo[0], hi[0], 0.05), np.arange(lo[1], hi[1], 0.05))
+    ground = problem.terrain.surface_G(x, y)
+    ax.plot_surface(
+        ground[..., 0],
+        ground[..., 1],
+        ground[..., 2],
+        cmap="terrain",
+        alpha=0.85,
+        linewidth=0,
+        antialiased=False,
+        rstride=1,
+        cstride=1,
+        zorder=0,
+    )
+    draw_path_on_ground(ax, problem.terrain, path, color="k", linewidths=1.2)
+    idx = np.unique(np.linspace(0, len(plan.s) - 1, SNAPSHOTS).round().astype(int))
+    pts = []
+    for k in idx:
+        T = problem.terrain.G_T_B(plan.poses[k])
+        q = plan.postures[k] if np.all(np.isfinite(plan.postures[k])) else problem.robot.stowed
+        draw_robot(ax, problem.robot, q, T)
+        pts.append(T[:3, 3])
+        ax.text(*(T[:3, 3] + [0, 0, 0.7]), f"{plan.s[k]:.1f} m", fontsize=8, ha="center")
+    set_equal_aspect(ax, np.vstack([np.array(pts), ground.reshape(-1, 3)]))
+    ax.view_init(elev=35, azim=-70)
+    ax.set(xlabel="$x_G$ [m]", ylabel="$y_G$ [m]", zlabel="$z_G$ [m]")
+    ax.set_title(
+        f"{problem.name}: route {route.length:.1f} m, robot at rest with the planned arm "
+        f"({problem.terrain.label})",
+        fontsize=9,
+    )
+    return fig

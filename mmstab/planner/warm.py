@@ -1,0 +1,147 @@
+"""A warm-started CMA-ES for one pose along a route, the population as one NumPy batch.
+
+pycma costs about 1.3 ms of Python per iteration and 2.5 ms to set up, more than a whole
+warm-started pose may take (10 ms, issue "routes"). This is the textbook (mu/mu_w, lambda)
+CMA-ES (Hansen, "The CMA Evolution Strategy: A Tutorial", 2016: weights, cumulation,
+rank-one and rank-mu updates, cumulative step-size adaptation) for the 3-D arm CoM, with
+the same handling of V as :mod:`mmstab.planner.cmaes`: samples outside V are re-asked up to
+``max_resample`` rounds (drawn up front, one membership test per iteration), those still
+outside are ranked below every feasible one (:func:`~mmstab.planner.cmaes.ranking_values`).
+Its draws come from the caller's generator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from mmstab.planner.cmaes import ranking_values
+from mmstab.planner.fitness import CoMRegion
+from mmstab.robot import FloatArray
+
+#: Iterations whose populations' fitness ranges must all be below ``tol_fitness`` to stop.
+FLAT_ITERATIONS = 3
+
+
+class WarmResult(NamedTuple):
+    """One warm CMA-ES run.
+
+    Attributes:
+        best_com: best feasible arm CoM (3,) [m] (the start when nothing beat it).
+        best_fitness: its fitness.
+        iterations: CMA iterations.
+        evaluations: samples scored.
+        resamples: samples re-asked for lying outside V.
+        sigma: the final step size [m].
+    """
+
+    best_com: FloatArray
+    best_fitness: float
+    iterations: int
+    evaluations: int
+    resamples: int
+    sigma: float
+
+
+def warm_cma(
+    fitness: Callable[..., FloatArray],
+    region: CoMRegion,
+    start_com: FloatArray,
+    sigma0: float,
+    rng: np.random.Generator,
+    popsize: int,
+    max_iterations: int,
+    max_resample: int,
+    tol_x: float,
+    tol_fitness: float,
+) -> WarmResult:
+    """Maximise ``fitness`` over V from ``start_com`` (kept as a candidate when inside V).
+
+    Args:
+        fitness: Eq. 6 of a batch of arm CoMs (N, 3) [m] -> (N,).
+        region: the workspace V (``contains``, ``violation``, ``diameter``).
+        start_com: the mean to start from, body frame (3,) [m].
+        sigma0: initial step size [m].
+        rng: the generator the samples are drawn from.
+        popsize: lambda, samples per iteration.
+        max_iterations: iteration budget.
+        max_resample: re-ask rounds for samples outside V per iteration.
+        tol_x: stop when sigma times the largest axis is below this [m].
+        tol_fitness: stop when the range of a population's fitness stayed below this for
+            ``FLAT_ITERATIONS`` iterations.
+    """
+    n = 3
+    lam = int(popsize)
+    mu = lam // 2
+    w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mueff = 1.0 / np.sum(w**2)
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chi_n = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n**2))
+    diameter = float(region.diameter)
+
+    mean = np.asarray(start_com, dtype=float).copy()
+    sigma = float(sigma0)
+    C, B, D = np.eye(n), np.eye(n), np.ones(n)
+    pc, ps = np.zeros(n), np.zeros(n)
+    best_com, best_f = mean.copy(), -np.inf
+    if region.contains(mean[None])[0]:
+        best_f = float(fitness(mean[None])[0])
+    spread: list[float] = []
+    evaluations = resamples = 0
+    share = 1.0  # share of the last draws inside V
+    it = 0
+    while it < max_iterations:
+        it += 1
+        # the re-asks drawn up front, one membership test: the first lambda draws inside V
+        # (in drawing order) are the population, topped up with outside ones if too few;
+        # as many draws as the last share inside V asks for, at most max_resample + 1 rounds
+        draws = min(
+            int(np.ceil(1.2 * lam / max(share, 1.0 / (max_resample + 1)))), (max_resample + 1) * lam
+        )
+        z_all = rng.standard_normal((draws, n))
+        x_all = mean + sigma * z_all @ (B * D).T
+        inside_all = region.contains(x_all)
+        order_in = np.flatnonzero(inside_all)
+        take = np.r_[order_in[:lam], np.flatnonzero(~inside_all)[: lam - min(lam, order_in.size)]]
+        last = int(take.max()) + 1 if order_in.size >= lam else x_all.shape[0]
+        resamples += int(np.sum(~inside_all[:last])) - int(np.sum(~inside_all[take]))
+        x, inside = x_all[take], inside_all[take]
+        share = max(float(inside_all.mean()), 1e-3)
+        f = fitness(x)
+        evaluations += lam
+        violation = region.violation(x) if not inside.all() else np.zeros(lam)
+        order = np.argsort(ranking_values(f, inside, violation, diameter), kind="stable")
+        feasible = np.where(inside, f, -np.inf)
+        k = int(np.argmax(feasible))
+        if feasible[k] > best_f:
+            best_f, best_com = float(feasible[k]), x[k].copy()
+
+        y = (x[order[:mu]] - mean) / sigma
+        y_w = w @ y
+        mean = mean + sigma * y_w
+        inv_sqrt_C = (B / D) @ B.T
+        ps = (1 - cs) * ps + np.sqrt(cs * (2 - cs) * mueff) * inv_sqrt_C @ y_w
+        h_sig = np.linalg.norm(ps) / np.sqrt(1 - (1 - cs) ** (2 * it)) / chi_n < 1.4 + 2 / (n + 1)
+        pc = (1 - cc) * pc + h_sig * np.sqrt(cc * (2 - cc) * mueff) * y_w
+        C = (
+            (1 - c1 - cmu) * C
+            + c1 * (np.outer(pc, pc) + (1 - h_sig) * cc * (2 - cc) * C)
+            + cmu * (y.T * w) @ y
+        )
+        sigma *= np.exp((cs / damps) * (np.linalg.norm(ps) / chi_n - 1))
+        C = (C + C.T) / 2
+        D2, B = np.linalg.eigh(C)
+        D = np.sqrt(np.maximum(D2, 1e-20))
+        if sigma * D.max() < tol_x:
+            break
+        spread.append(float(np.ptp(f[inside])) if inside.any() else np.inf)
+        if len(spread) >= FLAT_ITERATIONS and max(spread[-FLAT_ITERATIONS:]) < tol_fitness:
+            break  # the populations' values agree (pycma's tolfun)
+    return WarmResult(best_com, best_f, it, evaluations, resamples, sigma)
