@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from mmstab.config import ConfigError
-from mmstab.planner import planning_region, region_samples, solve_exhaustive
+from mmstab.planner import PlannerSettings, planning_region, region_samples, solve_exhaustive
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.route import plan_route, route_risk, stretches
 from mmstab.problem import load_problem, problem_from_dict
@@ -51,6 +51,7 @@ def rough_small(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("routes")
     data = rough_data()
     data["planner"]["spacing"] = 2.0
+    data["planner"]["method"] = "cmaes"  # the warm-started per-pose search (sequence: below)
     problem = problem_from_dict(data, tmp / "rough.yaml")
     ws = load_or_build_workspace(problem, progress=False, cache_dir=tmp / "cache")
     return problem, ws
@@ -250,3 +251,25 @@ def test_warm_cma_finds_a_known_optimum(target):
     # the start is kept: started at the optimum with a tiny budget, it is never lost
     r0 = warm_cma(fitness, _Ball(), expected, 0.1, rng, 16, 1, 3, 1e-6, 1e-14)
     assert r0.best_fitness >= float(fitness(expected)[0])
+
+
+def test_sequence_along_the_rough_route(rough_small):
+    """rough.yaml's own search (method sequence): collision-free moves, never below stowed."""
+    from mmstab.collision import CollisionChecker
+    from mmstab.planner.sequence import segments_collide
+
+    problem, ws = rough_small
+    s = PlannerSettings.from_section(yaml.safe_load(ROUGH.read_text())["planner"])
+    assert s.method == "sequence"
+    problem = problem_from_dict(
+        {**problem.data, "planner": {**problem.data["planner"], "method": "sequence"}},
+        problem.path,
+    )
+    plan = plan_route(problem, ws)
+    assert np.all(plan.mu_planned >= plan.mu_stowed)
+    assert plan.collision_free.all() and np.nanmax(plan.realised_com_error) < 1e-12
+    q = plan.postures
+    checker = CollisionChecker(problem.robot)
+    assert not np.asarray(checker.collides(q)).any()
+    assert not segments_collide(checker, q[:-1], q[1:]).any()
+    assert np.all(np.abs(np.diff(q[:, 0])) <= s.turret_window + 1e-9)

@@ -35,7 +35,14 @@ from numpy.typing import ArrayLike, NDArray
 from mmstab.config import MmstabError
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds, sample_index
 from mmstab.planner.fitness import CoMRegion, Fitness, pose_fitness
-from mmstab.planner.path import REALISE_TOL, PoseTarget, gravity_body_at, solve_pose, start_coms
+from mmstab.planner.path import (
+    REALISE_TOL,
+    PoseTarget,
+    gravity_body_at,
+    solve_path,
+    solve_pose,
+    start_coms,
+)
 from mmstab.planner.regions import planning_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm import warm_cma
@@ -158,6 +165,8 @@ def solve_route(
             first pose always goes through :func:`solve_pose` (cold).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    if settings.method == "sequence":
+        return _solve_route_sequence(robot, terrain, region, s, poses, settings, fractions)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     diameter = float(region.diameter)
@@ -269,6 +278,50 @@ def solve_route(
         guarded=np.array(guarded, dtype=bool),
         search_seconds=np.array(seconds),
         search_cpu_seconds=np.array(cpu),
+        settings=settings,
+    )
+
+
+def _solve_route_sequence(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    s: ArrayLike,
+    poses: FloatArray,
+    settings: PlannerSettings,
+    fractions: ArrayLike | None,
+) -> RoutePlan:
+    """:func:`solve_route` with ``method: sequence``: the whole route at once (open path).
+
+    V's collision-free postures, one per pose, with collision-free joint moves between
+    consecutive poses (:mod:`mmstab.planner.sequence`); the first pose moves from the
+    stowed arm. The time per pose is the whole search's divided by the poses.
+    """
+    t0, c0 = time.perf_counter(), time.process_time()
+    gravity_all = gravity_body_at(terrain, poses)
+    ground = cast(Terrain, _KnownGravity(terrain, poses, gravity_all))
+    plan = solve_path(robot, ground, region, poses, settings, closed=False)
+    per_pose = (time.perf_counter() - t0) / len(poses)
+    per_pose_cpu = (time.process_time() - c0) / len(poses)
+    cases = stability_along(robot, ground, poses, plan.target_com)
+    s_m = np.asarray(s, dtype=float)
+    K = len(poses)
+    return RoutePlan(
+        s=s_m,
+        fractions=s_m / max(s_m[-1], 1e-12) if fractions is None else np.asarray(fractions, float),
+        poses=poses,
+        target_com=plan.target_com,
+        postures=plan.postures,
+        realised_com_error=plan.realised_com_error,
+        collision_free=plan.collision_free,
+        mu_planned=cases.reconfigured,
+        mu_stowed=cases.stowed,
+        mu_removed=cases.arm_removed,
+        targets=plan.targets,
+        warm=np.zeros(K, dtype=bool),
+        guarded=np.zeros(K, dtype=bool),
+        search_seconds=np.full(K, per_pose),
+        search_cpu_seconds=np.full(K, per_pose_cpu),
         settings=settings,
     )
 
