@@ -347,6 +347,17 @@ def test_levers_subprocess_small(tmp_path):
     v = s["variants"]["robots"]["cameleon"]
     assert v["rough_mu_stowed_min"] < v["lap_mu_stowed_min"]  # rough ground is harder
     assert "rough lap" in (out / "variants.md").read_text()
+    # along the rough route: a closed-loop run, static vs dynamic, arm planned and stowed
+    route = s["dynamic"]["rough_route"]
+    assert not route["tipped"] and (out / "dynamic_route.png").stat().st_size > 0
+    for arm in ("planned", "stowed"):
+        assert 0 < route[arm]["peak_acceleration_m_s2"] < 20.0
+        assert route[arm]["mu_dynamic_min"] != route[arm]["mu_static_min"]
+    assert route["planned"]["mu_static_min"] > route["stowed"]["mu_static_min"]
+    # flippers along the rough route: within their limits, never worse at a pose
+    f = s["flippers"]["rough_route"]
+    assert f["mu_arm_flippers_mean"] >= f["mu_arm_only_mean"]
+    assert all(-0.8 - 1e-9 <= a <= 1.2 + 1e-9 for a in f["flipper_angles_rad"])
     # bad input: a levers section without its keys is one line, exit 2
     bad = write_problem(tmp_path, lambda p, r: p.update(levers={"margin": 1.0}), "bad.yaml")
     proc = subprocess.run(

@@ -273,6 +273,53 @@ def simulated_check(
     return out
 
 
+#: Window of the second differences along the rough route [s]: the resting pose jumps where
+#: the contacts switch (rocking over a crest), and a shorter window turns each jump into an
+#: acceleration no robot has.
+ROUTE_WINDOW = 0.2
+
+
+def route_dynamic(
+    rough: Problem, window: float = ROUTE_WINDOW
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Static vs dynamic μ along the rough route, from a closed-loop run at the route's speed.
+
+    The route's own speed profile (slower in turns, from and to rest); accelerations are
+    second differences of the simulated states over ``window`` [s] after the start-up
+    approach (module text). Arm planned (the problem's search) and the same run's base with
+    the arm stowed.
+    """
+    from mmstab.app import track
+
+    c = rough.section("controller")
+    _, _, run = track(rough, progress=False)
+    after = run.t >= float(c["approach_time"])
+    steps = max(1, int(round(window / run.dt)))
+    out: dict[str, Any] = {
+        "window_s": window,
+        "after_s": float(c["approach_time"]),
+        "duration_s": float(run.t[-1]),
+        "tipped": run.tipped is not None,
+    }
+    curves: dict[str, Any] = {}
+    for name, q in (
+        ("planned", run.state[after, 5:9]),
+        ("stowed", np.broadcast_to(rough.robot.stowed, (int(after.sum()), 4))),
+    ):
+        motion = body_motion(rough.robot, rough.terrain, run.state[after, :3], q)
+        m = measure_motion(rough.robot, rough.terrain, motion, run.dt, steps, periodic=False)
+        out[name] = {
+            "mu_static_min": float(m.static.min()),
+            "mu_dynamic_min": float(m.dynamic.min()),
+            "mu_dynamic_mean": float(m.dynamic.mean()),
+            "peak_acceleration_m_s2": m.peak_acceleration,
+        }
+        t = run.t[after][steps:-steps]
+        curves[f"route_{name}_t"], curves[f"route_{name}_static"] = t, m.static
+        curves[f"route_{name}_dynamic"] = m.dynamic
+    return out, curves
+
+
 def run_dynamic(
     problem: Problem, plan_postures: FloatArray, settings: LeversSettings
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -623,7 +670,18 @@ def run_flippers(
     }
     out: dict[str, Any] = {"flipper_angles_per_pose": settings.flipper_angles}
     curves: dict[str, Any] = {"fraction": np.arange(psettings.poses) / psettings.poses}
+    paths = {name: (poses, dt) for name in grounds}
+    rp = (
+        None
+        if settings.rough_problem is None
+        else load_problem(problem.path.parent / settings.rough_problem)
+    )
+    route = None if rp is None else rp.route
+    if rp is not None and route is not None:  # the rough route's poses, its driving time
+        grounds["rough_route"] = from_section(rp.path, rp.section("terrain"), robot)
+        paths["rough_route"] = (route.poses(psettings.poses), route.duration / psettings.poses)
     for name, terrain in grounds.items():
+        poses, dt = paths[name]
         arm_only = np.array(
             [t.mu for t in solve_path(robot, terrain, ws, poses, psettings).targets]
         )
@@ -641,19 +699,35 @@ def run_flippers(
     return out, curves
 
 
+def draw_route_dynamic(curves: dict[str, Any], settings: LeversSettings, path: Path) -> None:
+    """Static and dynamic μ along the rough route's run, arm planned and stowed."""
+    fig, ax = new_figure(figsize=(9, 4))
+    for name, style in (("planned", "-"), ("stowed", "--")):
+        t = curves[f"route_{name}_t"]
+        ax.plot(t, curves[f"route_{name}_static"], style, color="C0", lw=1, label=f"{name}, static")
+        ax.plot(
+            t, curves[f"route_{name}_dynamic"], style, color="C3", lw=1, label=f"{name}, dynamic"
+        )
+    ax.axhline(settings.margin, color="k", lw=0.8, ls=":", label="margin")
+    ax.set(xlabel="time [s]", ylabel="mu [N rad]", title="rough route: static vs dynamic mu")
+    ax.legend(fontsize=8, ncol=3)
+    write_figure(path, fig)
+
+
 def draw_flippers(
     curves: dict[str, Any], summary: dict[str, Any], limits: tuple[float, float], path: Path
 ) -> None:
     """μ along the lap, arm only vs arm + flippers, and the flipper angle (within ``limits``)."""
-    fig, axes = new_figure(2, 2, figsize=(10, 5.4), sharex=True)
+    names = [n for n in ("ramp", "side_slope", "rough_route") if n in summary]
+    fig, axes = new_figure(2, len(names), figsize=(5 * len(names), 5.4), sharex=True)
     s = curves["fraction"]
-    for j, name in enumerate(("ramp", "side_slope")):
+    for j, name in enumerate(names):
         ax, ax_a = axes[0, j], axes[1, j]
         ax.plot(s, curves[f"{name}_arm"], "o-", label="arm only (flippers fixed)")
         ax.plot(s, curves[f"{name}_flippers"], "s-", label="arm + flippers")
         ax.set(title=summary[name]["terrain"], ylabel="mu [N rad]")
         ax_a.step(s, curves[f"{name}_angles"], where="post")
-        ax_a.set(xlabel="lap fraction", ylabel="flipper angle [rad]", ylim=limits)
+        ax_a.set(xlabel="path fraction", ylabel="flipper angle [rad]", ylim=limits)
     axes[0, 0].legend(fontsize=8)
     write_figure(path, fig)
 
@@ -672,6 +746,11 @@ def run_levers(problem: Problem, out: str | Path | None = None) -> dict[str, Any
     summary: dict[str, Any] = {"problem": str(problem.path), "margin_N_rad": settings.margin}
     dyn, dyn_curves = run_dynamic(problem, plan.postures, settings)
     dyn["simulated_planned"] = simulated_check(problem, plan, settings)
+    if settings.rough_problem is not None:
+        rough = load_problem(problem.path.parent / settings.rough_problem)
+        if rough.route is not None:
+            dyn["rough_route"], route_curves = route_dynamic(rough)
+            draw_route_dynamic(route_curves, settings, d / "dynamic_route.png")
     summary["dynamic"] = dyn
     draw_dynamic(dyn_curves, settings, d / "dynamic.png")
     summary["payload"] = run_payload(problem, ws.valid_q, settings)
