@@ -143,10 +143,11 @@ def solve_sequence(
     cand = np.empty((K, M), dtype=np.intp)
     value = np.empty((K, M))
     bins = _turret_bins(postures[:, 0], TURRET_BINS)
+    members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
     for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
         fit = with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region)
         v = fit.linear()(samples)
-        cand[k] = _diverse_top(v, bins, M)
+        cand[k] = _diverse_top(v, bins, M, members)
         value[k] = v[cand[k]]
     w = settings.w_motion / diameter**2
     if not closed:  # open path: the first pose moves from the stowed arm; closed: from the last
@@ -217,12 +218,28 @@ def _turret_bins(turret: FloatArray, count: int) -> NDArray[np.intp]:
     return np.minimum(((turret - lo) / width).astype(np.intp), count - 1)
 
 
-def _diverse_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+def _diverse_top(
+    values: FloatArray,
+    bins: NDArray[np.intp],
+    count: int,
+    members: list[NDArray[np.intp]] | None = None,
+) -> NDArray[np.intp]:
     """``count`` rows: the best of every turret bin in turn (round robin), best first.
 
     The best samples of a pose crowd into one basin; the sequence needs good ones at every
     turret angle so that a neighbour pose's choice has candidates within the window.
+    ``members``: the rows of each bin (ascending), to look only at each bin's ``count``
+    best (the same answer as sorting every row, far cheaper).
     """
+    if members is not None:  # only a bin's `count` best can be chosen: sort those alone
+        keep = []
+        for rows in members:
+            if len(rows) > count:
+                rows = rows[np.argpartition(-values[rows], count - 1)[:count]]
+            keep.append(rows)
+        subset = np.sort(np.concatenate(keep))
+        chosen = _diverse_top(values[subset], bins[subset], count)
+        return subset[chosen]
     order = np.argsort(-values, kind="stable")
     b = bins[order]
     rank = np.empty(len(order), dtype=np.intp)  # rank of each sample within its bin
