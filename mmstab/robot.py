@@ -8,6 +8,7 @@ along the plane normal.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import os
@@ -388,6 +389,51 @@ def _flatten(node: Any, prefix: str = "") -> list[tuple[str, str]]:
     if isinstance(node, list):
         return [kv for i, v in enumerate(node) for kv in _flatten(v, f"{prefix}[{i}]")]
     return [(prefix, repr(node))]
+
+
+def with_flipper_angle(robot: Robot, angle: float) -> Robot:
+    """The robot with its flippers at ``angle`` [rad]; a new ``source_hash`` if it changed.
+
+    The hash follows the angle (as the file's would), so nothing cached for the file's
+    flippers (collision checkers, resting-pose candidates) is reused for other ones.
+    """
+    if float(angle) == robot.base.flippers.angle:
+        return robot
+    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
+    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={float(angle)!r}".encode())
+    return dataclasses.replace(
+        robot,
+        base=dataclasses.replace(robot.base, flippers=flippers),
+        source_hash=digest.hexdigest(),
+    )
+
+
+def flipper_ground_angle(robot: Robot) -> float:
+    """The flipper angle [rad] at which the lowest flipper corner touches the ground plane.
+
+    Lowered from the file's angle by bisection on the lowest corner's height (the side
+    where it is at or just above the ground); the file's angle itself if the flippers
+    already touch.
+
+    Raises:
+        ValueError: the flippers cannot reach the ground (not even pointing down).
+    """
+
+    def lowest(angle: float) -> float:
+        return float(
+            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
+        )
+
+    hi = robot.base.flippers.angle
+    if lowest(hi) <= FLIPPER_CONTACT_TOL:
+        return hi
+    lo = -np.pi / 2
+    if lowest(lo) > 0:
+        raise ValueError(f"robot {robot.name}: the flippers cannot reach the ground")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if lowest(mid) < 0 else (lo, mid)
+    return hi
 
 
 def load_robot(path: str | os.PathLike[str]) -> Robot:

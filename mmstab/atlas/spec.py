@@ -21,7 +21,6 @@ tips rest on the ground, so they join the support polygon; ``"robot"``: the file
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import itertools
 import json
@@ -36,8 +35,9 @@ from mmstab.config import ConfigError, MmstabError
 from mmstab.payload import Payload, attach_payload, check_payload
 from mmstab.planner import PlannerSettings
 from mmstab.problem import Problem
-from mmstab.robot import FLIPPER_CONTACT_TOL, Robot, load_robot
+from mmstab.robot import FLIPPER_CONTACT_TOL, Robot, load_robot, with_flipper_angle
 from mmstab.robot import FloatArray as FloatArray
+from mmstab.robot import flipper_ground_angle as _ground_angle
 
 #: Largest atlas one section may ask for (cells).
 MAX_CELLS = 1_000_000
@@ -247,37 +247,11 @@ def _increasing(path: Path, field: str, values: FloatArray) -> None:
 
 
 def flipper_ground_angle(robot: Robot) -> float:
-    """The flipper angle [rad] at which the lowest flipper corner touches the ground.
-
-    Lowered from the file's angle (bisection on the lowest corner's height); the file's
-    angle itself if the flippers already touch.
-    """
-
-    def lowest(angle: float) -> float:
-        return float(
-            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
-        )
-
-    hi = robot.base.flippers.angle
-    if lowest(hi) <= FLIPPER_CONTACT_TOL:
-        return hi
-    lo = -math.pi / 2
-    if lowest(lo) > 0:
-        raise MmstabError(f"robot {robot.name}: the flippers cannot reach the ground")
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if lowest(mid) < 0 else (lo, mid)
-    return hi  # the side where the lowest corner is at or just above the ground
-
-
-def with_flipper_angle(robot: Robot, angle: float) -> Robot:
-    """The robot with its flippers at ``angle`` [rad]; a new ``source_hash`` if it changed."""
-    if angle == robot.base.flippers.angle:
-        return robot
-    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
-    base = dataclasses.replace(robot.base, flippers=flippers)
-    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={angle!r}".encode()).hexdigest()
-    return dataclasses.replace(robot, base=base, source_hash=digest)
+    """:func:`mmstab.robot.flipper_ground_angle`, refused as an ``MmstabError`` [rad]."""
+    try:
+        return _ground_angle(robot)
+    except ValueError as e:
+        raise MmstabError(str(e)) from None
 
 
 def _robots(problem: Problem, axes: dict[str, Any]) -> list[tuple[str, Robot]]:

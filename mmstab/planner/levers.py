@@ -24,8 +24,6 @@ and CoM include them), so they change the support polygon, not the CoM.
 from __future__ import annotations
 
 import copy
-import dataclasses
-import hashlib
 import math
 import weakref
 from typing import Any, NamedTuple, cast
@@ -38,7 +36,7 @@ from mmstab.config import MmstabError
 from mmstab.dynamics import dynamic_force_angle
 from mmstab.planner.fitness import Fitness
 from mmstab.planner.settings import PlannerSettings
-from mmstab.robot import FLIPPER_CONTACT_TOL, FloatArray, Robot
+from mmstab.robot import FloatArray, Robot, flipper_ground_angle, with_flipper_angle
 from mmstab.terrain import Terrain
 
 
@@ -151,46 +149,6 @@ def with_tool_wrench(fitness: Fitness, region: Any) -> Fitness:
 
 
 # --------------------------------------------------------------------------------- flippers
-def with_flipper_angle(robot: Robot, angle: float) -> Robot:
-    """The robot with its flippers at ``angle`` [rad].
-
-    A changed angle changes ``source_hash`` (as the atlas does), so nothing cached for the
-    file's flippers (collision checkers) is reused; the planner keeps the workspace V it
-    is given, built at the file's flipper angle.
-    """
-    if float(angle) == robot.base.flippers.angle:
-        return robot
-    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
-    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={float(angle)!r}".encode())
-    return dataclasses.replace(
-        robot,
-        base=dataclasses.replace(robot.base, flippers=flippers),
-        source_hash=digest.hexdigest(),
-    )
-
-
-def flipper_ground_angle(robot: Robot) -> float:
-    """The flipper angle [rad] at which the flipper tips touch the body's ground plane.
-
-    Lowered from the file's angle by bisection on the lowest corner's height; the file's
-    angle itself if the flippers already touch.
-    """
-
-    def lowest(angle: float) -> float:
-        return float(
-            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
-        )
-
-    hi = robot.base.flippers.angle
-    if lowest(hi) <= FLIPPER_CONTACT_TOL:
-        return hi
-    lo = -math.pi / 2
-    for _ in range(60):
-        mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if lowest(mid) < 0 else (lo, mid)
-    return hi
-
-
 def flipper_candidates(
     robot: Robot, count: int, previous: float, max_step: float = math.inf
 ) -> FloatArray:

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.config import MmstabError
 from mmstab.robot import Robot
+from mmstab.robot import with_flipper_angle as robot_with_flipper_angle
 from mmstab.terrain.base import GRAVITY_G, Support, as_poses, place_local
 from mmstab.terrain.contacts import ContactCandidates, contact_candidates
 from mmstab.terrain.heightmap import FloatArray, Heightmap
@@ -28,10 +29,7 @@ from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
 
 def with_flipper_angle(robot: Robot, angle: float | None) -> Robot:
     """The robot with its flippers at ``angle`` [rad] (``None``: unchanged)."""
-    if angle is None:
-        return robot
-    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
-    return dataclasses.replace(robot, base=dataclasses.replace(robot.base, flippers=flippers))
+    return robot if angle is None else robot_with_flipper_angle(robot, angle)
 
 
 class LocalPlane(NamedTuple):
