@@ -211,7 +211,7 @@ def solve_pose(
     )
 
 
-def _fall_back_to_a_sample(
+def fall_back_to_a_sample(
     robot: Robot,
     terrain: Terrain,
     region: CoMRegion,
@@ -341,7 +341,7 @@ def solve_path(
                 and np.linalg.norm(robot.arm_com(q) - t.target_com) <= REALISE_TOL
                 and (t.window is None or t.window.contains(q[0]))
             ):
-                t, q, ok = _fall_back_to_a_sample(
+                t, q, ok = fall_back_to_a_sample(
                     robot, terrain, region, t, previous_com, settings, mu_max, realise, previous_q
                 )
             previous_q = q

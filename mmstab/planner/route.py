@@ -38,6 +38,7 @@ from mmstab.planner.fitness import CoMRegion, Fitness, pose_fitness
 from mmstab.planner.path import (
     REALISE_TOL,
     PoseTarget,
+    fall_back_to_a_sample,
     gravity_body_at,
     solve_path,
     solve_pose,
@@ -232,7 +233,7 @@ def solve_route(
         if realise is not None:
             q, ok = realise(target.target_com, previous_q)
             if not (ok and np.linalg.norm(robot.arm_com(q) - target.target_com) <= REALISE_TOL):
-                target, q, ok = _nearest_realisable(
+                target, q, ok = fall_back_to_a_sample(
                     robot,
                     ground,
                     region,
@@ -386,46 +387,6 @@ class _KnownGravity:
         if all(r is not None for r in rows):
             return np.array(rows)
         return np.asarray(self._terrain.gravity_body(p))
-
-
-def _nearest_realisable(
-    robot: Robot,
-    terrain: Terrain,
-    region: CoMRegion,
-    target: PoseTarget,
-    previous_com: FloatArray,
-    settings: PlannerSettings,
-    mu_max: float,
-    realise: Realise,
-    previous_q: FloatArray,
-    neighbours: int = 64,
-) -> tuple[PoseTarget, FloatArray, bool]:
-    """No posture realises an off-grid target: the best of V's samples near it instead.
-
-    V's samples are CoMs of collision-free grid postures, so each is realisable.
-    """
-    try:
-        index = sample_index(region)
-    except MmstabError:
-        q, ok = realise(target.target_com, previous_q)
-        return target, q, ok
-    _, idx = index.tree.query(target.target_com, k=min(neighbours, len(index.samples)))
-    near = index.samples[np.atleast_1d(idx)]
-    gravity = gravity_body_at(terrain, target.pose)[0]
-    fit = pose_fitness(robot, gravity, previous_com, settings, mu_max, float(region.diameter))
-    values = fit(near)
-    best = int(np.argmax(values))
-    q, ok = realise(near[best], previous_q)
-    return (
-        target._replace(
-            target_com=near[best].copy(),
-            fitness=float(values[best]),
-            mu=float(fit.mu(near[best])[0]),
-            fallback=True,
-        ),
-        q,
-        ok,
-    )
 
 
 def stretches(mask: ArrayLike, s: ArrayLike, mu: ArrayLike) -> list[RiskStretch]:
