@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import write_problem
-from test_planner_reference import _settings
+from test_planner_reference import _settings, coarse  # noqa: F401  (module fixture)
 
 from mmstab.config import ConfigError
 from mmstab.planner import gravity_body_at, pose_fitness, solve_exhaustive, solve_path
@@ -23,17 +23,6 @@ COARSE = [10, 8, 8, 8]
 WINDOW = 0.8  # [rad]
 
 
-@pytest.fixture(scope="module")
-def coarse(tmp_path_factory):
-    from mmstab.workspace import load_or_build_workspace
-
-    tmp = tmp_path_factory.mktemp("turret")
-    path = write_problem(tmp, lambda p, r: p["workspace"].__setitem__("grid", COARSE))
-    problem = load_problem(path)
-    ws = load_or_build_workspace(problem, progress=False, cache_dir=tmp / "cache")
-    return problem, ws
-
-
 def _realise(ws):
     def grid(target, previous_q):  # the nearest grid posture: its link0 is the sample's
         return ws.nearest_valid_posture(target), True
@@ -41,7 +30,7 @@ def _realise(ws):
     return grid
 
 
-def test_sample_postures_realise_the_samples(coarse):
+def test_sample_postures_realise_the_samples(coarse):  # noqa: F811
     problem, ws = coarse
     q = sample_postures(ws)
     assert q.shape == (len(ws.valid_com_in_V), 4)
@@ -59,7 +48,7 @@ def test_window_by_hand():
     assert turret_window(1.0, 0.5, first=3.0) == Window(0.5, 1.5)  # no overlap: previous
 
 
-def test_windowed_exhaustive_is_the_best_allowed_sample(coarse):
+def test_windowed_exhaustive_is_the_best_allowed_sample(coarse):  # noqa: F811
     problem, ws = coarse
     robot = problem.robot
     s = _settings(problem, ws)
@@ -85,7 +74,7 @@ def test_windowed_exhaustive_is_the_best_allowed_sample(coarse):
 
 
 @pytest.mark.parametrize("method", ["exhaustive", "cmaes"])
-def test_turret_moves_at_most_the_window_and_the_lap_closes(coarse, method):
+def test_turret_moves_at_most_the_window_and_the_lap_closes(coarse, method):  # noqa: F811
     problem, ws = coarse
     robot = problem.robot
     s = _settings(problem, ws, turret_window=WINDOW, method=method)
@@ -102,7 +91,7 @@ def test_turret_moves_at_most_the_window_and_the_lap_closes(coarse, method):
     assert all(t.window is not None for t in plan.targets[1:])
 
 
-def test_cma_within_half_a_percent_of_the_windowed_exhaustive(coarse):
+def test_cma_within_half_a_percent_of_the_windowed_exhaustive(coarse):  # noqa: F811
     problem, ws = coarse
     robot = problem.robot
     s = _settings(problem, ws, turret_window=WINDOW)
