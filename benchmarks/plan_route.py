@@ -13,7 +13,9 @@ Per warm-started pose (every pose after the first), in the same run:
 - ``cold``: ``solve_pose`` with the problem's own search at every pose (no warm start);
 - ``exhaustive``: Eq. 6 over all of V's samples at the same previous CoM (one batch), the
   reference of the fitness gap ``100 (F_exhaustive - F) / |F_exhaustive|`` [%] (negative:
-  CMA-ES found an off-grid CoM better than every sample).
+  CMA-ES found an off-grid CoM better than every sample);
+- ``sequence``: the whole route at once (``method: sequence``, the shipped route problems'
+  search), its total time divided by the poses.
 
 The resting poses are computed once per run in one batch; their share is counted in every
 pose's time. No IK (postures) here: the search alone. Wall times and, less sensitive to
@@ -93,13 +95,20 @@ def main() -> None:
     region = planning_region(ws, problem.section("workspace")["method"])
     samples = region_samples(region)
     section = problem.section("planner")
-    settings = PlannerSettings.from_section(section)
+    # the warm-started per-pose search (method: cmaes), whatever the file plans with; the
+    # whole-route search (method: sequence, the shipped default) is timed next to it
+    own = PlannerSettings.from_section(section)
+    settings = own._replace(method="cmaes")
+    sequence = own._replace(method="sequence")
     s = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
     poses = route.route.sample(s).pose
     robot, terrain = problem.robot, problem.terrain
     solve_route(robot, terrain, region, s, poses, settings)  # warm-up (caches, imports)
-    warm_ms, pycma_ms, first_ms, warm_cpu, pycma_cpu = [], [], [], [], []
+    warm_ms, pycma_ms, first_ms, warm_cpu, pycma_cpu, seq_ms = [], [], [], [], [], []
+    solve_route(robot, terrain, region, s, poses, sequence)  # warm-up of its caches
     for _ in range(args.runs):
+        seq = solve_route(robot, terrain, region, s, poses, sequence)
+        seq_ms.append(1e3 * float(np.mean(seq.search_seconds)))
         plan = solve_route(robot, terrain, region, s, poses, settings)
         warm_ms.append(1e3 * float(np.median(plan.search_seconds[1:])))
         warm_cpu.append(1e3 * float(np.median(plan.search_cpu_seconds[1:])))
@@ -122,6 +131,7 @@ def main() -> None:
             "cold_solve_pose": cold_ms(problem, region, plan, settings),
             "exhaustive": exhaustive_ms,
             "first_pose_cold": float(np.median(first_ms)),
+            "sequence": float(np.median(seq_ms)),
         },
         "cpu_ms_per_pose": {
             "warm": float(np.median(warm_cpu)),
