@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.collision import CollisionChecker, SequenceCollisions, sequence_collisions
+from mmstab.masks import true_runs
 from mmstab.posture import (
     MAX_REPAIR_ROUNDS,
     PosturePlan,
@@ -25,7 +26,6 @@ from mmstab.posture import (
     build_posture_reference,
     posture_com,
     posture_samples,
-    stretches,
 )
 from mmstab.reference import PathSample, StepReference, task_reference
 from mmstab.robot import FloatArray, Robot
@@ -176,7 +176,7 @@ def build_approach(
         if not hit.any():
             break
         added = []
-        for (a, b), interval in zip(stretches(hit), check.intervals, strict=True):
+        for (a, b), interval in zip(true_runs(hit), check.intervals, strict=True):
             u_mid = float(time_scaling(0.5 * (t[a] + t[b - 1]) / duration).value)
             if np.min(np.abs(knots - u_mid)) < 1.0 / t.size:
                 continue  # a knot already sits there (within one control period)

@@ -22,6 +22,7 @@ import fcl
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mmstab.masks import true_runs
 from mmstab.robot import Box, FloatArray, Geometry, Robot
 
 #: The base parts an arm link is checked against, in checking order.
@@ -284,7 +285,7 @@ def sequence_collisions(
     xs = np.asarray(x, dtype=float)
     qa = np.atleast_2d(np.asarray(q, dtype=float))
     hit = np.asarray(checker.collides(qa), dtype=bool)
-    edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0])).reshape(-1, 2)
+    edges = true_runs(hit)
     intervals = [[float(xs[a]), float(xs[min(b, xs.size - 1)])] for a, b in edges.tolist()]
     counts: dict[str, int] = {}
     unique, repeats = np.unique(qa[hit], axis=0, return_counts=True)  # each posture once

@@ -36,9 +36,10 @@ import dataclasses
 from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from mmstab.collision import CollisionChecker, SequenceCollisions, sequence_collisions
+from mmstab.masks import true_runs
 from mmstab.reference import (
     BasePath,
     PathSample,
@@ -221,11 +222,6 @@ def _via_posture(
     return best
 
 
-def stretches(hit: NDArray[np.bool_]) -> NDArray[np.intp]:
-    """(first, end) sample indices of each run of True in ``hit`` (M, 2)."""
-    return np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0])).reshape(-1, 2)
-
-
 def build_posture_reference(
     robot: Robot, plan: PosturePlan, samples: int, *, repair: bool = True
 ) -> PostureReference:
@@ -270,7 +266,7 @@ def build_posture_reference(
 
             solver = PostureSolver(robot, None)
         added = []
-        for (a, b), interval in zip(stretches(hit), ref.check.intervals, strict=True):
+        for (a, b), interval in zip(true_runs(hit), ref.check.intervals, strict=True):
             mid = (a + b - 1) // 2
             if np.any((ref.fractions >= s[a]) & (ref.fractions <= s[b - 1])):
                 continue  # a knot itself collides (a plan's posture): no via posture helps

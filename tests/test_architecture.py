@@ -28,6 +28,7 @@ LAYERS: dict[str, int] = {
     "mmstab.schema": 0,
     "mmstab.sizes": 0,
     "mmstab.settings": 0,
+    "mmstab.masks": 0,
     "mmstab.robot": 1,
     "mmstab.kinematics": 1,
     "mmstab.urdf": 1,

@@ -23,6 +23,7 @@ import numpy as np
 import yaml
 
 from mmstab.config import MmstabError, write_json
+from mmstab.masks import true_runs
 from mmstab.problem import Problem
 
 #: Paper Fig. 6: the two maxima of the link0 sweep [rad].
@@ -112,20 +113,14 @@ def fig11_fidelity(summary: dict[str, Any], approach_time: float | None) -> dict
 
 def below_intervals(t: np.ndarray, value: np.ndarray, floor: np.ndarray) -> list[dict[str, float]]:
     """Intervals where ``value < floor``: first and last sample time [s], largest deficit."""
-    below = np.asarray(value) < np.asarray(floor)
-    out = []
-    k = 0
-    while k < len(t):
-        if not below[k]:
-            k += 1
-            continue
-        j = k
-        while j + 1 < len(t) and below[j + 1]:
-            j += 1
-        deficit = float(np.max(floor[k : j + 1] - value[k : j + 1]))
-        out.append({"start_s": float(t[k]), "end_s": float(t[j]), "max_deficit": deficit})
-        k = j + 1
-    return out
+    return [
+        {
+            "start_s": float(t[k]),
+            "end_s": float(t[j - 1]),
+            "max_deficit": float(np.max(floor[k:j] - value[k:j])),
+        }
+        for k, j in true_runs(np.asarray(value) < np.asarray(floor))
+    ]
 
 
 def fig12_fidelity(run: Any) -> dict[str, Any]:

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.config import MmstabError
+from mmstab.masks import true_runs
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds, sample_index
 from mmstab.planner.fitness import CoMRegion, Fitness, pose_fitness
 from mmstab.planner.path import (
@@ -391,20 +392,11 @@ class _KnownGravity:
 
 def stretches(mask: ArrayLike, s: ArrayLike, mu: ArrayLike) -> list[RiskStretch]:
     """Runs of consecutive poses where ``mask`` holds: arc lengths [m] and worst μ [N rad]."""
-    m = np.asarray(mask, dtype=bool)
     s_m, mu_v = np.asarray(s, dtype=float), np.asarray(mu, dtype=float)
-    out = []
-    k = 0
-    while k < len(m):
-        if not m[k]:
-            k += 1
-            continue
-        j = k
-        while j + 1 < len(m) and m[j + 1]:
-            j += 1
-        out.append(RiskStretch(float(s_m[k]), float(s_m[j]), float(mu_v[k : j + 1].min())))
-        k = j + 1
-    return out
+    return [
+        RiskStretch(float(s_m[k]), float(s_m[j - 1]), float(mu_v[k:j].min()))
+        for k, j in true_runs(mask)
+    ]
 
 
 class RouteRisk(NamedTuple):

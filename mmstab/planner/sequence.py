@@ -144,9 +144,12 @@ def solve_sequence(
     value = np.empty((K, M))
     bins = _turret_bins(postures[:, 0], TURRET_BINS)
     members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
+    fits = []
     for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
-        fit = with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region)
-        v = fit.linear()(samples)
+        fits.append(
+            with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region)
+        )
+        v = fits[k].linear()(samples)
         cand[k] = _diverse_top(v, bins, M, members)
         value[k] = v[cand[k]]
     w = settings.w_motion / diameter**2
@@ -192,14 +195,7 @@ def solve_sequence(
     fitness = value[np.arange(K), path].copy()
     for i, (a, b) in enumerate(pairs):
         fitness[b] -= motion[i][path[a], path[b]]
-    mu = np.array(
-        [
-            with_tool_wrench(pose_fitness(robot, g[k], stowed, stab, mu_max, diameter), region).mu(
-                samples[rows[k]]
-            )[0]
-            for k in range(K)
-        ]
-    )
+    mu = np.array([fits[k].mu(samples[rows[k]])[0] for k in range(K)])
     return SequenceResult(
         rows=rows,
         fitness=fitness,
