@@ -299,7 +299,9 @@ def test_run_interruptibly_answers_raises_and_yields_to_ctrl_c():
     with pytest.raises(KeyboardInterrupt):
         run_interruptibly(time.sleep, 3.0)  # a long call that never checks for signals
     timer.join()
-    assert time.monotonic() - start < 1.0
+    # back well before the 3 s call ends (a loaded machine delays the timer thread, so no
+    # tighter bound: it failed once at 1 s under load 4-6)
+    assert time.monotonic() - start < 2.5
 
 
 def test_ctrl_c_swallowed_by_ipopt_is_raised_again(robot):
