@@ -5,10 +5,11 @@ writes ``results/bench/terrain.json``. Poses are drawn (seeded) uniformly over e
 inside the robot's reach of the edge, headings uniform. Reports medians over the runs
 (the machine may be shared): milliseconds per pose amortised over a batch of N (wall, and
 this process's CPU time, which a busy machine inflates less), and per pose called one by
-one; the rounds each pose took and the flags raised. In the same run, interleaved with
-it, the reference path (all candidates in every round, ``active_candidates=0``) on the
-same poses, and the largest difference between the
-two paths' rests. Target of issue 14: <= 0.1 ms per pose batched (the published C++
+one; the rounds each pose took and the flags raised. Three paths, interleaved in the same
+run on the same poses: the C kernel (the default, ``backend="c"``), its NumPy twin
+(``backend="numpy"``, the same algorithm; the peer) and the kernel on all candidates in
+every round (the reference path, ``active_candidates=0``), with the largest differences
+between their rests. Target of issue 14: <= 0.1 ms per pose batched (the published C++
 contact estimator for tracked robots reports about 0.5 ms per pose; not run here).
 """
 
@@ -44,36 +45,54 @@ def random_poses(terrain: HeightmapTerrain, n: int, seed: int = 0) -> np.ndarray
     ]
 
 
+FLAGS = ("converged", "high_centred", "line_contact", "tips_over")
+
+
+def same_flags(a: Any, b: Any) -> bool:
+    """Both rests raise the same flags at every pose."""
+    return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in FLAGS)
+
+
+def max_difference(a: Any, b: Any) -> float:
+    """Largest roll or pitch difference between two rests [rad]."""
+    return float(np.nanmax(np.maximum(np.abs(a.roll - b.roll), np.abs(a.pitch - b.pitch))))
+
+
 def bench(path: str, n: int, runs: int, singles: int) -> dict[str, Any]:
-    """Time one problem's terrain."""
+    """Time one problem's terrain: the C kernel, its NumPy twin and the reference path."""
     problem = load_problem(path)
     terrain = problem.terrain
     if not isinstance(terrain, HeightmapTerrain):
         raise SystemExit(f"{path}: not a heightmap problem")
     poses = random_poses(terrain, n)
-    reference = dataclasses.replace(
-        terrain, settings=terrain.settings._replace(active_candidates=0)
-    )
-    terrain.rest(poses[:10])  # warm caches (candidates, CoM)
-    reference.rest(poses[:10])
-    batch, cpu, ref_batch, ref_cpu = [], [], [], []
-    for _ in range(runs):  # interleaved: both paths see the same machine load
-        for t_, wall, proc in ((terrain, batch, cpu), (reference, ref_batch, ref_cpu)):
+
+    def variant(**changes: Any) -> HeightmapTerrain:
+        return dataclasses.replace(terrain, settings=terrain.settings._replace(**changes))
+
+    paths = {
+        "c": terrain,  # the default: the C kernel
+        "numpy": variant(backend="numpy"),  # the same algorithm in NumPy
+        "reference": variant(active_candidates=0),  # the kernel on all candidates every round
+    }
+    for t_ in paths.values():
+        t_.rest(poses[:10])  # warm caches (compiled kernel, candidates, CoM)
+    wall: dict[str, list[float]] = {k: [] for k in paths}
+    cpu: dict[str, list[float]] = {k: [] for k in paths}
+    rests: dict[str, Any] = {}
+    for _ in range(runs):  # interleaved: all paths see the same machine load
+        for name, t_ in paths.items():
             t, c = time.perf_counter(), time.process_time()
-            r_ = t_.rest(poses)
-            wall.append((time.perf_counter() - t) / n * 1e3)
-            proc.append((time.process_time() - c) / n * 1e3)
-            if t_ is terrain:
-                r = r_
-            else:
-                ref = r_
-    diff = np.maximum(np.abs(r.roll - ref.roll), np.abs(r.pitch - ref.pitch))
-    one = []
+            rests[name] = t_.rest(poses)
+            wall[name].append((time.perf_counter() - t) / n * 1e3)
+            cpu[name].append((time.process_time() - c) / n * 1e3)
+    one: dict[str, list[float]] = {"c": [], "numpy": []}
     for _ in range(runs):
-        t = time.perf_counter()
-        for p in poses[:singles]:
-            terrain.rest(p)
-        one.append((time.perf_counter() - t) / singles * 1e3)
+        for name in one:
+            t = time.perf_counter()
+            for p in poses[:singles]:
+                paths[name].rest(p)
+            one[name].append((time.perf_counter() - t) / singles * 1e3)
+    r, med = rests["c"], statistics.median
     return {
         "problem": path,
         "terrain": terrain.heightmap.source,
@@ -81,20 +100,21 @@ def bench(path: str, n: int, runs: int, singles: int) -> dict[str, Any]:
         "resolution_m": terrain.heightmap.resolution,
         "candidates": len(terrain.candidates.points),
         "poses": n,
-        "ms_per_pose_batched_median": statistics.median(batch),
-        "ms_per_pose_batched_runs": batch,
-        "cpu_ms_per_pose_batched_median": statistics.median(cpu),
-        "reference_path_ms_per_pose_batched_median": statistics.median(ref_batch),
-        "reference_path_cpu_ms_per_pose_batched_median": statistics.median(ref_cpu),
-        "speed_up_cpu": statistics.median(ref_cpu) / statistics.median(cpu),
-        "max_attitude_difference_to_reference_rad": float(np.nanmax(diff)),
-        "same_flags_as_reference": bool(
-            all(
-                np.array_equal(getattr(r, k), getattr(ref, k))
-                for k in ("converged", "high_centred", "line_contact", "tips_over")
-            )
-        ),
-        "ms_per_pose_single_median": statistics.median(one),
+        "backend": terrain.settings.backend,
+        "ms_per_pose_batched_median": med(wall["c"]),
+        "ms_per_pose_batched_runs": wall["c"],
+        "cpu_ms_per_pose_batched_median": med(cpu["c"]),
+        "numpy_path_ms_per_pose_batched_median": med(wall["numpy"]),
+        "numpy_path_cpu_ms_per_pose_batched_median": med(cpu["numpy"]),
+        "speed_up_over_numpy_path_wall": med(wall["numpy"]) / med(wall["c"]),
+        "max_attitude_difference_to_numpy_path_rad": max_difference(r, rests["numpy"]),
+        "same_flags_as_numpy_path": same_flags(r, rests["numpy"]),
+        "reference_path_ms_per_pose_batched_median": med(wall["reference"]),
+        "reference_path_cpu_ms_per_pose_batched_median": med(cpu["reference"]),
+        "max_attitude_difference_to_reference_rad": max_difference(r, rests["reference"]),
+        "same_flags_as_reference": same_flags(r, rests["reference"]),
+        "ms_per_pose_single_median": med(one["c"]),
+        "numpy_path_ms_per_pose_single_median": med(one["numpy"]),
         "single_poses_timed": singles,
         "rounds_median": float(np.median(r.iterations)),
         "rounds_max": int(r.iterations.max()),
@@ -118,18 +138,19 @@ def main() -> None:
     rows = [bench(p, a.poses, a.runs, a.singles) for p in a.problems]
     for row in rows:
         print(
-            f"{row['problem']}: {row['ms_per_pose_batched_median']:.4f} ms/pose batched "
-            f"(CPU {row['cpu_ms_per_pose_batched_median']:.4f}) "
-            f"({row['poses']} poses; reference path CPU "
-            f"{row['reference_path_cpu_ms_per_pose_batched_median']:.4f}, "
-            f"max difference {row['max_attitude_difference_to_reference_rad']:.1e} rad), "
-            f"{row['ms_per_pose_single_median']:.3f} ms/pose one by one;"
+            f"{row['problem']}: {row['ms_per_pose_batched_median']:.4f} ms/pose batched, C "
+            f"({row['poses']} poses; NumPy path {row['numpy_path_ms_per_pose_batched_median']:.4f}"
+            f", max difference {row['max_attitude_difference_to_numpy_path_rad']:.1e} rad; "
+            f"reference path {row['reference_path_ms_per_pose_batched_median']:.4f}), "
+            f"{row['ms_per_pose_single_median']:.3f} ms/pose one by one "
+            f"(NumPy {row['numpy_path_ms_per_pose_single_median']:.3f});"
             f" rounds median {row['rounds_median']:.0f}, max {row['rounds_max']}"
         )
     out = write_json(
         Path(a.out),
         {
-            "what": "resting pose of the tracked base on heightmaps (mmstab.terrain.rest)",
+            "what": "resting pose of the tracked base on heightmaps (mmstab.terrain.rest): "
+            "the C kernel (default), its NumPy twin and the all-candidates reference path",
             "target_ms_per_pose": 0.1,
             "reference_cpp_ms_per_pose": 0.5,
             "reference_note": "published C++ contact estimator for tracked robots; not run here",

@@ -29,6 +29,7 @@ LAYERS: dict[str, int] = {
     "mmstab.sizes": 0,
     "mmstab.settings": 0,
     "mmstab.masks": 0,
+    "mmstab.clib": 0,  # mmstab's own C compiled into cached libraries (terrain, controller)
     "mmstab.robot": 1,
     "mmstab.kinematics": 1,
     "mmstab.urdf": 1,

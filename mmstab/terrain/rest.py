@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.terrain.contacts import CHASSIS
 from mmstab.terrain.heightmap import FloatArray, Heightmap, OffMapError
+from mmstab.terrain.rest_c import KernelRests, rest_kernel
 from mmstab.terrain.support_lp import support_lp
 
 BoolArray = NDArray[np.bool_]
@@ -70,6 +71,9 @@ class RestSettings(NamedTuple):
             ``tol_step``).
         active_tol: a left-out candidate higher than the subset's highest by more than
             this [m] sends the pose to another pass.
+        backend: ``"c"`` the compiled kernel (:mod:`mmstab.terrain.rest_c`, the default),
+            ``"numpy"`` the vectorised NumPy path here: the same algorithm, kept as its
+            independent twin (the tests hold one against the other).
     """
 
     max_iterations: int = 40
@@ -85,6 +89,7 @@ class RestSettings(NamedTuple):
     active_candidates: int = 24
     final_step: float = 1e-6
     active_tol: float = 1e-10
+    backend: str = "c"
 
 
 class RestPoses(NamedTuple):
@@ -272,6 +277,13 @@ def rest_poses(
     n = p.shape[0]
     com = np.broadcast_to(np.asarray(com_body, dtype=float), (n, 3))
     coarse = coarse_subset(c, settings.coarse_spacing)
+    if settings.backend == "c":
+        att, f, valid, converged, tips, iterations = _rest_c(heightmap, c, coarse, com, p, settings)
+        if strict and not valid.all():
+            _raise_off_map(heightmap, c, p[:, :2], p[:, 2], att, valid)
+        return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings)
+    if settings.backend != "numpy":
+        raise ValueError(f"RestSettings.backend: {settings.backend!r} is not 'c' or 'numpy'")
     rough = settings._replace(tol_step=settings.coarse_tol)
     out = []
     for i in range(0, n, CHUNK):
@@ -292,6 +304,24 @@ def rest_poses(
     if strict and not valid.all():
         _raise_off_map(heightmap, c, p[:, :2], p[:, 2], att, valid)
     return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings)
+
+
+def _rest_c(
+    hm: Heightmap,
+    c: FloatArray,
+    coarse: NDArray[np.int_],
+    com: FloatArray,
+    p: FloatArray,
+    settings: RestSettings,
+) -> KernelRests:
+    """:func:`rest_poses`'s stages by the C kernel (one call for all poses)."""
+    s = settings
+    numbers = [s.max_iterations, s.tol_step, s.max_step, s.max_tilt, s.approach]
+    numbers += [s.approach_factor, s.coarse_tol, s.active_candidates, s.final_step, s.active_tol]
+    return rest_kernel(
+        hm.elevation, hm.origin, hm.resolution, c, coarse,
+        _corners(c[coarse]), _corners(c), com, p, tuple(float(x) for x in numbers),
+    )  # fmt: skip
 
 
 def _solve_active(
