@@ -139,7 +139,7 @@ def render_animation(
     ax_mu = fig.add_axes((0.67, 0.16, 0.21, 0.7))
     ax_bar = fig.add_axes((0.9, 0.16, 0.03, 0.7))
 
-    # static scene: ramp patch holding every drawn robot, the planned base track
+    # static scene: ground patch holding every drawn robot (cut to the map), the planned track
     G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
     pts_G = np.concatenate([mesh_points(robot_meshes(robot, q[k], G_T_Bs[int(k)])) for k in idx])
     pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)

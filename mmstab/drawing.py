@@ -257,6 +257,21 @@ def draw_robot(
     return artists
 
 
+def clip_to_ground(terrain: Terrain, extent: Extent | ArrayLike) -> Extent | None:
+    """A rectangle of M [m] cut to the ground's map (``terrain.bounds``).
+
+    Drawings around the robot reach past its contacts (the arm, a margin); on a heightmap
+    that can be off the map, where the ground has no height. Returns None when nothing of
+    the rectangle is on the map.
+    """
+    e = Extent(*(float(v) for v in np.asarray(extent, dtype=float)))
+    b = terrain.bounds
+    if b is None:
+        return e
+    cut = Extent(max(e.x_min, b[0]), min(e.x_max, b[1]), max(e.y_min, b[2]), min(e.y_max, b[3]))
+    return cut if cut.x_min < cut.x_max and cut.y_min < cut.y_max else None
+
+
 def draw_ground(
     ax3d: Any,
     terrain: Terrain,
@@ -267,18 +282,24 @@ def draw_ground(
 ) -> list[Any]:
     """Draw a rectangle of the ground (and a grid on it) in G.
 
+    The rectangle is cut to the map (:func:`clip_to_ground`): the ground is never sampled
+    off it.
+
     Args:
         ax3d: matplotlib 3-D axes.
-        terrain: the ground (its ``surface_G``).
+        terrain: the ground (its ``surface_G`` and ``bounds``).
         extent: ``(x_min, x_max, y_min, y_max)`` in the map frame M [m].
         color: face colour of the plane.
         alpha: its opacity in [0, 1].
         grid: spacing of grid lines in S [m]; ``None`` for none.
 
     Returns:
-        The artists: the plane patch (gid ``ground``), then the grid lines (gid ``ground_grid``).
+        The artists: the plane patch (gid ``ground``), then the grid lines (gid
+        ``ground_grid``); none when the rectangle is off the map.
     """
-    e = Extent(*np.asarray(extent, dtype=float))
+    e = clip_to_ground(terrain, extent)
+    if e is None:
+        return []
     corners_G = terrain.surface_G(
         [e.x_min, e.x_max, e.x_max, e.x_min], [e.y_min, e.y_min, e.y_max, e.y_max]
     )

@@ -18,6 +18,7 @@ from mmstab.payload import attach_payload, payload_from_section
 from mmstab.robot import Robot, load_robot
 from mmstab.routes.path import RoutePath, is_route, route_path_from_section
 from mmstab.settings import check_problem
+from mmstab.sizes import Estimate, estimates, refusal
 from mmstab.terrain import CirclePath, Terrain, from_section
 
 
@@ -60,6 +61,19 @@ class Problem:
     def route(self) -> RoutePath | None:
         """The route of a route problem, else None."""
         return self.base_path if isinstance(self.base_path, RoutePath) else None
+
+    def size_estimates(self, duration: float | None = None) -> dict[str, Estimate]:
+        """The size estimates of the stages (:func:`mmstab.sizes.estimates`), by section.
+
+        The tracking run's is for the time it simulates (:func:`mmstab.tracking.simulate`):
+        ``duration`` [s] if given (``--duration``), else a route's driving time (a route sets
+        its own length), else ``controller.duration``.
+        """
+        if duration is not None:
+            return estimates(self.data, duration, "--duration")
+        if self.route is not None:
+            return estimates(self.data, self.route.duration, "path")
+        return estimates(self.data)
 
     @property
     def ramp(self) -> Terrain:
@@ -113,6 +127,12 @@ def problem_from_dict(
     base_path: CirclePath | RoutePath
     if is_route(c):
         base_path = route_path_from_section(p, c, robot, terrain)
+        # its run lasts the driving time, not controller.duration: bound that run too
+        route_sizes = estimates(data, base_path.duration, "path")
+        for est in (route_sizes["controller"], route_sizes["animation"]):
+            why = refusal(est, force_size)
+            if why is not None:
+                raise ConfigError(p, est.field, why)
     else:
         base_path = CirclePath(
             center=tuple(c["center"]),

@@ -242,14 +242,25 @@ def precision_estimate(section: Mapping[str, Any]) -> Estimate:
     )
 
 
-def estimates(data: Mapping[str, Any]) -> dict[str, Estimate]:
-    """Every size estimate of a schema-valid problem, by section."""
+def estimates(
+    data: Mapping[str, Any], duration: float | None = None, field: str = "controller.duration"
+) -> dict[str, Estimate]:
+    """Every size estimate of a schema-valid problem, by section.
+
+    Args:
+        data: the problem.
+        duration: the tracking run's simulated time [s] when it is not
+            ``controller.duration`` (a route's driving time, ``--duration``).
+        field: what sets that time, for messages (``path``, ``--duration``).
+    """
     ctrl = data["controller"]
-    steps = float(ctrl["duration"]) / float(ctrl["dt"])
+    if duration is None:
+        duration, field = float(ctrl["duration"]), "controller.duration"
+    steps = float(duration) / float(ctrl["dt"])
     return {
         "workspace": workspace_estimate(data["workspace"]["grid"]),
         "precision": precision_estimate(data["workspace"]),
-        "controller": steps_estimate("controller.duration", ctrl["duration"], ctrl["dt"]),
+        "controller": steps_estimate(field, duration, ctrl["dt"]),
         "planner": planner_estimate(data["planner"]),
         "sweep": sweep_estimate(data["sweep"]),
         "animation": animation_estimate(data["animation"], steps + 1),

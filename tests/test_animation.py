@@ -7,6 +7,7 @@ import pytest
 from PIL import Image, ImageChops
 
 from mmstab.animation import frame_indices, render_animation
+from mmstab.drawing import mesh_points, robot_meshes
 from mmstab.stability import robot_force_angle
 from mmstab.terrain import Ramp
 
@@ -73,3 +74,41 @@ def test_inconsistent_inputs_are_refused(tmp_path, robot):
     with pytest.raises(ValueError, match="mu"):
         render_animation(robot, ramp, t, poses, q, mu[:2], tmp_path / "x.gif", progress=False)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_run_at_the_map_edge_is_drawn_on_the_map_only(tmp_path, robot):
+    """The arm reaches past a heightmap's edge, the contacts do not: the GIF is written.
+
+    The drawn ground patch is cut to the map (``drawing.clip_to_ground``); a pose whose
+    contacts leave the map is still refused by the resting pose itself.
+    """
+    from mmstab.terrain import Heightmap, HeightmapTerrain, OffMapError
+
+    # a 3 m x 3 m field with a 10 cm step, x and y in -1.5 .. 1.5 m
+    x = np.linspace(-1.5, 1.5, 61)
+    hm = Heightmap.build(np.tile(np.where(x > 0.5, 0.1, 0.0), (61, 1)), 0.05, (-1.5, -1.5))
+    terrain = HeightmapTerrain(hm).with_robot(robot)
+    poses = np.array([[-1.0, 0.0, 0.0], [-0.95, 0.2, 0.3], [-0.9, 0.6, 0.6]])
+    q = np.zeros((3, 4))
+    q[:, 0] = np.pi  # the arm over the rear edge
+    contacts = np.vstack([terrain.support(robot, p).contacts_G for p in poses])
+    assert contacts[:, 0].min() > -1.5  # every contact on the map ...
+    drawn = [robot_meshes(robot, q[k], terrain.G_T_B(p)) for k, p in enumerate(poses)]
+    reach = np.concatenate([mesh_points(m) for m in drawn])
+    assert reach[:, 0].min() < -1.5 - 0.3  # ... the drawn robot well past its edge
+    mu = robot_force_angle(robot, terrain.gravity_body(poses), robot.arm_com(q)).mu
+    info = render_animation(
+        robot,
+        terrain,
+        [0.0, 0.5, 1.0],
+        poses,
+        q,
+        mu,
+        tmp_path / "edge.gif",
+        size=(240, 160),
+        progress=False,
+    )
+    with Image.open(info.path) as im:
+        assert im.n_frames == 3
+    with pytest.raises(OffMapError, match="off the map"):  # contacts off the map: refused
+        terrain.G_T_B([-1.2, 0.0, 0.0])

@@ -121,3 +121,32 @@ def test_draw_ground_and_poses(ax3d, robot):
     drawn = draw_poses_on_ground(ax3d, robot, ramp, poses, np.zeros((3, 4)), labels=["a", "b", "c"])
     assert [len(d) for d in drawn] == [9, 9, 9]
     assert [t.get_text() for t in ax3d.texts] == ["a", "b", "c"]
+
+
+def test_draw_ground_keeps_to_the_map(ax3d):
+    """A patch reaching past a heightmap's edge is cut to it: no sample off the map."""
+    from mmstab.drawing import clip_to_ground
+    from mmstab.terrain import Heightmap, HeightmapTerrain
+
+    hm = Heightmap.build(np.zeros((21, 41)), 0.1, (-2.0, -1.0))  # x -2 .. 2, y -1 .. 1 m
+    terrain = HeightmapTerrain(hm)
+    asked = (-3.0, 0.5, 0.2, 4.0)
+    assert clip_to_ground(terrain, asked) == (-2.0, 0.5, 0.2, 1.0)
+    assert clip_to_ground(Ramp(0.1), asked) == asked  # a plane has no edge
+
+    class Spy:  # the terrain, recording where drawing samples it
+        bounds = terrain.bounds
+        sampled: list[np.ndarray] = []
+
+        def surface_G(self, x, y):
+            self.sampled.append(np.stack(np.broadcast_arrays(x, y), axis=-1).reshape(-1, 2))
+            return terrain.surface_G(x, y)
+
+    spy = Spy()
+    artists = draw_ground(ax3d, spy, asked, grid=0.5)
+    assert [a.get_gid() for a in artists] == ["ground", "ground_grid"]
+    xy = np.concatenate(spy.sampled)
+    assert xy.min(axis=0) == pytest.approx([-2.0, 0.2]) and xy.max(axis=0) == pytest.approx(
+        [0.5, 1.0]
+    )
+    assert draw_ground(ax3d, spy, (2.5, 3.0, 0.0, 1.0)) == []  # nothing of it on the map

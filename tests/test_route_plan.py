@@ -79,6 +79,45 @@ def test_route_and_circle_paths_load(tmp_path):
     assert r.pose_rate(np.array([0.0, 0.99])).rate == pytest.approx(np.zeros((2, 3)))
 
 
+def test_track_announces_the_time_the_route_run_simulates(tmp_path, capsys, monkeypatch):
+    """A route's run lasts its driving time (tracking.simulate); the estimate shown is for it."""
+    import mmstab.experiments.tracking as tracking
+    from mmstab import sizes
+    from mmstab.cli import main
+    from mmstab.config import MmstabError
+
+    problem = load_problem(ROUGH)
+    route, ctrl = problem.route, problem.section("controller")
+    dt = ctrl["dt"]
+    assert abs(route.duration - ctrl["duration"]) > 10.0  # the YAML's duration is not it
+    steps = f"{route.duration / dt:.6g} control periods ({route.duration:g} s at dt = {dt:g} s)"
+
+    def stop(*args: object, **kwargs: object) -> None:
+        raise MmstabError("stopped before tracking")
+
+    monkeypatch.setattr(sizes, "ANNOUNCE_SECONDS", 0.0)  # show every estimate
+    monkeypatch.setattr(tracking, "run_tracking", stop)
+    assert main(["track", str(ROUGH), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"mmstab: path: {steps}, about" in err and "controller.duration" not in err
+    assert main(["track", str(ROUGH), "--duration", "2", "-o", str(tmp_path / "out")]) == 2
+    assert f"mmstab: --duration: {2.0 / dt:.6g} control periods" in capsys.readouterr().err
+    found = problem.size_estimates()  # what the command announced, and the animation's
+    assert found["controller"] == sizes.steps_estimate("path", route.duration, dt)
+    assert found["animation"] == sizes.animation_estimate(
+        problem.section("animation"), route.duration / dt + 1
+    )
+
+
+def test_a_route_too_long_to_track_is_refused_naming_the_path(tmp_path, monkeypatch):
+    """The size bound holds for the route's driving time, not the YAML's duration."""
+    from mmstab import sizes
+
+    monkeypatch.setattr(sizes, "available_memory", lambda: 16e9)
+    with pytest.raises(ConfigError, match=r"p.yaml: path: .* control periods .* memory"):
+        problem_from_dict(rough_data(speed=1e-5), tmp_path / "p.yaml")  # ~20 days of driving
+
+
 @pytest.mark.parametrize(
     ("path", "field", "message"),
     [

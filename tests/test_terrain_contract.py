@@ -241,3 +241,19 @@ def test_local_ground_angles_are_roll_and_pitch(rng):
     # positive pitch lifts the nose: the body x axis points up
     T = local_transforms([0.0, 0.0, 0.0], [0.0, 0.0, 0.3])[0]
     assert T[2, 0] > 0
+
+
+def test_bounds_hold_the_known_ground(terrain):
+    """``bounds`` is None (no edge) or the rectangle of M where ``surface_G`` answers."""
+    from mmstab.terrain import OffMapError
+
+    b = terrain.bounds
+    if terrain.kind == "ramp":
+        assert b is None
+        return
+    x0, x1, y0, y1 = b
+    assert x0 < x1 and y0 < y1
+    corners = terrain.surface_G([x0, x1, x1, x0], [y0, y0, y1, y1])
+    assert np.all(np.isfinite(corners))
+    with pytest.raises(OffMapError, match="off the map"):
+        terrain.surface_G(x0 - 0.01, y0)

@@ -50,13 +50,14 @@ def _problem(args: argparse.Namespace) -> Any:
 
 
 def _announce(problem: Any, *sections: str, duration: float | None = None) -> None:
-    """Show the time estimates of long stages before they start (``--duration`` if given)."""
-    from mmstab.sizes import announce, estimates, steps_estimate
+    """Show the time estimates of long stages before they start.
 
-    found = estimates(problem.data)
-    if duration is not None:
-        dt = problem.section("controller")["dt"]
-        found["controller"] = steps_estimate("--duration", duration, dt)
+    The tracking run's is for the time it will simulate: ``--duration`` if given, else the
+    route's driving time on a route, else ``controller.duration`` (``Problem.size_estimates``).
+    """
+    from mmstab.sizes import announce
+
+    found = problem.size_estimates(duration)
     for name in sections:
         announce(found[name])
 

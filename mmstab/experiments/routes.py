@@ -147,7 +147,7 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
     """The terrain, the route and the robot at rest in its planned posture at snapshots."""
     import matplotlib.pyplot as plt
 
-    from mmstab.drawing import draw_path_on_ground, draw_robot, set_equal_aspect
+    from mmstab.drawing import clip_to_ground, draw_path_on_ground, draw_robot, set_equal_aspect
 
     route = problem.route
     if route is None:
@@ -156,8 +156,12 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
     ax = fig.add_subplot(1, 1, 1, projection="3d")
     ax.computed_zorder = False  # the ground first, the robots over it
     path = route.route.sample(np.linspace(0, route.length, 400)).pose[:, :2]
-    lo, hi = path.min(axis=0) - 0.6, path.max(axis=0) + 0.6  # the footprint is on the map
-    x, y = np.meshgrid(np.arange(lo[0], hi[0], 0.05), np.arange(lo[1], hi[1], 0.05))
+    lo, hi = path.min(axis=0) - 0.6, path.max(axis=0) + 0.6  # the arm reaches past the path
+    # cut to the map (the route's footprint is on it, so never empty: routes.path)
+    e = clip_to_ground(problem.terrain, (lo[0], hi[0], lo[1], hi[1]))
+    if e is None:  # pragma: no cover - ruled out when the route was loaded
+        raise MmstabError(f"{problem.path}: path: the route is off the map")
+    x, y = np.meshgrid(np.arange(e.x_min, e.x_max, 0.05), np.arange(e.y_min, e.y_max, 0.05))
     ground = problem.terrain.surface_G(x, y)
     ax.plot_surface(
         ground[..., 0],

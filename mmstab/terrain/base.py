@@ -120,6 +120,14 @@ class Terrain(Protocol):
         """
         ...
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float] | None:
+        """``(x_min, x_max, y_min, y_max)`` [m] of M the ground covers (a map); None: no edge.
+
+        :meth:`surface_G` answers inside it (a heightmap's map); drawing clips to it.
+        """
+        ...
+
 
 # ------------------------------------------------------------------------------ poses
 def as_poses(poses: ArrayLike) -> FloatArray:

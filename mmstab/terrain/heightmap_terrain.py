@@ -117,6 +117,11 @@ class HeightmapTerrain:
         r = self.rest(as_poses(poses))
         return np.stack([r.z, r.roll, r.pitch], axis=1)
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` [m] of the map (its cell centres' rectangle)."""
+        return self.heightmap.bounds
+
     def surface_G(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """Ground points in G under (x, y) [m] (bilinear heights), (..., 3)."""
         xb, yb = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))

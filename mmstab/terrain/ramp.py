@@ -134,6 +134,11 @@ class Ramp:
         to_G = lambda p: p @ T[:3, :3].T + T[:3, 3]  # noqa: E731
         return Support(T, to_G(pts), to_G(ordered_polygon(pts)))
 
+    @property
+    def bounds(self) -> None:
+        """None: the plane has no edge."""
+        return None
+
     def surface_G(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """Points of the plane in G under S coordinates (x, y) [m], (..., 3)."""
         xb, yb = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
