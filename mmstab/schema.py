@@ -289,12 +289,20 @@ def problem_schema() -> dict[str, Any]:
 # The ``terrain:`` section takes one of three forms, told apart by their key and checked by
 # ``mmstab.terrain.factory.from_section``: ``{slope}`` (the ramp), ``{file, resolution?}`` (a
 # heightmap file, path relative to the problem file; ``resolution`` [m/cell] rasterises a
-# mesh) or ``{generate: {kind, seed, size, resolution, ...}}`` (a seeded generator).
+# mesh) or ``{generate: {kind, seed, size, resolution, ...}}`` (a seeded generator); both
+# heightmap forms take an optional ``compliance`` [m] (:data:`COMPLIANCE`).
 SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2}
+#: ``terrain.compliance`` [m] of a heightmap: the tracks' bottom runs bear load this far
+#: above the ground (``mmstab.terrain.rest.RestSettings.compliance``); at most 0.2 m.
+COMPLIANCE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 0.2}
 TERRAIN_RAMP = obj(slope=SLOPE)
 TERRAIN_FILE: dict[str, Any] = {
     "type": "object",
-    "properties": {"file": {"type": "string", "minLength": 1}, "resolution": POS},
+    "properties": {
+        "file": {"type": "string", "minLength": 1},
+        "resolution": POS,
+        "compliance": COMPLIANCE,
+    },
     "required": ["file"],
     "additionalProperties": False,
 }

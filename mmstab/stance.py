@@ -1,9 +1,12 @@
 """How the robot stands at a base pose on any terrain, with its stability; stability maps.
 
 :func:`stance` is what ``mmstab rest`` prints: roll, pitch, height, the resting pose,
-the touching contacts and their support polygon in G, the force-angle measure mu of the
-overall CoM under gravity (``m_T g``) and the operator flags. On the ramp the pose is the
-ramp's ``(x, y, heading)`` in S; on a heightmap ``(x, y, yaw)`` in G.
+the touching contacts and the support polygon in G, the force-angle measure mu of the
+overall CoM under gravity (``m_T g``) on it and the operator flags. The polygon is the hull
+of the contacts that carry load: the touching ones and, on a heightmap, the tracks' bottom
+run within the compliance of the ground (:class:`mmstab.terrain.rest.RestSettings`). On
+the ramp the pose is the ramp's ``(x, y, heading)`` in S; on a heightmap ``(x, y, yaw)``
+in G.
 """
 
 from __future__ import annotations
@@ -30,8 +33,9 @@ class Stance(NamedTuple):
         z: G height of the body origin [m].
         G_T_B: resting pose (4, 4).
         contacts: touching contact points in G (n, 3) [m].
-        support_polygon: ordered polygon vertices in G (m, 3) [m].
-        mu: force-angle measure [N rad] (> 0: statically stable).
+        support_polygon: ordered polygon vertices in G (m, 3) [m]: the hull of the contacts
+            that carry load.
+        mu: force-angle measure on it [N rad] (> 0: statically stable).
         flags: operator flags (``high_centred``, ``line_contact``, ``tips_over``, ...).
     """
 
@@ -83,7 +87,7 @@ def stance(
     stand = ground.support(r, pose)
     T = stand.G_T_B
     com_G = T[:3, :3] @ np.asarray(r.overall_com(r.arm_com(q)), dtype=float) + T[:3, 3]
-    poly, mu, line = contact_force_angle(stand.contacts_G, com_G, r.total_mass * GRAVITY_G)
+    poly, mu, line = contact_force_angle(stand.bearing(), com_G, r.total_mass * GRAVITY_G)
     roll, pitch = roll_pitch(ground, np.asarray(pose, dtype=float))
     flags = stand.flags
     if line and "line_contact" not in flags:
@@ -156,7 +160,7 @@ def stability_map(
     flags[unsettled] = 8
     for i in np.flatnonzero(np.isfinite(r.z) & ~unsettled):
         T = r.G_T_B[i]
-        contacts = r.contacts_G(c, int(i))
+        contacts = r.bearing_G(c, int(i))
         _, mu[i], line = contact_force_angle(contacts, T[:3, :3] @ com + T[:3, 3], mass * GRAVITY_G)
         flags[i] = (
             1 * bool(r.high_centred[i])

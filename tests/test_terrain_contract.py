@@ -191,9 +191,16 @@ def test_support_contacts_are_the_body_contacts_placed(terrain, robot, rng):
     assert len(s.polygon_G) >= 3
     if terrain.kind == "ramp":  # a plane: exactly the base's support points
         assert len(s.contacts_G) == len(contacts_B)
-    # every polygon vertex is a contact, every contact lies on or inside the polygon's hull
+    # every polygon vertex is a bearing contact; every touching contact bears load
+    bearing = s.bearing()
     for v in s.polygon_G:
-        assert np.min(np.linalg.norm(s.contacts_G - v, axis=1)) < 1e-12
+        assert np.min(np.linalg.norm(bearing - v, axis=1)) < 1e-12
+    for v in s.contacts_G:
+        assert np.min(np.linalg.norm(bearing - v, axis=1)) < 1e-12
+    # the bearing contacts are on the ground or within the tracks' compliance above it
+    b_M = (np.linalg.inv(terrain.G_T_M()) @ np.c_[bearing, np.ones(len(bearing))].T).T
+    gap = bearing[:, 2] - terrain.surface_G(b_M[:, 0], b_M[:, 1])[:, 2]
+    assert gap.min() >= -1e-9 and gap.max() <= 0.02 + 1e-9
     # the contacts rest on the ground
     pts_M = (np.linalg.inv(terrain.G_T_M()) @ np.c_[s.contacts_G, np.ones(len(s.contacts_G))].T).T
     ground = terrain.surface_G(pts_M[:, 0], pts_M[:, 1])

@@ -512,10 +512,11 @@ def steepest_side_slope(
 def contact_mu(
     robot: Robot, terrain: Terrain, poses: FloatArray, arm_com_body: ArrayLike
 ) -> FloatArray:
-    """μ [N rad] (N,) on the resting contacts (``Terrain.support``) at poses (N, 3) in M.
+    """μ [N rad] (N,) on the bearing contacts (``Terrain.support``) at poses (N, 3) in M.
 
-    The 3-D contacts of the base at rest (its stowed-arm rest pose), not the planner's
-    track rectangle: on uneven ground the polygon is what the robot stands on.
+    The 3-D contacts that carry the base at rest (its stowed-arm rest pose: the touching
+    ones and the tracks' bottom run within the compliance), not the planner's track
+    rectangle: on uneven ground the polygon is what the robot stands on (``mmstab rest``).
     """
     coms = np.broadcast_to(np.asarray(arm_com_body, dtype=float), (len(poses), 3))
     out = np.empty(len(poses))
@@ -523,7 +524,7 @@ def contact_mu(
         stand = terrain.support(robot, pose)
         T = stand.G_T_B
         com_G = T[:3, :3] @ robot.overall_com(coms[i]) + T[:3, 3]
-        out[i] = contact_force_angle(stand.contacts_G, com_G, robot.total_mass * GRAVITY_G).mu
+        out[i] = contact_force_angle(stand.bearing(), com_G, robot.total_mass * GRAVITY_G).mu
     return out
 
 

@@ -42,14 +42,23 @@ class Support(NamedTuple):
     Attributes:
         G_T_B: resting pose of the body frame in G (4, 4).
         contacts_G: touching contact points in G (n, 3) [m].
-        polygon_G: support polygon, ordered hull vertices of the contacts in G (m, 3) [m].
+        polygon_G: support polygon, ordered hull vertices of the bearing contacts in G
+            (m, 3) [m].
         flags: operator flags, e.g. ``"high_centred"``, ``"line_contact"`` (empty = normal).
+        bearing_G: the contacts that carry load in G (k, 3) [m]: the touching ones and, on
+            a heightmap, the tracks' bottom run within the compliance of the ground
+            (``None``: the touching ones).
     """
 
     G_T_B: FloatArray
     contacts_G: FloatArray
     polygon_G: FloatArray
     flags: tuple[str, ...] = ()
+    bearing_G: FloatArray | None = None
+
+    def bearing(self) -> FloatArray:
+        """The contacts that carry load in G (k, 3) [m]."""
+        return self.contacts_G if self.bearing_G is None else self.bearing_G
 
 
 @runtime_checkable

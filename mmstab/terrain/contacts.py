@@ -47,6 +47,15 @@ class ContactCandidates(NamedTuple):
     points: FloatArray
     part: NDArray[np.int_]
 
+    @property
+    def compliant(self) -> NDArray[np.bool_]:
+        """(K,) the candidates on the tracks' flat bottom runs (z = 0 in B).
+
+        The tracks' suspension lets that part yield, so it carries load a little above the
+        ground too (:attr:`mmstab.terrain.rest.RestSettings.compliance`).
+        """
+        return (self.part == TRACK) & (np.abs(self.points[:, 2]) < 1e-12)
+
 
 def _segment(a: FloatArray, b: FloatArray, spacing: float) -> FloatArray:
     """Points from ``a`` to ``b`` (both included), at most ``spacing`` [m] apart."""

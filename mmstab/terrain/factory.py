@@ -38,7 +38,8 @@ def check_section(problem_path: Path, section: Any) -> str:
         raise ConfigError(problem_path, "terrain", "must be a mapping")
     if "generate" in section:
         gen = section["generate"]
-        validate(problem_path, {"terrain": section}, schema.obj(terrain=schema.obj(generate={})))
+        top = schema.with_optional(schema.obj(generate={}), compliance=schema.COMPLIANCE)
+        validate(problem_path, {"terrain": section}, schema.obj(terrain=top))
         if not isinstance(gen, dict):
             raise ConfigError(problem_path, "terrain.generate", "must be a mapping")
         kind = gen.get("kind")
@@ -84,6 +85,9 @@ def from_section(
     else:
         hm = generate(section["generate"])
     terrain = HeightmapTerrain(hm)
+    if "compliance" in section:
+        settings = terrain.settings._replace(compliance=float(section["compliance"]))
+        terrain = HeightmapTerrain(hm, settings=settings)
     return terrain if robot is None else terrain.with_robot(robot)
 
 

@@ -132,8 +132,9 @@ class HeightmapTerrain:
         """Resting poses, batched (see :func:`mmstab.terrain.rest.rest_poses`)."""
         c = self.candidates
         return rest_poses(
-            self.heightmap, c.points, self.com_body, poses, c.part, self.settings, strict
-        )
+            self.heightmap, c.points, self.com_body, poses, c.part, self.settings, strict,
+            c.compliant,
+        )  # fmt: skip
 
     def G_T_M(self) -> FloatArray:
         """The map frame is G."""
@@ -198,11 +199,12 @@ class HeightmapTerrain:
         terrain = self if robot is self.robot else self.with_robot(robot, self.flipper_angle)
         r = terrain.rest(np.asarray(pose, dtype=float))
         contacts = r.contacts_G(terrain.candidates.points, 0)
-        poly, line = support_vertices(contacts, GRAVITY_G)
+        bearing = r.bearing_G(terrain.candidates.points, 0)
+        poly, line = support_vertices(bearing, GRAVITY_G)
         flags = r.flags(0)
         if line and "line_contact" not in flags:
             flags = (*flags, "line_contact")
-        return Support(r.G_T_B[0], contacts, poly, flags)
+        return Support(r.G_T_B[0], contacts, poly, flags, bearing)
 
     # ---------------------------------------------------------------------- drawing
     def draw(

@@ -59,6 +59,11 @@ class RestSettings(NamedTuple):
         max_step: largest attitude step per round [rad].
         max_tilt: a roll or pitch beyond this means the robot tips over [rad].
         contact_tol: a candidate within this of the ground touches it [m].
+        compliance: a candidate on a track's flat bottom run within this of the ground
+            carries load [m]: the tracks' suspension and rubber yield that much, so the
+            rigid rest's few touching points (often three) are not all that holds the
+            robot up. Other candidates (arcs, flippers, chassis) carry load only when they
+            touch. On a plane the bottom runs all touch, so the support is the ramp's.
         line_width: touching contacts within this of one line are a line contact [m].
         approach: Newton steps longer than this [rad] are shortened ...
         approach_factor: ... by this factor (approach the rest without overshooting it).
@@ -81,6 +86,7 @@ class RestSettings(NamedTuple):
     max_step: float = 0.35
     max_tilt: float = 1.3
     contact_tol: float = 2e-4
+    compliance: float = 0.02
     line_width: float = 1e-3
     approach: float = 0.02
     approach_factor: float = 0.8
@@ -103,8 +109,11 @@ class RestPoses(NamedTuple):
         G_T_B: (N, 4, 4) resting body poses in G.
         gap: (N, K) height of each candidate above the ground below it [m].
         touching: (N, K) candidates within ``contact_tol`` of the ground.
+        bearing: (N, K) candidates that carry load: the touching ones and the tracks'
+            bottom-run candidates within ``compliance`` of the ground; the support polygon
+            is their hull.
         high_centred: (N,) the chassis touches the ground.
-        line_contact: (N,) the touching contacts lie on one line (no polygon).
+        line_contact: (N,) the bearing contacts lie on one line (no polygon).
         tips_over: (N,) no resting attitude within ``max_tilt``: the CoM leaves the footprint.
         converged: (N,) the attitude step fell below ``tol_step``.
         iterations: (N,) rounds used.
@@ -117,6 +126,7 @@ class RestPoses(NamedTuple):
     G_T_B: FloatArray
     gap: FloatArray
     touching: BoolArray
+    bearing: BoolArray
     high_centred: BoolArray
     line_contact: BoolArray
     tips_over: BoolArray
@@ -132,6 +142,12 @@ class RestPoses(NamedTuple):
     def contacts_G(self, points_body: ArrayLike, i: int) -> FloatArray:
         """The touching candidates of pose ``i`` in G (n, 3) [m]."""
         c = np.asarray(points_body, dtype=float)[self.touching[i]]
+        T = self.G_T_B[i]
+        return c @ T[:3, :3].T + T[:3, 3]
+
+    def bearing_G(self, points_body: ArrayLike, i: int) -> FloatArray:
+        """The bearing candidates of pose ``i`` in G (n, 3) [m] (their hull: the support)."""
+        c = np.asarray(points_body, dtype=float)[self.bearing[i]]
         T = self.G_T_B[i]
         return c @ T[:3, :3].T + T[:3, 3]
 
@@ -255,6 +271,7 @@ def rest_poses(
     part: ArrayLike | None = None,
     settings: RestSettings | None = None,
     strict: bool = True,
+    compliant: ArrayLike | None = None,
 ) -> RestPoses:
     """Resting poses of the rigid base at many poses (vectorised over poses).
 
@@ -267,6 +284,8 @@ def rest_poses(
         settings: solver settings (``None`` = the defaults).
         strict: raise :class:`OffMapError` if a pose needs ground off the map or on unknown
             cells; otherwise such poses come back NaN.
+        compliant: (K,) the candidates that bear load within ``settings.compliance`` of the
+            ground (:attr:`ContactCandidates.compliant`); ``None`` = none (rigid contacts).
 
     Returns:
         :class:`RestPoses` (leading axis N, also for a single pose).
@@ -281,7 +300,7 @@ def rest_poses(
         att, f, valid, converged, tips, iterations = _rest_c(heightmap, c, coarse, com, p, settings)
         if strict and not valid.all():
             _raise_off_map(heightmap, c, p[:, :2], p[:, 2], att, valid)
-        return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings)
+        return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings, compliant)
     if settings.backend != "numpy":
         raise ValueError(f"RestSettings.backend: {settings.backend!r} is not 'c' or 'numpy'")
     rough = settings._replace(tol_step=settings.coarse_tol)
@@ -303,7 +322,7 @@ def rest_poses(
     valid, converged, tips = cat[2].astype(bool), cat[3].astype(bool), cat[4].astype(bool)
     if strict and not valid.all():
         _raise_off_map(heightmap, c, p[:, :2], p[:, 2], att, valid)
-    return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings)
+    return _finish(c, p, att, f, valid, converged, tips, iterations, part, settings, compliant)
 
 
 def _rest_c(
@@ -508,6 +527,7 @@ def _finish(
     iterations: NDArray[np.int_],
     part: ArrayLike | None,
     settings: RestSettings,
+    compliant: ArrayLike | None = None,
 ) -> RestPoses:
     n, K = p.shape[0], c.shape[0]
     R = rotations(p[:, 2], att[:, 0], att[:, 1])[0]
@@ -519,9 +539,12 @@ def _finish(
     T[:, :3, 3] = np.concatenate([p[:, :2], z[:, None]], axis=1)
     codes = np.full(K, -1) if part is None else np.asarray(part)
     high = (touching & (codes == CHASSIS)[None, :]).any(axis=1)
-    # line contact: the touching points' footprint has no width. Its covariance is the
-    # touching candidates' covariance in B turned into G (cheaper than placing them all).
-    wgt = touching / np.maximum(touching.sum(axis=1), 1)[:, None]
+    bearing = touching.copy()
+    if compliant is not None:
+        bearing |= np.asarray(compliant, dtype=bool)[None, :] & (gap <= settings.compliance)
+    # line contact: the bearing points' footprint has no width. Its covariance is the
+    # bearing candidates' covariance in B turned into G (cheaper than placing them all).
+    wgt = bearing / np.maximum(bearing.sum(axis=1), 1)[:, None]
     mean = wgt @ c  # (n, 3)
     second = (wgt @ (c[:, :, None] * c[:, None, :]).reshape(K, 9)).reshape(n, 3, 3)
     cov_B = second - mean[:, :, None] * mean[:, None, :]
@@ -537,6 +560,7 @@ def _finish(
     T[bad] = np.nan
     gap[bad] = np.nan
     touching[bad] = False
+    bearing[bad] = False
     return RestPoses(
         poses=p,
         roll=roll,
@@ -545,6 +569,7 @@ def _finish(
         G_T_B=T,
         gap=gap,
         touching=touching,
+        bearing=bearing,
         high_centred=high & valid,
         line_contact=line & valid,
         tips_over=tips & valid,
