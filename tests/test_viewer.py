@@ -115,6 +115,22 @@ def test_ramp_terrain_mesh_lies_on_the_slope_and_faces_up(problem):
     assert seg.shape[1:] == (2, 3) and np.all(seg.reshape(-1, 3) @ n > 0)  # just above
 
 
+def test_a_heightmap_mesh_stays_on_its_map(robot):
+    """Poses near the edge of a map: the mesh is cut to the map, where the ground exists."""
+    from mmstab.terrain.generators import Grid, plane
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+
+    t = HeightmapTerrain(plane(Grid.of_size((3.0, 3.0), 0.05), 0.2, 0.3)).with_robot(robot)
+    near_edge = np.array([[1.2, 0.0, 0.0], [0.0, -1.3, 0.0]])
+    extent = extent_around(near_edge, 1.0, t.bounds)
+    x0, x1, y0, y1 = t.bounds
+    assert (extent.x_min, extent.x_max, extent.y_min, extent.y_max) == (-1.0, x1, y0, 1.0)
+    mesh = terrain_mesh(t, extent, cells=6)
+    assert np.isfinite(mesh.vertices).all()
+    with pytest.raises(Exception, match="off the map"):  # uncut, it would sample off the map
+        terrain_mesh(t, extent_around(near_edge, 1.0), cells=6)
+
+
 def test_heightmap_like_terrain_is_meshed_through_height():
     class Bumps:  # M = G, z = height(x, y)
         def G_T_M(self):

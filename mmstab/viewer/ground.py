@@ -52,11 +52,22 @@ class Extent(NamedTuple):
     y_max: float
 
 
-def extent_around(points_M: ArrayLike, margin: float) -> Extent:
-    """The rectangle of M holding ``points_M`` (n, >= 2) [m], grown by ``margin`` [m]."""
+def extent_around(
+    points_M: ArrayLike,
+    margin: float,
+    bounds: tuple[float, float, float, float] | None = None,
+) -> Extent:
+    """The rectangle of M holding ``points_M`` (n, >= 2) [m], grown by ``margin`` [m].
+
+    ``bounds`` ``(x_min, x_max, y_min, y_max)`` [m] (a map's, ``Terrain.bounds``) cut it:
+    the ground has no height off its map, so the mesh stays on it.
+    """
     p = np.asarray(points_M, dtype=float)
     p = p.reshape(p.shape[0], -1)[:, :2]
     lo, hi = p.min(axis=0) - margin, p.max(axis=0) + margin
+    if bounds is not None:
+        lo = np.maximum(lo, [bounds[0], bounds[2]])
+        hi = np.minimum(hi, [bounds[1], bounds[3]])
     return Extent(float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
 
 

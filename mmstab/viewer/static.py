@@ -60,7 +60,7 @@ def add_static_scene(
     )
     reference = problem.circle.poses(240)
     poses_for_extent = reference if run is None else np.vstack([reference, run.poses])
-    extent = extent_around(poses_for_extent, TERRAIN_MARGIN)
+    extent = extent_around(poses_for_extent, TERRAIN_MARGIN, getattr(ground, "bounds", None))
     mesh = terrain_mesh(ground, extent)
     import trimesh
 
