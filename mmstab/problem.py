@@ -67,12 +67,16 @@ class Problem:
 
         The tracking run's is for the time it simulates (:func:`mmstab.tracking.simulate`):
         ``duration`` [s] if given (``--duration``), else a route's driving time (a route sets
-        its own length), else ``controller.duration``.
+        its own length), else ``controller.duration``. On a route the planner's is for the
+        poses it places, every ``planner.spacing`` (not ``planner.poses``).
         """
+        poses = None
+        if self.route is not None:  # a route plans every planner.spacing, not planner.poses
+            poses = self.route.planned_poses(self.section("planner").get("spacing"))
         if duration is not None:
-            return estimates(self.data, duration, "--duration")
+            return estimates(self.data, duration, "--duration", poses)
         if self.route is not None:
-            return estimates(self.data, self.route.duration, "path")
+            return estimates(self.data, self.route.duration, "path", poses)
         return estimates(self.data)
 
     @property
@@ -127,9 +131,11 @@ def problem_from_dict(
     base_path: CirclePath | RoutePath
     if is_route(c):
         base_path = route_path_from_section(p, c, robot, terrain)
-        # its run lasts the driving time, not controller.duration: bound that run too
-        route_sizes = estimates(data, base_path.duration, "path")
-        for est in (route_sizes["controller"], route_sizes["animation"]):
+        # its run lasts the driving time, not controller.duration, and it plans every
+        # planner.spacing, not planner.poses: bound those too
+        n = base_path.planned_poses(data["planner"].get("spacing"))
+        route_sizes = estimates(data, base_path.duration, "path", n)
+        for est in (route_sizes["controller"], route_sizes["animation"], route_sizes["planner"]):
             why = refusal(est, force_size)
             if why is not None:
                 raise ConfigError(p, est.field, why)

@@ -166,19 +166,21 @@ def steps_estimate(field: str, duration: float, dt: float) -> Estimate:
     )
 
 
-def planner_estimate(section: Mapping[str, Any]) -> Estimate:
+def planner_estimate(section: Mapping[str, Any], poses: int | None = None) -> Estimate:
     """The planner's CMA-ES budget over the path (at most ``max_iterations`` per run).
 
     Each pose runs CMA-ES from each start (``seeding: starts``) or from ``coarse_seeds``
     refined optima of a coarse pass over ``coarse_samples`` samples of V (``seeding:
     coarse``, each sample costed as one CMA-ES sample), plus ``restarts`` IPOP reruns with
     the population doubled each time. ``method: exhaustive`` scores every valid grid CoM,
-    which the workspace bound already limits; its estimate is the CMA-ES one.
+    which the workspace bound already limits; its estimate is the CMA-ES one. ``poses``:
+    the number of planned poses when ``planner.poses`` does not set it (a route's, from
+    ``planner.spacing``).
     """
     restarts = int(section.get("restarts", 0))
     coarse = section.get("seeding", "starts") == "coarse"
     counts = {
-        "poses": int(section["poses"]),
+        "poses": int(section["poses"]) if poses is None else int(poses),
         "popsize": int(section["popsize"]),
         "max_iterations": int(section["max_iterations"]),
         "starts": int(section.get("coarse_seeds", 1)) if coarse else len(section["starts"]),
@@ -243,7 +245,10 @@ def precision_estimate(section: Mapping[str, Any]) -> Estimate:
 
 
 def estimates(
-    data: Mapping[str, Any], duration: float | None = None, field: str = "controller.duration"
+    data: Mapping[str, Any],
+    duration: float | None = None,
+    field: str = "controller.duration",
+    poses: int | None = None,
 ) -> dict[str, Estimate]:
     """Every size estimate of a schema-valid problem, by section.
 
@@ -252,6 +257,7 @@ def estimates(
         duration: the tracking run's simulated time [s] when it is not
             ``controller.duration`` (a route's driving time, ``--duration``).
         field: what sets that time, for messages (``path``, ``--duration``).
+        poses: the planned poses when not ``planner.poses`` (a route's).
     """
     ctrl = data["controller"]
     if duration is None:
@@ -261,7 +267,7 @@ def estimates(
         "workspace": workspace_estimate(data["workspace"]["grid"]),
         "precision": precision_estimate(data["workspace"]),
         "controller": steps_estimate(field, duration, ctrl["dt"]),
-        "planner": planner_estimate(data["planner"]),
+        "planner": planner_estimate(data["planner"], poses),
         "sweep": sweep_estimate(data["sweep"]),
         "animation": animation_estimate(data["animation"], steps + 1),
     }

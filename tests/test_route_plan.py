@@ -107,6 +107,12 @@ def test_track_announces_the_time_the_route_run_simulates(tmp_path, capsys, monk
     assert found["animation"] == sizes.animation_estimate(
         problem.section("animation"), route.duration / dt + 1
     )
+    # the planner's is for the poses the route plans (every planner.spacing)
+    spacing = problem.section("planner")["spacing"]
+    planned = int(np.ceil(route.length / spacing - 1e-9)) + 1
+    assert problem.route.planned_poses(spacing) == planned != problem.section("planner")["poses"]
+    assert found["planner"] == sizes.planner_estimate(problem.section("planner"), planned)
+    assert f"poses {planned} x" in found["planner"].work
 
 
 def test_a_route_too_long_to_track_is_refused_naming_the_path(tmp_path, monkeypatch):

@@ -50,6 +50,7 @@ from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm import warm_cma
 from mmstab.problem import Problem
 from mmstab.robot import FloatArray, Robot
+from mmstab.routes.path import DEFAULT_SPACING, route_samples
 from mmstab.stability import mu_max as stowed_flat_mu
 from mmstab.stability import stability_along
 from mmstab.terrain import Terrain
@@ -58,9 +59,6 @@ from mmstab.terrain import Terrain
 WARM_ITERATIONS = 8
 #: Smallest warm step size [m]: about the spacing of V's grid samples.
 WARM_SIGMA_MIN = 0.01
-#: The default ``planner.spacing`` of a route [m].
-DEFAULT_SPACING = 0.5
-
 Realise = Callable[[FloatArray, FloatArray], tuple[FloatArray, bool]]
 
 
@@ -112,12 +110,6 @@ class RiskStretch(NamedTuple):
     start_s: float
     end_s: float
     worst_mu: float
-
-
-def route_samples(length: float, spacing: float) -> FloatArray:
-    """Arc lengths [m] of the planned poses: 0, ``spacing``, ... and the route's end."""
-    n = max(int(np.ceil(length / spacing - 1e-9)), 1)
-    return np.linspace(0.0, length, n + 1)
 
 
 def warm_settings(settings: PlannerSettings, sigma: float) -> PlannerSettings:

@@ -44,6 +44,14 @@ ROUTE_DEFAULTS: dict[str, float] = {"acceleration": 0.3, "lateral_acceleration":
 HOLD = 0.25
 #: Largest spacing of the footprint check along the route and across the footprint [m].
 CHECK_SPACING = 0.05
+#: The default ``planner.spacing`` of a route [m]: how far apart its planned poses are.
+DEFAULT_SPACING = 0.5
+
+
+def route_samples(length: float, spacing: float) -> FloatArray:
+    """Arc lengths [m] of the planned poses: 0, ``spacing``, ... and the route's end."""
+    n = max(int(np.ceil(length / spacing - 1e-9)), 1)
+    return np.linspace(0.0, length, n + 1)
 
 
 def is_route(section: Any) -> bool:
@@ -84,6 +92,13 @@ class RoutePath:
     def length(self) -> float:
         """Arc length [m]."""
         return self.route.length
+
+    def planned_poses(self, spacing: float | None) -> int:
+        """How many poses the planner places along the route, ``spacing`` [m] apart.
+
+        ``None``: :data:`DEFAULT_SPACING`.
+        """
+        return len(route_samples(self.length, DEFAULT_SPACING if spacing is None else spacing))
 
     def s_at(self, u: ArrayLike) -> FloatArray:
         """Arc length [m] reached at time fractions ``u`` (clipped to [0, 1])."""
