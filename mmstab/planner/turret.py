@@ -58,7 +58,9 @@ def sample_postures(region: Any) -> FloatArray:
         )
     samples = sample_index(region).samples
     valid_com = np.asarray(valid_com, dtype=float)
-    keep = region.contains(valid_com)
+    # V's own mask when the region is V (computed once with its samples), else the test
+    known = getattr(region, "valid_in_V", None)
+    keep = region.contains(valid_com) if known is None else np.asarray(known, dtype=bool)
     postures = np.asarray(valid_q, dtype=float)[keep]
     if len(postures) != len(samples) or not np.array_equal(valid_com[keep], samples):
         raise MmstabError("planner: the region's samples are not its workspace's valid CoMs")

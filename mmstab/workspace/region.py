@@ -69,9 +69,17 @@ class Workspace:
         return inside
 
     @functools.cached_property
+    def valid_in_V(self) -> NDArray[np.bool_]:
+        """Which valid CoMs (rows of ``valid_com``) V contains (N,).
+
+        Computed once: it tests every sample against both hulls.
+        """
+        return self.contains(self.valid_com)
+
+    @functools.cached_property
     def valid_com_in_V(self) -> FloatArray:
         """The valid CoMs that V contains (M, 3) [m] (V drops some: see ``recall``)."""
-        return self.valid_com[self.contains(self.valid_com)]
+        return self.valid_com[self.valid_in_V]
 
     def violation(self, points: ArrayLike) -> FloatArray:
         """How far body-frame points (N, 3) lie outside V, 0 inside [m].
