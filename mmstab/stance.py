@@ -160,8 +160,8 @@ def stability_map(
     flags[unsettled] = 8
     for i in np.flatnonzero(np.isfinite(r.z) & ~unsettled):
         T = r.G_T_B[i]
-        contacts = r.bearing_G(c, int(i))
-        _, mu[i], line = contact_force_angle(contacts, T[:3, :3] @ com + T[:3, 3], mass * GRAVITY_G)
+        bearing = r.bearing_G(c, int(i))
+        _, mu[i], line = contact_force_angle(bearing, T[:3, :3] @ com + T[:3, 3], mass * GRAVITY_G)
         flags[i] = (
             1 * bool(r.high_centred[i])
             + 2 * (line or bool(r.line_contact[i]))

@@ -68,7 +68,7 @@ def test_kernel_equals_the_numpy_path(robot, section, active):
     n = 400
     poses = np.c_[rng.uniform(-0.8, 0.8, (n, 2)), rng.uniform(-np.pi, np.pi, n)]
     a, b = c_path.rest(poses), numpy_path.rest(poses)
-    assert a.converged.mean() > 0.99 and a.high_centred.any() == b.high_centred.any()
+    assert a.converged.mean() > 0.99
     assert_same_rests(a, b)
     # one pose at a time gives the batch's rest
     for i in rng.choice(n, 4, replace=False):
