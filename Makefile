@@ -157,7 +157,7 @@ view: setup
 ## the viewer as headless chromium shows it -> results/view/viewer.png (the README's picture)
 view-screenshot: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
-	$(PY) -m mmstab.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
+	$(PY) -m mmstab.viz.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
 
 ## seconds to the first page: mmstab view vs bare viser vs MeshCat -> results/bench/view.json
 ## (MeshCat is not a dependency: MESHCAT_PY=/path/to/a/python/with/meshcat adds it)
@@ -191,7 +191,7 @@ terrain: setup
 bench-terrain: setup
 	$(PY) benchmarks/bench_terrain.py $(TERRAINS)
 
-## edges (issue 13): are the size estimates of mmstab/sizes.py bounds here? -> results/bench/sizes.json
+## edges (issue 13): are the size estimates of mmstab/core/sizes.py bounds here? -> results/bench/sizes.json
 .PHONY: bench-sizes
 bench-sizes: setup
 	$(PY) benchmarks/sizes.py $(PROBLEM)

@@ -2,7 +2,7 @@
 
 All measured side by side in one run on this machine, on the same closed loop: the default
 problem's ramp circle (the default 30 s run at 1 ms = 30 000 steps), the example plan's
-arm reference (:func:`mmstab.rollout.example_plan`), start 5 cm off the path with the arm
+arm reference (:func:`mmstab.runs.rollout.example_plan`), start 5 cm off the path with the arm
 stowed (so the first second saturates joint speeds). Every per-step timing replays states of
 that one trajectory:
 
@@ -13,7 +13,7 @@ that one trajectory:
     configuration and velocity limits, on a 7-DoF MuJoCo model of the same robot (planar
     base: slide x, slide y, hinge yaw; the 4 arm hinges with the same DH geometry and masses).
 
-Also the whole default run's wall time per :func:`mmstab.rollout.rollout` backend and for the
+Also the whole default run's wall time per :func:`mmstab.runs.rollout.rollout` backend and for the
 C loop; the time split of the default plugin's step (``embedded/bench.c``: the task Jacobian,
 the QP assembly, the solver alone, the rest = glue) and the step's operation count with the
 time it would take at two scalar floating-point operations per clock cycle (the limit).
@@ -38,8 +38,7 @@ import numpy as np
 from common import machine_info
 
 from mmstab.codegen import CODEGEN_PLUGINS, EMBEDDED_DIR, STEP_NAME, build_programs, generate
-from mmstab.config import write_json
-from mmstab.controller import (
+from mmstab.control.controller import (
     PARAMS_SIZE,
     PLUGINS,
     REFERENCE_SIZE,
@@ -48,11 +47,13 @@ from mmstab.controller import (
     build_controller,
     quiet_stdout,
 )
-from mmstab.controller.certificate import build_guard_and_certificate
-from mmstab.problem import Problem, load_problem
-from mmstab.reference import initial_state
-from mmstab.robot import Robot
-from mmstab.rollout import (
+from mmstab.control.controller.certificate import build_guard_and_certificate
+from mmstab.control.reference import initial_state
+from mmstab.core.files import write_json
+from mmstab.core.problem import Problem, load_problem
+from mmstab.model.robot import Robot
+from mmstab.model.urdf import arm_link_inertia, dh_constant_T, rot_z_T, solid_box_inertia
+from mmstab.runs.rollout import (
     BACKENDS,
     RunInputs,
     controller_settings,
@@ -62,7 +63,6 @@ from mmstab.rollout import (
     run_inputs,
     write_run_file,
 )
-from mmstab.urdf import arm_link_inertia, dh_constant_T, rot_z_T, solid_box_inertia
 
 
 def _us(samples: list[float] | np.ndarray) -> float:
@@ -114,7 +114,7 @@ def bench_external(f: ca.Function, inputs: RunInputs, states: np.ndarray, idx) -
 def mjcf(robot: Robot) -> str:
     """A MuJoCo model of the robot on a planar base: slide x, slide y, hinge yaw + 4 arm hinges.
 
-    Same arm DH geometry, link masses and CoMs (inertias as :mod:`mmstab.urdf`: solid shapes);
+    Same arm DH geometry, link masses and CoMs (inertias as :mod:`mmstab.model.urdf`: solid shapes);
     the base is one body with the base mass at its CoM (solid-box inertia of the body box).
     """
 

@@ -20,17 +20,17 @@ from types import SimpleNamespace
 import numpy as np
 from common import machine_info
 
-from mmstab.config import write_json
-from mmstab.controller import (
+from mmstab.control.controller import (
     PLUGINS,
     ControllerSettings,
     StepReference,
     build_controller,
     quiet_stdout,
 )
-from mmstab.problem import load_problem
-from mmstab.reference import initial_state
-from mmstab.rollout import run_inputs
+from mmstab.control.reference import initial_state
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
+from mmstab.runs.rollout import run_inputs
 
 ARM_TARGET_POSTURE = np.array([2.0, 0.3, -0.5, 0.2])  # a reachable arm posture [rad]
 

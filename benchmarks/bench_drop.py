@@ -1,7 +1,7 @@
 """Benchmark: MuJoCo drops per pose, a Python loop with early stop vs ``mujoco.rollout``.
 
 Usage: ``python benchmarks/bench_drop.py [--poses N] [--runs R]``; writes
-``results/bench/drop.json``. The loop (:func:`mmstab.validation.mujoco_drop.drop`) stops
+``results/bench/drop.json``. The loop (:func:`mmstab.physics.mujoco_drop.drop`) stops
 each drop once it has settled; ``mujoco.rollout`` runs every pose for a fixed horizon
 (the longest settling time the loop needed) on its own thread pool. Medians over runs:
 the machine may be shared.
@@ -20,10 +20,10 @@ import numpy as np
 from common import machine_info
 from mujoco import rollout
 
-from mmstab.config import write_json
-from mmstab.robot import load_robot
-from mmstab.validation.experiment import build_terrain, sample_poses
-from mmstab.validation.mujoco_drop import DropModel, _quat, drop
+from mmstab.core.files import write_json
+from mmstab.model.robot import load_robot
+from mmstab.physics.experiment import build_terrain, sample_poses
+from mmstab.physics.mujoco_drop import DropModel, _quat, drop
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from common import machine_info
 
-from mmstab.config import write_json
-from mmstab.problem import load_problem
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 DEFAULT = ["problems/rough.yaml", "problems/kerb.yaml", "problems/dem.yaml"]

@@ -22,11 +22,11 @@ import numpy as np
 from common import machine_info
 
 from mmstab.app import generated_step, with_plugin
-from mmstab.config import MmstabError, write_json
-from mmstab.controller import CODEGEN_PLUGINS, PLUGINS, ControllerSettings
-from mmstab.posture import build_posture_reference, posture_samples
-from mmstab.problem import Problem, load_problem
-from mmstab.tracking import StepBackend, simulate
+from mmstab.control.controller import CODEGEN_PLUGINS, PLUGINS, ControllerSettings
+from mmstab.control.posture import build_posture_reference, posture_samples
+from mmstab.core.files import MmstabError, write_json
+from mmstab.core.problem import Problem, load_problem
+from mmstab.runs.tracking import StepBackend, simulate
 
 
 def bench(

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from common import machine_info
 
-from mmstab.config import write_json
+from mmstab.core.files import write_json
 
 VISER = (
     "import viser, time; s = viser.ViserServer(host='127.0.0.1', port=0, verbose=False); "

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 from common import machine_info
 
-from mmstab.config import write_json
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
 from mmstab.planner import (
     PlannerSettings,
     best_mu,
@@ -41,8 +42,7 @@ from mmstab.planner import (
     solve_path,
     solve_pose,
 )
-from mmstab.problem import load_problem
-from mmstab.stability import mu_max
+from mmstab.stability.static import mu_max
 from mmstab.terrain import Ramp
 from mmstab.workspace import load_or_build_workspace
 

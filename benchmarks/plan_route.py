@@ -34,7 +34,8 @@ from typing import Any
 import numpy as np
 from common import machine_info
 
-from mmstab.config import write_json
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
 from mmstab.planner import (
     PlannerSettings,
     planning_region,
@@ -44,8 +45,7 @@ from mmstab.planner import (
     solve_pose,
 )
 from mmstab.planner.route import DEFAULT_SPACING, route_samples, solve_route
-from mmstab.problem import load_problem
-from mmstab.stability import mu_max
+from mmstab.stability.static import mu_max
 from mmstab.workspace import load_or_build_workspace
 
 

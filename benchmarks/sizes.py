@@ -1,10 +1,10 @@
-"""Benchmark: are the size estimates of ``mmstab.sizes`` bounds on this machine?
+"""Benchmark: are the size estimates of ``mmstab.core.sizes`` bounds on this machine?
 
 Usage: ``python benchmarks/sizes.py [PROBLEM.yaml] [--runs N]``; writes
 ``results/bench/sizes.json``. For one modest instance of each stage it measures the wall
 time (median of ``--runs``) and, for the workspace and the tracking run, the peak memory
 the Python heap saw (``tracemalloc``, a separate run), and puts beside them what
-``mmstab.sizes`` estimates for the same instance. ``ratio`` = estimate / measured: above 1
+``mmstab.core.sizes`` estimates for the same instance. ``ratio`` = estimate / measured: above 1
 the estimate is a conservative bound (what the size checks need), below 1 it is not.
 """
 
@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 from common import machine_info
 
-from mmstab import sizes
-from mmstab.config import write_json
-from mmstab.problem import Problem, load_problem, problem_from_dict
+from mmstab.core import sizes
+from mmstab.core.files import write_json
+from mmstab.core.problem import Problem, load_problem, problem_from_dict
 
 
 def _median_seconds(fn: Callable[[], Any], runs: int) -> float:
@@ -103,7 +103,7 @@ def main() -> None:
         _median_seconds(lambda: plan_path(base, ws), args.runs),
     )
 
-    from mmstab.workspace_fidelity import measure_fidelity
+    from mmstab.workspace.fidelity import measure_fidelity
 
     wcfg = base.section("workspace")
     rows["precision"] = _row(
@@ -111,7 +111,7 @@ def main() -> None:
         _median_seconds(lambda: measure_fidelity(robot, ws, wcfg["precision_samples"], 0), 1),
     )
 
-    from mmstab.tracking import simulate
+    from mmstab.runs.tracking import simulate
 
     plan = plan_path(base, ws)
     short = _edited(base, controller={"duration": 3.0})
@@ -122,8 +122,8 @@ def main() -> None:
         _peak_bytes(lambda: simulate(short, plan, progress=False)),
     )
 
-    from mmstab.animation import render_animation
-    from mmstab.stability import mu_max
+    from mmstab.stability.static import mu_max
+    from mmstab.viz.animation import render_animation
 
     run = simulate(short, plan, progress=False)
     acfg = {**base.section("animation"), "frames": 12}

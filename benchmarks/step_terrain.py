@@ -17,9 +17,9 @@ import time
 import numpy as np
 from common import machine_info
 
-from mmstab.config import write_json
-from mmstab.controller import REFERENCE_SIZE, ControllerSettings, build_controller
-from mmstab.problem import load_problem
+from mmstab.control.controller import REFERENCE_SIZE, ControllerSettings, build_controller
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
 
 
 def main() -> None:

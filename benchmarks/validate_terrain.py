@@ -13,8 +13,8 @@ import sys
 
 from common import machine_info
 
-from mmstab.config import MmstabError
-from mmstab.validation.experiment import PREDICTORS, main_validation
+from mmstab.core.files import MmstabError
+from mmstab.physics.experiment import PREDICTORS, main_validation
 
 
 def main(argv: list[str] | None = None) -> int:

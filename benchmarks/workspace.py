@@ -21,10 +21,10 @@ import fcl
 import numpy as np
 from common import machine_info
 
-from mmstab.collision import CollisionChecker
-from mmstab.config import write_json
-from mmstab.problem import load_problem
-from mmstab.robot import Robot
+from mmstab.core.files import write_json
+from mmstab.core.problem import load_problem
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import Robot
 from mmstab.workspace import build_workspace, grid_postures, joint_grid
 
 

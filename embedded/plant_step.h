@@ -1,4 +1,4 @@
-/* One control period of the generated plant (mmstab/plant.py, exported with the step as
+/* One control period of the generated plant (mmstab/control/plant.py, exported with the step as
  * controller_plant): the robot's motion in the example loops, written once, in Python.
  *
  * Include after controller_step.h, with NX / NQ (state and joint sizes) and the work arrays

@@ -1,5 +1,5 @@
 /* Reading a run file: the inputs of one closed-loop run, written by Python
- * (mmstab.rollout.write_run_file). On a robot these would come from the planner and the
+ * (mmstab.runs.rollout.write_run_file). On a robot these would come from the planner and the
  * robot's configuration instead; the controller itself needs none of this.
  *
  * Layout (little-endian):

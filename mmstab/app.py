@@ -22,15 +22,15 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 import casadi as ca
 from numpy.typing import ArrayLike
 
-from mmstab.config import MmstabError
-from mmstab.problem import Problem, problem_from_dict
-from mmstab.stability import StabilityCases
-from mmstab.stability import stability_along as _stability_along
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import Problem, problem_from_dict
+from mmstab.stability.static import StabilityCases
+from mmstab.stability.static import stability_along as _stability_along
 
 if TYPE_CHECKING:
     from mmstab.planner import Plan
     from mmstab.planner.route import RoutePlan
-    from mmstab.tracking import InitialArm, StepBackend, TrackingPlan, TrackingRun
+    from mmstab.runs.tracking import InitialArm, StepBackend, TrackingPlan, TrackingRun
     from mmstab.workspace import Workspace
 
 Backend = Literal["interpreted", "generated"]
@@ -108,7 +108,7 @@ def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike)
 
 def with_plugin(problem: Problem, plugin: str | None) -> Problem:
     """The problem with ``controller.plugin`` replaced (validated again); itself if None."""
-    from mmstab.controller import PLUGINS
+    from mmstab.control.controller import PLUGINS
 
     if plugin is None or plugin == problem.section("controller")["plugin"]:
         return problem
@@ -130,7 +130,7 @@ def generated_step(problem: Problem, plugin: str | None = None) -> StepBackend:
         MmstabError: the plugin cannot be generated (qpOASES), or the build fails.
     """
     from mmstab.codegen import load_step
-    from mmstab.tracking import StepBackend
+    from mmstab.runs.tracking import StepBackend
 
     function = load_step(problem, plugin=plugin)
     if not isinstance(function, ca.Function):
@@ -158,10 +158,10 @@ def track(
             for the generated backend).
         backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C).
         duration: simulated time [s] (default the problem's ``controller.duration``).
-        initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
+        initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.runs.tracking`).
         progress: show progress bars.
         allow_unstable: go on when the plan made here is unstable (some pose's μ at or
-            below ``planner.margin``, :mod:`mmstab.verdict`); else stop before tracking.
+            below ``planner.margin``, :mod:`mmstab.runs.verdict`); else stop before tracking.
 
     Returns:
         The problem as run (its plugin replaced), the plan and the run (which stops where
@@ -171,7 +171,7 @@ def track(
         MmstabError: an unknown backend or plugin, or a failed build (before planning).
         UnstableError: the plan made here is unstable and ``allow_unstable`` is False.
     """
-    from mmstab.tracking import simulate
+    from mmstab.runs.tracking import simulate
 
     if backend not in ("interpreted", "generated"):
         raise MmstabError(f"backend must be 'interpreted' or 'generated', got {backend!r}")
@@ -183,7 +183,7 @@ def track(
     else:
         problem = with_plugin(problem, plugin)
     if arm_plan is None:
-        from mmstab.verdict import check_plan, plan_stability
+        from mmstab.runs.verdict import check_plan, plan_stability
 
         made = plan(problem, progress=progress)
         check_plan(plan_stability(problem, made), len(made.poses), allow_unstable)

@@ -16,14 +16,14 @@ RAMP_YAML = PROBLEMS / "ramp.yaml"
 
 @pytest.fixture(scope="session")
 def robot():
-    from mmstab.robot import load_robot
+    from mmstab.model.robot import load_robot
 
     return load_robot(ROBOT_YAML)
 
 
 @pytest.fixture(scope="session")
 def problem():
-    from mmstab.problem import load_problem
+    from mmstab.core.problem import load_problem
 
     return load_problem(RAMP_YAML)
 
@@ -70,7 +70,7 @@ FIRST_RELEASE_PLANNER = {
 
 def with_first_release_planner(problem):
     """The same problem with the first release's planner search."""
-    from mmstab.problem import problem_from_dict
+    from mmstab.core.problem import problem_from_dict
 
     data = copy.deepcopy(problem.data)
     data["planner"].update(FIRST_RELEASE_PLANNER)

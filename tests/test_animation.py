@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from PIL import Image, ImageChops
 
-from mmstab.animation import frame_indices, render_animation
-from mmstab.drawing import mesh_points, robot_meshes
-from mmstab.stability import robot_force_angle
+from mmstab.stability.static import robot_force_angle
 from mmstab.terrain import Ramp
+from mmstab.viz.animation import frame_indices, render_animation
+from mmstab.viz.drawing import mesh_points, robot_meshes
 
 
 def _run(robot, n: int):

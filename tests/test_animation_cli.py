@@ -52,8 +52,8 @@ def test_animation_subprocess_writes_a_gif(tmp_path):
 
 
 def test_animation_settings_are_validated(tmp_path):
-    from mmstab.config import ConfigError
-    from mmstab.problem import load_problem
+    from mmstab.core.files import ConfigError
+    from mmstab.core.problem import load_problem
 
     path = write_problem(tmp_path, lambda p, r: p["animation"].__setitem__("fps", 0))
     with pytest.raises(ConfigError) as info:

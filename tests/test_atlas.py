@@ -9,22 +9,22 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.atlas.cell import (
+from mmstab.cli import main
+from mmstab.core.problem import load_problem
+from mmstab.experiments.atlas.cell import (
     ChunkTask,
     VariantPayload,
     cell_rng,
     compute_chunk,
     worker_counts,
 )
-from mmstab.atlas.figures import envelope
-from mmstab.atlas.runner import payload, run_atlas
-from mmstab.atlas.spec import atlas_spec, flipper_ground_angle, with_flipper_angle
-from mmstab.atlas.store import CELL_VARIABLES
-from mmstab.cli import main
+from mmstab.experiments.atlas.figures import envelope
+from mmstab.experiments.atlas.runner import payload, run_atlas
+from mmstab.experiments.atlas.spec import atlas_spec, flipper_ground_angle, with_flipper_angle
+from mmstab.experiments.atlas.store import CELL_VARIABLES
+from mmstab.model.robot import FLIPPER_CONTACT_TOL
 from mmstab.planner import solve_pose
-from mmstab.problem import load_problem
-from mmstab.robot import FLIPPER_CONTACT_TOL
-from mmstab.stability import robot_force_angle
+from mmstab.stability.static import robot_force_angle
 from mmstab.terrain import Ramp
 
 CACHE = None  # set per session by the ``cache`` fixture
@@ -318,7 +318,7 @@ def test_bad_atlas_section_is_one_line_and_exit_2(tmp_path, capsys, atlas, field
 
 def test_store_of_another_atlas_is_not_resumed(tmp_path, capsys, tiny_problem):
     spec = atlas_spec(tiny_problem)
-    from mmstab.atlas.store import AtlasStore
+    from mmstab.experiments.atlas.store import AtlasStore
 
     AtlasStore.open_or_create(tmp_path / "atlas.zarr", spec, np.ones(spec.shape[:3]))
     path = write_problem(
@@ -340,7 +340,7 @@ def test_payload_is_picklable_without_kinematics(tiny_problem):
 
 
 def test_unreachable_scheduler_is_one_line(tmp_path, capsys, tiny_problem, monkeypatch):
-    import mmstab.atlas.driver as driver
+    import mmstab.experiments.atlas.driver as driver
 
     monkeypatch.setattr(driver, "CONNECT_TIMEOUT", 1.0)
     argv = [
@@ -430,7 +430,7 @@ def test_payload_and_seed_axes_on_the_cluster(cluster, tmp_path):
 
     import xarray as xr
 
-    from mmstab.atlas.cell import heightmap_yaw
+    from mmstab.experiments.atlas.cell import heightmap_yaw
     from mmstab.terrain.generators import generate
     from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 

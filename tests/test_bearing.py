@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mmstab.stability import contact_force_angle
-from mmstab.stance import stance
+from mmstab.stability.stance import stance
+from mmstab.stability.static import contact_force_angle
 from mmstab.terrain import Ramp
 from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.factory import from_section
@@ -80,7 +80,7 @@ def test_compliance_from_the_problem_file(tmp_path, robot):
     section = {"generate": ROUGH, "compliance": 0.005}
     t = from_section(tmp_path / "p.yaml", section, robot)
     assert isinstance(t, HeightmapTerrain) and t.settings.compliance == 0.005
-    from mmstab.config import ConfigError
+    from mmstab.core.files import ConfigError
 
     with pytest.raises(ConfigError, match="terrain"):
         from_section(tmp_path / "p.yaml", {"generate": ROUGH, "compliance": -0.1}, robot)

@@ -1,4 +1,4 @@
-"""The box QP plugin (mmstab/controller/boxqp.c): exact, checked against qrqp and KKT."""
+"""The box QP plugin (mmstab/control/controller/boxqp.c): exact, checked against qrqp and KKT."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from mmstab.controller import QPStatus, StepReference, build_controller
-from mmstab.controller.boxqp import BOXQP_NAME, build_boxqp
-from mmstab.reference import initial_state
-from mmstab.rollout import controller_settings, example_plan, rollout, run_inputs
+from mmstab.control.controller import QPStatus, StepReference, build_controller
+from mmstab.control.controller.boxqp import BOXQP_NAME, build_boxqp
+from mmstab.control.reference import initial_state
+from mmstab.runs.rollout import controller_settings, example_plan, rollout, run_inputs
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from conftest import write_problem
 
 import mmstab.codegen as codegen
 import mmstab.codegen.build as codegen_build
-import mmstab.controller.step as controller_step_mod
+import mmstab.control.controller.step as controller_step_mod
 from mmstab.cli import main
 from mmstab.codegen import (
     CODEGEN_PLUGINS,
@@ -26,8 +26,7 @@ from mmstab.codegen import (
     load_step,
     postprocess,
 )
-from mmstab.config import ConfigError, MmstabError
-from mmstab.controller import (
+from mmstab.control.controller import (
     PARAMS_SIZE,
     REFERENCE_SIZE,
     STATE_SIZE,
@@ -37,9 +36,10 @@ from mmstab.controller import (
     build_controller,
     quiet_stdout,
 )
-from mmstab.problem import load_problem
-from mmstab.reference import initial_state
-from mmstab.rollout import (
+from mmstab.control.reference import initial_state
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
+from mmstab.runs.rollout import (
     controller_settings,
     example_plan,
     rollout,

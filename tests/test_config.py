@@ -10,8 +10,8 @@ import pytest
 from conftest import ROOT, write_problem
 
 from mmstab.cli import main
-from mmstab.config import ConfigError
-from mmstab.problem import load_problem
+from mmstab.core.files import ConfigError
+from mmstab.core.problem import load_problem
 
 
 def _swap_limits(p, r):

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.config import ConfigError
-from mmstab.controller import (
+from mmstab.control.controller import (
     CODEGEN_PLUGINS,
     PARAMS_SIZE,
     PLUGINS,
@@ -21,8 +20,7 @@ from mmstab.controller import (
     StepReference,
     build_controller,
 )
-from mmstab.problem import load_problem
-from mmstab.reference import (
+from mmstab.control.reference import (
     arm_reference,
     base_reference,
     circle_pose,
@@ -31,6 +29,8 @@ from mmstab.reference import (
     task_reference,
     unwrap_postures,
 )
+from mmstab.core.files import ConfigError
+from mmstab.core.problem import load_problem
 from mmstab.terrain import rot_z, wrap_angle
 
 
@@ -188,7 +188,7 @@ def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
 def test_certificate_judges_the_posture_term(robot, controllers, rng):
     """The in-graph certificate uses the whole cost: the answer of Eq. 7 without the posture
     term is refused (SOLVER_FAILED), the true optimum accepted."""
-    from mmstab.controller.certificate import build_guard_and_certificate
+    from mmstab.control.controller.certificate import build_guard_and_certificate
 
     c = controllers["qrqp"]
     _, certificate = build_guard_and_certificate(c.settings.kkt_tol)

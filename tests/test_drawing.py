@@ -11,7 +11,10 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-from mmstab.drawing import (  # noqa: E402
+from mmstab.model.robot import Box, Capsule  # noqa: E402
+from mmstab.stability.static import base_polygon  # noqa: E402
+from mmstab.terrain import Ramp  # noqa: E402
+from mmstab.viz.drawing import (  # noqa: E402
     box_faces,
     capsule_faces,
     draw_ground,
@@ -20,9 +23,6 @@ from mmstab.drawing import (  # noqa: E402
     robot_meshes,
     support_polygon_G,
 )
-from mmstab.robot import Box, Capsule  # noqa: E402
-from mmstab.stability import base_polygon  # noqa: E402
-from mmstab.terrain import Ramp  # noqa: E402
 
 BODIES = [
     "body",
@@ -125,8 +125,8 @@ def test_draw_ground_and_poses(ax3d, robot):
 
 def test_draw_ground_keeps_to_the_map(ax3d):
     """A patch reaching past a heightmap's edge is cut to it: no sample off the map."""
-    from mmstab.drawing import clip_to_ground
     from mmstab.terrain import Heightmap, HeightmapTerrain
+    from mmstab.viz.drawing import clip_to_ground
 
     hm = Heightmap.build(np.zeros((21, 41)), 0.1, (-2.0, -1.0))  # x -2 .. 2, y -1 .. 1 m
     terrain = HeightmapTerrain(hm)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mmstab.dynamics import dynamic_force_angle, net_wrench
-from mmstab.stability import force_angle_batch, support_polygon
+from mmstab.stability.dynamic import dynamic_force_angle, net_wrench
+from mmstab.stability.static import force_angle_batch, support_polygon
 from mmstab.terrain import rot_x, rot_z
 
 G = np.array([0.0, 0.0, -9.81])
@@ -131,8 +131,8 @@ def test_bad_inputs():
 
 
 def test_robot_wrench_zero_is_static_and_pull_through_com_by_hand(robot, rng):
-    from mmstab.dynamics import robot_force_angle_wrench
-    from mmstab.stability import robot_force_angle
+    from mmstab.stability.dynamic import robot_force_angle_wrench
+    from mmstab.stability.static import robot_force_angle
 
     q = rng.uniform(robot.joint_lower, robot.joint_upper, (8, 4))
     g_a = robot.arm_com(q)
@@ -159,6 +159,6 @@ def test_robot_wrench_zero_is_static_and_pull_through_com_by_hand(robot, rng):
 
 
 def base_polygon_vertices(robot):
-    from mmstab.stability import base_polygon
+    from mmstab.stability.static import base_polygon
 
     return base_polygon(robot).vertices

@@ -10,10 +10,10 @@ import pytest
 from conftest import write_problem
 
 from mmstab.cli import main
-from mmstab.config import UnstableError, check_output_dir
-from mmstab.problem import load_problem
-from mmstab.stability import robot_force_angle
-from mmstab.verdict import plan_verdict, pose_mu
+from mmstab.core.files import UnstableError, check_output_dir
+from mmstab.core.problem import load_problem
+from mmstab.runs.verdict import plan_verdict, pose_mu
+from mmstab.stability.static import robot_force_angle
 
 SMALL_GRID = [10, 8, 8, 8]
 
@@ -120,8 +120,8 @@ def tipping(tmp_path_factory):
 
 
 def test_tracking_stops_at_the_first_sample_that_tips(tipping):
-    from mmstab.controller import ControllerSettings, build_controller
-    from mmstab.tracking import StepBackend, simulate, summarize
+    from mmstab.control.controller import ControllerSettings, build_controller
+    from mmstab.runs.tracking import StepBackend, simulate, summarize
 
     problem, plan, _ = tipping
     assert min(t.mu for t in plan.targets) > 0  # the plan itself holds
@@ -165,7 +165,7 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
 
 
 def test_tipping_at_the_start_is_refused_before_building(tmp_path):
-    from mmstab.tracking import simulate
+    from mmstab.runs.tracking import simulate
 
     problem = load_problem(write_problem(tmp_path, _small(slope=1.2)))
     plan = type("P", (), {})()
@@ -288,7 +288,7 @@ def test_run_interruptibly_answers_raises_and_yields_to_ctrl_c():
     import threading
     import time
 
-    from mmstab.pool import run_interruptibly
+    from mmstab.core.pool import run_interruptibly
 
     assert run_interruptibly(sum, [1, 2, 3]) == 6
     with pytest.raises(ZeroDivisionError):
@@ -311,8 +311,8 @@ def test_ctrl_c_swallowed_by_ipopt_is_raised_again(robot):
     import threading
     import time
 
-    from mmstab.ik import PostureSolver
-    from mmstab.pool import INTERRUPTED, note_interrupts
+    from mmstab.core.pool import INTERRUPTED, note_interrupts
+    from mmstab.workspace.ik import PostureSolver
 
     solver = PostureSolver(robot, None)
     target = robot.arm_com(np.array([1.0, 0.3, 0.5, 0.2]))

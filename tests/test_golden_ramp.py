@@ -84,7 +84,7 @@ def test_step_interpreted_unchanged(golden_problem):
 @pytest.mark.parametrize("plugin", ["qrqp", "box"])
 def test_step_generated_c_unchanged(golden_problem, tmp_path, plugin):
     from mmstab.codegen import STEP_NAME, generate
-    from mmstab.controller import ControllerParams, ControllerSettings
+    from mmstab.control.controller import ControllerParams, ControllerSettings
 
     gen = generate(golden_problem, tmp_path / plugin, plugin)
     ext = gen.load(STEP_NAME)

@@ -122,7 +122,7 @@ def test_workspace_build_stops_with_its_workers(tmp_path):
         assert not (cache.exists() and list(cache.glob("*.npz")))  # no cache written
         _no_partial_files(cache)
     # the next run recovers: builds the same cache from nothing
-    from mmstab.problem import load_problem
+    from mmstab.core.problem import load_problem
     from mmstab.workspace import load_or_build_workspace, workspace_cache_path
 
     problem = load_problem(path)

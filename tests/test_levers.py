@@ -15,26 +15,24 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS, write_problem
 
-from mmstab.config import MmstabError
-from mmstab.dynamics import dynamic_force_angle, net_wrench, robot_mu
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import load_problem
 from mmstab.experiments import levers as L
-from mmstab.payload import Payload, attach_payload
+from mmstab.model.payload import Payload, attach_payload
+from mmstab.paths.circle import CirclePath
 from mmstab.planner import PlannerSettings, plan_path, pose_fitness, solve_pose
 from mmstab.planner.levers import (
     flipper_candidates,
     flipper_ground_angle,
     solve_path_flippers,
     solve_pose_flippers,
-    tool_points,
     with_flipper_angle,
-    with_tool_wrench,
 )
-from mmstab.planner.levers import (
-    tool_map as tool_map_of,
-)
-from mmstab.problem import load_problem
-from mmstab.stability import base_polygon, mu_max, robot_force_angle
-from mmstab.terrain import CirclePath, Ramp
+from mmstab.planner.wrench import tool_map as tool_map_of
+from mmstab.planner.wrench import tool_points, with_tool_wrench
+from mmstab.stability.dynamic import dynamic_force_angle, net_wrench, robot_mu
+from mmstab.stability.static import base_polygon, mu_max, robot_force_angle
+from mmstab.terrain import Ramp
 
 SMALL_GRID = [10, 8, 8, 8]
 
@@ -395,7 +393,7 @@ def test_verdict_measure_agrees_with_the_planner_on_V_samples(small):
     ],
 )
 def test_bad_flipper_limits(tmp_path, limits, field):
-    from mmstab.config import ConfigError
+    from mmstab.core.files import ConfigError
 
     def edit(p, r):
         r["base"]["flippers"]["limits"] = limits
@@ -418,7 +416,7 @@ def test_flipper_limits_are_not_hashed(tmp_path, problem):
 
 def test_controller_com_task_carries_the_payload(robot):
     """The CoM task's value and Jacobian are those of the loaded arm (placed in M)."""
-    from mmstab.tasks.model import TaskModel
+    from mmstab.control.tasks.model import TaskModel
 
     loaded = attach_payload(robot, Payload(3.0, np.array([0.05, 0.0, 0.0])))
     state = np.array([0.3, -0.2, 0.4, 0.0, 0.0, 0.5, 0.6, -0.7, 0.3])  # pose, sprockets, arm

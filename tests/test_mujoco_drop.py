@@ -8,12 +8,12 @@ from scipy.optimize import brentq
 
 mujoco = pytest.importorskip("mujoco")
 
-from mmstab.config import MmstabError  # noqa: E402
-from mmstab.robot import rpy_matrix  # noqa: E402
-from mmstab.validation.compare import compare, distribution  # noqa: E402
-from mmstab.validation.heightfield import heightmap, hfield_mjcf  # noqa: E402
-from mmstab.validation.mujoco_drop import DropModel, DropSettings, build_model, drop  # noqa: E402
-from mmstab.validation.plane import plane_predictor  # noqa: E402
+from mmstab.core.files import MmstabError  # noqa: E402
+from mmstab.model.robot import rpy_matrix  # noqa: E402
+from mmstab.physics.compare import compare, distribution  # noqa: E402
+from mmstab.physics.heightfield import heightmap, hfield_mjcf  # noqa: E402
+from mmstab.physics.mujoco_drop import DropModel, DropSettings, build_model, drop  # noqa: E402
+from mmstab.physics.plane import plane_predictor  # noqa: E402
 
 ORIGIN = np.array([-1.5, -1.3])
 RES = 0.05
@@ -227,7 +227,7 @@ def test_distribution_and_outliers(robot):
 
 
 def test_rest_state_hook_tells_a_second_rest_from_a_wrong_prediction(robot):
-    from mmstab.validation.compare import rest_state_check
+    from mmstab.physics.compare import rest_state_check
 
     e = plane(np.tan(0.2), 0.0)
     dm = DropModel(robot, e, RES, ORIGIN)

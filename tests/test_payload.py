@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import random_postures
 
-from mmstab.config import ConfigError
-from mmstab.payload import attach_payload, check_payload
+from mmstab.core.files import ConfigError
+from mmstab.model.payload import attach_payload, check_payload
 
 
 def test_arm_com_with_payload_by_hand(robot, rng):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.config import ConfigError, MmstabError
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
 from mmstab.planner import PlannerSettings, plan_path, solve_path, solve_pose
-from mmstab.problem import load_problem
-from mmstab.stability import robot_force_angle
+from mmstab.stability.static import robot_force_angle
 
 COARSE = [10, 8, 8, 8]
 
@@ -54,7 +54,7 @@ def test_same_seed_same_plan_and_global_state_untouched(coarse):
 
 def test_plan_targets_in_V_and_realised_collision_free(coarse):
     problem, ws = coarse
-    from mmstab.collision import CollisionChecker
+    from mmstab.model.collision import CollisionChecker
 
     plan = plan_path(problem, workspace=ws)
     assert len(plan.poses) == problem.section("planner")["poses"]

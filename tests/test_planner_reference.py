@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS, RAMP_YAML, write_problem
 
-from mmstab.config import ConfigError, MmstabError
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
 from mmstab.planner import (
     Fitness,
     PlannerSettings,
@@ -20,8 +21,7 @@ from mmstab.planner import (
     solve_start,
     start_coms,
 )
-from mmstab.problem import load_problem
-from mmstab.stability import force_angle, mu_max, robot_force_angle
+from mmstab.stability.static import force_angle, mu_max, robot_force_angle
 from mmstab.terrain import Ramp
 
 COARSE = [10, 8, 8, 8]
@@ -259,7 +259,7 @@ def test_old_settings_run_the_first_release_search(coarse):
     rng = np.random.default_rng(s.seed)
     starts = start_coms(robot, ws, s.starts)
     previous = robot.arm_com(robot.stowed)
-    from mmstab.stability import base_polygon
+    from mmstab.stability.static import base_polygon
 
     for pose, t in zip(poses, plan.targets, strict=True):
         fitness = Fitness(

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
 from mmstab.terrain.generators import Grid, generate, plane
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -103,7 +103,7 @@ def test_unknown_backend_is_refused(robot):
 
 def test_compiled_library_is_cached_by_source(tmp_path, monkeypatch):
     """One build per source text: the same source is reused, an edited one rebuilt."""
-    from mmstab.clib import compiled_library
+    from mmstab.core.clib import compiled_library
 
     monkeypatch.setenv("MMSTAB_CACHE", str(tmp_path / "cache"))
     src = tmp_path / "k.c"

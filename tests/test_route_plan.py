@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 import yaml
 
-from mmstab.config import ConfigError
+from mmstab.core.files import ConfigError
+from mmstab.core.problem import load_problem, problem_from_dict
 from mmstab.planner import PlannerSettings, planning_region, region_samples, solve_exhaustive
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.route import plan_route, route_risk, stretches
-from mmstab.problem import load_problem, problem_from_dict
-from mmstab.stability import mu_max
+from mmstab.stability.static import mu_max
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUGH = ROOT / "problems" / "rough.yaml"
@@ -82,9 +82,9 @@ def test_route_and_circle_paths_load(tmp_path):
 def test_track_announces_the_time_the_route_run_simulates(tmp_path, capsys, monkeypatch):
     """A route's run lasts its driving time (tracking.simulate); the estimate shown is for it."""
     import mmstab.experiments.tracking as tracking
-    from mmstab import sizes
     from mmstab.cli import main
-    from mmstab.config import MmstabError
+    from mmstab.core import sizes
+    from mmstab.core.files import MmstabError
 
     problem = load_problem(ROUGH)
     route, ctrl = problem.route, problem.section("controller")
@@ -117,7 +117,7 @@ def test_track_announces_the_time_the_route_run_simulates(tmp_path, capsys, monk
 
 def test_a_route_too_long_to_track_is_refused_naming_the_path(tmp_path, monkeypatch):
     """The size bound holds for the route's driving time, not the YAML's duration."""
-    from mmstab import sizes
+    from mmstab.core import sizes
 
     monkeypatch.setattr(sizes, "available_memory", lambda: 16e9)
     with pytest.raises(ConfigError, match=r"p.yaml: path: .* control periods .* memory"):
@@ -300,7 +300,7 @@ def test_warm_cma_finds_a_known_optimum(target):
 
 def test_sequence_along_the_rough_route(rough_small):
     """rough.yaml's own search (method sequence): collision-free moves, never below stowed."""
-    from mmstab.collision import CollisionChecker
+    from mmstab.model.collision import CollisionChecker
     from mmstab.planner.sequence import segments_collide
 
     problem, ws = rough_small

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mmstab.config import ConfigError
-from mmstab.routes import Arc, Line, SpeedLimits, route_from_waypoints, speed_profile
-from mmstab.routes.geometry import RouteError
-from mmstab.routes.io import read_waypoints_csv, route_from_section
+from mmstab.core.files import ConfigError
+from mmstab.paths import Arc, Line, SpeedLimits, route_from_waypoints, speed_profile
+from mmstab.paths.geometry import RouteError
+from mmstab.paths.io import read_waypoints_csv, route_from_section
 
 LIMITS = SpeedLimits(
     speed=0.5, acceleration=0.5, lateral_acceleration=0.5, track_speed=1.13, track_separation=0.42

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from test_turret_window import coarse  # noqa: F401  (module fixture: coarse problem + V)
 
-from mmstab.collision import CollisionChecker
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.model.collision import CollisionChecker
 from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
 from mmstab.planner.exhaustive import sample_index
 from mmstab.planner.sequence import _viterbi, segments_collide, solve_sequence
 from mmstab.planner.turret import sample_postures
-from mmstab.stability import mu_max
+from mmstab.stability.static import mu_max
 
 WINDOW = 0.8  # [rad]
 
@@ -98,10 +98,10 @@ def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
     """The default problem's plan (method sequence), on a coarse V, tracked for a full lap."""
     from conftest import write_problem
 
+    from mmstab.core.problem import load_problem
     from mmstab.experiments.tracking import self_collisions
     from mmstab.planner import plan_path
-    from mmstab.problem import load_problem
-    from mmstab.tracking import simulate, summarize
+    from mmstab.runs.tracking import simulate, summarize
     from mmstab.workspace import load_or_build_workspace
 
     path = write_problem(tmp_path, lambda p, r: p["workspace"].__setitem__("grid", COARSE))

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from conftest import RAMP_YAML, ROOT, write_problem
 
-from mmstab import sizes
 from mmstab.cli import main
-from mmstab.config import ConfigError, MmstabError
-from mmstab.problem import load_problem
-from mmstab.settings import SECTION_CHECKS, check_duration
+from mmstab.core import sizes
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
+from mmstab.core.settings import SECTION_CHECKS, check_duration
 
 GB = 1e9
 
@@ -28,7 +28,7 @@ def memory_16gb(monkeypatch):
 # ------------------------------------------------------------------------------ the registry
 def test_problem_imports_nothing_above_the_inputs():
     code = (
-        "import sys, mmstab.problem; "
+        "import sys, mmstab.core.problem; "
         "print(' '.join(sorted(m for m in sys.modules if m.startswith('mmstab'))))"
     )
     out = subprocess.run(
@@ -37,13 +37,13 @@ def test_problem_imports_nothing_above_the_inputs():
     loaded = set(out.stdout.split())
     for above in ("controller", "codegen", "planner", "tasks", "workspace", "tracking"):
         assert f"mmstab.{above}" not in loaded
-    assert {"mmstab.settings", "mmstab.sizes", "mmstab.schema"} <= loaded
+    assert {"mmstab.core.settings", "mmstab.core.sizes", "mmstab.core.schema"} <= loaded
 
 
 def test_importing_a_stage_registers_nothing():
     before = dict(SECTION_CHECKS)
     import mmstab.codegen  # noqa: F401
-    import mmstab.controller  # noqa: F401
+    import mmstab.control.controller  # noqa: F401
     import mmstab.planner  # noqa: F401
 
     assert dict(SECTION_CHECKS) == before

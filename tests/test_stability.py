@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mmstab.stability import (
+from mmstab.stability.static import (
     axis_angles,
     base_polygon,
     force_angle,
@@ -109,7 +109,7 @@ def test_arm_uphill_is_more_stable_than_downhill(robot):
 def test_touching_flippers_extend_the_polygon():
     from dataclasses import replace
 
-    from mmstab.robot import load_robot
+    from mmstab.model.robot import load_robot
 
     robot = load_robot("problems/robots/cameleon.yaml")
     f = robot.base.flippers
@@ -133,7 +133,7 @@ def test_touching_flippers_extend_the_polygon():
 
 def test_stability_along_gives_the_three_cases(robot, rng):
     """The trio against robot_force_angle case by case, and the arm-removed case by hand."""
-    from mmstab.stability import stability_along
+    from mmstab.stability.static import stability_along
 
     ramp = Ramp(0.2)
     poses = np.column_stack([rng.uniform(-2, 2, (6, 2)), rng.uniform(-np.pi, np.pi, 6)])

@@ -11,7 +11,7 @@ import numpy as np
 from conftest import RAMP_YAML, ROOT
 
 from mmstab.experiments.common import circular_extrema
-from mmstab.stability import robot_force_angle
+from mmstab.stability.static import robot_force_angle
 
 
 def _run(*args: str) -> None:

@@ -6,10 +6,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from mmstab.controller import ControllerParams, ControllerSettings
-from mmstab.limits import JointPositionLimit, JointVelocityLimit
-from mmstab.limits.base import intersect
-from mmstab.tasks import ArmCoMTask, BasePointTask, PostureTask, TaskModel, TaskTarget
+from mmstab.control.controller import ControllerParams, ControllerSettings
+from mmstab.control.limits import JointPositionLimit, JointVelocityLimit
+from mmstab.control.limits.base import intersect
+from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, TaskModel, TaskTarget
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,8 @@ import yaml
 from conftest import RAMP_YAML, ROBOT_YAML
 
 from mmstab.cli import main
-from mmstab.problem import load_problem
-from mmstab.stability import robot_force_angle
+from mmstab.core.problem import load_problem
+from mmstab.stability.static import robot_force_angle
 
 KERB = {
     "generate": {

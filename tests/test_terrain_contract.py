@@ -25,7 +25,7 @@ def rough_heightmap():
     """Rough ground (a generated 6 m map) bound to the default robot."""
     from conftest import ROBOT_YAML
 
-    from mmstab.robot import load_robot
+    from mmstab.model.robot import load_robot
     from mmstab.terrain import HeightmapTerrain
     from mmstab.terrain.generators import generate
 
@@ -220,7 +220,7 @@ def test_ramp_is_invariant_under_motions_along_its_plane(rng):
 
 
 def test_from_section_builds_the_ramp_and_names_a_bad_kind(tmp_path):
-    from mmstab.config import ConfigError
+    from mmstab.core.files import ConfigError
     from mmstab.terrain import from_section
 
     t = from_section(tmp_path / "p.yaml", {"slope": 0.2})

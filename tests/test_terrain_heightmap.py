@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mmstab.config import ConfigError
+from mmstab.core.files import ConfigError
 from mmstab.terrain.generators import Grid, bumps, ditch, fractal_elevation, generate, kerb, plane
 from mmstab.terrain.heightmap import Heightmap, OffMapError
 from mmstab.terrain.io import load_heightmap, rasterise, save_npz, write_geotiff

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from mmstab.stability import robot_force_angle
-from mmstab.stance import stance
+from mmstab.stability.stance import stance
+from mmstab.stability.static import robot_force_angle
 from mmstab.terrain import Ramp, roll_pitch
 from mmstab.terrain.contacts import ARC_STEP, CHASSIS, FLIPPER, TRACK, contact_candidates
 from mmstab.terrain.generators import Grid, generate, kerb, plane

@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from mmstab.stability import axis_angles, contact_force_angle, force_angle, support_polygon_3d
+from mmstab.stability.static import (
+    axis_angles,
+    contact_force_angle,
+    force_angle,
+    support_polygon_3d,
+)
 
 
 def test_non_coplanar_polygon_by_hand():

@@ -15,8 +15,7 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.config import MmstabError
-from mmstab.controller import (
+from mmstab.control.controller import (
     PARAMS_SIZE,
     REFERENCE_SIZE,
     ControllerParams,
@@ -25,11 +24,12 @@ from mmstab.controller import (
     TaskModel,
     build_controller,
 )
-from mmstab.problem import load_problem
-from mmstab.reference import initial_state
-from mmstab.stability import force_angle
+from mmstab.control.reference import initial_state
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import load_problem
+from mmstab.runs.tracking import simulate, summarize, task_batch
+from mmstab.stability.static import force_angle
 from mmstab.terrain import GRAVITY_G
-from mmstab.tracking import simulate, summarize, task_batch
 
 REACHABLE = np.array([2.0, 0.3, -0.5, 0.2])  # an arm posture; its CoM is a reachable target [rad]
 SUMMARY_KEYS = {
@@ -95,7 +95,7 @@ def window_step(problem, inner, t0, t1, make_bad):
     ref = ca.MX.sym("reference", REFERENCE_SIZE)
     p = ca.MX.sym("params", PARAMS_SIZE)
     settings = ControllerSettings.from_section(problem.section("controller"))
-    from mmstab.reference import base_reference
+    from mmstab.control.reference import base_reference
 
     x0, x1 = base_reference(
         problem.circle,
@@ -462,8 +462,8 @@ def test_cli_track_end_to_end(tmp_path):
 
 
 def test_self_collisions_reports_intervals_and_pairs(problem):
-    from mmstab.collision import CollisionChecker
     from mmstab.experiments.tracking import self_collisions
+    from mmstab.model.collision import CollisionChecker
 
     robot = problem.robot
     hit = np.array([2.25, -0.41, 0.5, 0.17])  # turret to the left-rear, upper arm down: hits
@@ -492,7 +492,7 @@ def default_plan(problem):
 
 @pytest.fixture(scope="module")
 def default_posture(problem, default_plan):
-    from mmstab.posture import build_posture_reference, posture_samples
+    from mmstab.control.posture import build_posture_reference, posture_samples
 
     s = settings_of(problem)
     return build_posture_reference(problem.robot, default_plan, posture_samples(s.lap_time, s.dt))
@@ -500,9 +500,9 @@ def default_posture(problem, default_plan):
 
 def test_default_posture_reference_is_collision_free(problem, default_plan, default_posture):
     """The planned postures interpolated collide (s ≈ 0.81-0.87): the via postures repair it."""
-    from mmstab.collision import CollisionChecker
-    from mmstab.ik import COM_TOLERANCE
-    from mmstab.reference import periodic_spline
+    from mmstab.control.reference import periodic_spline
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.workspace.ik import COM_TOLERANCE
 
     robot, ref = problem.robot, default_posture
     checker = CollisionChecker(robot)
@@ -530,7 +530,7 @@ def test_default_posture_reference_is_collision_free(problem, default_plan, defa
 
 def _window_run(problem, plan, posture, settings, t0, t1):
     """The controller's closed loop over [t0, t1] s of the lap, from the reference state."""
-    from mmstab.reference import task_reference
+    from mmstab.control.reference import task_reference
 
     ctrl = build_controller(problem.robot, settings)
     t = np.arange(t0, t1, settings.dt)
@@ -559,8 +559,8 @@ def test_short_closed_loop_from_a_planned_posture_stays_collision_free(
     """2.5 s from the planned posture at s = 0.8 through the stretch where the planned
     interpolation collides: the arm never touches the body. With the unrepaired reference it
     does, and without the posture task (the paper's Eq. 7) it drifts off the postures."""
-    from mmstab.collision import CollisionChecker
-    from mmstab.posture import build_posture_reference
+    from mmstab.control.posture import build_posture_reference
+    from mmstab.model.collision import CollisionChecker
 
     checker = CollisionChecker(problem.robot)
     settings = settings_of(problem)
@@ -580,8 +580,8 @@ def test_short_closed_loop_from_a_planned_posture_stays_collision_free(
 
 
 def test_approach_from_stowed_is_collision_free_and_meets_the_lap(problem, default_posture):
-    from mmstab.approach import build_approach
-    from mmstab.collision import CollisionChecker
+    from mmstab.control.approach import build_approach
+    from mmstab.model.collision import CollisionChecker
 
     robot, s = problem.robot, settings_of(problem)
     ap = build_approach(robot, robot.stowed, default_posture, s.approach_time, s.lap_time, s.dt)
@@ -621,8 +621,8 @@ def test_look_ahead_point_corrects_a_lateral_offset(problem):
     the path's curvature; the look-ahead point (d = 0.2 m) removes it within seconds."""
     import dataclasses
 
-    from mmstab import rollout as ro
-    from mmstab.controller import ControllerSettings
+    from mmstab.control.controller import ControllerSettings
+    from mmstab.runs import rollout as ro
 
     plan = ro.example_plan(problem.robot)
     base = ControllerSettings.from_section(problem.section("controller"))

@@ -7,7 +7,8 @@ import pytest
 from conftest import write_problem
 from test_planner_reference import _settings, coarse  # noqa: F401  (module fixture)
 
-from mmstab.config import ConfigError
+from mmstab.core.files import ConfigError
+from mmstab.core.problem import load_problem
 from mmstab.planner import gravity_body_at, pose_fitness, solve_exhaustive, solve_path
 from mmstab.planner.turret import (
     Window,
@@ -16,8 +17,7 @@ from mmstab.planner.turret import (
     turret_window,
     windowed_region,
 )
-from mmstab.problem import load_problem
-from mmstab.stability import mu_max
+from mmstab.stability.static import mu_max
 
 COARSE = [10, 8, 8, 8]
 WINDOW = 0.8  # [rad]

@@ -12,8 +12,8 @@ import pinocchio as pin
 import pytest
 from conftest import ROBOT_YAML, ROOT, random_postures, write_problem
 
-from mmstab.robot import Box, Capsule, rpy_matrix
-from mmstab.urdf import (
+from mmstab.model.robot import Box, Capsule, rpy_matrix
+from mmstab.model.urdf import (
     BASE_LINKS,
     DEFAULT_EFFORT,
     default_file_mode,

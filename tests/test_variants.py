@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS
 
-from mmstab.collision import CollisionChecker
-from mmstab.robot import load_robot
-from mmstab.stability import mu_max
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import load_robot
+from mmstab.stability.static import mu_max
 
 VARIANTS = ["cameleon", "cameleon_long_arm", "cameleon_narrow"]
 

@@ -16,18 +16,18 @@ import numpy as np
 import pytest
 from conftest import ROOT, write_problem
 
-from mmstab.config import ConfigError, MmstabError
-from mmstab.problem import load_problem
-from mmstab.runstore import first_difference, load_run
-from mmstab.stability import robot_force_angle
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
+from mmstab.runs.store import first_difference, load_run
+from mmstab.stability.static import robot_force_angle
 from mmstab.terrain import global_com_functions
-from mmstab.viewer.ground import (
+from mmstab.viz.viewer.ground import (
     extent_around,
     grid_lines,
     problem_ground,
     terrain_mesh,
 )
-from mmstab.viewer.scene import (
+from mmstab.viz.viewer.scene import (
     ARM_MODES,
     arm_posture,
     instant,
@@ -230,7 +230,7 @@ class ClockwiseSupport(Bare):
         self.robot = robot
 
     def support(self, robot, pose):
-        from mmstab.stability import base_polygon
+        from mmstab.stability.static import base_polygon
         from mmstab.terrain import Support
 
         T = np.asarray(self.ground.G_T_B(np.asarray(pose)[None])).reshape(-1, 4, 4)[0]
@@ -389,14 +389,14 @@ def leftovers(marker: str) -> list[str]:
 
 
 def test_viewer_renders_in_headless_chromium(problem, run_dir):
-    from mmstab.viewer.snapshot import find_chromium
+    from mmstab.viz.viewer.snapshot import find_chromium
 
     if find_chromium() is None:
         if os.environ.get("CI"):
             pytest.fail("chromium is missing on CI: .ci/run installs it")
         pytest.skip("no chromium on PATH (apt-get install chromium): browser test skipped")
-    from mmstab.viewer.server import NODES, RUN_NODES, Viewer
-    from mmstab.viewer.snapshot import screenshot
+    from mmstab.viz.viewer.server import NODES, RUN_NODES, Viewer
+    from mmstab.viz.viewer.snapshot import screenshot
 
     viewer = Viewer(problem, load_run(run_dir, problem), host="127.0.0.1", port=0)
     try:
@@ -431,7 +431,7 @@ def test_viewer_renders_in_headless_chromium(problem, run_dir):
 
 
 def test_pose_editor_updates_mu_live(problem, run_dir):
-    from mmstab.viewer.server import Viewer
+    from mmstab.viz.viewer.server import Viewer
 
     viewer = Viewer(problem, load_run(run_dir, problem), host="127.0.0.1", port=0)
     try:

@@ -14,9 +14,9 @@ import pytest
 from conftest import random_postures, write_problem
 
 import mmstab.workspace as wsm
-from mmstab.collision import CollisionChecker
-from mmstab.config import ConfigError, MmstabError
-from mmstab.problem import load_problem
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.problem import load_problem
+from mmstab.model.collision import CollisionChecker
 from mmstab.workspace import (
     arm_com_from_frames,
     build_workspace,
@@ -25,7 +25,7 @@ from mmstab.workspace import (
     load_or_build_workspace,
     workspace_from_clouds,
 )
-from mmstab.workspace_fidelity import measure_fidelity
+from mmstab.workspace.fidelity import measure_fidelity
 
 COARSE = [6, 6, 6, 6]
 

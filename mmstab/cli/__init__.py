@@ -1,8 +1,8 @@
 """The ``mmstab`` command line: one subcommand per pipeline stage or experiment.
 
 Every subcommand takes a problem (or robot) YAML file. Before any work, every command loads
-and checks the whole problem (schema, the settings registry of :mod:`mmstab.settings`, the
-size bounds of :mod:`mmstab.sizes`), its options and that its output folders can be written.
+and checks the whole problem (schema, the settings registry of :mod:`mmstab.core.settings`, the
+size bounds of :mod:`mmstab.core.sizes`), its options and that its output folders can be written.
 
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
     p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
     p.set_defaults(handler=_urdf)
-    from mmstab.viewer.cli import add_view_command  # issue 18: the browser viewer
+    from mmstab.viz.viewer.cli import add_view_command  # issue 18: the browser viewer
 
     add_view_command(sub)
     _add_terrain_commands(sub)
@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _run(args: argparse.Namespace) -> int:
     if args.handler is _urdf:
-        from mmstab.config import MmstabError, check_output_dir
+        from mmstab.core.files import MmstabError, check_output_dir
 
         out = Path(_urdf_out(args, "robot"))
         if args.out is not None:
@@ -72,7 +72,7 @@ def _run(args: argparse.Namespace) -> int:
         return args.handler(args, None) or EXIT_OK
     if args.command not in PROBLEM_COMMANDS:  # rest, stability-map, terrain, view
         return args.handler(args) or EXIT_OK  # they load the problem (all checks) themselves
-    from mmstab.problem import load_problem
+    from mmstab.core.problem import load_problem
 
     problem = load_problem(args.problem, force_size=args.force_size)
     check_options(args, problem)
@@ -84,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (0, 2, 3 or 130; module docstring)."""
     previous = None
     try:
-        from mmstab.pool import note_interrupts
+        from mmstab.core.pool import note_interrupts
 
         previous = note_interrupts()  # remembered even where C code swallows it
         return _main(argv)
@@ -97,7 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    from mmstab.config import MmstabError, UnstableError
+    from mmstab.core.files import MmstabError, UnstableError
 
     try:
         return _run(build_parser().parse_args(argv))

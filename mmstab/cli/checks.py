@@ -16,8 +16,8 @@ def check_options(args: argparse.Namespace, problem: Any) -> None:
     Raises:
         MmstabError: naming the option.
     """
-    from mmstab.config import MmstabError
-    from mmstab.settings import PLUGINS, check_duration, check_plugin
+    from mmstab.core.files import MmstabError
+    from mmstab.core.settings import PLUGINS, check_duration, check_plugin
 
     plugin = getattr(args, "plugin", None)
     if args.command == "codegen" and plugin is not None:
@@ -59,7 +59,7 @@ def check_outputs(args: argparse.Namespace, problem: Any) -> None:
     Raises:
         MmstabError: one line naming the folder (ConfigError for ``codegen.directory``).
     """
-    from mmstab.config import ConfigError, MmstabError, writable_dir_problem
+    from mmstab.core.files import ConfigError, MmstabError, writable_dir_problem
 
     for folder, what in output_dirs(args, problem):
         why = writable_dir_problem(folder)

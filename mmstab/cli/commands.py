@@ -44,7 +44,7 @@ Handler = Callable[[argparse.Namespace, Any], int | None]
 
 def _problem(args: argparse.Namespace) -> Any:
     """The problem of a command outside :data:`COMMANDS` (checked at load, as everywhere)."""
-    from mmstab.problem import load_problem
+    from mmstab.core.problem import load_problem
 
     return load_problem(args.problem, force_size=getattr(args, "force_size", False))
 
@@ -55,7 +55,7 @@ def _announce(problem: Any, *sections: str, duration: float | None = None) -> No
     The tracking run's is for the time it will simulate: ``--duration`` if given, else the
     route's driving time on a route, else ``controller.duration`` (``Problem.size_estimates``).
     """
-    from mmstab.sizes import announce
+    from mmstab.core.sizes import announce
 
     found = problem.size_estimates(duration)
     for name in sections:
@@ -105,7 +105,7 @@ def _fig3(args: argparse.Namespace, problem: Any) -> None:
 
 
 def _tipped(summary: dict[str, Any]) -> int | None:
-    from mmstab.verdict import describe_tipping
+    from mmstab.runs.verdict import describe_tipping
 
     if summary.get("tipped") is None:
         return None
@@ -138,8 +138,8 @@ def _track(args: argparse.Namespace, problem: Any) -> int | None:
 
 
 def _urdf(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.robot import load_robot
-    from mmstab.urdf import write_urdf
+    from mmstab.model.robot import load_robot
+    from mmstab.model.urdf import write_urdf
 
     robot = load_robot(args.robot)
     print(f"urdf: wrote {write_urdf(robot, _urdf_out(args, robot.name))}")
@@ -151,7 +151,7 @@ def _urdf_out(args: argparse.Namespace, name: str) -> str:
 
 def _plan_verdict(s: dict[str, Any], args: argparse.Namespace) -> int | None:
     """Report an unstable plan on stderr; exit status 3 unless ``--allow-unstable``."""
-    from mmstab.verdict import describe_plan_verdict
+    from mmstab.runs.verdict import describe_plan_verdict
 
     verdict = s["stability"]
     if verdict["stable"]:
@@ -241,9 +241,9 @@ def _codegen(args: argparse.Namespace, problem: Any) -> None:
     how = "generated and compiled" if gen.rebuilt else "up to date"
     print(f"codegen: {gen.plugin}: {how}: {gen.source}, {gen.header}, {gen.library}")
     if args.example:
-        from mmstab import rollout as ro
         from mmstab.app import plan as plan_of
-        from mmstab.reference import initial_state
+        from mmstab.control.reference import initial_state
+        from mmstab.runs import rollout as ro
 
         plan = plan_of(problem)  # the problem's path with the planned arm CoMs
         state0 = initial_state(problem.circle, problem.robot.stowed, lateral_offset=0.05)
@@ -264,7 +264,7 @@ def _animation(args: argparse.Namespace, problem: Any) -> int | None:
 
 
 def _atlas(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.atlas.runner import run_atlas
+    from mmstab.experiments.atlas.runner import run_atlas
 
     s = run_atlas(problem, args.out, args.scheduler, args.workers, processes=not args.threads)
     r = s["run"]

@@ -15,7 +15,7 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
     """``--arm``: ``stowed`` (or absent) -> None; four angles [rad] within the joint limits."""
     import numpy as np
 
-    from mmstab.config import MmstabError
+    from mmstab.core.files import MmstabError
 
     if arm is None or arm == ["stowed"]:
         return None
@@ -38,7 +38,7 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
 def _finite(name: str, values: Sequence[float]) -> None:
     import math
 
-    from mmstab.config import MmstabError
+    from mmstab.core.files import MmstabError
 
     if not all(math.isfinite(v) for v in values):
         raise MmstabError(f"{name}: must be finite, got {list(values)}")
@@ -49,7 +49,7 @@ def _rest(args: argparse.Namespace) -> None:
 
     import numpy as np
 
-    from mmstab.stance import stance
+    from mmstab.stability.stance import stance
 
     _finite("--pose", args.pose)
     if args.flipper is not None:
@@ -72,7 +72,7 @@ def _rest(args: argparse.Namespace) -> None:
 
 
 def _stability_map(args: argparse.Namespace) -> None:
-    from mmstab.config import MmstabError, check_output_dir
+    from mmstab.core.files import MmstabError, check_output_dir
     from mmstab.experiments.terrain import run_stability_map
 
     if not args.spacing > 0 or args.headings < 1:
@@ -89,7 +89,7 @@ def _stability_map(args: argparse.Namespace) -> None:
 
 def _terrain_export(args: argparse.Namespace) -> None:
 
-    from mmstab.config import MmstabError, check_output_dir
+    from mmstab.core.files import MmstabError, check_output_dir
     from mmstab.terrain.factory import as_heightmap
     from mmstab.terrain.io import save_npz
 

@@ -10,20 +10,21 @@ them into a shared library with the system C compiler (``cc -O3 -std=c99 -Wall -
 
 Beside it, ``controller_layout.h`` (:func:`layout_header`) gives C the sizes and the packed
 layouts of the arguments (``MMSTAB_N_*``, ``MMSTAB_REF_*``, ``MMSTAB_PARAM_*``), written from
-:class:`~mmstab.layout.StepReference` and :class:`~mmstab.layout.ControllerParams`, so the
+:class:`~mmstab.control.layout.StepReference` and :class:`~mmstab.control.layout.ControllerParams`,
+so the
 embedded example never repeats them by hand.
 
 The same C file also exports ``controller_task`` ((state, ground) -> ξ, for the embedded
-example's error report), ``controller_plant`` (the simulation's plant, :mod:`mmstab.plant`:
+example's error report), ``controller_plant`` (the simulation's plant, :mod:`mmstab.control.plant`:
 the embedded example moves the robot with it, so ground-following motion is written once) and
 ``controller_rollout`` (:data:`ROLLOUT_CHUNK` closed-loop steps, controller step +
-exact-arc integration, rolled with ``mapaccum``; :mod:`mmstab.rollout` drives it).
+exact-arc integration, rolled with ``mapaccum``; :mod:`mmstab.runs.rollout` drives it).
 
 **Plugins.** qrqp (default) generates self-contained C: no allocator is referenced at all.
 daqp and osqp generate C that includes the headers and links the libraries shipped inside the
 casadi package (``casadi.GlobalOptions.getCasadiIncludePath()`` / ``getCasadiPath()``, found at
 run time through an rpath). qpOASES cannot be code-generated (CasADi emits ``#error``):
-asking for it raises :class:`~mmstab.config.MmstabError` before CasADi is called.
+asking for it raises :class:`~mmstab.core.files.MmstabError` before CasADi is called.
 
 **Post-processing** (:func:`postprocess`, two documented edits, each checked to apply once):
 
@@ -35,7 +36,7 @@ asking for it raises :class:`~mmstab.config.MmstabError` before CasADi is called
 2. In generated code a QP plugin's own failure flag aborts the whole step (``return 1``)
    before the in-graph certificate runs, so ``casadi.external`` raises "Evaluation failed"
    and the outputs are left unwritten, whereas the interpreted step (``error_on_fail =
-   False``) goes on and lets the certificate judge q̇ (:mod:`mmstab.controller`, "Failure
+   False``) goes on and lets the certificate judge q̇ (:mod:`mmstab.control.controller`, "Failure
    handling"). The call of the QP is patched to ignore that flag, so the status is the same
    interpreted and generated: an answer that is not finite, feasible and optimal is still
    refused (``SOLVER_FAILED``, q̇ = 0), whatever the plugin said.
@@ -90,8 +91,8 @@ from mmstab.codegen.settings import (
     check_plugin,
     check_settings,
 )
-from mmstab.controller import CODEGEN_PLUGINS
-from mmstab.plant import PLANT_NAME
+from mmstab.control.controller import CODEGEN_PLUGINS
+from mmstab.control.plant import PLANT_NAME
 
 __all__ = [
     "BENCH_PROGRAM",

@@ -19,14 +19,14 @@ from mmstab.codegen.compiler import compile_c, compile_command
 from mmstab.codegen.functions import ROLLOUT_CHUNK, STEP_NAME, export_functions
 from mmstab.codegen.postprocess import postprocess
 from mmstab.codegen.settings import CODEGEN_PLUGINS, CodegenSettings, check_plugin
-from mmstab.config import _atomic, write_json
-from mmstab.controller import ControllerSettings, build_controller
-from mmstab.controller.boxqp import boxqp_source
-from mmstab.layout import layout_header
-from mmstab.robot import Robot
+from mmstab.control.controller import ControllerSettings, build_controller
+from mmstab.control.controller.boxqp import boxqp_source
+from mmstab.control.layout import layout_header
+from mmstab.core.files import _atomic, write_json
+from mmstab.model.robot import Robot
 
 if TYPE_CHECKING:
-    from mmstab.problem import Problem
+    from mmstab.core.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
 FORMAT_VERSION = 6  #: bump when the generated content or post-processing changes

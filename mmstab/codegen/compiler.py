@@ -10,7 +10,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
 
 #: Compiler flags for the generated C (warnings are errors); ``-fPIC -shared`` for the library.
 CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror")

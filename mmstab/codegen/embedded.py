@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 from mmstab.codegen.build import GeneratedController
 from mmstab.codegen.compiler import compile_c
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
 
 EMBEDDED_DIR = Path(__file__).resolve().parents[2] / "embedded"  #: C sources of the example
 EXAMPLE_PROGRAM = "mmstab_loop"  #: the closed-loop example (embedded/main.c)

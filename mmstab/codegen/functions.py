@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import casadi as ca
 
-from mmstab.controller import (
+from mmstab.control.controller import (
     PARAMS_SIZE,
     REFERENCE_SIZE,
     STATE_SIZE,
     Controller,
     ControllerParams,
 )
-from mmstab.plant import PLANT_NAME
+from mmstab.control.plant import PLANT_NAME
 
 STEP_NAME = "controller_step"  #: the exported step (and the .c/.h file stem)
 TASK_NAME = "controller_task"  #: state -> ξ, exported alongside

@@ -11,7 +11,8 @@ _UNUSED_PRAGMA = """\
  *    -Wunused-parameter for this file; every other warning stays an error under -Werror.
  * 2. The QP plugin's own failure flag does not abort the step (see the call of the QP below):
  *    as in the interpreted step (error_on_fail = False), the in-graph certificate judges qdot.
- * 3. With the box plugin, the solver's source (mmstab/controller/boxqp.c) is appended at the
+ * 3. With the box plugin, the solver's source (mmstab/control/controller/boxqp.c) is appended at
+ *    the
  *    end of this file: the step calls it as CasADi calls an external function.
  * 4. casadi_fmax and casadi_fmin compare inline instead of calling libm's fmax/fmin (an
  *    out-of-line call each: about 40 per step, a third of its time); the C99 semantics are

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.animation import render_animation
-from mmstab.config import MmstabError, write_json
+from mmstab.core.files import MmstabError, write_json
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir
 from mmstab.experiments.tracking import run_tracking
-from mmstab.problem import Problem
-from mmstab.runstore import Run, load_run
-from mmstab.stability import mu_max
+from mmstab.runs.store import Run, load_run
+from mmstab.stability.static import mu_max
+from mmstab.viz.animation import render_animation
 
 
 def stored_or_new_run(
@@ -44,7 +44,7 @@ def stored_or_new_run(
 def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
     """The ``tipped`` record of a stored run that ends where the robot would tip, or None.
 
-    A run stops at its first sample with μ < 0 (:func:`mmstab.tracking.simulate`) and the
+    A run stops at its first sample with μ < 0 (:func:`mmstab.runs.tracking.simulate`) and the
     stored arrays keep the last sample, so only the last can be negative.
 
     Args:

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.config import write_yaml
-from mmstab.problem import Problem
+from mmstab.core.files import write_yaml
+from mmstab.core.problem import Problem
 
 
 def output_dir(out: str | Path | None, name: str) -> Path:

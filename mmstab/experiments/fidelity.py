@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from mmstab.config import MmstabError, write_json
-from mmstab.masks import true_runs
-from mmstab.problem import Problem
+from mmstab.core.files import MmstabError, write_json
+from mmstab.core.masks import true_runs
+from mmstab.core.problem import Problem
 
 #: Paper Fig. 6: the two maxima of the link0 sweep [rad].
 PAPER_MAXIMA_RAD = (2.0, 5.0)

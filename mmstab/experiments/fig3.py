@@ -14,16 +14,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.app import workspace
-from mmstab.config import write_figure, write_json
+from mmstab.core.files import write_figure, write_json
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.plotting import new_figure
-from mmstab.problem import Problem
-from mmstab.robot import Robot
+from mmstab.model.robot import Robot
+from mmstab.viz.plotting import new_figure
 from mmstab.workspace import (
     Workspace,
     convex_hull,
 )
-from mmstab.workspace_fidelity import measure_fidelity, sample_in_workspace
+from mmstab.workspace.fidelity import measure_fidelity, sample_in_workspace
 
 #: Points drawn per scatter cloud in the figures (subsampled: the figures stay small).
 PLOT_POINTS = 3000

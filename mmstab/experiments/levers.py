@@ -41,17 +41,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 
-from mmstab.config import ConfigError, write_figure, write_json, write_text
-from mmstab.dynamics import dynamic_force_angle, net_wrench
+from mmstab.core.files import ConfigError, write_figure, write_json, write_text
+from mmstab.core.problem import Problem, load_problem, problem_from_dict
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.payload import Payload, attach_payload
+from mmstab.model.payload import Payload, attach_payload
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.paths.circle import CirclePath
 from mmstab.planner import PlannerSettings, best_mu, solve_path
-from mmstab.planner.levers import solve_path_flippers, tool_points
-from mmstab.plotting import new_figure
-from mmstab.problem import Problem, load_problem, problem_from_dict
-from mmstab.robot import FloatArray, Robot
-from mmstab.stability import base_polygon, contact_force_angle, robot_force_angle
-from mmstab.terrain import GRAVITY_G, CirclePath, Terrain, from_section
+from mmstab.planner.levers import solve_path_flippers
+from mmstab.planner.wrench import tool_points
+from mmstab.stability.dynamic import dynamic_force_angle, net_wrench
+from mmstab.stability.static import base_polygon, contact_force_angle, robot_force_angle
+from mmstab.terrain import GRAVITY_G, Terrain, from_section
+from mmstab.viz.plotting import new_figure
 
 #: Window of the second differences of simulated states [s] (module text).
 SIM_WINDOW = 0.02

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.config import write_figure
+from mmstab.core.files import write_figure
+from mmstab.core.problem import Problem
 from mmstab.planner import (
     Plan,
     best_mu,
@@ -25,9 +26,8 @@ from mmstab.planner import (
     solve_exhaustive,
 )
 from mmstab.planner.turret import windowed_region
-from mmstab.plotting import new_figure
-from mmstab.problem import Problem
-from mmstab.stability import mu_max, robot_force_angle
+from mmstab.stability.static import mu_max, robot_force_angle
+from mmstab.viz.plotting import new_figure
 
 #: Poses of the dense lap curve.
 DENSE_POSES = 72

@@ -13,24 +13,24 @@ import numpy as np
 
 from mmstab.app import plan as plan_of
 from mmstab.app import stability_along, workspace
-from mmstab.config import MmstabError, write_figure, write_json, write_npz
-from mmstab.drawing import (
+from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
+from mmstab.core.problem import Problem
+from mmstab.experiments.common import output_dir, save_settings
+from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
+from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
+from mmstab.runs.verdict import plan_verdict, planner_margin
+from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.static import mu_max
+from mmstab.terrain import roll_pitch
+from mmstab.viz.drawing import (
     draw_poses_on_ground,
     draw_robot,
     mesh_points,
     robot_meshes,
     set_equal_aspect,
 )
-from mmstab.dynamics import robot_mu
-from mmstab.experiments.common import output_dir, save_settings
-from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
-from mmstab.ik import PostureSolver
-from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
-from mmstab.plotting import draw_arm_3d, draw_circle, new_figure
-from mmstab.problem import Problem
-from mmstab.stability import mu_max
-from mmstab.terrain import roll_pitch
-from mmstab.verdict import plan_verdict, planner_margin
+from mmstab.viz.plotting import draw_arm_3d, draw_circle, new_figure
+from mmstab.workspace.ik import PostureSolver
 
 
 def _side(com_body: np.ndarray) -> str:

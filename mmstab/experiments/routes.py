@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from mmstab.app import plan as make_plan
-from mmstab.config import MmstabError, write_figure, write_json
+from mmstab.core.files import MmstabError, write_figure, write_json
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.planner.route import RoutePlan, RouteRisk, route_risk
-from mmstab.problem import Problem
-from mmstab.stability import mu_max
-from mmstab.verdict import plan_verdict, planner_margin
+from mmstab.runs.verdict import plan_verdict, planner_margin
+from mmstab.stability.static import mu_max
 
 #: Robot snapshots drawn in the 3-D figure.
 SNAPSHOTS = 6
@@ -42,7 +42,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
-    from mmstab.stability import stability_along
+    from mmstab.stability.static import stability_along
 
     mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
     poses = [
@@ -147,7 +147,7 @@ def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:
     """The terrain, the route and the robot at rest in its planned posture at snapshots."""
     import matplotlib.pyplot as plt
 
-    from mmstab.drawing import clip_to_ground, draw_path_on_ground, draw_robot, set_equal_aspect
+    from mmstab.viz.drawing import clip_to_ground, draw_path_on_ground, draw_robot, set_equal_aspect
 
     route = problem.route
     if route is None:

@@ -11,13 +11,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.config import write_figure, write_json, write_npz
+from mmstab.core.files import write_figure, write_json, write_npz
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import circular_extrema, output_dir, save_settings
-from mmstab.plotting import draw_base_topview, draw_circle, new_figure
-from mmstab.problem import Problem
-from mmstab.robot import FloatArray, Robot
-from mmstab.stability import robot_force_angle, stability_along
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.stability.static import robot_force_angle, stability_along
 from mmstab.terrain import Terrain, roll_pitch
+from mmstab.viz.plotting import draw_base_topview, draw_circle, new_figure
 
 
 class Sweep(NamedTuple):
@@ -71,7 +71,7 @@ def sweep_collisions(robot: Robot, link0: FloatArray) -> NDArray[np.bool_]:
     The paper's sweep ignores collisions; with the flippers raised, the stretched arm
     passes through them, so those samples are marked, not hidden.
     """
-    from mmstab.collision import CollisionChecker
+    from mmstab.model.collision import CollisionChecker
 
     q = np.zeros((len(link0), 4))
     q[:, 0] = link0
@@ -141,7 +141,7 @@ def poses3d_figure(problem: Problem, sw: Sweep) -> Any:
     Returns:
         The matplotlib figure.
     """
-    from mmstab.drawing import draw_poses_on_ground
+    from mmstab.viz.drawing import draw_poses_on_ground
 
     cmap = __import__("matplotlib").colormaps["viridis"]
     postures = np.zeros((len(sw.poses), 4))

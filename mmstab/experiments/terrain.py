@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.config import write_figure, write_json, write_npz
+from mmstab.core.files import write_figure, write_json, write_npz
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.problem import Problem
-from mmstab.stance import StabilityMap, stability_map, stance
+from mmstab.stability.stance import StabilityMap, stability_map, stance
 from mmstab.terrain.factory import as_heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -96,7 +96,7 @@ def draw_terrain_3d(problem: Problem, terrain: HeightmapTerrain, poses: dict[str
     """
     import matplotlib.pyplot as plt
 
-    from mmstab.drawing import draw_robot, set_equal_aspect
+    from mmstab.viz.drawing import draw_robot, set_equal_aspect
 
     hm = terrain.heightmap
     robot = problem.robot

@@ -14,12 +14,11 @@ from typing import Any
 import numpy as np
 
 from mmstab.app import Backend, track
-from mmstab.config import write_figure, write_json, write_npz
+from mmstab.core.files import write_figure, write_json, write_npz
+from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.plotting import draw_base_topview, new_figure
-from mmstab.problem import Problem
-from mmstab.robot import FloatArray
-from mmstab.tracking import (
+from mmstab.model.robot import FloatArray
+from mmstab.runs.tracking import (
     JOINT_NAMES,
     STATE_NAMES,
     InitialArm,
@@ -27,6 +26,7 @@ from mmstab.tracking import (
     TrackingRun,
     summarize,
 )
+from mmstab.viz.plotting import draw_base_topview, new_figure
 
 #: Sample spacing of the saved arrays (``run.npz``) [s].
 SAVE_EVERY_S = 0.01
@@ -57,10 +57,10 @@ def run_tracking(
         backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C, issue 6).
         duration: simulated time [s] (default the problem's ``controller.duration``).
         plan: an arm plan; default :func:`mmstab.app.plan` on the problem.
-        initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.tracking`).
+        initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.runs.tracking`).
         progress: show progress bars.
         allow_unstable: go on when the plan made here is unstable (some pose's μ at or
-            below ``planner.margin``); else :class:`~mmstab.config.UnstableError` before
+            below ``planner.margin``); else :class:`~mmstab.core.files.UnstableError` before
             tracking.
 
     Returns:
@@ -130,7 +130,7 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
 
     Eq. 7 has no collision constraint: the posture task keeps the arm near the planner's
     collision-free postures (and the posture reference is checked and repaired,
-    :mod:`mmstab.posture`); this checks what the arm actually did.
+    :mod:`mmstab.control.posture`); this checks what the arm actually did.
 
     Args:
         problem: the problem (robot geometry).
@@ -142,7 +142,7 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
         (from the first colliding sample to the first free one after it) and the colliding
         pairs with the number of samples each.
     """
-    from mmstab.collision import CollisionChecker, sequence_collisions
+    from mmstab.model.collision import CollisionChecker, sequence_collisions
 
     report, _ = sequence_collisions(CollisionChecker(problem.robot), t, q_arm)
     return {

@@ -15,9 +15,9 @@ import cma
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import CoMRegion, Fitness
-from mmstab.robot import FloatArray
 
 #: IPOP's population factor per restart (pycma's ``incpopsize``).
 IPOP_FACTOR = 2

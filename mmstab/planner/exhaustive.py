@@ -16,9 +16,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness, linear_fitness, region_samples
-from mmstab.robot import FloatArray, Robot
-from mmstab.stability import base_polygon
+from mmstab.stability.static import base_polygon
 
 #: Coarse seeds lie at least this share of V's diameter apart (distinct basins).
 SEED_SEPARATION = 0.25

@@ -2,14 +2,14 @@
 
     fitness = w_stability mu(g_a) / mu_max - w_motion |g_a - g_a_prev|^2 / d_workspace^2
 
-``Fitness`` evaluates the force-angle measure as :func:`mmstab.stability.force_angle_batch`
+``Fitness`` evaluates the force-angle measure as :func:`mmstab.stability.static.force_angle_batch`
 does (the first release's numbers, bit for bit). ``LinearFitness`` is the same function
 written for many CoMs at once: at a fixed pose every force-angle axis's sine and cosine
 parts are affine in the arm CoM (below), so scoring every sample of V is two small matrix
 products and one ``arctan2``.
 
 For axis j (unit direction a_j, end vertex p_j) and net force f = m_T g_B, with
-l_j = Phi_j (p_j - g_o) and f_j = Phi_j f (``mmstab.stability``)::
+l_j = Phi_j (p_j - g_o) and f_j = Phi_j f (``mmstab.stability.static``)::
 
     (l_j x f_j) . a_j = det[p_j - g_o, f, a_j] = (p_j - g_o) . (f x a_j)
     l_j . f_j         = (p_j - g_o) . f_j
@@ -25,10 +25,10 @@ from typing import NamedTuple, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.settings import PlannerSettings
-from mmstab.robot import FloatArray, Robot
-from mmstab.stability import base_polygon, force_angle_batch
+from mmstab.stability.static import base_polygon, force_angle_batch
 
 #: Rows per block of the batched evaluation (keeps temporaries in cache).
 BLOCK = 32768

@@ -10,7 +10,7 @@ that maximises Eq. 6 (``mmstab.planner.fitness``), by ``planner.method``:
 - ``exhaustive``: Eq. 6 over every valid grid CoM inside V in one batch
   (``mmstab.planner.exhaustive``), the reference.
 
-No IK inside the search (as in the paper); afterwards :mod:`mmstab.ik` finds a
+No IK inside the search (as in the paper); afterwards :mod:`mmstab.workspace.ik` finds a
 collision-free posture that realises the target. The previous CoM of the first pose is the
 stowed arm's: the robot starts with its arm folded. Every run draws from its own
 ``numpy.random.Generator``; the global NumPy state is untouched.
@@ -25,7 +25,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import Problem
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.cmaes import SearchResult, solve_ipop
 from mmstab.planner.exhaustive import (
     ExhaustiveResult,
@@ -34,7 +36,6 @@ from mmstab.planner.exhaustive import (
     solve_exhaustive,
 )
 from mmstab.planner.fitness import CoMRegion, pose_fitness, region_samples
-from mmstab.planner.levers import with_tool_wrench
 from mmstab.planner.regions import planning_region
 from mmstab.planner.sequence import solve_sequence
 from mmstab.planner.settings import PlannerSettings
@@ -46,9 +47,8 @@ from mmstab.planner.turret import (
     turret_window,
     windowed_region,
 )
-from mmstab.problem import Problem
-from mmstab.robot import FloatArray, Robot
-from mmstab.stability import mu_max as stowed_flat_mu
+from mmstab.planner.wrench import with_tool_wrench
+from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 
 #: Largest CoM error of a realised target [m] before the fallback to a sample.
@@ -424,8 +424,8 @@ def plan_path(problem: Problem, workspace: Any = None, progress: bool = False) -
         workspace: a prebuilt :class:`mmstab.workspace.Workspace`; default: load or build.
         progress: show progress bars.
     """
-    from mmstab.ik import PostureSolver
     from mmstab.workspace import load_or_build_workspace
+    from mmstab.workspace.ik import PostureSolver
 
     ws = workspace if workspace is not None else load_or_build_workspace(problem, progress=progress)
     if len(ws.valid_com_in_V) == 0:

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from mmstab.robot import FloatArray
+from mmstab.model.robot import FloatArray
 
 #: Membership slack [m] (as ``mmstab.workspace.HULL_TOL``).
 TOL = 1e-9

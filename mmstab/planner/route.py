@@ -32,8 +32,11 @@ from typing import Any, Literal, NamedTuple, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.config import MmstabError
-from mmstab.masks import true_runs
+from mmstab.core.files import MmstabError
+from mmstab.core.masks import true_runs
+from mmstab.core.problem import Problem
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.paths.route import DEFAULT_SPACING, route_samples
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds, sample_index
 from mmstab.planner.fitness import CoMRegion, Fitness, pose_fitness
 from mmstab.planner.path import (
@@ -48,11 +51,8 @@ from mmstab.planner.path import (
 from mmstab.planner.regions import planning_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm import warm_cma
-from mmstab.problem import Problem
-from mmstab.robot import FloatArray, Robot
-from mmstab.routes.path import DEFAULT_SPACING, route_samples
-from mmstab.stability import mu_max as stowed_flat_mu
-from mmstab.stability import stability_along
+from mmstab.stability.static import mu_max as stowed_flat_mu
+from mmstab.stability.static import stability_along
 from mmstab.terrain import Terrain
 
 #: CMA-ES iterations of a warm-started pose (a cold start uses ``planner.max_iterations``).
@@ -420,14 +420,14 @@ def plan_route(problem: Problem, workspace: Any = None, progress: bool = False) 
     """Plan the problem's route: workspace (cached), poses ``planner.spacing`` apart, IK.
 
     Poses at 0, ``spacing``, ... and the route's end; their fractions are the route's time
-    fractions (the end is reached before the period ends, ``mmstab.routes.path``). Every
+    fractions (the end is reached before the period ends, ``mmstab.paths.route``). Every
     pose after the first is warm-started from the one before (:func:`solve_route`).
 
     Raises:
         MmstabError: the problem's path is not a route, or the workspace V is empty.
     """
-    from mmstab.ik import PostureSolver
     from mmstab.workspace import load_or_build_workspace
+    from mmstab.workspace.ik import PostureSolver
 
     route = problem.route
     if route is None:

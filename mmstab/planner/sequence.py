@@ -26,14 +26,14 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.collision import CollisionChecker
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.exhaustive import sample_index
 from mmstab.planner.fitness import CoMRegion, pose_fitness
-from mmstab.planner.levers import with_tool_wrench
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turret import sample_postures
-from mmstab.robot import FloatArray, Robot
+from mmstab.planner.wrench import with_tool_wrench
 
 #: Postures checked along each straight joint-space move between consecutive poses.
 SEGMENT_STEPS = 24

@@ -23,9 +23,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.config import MmstabError
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import FloatArray
 from mmstab.planner.exhaustive import SampleIndex, sample_index
-from mmstab.robot import FloatArray
 
 #: Slack on the window [rad]: a posture at the window's edge is inside.
 WINDOW_TOL = 1e-9

@@ -17,9 +17,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mmstab.model.robot import FloatArray
 from mmstab.planner.cmaes import ranking_values
 from mmstab.planner.fitness import CoMRegion
-from mmstab.robot import FloatArray
 
 #: Iterations whose populations' fitness ranges must all be below ``tol_fitness`` to stop.
 FLAT_ITERATIONS = 3

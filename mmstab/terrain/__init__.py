@@ -29,14 +29,12 @@ from mmstab.terrain.com import GlobalCoM, global_com_functions
 from mmstab.terrain.factory import from_section
 from mmstab.terrain.heightmap import Heightmap, OffMapError
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
-from mmstab.terrain.paths import CirclePath
 from mmstab.terrain.ramp import BasePose, Ramp
 
 __all__ = [
     "GRAVITY_G",
     "GROUND_SIZE",
     "BasePose",
-    "CirclePath",
     "GlobalCoM",
     "Heightmap",
     "HeightmapTerrain",

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
-    from mmstab.robot import Robot
+    from mmstab.model.robot import Robot
 
 FloatArray = NDArray[np.float64]
 

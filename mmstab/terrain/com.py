@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.robot import FloatArray, Robot
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain.base import Terrain
 
 

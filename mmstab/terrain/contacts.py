@@ -8,7 +8,7 @@ z up. The candidates are the points of the base that can touch the ground:
   and end arcs (sprocket, idler) of radius r_t = ``tracks.height``/2 centred at
   (+-L/2, r_t). Points along the bottom and along the lower half of each end arc (from
   straight down to straight ahead/behind), on both track edges (y = centre +- width/2).
-* **flippers**: the box of :meth:`mmstab.robot.Flippers.box` at the flipper angle; points
+* **flippers**: the box of :meth:`mmstab.model.robot.Flippers.box` at the flipper angle; points
   along its two lower long edges.
 * **chassis**: the bottom face of ``base.body`` (z = centre_z - size_z/2): its corners and
   points along its edges.
@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.robot import Base, Flippers, rpy_matrix
+from mmstab.model.robot import Base, Flippers, rpy_matrix
 
 FloatArray = NDArray[np.float64]
 

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from mmstab import schema
-from mmstab.config import ConfigError, validate
-from mmstab.robot import Robot
+from mmstab.core import schema
+from mmstab.core.files import ConfigError, validate
+from mmstab.model.robot import Robot
 from mmstab.terrain.base import Terrain
 from mmstab.terrain.generators import Grid, generate
 from mmstab.terrain.heightmap import Heightmap

@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.config import ConfigError, MmstabError
+from mmstab.core.files import ConfigError, MmstabError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

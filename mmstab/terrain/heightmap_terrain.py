@@ -17,9 +17,9 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.config import MmstabError
-from mmstab.robot import Robot
-from mmstab.robot import with_flipper_angle as robot_with_flipper_angle
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import Robot
+from mmstab.model.robot import with_flipper_angle as robot_with_flipper_angle
 from mmstab.terrain.base import GRAVITY_G, Support, as_poses, place_local
 from mmstab.terrain.contacts import ContactCandidates, contact_candidates
 from mmstab.terrain.heightmap import FloatArray, Heightmap

@@ -10,7 +10,7 @@
 * ``.stl``/``.ply``/``.obj``: a triangle mesh (trimesh), z up, rasterised at a given
   resolution: each cell centre takes the highest surface above it, NaN where none is.
 
-Every failure is a :class:`~mmstab.config.ConfigError` naming the file and the field.
+Every failure is a :class:`~mmstab.core.files.ConfigError` naming the file and the field.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.config import ConfigError, write_npz
+from mmstab.core.files import ConfigError, write_npz
 from mmstab.terrain.heightmap import FloatArray, Heightmap, check_layout
 
 NPZ_KEYS = ("elevation", "resolution", "origin")

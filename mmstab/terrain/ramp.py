@@ -29,7 +29,7 @@ from mmstab.terrain.base import (
 )
 
 if TYPE_CHECKING:
-    from mmstab.robot import Robot
+    from mmstab.model.robot import Robot
 
 
 class BasePose(NamedTuple):
@@ -111,8 +111,8 @@ class Ramp:
             MmstabError: flippers (at ``flipper_angle`` [rad], default the robot's) that
                 reach into the plane, which a rigid base on a plane cannot have.
         """
-        from mmstab.config import MmstabError
-        from mmstab.robot import FLIPPER_CONTACT_TOL
+        from mmstab.core.files import MmstabError
+        from mmstab.model.robot import FLIPPER_CONTACT_TOL
 
         flippers = robot.base.flippers
         if flipper_angle is not None:

@@ -4,7 +4,7 @@ The kernel runs the algorithm of :mod:`mmstab.terrain.rest` per pose, function f
 function (the coarse stage, the fine stage on each pose's highest candidates with its
 check, the re-solve on all), so it gives the NumPy path's rests to rounding (tested) in a
 fraction of the time, batched or one pose at a time. It is compiled on first use
-(:mod:`mmstab.clib`); the NumPy path (``RestSettings(backend="numpy")``) stays as its
+(:mod:`mmstab.core.clib`); the NumPy path (``RestSettings(backend="numpy")``) stays as its
 independent twin.
 """
 
@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.clib import compiled_library
+from mmstab.core.clib import compiled_library
 
 REST_NAME = "mmstab_rest"  #: the kernel's C symbol
 REST_SOURCE = Path(__file__).with_name("rest.c")  #: its C source

@@ -1,7 +1,7 @@
 """The arm-CoM workspace V (paper Section II-B, Fig. 3; ``docs/design.md``, "Workspace").
 
 Brute force over a grid of the four joint angles: forward kinematics and self-collision
-(:mod:`mmstab.collision`) label every posture's arm CoM (body frame B) valid or invalid,
+(:mod:`mmstab.model.collision`) label every posture's arm CoM (body frame B) valid or invalid,
 then ``V = hull(all CoMs) minus hull(invalid CoMs)``, tested with the hulls' half-spaces.
 
 Membership follows ``docs/design.md`` ("Workspace"): ``A_all p <= b_all and not

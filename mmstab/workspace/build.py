@@ -14,9 +14,9 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from mmstab.collision import CollisionChecker
-from mmstab.pool import ChunkPool
-from mmstab.robot import FloatArray, Robot
+from mmstab.core.pool import ChunkPool
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.grid import JointGrid, grid_postures, joint_grid
 from mmstab.workspace.region import Workspace, workspace_from_clouds
 
@@ -24,7 +24,7 @@ from mmstab.workspace.region import Workspace, workspace_from_clouds
 DEFAULT_CHUNK = 16384
 #: From this many postures on, ``build_workspace`` uses a process pool by default.
 PARALLEL_MIN_POSTURES = 50_000
-#: Processes of that pool (:class:`mmstab.pool.ChunkPool`).
+#: Processes of that pool (:class:`mmstab.core.pool.ChunkPool`).
 PARALLEL_WORKERS = 2
 
 
@@ -78,7 +78,7 @@ def build_workspace(
         robot: the robot.
         grid: samples per joint, four integers >= 2.
         executor: runs the chunks (any ``concurrent.futures.Executor``); default: a
-            :class:`~mmstab.pool.ChunkPool` of ``PARALLEL_WORKERS`` processes from
+            :class:`~mmstab.core.pool.ChunkPool` of ``PARALLEL_WORKERS`` processes from
             ``PARALLEL_MIN_POSTURES`` postures on (stopped at once by Ctrl-C), else this
             process.
         chunk: postures per chunk.
@@ -97,7 +97,7 @@ def build_workspace(
             futures = [executor.submit(label_chunk, light, jg, a, b) for a, b in bounds]
             results = (f.result() for f in as_completed(futures))
         elif n >= PARALLEL_MIN_POSTURES and (os.cpu_count() or 1) > 1:
-            # killable on Ctrl-C, workers included (mmstab.pool)
+            # killable on Ctrl-C, workers included (mmstab.core.pool)
             pool = stack.enter_context(ChunkPool(label_chunk, (light, jg), PARALLEL_WORKERS))
             results = pool.run(bounds)
         else:

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mmstab.config import write_npz
-from mmstab.problem import Problem
-from mmstab.robot import Robot
-from mmstab.sizes import announce, workspace_estimate
+from mmstab.core.files import write_npz
+from mmstab.core.problem import Problem
+from mmstab.core.sizes import announce, workspace_estimate
+from mmstab.model.robot import Robot
 from mmstab.workspace.build import build_workspace
 from mmstab.workspace.region import Workspace
 

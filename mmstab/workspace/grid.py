@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mmstab.robot import FloatArray, Robot
+from mmstab.model.robot import FloatArray, Robot
 
 #: A joint whose range is a full turn within this [rad] does not sample its upper end.
 FULL_TURN_TOL = 1e-6

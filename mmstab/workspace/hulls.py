@@ -9,8 +9,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.distance import cdist
 
-from mmstab.config import MmstabError
-from mmstab.robot import FloatArray
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import FloatArray
 
 #: Half-space slack of the membership tests [m].
 HULL_TOL = 1e-9

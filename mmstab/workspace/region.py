@@ -10,9 +10,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from mmstab.config import MmstabError
-from mmstab.pool import run_interruptibly
-from mmstab.robot import FloatArray
+from mmstab.core.files import MmstabError
+from mmstab.core.pool import run_interruptibly
+from mmstab.model.robot import FloatArray
 from mmstab.workspace.hulls import (
     HULL_TOL,
     HalfSpaces,

@@ -60,7 +60,7 @@ def golden_problem(tmp: Path) -> Any:
     """The default problem with the coarse workspace grid and today's planner settings."""
     from conftest import write_problem
 
-    from mmstab.problem import load_problem
+    from mmstab.core.problem import load_problem
 
     def edit(p: dict[str, Any], r: dict[str, Any]) -> None:
         p["workspace"]["grid"] = list(GRID)
@@ -128,8 +128,8 @@ def compute_plan(problem: Any, cache: Path) -> dict[str, Any]:
 
 def compute_tracking(problem: Any) -> dict[str, Any]:
     """A short tracking run with the example plan (interpreted step)."""
-    from mmstab.rollout import example_plan
-    from mmstab.tracking import simulate
+    from mmstab.runs.rollout import example_plan
+    from mmstab.runs.tracking import simulate
 
     run = simulate(problem, example_plan(problem.robot), duration=TRACK_SECONDS, progress=False)
     k = list(SAMPLES)
@@ -161,7 +161,7 @@ def full_reference(problem: Any, state: np.ndarray, ref: np.ndarray) -> np.ndarr
     Since the terrain interface the step also takes the local ground of the pose (zero on
     the ramp), appended after the pinned 20 numbers.
     """
-    from mmstab.controller import StepReference
+    from mmstab.control.controller import StepReference
 
     if "ground" not in StepReference._fields:
         return np.asarray(ref)
@@ -172,7 +172,7 @@ def compute_step(problem: Any) -> dict[str, Any]:
     """The interpreted controller step (qrqp) on fixed states."""
     import dataclasses
 
-    from mmstab.controller import ControllerSettings, build_controller, quiet_stdout
+    from mmstab.control.controller import ControllerSettings, build_controller, quiet_stdout
 
     settings = ControllerSettings.from_section(problem.section("controller"))
     ctrl = build_controller(problem.robot, dataclasses.replace(settings, plugin="qrqp"))

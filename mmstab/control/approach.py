@@ -1,0 +1,284 @@
+"""The arm's start-up approach, and the arm references of a run (lap + approach).
+
+A run starts with the arm where it is (stowed, by default), not on the lap's posture
+reference (:mod:`mmstab.control.posture`). Stepping the references there makes the arm jump at
+saturated joint speeds, and on the default problem through a flipper, the body and a track.
+:class:`Approach` is a collision-free joint path instead, from the initial posture onto the
+lap's references over the first ``approach_time`` seconds, followed at a rest-to-rest time
+scaling; its CoM is the arm-CoM reference meanwhile, as on the lap.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.control.posture import (
+    MAX_REPAIR_ROUNDS,
+    PosturePlan,
+    PostureReference,
+    ViaPosture,
+    build_posture_reference,
+    posture_com,
+    posture_samples,
+)
+from mmstab.control.reference import PathSample, StepReference, task_reference
+from mmstab.core.masks import true_runs
+from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequence_collisions
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
+
+
+def time_scaling(tau: ArrayLike) -> PathSample:
+    """Quintic rest-to-rest time scaling σ(τ) = 10τ³ − 15τ⁴ + 6τ⁵ on τ ∈ [0, 1], and dσ/dτ.
+
+    σ' and σ'' vanish at both ends, so a path followed at σ starts and stops at rest.
+    """
+    u = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    return PathSample(u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2)
+
+
+def nearest_free(
+    checker: CollisionChecker, robot: Robot, q: FloatArray, step: float
+) -> FloatArray | None:
+    """The collision-free posture nearest ``q`` along one joint at a time, if any.
+
+    Candidates q ± k·step·e_j (k = 1, 2, …, within the joint limits) are checked in one batch;
+    the one with the smallest move wins (ties: the lower joint index, + before −).
+
+    Args:
+        checker: the robot's collision checker.
+        robot: the robot (joint limits).
+        q: the colliding posture (4,) [rad].
+        step: the move's resolution [rad].
+    """
+    lo, hi = robot.joint_lower, robot.joint_upper
+    moves = np.arange(1, int(np.ceil(np.max(hi - lo) / step)) + 1) * step
+    cand = []
+    for k in moves:  # in order of the move, so the first free candidate is the nearest
+        for j in range(q.size):
+            for sign in (1.0, -1.0):
+                c = q.copy()
+                c[j] += sign * k
+                if lo[j] <= c[j] <= hi[j]:
+                    cand.append(c)
+    if not cand:
+        return None
+    free = ~np.asarray(checker.collides(np.array(cand)), dtype=bool)
+    return np.array(cand)[np.flatnonzero(free)[0]] if free.any() else None
+
+
+@dataclasses.dataclass(frozen=True)
+class Approach:
+    """The arm's start-up reference: from the initial posture onto the lap's references.
+
+    Over t ∈ [0, duration] the posture reference follows a path A(u) from the initial arm
+    posture to q_ref(s_a) (s_a = duration / lap_time), at the rest-to-rest time scaling
+    u = σ(t / duration) (:func:`time_scaling`); A is a natural cubic spline through its knots
+    (initial posture, via postures, end), straight when there are no via postures. As on the
+    lap, the arm-CoM reference is the CoM of that posture, g_a^B(A(u)), so the CoM task and the
+    posture task ask for the same motion, and it meets the lap's at t = duration. The path is
+    checked at every control period and repaired with via postures (:func:`nearest_free`)
+    where it collides.
+
+    Attributes:
+        duration: its length [s].
+        knots: the path parameter of each knot (M,) in [0, 1].
+        postures: the knots (M, 4) [rad].
+        via: the via postures (``fraction`` is the path parameter u, ``interval`` in seconds).
+        planned_check: the straight path, before any repair (x = time [s]).
+        check: the path as used (x = time [s]).
+        path: the spline A(u).
+        robot: the robot (arm-CoM kinematics, joint limits).
+    """
+
+    duration: float
+    knots: FloatArray
+    postures: FloatArray
+    via: tuple[ViaPosture, ...]
+    planned_check: SequenceCollisions
+    check: SequenceCollisions
+    path: Any
+    robot: Robot
+
+    def posture(self, t: ArrayLike) -> PathSample:
+        """q_ref (N, 4) [rad] and its rate (N, 4) [rad/s] at times t (N,) [s]."""
+        u, du = time_scaling(np.atleast_1d(np.asarray(t, dtype=float)) / self.duration)
+        q, dq = self.path(u), self.path(u, 1) * (du / self.duration)[:, None]
+        lo, hi = self.robot.joint_lower, self.robot.joint_upper
+        inside = (q >= lo) & (q <= hi)
+        return PathSample(np.clip(q, lo, hi), np.where(inside, dq, 0.0))
+
+    def com_body(self, t: ArrayLike) -> PathSample:
+        """Body-frame arm-CoM reference (N, 3) [m] and its rate (N, 3) [m/s] at times t."""
+        return posture_com(self.robot, self.posture(t))
+
+    def summary(self) -> dict[str, Any]:
+        """The report for ``summary.json``."""
+        return {
+            "duration_s": self.duration,
+            "start_posture": self.postures[0].tolist(),
+            "end_posture": self.postures[-1].tolist(),
+            "straight_path": self.planned_check._asdict(),
+            "via_postures": [
+                {"u": v.fraction, "posture": v.posture.tolist(), "repairs_s": list(v.interval)}
+                for v in self.via
+            ],
+            "path": self.check._asdict(),
+        }
+
+
+def build_approach(
+    robot: Robot,
+    q0: ArrayLike,
+    posture: PostureReference,
+    duration: float,
+    lap_time: float,
+    dt: float,
+    *,
+    step: float = 0.05,
+) -> Approach:
+    """The start-up reference from the arm posture ``q0`` onto the lap's references.
+
+    Args:
+        robot: the robot.
+        q0: the arm's initial posture (4,) [rad].
+        posture: the lap's posture reference.
+        duration: the approach's length [s], > 0.
+        lap_time: time of one lap [s].
+        dt: control period [s]: the path is checked at every one.
+        step: resolution of the via-posture search [rad] (:func:`nearest_free`).
+
+    Raises:
+        ValueError: a duration that is not positive.
+    """
+    from scipy.interpolate import CubicSpline
+
+    if not duration > 0:
+        raise ValueError(f"the approach needs a positive duration, got {duration}")
+    q_end = posture(duration / lap_time).value[0]
+    knots, postures = np.array([0.0, 1.0]), np.vstack([np.asarray(q0, dtype=float), q_end])
+    t = np.arange(int(np.floor(duration / dt)) + 1) * dt
+    checker = CollisionChecker(robot)
+    unchecked = SequenceCollisions(0, 0, 0.0, [], {})
+
+    def make(knots: FloatArray, postures: FloatArray) -> Approach:
+        path = CubicSpline(knots, postures, bc_type="natural")
+        return Approach(duration, knots, postures, (), unchecked, unchecked, path, robot)
+
+    approach = make(knots, postures)
+    planned, hit = sequence_collisions(checker, t, approach.posture(t).value)
+    check, via = planned, []
+    for _ in range(MAX_REPAIR_ROUNDS):
+        if not hit.any():
+            break
+        added = []
+        for (a, b), interval in zip(true_runs(hit), check.intervals, strict=True):
+            u_mid = float(time_scaling(0.5 * (t[a] + t[b - 1]) / duration).value)
+            if np.min(np.abs(knots - u_mid)) < 1.0 / t.size:
+                continue  # a knot already sits there (within one control period)
+            q = nearest_free(checker, robot, approach.path(u_mid), step)
+            if q is not None:
+                pairs = tuple(checker.colliding_pairs(approach.path(u_mid)))
+                added.append(ViaPosture(u_mid, q, (interval[0], interval[1]), pairs))
+        if not added:
+            break
+        via.extend(added)
+        order = np.argsort(np.r_[knots, [v.fraction for v in added]])
+        knots = np.r_[knots, [v.fraction for v in added]][order]
+        postures = np.vstack([postures, [v.posture for v in added]])[order]
+        approach = make(knots, postures)
+        check, hit = sequence_collisions(checker, t, approach.posture(t).value)
+    return dataclasses.replace(approach, via=tuple(via), planned_check=planned, check=check)
+
+
+class ArmReferences(NamedTuple):
+    """The arm's references for a run: the lap's posture reference and the start-up approach.
+
+    Attributes:
+        posture: the lap's posture reference (checked and repaired).
+        approach: the start-up reference (None when ``approach_time`` is 0).
+    """
+
+    posture: PostureReference
+    approach: Approach | None
+
+
+def arm_references(
+    robot: Robot,
+    plan: PosturePlan,
+    q0: ArrayLike,
+    settings: Any,
+    posture: PostureReference | None = None,
+) -> ArmReferences:
+    """The arm's references of a run starting with the arm at ``q0``.
+
+    Args:
+        robot: the robot.
+        plan: the plan (``fractions``, ``target_com``, ``postures``).
+        q0: the initial arm posture (4,) [rad].
+        settings: the controller settings (``lap_time``, ``dt``, ``approach_time``) [s].
+        posture: the lap's posture reference if already built (else built here, checked at
+            every control period of a lap, :func:`posture_samples`).
+    """
+    if posture is None:
+        samples = posture_samples(settings.lap_time, settings.dt)
+        posture = build_posture_reference(robot, plan, samples)
+    approach = None
+    if settings.approach_time > 0:
+        approach = build_approach(
+            robot, q0, posture, settings.approach_time, settings.lap_time, settings.dt
+        )
+    return ArmReferences(posture, approach)
+
+
+class RunReference(NamedTuple):
+    """Everything a run tracks: the arm's references and the per-step references.
+
+    Attributes:
+        arm: the lap's posture reference and the start-up approach.
+        step: the controller's reference at each time (ξ_des, ξ̇_ref, q_ref, q̇_ref).
+    """
+
+    arm: ArmReferences
+    step: StepReference
+
+
+def run_reference(
+    robot: Robot,
+    circle: Any,
+    terrain: Terrain,
+    plan: PosturePlan,
+    q0: ArrayLike,
+    settings: Any,
+    t: ArrayLike,
+    posture: PostureReference | None = None,
+) -> RunReference:
+    """The references of a run from the arm at ``q0``, at times ``t`` (simulation and rollout).
+
+    Args:
+        robot: the robot.
+        circle: the base path (``CirclePath``).
+        terrain: the ground.
+        plan: the plan (``fractions``, ``target_com``, ``postures``).
+        q0: the initial arm posture (4,) [rad].
+        settings: the controller settings (``lap_time``, ``dt``, ``approach_time``,
+            ``base_offset``).
+        t: the times (T,) [s].
+        posture: the lap's posture reference if already built.
+    """
+    arm = arm_references(robot, plan, q0, settings, posture)
+    step = task_reference(
+        circle,
+        terrain,
+        settings.lap_time,
+        settings.base_offset,
+        arm.posture.arm_reference(circle, terrain),
+        arm.posture,
+        np.asarray(t, dtype=float),
+        arm.approach,
+    )
+    return RunReference(arm, step)

@@ -1,0 +1,148 @@
+"""The QP of one step, assembled from the tasks and the limits (paper Eq. 7-8 + posture task).
+
+::
+
+    v_b = K_b e_b + f ṙ_b   (base point and heading; heading error wrapped to (−π, π])
+    v_c = K_c e_c + f ṙ_c   (arm CoM)
+    v_q = K_q e_q + f q̇_ref (posture; no wrap: q_ref is in limit coordinates)
+    min Σ_tasks ½‖v − J q̇‖²_W + ½‖q̇‖²_{W_B}   s.t. the limits' bounds on q̇
+
+so H = Σ Jᵀ W J + W_B, g = −Σ Jᵀ W v (:meth:`mmstab.control.tasks.Task.objective`) and
+lbx/ubx the intersection of the limits (:func:`mmstab.control.limits.base.intersect`); W_B > 0, so
+the QP is strictly convex. The targets come from the step's reference and parameters
+(:mod:`mmstab.control.layout`); the tasks are evaluated at the reference's local ground.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import casadi as ca
+
+from mmstab.control.layout import PARAMS_SIZE, REFERENCE_SIZE, ControllerParams, StepReference
+from mmstab.control.limits import JointPositionLimit, JointVelocityLimit, Limit
+from mmstab.control.limits.base import intersect
+from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, Task, TaskModel, TaskTarget
+from mmstab.model.robot import FloatArray
+
+#: The rows of ξ (reference, gains, weights) of the base-point and arm-CoM tasks.
+BASE_ROWS, COM_ROWS = slice(0, 3), slice(3, 6)
+
+
+class QPData(NamedTuple):
+    """The QP of one step: min ½ q̇ᵀHq̇ + gᵀq̇ + cost0 s.t. lbx ≤ q̇ ≤ ubx; pre-solve status.
+
+    Attributes:
+        H: Hessian (6, 6).
+        g: gradient (6,).
+        lbx: lower bounds on q̇ (6,) [rad/s].
+        ubx: upper bounds on q̇ (6,) [rad/s].
+        xi_dot_des: the task rate asked for ξ̇_des (6,) [m/s, rad/s].
+        q_dot_posture: the arm joint rates the posture task asks for q̇_post (4,) [rad/s].
+        cost0: the constant of the cost (its value at q̇ = 0).
+        status: the pre-solve status (:class:`~mmstab.control.controller.QPStatus` value).
+    """
+
+    H: FloatArray
+    g: FloatArray
+    lbx: FloatArray
+    ubx: FloatArray
+    xi_dot_des: FloatArray
+    q_dot_posture: FloatArray
+    cost0: float
+    status: int
+
+
+def tree_reduce(x: ca.SX, op: Callable[[ca.SX, ca.SX], ca.SX]) -> ca.SX:
+    """``op`` folded over the elements of ``x`` as a balanced tree (``x`` not empty).
+
+    A left fold (``ca.sum1``, ``ca.mmin``) is a chain of n dependent operations: ~4 cycles of
+    latency each, 0.15 µs for the ~100 numbers the step checks; the tree's depth is log₂ n.
+    """
+    items = [x[i] for i in range(x.numel())]
+    while len(items) > 1:
+        pairs = [op(a, b) for a, b in zip(items[::2], items[1::2], strict=False)]
+        items = pairs + ([items[-1]] if len(items) % 2 else [])
+    return items[0]
+
+
+def all_true(x: ca.SX) -> ca.SX:
+    """1 if every element of ``x`` is nonzero (1 for an empty ``x``)."""
+    return tree_reduce(ca.vec(x), ca.fmin) if x.numel() else ca.SX(1)
+
+
+def all_finite(x: ca.SX) -> ca.SX:
+    """1 if every element of ``x`` is finite.
+
+    The sum of the elements scaled by 2⁻¹⁰⁰⁰ (exact: a power of two) is finite exactly when
+    every element is: a scaled finite element is below 2²⁴, so ~100 of them cannot overflow,
+    while an inf stays inf (or meets −inf: NaN) and a NaN stays NaN. One multiply-add per
+    element where ``|x| < inf`` and a minimum took three (the step checks ~100 numbers; CasADi
+    simplifies x·0 to 0, so that cheaper-looking test cannot be written).
+    """
+    if not x.numel():
+        return ca.SX(1)
+    if x.numel() > 2**20:
+        raise ValueError("all_finite: too many elements for the scaled sum")
+    return ca.fabs(tree_reduce(ca.vec(x) * 2.0**-1000, ca.plus)) < ca.inf
+
+
+def targets(R: StepReference, P: ControllerParams) -> tuple[TaskTarget, TaskTarget, TaskTarget]:
+    """The base-point, arm-CoM and posture targets from the step's reference and parameters."""
+    return (
+        TaskTarget(
+            R.xi_des[BASE_ROWS],
+            R.xi_dot_ref[BASE_ROWS],
+            P.kp[BASE_ROWS],
+            P.w_a[BASE_ROWS],
+            P.feedforward,
+        ),
+        TaskTarget(
+            R.xi_des[COM_ROWS],
+            R.xi_dot_ref[COM_ROWS],
+            P.kp[COM_ROWS],
+            P.w_a[COM_ROWS],
+            P.feedforward,
+        ),
+        TaskTarget(R.q_ref, R.q_dot_ref, P.posture_gain, P.posture_weight, P.feedforward),
+    )
+
+
+def build_qp(model: TaskModel, statuses: tuple[float, float, float]) -> ca.Function:
+    """SX Function (state, reference, params) -> the QP's matrices and the pre-solve status.
+
+    Args:
+        model: the task kinematics.
+        statuses: the status values for (success, non-finite input, infeasible bounds).
+
+    Returns:
+        ``qp`` (state (9), reference (23), params (42)) -> (H, g, lbx, ubx, xi_dot_des,
+        q_dot_posture, cost0, status); see the module docstring for the formulas.
+    """
+    success, nonfinite, infeasible = statuses
+    s, ground = model.state, model.ground
+    ref, p = ca.SX.sym("reference", REFERENCE_SIZE), ca.SX.sym("params", PARAMS_SIZE)
+    P, R = ControllerParams.unpack(p), StepReference.unpack(ref)
+    tasks: tuple[Task, Task, Task] = (BasePointTask(model.base_offset), ArmCoMTask(), PostureTask())
+    limits: list[Limit] = [JointVelocityLimit(), JointPositionLimit()]
+    base, com, posture = (t.objective(model, x) for t, x in zip(tasks, targets(R, P), strict=True))
+    H = base.H + com.H + posture.H + ca.diag(P.w_b)
+    g = base.g + com.g + posture.g
+    cost0 = base.cost0 + com.cost0 + posture.cost0
+    lbx, ubx = intersect(limits, s, P)
+    # the inputs: finite inputs give a finite H and g (short of overflow, which the
+    # certificate refuses as SOLVER_FAILED)
+    finite = all_finite(ca.vertcat(s, ref, p))
+    status = ca.if_else(finite, ca.if_else(all_true(lbx <= ubx), success, infeasible), nonfinite)
+    outputs = [H, g, lbx, ubx, ca.vertcat(base.rate, com.rate), posture.rate, cost0, status]
+    # cse: shared subexpressions (sin/cos of the joints, products of the Jacobian) once
+    at_ground = ca.Function("qp_at_ground", [s, ground, ref, p], outputs, {"cse": True})
+    return ca.Function(
+        "qp",
+        [s, ref, p],
+        list(at_ground(s, R.ground, ref, p)),
+        ["state", "reference", "params"],
+        ["H", "g", "lbx", "ubx", "xi_dot_des", "q_dot_posture", "cost0", "status"],
+        {"cse": True},
+    )

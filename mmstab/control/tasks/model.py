@@ -1,0 +1,87 @@
+"""What the tasks read of the robot: symbolic state, local ground, track kinematics, ξ."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.control.layout import ARM, POSE, STATE_SIZE
+from mmstab.control.plant import build_plant
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.terrain import GROUND_SIZE, place_local_sx
+
+
+class TaskModel:
+    """The robot as the tasks see it (pink's ``Configuration``), and the task map ξ.
+
+    The base pose is part of the state, not a function of q: the tracked base is
+    nonholonomic, pose rate = B(γ) [θ̇_l, θ̇_r] with B the 3x2 track map, so a quantity
+    f(pose, q_arm) has d f/dt = [∂f/∂pose · B(γ) | ∂f/∂q_arm] q̇ (:meth:`rate_jacobian`).
+
+    Attributes:
+        robot: the robot.
+        base_offset: base control point ahead of the body origin [m].
+        state: the symbolic state (9,) SX.
+        ground: the symbolic local ground (3,) SX [m, rad, rad].
+        track_map: B(γ) (3, 2) SX [m/rad, rad/rad].
+        com_body: the arm CoM g_a^B(q_arm) (3,) SX [m].
+        xi: ξ = [base point and heading, arm CoM] (6,) SX (the base-point and arm-CoM tasks).
+        J: the task Jacobian (6x6) SX: ξ̇ = J q̇ (the ground held constant).
+        f_task: ``Function`` (state, ground) -> xi.
+        f_jacobian: ``Function`` (state, ground) -> J.
+        f_integrate: the plant (:func:`mmstab.control.plant.build_plant`).
+    """
+
+    def __init__(self, robot: Robot, base_offset: float):
+        from mmstab.control.tasks.arm_com import ArmCoMTask
+        from mmstab.control.tasks.base_point import BasePointTask
+
+        self.robot = robot
+        self.base_offset = float(base_offset)
+        tracks = robot.base.tracks
+        r, b = tracks.sprocket_radius, tracks.separation
+        s = self.state = ca.SX.sym("state", STATE_SIZE)
+        ground = self.ground = ca.SX.sym("ground", GROUND_SIZE)
+        c, sn = ca.cos(s[2]), ca.sin(s[2])
+        self.track_map = ca.vertcat(
+            ca.horzcat(r / 2 * c, r / 2 * c),
+            ca.horzcat(r / 2 * sn, r / 2 * sn),
+            ca.horzcat(-r / b, r / b),
+        )
+        self.com_body = robot.kinematics.f_arm_com(s[ARM])  # g_a^B(q_arm), inlined as SX
+        tasks = (BasePointTask(self.base_offset), ArmCoMTask())
+        self.xi = ca.vertcat(*(t.value(self) for t in tasks))
+        self.J = ca.vertcat(*(t.jacobian(self) for t in tasks))
+        names = ["state", "ground"]
+        self.f_task = ca.Function("task", [s, ground], [self.xi], names, ["xi"])
+        self.f_jacobian = ca.Function("task_jacobian", [s, ground], [self.J], names, ["J"])
+        self.f_integrate = build_plant(robot)
+
+    def place(self, point_body: ca.SX) -> ca.SX:
+        """A body point placed in M at the state's pose and the local ground (SX (3,))."""
+        return place_local_sx(self.state[POSE], self.ground, point_body)
+
+    def rate_jacobian(self, expr: ca.SX) -> ca.SX:
+        """J of ``expr(pose, q_arm)`` with respect to q̇: [∂/∂pose · B(γ) | ∂/∂q_arm] (m, 6)."""
+        s = self.state
+        return ca.horzcat(ca.jacobian(expr, s[POSE]) @ self.track_map, ca.jacobian(expr, s[ARM]))
+
+    def task(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
+        """ξ at a state (9,) and local ground (3,) -> (6,) [m, m, rad, m, m, m]."""
+        return np.asarray(self.f_task(np.asarray(state, float), np.asarray(ground, float))).ravel()
+
+    def task_batch(self, states: ArrayLike, ground: ArrayLike) -> FloatArray:
+        """ξ for many states (N, 9) and their local ground (N, 3) -> (N, 6) (one mapped call)."""
+        s = np.atleast_2d(np.asarray(states, dtype=float))
+        g = np.broadcast_to(np.asarray(ground, dtype=float), (len(s), GROUND_SIZE))
+        return np.asarray(self.f_task.map(len(s))(s.T, g.T)).T
+
+    def jacobian(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
+        """J at a state (9,) and local ground (3,) -> (6, 6) [m/rad, rad/rad]."""
+        return np.asarray(self.f_jacobian(np.asarray(state, float), np.asarray(ground, float)))
+
+    def integrate(self, state: ArrayLike, qdot: ArrayLike, dt: float) -> FloatArray:
+        """State after ``dt`` [s] at constant joint speeds ``qdot`` (6,) [rad/s] (the plant)."""
+        out = self.f_integrate(np.asarray(state, dtype=float), np.asarray(qdot, dtype=float), dt)
+        return np.asarray(out).ravel()

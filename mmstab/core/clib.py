@@ -1,0 +1,71 @@
+"""mmstab's own C, compiled on first use into a cached shared library.
+
+Two stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``)
+and the resting pose of the base on a heightmap (``terrain/rest.c``). Each is compiled once
+per source text and compile command with the system compiler and kept in the cache folder;
+the file name carries a hash of both, so an edited source is never confused with an old
+build, and the library is written atomically (compiled next to it, renamed).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from mmstab.core.files import MmstabError
+
+#: Flags of mmstab's own C libraries (warnings are errors).
+LIB_CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
+
+
+def cache_dir() -> Path:
+    """Where compiled libraries are kept: ``$MMSTAB_CACHE``, else the user cache folder."""
+    if os.environ.get("MMSTAB_CACHE"):
+        return Path(os.environ["MMSTAB_CACHE"]).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "mmstab"
+
+
+def compiled_library(source: Path, name: str, cflags: Sequence[str] = LIB_CFLAGS) -> Path:
+    """``source`` compiled as the shared library ``lib{name}_{hash}.so`` in :func:`cache_dir`.
+
+    Args:
+        source: the C file.
+        name: the library's name (its main symbol, by convention).
+        cflags: compiler flags (``-fPIC -shared`` among them).
+
+    Raises:
+        MmstabError: no C compiler, or the source does not compile.
+    """
+    cc = os.environ.get("CC", "cc")
+    cmd = [cc, *cflags]
+    text = source.read_text()
+    key = hashlib.sha256((text + "\0" + " ".join(cmd)).encode()).hexdigest()[:16]
+    out = cache_dir() / f"lib{name}_{key}.so"
+    if out.is_file():
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.")
+    os.close(fd)
+    try:
+        try:
+            proc = subprocess.run(
+                [*cmd, str(source), "-o", tmp, "-lm"], capture_output=True, text=True
+            )
+        except FileNotFoundError:
+            raise MmstabError(
+                f"{source.name} needs a C compiler: no {cc!r} (set CC or install cc)"
+            ) from None
+        if proc.returncode != 0:
+            raise MmstabError(f"compiling {source.name} failed:\n{proc.stderr}")
+        if proc.stderr:
+            print(proc.stderr, file=sys.stderr)
+        os.replace(tmp, out)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    return out

@@ -1,0 +1,166 @@
+"""A problem file: robot, ramp, path and the settings of every stage, validated at load.
+
+The robot is given by a path relative to the problem file. ``load_problem`` is the one
+place where a problem's inputs are checked; stages read their section from
+``Problem.section(name)`` and trust it.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mmstab.core import schema
+from mmstab.core.files import ConfigError, MmstabError, read_yaml, validate
+from mmstab.core.settings import check_problem
+from mmstab.core.sizes import Estimate, estimates, refusal
+from mmstab.model.payload import attach_payload, payload_from_section
+from mmstab.model.robot import Robot, load_robot
+from mmstab.paths.circle import CirclePath
+from mmstab.paths.route import RoutePath, is_route, route_path_from_section
+from mmstab.terrain import Terrain, from_section
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A validated problem.
+
+    Attributes:
+        path: the problem file.
+        data: its validated content (sections by name).
+        robot: the robot it names.
+        terrain: the ground (:func:`mmstab.terrain.from_section` of the ``terrain:`` section).
+        base_path: the base reference path in the terrain's map frame: a circle, or a route
+            (:class:`mmstab.paths.route.RoutePath`) when ``path:`` has waypoints or a file.
+        force_size: sizes beyond the time bounds were accepted (``--force-size``).
+    """
+
+    path: Path
+    data: dict[str, Any]
+    robot: Robot
+    terrain: Terrain
+    base_path: CirclePath | RoutePath
+    force_size: bool = False
+
+    @property
+    def circle(self) -> CirclePath:
+        """The circle of a circle problem.
+
+        Raises:
+            MmstabError: the problem's path is a route (a stage that only knows circles).
+        """
+        if isinstance(self.base_path, RoutePath):
+            raise MmstabError(
+                f"{self.path}: path: this command works on a circle; the problem's path is a "
+                "route (use mmstab plan / track / route figures)"
+            )
+        return self.base_path
+
+    @property
+    def route(self) -> RoutePath | None:
+        """The route of a route problem, else None."""
+        return self.base_path if isinstance(self.base_path, RoutePath) else None
+
+    def size_estimates(self, duration: float | None = None) -> dict[str, Estimate]:
+        """The size estimates of the stages (:func:`mmstab.core.sizes.estimates`), by section.
+
+        The tracking run's is for the time it simulates (:func:`mmstab.runs.tracking.simulate`):
+        ``duration`` [s] if given (``--duration``), else a route's driving time (a route sets
+        its own length), else ``controller.duration``. On a route the planner's is for the
+        poses it places, every ``planner.spacing`` (not ``planner.poses``).
+        """
+        poses = None
+        if self.route is not None:  # a route plans every planner.spacing, not planner.poses
+            poses = self.route.planned_poses(self.section("planner").get("spacing"))
+        if duration is not None:
+            return estimates(self.data, duration, "--duration", poses)
+        if self.route is not None:
+            return estimates(self.data, self.route.duration, "path", poses)
+        return estimates(self.data)
+
+    @property
+    def ramp(self) -> Terrain:
+        """Transitional alias of :attr:`terrain` (code written before the terrain interface)."""
+        return self.terrain
+
+    @property
+    def name(self) -> str:
+        """The problem's file stem (``ramp`` for ``problems/ramp.yaml``)."""
+        return self.path.stem
+
+    def section(self, name: str) -> dict[str, Any]:
+        """One section's settings, as validated."""
+        return self.data[name]
+
+    def robot_path(self) -> Path:
+        """The robot description's path."""
+        return (self.path.parent / self.data["robot"]).resolve()
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything a run depended on: the problem and the robot description."""
+        return {**self.data, "robot": read_yaml(self.robot_path())}
+
+
+def problem_from_dict(
+    data: dict[str, Any], path: str | os.PathLike[str], *, force_size: bool = False
+) -> Problem:
+    """Validate a problem mapping read from ``path`` (robot path relative to it).
+
+    Every check runs here, whatever the command: the schema, the registry of
+    :mod:`mmstab.core.settings` and the size bounds of :mod:`mmstab.core.sizes` (``force_size``
+    accepts sizes beyond the time bounds, not beyond the memory).
+    """
+    p = Path(path)
+    data = schema.with_defaults(data)
+    validate(p, data, schema.problem_schema())
+    robot_path = (p.parent / data["robot"]).resolve()
+    if not robot_path.is_file():
+        raise ConfigError(p, "robot", f"no robot description at {robot_path}")
+    check_problem(p, data, force_size=force_size)
+    c = data["path"]
+    if is_route(c):
+        form = schema.PATH_ROUTE_FILE if "file" in c else schema.PATH_ROUTE_WAYPOINTS
+        validate(p, {"path": c}, schema.obj(path=form))
+    else:
+        validate(p, {"path": c}, schema.obj(path=schema.PATH_CIRCLE))
+    robot = load_robot(robot_path)
+    if "payload" in data:  # optional: without it the robot is the file's, unchanged
+        robot = attach_payload(robot, payload_from_section(p, data["payload"]))
+    terrain = from_section(p, data["terrain"], robot)
+    base_path: CirclePath | RoutePath
+    if is_route(c):
+        base_path = route_path_from_section(p, c, robot, terrain)
+        # its run lasts the driving time, not controller.duration, and it plans every
+        # planner.spacing, not planner.poses: bound those too
+        n = base_path.planned_poses(data["planner"].get("spacing"))
+        route_sizes = estimates(data, base_path.duration, "path", n)
+        for est in (route_sizes["controller"], route_sizes["animation"], route_sizes["planner"]):
+            why = refusal(est, force_size)
+            if why is not None:
+                raise ConfigError(p, est.field, why)
+    else:
+        base_path = CirclePath(
+            center=tuple(c["center"]),
+            radius=float(c["radius"]),
+            start_angle=float(c["start_angle"]),
+            direction=c["direction"],
+        )
+    return Problem(
+        path=p,
+        data=data,
+        robot=robot,
+        terrain=terrain,
+        base_path=base_path,
+        force_size=force_size,
+    )
+
+
+def load_problem(path: str | os.PathLike[str], *, force_size: bool = False) -> Problem:
+    """Load and validate a problem YAML file (see :func:`problem_from_dict`).
+
+    Raises:
+        ConfigError: naming the file (problem or robot) and the field at fault.
+    """
+    return problem_from_dict(read_yaml(path), path, force_size=force_size)

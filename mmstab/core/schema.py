@@ -1,0 +1,350 @@
+"""JSON schemas of the robot description and of a problem file.
+
+Every key is required (except the few marked optional, whose default is documented) and
+no other key is allowed, so that a typo is an error and a saved problem says everything a
+run depended on. Units: metres, radians, kg, seconds.
+Semantic checks the schema cannot express (inverted limits, a flipper under the
+ground) live beside the loaders.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+NUM: dict[str, Any] = {"type": "number"}
+POS: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}
+NONNEG: dict[str, Any] = {"type": "number", "minimum": 0}
+INT_POS: dict[str, Any] = {"type": "integer", "minimum": 1}
+SEED: dict[str, Any] = {"type": "integer", "minimum": 0}
+VEC2: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 2, "maxItems": 2}
+VEC3: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}
+VEC3_POS: dict[str, Any] = {"type": "array", "items": POS, "minItems": 3, "maxItems": 3}
+VEC4: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 4, "maxItems": 4}
+WEIGHT01: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1}
+
+
+def obj(**props: Any) -> dict[str, Any]:
+    """A closed object schema: all ``props`` required, nothing else allowed."""
+    return {
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+        "additionalProperties": False,
+    }
+
+
+def with_optional(schema: dict[str, Any], **props: Any) -> dict[str, Any]:
+    """A closed object schema with extra keys that may be left out (their default applies)."""
+    return {**schema, "properties": {**schema["properties"], **props}}
+
+
+def vec(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
+    """Array of exactly ``n`` items."""
+    return {"type": "array", "items": item, "minItems": n, "maxItems": n}
+
+
+def vec_min(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
+    """Array of at least ``n`` items."""
+    return {"type": "array", "items": item, "minItems": n}
+
+
+BOX = obj(type={"const": "box"}, size=VEC3_POS, center=VEC3, rpy=VEC3)
+CAPSULE = obj(type={"const": "capsule"}, radius=POS, p0=VEC3, p1=VEC3)
+
+LINK = obj(
+    name={"type": "string", "minLength": 1},
+    dh=obj(a=NUM, alpha=NUM, d=NUM, theta_offset=NUM),
+    mass=POS,
+    com=VEC3,
+    geometry={"oneOf": [BOX, CAPSULE]},
+    limits=obj(lower=NUM, upper=NUM, velocity=POS),
+)
+
+ROBOT = obj(
+    name={"type": "string", "minLength": 1},
+    note={"type": "string"},
+    base=obj(
+        mass=POS,
+        com=VEC3,
+        body=obj(size=VEC3_POS, center=VEC3),
+        tracks=obj(
+            length=POS,
+            width=POS,
+            height=POS,
+            separation=POS,
+            sprocket_radius=POS,
+            velocity_limit=POS,
+        ),
+        flippers=with_optional(
+            obj(length=POS, width=POS, thickness=POS, pivot=VEC3, angle=NUM),
+            # optional: the range [rad] and rate [rad/s] the planner may move them in
+            # (planner.flipper_angles); not part of the description's hash (no cache uses it)
+            limits=obj(lower=NUM, upper=NUM, rate=POS),
+        ),
+    ),
+    arm=obj(
+        mount=obj(xyz=VEC3, rpy=VEC3),
+        links={"type": "array", "items": LINK, "minItems": 4, "maxItems": 4},
+        stowed=VEC4,
+    ),
+)
+
+# One entry per pipeline stage; a problem file has every section.
+PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
+    "robot": {"type": "string", "minLength": 1},
+    "terrain": {"type": "object"},  # one of three forms: mmstab.terrain.factory
+    "path": {"type": "object"},  # a circle or a route: PATH_CIRCLE | PATH_ROUTE (problem.py)
+    "sweep": obj(
+        samples={"type": "integer", "minimum": 8},
+        poses={"type": "integer", "minimum": 1},
+        roll_pose=VEC3,
+    ),
+    "planner": with_optional(  # CMA-ES or exhaustive arm-CoM planner, Eq. 6 (docs/planner.md)
+        obj(
+            w_stability=WEIGHT01,
+            w_motion=WEIGHT01,
+            poses=INT_POS,
+            starts={"type": "array", "items": NUM, "minItems": 1},
+            sigma0=POS,
+            popsize={"type": "integer", "minimum": 2},
+            max_iterations=INT_POS,
+            tol_fitness=POS,
+            tol_x=POS,
+            max_resample=INT_POS,
+            seed=SEED,
+            method={"enum": ["cmaes", "exhaustive", "sequence"]},
+            seeding={"enum": ["starts", "coarse"]},
+            coarse_samples={"type": "integer", "minimum": 16},
+            coarse_basins=INT_POS,
+            coarse_neighbours={"type": "integer", "minimum": 0},
+            coarse_seeds=INT_POS,
+            sigma0_unit={"enum": ["m", "diameter"]},
+            restarts={"type": "integer", "minimum": 0, "maximum": 8},
+            turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
+            sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
+        ),
+        margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
+        # optional: flipper angles searched per pose between the robot's flipper limits,
+        # rate-limited along the path (docs/levers.md); 0 = flippers fixed (the default)
+        flipper_angles={"type": "integer", "minimum": 0, "maximum": 64},
+        spacing=POS,  # optional, routes: planned poses this far apart [m]; 0.5
+    ),
+    "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/control/controller.py)
+        dt=POS,
+        lap_time=POS,
+        duration=POS,
+        kp=vec(6, POS),
+        w_a=vec(6, NONNEG),
+        w_b=vec(6, POS),
+        posture_gain=vec(4, NONNEG),
+        posture_weight=vec(4, NONNEG),
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},
+        feedforward={"type": "boolean"},
+        base_offset=NONNEG,
+        approach_time=NONNEG,
+        kkt_tol=POS,
+        osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
+    ),
+    "workspace": obj(
+        grid=vec(4, {"type": "integer", "minimum": 2}),
+        precision_samples=INT_POS,
+        seed=SEED,
+        method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
+    ),
+    "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)
+        plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},  # qpoases: refused, clearly
+        directory={"type": "string", "minLength": 1},
+    ),
+    "animation": obj(  # make animation: the tracking run as a GIF
+        frames={"type": "integer", "minimum": 2},
+        fps={"type": "integer", "minimum": 1, "maximum": 50},
+        width={"type": "integer", "minimum": 64, "maximum": 1920},
+        height={"type": "integer", "minimum": 64, "maximum": 1080},
+    ),
+}
+
+
+# The ``path:`` section: a circle on the ground, or a route (``mmstab.paths.route``), told
+# apart by ``waypoints`` / ``file``.
+PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=NUM, direction={"enum": ["ccw", "cw"]})
+_ROUTE_BASE = with_optional(
+    obj(speed=POS, turn_radius=POS),  # reference speed on lines [m/s], corner arcs [m]
+    acceleration=POS,  # optional [m/s^2], default 0.3
+    lateral_acceleration=POS,  # optional [m/s^2], default 0.3
+)
+#: waypoints in the map frame [m] (at least two: checked by the route builder, by name)
+PATH_ROUTE_WAYPOINTS = with_optional(
+    {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "waypoints"]},
+    waypoints={"type": "array", "items": VEC2},
+)
+#: a CSV file of ``x,y[,yaw]`` lines, relative to the problem file
+PATH_ROUTE_FILE = with_optional(
+    {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "file"]},
+    file={"type": "string", "minLength": 1},
+)
+
+#: Keys a problem file may omit, by section, and the value they then take: each is the
+#: behaviour of files written before the key existed (``problem_from_dict`` fills them in).
+SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
+    "planner": {
+        "method": "cmaes",
+        "seeding": "starts",
+        "coarse_samples": 4096,
+        "coarse_basins": 4,
+        "coarse_neighbours": 256,
+        "coarse_seeds": 1,
+        "sigma0_unit": "m",
+        "restarts": 0,
+        "turret_window": None,
+        "sequence_candidates": 256,
+    },
+    "workspace": {"method": "hull_difference"},
+}
+
+
+def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a problem mapping with the omitted optional keys filled in."""
+    out = dict(data)
+    for name, defaults in SECTION_DEFAULTS.items():
+        if isinstance(out.get(name), dict):
+            out[name] = {**defaults, **out[name]}
+    return out
+
+
+# The tip-over envelope atlas (mmstab atlas; docs/atlas.md). An axis is a list of values or
+# an evenly spaced range (a full-turn heading range omits its end); every axis is optional.
+_RANGE = obj(start=NUM, stop=NUM, num={"type": "integer", "minimum": 1, "maximum": 10000})
+_AXIS = {"oneOf": [{"type": "array", "items": NUM, "minItems": 1, "maxItems": 10000}, _RANGE]}
+_FLIPPER = {"oneOf": [NUM, {"enum": ["robot", "ground"]}]}
+ATLAS: dict[str, Any] = {
+    "type": "object",
+    "properties": {
+        "axes": {
+            "type": "object",
+            "properties": {
+                "slope": _AXIS,  # [rad], increasing, within terrain.slope's bounds
+                "heading": _AXIS,  # [rad] about the slope normal; 0 = across, pi/2 = uphill
+                "flipper_angle": {"type": "array", "items": _FLIPPER, "minItems": 1},
+                "robots": {  # robot files, relative to the problem file
+                    "type": "array",
+                    "items": {"type": "string", "minLength": 1},
+                    "minItems": 1,
+                },
+                "payload": _AXIS,  # [kg] at the wrist, increasing, >= 0
+                "terrain_seeds": {"type": "array", "items": SEED, "minItems": 1},  # generator
+            },
+            "additionalProperties": False,
+        },
+        # the payload's CoM in the wrist frame [m] (default its origin)
+        "payload_com": {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3},
+        "chunks": obj(slope=INT_POS, heading=INT_POS),  # cells per stored chunk, per axis
+        "margin": NUM,  # [N rad]: the operator's envelope keeps mu >= margin
+    },
+    "required": ["axes", "chunks", "margin"],
+    "additionalProperties": False,
+}
+
+# A payload held at the wrist and an optional wrench at the tool (docs/levers.md); left out:
+# no payload. ``com`` is in the wrist (last DH) frame; ``wrench`` is [fx, fy, fz [N],
+# nx, ny, nz [N m]] in the body frame B, acting at the tool point (the wrist frame's origin).
+PAYLOAD: dict[str, Any] = with_optional(obj(mass=NUM, com=VEC3), wrench=vec(6))
+
+# make levers (docs/levers.md): the experiments' own settings.
+LEVERS: dict[str, Any] = with_optional(
+    obj(
+        margin=NUM,  # [N rad]: "safe" / "holds" means mu >= margin
+        speeds=vec_min(1, POS),  # lap-speed factors of the dynamic-mu comparison (1 = lap_time)
+        samples=INT_POS,  # samples along one lap for the dynamic measure
+        side_slope={"type": "number", "minimum": 0, "maximum": 1.2},  # [rad]: payload, flippers
+        max_payload=POS,  # [kg]: the payload bisection's upper bracket
+        payload_com=VEC3,  # [m]: the payload's CoM in the wrist frame
+        payload_reach=NONNEG,  # [m]: "held at the front/side": the tool this far beyond the tracks
+        bisection_steps=INT_POS,  # steps of every bisection
+        max_slope={"type": "number", "exclusiveMinimum": 0, "maximum": 1.2},  # [rad] bracket
+        robots={"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
+        variant_grid=vec(4, {"type": "integer", "minimum": 2}),  # workspace grid of the variants
+        flipper_angles={"type": "integer", "minimum": 1, "maximum": 64},  # per pose (planner key)
+    ),
+    # optional: a problem file (relative to this one) whose terrain and circle give the
+    # variants' rough-ground lap; left out: no rough column
+    rough_problem={"type": "string", "minLength": 1},
+)
+
+#: Sections a problem may leave out; the command that needs one says so when it is missing.
+OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {
+    "atlas": ATLAS,
+    "payload": PAYLOAD,
+    "levers": LEVERS,
+}
+
+
+def problem_schema() -> dict[str, Any]:
+    """The closed schema of a whole problem file."""
+    schema = obj(**PROBLEM_SECTIONS)
+    schema["properties"].update(OPTIONAL_SECTIONS)
+    return schema
+
+
+# --------------------------------------------------------------- terrain (heightmaps)
+# The ``terrain:`` section takes one of three forms, told apart by their key and checked by
+# ``mmstab.terrain.factory.from_section``: ``{slope}`` (the ramp), ``{file, resolution?}`` (a
+# heightmap file, path relative to the problem file; ``resolution`` [m/cell] rasterises a
+# mesh) or ``{generate: {kind, seed, size, resolution, ...}}`` (a seeded generator); both
+# heightmap forms take an optional ``compliance`` [m] (:data:`COMPLIANCE`).
+SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2}
+#: ``terrain.compliance`` [m] of a heightmap: the tracks' bottom runs bear load this far
+#: above the ground (``mmstab.terrain.rest.RestSettings.compliance``); at most 0.2 m.
+COMPLIANCE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 0.2}
+TERRAIN_RAMP = obj(slope=SLOPE)
+TERRAIN_FILE: dict[str, Any] = {
+    "type": "object",
+    "properties": {
+        "file": {"type": "string", "minLength": 1},
+        "resolution": POS,
+        "compliance": COMPLIANCE,
+    },
+    "required": ["file"],
+    "additionalProperties": False,
+}
+#: Keys of each generator kind beyond kind, seed, size [m, m] and resolution [m/cell].
+TERRAIN_KINDS: dict[str, dict[str, Any]] = {
+    "plane": {"slope": SLOPE, "azimuth": NUM},
+    "kerb": {"height": NUM, "distance": NUM, "azimuth": NUM},
+    "ditch": {"depth": POS, "width": POS, "distance": NUM, "azimuth": NUM},
+    "bumps": {"amplitude": NONNEG, "wavelength": POS},
+    "rough": {
+        "amplitude": NONNEG,
+        "correlation_length": POS,
+        "hill_height": NUM,
+        "hill_radius": POS,
+        "slope": SLOPE,
+        "azimuth": NUM,
+    },
+}
+
+
+#: Optional features laid onto a generated map (any kind): a band ditch and a kerb across
+#: it, as the ``ditch`` and ``kerb`` kinds (their keys), added to its elevation.
+TERRAIN_FEATURES: dict[str, Any] = {
+    "ditch": obj(**TERRAIN_KINDS["ditch"]),
+    "kerb": obj(**TERRAIN_KINDS["kerb"]),
+}
+
+
+def terrain_generate_schema(kind: str) -> dict[str, Any]:
+    """Closed schema of ``terrain.generate`` for one generator kind (features optional)."""
+    return with_optional(
+        obj(
+            kind={"const": kind},
+            seed=SEED,
+            size=vec(2, POS),
+            resolution=POS,
+            **TERRAIN_KINDS[kind],
+        ),
+        features=obj_optional(TERRAIN_FEATURES),
+    )
+
+
+def obj_optional(props: dict[str, Any]) -> dict[str, Any]:
+    """A closed object schema whose keys are all optional."""
+    return {"type": "object", "properties": props, "additionalProperties": False}

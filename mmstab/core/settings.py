@@ -1,0 +1,137 @@
+"""The one registry of a problem's settings checks beyond the JSON schema (inputs layer).
+
+:func:`check_problem` runs, for every command and at load time, every check of
+:data:`SECTION_CHECKS` (semantic checks the schema cannot express: weights that must sum
+to 1, gains that make the discrete loop overshoot, a QP plugin CasADi cannot generate C
+for) and then the size bounds of :mod:`mmstab.core.sizes`. The registry is a plain, explicit
+table: importing a stage never adds or changes a check, so what is validated does not
+depend on which modules a command happened to import.
+
+This module imports nothing above the inputs layer (:mod:`mmstab.core.files`,
+:mod:`mmstab.core.sizes`); the stages read their constants (:data:`PLUGINS`,
+:data:`CODEGEN_PLUGINS`) from here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.core.sizes import Estimate, check_sizes, check_steps
+
+#: QP plugins of the tracking controller (CasADi ``conic`` plugins, and ``box``: mmstab's own
+#: box-QP solver, :mod:`mmstab.control.controller.boxqp`).
+PLUGINS = ("qpoases", "osqp", "qrqp", "daqp", "box")
+#: Plugins CasADi can generate C for (qpOASES emits ``#error``).
+CODEGEN_PLUGINS = ("qrqp", "daqp", "osqp", "box")
+#: Why ``codegen`` refuses qpOASES.
+QPOASES_MESSAGE = "CasADi cannot generate C for qpOASES; use box, qrqp, daqp or osqp"
+#: Tolerance of ``w_stability + w_motion = 1``.
+WEIGHT_SUM_TOL = 1e-9
+
+#: A semantic check of one section: (problem path, validated section) -> None, or raise.
+SectionCheck = Callable[[Path, Mapping[str, Any]], None]
+
+
+def check_planner(path: Path, section: Mapping[str, Any]) -> None:
+    """``planner:``: the weights of Eq. 6 sum to 1.
+
+    Raises:
+        ConfigError: naming ``planner.w_motion``.
+    """
+    if abs(section["w_stability"] + section["w_motion"] - 1.0) > WEIGHT_SUM_TOL:
+        raise ConfigError(path, "planner.w_motion", "w_stability + w_motion must equal 1")
+
+
+def check_controller(path: Path, section: Mapping[str, Any]) -> None:
+    """``controller:``: a duration of at least one period; gains the discrete loop can follow.
+
+    Raises:
+        ConfigError: naming the field (``controller.duration``, ``controller.kp``,
+            ``controller.posture_gain``).
+    """
+    dt = float(section["dt"])
+    if float(section["duration"]) < dt:
+        raise ConfigError(path, "controller.duration", f"must be at least dt = {dt} s")
+    for gain in ("kp", "posture_gain"):
+        if max(section[gain]) * dt >= 1.0:
+            raise ConfigError(
+                path,
+                f"controller.{gain}",
+                f"{gain} * dt must stay below 1 (the discrete loop overshoots); dt = {dt} s",
+            )
+
+
+def check_plugin(plugin: str) -> None:
+    """Raise :class:`MmstabError` unless CasADi can generate C for ``plugin``."""
+    if plugin == "qpoases":
+        raise MmstabError(QPOASES_MESSAGE)
+    if plugin not in CODEGEN_PLUGINS:
+        raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {CODEGEN_PLUGINS}")
+
+
+def check_codegen(path: Path, section: Mapping[str, Any]) -> None:
+    """``codegen:``: a plugin CasADi can generate C for.
+
+    Raises:
+        ConfigError: naming ``codegen.plugin``.
+    """
+    try:
+        check_plugin(str(section["plugin"]))
+    except MmstabError as exc:
+        raise ConfigError(path, "codegen.plugin", str(exc)) from None
+
+
+#: Every semantic check, by section. Explicit: nothing registers itself on import.
+SECTION_CHECKS: Mapping[str, SectionCheck] = MappingProxyType(
+    {
+        "planner": check_planner,
+        "controller": check_controller,
+        "codegen": check_codegen,
+    }
+)
+
+
+def check_problem(
+    path: Path, data: Mapping[str, Any], *, force_size: bool = False
+) -> dict[str, Estimate]:
+    """Every check of a schema-valid problem: the registry, then the size bounds.
+
+    Args:
+        path: the problem file (for messages).
+        data: its content, already valid against :func:`mmstab.core.schema.problem_schema`.
+        force_size: accept sizes whose time estimate exceeds the bound (``--force-size``);
+            memory bounds hold regardless.
+
+    Returns:
+        The size estimates by field (:func:`mmstab.core.sizes.check_sizes`).
+
+    Raises:
+        ConfigError: naming the file and the first field at fault.
+    """
+    for name, check in SECTION_CHECKS.items():
+        check(path, data[name])
+    return check_sizes(path, data, force=force_size)
+
+
+def check_duration(
+    duration: float, dt: float, *, what: str = "--duration", force_size: bool = False
+) -> None:
+    """A simulated time given on the command line: finite, at least dt, within the bounds.
+
+    Args:
+        duration: simulated time [s].
+        dt: control period [s].
+        what: the option's name, for the message.
+        force_size: accept a duration whose time estimate exceeds the bound.
+
+    Raises:
+        MmstabError: one line naming the option.
+    """
+    if not math.isfinite(duration) or duration < dt:
+        raise MmstabError(f"{what}: {duration} s must be a finite time of at least dt = {dt} s")
+    check_steps(what, duration, dt, force=force_size)

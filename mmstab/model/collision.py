@@ -1,0 +1,299 @@
+"""Self-collision of the arm with the base and with itself (python-fcl, GJK).
+
+The checker holds one FCL object per arm link and per base part (main body, two tracks,
+two flippers), built once per robot. ``collides(q)`` labels many postures at once:
+
+1. batched forward kinematics gives every link shape's pose in the body frame B;
+2. pairs whose answer was already computed for the same relevant joints are reused: a
+   link-vs-base pair depends only on the joints up to that link, a link-vs-link pair only
+   on the joints between the two links (it is invariant under the joints before them);
+3. pairs whose bounding sphere cannot reach the other body are culled in NumPy (sphere vs
+   sphere, and sphere vs the base box for link-vs-base pairs);
+4. FCL decides the surviving pairs, one ``fcl.collide`` each, reusing the objects.
+
+Steps 2-3 only skip work: the answer is what FCL gives on every pair (tests check it).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import fcl
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mmstab.core.masks import true_runs
+from mmstab.model.robot import Box, FloatArray, Geometry, Robot
+
+#: The base parts an arm link is checked against, in checking order.
+BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
+
+#: Non-adjacent arm link pairs checked against each other.
+ARM_PAIRS = ((0, 2), (0, 3), (1, 3))
+
+#: Slack added to a culling distance so that round-off never culls a touching pair [m].
+CULL_SLACK = 1e-9
+
+
+class Pair(NamedTuple):
+    """One pair of bodies to check.
+
+    Attributes:
+        name: ``"<link>-<base part>"`` or ``"<link>-<link>"``.
+        link: index of the first arm link.
+        other: base part name, or the index of the second arm link.
+        columns: the joints the pair's answer depends on (for reuse across postures).
+    """
+
+    name: str
+    link: int
+    other: str | int
+    columns: tuple[int, ...]
+
+
+def geometry_pose(geometry: Geometry) -> FloatArray:
+    """Pose of the FCL shape's centre (capsule axis along its local z) in the owning frame.
+
+    Args:
+        geometry: a :class:`Box` or :class:`Capsule` expressed in its owning frame.
+
+    Returns:
+        4x4 homogeneous transform [m].
+    """
+    if isinstance(geometry, Box):
+        return geometry.frame_T_shape
+    T = np.eye(4)
+    T[:3, 3] = geometry.center
+    axis = geometry.p1 - geometry.p0
+    length = np.linalg.norm(axis)
+    if length > 0:
+        z = axis / length
+        helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        x = np.cross(helper, z)
+        x /= np.linalg.norm(x)
+        T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
+def fcl_geometry(geometry: Geometry) -> fcl.CollisionGeometry:
+    """The FCL shape of a box or capsule (a zero-length capsule is a sphere)."""
+    if isinstance(geometry, Box):
+        return fcl.Box(*geometry.size)
+    if geometry.length == 0:
+        return fcl.Sphere(geometry.radius)
+    return fcl.Capsule(geometry.radius, geometry.length)
+
+
+def _transform(R: FloatArray, p: FloatArray) -> fcl.Transform:
+    return fcl.Transform(R, p)
+
+
+def _value_codes(q: FloatArray) -> NDArray[np.int64]:
+    """Per joint, the rank of each posture's value among the distinct values (N, 4)."""
+    codes = np.empty(q.shape, dtype=np.int64)
+    for j in range(q.shape[1]):
+        codes[:, j] = np.unique(q[:, j], return_inverse=True)[1].reshape(-1)
+    return codes
+
+
+def _row_keys(codes: NDArray[np.int64], columns: tuple[int, ...]) -> NDArray[np.int64]:
+    """One integer per row, equal exactly when the rows agree on ``columns``."""
+    key = np.zeros(len(codes), dtype=np.int64)
+    for j in columns:
+        radix = int(codes[:, j].max(initial=0)) + 1
+        if int(key.max(initial=0)) >= np.iinfo(np.int64).max // radix - radix:
+            key = np.unique(key, return_inverse=True)[1].reshape(-1)  # renumber: no overflow
+        key = key * radix + codes[:, j]
+    return key
+
+
+class CollisionChecker:
+    """Arm self-collision checker (links vs base parts, non-adjacent links vs each other).
+
+    Built once per robot; not thread-safe (it moves its FCL objects). For a process pool,
+    build one per worker process.
+
+    Args:
+        robot: the robot; its arm link geometry and base collision boxes are used.
+    """
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self.kinematics = robot.kinematics
+        self.base_boxes: dict[str, Box] = robot.base.collision_boxes()
+        # link shape pose in its link frame R_i, and the bounding radius about its centre
+        shape_T = np.stack([geometry_pose(link.geometry) for link in robot.links])
+        self._link_R_shape = shape_T[:, :3, :3]  # (4, 3, 3)
+        self._link_p_shape = shape_T[:, :3, 3]  # (4, 3)
+        self._link_radius = np.array([link.geometry.bounding_radius for link in robot.links])
+        self._link_objs = [
+            fcl.CollisionObject(fcl_geometry(link.geometry), fcl.Transform())
+            for link in robot.links
+        ]
+        self._base_objs: dict[str, fcl.CollisionObject] = {}
+        for name, box in self.base_boxes.items():
+            T = box.frame_T_shape
+            self._base_objs[name] = fcl.CollisionObject(
+                fcl_geometry(box), _transform(T[:3, :3], T[:3, 3])
+            )
+        self._request = fcl.CollisionRequest()
+        names = [link.name for link in robot.links]
+        # link-vs-body first: it is the pair most often in contact, so later pairs skip more
+        self.pairs: tuple[Pair, ...] = tuple(
+            [
+                Pair(f"{names[i]}-{part}", i, part, tuple(range(i + 1)))
+                for part in BASE_PARTS
+                for i in range(len(names))
+            ]
+            + [
+                Pair(f"{names[i]}-{names[j]}", i, j, tuple(range(i + 1, j + 1)))
+                for i, j in ARM_PAIRS
+            ]
+        )
+
+    # ---------------------------------------------------------------------------- geometry
+    def shape_poses(
+        self, q: FloatArray, frames: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Poses of the four link shapes in the body frame.
+
+        Args:
+            q: joint angles (N, 4) [rad].
+            frames: ``kinematics.link_frames(q)`` (N, 4, 4, 4) if already computed.
+
+        Returns:
+            R (N, 4, 3, 3) rotations and p (N, 4, 3) shape centres [m], body frame.
+        """
+        frames = self.kinematics.link_frames(q) if frames is None else frames
+        R_link, p_link = frames[..., :3, :3], frames[..., :3, 3]
+        R = R_link @ self._link_R_shape
+        p = (R_link @ self._link_p_shape[:, :, None])[..., 0] + p_link
+        return R, p
+
+    def _may_touch(self, pair: Pair, p: FloatArray, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+        """Conservative test: False only where the pair certainly does not touch."""
+        centre = p[rows, pair.link]
+        radius = self._link_radius[pair.link]
+        if isinstance(pair.other, str):  # bounding sphere vs the base box itself
+            box = self.base_boxes[pair.other]
+            local = (centre - box.center) @ box.frame_T_shape[:3, :3]
+            outside = local - np.clip(local, -box.size / 2, box.size / 2)
+            return np.einsum("ij,ij->i", outside, outside) <= (radius + CULL_SLACK) ** 2
+        reach = radius + self._link_radius[pair.other] + CULL_SLACK
+        d = centre - p[rows, pair.other]
+        return np.einsum("ij,ij->i", d, d) <= reach**2
+
+    def _fcl(
+        self, pair: Pair, R: FloatArray, p: FloatArray, rows: NDArray[np.intp]
+    ) -> NDArray[np.bool_]:
+        """FCL answer of one pair at the given postures (row indices into R, p)."""
+        a = self._link_objs[pair.link]
+        if isinstance(pair.other, str):
+            b, j = self._base_objs[pair.other], -1
+        else:
+            b, j = self._link_objs[pair.other], pair.other
+        out = np.zeros(len(rows), dtype=bool)
+        i, request, collide = pair.link, self._request, fcl.collide
+        for k, n in enumerate(rows):
+            a.setTransform(fcl.Transform(R[n, i], p[n, i]))
+            if j >= 0:
+                b.setTransform(fcl.Transform(R[n, j], p[n, j]))
+            out[k] = collide(a, b, request, fcl.CollisionResult()) > 0
+        return out
+
+    # ------------------------------------------------------------------------------ public
+    def collides(
+        self, q: ArrayLike, cull: bool = True, frames: FloatArray | None = None
+    ) -> NDArray[np.bool_] | bool:
+        """Whether any checked pair of bodies intersects, for each posture.
+
+        Args:
+            q: joint angles (N, 4) or (4,) [rad].
+            cull: skip pairs proven apart and reuse answers of identical relevant joints
+                (False: FCL on every pair of every posture, the reference for tests).
+            frames: ``kinematics.link_frames(q)`` (N, 4, 4, 4) if already computed.
+
+        Returns:
+            (N,) bool, or a bool for one posture; True = some pair collides.
+        """
+        qa = np.asarray(q, dtype=float)
+        single = qa.ndim == 1
+        qa = np.atleast_2d(qa)
+        R, p = self.shape_poses(qa, frames)
+        codes = _value_codes(qa) if cull else None
+        hit = np.zeros(len(qa), dtype=bool)
+        for pair in self.pairs:
+            todo = np.flatnonzero(~hit)
+            if todo.size == 0:
+                break
+            if codes is not None:
+                key = _row_keys(codes[todo], pair.columns)
+                _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+                reps = todo[first]
+                near = self._may_touch(pair, p, reps)
+                rep_hit = np.zeros(len(reps), dtype=bool)
+                rep_hit[near] = self._fcl(pair, R, p, reps[near])
+                hit[todo] = rep_hit[inverse.reshape(-1)]
+            else:
+                hit[todo] = self._fcl(pair, R, p, todo)
+        return bool(hit[0]) if single else hit
+
+    def colliding_pairs(self, q: ArrayLike) -> list[str]:
+        """Names of all pairs that intersect at one posture (FCL on every pair).
+
+        Args:
+            q: joint angles (4,) [rad].
+        """
+        qa = np.asarray(q, dtype=float).reshape(1, 4)
+        R, p = self.shape_poses(qa)
+        rows = np.zeros(1, dtype=np.intp)
+        return [pair.name for pair in self.pairs if self._fcl(pair, R, p, rows)[0]]
+
+
+class SequenceCollisions(NamedTuple):
+    """Where a sequence of postures collides.
+
+    Attributes:
+        samples: postures checked.
+        colliding_samples: how many of them collide.
+        colliding_share: their share of ``samples`` [-].
+        intervals: colliding runs, each [x of its first colliding sample, x of the first free
+            sample after it (or of the last sample)], in the unit of the sample coordinate x.
+        pairs: colliding pairs of bodies, with the number of samples each, most frequent first.
+    """
+
+    samples: int
+    colliding_samples: int
+    colliding_share: float
+    intervals: list[list[float]]
+    pairs: dict[str, int]
+
+
+def sequence_collisions(
+    checker: CollisionChecker, x: ArrayLike, q: ArrayLike
+) -> tuple[SequenceCollisions, NDArray[np.bool_]]:
+    """Check a sequence of postures and summarise where it collides.
+
+    Args:
+        checker: the robot's collision checker.
+        x: the samples' coordinate (N,), increasing (time [s] or path fraction [-]).
+        q: arm postures (N, 4) [rad].
+
+    Returns:
+        The summary, and the per-sample answer (N,) (True = some pair collides).
+    """
+    xs = np.asarray(x, dtype=float)
+    qa = np.atleast_2d(np.asarray(q, dtype=float))
+    hit = np.asarray(checker.collides(qa), dtype=bool)
+    edges = true_runs(hit)
+    intervals = [[float(xs[a]), float(xs[min(b, xs.size - 1)])] for a, b in edges.tolist()]
+    counts: dict[str, int] = {}
+    unique, repeats = np.unique(qa[hit], axis=0, return_counts=True)  # each posture once
+    for q_k, n in zip(unique, repeats, strict=True):
+        for name in checker.colliding_pairs(q_k):
+            counts[name] = counts.get(name, 0) + int(n)
+    pairs = dict(sorted(counts.items(), key=lambda kv: -kv[1]))
+    report = SequenceCollisions(
+        int(hit.size), int(hit.sum()), float(hit.mean()) if hit.size else 0.0, intervals, pairs
+    )
+    return report, hit

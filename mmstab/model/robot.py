@@ -1,0 +1,286 @@
+"""Robot description: a tracked base (body, two tracks, two flippers) and a 4-DoF arm.
+
+Loaded from YAML (``problems/robots/*.yaml``), validated once, and held as frozen
+dataclasses of NumPy arrays. Frames follow ``docs/design.md``, "Frames": the body frame B has its
+origin at the centre of the track-ground contact rectangle, x forward, y left, z up
+along the plane normal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.core import schema
+from mmstab.core.files import ConfigError, check_order, read_yaml, validate
+from mmstab.model.kinematics import ArmKinematics
+from mmstab.model.parts import (
+    FLIPPER_CONTACT_TOL,
+    ArmLink,
+    Base,
+    Box,
+    Capsule,
+    FlipperLimits,
+    Flippers,
+    FloatArray,
+    Geometry,
+    Tracks,
+    homogeneous,
+    rpy_matrix,
+)
+
+__all__ = [
+    "ArmLink",
+    "Base",
+    "Box",
+    "Capsule",
+    "FLIPPER_CONTACT_TOL",
+    "FlipperLimits",
+    "Flippers",
+    "FloatArray",
+    "Geometry",
+    "Tracks",
+    "homogeneous",
+    "rpy_matrix",
+    "Robot",
+    "load_robot",
+    "robot_from_dict",
+    "with_flipper_angle",
+    "flipper_ground_angle",
+]
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A tracked mobile manipulator. Build with :func:`load_robot`.
+
+    Attributes:
+        name: robot name.
+        base: the tracked base.
+        links: the four arm links in chain order (link 0 = turret).
+        mount_T: pose of the arm's mounting frame in the body frame (4x4) [m].
+        stowed: the folded arm posture (4,) [rad].
+        source_hash: SHA-256 of the description's content, for cache keys.
+        tool_wrench: external wrench at the tool (the wrist frame's origin), body frame,
+            ``[f (3) [N], n (3) [N m]]`` (6,), or None (``mmstab.model.payload``). It loads the
+            force-angle measure, not the arm's masses, so it is not in ``source_hash``.
+    """
+
+    name: str
+    base: Base
+    links: tuple[ArmLink, ...]
+    mount_T: FloatArray
+    stowed: FloatArray
+    source_hash: str = ""
+    tool_wrench: FloatArray | None = None
+
+    @property
+    def arm_mass(self) -> float:
+        """Total arm mass m_a [kg]."""
+        return float(sum(link.mass for link in self.links))
+
+    @property
+    def total_mass(self) -> float:
+        """m_T = m_a + m_b [kg]."""
+        return self.arm_mass + self.base.mass
+
+    @property
+    def joint_lower(self) -> FloatArray:
+        """Arm joint lower limits (4,) [rad]."""
+        return np.array([link.lower for link in self.links])
+
+    @property
+    def joint_upper(self) -> FloatArray:
+        """Arm joint upper limits (4,) [rad]."""
+        return np.array([link.upper for link in self.links])
+
+    @property
+    def joint_velocity(self) -> FloatArray:
+        """Arm joint speed limits (4,) [rad/s]."""
+        return np.array([link.velocity for link in self.links])
+
+    @functools.cached_property
+    def kinematics(self) -> ArmKinematics:
+        """Symbolic (CasADi) and batched (NumPy) arm kinematics, built once."""
+        return ArmKinematics(self.links, self.mount_T)
+
+    def arm_com(self, q: ArrayLike) -> FloatArray:
+        """Arm CoM g_a in the body frame (Eq. 1 without G_T_B) [m].
+
+        Args:
+            q: arm joint angles, (4,) or (N, 4) [rad].
+
+        Returns:
+            (3,) or (N, 3) [m].
+        """
+        return self.kinematics.arm_com(q)
+
+    def overall_com(self, arm_com_body: ArrayLike) -> FloatArray:
+        """Overall CoM g_o = (m_a g_a + m_b g_b) / m_T (Eq. 5), body frame [m].
+
+        Args:
+            arm_com_body: arm CoM g_a, (3,) or (N, 3) [m].
+        """
+        g_a = np.asarray(arm_com_body, dtype=float)
+        return (self.arm_mass * g_a + self.base.mass * self.base.com) / self.total_mass
+
+
+# ------------------------------------------------------------------------------------ loading
+def _geometry(d: dict[str, Any]) -> Geometry:
+    if d["type"] == "box":
+        return Box(
+            size=np.array(d["size"], float),
+            center=np.array(d["center"], float),
+            rpy=np.array(d["rpy"], float),
+        )
+    return Capsule(
+        radius=float(d["radius"]), p0=np.array(d["p0"], float), p1=np.array(d["p1"], float)
+    )
+
+
+def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot>") -> Robot:
+    """Validate a robot description mapping and build a :class:`Robot`.
+
+    Raises:
+        ConfigError: naming ``path`` and the offending field.
+    """
+    p = Path(path)
+    validate(p, data, schema.ROBOT)
+    b = data["base"]
+    links = []
+    for i, ld in enumerate(data["arm"]["links"]):
+        lim = ld["limits"]
+        check_order(p, f"arm.links[{i}].limits", lim["lower"], lim["upper"])
+        links.append(
+            ArmLink(
+                name=ld["name"],
+                a=float(ld["dh"]["a"]),
+                alpha=float(ld["dh"]["alpha"]),
+                d=float(ld["dh"]["d"]),
+                theta_offset=float(ld["dh"]["theta_offset"]),
+                mass=float(ld["mass"]),
+                com=np.array(ld["com"], float),
+                geometry=_geometry(ld["geometry"]),
+                lower=float(lim["lower"]),
+                upper=float(lim["upper"]),
+                velocity=float(lim["velocity"]),
+            )
+        )
+    stowed = np.array(data["arm"]["stowed"], float)
+    for i, (qi, link) in enumerate(zip(stowed, links, strict=True)):
+        if not link.lower <= qi <= link.upper:
+            raise ConfigError(p, f"arm.stowed[{i}]", f"{qi} is outside the joint limits")
+    tr, fl = b["tracks"], b["flippers"]
+    limits = None
+    if "limits" in fl:
+        lim = fl["limits"]
+        check_order(p, "base.flippers.limits", lim["lower"], lim["upper"])
+        if not lim["lower"] <= fl["angle"] <= lim["upper"]:
+            raise ConfigError(p, "base.flippers.angle", "is outside base.flippers.limits")
+        limits = FlipperLimits(float(lim["lower"]), float(lim["upper"]), float(lim["rate"]))
+    base = Base(
+        mass=float(b["mass"]),
+        com=np.array(b["com"], float),
+        body=Box(
+            size=np.array(b["body"]["size"], float), center=np.array(b["body"]["center"], float)
+        ),
+        tracks=Tracks(**{k: float(v) for k, v in tr.items()}),
+        flippers=Flippers(
+            length=float(fl["length"]),
+            width=float(fl["width"]),
+            thickness=float(fl["thickness"]),
+            pivot=np.array(fl["pivot"], float),
+            angle=float(fl["angle"]),
+            limits=limits,
+        ),
+    )
+    lowest = min(base.flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
+    if lowest < -FLIPPER_CONTACT_TOL:
+        raise ConfigError(
+            p, "base.flippers.angle", f"flippers reach {-lowest:.3f} m below the ground; raise them"
+        )
+    mount = data["arm"]["mount"]
+    # The flipper limits change no cached artefact (V, generated code), so they are not hashed.
+    hashed = [kv for kv in _flatten(data) if not kv[0].startswith(".base.flippers.limits")]
+    digest = hashlib.sha256(repr(sorted(hashed)).encode()).hexdigest()
+    return Robot(
+        name=data["name"],
+        base=base,
+        links=tuple(links),
+        mount_T=homogeneous(rpy_matrix(mount["rpy"]), mount["xyz"]),
+        stowed=stowed,
+        source_hash=digest,
+    )
+
+
+def _flatten(node: Any, prefix: str = "") -> list[tuple[str, str]]:
+    if isinstance(node, dict):
+        return [kv for k, v in node.items() for kv in _flatten(v, f"{prefix}.{k}")]
+    if isinstance(node, list):
+        return [kv for i, v in enumerate(node) for kv in _flatten(v, f"{prefix}[{i}]")]
+    return [(prefix, repr(node))]
+
+
+def with_flipper_angle(robot: Robot, angle: float) -> Robot:
+    """The robot with its flippers at ``angle`` [rad]; a new ``source_hash`` if it changed.
+
+    The hash follows the angle (as the file's would), so nothing cached for the file's
+    flippers (collision checkers, resting-pose candidates) is reused for other ones.
+    """
+    if float(angle) == robot.base.flippers.angle:
+        return robot
+    flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
+    digest = hashlib.sha256(f"{robot.source_hash}|flippers.angle={float(angle)!r}".encode())
+    return dataclasses.replace(
+        robot,
+        base=dataclasses.replace(robot.base, flippers=flippers),
+        source_hash=digest.hexdigest(),
+    )
+
+
+def flipper_ground_angle(robot: Robot) -> float:
+    """The flipper angle [rad] at which the lowest flipper corner touches the ground plane.
+
+    Lowered from the file's angle by bisection on the lowest corner's height (the side
+    where it is at or just above the ground); the file's angle itself if the flippers
+    already touch.
+
+    Raises:
+        ValueError: the flippers cannot reach the ground (not even pointing down).
+    """
+
+    def lowest(angle: float) -> float:
+        return float(
+            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
+        )
+
+    hi = robot.base.flippers.angle
+    if lowest(hi) <= FLIPPER_CONTACT_TOL:
+        return hi
+    lo = -np.pi / 2
+    if lowest(lo) > 0:
+        raise ValueError(f"robot {robot.name}: the flippers cannot reach the ground")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if lowest(mid) < 0 else (lo, mid)
+    return hi
+
+
+def load_robot(path: str | os.PathLike[str]) -> Robot:
+    """Load and validate a robot description YAML file.
+
+    Args:
+        path: the robot YAML file.
+
+    Raises:
+        ConfigError: the file is missing, not YAML, or has a bad field.
+    """
+    return robot_from_dict(read_yaml(path), path)

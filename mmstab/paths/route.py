@@ -1,0 +1,244 @@
+"""A route as a problem's base path: the ``path:`` section, its checks, and time along it.
+
+A problem's ``path:`` is a circle (``center``, ``radius``, ``start_angle``, ``direction``)
+or a route::
+
+    path: {waypoints: [[x, y], ...], speed: V, turn_radius: R}     # or file: route.csv
+    # optional: acceleration [m/s^2] (0.3), lateral_acceleration [m/s^2] (0.3)
+
+:func:`route_path_from_section` builds the route (``mmstab.paths.io``), its speed profile
+under the robot's track limits, and checks it against the ground: every cell under the
+base's footprint along the way must be on the map and known (not NaN), and the turn radius
+must let both tracks drive forward (``turn_radius >= separation / 2``), otherwise the
+tracks cannot follow the curvature at any speed > 0. Errors name the problem (or route)
+file and the field, as every other section's.
+
+:class:`RoutePath` is the route parametrised by *time fraction* ``u = t / lap_time``: the
+controller's references are functions of a path fraction, and with the time fraction the
+speed profile (slower in turns, from and to rest) is built in. ``lap_time`` is the time to
+drive the route plus a hold at its end (``HOLD`` of it, the base at rest): the references
+interpolate a plan's postures with the lap's periodic spline, whose closing stretch (back
+to the first posture) then falls after the run's end (a run lasts ``duration``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.core.files import ConfigError, MmstabError
+from mmstab.model.robot import Robot
+from mmstab.paths.geometry import FloatArray, Route
+from mmstab.paths.io import PlannedRoute, Waypoints, read_waypoints_csv, route_from_section
+from mmstab.paths.speed import SpeedLimits, SpeedProfile
+from mmstab.terrain.base import Terrain
+
+#: Defaults of the optional keys of a route's ``path:`` section [m/s^2].
+ROUTE_DEFAULTS: dict[str, float] = {"acceleration": 0.3, "lateral_acceleration": 0.3}
+#: Share of the driving time added at the route's end, at rest (see the module text).
+HOLD = 0.25
+#: Largest spacing of the footprint check along the route and across the footprint [m].
+CHECK_SPACING = 0.05
+#: The default ``planner.spacing`` of a route [m]: how far apart its planned poses are.
+DEFAULT_SPACING = 0.5
+
+
+def route_samples(length: float, spacing: float) -> FloatArray:
+    """Arc lengths [m] of the planned poses: 0, ``spacing``, ... and the route's end."""
+    n = max(int(np.ceil(length / spacing - 1e-9)), 1)
+    return np.linspace(0.0, length, n + 1)
+
+
+def is_route(section: Any) -> bool:
+    """Whether a ``path:`` mapping is a route (``waypoints`` or ``file``), not a circle."""
+    return isinstance(section, dict) and ("waypoints" in section or "file" in section)
+
+
+class PathSample(NamedTuple):
+    """Poses (N, 3) [m, m, rad] at time fractions and their rate d/du (N, 3)."""
+
+    value: FloatArray
+    rate: FloatArray
+
+
+@dataclass(frozen=True)
+class RoutePath:
+    """A route with its speed profile, parametrised by time fraction ``u = t / lap_time``.
+
+    Attributes:
+        route: the geometry (lines and arcs, by arc length).
+        profile: the speed profile along it.
+    """
+
+    route: Route
+    profile: SpeedProfile
+
+    @property
+    def duration(self) -> float:
+        """Time to drive the route from rest to rest [s]."""
+        return self.profile.duration
+
+    @property
+    def lap_time(self) -> float:
+        """The references' period [s]: the driving time and the hold at the end."""
+        return self.duration * (1.0 + HOLD)
+
+    @property
+    def length(self) -> float:
+        """Arc length [m]."""
+        return self.route.length
+
+    def planned_poses(self, spacing: float | None) -> int:
+        """How many poses the planner places along the route, ``spacing`` [m] apart.
+
+        ``None``: :data:`DEFAULT_SPACING`.
+        """
+        return len(route_samples(self.length, DEFAULT_SPACING if spacing is None else spacing))
+
+    def s_at(self, u: ArrayLike) -> FloatArray:
+        """Arc length [m] reached at time fractions ``u`` (clipped to [0, 1])."""
+        uu = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), 0.0, 1.0)
+        return np.asarray(self.profile.s_at(uu * self.lap_time))
+
+    def speed_at_t(self, t: ArrayLike) -> FloatArray:
+        """Reference speed [m/s] at times ``t`` [s] (the derivative of ``profile.s_at``)."""
+        p = self.profile
+        t = np.asarray(t, dtype=float)
+        inside = (t >= 0.0) & (t <= p.duration)
+        tc = np.clip(t, 0.0, p.duration)
+        i = np.clip(np.searchsorted(p.t, tc, side="right") - 1, 0, len(p.t) - 2)
+        dt = p.t[i + 1] - p.t[i]
+        a = (p.v[i + 1] - p.v[i]) / np.where(dt > 0, dt, 1.0)
+        return np.where(inside, p.v[i] + a * (tc - p.t[i]), 0.0)
+
+    def fraction_of_s(self, s: ArrayLike) -> FloatArray:
+        """Time fraction at which the reference reaches arc lengths ``s`` [m]."""
+        t = np.interp(np.asarray(s, dtype=float), self.profile.s, self.profile.t)
+        return np.asarray(t / self.lap_time)
+
+    def pose_at(self, u: ArrayLike) -> FloatArray:
+        """Base poses (N, 3) of (x, y, yaw) in M at time fractions ``u``."""
+        return self.route.sample(self.s_at(u)).pose
+
+    def pose_rate(self, u: ArrayLike) -> PathSample:
+        """Poses at time fractions ``u`` and d pose / du = d pose/ds · v · lap_time."""
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        smp = self.route.sample(self.s_at(u))
+        ds_du = self.speed_at_t(u * self.lap_time) * self.lap_time
+        return PathSample(smp.pose, smp.rate * ds_du[:, None])
+
+    def poses(self, n: int) -> FloatArray:
+        """``n`` poses evenly spread in arc length, first and last included -> (n, 3)."""
+        return self.route.sample(np.linspace(0.0, self.length, max(n, 2))).pose
+
+
+def speed_limits(robot: Robot, section: dict[str, Any]) -> SpeedLimits:
+    """The speed limits of a route section for ``robot`` (its tracks' speed and separation)."""
+    t = robot.base.tracks
+    return SpeedLimits(
+        speed=float(section["speed"]),
+        acceleration=float(section.get("acceleration", ROUTE_DEFAULTS["acceleration"])),
+        lateral_acceleration=float(
+            section.get("lateral_acceleration", ROUTE_DEFAULTS["lateral_acceleration"])
+        ),
+        track_speed=t.sprocket_radius * t.velocity_limit,
+        track_separation=t.separation,
+    )
+
+
+def footprint_body(robot: Robot, spacing: float = CHECK_SPACING) -> FloatArray:
+    """Points (n, 2) [m] covering the base's footprint (tracks, body, flippers) in B."""
+    corners = np.vstack([b.corners() for b in robot.base.collision_boxes().values()])
+    lo, hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    nx, ny = (np.ceil((hi - lo) / spacing).astype(int) + 1).tolist()
+    x, y = np.meshgrid(np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], ny))
+    return np.column_stack([x.ravel(), y.ravel()])
+
+
+def first_off_ground(
+    route: Route, terrain: Terrain, footprint: FloatArray, spacing: float = CHECK_SPACING
+) -> tuple[float, FloatArray] | None:
+    """The first arc length [m] and ground point where the footprint leaves known ground.
+
+    The footprint (n, 2) [m] in B is swept along the route every ``spacing`` [m]; a point
+    is bad when the terrain cannot give its height (off the map or an unknown cell).
+    """
+    s = route.resample(spacing)
+    pose = route.sample(s).pose
+    c, si = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    x = pose[:, :1] + c[:, None] * footprint[:, 0] - si[:, None] * footprint[:, 1]
+    y = pose[:, 1:2] + si[:, None] * footprint[:, 0] + c[:, None] * footprint[:, 1]
+    for k in range(len(s)):  # one call per pose: the terrain raises at its first bad point
+        if np.all(np.isfinite(_heights(terrain, x[k], y[k]))):
+            continue
+        j = next(
+            i for i in range(len(x[k])) if not np.isfinite(_heights(terrain, x[k, i], y[k, i]))
+        )
+        return float(s[k]), np.array([x[k, j], y[k, j]])
+    return None
+
+
+def _heights(terrain: Terrain, x: ArrayLike, y: ArrayLike) -> FloatArray:
+    """Ground heights [m] under map points, all NaN when the terrain has none for one."""
+    try:
+        return np.asarray(terrain.surface_G(x, y)[..., 2])
+    except MmstabError:
+        return np.full(np.shape(x), np.nan)
+
+
+def nearest_segment(waypoints: FloatArray, point: ArrayLike) -> int:
+    """Index of the waypoint starting the polyline segment nearest ``point`` (2,) [m]."""
+    p = np.asarray(point, dtype=float)
+    a, b = waypoints[:-1], waypoints[1:]
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-18), 0, 1)
+    return int(np.argmin(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
+
+
+def route_path_from_section(
+    problem_path: str | os.PathLike[str], section: dict[str, Any], robot: Robot, terrain: Terrain
+) -> RoutePath:
+    """Build and check a route ``path:`` section (see the module docstring).
+
+    Args:
+        problem_path: the problem file (a route ``file`` is relative to its folder).
+        section: the validated ``path:`` mapping of a route.
+        robot: the robot (track speed, separation, footprint).
+        terrain: the ground the route must stay on.
+
+    Raises:
+        ConfigError: naming the problem (or route) file and the field at fault.
+    """
+    p = Path(problem_path)
+    sep = robot.base.tracks.separation
+    if float(section["turn_radius"]) < sep / 2:
+        raise ConfigError(
+            p,
+            "path.turn_radius",
+            f"{section['turn_radius']} m is below half the track separation ({sep / 2:.3f} m): "
+            "the inner track would have to run backwards, the tracks cannot follow that "
+            "curvature at any speed",
+        )
+    planned: PlannedRoute = route_from_section(p, section, speed_limits(robot, section))
+    off = first_off_ground(planned.route, terrain, footprint_body(robot))
+    if off is not None:
+        if "file" in section:
+            wp = read_waypoints_csv((p.parent / section["file"]).resolve())
+            where, field = (p.parent / section["file"]).resolve(), "waypoint {}"
+        else:
+            wp = Waypoints(np.asarray(section["waypoints"], dtype=float), None)
+            where, field = p, "path.waypoints[{}]"
+        k = nearest_segment(wp.xy, off[1])
+        raise ConfigError(
+            where,
+            field.format(k),
+            f"the route from here leaves known ground at arc length {off[0]:.2f} m: the base's "
+            f"footprint reaches ({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an "
+            "unknown (NaN) cell",
+        )
+    return RoutePath(route=planned.route, profile=planned.profile)

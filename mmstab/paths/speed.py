@@ -1,0 +1,110 @@
+"""A speed profile along a route that the tracks can follow.
+
+The reference speed is ``speed`` on straight lines; it is lowered where the route curves,
+so that neither track exceeds ``headroom`` times its speed limit (on an arc of curvature
+kappa the outer track runs at ``v (1 + |kappa| b / 2)``) and the lateral acceleration
+``v^2 |kappa|`` stays within ``lateral_acceleration``; changes of speed are limited to
+``acceleration``. The route starts and ends at rest. Time follows from the profile
+(``dt = 2 ds / (v_i + v_{i+1})``, exact for constant acceleration).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from mmstab.paths.geometry import FloatArray, Route
+
+
+class SpeedLimits(NamedTuple):
+    """What the base may do along a route.
+
+    Attributes:
+        speed: reference speed on straight lines [m/s].
+        acceleration: largest change of speed [m/s^2].
+        lateral_acceleration: largest v^2 |kappa| [m/s^2].
+        track_speed: the tracks' largest surface speed, sprocket radius x speed limit [m/s].
+        track_separation: distance between the track centres b [m].
+        headroom: share of ``track_speed`` the reference may use (the rest is for feedback).
+    """
+
+    speed: float
+    acceleration: float
+    lateral_acceleration: float
+    track_speed: float
+    track_separation: float
+    headroom: float = 0.8
+
+
+class SpeedProfile(NamedTuple):
+    """Speed along a route sampled by arc length.
+
+    Attributes:
+        s: arc lengths (n,) [m].
+        v: speed (n,) [m/s] (0 at both ends).
+        t: time at each sample (n,) [s].
+        v_limit: the curvature limit before acceleration limits (n,) [m/s].
+    """
+
+    s: FloatArray
+    v: FloatArray
+    t: FloatArray
+    v_limit: FloatArray
+
+    @property
+    def duration(self) -> float:
+        """Time to drive the route [s]."""
+        return float(self.t[-1])
+
+    def s_at(self, t: FloatArray) -> FloatArray:
+        """Arc length reached at times ``t`` [s] (constant acceleration between samples)."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        i = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        tau = t - self.t[i]
+        dt = self.t[i + 1] - self.t[i]
+        a = (self.v[i + 1] - self.v[i]) / np.where(dt > 0, dt, 1.0)
+        return np.minimum(self.s[i] + self.v[i] * tau + 0.5 * a * tau**2, self.s[i + 1])
+
+
+def straight_limit(limits: SpeedLimits) -> float:
+    """The fastest the base may drive straight ahead under ``limits`` [m/s]."""
+    return limits.headroom * limits.track_speed
+
+
+def curvature_limit(limits: SpeedLimits, kappa: FloatArray) -> FloatArray:
+    """Speed allowed by the tracks and the lateral acceleration at curvatures ``kappa`` [m/s]."""
+    k = np.abs(np.asarray(kappa, dtype=float))
+    tracks = straight_limit(limits) / (1.0 + k * limits.track_separation / 2)
+    lateral = np.sqrt(limits.lateral_acceleration / np.maximum(k, 1e-12))
+    return np.minimum.reduce([np.full_like(k, limits.speed), tracks, lateral])
+
+
+def speed_profile(route: Route, limits: SpeedLimits, ds: float = 0.01) -> SpeedProfile:
+    """The speed profile of ``route`` under ``limits``, sampled every ``ds`` [m] or finer.
+
+    Raises:
+        ValueError: ``limits.speed`` above what the tracks allow on a straight line.
+    """
+    if limits.speed > straight_limit(limits) + 1e-12:
+        raise ValueError(
+            f"speed {limits.speed:.3f} m/s is above the tracks' {straight_limit(limits):.3f} m/s "
+            f"({limits.headroom:.0%} of their limit)"
+        )
+    s = route.resample(ds)
+    # the limit over each interval: arcs start/end exactly at piece boundaries, so take the
+    # tighter of the two ends and the interval's midpoint
+    mid = 0.5 * (s[:-1] + s[1:])
+    k_mid = route.sample(mid).curvature
+    v_cap = curvature_limit(limits, route.sample(s).curvature)
+    v_cap[:-1] = np.minimum(v_cap[:-1], curvature_limit(limits, k_mid))
+    v_cap[1:] = np.minimum(v_cap[1:], curvature_limit(limits, k_mid))
+    v = v_cap.copy()
+    v[0] = v[-1] = 0.0
+    step = np.diff(s)
+    for i in range(1, len(s)):  # accelerate no faster than allowed
+        v[i] = min(v[i], np.sqrt(v[i - 1] ** 2 + 2 * limits.acceleration * step[i - 1]))
+    for i in range(len(s) - 2, -1, -1):  # brake no harder than allowed
+        v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2 * limits.acceleration * step[i]))
+    dt = 2 * step / np.maximum(v[:-1] + v[1:], 1e-12)
+    return SpeedProfile(s=s, v=v, t=np.concatenate([[0.0], np.cumsum(dt)]), v_limit=v_cap)

@@ -1,0 +1,135 @@
+"""The tool wrench in Eq. 6 (``payload.wrench``, carried as ``Robot.tool_wrench``).
+
+Eq. 6 is searched
+over the arm CoM g_a, but a wrench's moment depends on where the tool is, which g_a alone
+does not fix. The planner takes the tool point of the collision-free grid posture whose
+CoM is nearest to g_a (:class:`ToolMap`, a k-d tree over V's labelled postures): V's
+samples are exactly those postures, so for the exhaustive search and the coarse seeds the
+tool point is exact, and for CMA-ES's off-grid means it is that of the nearest realisable
+posture. The measure is then :func:`mmstab.stability.dynamic.dynamic_force_angle` with
+``f_r = m_T g + f`` and ``n_r = (p_tool - g_o) x f + n`` (:class:`WrenchFitness`); a zero
+wrench gives the static Eq. 6 to rounding.
+"""
+
+from __future__ import annotations
+
+import weakref
+from typing import Any, NamedTuple, cast
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+from mmstab.core.files import MmstabError
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.fitness import Fitness
+from mmstab.planner.settings import PlannerSettings
+from mmstab.stability.dynamic import dynamic_force_angle
+
+
+# ------------------------------------------------------------------------------ tool wrench
+class ToolMap(NamedTuple):
+    """Tool points of V's collision-free postures, looked up by arm CoM.
+
+    Attributes:
+        tree: k-d tree over the postures' arm CoMs, body frame [m].
+        tool_body: their tool points (the wrist frame's origin), body frame (N, 3) [m].
+    """
+
+    tree: cKDTree
+    tool_body: FloatArray
+
+    def __call__(self, com_body: ArrayLike) -> FloatArray:
+        """Tool points (N, 3) [m] for arm CoMs (N, 3) [m]: the nearest posture's."""
+        _, idx = self.tree.query(np.atleast_2d(np.asarray(com_body, dtype=float)))
+        return self.tool_body[np.asarray(idx).reshape(-1)]
+
+
+def tool_points(robot: Robot, q: ArrayLike) -> FloatArray:
+    """Tool points (the wrist frame's origin) in B for postures (N, 4) [rad] -> (N, 3) [m]."""
+    frames = robot.kinematics.link_frames(np.atleast_2d(np.asarray(q, dtype=float)))
+    return np.asarray(frames[:, -1, :3, 3])
+
+
+_TOOL_MAPS: weakref.WeakKeyDictionary[Any, dict[str, ToolMap]] = weakref.WeakKeyDictionary()
+
+
+def tool_map(robot: Robot, region: Any) -> ToolMap:
+    """The :class:`ToolMap` of a region's labelled postures (cached per region and robot).
+
+    Raises:
+        MmstabError: the region keeps no collision-free postures (``valid_q``).
+    """
+    try:
+        return _TOOL_MAPS[region][robot.source_hash]
+    except (KeyError, TypeError):
+        pass
+    q = np.asarray(getattr(region, "valid_q", np.empty((0, 4))), dtype=float).reshape(-1, 4)
+    if len(q) == 0:
+        raise MmstabError(
+            "planner: a tool wrench needs the workspace's collision-free postures (valid_q)"
+        )
+    out = ToolMap(cKDTree(robot.arm_com(q)), tool_points(robot, q))
+    try:
+        _TOOL_MAPS.setdefault(region, {})[robot.source_hash] = out
+    except TypeError:  # not weak-referenceable: no cache
+        pass
+    return out
+
+
+class WrenchFitness(NamedTuple):
+    """Eq. 6 with a wrench at the tool (the module text); duck-types :class:`Fitness`."""
+
+    fitness: Fitness
+    tools: ToolMap
+    wrench_body: FloatArray  # (6,) [N, N m]
+
+    @property
+    def diameter(self) -> float:
+        """d_workspace [m]."""
+        return self.fitness.diameter
+
+    @property
+    def settings(self) -> PlannerSettings:
+        """The planner settings."""
+        return self.fitness.settings
+
+    @property
+    def previous_com(self) -> FloatArray:
+        """The previous arm CoM, body frame (3,) [m]."""
+        return self.fitness.previous_com
+
+    def mu(self, com_body: ArrayLike) -> FloatArray:
+        """Force-angle measure with the wrench, arm CoMs (N, 3) [m] -> (N,) [N rad]."""
+        f = self.fitness
+        coms = np.atleast_2d(np.asarray(com_body, dtype=float))
+        overall = f.robot.overall_com(coms)
+        force_ext, moment_ext = self.wrench_body[:3], self.wrench_body[3:]
+        force = np.broadcast_to(f.robot.total_mass * f.gravity_body + force_ext, coms.shape)
+        moment = np.cross(self.tools(coms) - overall, force_ext) + moment_ext
+        return dynamic_force_angle(f.polygon, overall, force, moment).mu
+
+    def __call__(self, com_body: ArrayLike) -> FloatArray:
+        """Eq. 6 fitness (to maximise) of arm CoMs (N, 3) [m] -> (N,)."""
+        coms = np.atleast_2d(np.asarray(com_body, dtype=float))
+        f = self.fitness
+        motion = np.sum((coms - f.previous_com) ** 2, axis=1) / f.diameter**2
+        s = f.settings
+        return s.w_stability * self.mu(coms) / f.mu_max - s.w_motion * motion
+
+    def linear(self) -> WrenchFitness:
+        """Itself: the wrench's moment arm is not affine in g_a (batched evaluation)."""
+        return self
+
+
+def with_tool_wrench(fitness: Fitness, region: Any) -> Fitness:
+    """``fitness`` with the robot's tool wrench, or ``fitness`` itself without one.
+
+    A :class:`WrenchFitness` offers everything the searches use of a ``Fitness``
+    (``mu``, ``__call__``, ``linear``, ``diameter``, ``settings``), hence the cast.
+    """
+    wrench = fitness.robot.tool_wrench
+    if wrench is None:
+        return fitness
+    loaded = WrenchFitness(fitness, tool_map(fitness.robot, region), np.asarray(wrench, float))
+    return cast(Fitness, loaded)

@@ -1,0 +1,131 @@
+"""Stability verdicts: numbers turned into "this holds" or "this tips" (application layer).
+
+The force-angle measure μ [N rad] is positive while the robot stands and negative once its
+weight acts outside the support polygon: the robot tips over. Two verdicts:
+
+- a **plan** is stable when every pose's μ exceeds the margin (``planner.margin``, 0 when
+  the key is absent); μ of a pose is the smaller of the planner's target and the posture
+  realising it (``mu_planned``, ``mu_realised``). :func:`plan_verdict` works from the
+  per-pose numbers a plan summary already holds, so the planner's loop is untouched;
+  :func:`plan_stability` computes them for a plan that has no summary (the tracking run).
+- a **tracking run** tips at its first sample with μ < 0 (the arm as it moved); the
+  simulation stops there (:mod:`mmstab.runs.tracking`) and :func:`describe_tipping` says when
+  and where.
+
+The command line reports either on stderr and exits with status 3
+(:class:`mmstab.core.files.UnstableError`), unless ``--allow-unstable`` (plans only).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mmstab.core.files import UnstableError
+from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.static import stability_along
+
+if TYPE_CHECKING:
+    from mmstab.core.problem import Problem
+    from mmstab.planner import Plan
+    from mmstab.planner.route import RoutePlan
+
+#: ``planner.margin`` when the problem does not set it [N rad].
+DEFAULT_MARGIN = 0.0
+#: Unstable poses listed in one message (the rest are counted).
+LISTED_POSES = 5
+
+
+def planner_margin(planner_section: Mapping[str, Any]) -> float:
+    """The stability margin a plan must exceed [N rad] (``planner.margin``, default 0)."""
+    return float(planner_section.get("margin", DEFAULT_MARGIN))
+
+
+def pose_mu(pose: Mapping[str, Any]) -> float:
+    """μ of one planned pose [N rad]: the worse of target and realised (when known)."""
+    values = [float(pose[k]) for k in ("mu_planned", "mu_realised") if k in pose]
+    finite = [v for v in values if math.isfinite(v)]
+    return min(finite) if finite else -math.inf
+
+
+def plan_verdict(poses: Sequence[Mapping[str, Any]], margin: float) -> dict[str, Any]:
+    """Whether every planned pose holds with the margin.
+
+    Args:
+        poses: per-pose records with ``pose`` (x, y, heading) [m, m, rad] and
+            ``mu_planned`` (and ``mu_realised`` when known) [N rad].
+        margin: μ must exceed this [N rad].
+
+    Returns:
+        ``stable``, ``margin``, ``criterion``, ``mu_min`` and ``unstable_poses`` (index,
+        pose, μ), the ``stability`` record of a plan's ``summary.json``.
+    """
+    bad = []
+    mus = [pose_mu(p) for p in poses]
+    for k, (p, mu) in enumerate(zip(poses, mus, strict=True)):
+        if not mu > margin:
+            bad.append({"index": k, "pose": [float(v) for v in p["pose"]], "mu": mu})
+    return {
+        "stable": not bad,
+        "margin": float(margin),
+        "criterion": "mu > margin at every pose (mu: min of mu_planned and mu_realised)",
+        "mu_min": min(mus) if mus else None,
+        "unstable_poses": bad,
+    }
+
+
+def plan_stability(problem: Problem, plan: Plan | RoutePlan) -> dict[str, Any]:
+    """The verdict of a plan made by :func:`mmstab.planner.plan_path` (no summary needed).
+
+    Args:
+        problem: the problem (robot, terrain, ``planner.margin``).
+        plan: the plan: its targets' μ and the postures realising them.
+
+    Returns:
+        :func:`plan_verdict` of its poses.
+    """
+    robot = problem.robot
+    arm = np.atleast_2d(robot.arm_com(np.asarray(plan.postures)))
+    realised = stability_along(robot, problem.terrain, plan.poses, arm).reconfigured
+    if robot.tool_wrench is not None:  # payload.wrench: at the postures' tool points
+        gravity = problem.terrain.gravity_body(plan.poses)
+        realised = robot_mu(robot, gravity, np.asarray(plan.postures))
+    poses = [
+        {"pose": t.pose, "mu_planned": float(t.mu), "mu_realised": float(m)}
+        for t, m in zip(plan.targets, realised, strict=True)
+    ]
+    return plan_verdict(poses, planner_margin(problem.section("planner")))
+
+
+def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
+    """One line naming the unstable poses and their μ."""
+    bad = verdict["unstable_poses"]
+    listed = "; ".join(
+        f"pose {b['index']} at ({b['pose'][0]:.3f}, {b['pose'][1]:.3f}) m heading "
+        f"{b['pose'][2]:.3f} rad: mu {b['mu']:.4g}"
+        for b in bad[:LISTED_POSES]
+    )
+    more = f"; and {len(bad) - LISTED_POSES} more" if len(bad) > LISTED_POSES else ""
+    return (
+        f"{len(bad)} of {total} planned poses have mu <= {verdict['margin']:g} N rad "
+        f"even at the best posture found ({listed}{more})"
+    )
+
+
+def check_plan(verdict: Mapping[str, Any], total: int, allow_unstable: bool) -> None:
+    """Raise :class:`UnstableError` for an unstable plan unless allowed."""
+    if not verdict["stable"] and not allow_unstable:
+        raise UnstableError(describe_plan_verdict(verdict, total) + "; --allow-unstable to go on")
+
+
+def describe_tipping(tipped: Mapping[str, Any]) -> str:
+    """One line: when and where a tracking run tips over."""
+    x, y, heading = tipped["pose"]
+    return (
+        f"the robot would tip over at t = {tipped['time_s']:.4g} s (step {tipped['step']}), "
+        f"base at ({x:.3f}, {y:.3f}) m heading {heading:.3f} rad on the slope, "
+        f"mu = {tipped['mu']:.4g} N rad; the run stopped there"
+    )

@@ -1,0 +1,222 @@
+"""Animated GIF of a run on the ramp: the robot, its support polygon and the stability margin.
+
+A building block for the tracking experiment: hand it the time series the run produced
+(base poses in S, arm postures, force-angle margin) and an output path::
+
+    render_animation(robot, terrain, t, base_poses, q_arm, mu, "results/tracking/animation.gif")
+
+Left, the robot (drawn by :mod:`mmstab.viz.drawing` from its collision geometry) on the ramp,
+with the base's planned and travelled track and the support polygon filled in the colour
+of the current margin (red: tipping, mu <= 0; green: mu at ``mu_scale``). Right, mu over
+time with the current instant marked, and a bar of the current mu in the same colour.
+Long runs are thinned to ``max_frames`` evenly spaced frames (the last one kept).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from tqdm import tqdm
+
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.model.urdf import default_file_mode
+from mmstab.terrain import Terrain
+from mmstab.viz.drawing import (
+    PATH_RANK,
+    LayerLines,
+    draw_ground,
+    draw_path_on_ground,
+    draw_robot,
+    mesh_points,
+    robot_meshes,
+    set_equal_aspect,
+    transform_points,
+)
+from mmstab.viz.plotting import plt
+
+#: Colour map of the margin: 0 (tipping) .. mu_scale (as stable as the run gets).
+MU_CMAP = "RdYlGn"
+
+
+class AnimationInfo(NamedTuple):
+    """What :func:`render_animation` wrote.
+
+    Attributes:
+        path: the GIF file.
+        frames: number of frames in it.
+        indices: the samples of the input time series shown, (frames,).
+    """
+
+    path: Path
+    frames: int
+    indices: NDArray[np.intp]
+
+
+def frame_indices(n_samples: int, max_frames: int | None) -> NDArray[np.intp]:
+    """Evenly spaced sample indices, at most ``max_frames``, first and last included."""
+    if max_frames is None or n_samples <= max_frames:
+        return np.arange(n_samples, dtype=np.intp)
+    picks = np.round(np.linspace(0, n_samples - 1, max(max_frames, 2))).astype(np.intp)
+    return np.unique(picks)
+
+
+def _check_inputs(times: FloatArray, poses: FloatArray, q: FloatArray, mu: FloatArray) -> None:
+    n = times.shape[0]
+    if times.ndim != 1 or n < 1:
+        raise ValueError(f"times must be (T,) with T >= 1, got {times.shape}")
+    for name, arr, shape in (("base_poses", poses, (n, 3)), ("q_arm", q, (n, 4))):
+        if arr.shape != shape:
+            raise ValueError(f"{name} must be {shape}, got {arr.shape}")
+    if mu.shape != (n,):
+        raise ValueError(f"mu must be ({n},), got {mu.shape}")
+    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(poses)) and np.all(np.isfinite(q))):
+        raise ValueError("times, base_poses and q_arm must be finite")
+
+
+def render_animation(
+    robot: Robot,
+    terrain: Terrain,
+    times: ArrayLike,
+    base_poses: ArrayLike,
+    q_arm: ArrayLike,
+    mu: ArrayLike,
+    out_path: str | os.PathLike[str],
+    fps: int = 10,
+    size: tuple[int, int] = (560, 320),
+    max_frames: int | None = 120,
+    mu_scale: float | None = None,
+    view: tuple[float, float] = (32.0, -65.0),
+    progress: bool = True,
+) -> AnimationInfo:
+    """Render a run as an animated GIF (matplotlib ``FuncAnimation`` + ``PillowWriter``).
+
+    Args:
+        robot: the robot.
+        terrain: the ground the run is on.
+        times: sample times (T,) [s].
+        base_poses: base poses (T, 3) of (x, y, yaw) in the map frame M [m, m, rad].
+        q_arm: arm joint angles (T, 4) [rad].
+        mu: force-angle stability margin (T,) [N rad] (``NaN`` = unknown, drawn grey).
+        out_path: the GIF to write (atomically: temp file + rename); folders are created.
+        fps: frames per second of the GIF [1/s].
+        size: (width, height) of the GIF [px].
+        max_frames: at most this many frames, evenly thinned; ``None`` = every sample.
+        mu_scale: margin [N rad] shown full green; default the largest finite ``mu``.
+        view: camera (elevation, azimuth) [deg], as ``Axes3D.view_init``.
+        progress: show a tqdm progress bar while rendering.
+
+    Returns:
+        ``AnimationInfo(path, frames, indices)``.
+
+    Raises:
+        ValueError: inconsistent shapes or non-finite poses/postures/times.
+    """
+    import matplotlib
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    t = np.asarray(times, dtype=float)
+    poses = np.asarray(base_poses, dtype=float)
+    q = np.asarray(q_arm, dtype=float)
+    m = np.asarray(mu, dtype=float)
+    _check_inputs(t, poses, q, m)
+    idx = frame_indices(len(t), max_frames)
+    finite_mu = m[np.isfinite(m)]
+    scale = mu_scale if mu_scale is not None else float(finite_mu.max(initial=0.0))
+    scale = scale if scale > 0 else 1.0
+    cmap = matplotlib.colormaps[MU_CMAP]
+
+    def mu_color(value: float) -> Any:
+        return "0.6" if not np.isfinite(value) else cmap(float(np.clip(value / scale, 0, 1)))
+
+    dpi = 80
+    fig = plt.figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
+    ax3d: Any = fig.add_axes((0.0, 0.0, 0.6, 0.92), projection="3d")
+    ax_mu = fig.add_axes((0.67, 0.16, 0.21, 0.7))
+    ax_bar = fig.add_axes((0.9, 0.16, 0.03, 0.7))
+
+    # static scene: ground patch holding every drawn robot (cut to the map), the planned track
+    G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
+    pts_G = np.concatenate([mesh_points(robot_meshes(robot, q[k], G_T_Bs[int(k)])) for k in idx])
+    pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)
+    lo, hi = pts_S.min(axis=0) - 0.15, pts_S.max(axis=0) + 0.15
+    draw_ground(ax3d, terrain, (lo[0], hi[0], lo[1], hi[1]))
+    draw_path_on_ground(ax3d, terrain, poses[:, :2], color="0.55", linewidths=0.8)
+    travelled = LayerLines([np.zeros((2, 3))], PATH_RANK - 1, colors="C0", linewidths=1.6)
+    ax3d.add_collection3d(travelled)
+    corners_G = transform_points(terrain.G_T_M(), np.array([[lo[0], lo[1], 0], [hi[0], hi[1], 0]]))
+    set_equal_aspect(ax3d, np.vstack([pts_G, corners_G]), margin=0.0, zoom=1.3)
+    ax3d.view_init(elev=view[0], azim=view[1])
+    ax3d.set_axis_off()
+
+    # margin over time, the current instant, and a bar
+    ax_mu.plot(t, m, color="0.75", lw=1.0)
+    (mu_done,) = ax_mu.plot([], [], color="C0", lw=1.4)
+    (mu_now,) = ax_mu.plot([], [], "o", ms=5, mec="k", mew=0.6)
+    ax_mu.axhline(0.0, color="C3", lw=0.8, ls=":")
+    ax_mu.set(xlabel="t [s]", ylabel="$\\mu$ [N rad]")
+    ax_mu.tick_params(labelsize=7)
+    ax_mu.xaxis.label.set_fontsize(8)
+    ax_mu.yaxis.label.set_fontsize(8)
+    top = max(scale, float(finite_mu.max(initial=0.0))) * 1.08
+    bottom = min(0.0, float(finite_mu.min(initial=0.0))) - 0.05 * top
+    ax_mu.set_ylim(bottom, top)
+    if len(t) > 1:
+        ax_mu.set_xlim(t[0], t[-1])
+    bar = ax_bar.bar([0.0], [0.0], width=1.0, color="0.6", edgecolor="k", lw=0.6)[0]
+    ax_bar.axhline(0.0, color="C3", lw=0.8, ls=":")
+    ax_bar.set_ylim(bottom, top)
+    ax_bar.set_xlim(-0.5, 0.5)
+    ax_bar.set_xticks([])
+    ax_bar.tick_params(labelsize=7, labelleft=False, labelright=True, right=True, left=False)
+    title = fig.suptitle("", fontsize=9)
+
+    robot_artists: list[Any] = []
+
+    def update(k: int) -> list[Any]:
+        for art in robot_artists:
+            art.remove()
+        robot_artists.clear()
+        color = mu_color(m[k])
+        robot_artists.extend(
+            draw_robot(ax3d, robot, q[k], G_T_Bs[k], support=True, support_color=color)
+        )
+        done = np.column_stack([poses[: k + 1, :2], np.full(k + 1, 2e-3)])
+        if k == 0:
+            done = np.vstack([done, done])
+        travelled.set_segments([transform_points(terrain.G_T_M(), done)])
+        mu_done.set_data(t[: k + 1], m[: k + 1])
+        mu_now.set_data([t[k]], [m[k]])
+        mu_now.set_color(color)
+        bar.set_height(m[k] if np.isfinite(m[k]) else 0.0)
+        bar.set_color(color)
+        bar.set_edgecolor("k")
+        title.set_text(f"t = {t[k]:.2f} s    $\\mu$ = {m[k]:.1f} N rad")
+        return robot_artists
+
+    path = Path(out_path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".gif")
+    os.close(fd)
+    anim = FuncAnimation(fig, update, frames=[int(k) for k in idx], blit=False, repeat=False)
+    bar_progress = tqdm(total=len(idx), desc="animation", unit="frame", disable=not progress)
+    try:
+        anim.save(
+            tmp,
+            writer=PillowWriter(fps=fps),
+            dpi=dpi,
+            progress_callback=lambda i, n: bar_progress.update(1),
+        )
+        os.chmod(tmp, default_file_mode())  # mkstemp makes it private (0600)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    finally:
+        bar_progress.close()
+        plt.close(fig)
+    return AnimationInfo(path=path, frames=len(idx), indices=idx)
