@@ -1,10 +1,123 @@
 """mmstab: stability-aware planning and control of tracked mobile manipulators on slopes.
 
-Pipeline (one module per stage; ``docs/architecture.md``): ``config``/``schema`` (inputs) ->
-``robot``/``kinematics`` and ``terrain`` (the ground, one interface) -> ``problem`` ->
-``stability`` (force-angle) -> ``workspace`` -> ``planner`` (CMA-ES) -> ``tasks``/``limits``/
-``controller`` (QP diff-IK with a posture task) -> ``codegen`` -> ``tracking``/``app``/
-``experiments`` -> ``cli``.
+The package is laid out as the pipeline (``docs/architecture.md``): ``core`` (configuration,
+schema, the problem) -> ``model`` (robot, kinematics) and ``terrain`` / ``paths`` (the ground
+and the base's path) -> ``stability`` (force-angle) -> ``workspace`` (the arm-CoM workspace V)
+-> ``planner`` (Eq. 6 per pose) -> ``control`` (the QP controller) -> ``codegen`` -> ``runs``,
+``physics``, ``viz`` -> ``app`` -> ``experiments`` -> ``cli``.
+
+The names below are the public API, re-exported from their stages::
+
+    import mmstab
+
+    problem = mmstab.load_problem("problems/ramp.yaml")
+    plan = mmstab.plan(problem)        # the workspace V (cached), Eq. 6, the postures
+    problem, plan, run = mmstab.track(problem, plan, duration=2.0, progress=False)
+
+They load on first use, so ``import mmstab`` stays light (no CasADi until a stage is asked for).
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+#: Public name -> the module that defines it.
+_EXPORTS: dict[str, str] = {
+    # inputs
+    "load_problem": "mmstab.core.problem",
+    "Problem": "mmstab.core.problem",
+    "ConfigError": "mmstab.core.files",
+    "MmstabError": "mmstab.core.files",
+    # model
+    "load_robot": "mmstab.model.robot",
+    "Robot": "mmstab.model.robot",
+    "Payload": "mmstab.model.payload",
+    "attach_payload": "mmstab.model.payload",
+    "with_flipper_angle": "mmstab.model.robot",
+    "flipper_ground_angle": "mmstab.model.robot",
+    # ground and paths
+    "Terrain": "mmstab.terrain",
+    "Ramp": "mmstab.terrain",
+    "Heightmap": "mmstab.terrain",
+    "HeightmapTerrain": "mmstab.terrain",
+    "roll_pitch": "mmstab.terrain",
+    "global_com_functions": "mmstab.terrain",
+    "CirclePath": "mmstab.paths.circle",
+    "RoutePath": "mmstab.paths.route",
+    # stability
+    "force_angle": "mmstab.stability.static",
+    "robot_force_angle": "mmstab.stability.static",
+    "robot_mu": "mmstab.stability.dynamic",
+    "stance": "mmstab.stability.stance",
+    "Stance": "mmstab.stability.stance",
+    # the pipeline (the layer the CLI and the experiments share)
+    "plan": "mmstab.app",
+    "track": "mmstab.app",
+    "stability_along": "mmstab.app",
+}
+
+__all__ = [
+    "CirclePath",
+    "ConfigError",
+    "Heightmap",
+    "HeightmapTerrain",
+    "MmstabError",
+    "Payload",
+    "Problem",
+    "Ramp",
+    "Robot",
+    "RoutePath",
+    "Stance",
+    "Terrain",
+    "attach_payload",
+    "flipper_ground_angle",
+    "force_angle",
+    "global_com_functions",
+    "load_problem",
+    "load_robot",
+    "plan",
+    "robot_force_angle",
+    "robot_mu",
+    "roll_pitch",
+    "stability_along",
+    "stance",
+    "track",
+    "with_flipper_angle",
+]  # the keys of _EXPORTS (a test holds them equal)
+
+if TYPE_CHECKING:  # the same names, for type checkers and editors
+    from mmstab.app import plan, stability_along, track
+    from mmstab.core.files import ConfigError, MmstabError
+    from mmstab.core.problem import Problem, load_problem
+    from mmstab.model.payload import Payload, attach_payload
+    from mmstab.model.robot import Robot, flipper_ground_angle, load_robot, with_flipper_angle
+    from mmstab.paths.circle import CirclePath
+    from mmstab.paths.route import RoutePath
+    from mmstab.stability.dynamic import robot_mu
+    from mmstab.stability.stance import Stance, stance
+    from mmstab.stability.static import force_angle, robot_force_angle
+    from mmstab.terrain import (
+        Heightmap,
+        HeightmapTerrain,
+        Ramp,
+        Terrain,
+        global_com_functions,
+        roll_pitch,
+    )
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its stage on first use (PEP 562)."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mmstab' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])

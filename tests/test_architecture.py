@@ -24,7 +24,7 @@ PACKAGE = ROOT / "mmstab"
 #: Layer of each package or module (prefix match: the longest listed prefix wins). The folder
 #: tells the stage: a package's modules share its layer unless listed on their own.
 LAYERS: dict[str, int] = {
-    "mmstab": 0,
+    "mmstab": 12,  # the public API re-exports from every stage (lazily)
     "mmstab.core": 0,  # configuration files, schema, settings, sizes; C cache, pool, masks
     "mmstab.core.problem": 2,  # a validated problem: robot + terrain + path (the model below it)
     "mmstab.model": 1,
@@ -79,6 +79,57 @@ def imports_of(module: str) -> set[str]:
                     if f"{node.module}.{a.name}" in MODULES
                 }
     return found - {module}
+
+
+def top_level_entries() -> list[str]:
+    """The packages and modules directly under ``mmstab/`` (dunder files aside)."""
+    return sorted(
+        p.stem if p.suffix == ".py" else p.name
+        for p in PACKAGE.iterdir()
+        if not p.name.startswith(("__", "."))
+        and (p.suffix == ".py" or (p / "__init__.py").exists())
+    )
+
+
+def first_line(name: str) -> str:
+    """The first line of a top-level entry's docstring (its one-line role)."""
+    path = PACKAGE / name / "__init__.py"
+    path = path if path.exists() else PACKAGE / f"{name}.py"
+    doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+    return doc.splitlines()[0] if doc else ""
+
+
+def architecture_block() -> str:
+    """The layer diagram and the package table of ``docs/architecture.md``, from the code."""
+    entries = sorted(top_level_entries(), key=lambda e: (layer(f"mmstab.{e}"), e))
+    by_layer: dict[int, list[str]] = {}
+    for e in entries:
+        by_layer.setdefault(layer(f"mmstab.{e}"), []).append(e)
+    lines = ["```"]
+    lines += [f"{k:>2}  {' | '.join(v)}" for k, v in sorted(by_layer.items())]
+    lines += ["```", "", "| entry | layer | role |", "|---|---|---|"]
+    for e in entries:
+        shown = f"`{e}/`" if (PACKAGE / e).is_dir() else f"`{e}.py`"
+        lines.append(f"| {shown} | {layer(f'mmstab.{e}')} | {first_line(e)} |")
+    return "\n".join(lines)
+
+
+def test_architecture_doc_is_drawn_from_the_code():
+    """docs/architecture.md's diagram and table are the code's (regenerate: the message)."""
+    doc = (ROOT / "docs" / "architecture.md").read_text()
+    begin, end = "<!-- drawn from the code: begin -->\n", "\n<!-- drawn from the code: end -->"
+    assert begin in doc and end in doc
+    shown = doc[doc.index(begin) + len(begin) : doc.index(end)]
+    assert shown == architecture_block(), (
+        "docs/architecture.md should read:\n" + architecture_block()
+    )
+
+
+def test_the_top_level_is_the_pipeline():
+    """Few entries at the top, each a stage or service with a one-line role."""
+    entries = top_level_entries()
+    assert len(entries) <= 15, entries
+    assert all(first_line(e) for e in entries)
 
 
 def test_every_module_has_a_layer():
@@ -206,3 +257,20 @@ def test_no_stage_knows_the_ramp():
             if isinstance(node, ast.Attribute) and node.attr in ("slope", "G_R_S", "G_T_S"):
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
     assert offenders == []
+
+
+def test_public_api_resolves_lazily():
+    """``import mmstab`` loads no stage; each public name then comes from its stage."""
+    code = (
+        "import sys, mmstab\n"
+        "light = not any(m.startswith(('casadi', 'mmstab.')) for m in sys.modules)\n"
+        "assert sorted(mmstab.__all__) == sorted(mmstab._EXPORTS)\n"
+        "names = {n: getattr(mmstab, n).__module__ for n in mmstab.__all__}\n"
+        "import json; print(json.dumps([light, names]))"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    light, names = json.loads(proc.stdout)
+    assert light
+    assert {"load_problem", "plan", "track", "stance", "Terrain", "Robot"} <= set(names)
+    assert all(module.startswith("mmstab.") for module in names.values())

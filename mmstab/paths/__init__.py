@@ -1,10 +1,12 @@
-"""Routes the tracked base can drive: geometry by arc length and a speed profile.
+"""The base's paths: the paper's circle, and routes the tracks can drive (geometry, speed).
 
-``mmstab.paths.geometry`` turns waypoints into a smooth route (straight lines joined by
-circular arcs of a bounded radius), ``mmstab.paths.speed`` gives it a speed profile the
-tracks can follow, and ``mmstab.paths.io`` reads waypoint files. Poses are ``(x, y, yaw)``
-in the terrain's map frame M (``docs/design.md``, "Frames"); the yaw is the route's tangent,
-so the tracks always drive forward.
+``mmstab.paths.circle`` is the paper's lap; ``mmstab.paths.geometry`` turns waypoints into a
+smooth route (straight lines joined by circular arcs of a bounded radius),
+``mmstab.paths.speed`` gives it a speed profile the tracks can follow, and
+``mmstab.paths.io`` reads waypoint files. Poses are ``(x, y, yaw)`` in the terrain's map
+frame M (``docs/design.md``, "Frames"); the yaw is the route's tangent, so the tracks always
+drive forward. ``mmstab.paths.route`` makes a route a problem's path (``RoutePath``, checked
+against the robot and the terrain).
 """
 
 from mmstab.paths.geometry import Arc, Line, Route, RouteSample, route_from_waypoints

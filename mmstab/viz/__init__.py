@@ -1,1 +1,1 @@
-"""Drawing and viewing."""
+"""Drawing and viewing: figures, the robot and ground drawn, animations, the browser viewer."""
