@@ -7,7 +7,7 @@ may be shared).
 
 Per warm-started pose (every pose after the first), in the same run:
 
-- ``warm``: the route planner (:func:`mmstab.planner.route.solve_route`, warm CMA-ES with
+- ``warm``: the route planner (:func:`mmstab.planner.solve_route`, warm CMA-ES with
   the population as one NumPy batch, the coarse guard);
 - ``warm_pycma``: the same starts and step size through ``solve_pose`` (pycma);
 - ``cold``: ``solve_pose`` with the problem's own search at every pose (no warm start);
@@ -36,6 +36,7 @@ from common import machine_info
 
 from mmstab.core.files import write_json
 from mmstab.core.problem import load_problem
+from mmstab.paths.route import DEFAULT_SPACING, route_samples
 from mmstab.planner import (
     PlannerSettings,
     planning_region,
@@ -43,8 +44,8 @@ from mmstab.planner import (
     region_samples,
     solve_exhaustive,
     solve_pose,
+    solve_route,
 )
-from mmstab.planner.route import DEFAULT_SPACING, route_samples, solve_route
 from mmstab.stability.static import mu_max
 from mmstab.workspace import load_or_build_workspace
 

@@ -28,8 +28,7 @@ from mmstab.stability.static import StabilityCases
 from mmstab.stability.static import stability_along as _stability_along
 
 if TYPE_CHECKING:
-    from mmstab.planner import Plan
-    from mmstab.planner.route import RoutePlan
+    from mmstab.planner import Plan, RoutePlan
     from mmstab.runs.tracking import InitialArm, StepBackend, TrackingPlan, TrackingRun
     from mmstab.workspace import Workspace
 
@@ -75,8 +74,8 @@ def plan(
 ) -> Plan | RoutePlan:
     """The stability plan along the problem's path (paper Section II-D).
 
-    A circle: ``planner.poses`` poses around it (:func:`mmstab.planner.plan_path`); a route:
-    poses ``planner.spacing`` apart, warm-started (:func:`mmstab.planner.route.plan_route`).
+    A closed path (the circle): ``planner.poses`` poses around it; an open one (a route):
+    poses ``planner.spacing`` apart, warm-started (:func:`mmstab.planner.plan_problem`).
 
     Args:
         problem: the problem (``planner``, ``workspace`` and ``path`` sections).
@@ -86,13 +85,10 @@ def plan(
     Raises:
         MmstabError: an empty workspace.
     """
-    from mmstab.planner import plan_path
-    from mmstab.planner.route import plan_route
+    from mmstab.planner import plan_problem
 
     ws = ws if ws is not None else workspace(problem, progress=progress)
-    if problem.route is not None:
-        return plan_route(problem, ws)
-    return plan_path(problem, ws)
+    return plan_problem(problem, ws)
 
 
 def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike) -> StabilityCases:

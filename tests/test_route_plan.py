@@ -18,9 +18,16 @@ import yaml
 
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem, problem_from_dict
-from mmstab.planner import PlannerSettings, planning_region, region_samples, solve_exhaustive
+from mmstab.planner import (
+    PlannerSettings,
+    plan_route,
+    planning_region,
+    region_samples,
+    route_risk,
+    solve_exhaustive,
+    stretches,
+)
 from mmstab.planner.fitness import pose_fitness
-from mmstab.planner.route import plan_route, route_risk, stretches
 from mmstab.stability.static import mu_max
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -29,6 +29,7 @@ from mmstab.control.reference import PathSample, StepReference, task_reference
 from mmstab.core.masks import true_runs
 from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.paths.base import BasePath
 from mmstab.terrain import Terrain
 
 
@@ -249,7 +250,7 @@ class RunReference(NamedTuple):
 
 def run_reference(
     robot: Robot,
-    circle: Any,
+    circle: BasePath,
     terrain: Terrain,
     plan: PosturePlan,
     q0: ArrayLike,
@@ -261,7 +262,7 @@ def run_reference(
 
     Args:
         robot: the robot.
-        circle: the base path (``CirclePath``).
+        circle: the base path (the circle or a route).
         terrain: the ground.
         plan: the plan (``fractions``, ``target_com``, ``postures``).
         q0: the initial arm posture (4,) [rad].

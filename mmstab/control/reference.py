@@ -33,12 +33,8 @@ from scipy.interpolate import CubicSpline
 
 from mmstab.control.layout import StepReference
 from mmstab.model.robot import FloatArray
-from mmstab.paths.circle import CirclePath
-from mmstab.paths.route import RoutePath
+from mmstab.paths.base import BasePath
 from mmstab.terrain import Terrain, place_local
-
-#: A base path: the circle, or a route parametrised by time fraction (``mmstab.paths.route``).
-BasePath = CirclePath | RoutePath
 
 #: A joint whose range is at least a full turn less this [rad] is unwrapped (the turret).
 FULL_TURN_TOL = 1e-6
@@ -68,23 +64,11 @@ class PathSample(NamedTuple):
 def circle_pose(circle: BasePath, s: ArrayLike) -> PathSample:
     """Reference base pose (x, y, γ) in M at fractions s, and its derivative d/ds (N, 3).
 
-    A route's fraction is its time fraction (:meth:`RoutePath.pose_rate`).
+    Any base path (:class:`mmstab.paths.base.BasePath`); a route's fraction is its time
+    fraction.
     """
-    s = np.atleast_1d(np.asarray(s, dtype=float))
-    if isinstance(circle, RoutePath):
-        value, rate = circle.pose_rate(s)
-        return PathSample(value, rate)
-    dphi = circle.sign * 2 * np.pi  # d phi / ds [rad]
-    phi = circle.start_angle + dphi * s
-    rate = np.stack(
-        [
-            -circle.radius * np.sin(phi) * dphi,
-            circle.radius * np.cos(phi) * dphi,
-            np.full_like(s, dphi),
-        ],
-        axis=1,
-    )
-    return PathSample(circle.pose_at(s), rate)
+    value, rate = circle.pose_rate(s)
+    return PathSample(value, rate)
 
 
 def place_on_path(

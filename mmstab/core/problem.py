@@ -18,6 +18,7 @@ from mmstab.core.settings import check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
 from mmstab.model.robot import Robot, load_robot
+from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath, is_route, route_path_from_section
 from mmstab.terrain import Terrain, from_section
@@ -32,8 +33,11 @@ class Problem:
         data: its validated content (sections by name).
         robot: the robot it names.
         terrain: the ground (:func:`mmstab.terrain.from_section` of the ``terrain:`` section).
-        base_path: the base reference path in the terrain's map frame: a circle, or a route
+        base_path: the base reference path in the terrain's map frame
+            (:class:`mmstab.paths.base.BasePath`): a circle, or a route
             (:class:`mmstab.paths.route.RoutePath`) when ``path:`` has waypoints or a file.
+            Stages that work on any path use it; :attr:`circle` and :attr:`route` are for
+            the few that only know one kind (the circle's figures, a route's risk map).
         force_size: sizes beyond the time bounds were accepted (``--force-size``).
     """
 
@@ -41,7 +45,7 @@ class Problem:
     data: dict[str, Any]
     robot: Robot
     terrain: Terrain
-    base_path: CirclePath | RoutePath
+    base_path: BasePath
     force_size: bool = False
 
     @property
@@ -51,7 +55,7 @@ class Problem:
         Raises:
             MmstabError: the problem's path is a route (a stage that only knows circles).
         """
-        if isinstance(self.base_path, RoutePath):
+        if not isinstance(self.base_path, CirclePath):
             raise MmstabError(
                 f"{self.path}: path: this command works on a circle; the problem's path is a "
                 "route (use mmstab plan / track / route figures)"

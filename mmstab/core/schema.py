@@ -11,6 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
+#: ``planner.method``: the names of the planner's searches (``mmstab.planner.searches.SEARCHES``
+#: registers one search per name; a test keeps both equal).
+PLANNER_METHODS = ("cmaes", "exhaustive", "sequence")
+
 NUM: dict[str, Any] = {"type": "number"}
 POS: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}
 NONNEG: dict[str, Any] = {"type": "number", "minimum": 0}
@@ -112,7 +116,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             tol_x=POS,
             max_resample=INT_POS,
             seed=SEED,
-            method={"enum": ["cmaes", "exhaustive", "sequence"]},
+            method={"enum": list(PLANNER_METHODS)},
             seeding={"enum": ["starts", "coarse"]},
             coarse_samples={"type": "integer", "minimum": 16},
             coarse_basins=INT_POS,

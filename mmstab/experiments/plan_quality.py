@@ -19,13 +19,13 @@ from mmstab.core.files import write_figure
 from mmstab.core.problem import Problem
 from mmstab.planner import (
     Plan,
+    PlanningRegion,
     best_mu,
     gravity_body_at,
     pose_fitness,
     region_samples,
     solve_exhaustive,
 )
-from mmstab.planner.turret import windowed_region
 from mmstab.stability.static import mu_max, robot_force_angle
 from mmstab.viz.plotting import new_figure
 
@@ -38,7 +38,7 @@ def _pct(reference: np.ndarray, value: np.ndarray) -> np.ndarray:
 
 
 def lap_quality(
-    problem: Problem, region: Any, plan: Plan, dense: int = DENSE_POSES
+    problem: Problem, region: PlanningRegion, plan: Plan, dense: int = DENSE_POSES
 ) -> dict[str, Any]:
     """Planned vs exhaustive vs best achievable along the problem's lap.
 
@@ -64,7 +64,7 @@ def lap_quality(
         # against the exhaustive optimum under the pose's own turret window (if any)
         window = target.window
         ex = solve_exhaustive(
-            fitness, samples if window is None else windowed_region(region, window).valid_com_in_V
+            fitness, samples if window is None else region.windowed(window).samples
         )
         fit_ref.append(ex.best_fitness)
         mu_ref.append(float(fitness.mu(ex.best_com)[0]))

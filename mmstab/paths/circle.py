@@ -1,4 +1,4 @@
-"""Base reference paths in a terrain's map frame M."""
+"""The circle as a base reference path in a terrain's map frame M (:class:`BasePath`)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.paths.base import PathSample
 from mmstab.terrain.base import FloatArray
 
 
@@ -34,6 +35,31 @@ class CirclePath(NamedTuple):
         y = self.center[1] + self.radius * np.sin(phi)
         heading = phi + self.sign * np.pi / 2
         return np.stack([x, y, heading], axis=1)
+
+    @property
+    def length(self) -> float:
+        """Arc length of one lap [m]."""
+        return 2 * np.pi * self.radius
+
+    @property
+    def closed(self) -> bool:
+        """A lap: it ends where it starts."""
+        return True
+
+    def pose_rate(self, s: ArrayLike) -> PathSample:
+        """Base poses (x, y, heading) at fractions ``s`` and their derivative d/ds (N, 3)."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        dphi = self.sign * 2 * np.pi  # d phi / ds [rad]
+        phi = self.start_angle + dphi * s
+        rate = np.stack(
+            [
+                -self.radius * np.sin(phi) * dphi,
+                self.radius * np.cos(phi) * dphi,
+                np.full_like(s, dphi),
+            ],
+            axis=1,
+        )
+        return PathSample(self.pose_at(s), rate)
 
     def poses(self, n: int) -> FloatArray:
         """``n`` poses evenly spread over one lap (the first at ``start_angle``) -> (n, 3)."""

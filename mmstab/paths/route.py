@@ -26,13 +26,14 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.model.robot import Robot
+from mmstab.paths.base import PathSample
 from mmstab.paths.geometry import FloatArray, Route
 from mmstab.paths.io import PlannedRoute, Waypoints, read_waypoints_csv, route_from_section
 from mmstab.paths.speed import SpeedLimits, SpeedProfile
@@ -57,13 +58,6 @@ def route_samples(length: float, spacing: float) -> FloatArray:
 def is_route(section: Any) -> bool:
     """Whether a ``path:`` mapping is a route (``waypoints`` or ``file``), not a circle."""
     return isinstance(section, dict) and ("waypoints" in section or "file" in section)
-
-
-class PathSample(NamedTuple):
-    """Poses (N, 3) [m, m, rad] at time fractions and their rate d/du (N, 3)."""
-
-    value: FloatArray
-    rate: FloatArray
 
 
 @dataclass(frozen=True)
@@ -92,6 +86,11 @@ class RoutePath:
     def length(self) -> float:
         """Arc length [m]."""
         return self.route.length
+
+    @property
+    def closed(self) -> bool:
+        """A route ends at its goal, not where it started."""
+        return False
 
     def planned_poses(self, spacing: float | None) -> int:
         """How many poses the planner places along the route, ``spacing`` [m] apart.

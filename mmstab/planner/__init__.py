@@ -1,10 +1,20 @@
 """Stability planner (paper Section II-D, Eq. 6; ``docs/planner.md``).
 
-Modules: ``settings`` (the ``planner`` section), ``fitness`` (Eq. 6 per population and
-as a batched affine form), ``exhaustive`` (the reference over all of V's samples, coarse
-seeds), ``cmaes`` (pycma ask/tell, IPOP restarts), ``path`` (per pose and along a path).
+One pipeline, candidates -> fitness -> choice -> postures, around one search interface:
+
+- ``regions`` (where the arm CoM may be, with its cached views), ``fitness`` (Eq. 6 per
+  population and in batched affine form), ``wrench`` (the tool wrench in Eq. 6),
+  ``turret`` (the turret window);
+- ``search`` (the interface a search implements), ``searches`` (the registry, one module
+  per search: ``exhaustive``, ``cmaes``, ``sequence``), with the algorithms they run:
+  ``exhaustive`` (every sample; coarse seeds), ``cmaes`` (pycma ask/tell, IPOP), ``warm``
+  (a compact warm-started CMA-ES), ``sequence`` (the whole path by dynamic programming);
+- ``pose`` (one pose through the pipeline), ``along_path`` (poses in turn, or a
+  whole-path search), ``warm_start`` (along a route, each pose warm-started), ``risk``
+  (where a route is at risk), ``plan`` (a problem's plan), ``levers`` (the flippers).
 """
 
+from mmstab.planner.along_path import Plan, solve_path
 from mmstab.planner.cmaes import (
     Generation,
     SearchResult,
@@ -12,10 +22,10 @@ from mmstab.planner.cmaes import (
     ranking_values,
     solve_ipop,
     solve_start,
+    start_coms,
 )
 from mmstab.planner.exhaustive import (
     ExhaustiveResult,
-    SampleIndex,
     best_mu,
     coarse_samples,
     coarse_seeds,
@@ -30,30 +40,46 @@ from mmstab.planner.fitness import (
     pose_fitness,
     region_samples,
 )
-from mmstab.planner.path import (
-    Plan,
-    PoseTarget,
-    gravity_body_at,
-    plan_path,
-    solve_path,
-    solve_pose,
-    start_coms,
+from mmstab.planner.plan import plan_path, plan_problem, plan_route
+from mmstab.planner.pose import PoseTarget, gravity_body_at, solve_pose
+from mmstab.planner.regions import (
+    PlanningRegion,
+    SampleIndex,
+    SampleRegion,
+    as_region,
+    planning_region,
+    sample_region,
 )
-from mmstab.planner.regions import SampleRegion, planning_region, sample_region
+from mmstab.planner.risk import RiskStretch, RouteRisk, route_risk, stretches
+from mmstab.planner.search import PathChoice, PathSearch, PathTask, PoseChoice, PoseSearch, PoseTask
+from mmstab.planner.searches import SEARCHES, search_for
 from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.warm_start import RoutePlan, solve_route
 
 __all__ = [
+    "SEARCHES",
     "CoMRegion",
     "ExhaustiveResult",
     "Fitness",
     "Generation",
     "LinearFitness",
+    "PathChoice",
+    "PathSearch",
+    "PathTask",
     "Plan",
     "PlannerSettings",
+    "PlanningRegion",
+    "PoseChoice",
+    "PoseSearch",
     "PoseTarget",
+    "PoseTask",
+    "RiskStretch",
+    "RoutePlan",
+    "RouteRisk",
     "SampleIndex",
     "SampleRegion",
     "SearchResult",
+    "as_region",
     "ask_generation",
     "best_mu",
     "coarse_samples",
@@ -61,16 +87,22 @@ __all__ = [
     "gravity_body_at",
     "linear_fitness",
     "plan_path",
+    "plan_problem",
+    "plan_route",
     "planning_region",
     "pose_fitness",
     "ranking_values",
     "region_samples",
+    "route_risk",
     "sample_index",
     "sample_region",
+    "search_for",
     "solve_exhaustive",
     "solve_ipop",
     "solve_path",
     "solve_pose",
+    "solve_route",
     "solve_start",
     "start_coms",
+    "stretches",
 ]

@@ -16,8 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.core.files import MmstabError
-from mmstab.model.robot import FloatArray
-from mmstab.planner.fitness import CoMRegion, Fitness
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.fitness import Fitness
+from mmstab.planner.regions import CoMRegion, as_region
 
 #: IPOP's population factor per restart (pycma's ``incpopsize``).
 IPOP_FACTOR = 2
@@ -191,3 +192,23 @@ def solve_ipop(
         solve_start(fitness, region, start_com, rng, sigma0, popsize * IPOP_FACTOR**k, keep_start)
         for k in range(restarts + 1)
     )
+
+
+def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> FloatArray:
+    """Start means of CMA-ES, body frame (S, 3) [m].
+
+    The FK arm CoMs of link0 at each angle (``starts`` [rad]) with the other joints at zero
+    (paper); a start outside the region (a coarse grid's hull may miss the stretched arm)
+    moves to the region's nearest sample.
+    """
+    region = as_region(region)
+    q = np.zeros((len(starts), 4))
+    q[:, 0] = starts
+    coms = robot.arm_com(q)
+    outside = ~region.contains(coms)
+    if outside.any():
+        inside = region.samples
+        if len(inside):
+            for k in np.flatnonzero(outside):
+                coms[k] = inside[np.argmin(np.sum((inside - coms[k]) ** 2, axis=1))]
+    return coms

@@ -9,15 +9,14 @@ strided subset seeds CMA-ES (``planner.seeding: coarse``).
 from __future__ import annotations
 
 import time
-import weakref
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.fitness import Fitness, linear_fitness, region_samples
+from mmstab.planner.fitness import Fitness, linear_fitness
+from mmstab.planner.regions import CoMRegion, SampleIndex, as_region
 from mmstab.stability.static import base_polygon
 
 #: Coarse seeds lie at least this share of V's diameter apart (distinct basins).
@@ -91,29 +90,9 @@ def coarse_stride(total: int, count: int) -> int:
     return max(1, -(-total // max(int(count), 1)))
 
 
-class SampleIndex(NamedTuple):
-    """V's samples (N, 3) [m] and a k-d tree over them (for the local refinement)."""
-
-    samples: FloatArray
-    tree: cKDTree
-
-
-_INDEXES: weakref.WeakKeyDictionary[Any, SampleIndex] = weakref.WeakKeyDictionary()
-
-
-def sample_index(region: Any) -> SampleIndex:
-    """The region's :class:`SampleIndex`, built once per region object (cached)."""
-    try:
-        return _INDEXES[region]
-    except (KeyError, TypeError):
-        pass
-    samples = region_samples(region)
-    index = SampleIndex(samples, cKDTree(samples))
-    try:
-        _INDEXES[region] = index
-    except TypeError:  # not weak-referenceable: no cache
-        pass
-    return index
+def sample_index(region: CoMRegion) -> SampleIndex:
+    """The region's samples and their k-d tree (:attr:`PlanningRegion.index`, built once)."""
+    return as_region(region).index
 
 
 def coarse_seeds(

@@ -20,13 +20,14 @@ g_o = (m_a g_a + m_b c_b) / m_T is affine in g_a.
 
 from __future__ import annotations
 
-from typing import NamedTuple, Protocol
+from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.regions import CoMRegion, as_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.static import base_polygon, force_angle_batch
 
@@ -34,30 +35,13 @@ from mmstab.stability.static import base_polygon, force_angle_batch
 BLOCK = 32768
 
 
-class CoMRegion(Protocol):
-    """Where the arm CoM may be: the workspace V (``mmstab.workspace.Workspace``)."""
-
-    @property
-    def diameter(self) -> float:
-        """Largest distance across the region [m]."""
-        ...
-
-    def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
-        """Membership of body-frame points (N, 3) [m]."""
-        ...
-
-    def violation(self, points: ArrayLike) -> FloatArray:
-        """How far body-frame points (N, 3) lie outside the region, 0 inside [m]."""
-        ...
-
-
 def region_samples(region: CoMRegion) -> FloatArray:
-    """The region's samples: the collision-free grid CoMs inside V (M, 3) [m].
+    """The region's samples: the collision-free grid CoMs it holds (M, 3) [m].
 
     Raises:
-        MmstabError: the region keeps no samples (``valid_com_in_V``) or none at all.
+        MmstabError: the region holds none.
     """
-    samples = np.asarray(getattr(region, "valid_com_in_V", np.empty((0, 3))), dtype=float)
+    samples = as_region(region).samples
     if samples.size == 0:
         raise MmstabError(
             "planner: the workspace V holds no collision-free grid CoM (exhaustive and "

@@ -6,7 +6,8 @@ The other lever, a wrench at the tool, is :mod:`mmstab.planner.wrench`.
 search over flipper angles around the inner arm-CoM search: each candidate angle gives the
 robot its flippers there (support polygon, :func:`with_flipper_angle`) and asks the
 terrain for that robot (``Terrain.with_robot``; an angle the terrain refuses, e.g. flippers
-reaching into a ramp, is skipped), then :func:`mmstab.planner.solve_pose` plans the arm;
+reaching into a ramp, is skipped), then the per-pose pipeline
+(:func:`mmstab.planner.pose.solve_pose`, the problem's search) plans the arm;
 the best Eq. 6 fitness wins, the previous angle on ties (warm start). Along a path the
 candidates are limited to ``rate * dt`` from the previous angle (``dt`` = the time between
 poses). The flippers carry no mass of their own in the robot description (the base's mass
@@ -17,14 +18,18 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot, flipper_ground_angle, with_flipper_angle
+from mmstab.planner.cmaes import start_coms
+from mmstab.planner.pose import PoseTarget, solve_pose
+from mmstab.planner.regions import CoMRegion, as_region
 from mmstab.planner.settings import PlannerSettings
+from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 
 
@@ -60,7 +65,7 @@ class FlipperTarget(NamedTuple):
     """
 
     flipper_angle: float
-    target: Any
+    target: PoseTarget
     tried: FloatArray
     fitness: FloatArray
 
@@ -68,7 +73,7 @@ class FlipperTarget(NamedTuple):
 def solve_pose_flippers(
     robot: Robot,
     terrain: Terrain,
-    region: Any,
+    region: CoMRegion,
     pose: ArrayLike,
     previous_com: ArrayLike,
     previous_angle: float,
@@ -96,12 +101,11 @@ def solve_pose_flippers(
     Raises:
         MmstabError: no candidate angle is accepted by the terrain.
     """
-    from mmstab.planner.path import solve_pose
-
+    region = as_region(region)  # one region for every angle (its views built once)
     angles = flipper_candidates(robot, settings.flipper_angles, previous_angle, max_step)
     order = sorted(range(len(angles)), key=lambda k: abs(angles[k] - previous_angle))
     fitness = np.full(len(angles), -np.inf)
-    best: Any = None
+    best: PoseTarget | None = None
     best_angle = math.nan
     best_rng = rng
     for k in order:
@@ -147,7 +151,7 @@ class FlipperPlan(NamedTuple):
 def solve_path_flippers(
     robot: Robot,
     terrain: Terrain,
-    region: Any,
+    region: CoMRegion,
     poses: ArrayLike,
     settings: PlannerSettings,
     dt: float,
@@ -165,15 +169,13 @@ def solve_path_flippers(
     Raises:
         MmstabError: ``flipper_angles`` is 0, or the robot has no flipper limits.
     """
-    from mmstab.planner.path import start_coms
-    from mmstab.stability.static import mu_max as stowed_flat_mu
-
     if settings.flipper_angles < 1:
         raise MmstabError("planner.flipper_angles is 0: the flippers are not planned")
     lim = robot.base.flippers.limits
     if lim is None:
         raise MmstabError(f"robot {robot.name}: planner.flipper_angles needs base.flippers.limits")
     pts = np.asarray(poses, dtype=float)
+    region = as_region(region)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None

@@ -29,10 +29,9 @@ from numpy.typing import NDArray
 from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.exhaustive import sample_index
-from mmstab.planner.fitness import CoMRegion, pose_fitness
+from mmstab.planner.fitness import Fitness, pose_fitness
+from mmstab.planner.regions import CoMRegion, PlanningRegion, as_region
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.turret import sample_postures
 from mmstab.planner.wrench import with_tool_wrench
 
 #: Postures checked along each straight joint-space move between consecutive poses.
@@ -133,10 +132,60 @@ def solve_sequence(
     """
     t0 = time.perf_counter()
     checker = CollisionChecker(robot) if checker is None else checker
-    samples = sample_index(region).samples
-    postures = sample_postures(region)
-    diameter = float(region.diameter)
+    region = as_region(region)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    graph = _candidate_graph(robot, g, region, settings, mu_max, closed)
+    path, rounds, forbidden = _search_lazily(graph, region.postures, checker, closed)
+    K = len(g)
+    rows = graph.cand[np.arange(K), path]
+    fitness = graph.value[np.arange(K), path].copy()
+    for i, (a, b) in enumerate(graph.pairs):
+        fitness[b] -= graph.motion[i][path[a], path[b]]
+    samples = region.index.samples
+    mu = np.array([graph.fits[k].mu(samples[rows[k]])[0] for k in range(K)])
+    return SequenceResult(
+        rows=rows,
+        fitness=fitness,
+        mu=mu,
+        total=float(fitness.sum()),
+        rounds=rounds,
+        forbidden=forbidden,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+class _Graph(NamedTuple):
+    """The candidates per pose and the moves between consecutive poses' candidates.
+
+    Attributes:
+        cand: each pose's candidate rows of V's samples (K, M).
+        value: their Eq. 6 stability term (the first pose's move from stowed included) (K, M).
+        fits: each pose's Eq. 6 (its ``mu`` gives the reported μ).
+        pairs: the (from, to) poses of each move (the closing one on a closed path).
+        motion: per move, Eq. 6's motion term between the candidates (M, M).
+        allowed: per move, which candidate pairs may follow (turret window, no collision).
+    """
+
+    cand: NDArray[np.intp]
+    value: FloatArray
+    fits: list[Fitness]
+    pairs: list[tuple[int, int]]
+    motion: list[FloatArray]
+    allowed: list[NDArray[np.bool_]]
+
+
+def _candidate_graph(
+    robot: Robot,
+    g: FloatArray,
+    region: PlanningRegion,
+    settings: PlannerSettings,
+    mu_max: float,
+    closed: bool,
+) -> _Graph:
+    """Each pose's candidates, spread over turret bins, and the moves between them."""
+    samples = region.index.samples
+    postures = region.postures
+    diameter = float(region.diameter)
     K, M = len(g), min(settings.sequence_candidates, len(samples))
     stowed = robot.arm_com(robot.stowed)
     stab = settings._replace(w_motion=0.0)
@@ -165,11 +214,26 @@ def solve_sequence(
             d0 = postures[cand[a], 0][:, None] - postures[cand[b], 0][None, :]
             ok &= np.abs(d0) <= settings.turret_window + 1e-9
         allowed.append(ok)
+    return _Graph(cand, value, fits, pairs, motion, allowed)
+
+
+def _search_lazily(
+    graph: _Graph, postures: FloatArray, checker: CollisionChecker, closed: bool
+) -> tuple[NDArray[np.intp], int, int]:
+    """Best sequence, its moves checked and colliding ones forbidden until none collides.
+
+    Returns:
+        (candidate per pose, rounds, moves forbidden); ``graph.allowed`` is updated.
+
+    Raises:
+        MmstabError: no sequence is allowed, or it did not settle in ``MAX_ROUNDS``.
+    """
+    cand, pairs, allowed = graph.cand, graph.pairs, graph.allowed
     checked: set[tuple[int, int, int]] = set()
     forbidden, rounds = 0, 0
     while rounds < MAX_ROUNDS:
         rounds += 1
-        path, total = _best(value, motion, allowed, closed)
+        path, total = _best(graph.value, graph.motion, allowed, closed)
         if not np.isfinite(total):
             raise MmstabError(
                 "planner: no sequence of V's postures has collision-free moves within the "
@@ -191,20 +255,7 @@ def solve_sequence(
             break
     else:
         raise MmstabError(f"planner: sequence search did not settle in {MAX_ROUNDS} rounds")
-    rows = cand[np.arange(K), path]
-    fitness = value[np.arange(K), path].copy()
-    for i, (a, b) in enumerate(pairs):
-        fitness[b] -= motion[i][path[a], path[b]]
-    mu = np.array([fits[k].mu(samples[rows[k]])[0] for k in range(K)])
-    return SequenceResult(
-        rows=rows,
-        fitness=fitness,
-        mu=mu,
-        total=float(fitness.sum()),
-        rounds=rounds,
-        forbidden=forbidden,
-        seconds=time.perf_counter() - t0,
-    )
+    return path, rounds, forbidden
 
 
 def _turret_bins(turret: FloatArray, count: int) -> NDArray[np.intp]:

@@ -12,15 +12,22 @@ Its draws come from the caller's generator.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
 from mmstab.planner.cmaes import ranking_values
-from mmstab.planner.fitness import CoMRegion
+from mmstab.planner.fitness import Fitness
+from mmstab.planner.pose import PoseTarget
+from mmstab.planner.regions import CoMRegion, PlanningRegion
+from mmstab.planner.settings import PlannerSettings
 
+#: CMA-ES iterations of a warm-started pose (a cold start uses ``planner.max_iterations``).
+WARM_ITERATIONS = 8
 #: Iterations whose populations' fitness ranges must all be below ``tol_fitness`` to stop.
 FLAT_ITERATIONS = 3
 
@@ -43,6 +50,108 @@ class WarmResult(NamedTuple):
     evaluations: int
     resamples: int
     sigma: float
+
+
+class _Strategy(NamedTuple):
+    """The textbook constants of a (mu/mu_w, lambda) CMA-ES in n dimensions (Hansen 2016)."""
+
+    lam: int
+    mu: int
+    weights: FloatArray
+    mueff: float
+    cc: float
+    cs: float
+    c1: float
+    cmu: float
+    damps: float
+    chi_n: float
+
+
+def _strategy(n: int, popsize: int) -> _Strategy:
+    lam = int(popsize)
+    mu = lam // 2
+    w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mueff = 1.0 / np.sum(w**2)
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chi_n = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n**2))
+    return _Strategy(lam, mu, w, mueff, cc, cs, c1, cmu, damps, chi_n)
+
+
+class _State(NamedTuple):
+    """The search distribution: mean [m], step size [m], covariance and its eigen-basis."""
+
+    mean: FloatArray
+    sigma: float
+    C: FloatArray
+    B: FloatArray
+    D: FloatArray
+    pc: FloatArray
+    ps: FloatArray
+
+
+class _Population(NamedTuple):
+    """One iteration's population (lambda, 3) [m], its membership, re-asks, share inside."""
+
+    x: FloatArray
+    inside: NDArray[np.bool_]
+    resamples: int
+    share: float
+
+
+def _draw(
+    st: _State,
+    cma: _Strategy,
+    region: CoMRegion,
+    rng: np.random.Generator,
+    share: float,
+    max_resample: int,
+) -> _Population:
+    """Draw a population, the re-asks drawn up front with one membership test.
+
+    The first lambda draws inside V (in drawing order) are the population, topped up with
+    outside ones if too few; as many draws as the last share inside V asks for, at most
+    ``max_resample`` + 1 rounds.
+    """
+    lam, n = cma.lam, len(st.mean)
+    draws = min(
+        int(np.ceil(1.2 * lam / max(share, 1.0 / (max_resample + 1)))), (max_resample + 1) * lam
+    )
+    z_all = rng.standard_normal((draws, n))
+    x_all = st.mean + st.sigma * z_all @ (st.B * st.D).T
+    inside_all = region.contains(x_all)
+    order_in = np.flatnonzero(inside_all)
+    take = np.r_[order_in[:lam], np.flatnonzero(~inside_all)[: lam - min(lam, order_in.size)]]
+    last = int(take.max()) + 1 if order_in.size >= lam else x_all.shape[0]
+    resamples = int(np.sum(~inside_all[:last])) - int(np.sum(~inside_all[take]))
+    share = max(float(inside_all.mean()), 1e-3)
+    return _Population(x_all[take], inside_all[take], resamples, share)
+
+
+def _update(st: _State, cma: _Strategy, x: FloatArray, order: NDArray[np.intp], it: int) -> _State:
+    """The CMA update from a ranked population (best first): mean, paths, C, sigma."""
+    n, w, mueff, cs, cc = len(st.mean), cma.weights, cma.mueff, cma.cs, cma.cc
+    y = (x[order[: cma.mu]] - st.mean) / st.sigma
+    y_w = w @ y
+    mean = st.mean + st.sigma * y_w
+    inv_sqrt_C = (st.B / st.D) @ st.B.T
+    ps = (1 - cs) * st.ps + np.sqrt(cs * (2 - cs) * mueff) * inv_sqrt_C @ y_w
+    h_sig = np.linalg.norm(ps) / np.sqrt(1 - (1 - cs) ** (2 * it)) / cma.chi_n < 1.4 + 2 / (n + 1)
+    pc = (1 - cc) * st.pc + h_sig * np.sqrt(cc * (2 - cc) * mueff) * y_w
+    C = (
+        (1 - cma.c1 - cma.cmu) * st.C
+        + cma.c1 * (np.outer(pc, pc) + (1 - h_sig) * cc * (2 - cc) * st.C)
+        + cma.cmu * (y.T * w) @ y
+    )
+    sigma = st.sigma * np.exp((cs / cma.damps) * (np.linalg.norm(ps) / cma.chi_n - 1))
+    C = (C + C.T) / 2
+    D2, B = np.linalg.eigh(C)
+    D = np.sqrt(np.maximum(D2, 1e-20))
+    return _State(mean, sigma, C, B, D, pc, ps)
 
 
 def warm_cma(
@@ -73,23 +182,11 @@ def warm_cma(
             ``FLAT_ITERATIONS`` iterations.
     """
     n = 3
-    lam = int(popsize)
-    mu = lam // 2
-    w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
-    w /= w.sum()
-    mueff = 1.0 / np.sum(w**2)
-    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
-    cs = (mueff + 2) / (n + mueff + 5)
-    c1 = 2 / ((n + 1.3) ** 2 + mueff)
-    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
-    damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
-    chi_n = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n**2))
+    cma = _strategy(n, popsize)
+    lam = cma.lam
     diameter = float(region.diameter)
-
     mean = np.asarray(start_com, dtype=float).copy()
-    sigma = float(sigma0)
-    C, B, D = np.eye(n), np.eye(n), np.ones(n)
-    pc, ps = np.zeros(n), np.zeros(n)
+    st = _State(mean, float(sigma0), np.eye(n), np.eye(n), np.ones(n), np.zeros(n), np.zeros(n))
     best_com, best_f = mean.copy(), -np.inf
     if region.contains(mean[None])[0]:
         best_f = float(fitness(mean[None])[0])
@@ -99,21 +196,9 @@ def warm_cma(
     it = 0
     while it < max_iterations:
         it += 1
-        # the re-asks drawn up front, one membership test: the first lambda draws inside V
-        # (in drawing order) are the population, topped up with outside ones if too few;
-        # as many draws as the last share inside V asks for, at most max_resample + 1 rounds
-        draws = min(
-            int(np.ceil(1.2 * lam / max(share, 1.0 / (max_resample + 1)))), (max_resample + 1) * lam
-        )
-        z_all = rng.standard_normal((draws, n))
-        x_all = mean + sigma * z_all @ (B * D).T
-        inside_all = region.contains(x_all)
-        order_in = np.flatnonzero(inside_all)
-        take = np.r_[order_in[:lam], np.flatnonzero(~inside_all)[: lam - min(lam, order_in.size)]]
-        last = int(take.max()) + 1 if order_in.size >= lam else x_all.shape[0]
-        resamples += int(np.sum(~inside_all[:last])) - int(np.sum(~inside_all[take]))
-        x, inside = x_all[take], inside_all[take]
-        share = max(float(inside_all.mean()), 1e-3)
+        pop = _draw(st, cma, region, rng, share, max_resample)
+        x, inside, share = pop.x, pop.inside, pop.share
+        resamples += pop.resamples
         f = fitness(x)
         evaluations += lam
         violation = region.violation(x) if not inside.all() else np.zeros(lam)
@@ -122,26 +207,61 @@ def warm_cma(
         k = int(np.argmax(feasible))
         if feasible[k] > best_f:
             best_f, best_com = float(feasible[k]), x[k].copy()
-
-        y = (x[order[:mu]] - mean) / sigma
-        y_w = w @ y
-        mean = mean + sigma * y_w
-        inv_sqrt_C = (B / D) @ B.T
-        ps = (1 - cs) * ps + np.sqrt(cs * (2 - cs) * mueff) * inv_sqrt_C @ y_w
-        h_sig = np.linalg.norm(ps) / np.sqrt(1 - (1 - cs) ** (2 * it)) / chi_n < 1.4 + 2 / (n + 1)
-        pc = (1 - cc) * pc + h_sig * np.sqrt(cc * (2 - cc) * mueff) * y_w
-        C = (
-            (1 - c1 - cmu) * C
-            + c1 * (np.outer(pc, pc) + (1 - h_sig) * cc * (2 - cc) * C)
-            + cmu * (y.T * w) @ y
-        )
-        sigma *= np.exp((cs / damps) * (np.linalg.norm(ps) / chi_n - 1))
-        C = (C + C.T) / 2
-        D2, B = np.linalg.eigh(C)
-        D = np.sqrt(np.maximum(D2, 1e-20))
-        if sigma * D.max() < tol_x:
+        st = _update(st, cma, x, order, it)
+        if st.sigma * st.D.max() < tol_x:
             break
         spread.append(float(np.ptp(f[inside])) if inside.any() else np.inf)
         if len(spread) >= FLAT_ITERATIONS and max(spread[-FLAT_ITERATIONS:]) < tol_fitness:
             break  # the populations' values agree (pycma's tolfun)
-    return WarmResult(best_com, best_f, it, evaluations, resamples, sigma)
+    return WarmResult(best_com, best_f, it, evaluations, resamples, st.sigma)
+
+
+def warm_pose(
+    fit: Fitness,
+    region: PlanningRegion,
+    pose: FloatArray,
+    starts: list[FloatArray],
+    sigma: float,
+    settings: PlannerSettings,
+    rng: np.random.Generator,
+    t0: float,
+) -> PoseTarget:
+    """One warm-started pose: :func:`warm_cma` from each start, the best answer kept.
+
+    Args:
+        fit: Eq. 6 at the pose.
+        region: the planning region.
+        pose: the base pose [m, m, rad] (recorded).
+        starts: start means, body frame (3,) each [m].
+        sigma: the warm step size [m].
+        settings: planner settings (population, tolerances; ``WARM_ITERATIONS`` at most).
+        rng: the planner's generator.
+        t0: ``time.perf_counter()`` at the pose's start [s].
+    """
+    linear = fit.linear()  # the same Eq. 6, affine per tip-over axis: cheaper per batch
+    runs = [
+        warm_cma(
+            linear.__call__,
+            region,
+            c,
+            sigma,
+            rng,
+            settings.popsize,
+            min(settings.max_iterations, WARM_ITERATIONS),
+            settings.max_resample,
+            settings.tol_x,
+            settings.tol_fitness,
+        )
+        for c in starts
+    ]
+    best = int(np.argmax([r.best_fitness for r in runs]))
+    com = runs[best].best_com
+    return PoseTarget(
+        pose=np.asarray(pose, dtype=float),
+        target_com=com,
+        fitness=float(fit(com)[0]),
+        mu=float(fit.mu(com)[0]),
+        runs=(),
+        best_start=best,
+        seconds=time.perf_counter() - t0,
+    )

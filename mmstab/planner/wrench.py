@@ -13,8 +13,7 @@ wrench gives the static Eq. 6 to rounding.
 
 from __future__ import annotations
 
-import weakref
-from typing import Any, NamedTuple, cast
+from typing import NamedTuple, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,6 +22,7 @@ from scipy.spatial import cKDTree
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness
+from mmstab.planner.regions import CoMRegion, as_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.dynamic import dynamic_force_angle
 
@@ -51,30 +51,23 @@ def tool_points(robot: Robot, q: ArrayLike) -> FloatArray:
     return np.asarray(frames[:, -1, :3, 3])
 
 
-_TOOL_MAPS: weakref.WeakKeyDictionary[Any, dict[str, ToolMap]] = weakref.WeakKeyDictionary()
-
-
-def tool_map(robot: Robot, region: Any) -> ToolMap:
-    """The :class:`ToolMap` of a region's labelled postures (cached per region and robot).
+def tool_map(robot: Robot, region: CoMRegion) -> ToolMap:
+    """The :class:`ToolMap` of the workspace's postures: a view of the region, one per robot.
 
     Raises:
-        MmstabError: the region keeps no collision-free postures (``valid_q``).
+        MmstabError: the workspace keeps no collision-free postures (``valid_q``).
     """
-    try:
-        return _TOOL_MAPS[region][robot.source_hash]
-    except (KeyError, TypeError):
-        pass
-    q = np.asarray(getattr(region, "valid_q", np.empty((0, 4))), dtype=float).reshape(-1, 4)
+    r = as_region(region)
+    return r.view(("tool_map", robot.source_hash), lambda: _tool_map(robot, r.valid_q))
+
+
+def _tool_map(robot: Robot, valid_q: FloatArray) -> ToolMap:
+    q = np.asarray(valid_q, dtype=float).reshape(-1, 4)
     if len(q) == 0:
         raise MmstabError(
             "planner: a tool wrench needs the workspace's collision-free postures (valid_q)"
         )
-    out = ToolMap(cKDTree(robot.arm_com(q)), tool_points(robot, q))
-    try:
-        _TOOL_MAPS.setdefault(region, {})[robot.source_hash] = out
-    except TypeError:  # not weak-referenceable: no cache
-        pass
-    return out
+    return ToolMap(cKDTree(robot.arm_com(q)), tool_points(robot, q))
 
 
 class WrenchFitness(NamedTuple):
@@ -122,7 +115,7 @@ class WrenchFitness(NamedTuple):
         return self
 
 
-def with_tool_wrench(fitness: Fitness, region: Any) -> Fitness:
+def with_tool_wrench(fitness: Fitness, region: CoMRegion) -> Fitness:
     """``fitness`` with the robot's tool wrench, or ``fitness`` itself without one.
 
     A :class:`WrenchFitness` offers everything the searches use of a ``Fitness``

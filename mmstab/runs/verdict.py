@@ -30,8 +30,7 @@ from mmstab.stability.static import stability_along
 
 if TYPE_CHECKING:
     from mmstab.core.problem import Problem
-    from mmstab.planner import Plan
-    from mmstab.planner.route import RoutePlan
+    from mmstab.planner import Plan, RoutePlan
 
 #: ``planner.margin`` when the problem does not set it [N rad].
 DEFAULT_MARGIN = 0.0

@@ -28,7 +28,7 @@ import numpy as np
 
 from mmstab.experiments.atlas.spec import Block, TerrainCell
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner import PlannerSettings, solve_pose, start_coms
+from mmstab.planner import PlannerSettings, PlanningRegion, as_region, solve_pose, start_coms
 from mmstab.stability.static import mu_max, robot_force_angle
 from mmstab.terrain import Ramp, Terrain
 from mmstab.terrain.base import GRAVITY_G
@@ -58,7 +58,7 @@ class CellContext(NamedTuple):
     """A variant ready to plan: built once per process by :func:`context_for`."""
 
     robot: Robot
-    workspace: Any
+    region: PlanningRegion  # V with its views (built once per process)
     settings: PlannerSettings
     mu_max: float  # Eq. 6 normaliser [N rad]
     starts: FloatArray  # CMA-ES start means (S, 3) [m]
@@ -114,13 +114,14 @@ _COUNTS = {"cells": 0, "chunks": 0, "contexts": 0}
 
 def build_context(payload: VariantPayload) -> CellContext:
     """Derive what every cell of a variant shares (kinematics, starts, normaliser)."""
-    robot, ws, settings = payload.robot, payload.workspace, payload.settings
+    robot, settings = payload.robot, payload.settings
+    region = as_region(payload.workspace)
     return CellContext(
         robot=robot,
-        workspace=ws,
+        region=region,
         settings=settings,
         mu_max=mu_max(robot),
-        starts=start_coms(robot, ws, settings.starts),
+        starts=start_coms(robot, region, settings.starts),
         stowed_com=robot.arm_com(robot.stowed),
     )
 
@@ -196,7 +197,7 @@ def plan_best_pose(
     target = solve_pose(
         ctx.robot,
         terrain,
-        ctx.workspace,
+        ctx.region,
         np.asarray(pose, dtype=float),
         ctx.stowed_com,
         ctx.settings,

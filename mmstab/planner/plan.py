@@ -1,0 +1,108 @@
+"""The planner for a problem: its region, settings and poses along its path, then the IK.
+
+A closed path (the circle) is planned at ``planner.poses`` poses evenly spread over the
+lap (:func:`plan_path`); an open one (a route) at poses ``planner.spacing`` apart, each
+warm-started from the one before (:func:`plan_route`, :mod:`mmstab.planner.warm_start`).
+The region searched is ``workspace.method``'s (:func:`mmstab.planner.regions.planning_region`).
+"""
+
+from __future__ import annotations
+
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import Problem
+from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
+from mmstab.planner.along_path import Plan, solve_path
+from mmstab.planner.regions import PlanningRegion, planning_region
+from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.warm_start import RoutePlan, solve_route
+from mmstab.workspace import Workspace
+
+
+def problem_region(
+    problem: Problem, workspace: Workspace | None, progress: bool
+) -> tuple[Workspace, PlanningRegion]:
+    """The problem's workspace V (given, or loaded/built) and its planning region.
+
+    Raises:
+        MmstabError: the workspace V is empty.
+    """
+    from mmstab.workspace import load_or_build_workspace
+
+    ws = workspace if workspace is not None else load_or_build_workspace(problem, progress=progress)
+    if len(ws.valid_com_in_V) == 0:
+        raise MmstabError(f"{problem.path}: the workspace V is empty; no arm CoM can be planned")
+    return ws, planning_region(ws, problem.section("workspace")["method"])
+
+
+def plan_path(problem: Problem, workspace: Workspace | None = None, progress: bool = False) -> Plan:
+    """Plan the problem's circle: workspace (cached), the planner per pose, IK per target.
+
+    Args:
+        problem: a loaded problem (sections ``planner``, ``workspace``, ``path``).
+        workspace: a prebuilt :class:`mmstab.workspace.Workspace`; default: load or build.
+        progress: show progress bars.
+    """
+    from mmstab.workspace.ik import PostureSolver
+
+    ws, region = problem_region(problem, workspace, progress)
+    settings = PlannerSettings.from_section(problem.section("planner"))
+    if settings.flipper_angles:
+        raise MmstabError(
+            f"{problem.path}: planner.flipper_angles plans the flippers, which the tracking "
+            "controller does not move; they are planned by make levers "
+            "(mmstab.planner.levers.solve_path_flippers)"
+        )
+    solver = PostureSolver(problem.robot, ws)
+    poses = problem.circle.poses(settings.poses)
+    return solve_path(
+        problem.robot, problem.terrain, region, poses, settings, solver.realise, closed=True
+    )
+
+
+def plan_route(
+    problem: Problem, workspace: Workspace | None = None, progress: bool = False
+) -> RoutePlan:
+    """Plan the problem's route: workspace (cached), poses ``planner.spacing`` apart, IK.
+
+    Poses at 0, ``spacing``, ... and the route's end; their fractions are the route's time
+    fractions (the end is reached before the period ends, ``mmstab.paths.route``). Every
+    pose after the first is warm-started from the one before
+    (:func:`mmstab.planner.warm_start.solve_route`).
+
+    Raises:
+        MmstabError: the problem's path is not a route, or the workspace V is empty.
+    """
+    from mmstab.workspace.ik import PostureSolver
+
+    route = problem.base_path
+    if not isinstance(route, RoutePath):
+        raise MmstabError(f"{problem.path}: path: not a route (waypoints or file)")
+    ws, region = problem_region(problem, workspace, progress)
+    section = problem.section("planner")
+    settings = PlannerSettings.from_section(section)
+    s = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
+    poses = route.route.sample(s).pose
+    solver = PostureSolver(problem.robot, ws)
+    return solve_route(
+        problem.robot,
+        problem.terrain,
+        region,
+        s,
+        poses,
+        settings,
+        solver.realise,
+        route.fraction_of_s(s),
+    )
+
+
+def plan_problem(
+    problem: Problem, workspace: Workspace | None = None, progress: bool = False
+) -> Plan | RoutePlan:
+    """The plan along the problem's path: :func:`plan_path` or :func:`plan_route`.
+
+    The path's own kind decides: a closed path (the circle) is a lap, an open one (a
+    route) is driven once.
+    """
+    if problem.base_path.closed:
+        return plan_path(problem, workspace, progress)
+    return plan_route(problem, workspace, progress)

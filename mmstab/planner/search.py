@@ -1,0 +1,127 @@
+"""The planner's one interface for a search: what it is given and what it answers.
+
+Planning is one pipeline whatever the search (``docs/planner.md``, "Adding a search"):
+
+1. **candidates**: where the arm CoM may be at a pose (:class:`PlanningRegion`, restricted
+   to the turret window when ``planner.turret_window`` binds);
+2. **fitness**: Eq. 6 at the pose (``mmstab.planner.fitness``, with the tool wrench);
+3. **choice**: the search (this interface), by ``planner.method``
+   (:data:`mmstab.planner.searches.SEARCHES`);
+4. **postures**: a collision-free posture realising each choice (IK, or the best nearby
+   sample of V when IK fails), or the postures a whole-path search chose with its CoMs.
+
+A search chooses per pose (:class:`PoseSearch`: ``choose`` a CoM among the candidates
+with the fitness) or, in addition, along the whole path at once (:class:`PathSearch`:
+``choose_path``, e.g. ``sequence``); a whole-path search still answers per pose (``choose``),
+for the callers that plan one pose (the atlas, Fig. 7). The pipeline steps 1, 2 and 4 are
+:mod:`mmstab.planner.pose` and :mod:`mmstab.planner.along_path`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.cmaes import SearchResult
+from mmstab.planner.exhaustive import ExhaustiveResult
+from mmstab.planner.fitness import Fitness
+from mmstab.planner.regions import PlanningRegion
+from mmstab.planner.settings import PlannerSettings
+
+
+class PoseTask(NamedTuple):
+    """One pose's search problem.
+
+    Attributes:
+        robot: the robot.
+        region: the candidates: where the arm CoM may be (windowed when a window binds).
+        fitness: Eq. 6 at the pose (to maximise), batched over CoMs (N, 3) [m].
+        settings: the planner settings.
+        rng: the planner's generator (the only source of randomness).
+        starts: start means a caller fixed (S, 3) [m] (e.g. a warm start), else None.
+    """
+
+    robot: Robot
+    region: PlanningRegion
+    fitness: Fitness
+    settings: PlannerSettings
+    rng: np.random.Generator
+    starts: FloatArray | None = None
+
+
+class PoseChoice(NamedTuple):
+    """A search's answer at one pose.
+
+    Attributes:
+        target_com: the chosen arm CoM, body frame (3,) [m].
+        fitness: its Eq. 6 fitness.
+        runs: the CMA-ES runs, if any.
+        best_start: index of the run kept (-1 without runs).
+        exhaustive: the exhaustive result, if the search scored every sample.
+    """
+
+    target_com: FloatArray
+    fitness: float
+    runs: tuple[SearchResult, ...] = ()
+    best_start: int = -1
+    exhaustive: ExhaustiveResult | None = None
+
+
+class PathTask(NamedTuple):
+    """A whole path's search problem.
+
+    Attributes:
+        robot: the robot.
+        region: where the arm CoM may be (its samples, their postures).
+        gravity_body: gravity in the body frame at each pose (K, 3) [m/s^2].
+        settings: the planner settings.
+        mu_max: Eq. 6's normaliser [N rad].
+        closed: the path is a loop (the last pose moves back to the first).
+    """
+
+    robot: Robot
+    region: PlanningRegion
+    gravity_body: FloatArray
+    settings: PlannerSettings
+    mu_max: float
+    closed: bool
+
+
+class PathChoice(NamedTuple):
+    """A whole-path search's answer: a CoM and its posture per pose.
+
+    Attributes:
+        target_com: chosen arm CoMs, body frame (K, 3) [m].
+        postures: collision-free postures realising them (K, 4) [rad].
+        fitness: Eq. 6 per pose, with the previous pose's choice as previous CoM (K,).
+        mu: force-angle measure per pose (K,) [N rad].
+    """
+
+    target_com: FloatArray
+    postures: FloatArray
+    fitness: FloatArray
+    mu: FloatArray
+
+
+@runtime_checkable
+class PoseSearch(Protocol):
+    """A search that chooses the arm CoM at one pose."""
+
+    def choose(self, task: PoseTask) -> PoseChoice:
+        """The best CoM it finds among ``task.region`` by ``task.fitness``."""
+        ...
+
+
+@runtime_checkable
+class PathSearch(Protocol):
+    """A search that chooses along the whole path at once (and per pose, ``choose``)."""
+
+    def choose(self, task: PoseTask) -> PoseChoice:
+        """Its answer at a single pose."""
+        ...
+
+    def choose_path(self, task: PathTask) -> PathChoice:
+        """A CoM and a posture per pose, chosen together."""
+        ...
