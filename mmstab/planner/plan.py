@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
-from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
+from mmstab.paths.route import DEFAULT_SPACING, route_samples
 from mmstab.planner.along_path import Plan, solve_path
 from mmstab.planner.regions import PlanningRegion, planning_region
 from mmstab.planner.settings import PlannerSettings
@@ -74,8 +74,8 @@ def plan_route(
     """
     from mmstab.workspace.ik import PostureSolver
 
-    route = problem.base_path
-    if not isinstance(route, RoutePath):
+    route = problem.route
+    if route is None:
         raise MmstabError(f"{problem.path}: path: not a route (waypoints or file)")
     ws, region = problem_region(problem, workspace, progress)
     section = problem.section("planner")

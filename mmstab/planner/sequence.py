@@ -21,7 +21,7 @@ moves are checked, colliding ones are forbidden, and the search repeats (as lazy
 from __future__ import annotations
 
 import time
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,7 +66,9 @@ class SequenceResult(NamedTuple):
     seconds: float
 
 
-def segments_collide(checker: Any, q_from: FloatArray, q_to: FloatArray) -> NDArray[np.bool_]:
+def segments_collide(
+    checker: CollisionChecker, q_from: FloatArray, q_to: FloatArray
+) -> NDArray[np.bool_]:
     """Whether straight joint-space moves q_from -> q_to (N, 4) [rad] collide anywhere.
 
     Checked at ``SEGMENT_STEPS`` interior postures of each move in one batch (the ends are

@@ -196,7 +196,7 @@ class Viewer:
         with gui.add_folder("Pose", expand_by_default=self.run is None):
             self._edit = gui.add_checkbox("move a single pose", initial_value=self.editing)
             e = self.extent
-            pose0 = self.problem.circle.pose_at([0.0])[0]
+            pose0 = self.problem.base_path.pose_at([0.0])[0]
             self._pose_sliders = [
                 gui.add_slider("x [m]", e.x_min, e.x_max, 0.01, round(float(pose0[0]), 2)),
                 gui.add_slider("y [m]", e.y_min, e.y_max, 0.01, round(float(pose0[1]), 2)),

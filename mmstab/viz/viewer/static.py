@@ -58,7 +58,8 @@ def add_static_scene(
     scene.add_light_hemisphere(
         "/lights/sky", sky_color=(255, 255, 255), ground_color=(120, 110, 100), intensity=2.0
     )
-    reference = problem.circle.poses(240)
+    path = problem.base_path  # the circle or a route: the same calls
+    reference = path.poses(240)
     poses_for_extent = reference if run is None else np.vstack([reference, run.poses])
     extent = extent_around(poses_for_extent, TERRAIN_MARGIN, getattr(ground, "bounds", None))
     mesh = terrain_mesh(ground, extent)
@@ -69,7 +70,7 @@ def add_static_scene(
     scene.add_line_segments(
         "/terrain/grid", grid_lines(ground, extent), (150, 150, 140), thickness=0.004
     )
-    loop = route_points(ground, np.vstack([reference, reference[:1]]))
+    loop = route_points(ground, np.vstack([reference, reference[:1]]) if path.closed else reference)
     scene.add_line_segments(
         "/route/reference", polyline_segments(loop), (70, 70, 70), thickness=0.012
     )
@@ -78,7 +79,7 @@ def add_static_scene(
         scene.add_line_segments(
             "/route/travelled", polyline_segments(travelled), (31, 119, 180), thickness=0.012
         )
-        plan_poses = problem.circle.pose_at(run.plan_fractions)
+        plan_poses = path.pose_at(run.plan_fractions)
         targets = targets_G(ground, plan_poses, run.plan_target_com)
         scene.add_point_cloud(
             "/plan/arm_com_targets",
