@@ -45,7 +45,7 @@ from mmstab.planner.pose import PoseTarget, gravity_body_at, solve_pose
 from mmstab.planner.regions import (
     PlanningRegion,
     SampleIndex,
-    SampleRegion,
+    SampleBalls,
     as_region,
     planning_region,
     sample_region,
@@ -77,7 +77,7 @@ __all__ = [
     "RoutePlan",
     "RouteRisk",
     "SampleIndex",
-    "SampleRegion",
+    "SampleBalls",
     "SearchResult",
     "as_region",
     "ask_generation",

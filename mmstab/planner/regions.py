@@ -367,7 +367,3 @@ def as_region(region: CoMRegion) -> PlanningRegion:
     if isinstance(region, Workspace):
         return PlanningRegion(region, region)
     return PlanningRegion(region)
-
-
-#: The former name of the ``valid_samples`` region.
-SampleRegion = PlanningRegion

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from mmstab.terrain import Ramp, Terrain
 from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.generators import generate
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.workspace import Workspace
 
 
 class VariantPayload(NamedTuple):
@@ -50,7 +51,7 @@ class VariantPayload(NamedTuple):
     key: str
     position: tuple[int, int, int]
     robot: Robot
-    workspace: Any
+    workspace: Workspace
     settings: PlannerSettings
 
 
