@@ -44,8 +44,8 @@ from mmstab.planner.plan import plan_path, plan_problem, plan_route
 from mmstab.planner.pose import PoseTarget, gravity_body_at, solve_pose
 from mmstab.planner.regions import (
     PlanningRegion,
-    SampleIndex,
     SampleBalls,
+    SampleIndex,
     as_region,
     planning_region,
     sample_region,
