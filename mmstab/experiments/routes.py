@@ -25,9 +25,9 @@ import numpy as np
 
 from mmstab.app import plan as make_plan
 from mmstab.core.files import MmstabError, write_figure, write_json
+from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.core.masks import true_runs
 from mmstab.planner.route import RoutePlan, RouteRisk, route_risk
 from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
 from mmstab.stability.static import mu_max

@@ -26,8 +26,8 @@ from mmstab.runs.tracking import (
     TrackingRun,
     summarize,
 )
-from mmstab.viz.plotting import draw_base_topview, new_figure
 from mmstab.runs.verdict import slip_verdict
+from mmstab.viz.plotting import draw_base_topview, new_figure
 
 #: Sample spacing of the saved arrays (``run.npz``) [s].
 SAVE_EVERY_S = 0.01
