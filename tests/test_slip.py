@@ -174,3 +174,24 @@ def test_plan_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, mo
     assert s["slip"]["tilt_max"] == pytest.approx(0.35, abs=1e-12)
     assert main(["plan", str(path), "-o", str(out), "--allow-sliding"]) == 0
     assert "mmstab: warning: the tracks would slide" in capsys.readouterr().err
+
+
+def test_track_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, monkeypatch):
+    """The tracked run's base poses, checked like the plan's (20 deg slope, friction 0.3)."""
+    import json
+
+    def edit(p, r):
+        p["terrain"].update(slope=0.35, friction=0.3)
+        p["workspace"]["grid"] = [10, 8, 8, 8]
+        p["planner"]["poses"] = 4
+        p["controller"]["duration"] = 0.2
+
+    monkeypatch.chdir(tmp_path)
+    path = write_problem(tmp_path, edit)
+    out = tmp_path / "track"
+    assert main(["track", str(path), "-o", str(out)]) == 4
+    assert "mmstab: slides: " in capsys.readouterr().err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["tipped"] is None and s["slip"]["slides"]
+    assert s["slip"]["tilt_max"] == pytest.approx(0.35, abs=1e-12)
+    assert main(["track", str(path), "-o", str(out), "--allow-sliding"]) == 0
