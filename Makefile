@@ -219,11 +219,11 @@ atlas-rough: setup
 ## results/kerb/: the plan (plan/), the tracking run, its figures and the animation
 .PHONY: rough kerb
 rough: setup
-	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable
-	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable
+	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable --allow-sliding
+	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/rough.yaml -o results/rough
 
 kerb: setup
-	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable
-	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable
+	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable --allow-sliding
+	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/kerb.yaml -o results/kerb

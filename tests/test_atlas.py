@@ -18,7 +18,7 @@ from mmstab.experiments.atlas.cell import (
     compute_chunk,
     worker_counts,
 )
-from mmstab.experiments.atlas.figures import envelope
+from mmstab.experiments.atlas.figures import binds_first, envelope
 from mmstab.experiments.atlas.runner import payload, run_atlas
 from mmstab.experiments.atlas.spec import atlas_spec, flipper_ground_angle, with_flipper_angle
 from mmstab.experiments.atlas.store import CELL_VARIABLES
@@ -184,6 +184,8 @@ def test_envelope_interpolates_the_first_crossing():
     np.testing.assert_allclose(env.limit[[0, 1, 3]], [0.15, 0.3, 0.05])
     assert math.isnan(env.limit[2])
     assert env.censored.tolist() == [False, True, False, False]
+    # slip at 0.12 rad: before the tip limits 0.15 and 0.3, after 0.05; NaN tips first
+    assert binds_first(env, 0.12) == ["slip", "slip", "tip", "tip"]
 
 
 # ---------------------------------------------------------------------- Dask, store, resume
@@ -241,6 +243,11 @@ def test_cluster_run_stores_the_serial_cells_and_loads_each_variant_once(
     np.testing.assert_allclose(
         np.array(v["envelope_deg"]["stowed"], dtype=float), np.degrees(env.limit)
     )
+    # the slip limit: atan(friction) (default 0.7) against each heading's tip limit
+    assert s["friction"] == 0.7 and s["slip_limit_deg"] == pytest.approx(34.992020, abs=1e-6)
+    for arm, limits in v["envelope_deg"].items():
+        tip = np.nan_to_num(np.array(limits, dtype=float), nan=0.0)
+        assert v["binds_first"][arm] == ["slip" if 34.99202 < t else "tip" for t in tip]
 
 
 def test_interrupted_run_resumes_to_the_same_store(full_run, tiny_problem, cluster, tmp_path):

@@ -28,6 +28,7 @@ KERB = {
     }
 }
 REST_KEYS = ["roll", "pitch", "z", "G_T_B", "contacts", "support_polygon", "mu", "flags"]
+REST_KEYS += ["tilt", "friction", "slip_margin", "binding"]  # the slip limit (issue 25)
 
 
 def write_problem(tmp_path, terrain, name="p.yaml"):
@@ -60,6 +61,9 @@ def test_rest_json_on_the_ramp_is_the_ramp(robot):
     g = problem.terrain.gravity_body(pose)
     mu = robot_force_angle(robot, g, robot.arm_com(robot.stowed)).mu[0]
     assert d["mu"] == pytest.approx(mu, abs=1e-9)
+    # the ramp's slope is the tilt; atan(0.7) - 0.1 rad of slip margin
+    assert d["tilt"] == pytest.approx(0.1, abs=1e-12) and d["binding"] == "none"
+    assert d["slip_margin"] == pytest.approx(np.arctan(0.7) - 0.1, abs=1e-12)
     assert np.shape(d["contacts"]) == (4, 3) and d["flags"] == []
 
 

@@ -38,8 +38,9 @@ def test_candidates_follow_the_stated_geometry(robot):
     t = robot.base.tracks
     track = c.points[c.part == TRACK]
     r = t.height / 2
+    # rows across each belt, edges included, 5 cm apart (the 10 cm belt: edges and middle)
     assert set(np.round(np.unique(track[:, 1]), 9)) == {
-        round(s * t.separation / 2 + e * t.width / 2, 9) for s in (-1, 1) for e in (-1, 1)
+        round(s * t.separation / 2 + e * t.width / 2, 9) for s in (-1, 1) for e in (-1, 0, 1)
     }
     flat = track[track[:, 2] == 0]
     assert flat[:, 0].min() == -t.length / 2 and flat[:, 0].max() == t.length / 2
@@ -50,6 +51,10 @@ def test_candidates_follow_the_stated_geometry(robot):
     chassis = c.points[c.part == CHASSIS]
     body = robot.base.body
     assert np.allclose(chassis[:, 2], body.center[2] - body.size[2] / 2)
+    # the whole underside: every point of the face within 5 cm / sqrt(2) of a sample
+    u = np.random.default_rng(0).uniform(-0.5, 0.5, (2000, 2)) * body.size[:2] + body.center[:2]
+    gap = np.min(np.linalg.norm(u[:, None] - chassis[None, :, :2], axis=2), axis=1)
+    assert gap.max() <= 0.05 / np.sqrt(2) + 1e-12
     flipper = c.points[c.part == FLIPPER]
     box = robot.base.flippers.box("left")
     assert flipper[:, 2].min() == pytest.approx(box.corners()[:, 2].min())
@@ -135,10 +140,11 @@ def test_kerb_pitch_by_hand(robot):
     assert rest.roll[0] == pytest.approx(0.0, abs=1e-12)
     assert rest.flags(0) == ()
     contacts = rest.contacts_G(terrain.candidates.points, 0)
-    # the edge: both edges of both tracks (just below H: the face is 2 cm wide under bilinear)
-    assert np.isclose(contacts[:, 2], H, atol=1e-4).sum() == 4
+    # the edge: the three rows across both tracks (just below H: the face is 2 cm wide
+    # under bilinear)
+    assert np.isclose(contacts[:, 2], H, atol=1e-4).sum() == 6
     body = (contacts - rest.G_T_B[0, :3, 3]) @ rest.G_T_B[0, :3, :3]
-    assert ((body[:, 0] < -L / 2) & (np.abs(contacts[:, 2]) < 1e-9)).sum() == 4  # rear arcs
+    assert ((body[:, 0] < -L / 2) & (np.abs(contacts[:, 2]) < 1e-9)).sum() == 6  # rear arcs
 
 
 def test_flags_high_centred_and_tipping_over(robot):

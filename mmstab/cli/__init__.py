@@ -6,7 +6,8 @@ size bounds of :mod:`mmstab.core.sizes`), its options and that its output folder
 
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
-the tracked robot tips over; ``--allow-unstable`` accepts an unstable plan); 130
+the tracked robot tips over; ``--allow-unstable`` accepts an unstable plan); 4 the tracks
+would slide (tilt beyond atan(terrain.friction) at a pose; ``--allow-sliding``); 130
 interrupted (Ctrl-C: workers stopped, no file half-written).
 """
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_UNSTABLE
+from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
 
 #: Default output folder of each command (``-o`` overrides it).
 DEFAULT_OUT = {
@@ -134,7 +134,23 @@ def _track(args: argparse.Namespace, problem: Any) -> int | None:
         f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
         f"samples {s['posture_reference']['reference']['colliding_samples']}"
     )
-    return _tipped(s)
+    return _tipped(s) or _slides(s, args)
+
+
+def _slides(s: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """Report poses where the tracks slide on stderr; exit status 4 unless ``--allow-sliding``."""
+    from mmstab.runs.verdict import describe_sliding
+
+    verdict = s.get("slip")
+    if verdict is None or not verdict["slides"]:
+        return None
+    total = len(s["poses"]) if isinstance(s.get("poses"), list) else s.get("steps", 1)
+    line = describe_sliding(verdict, total)
+    if args.allow_sliding:
+        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
+        return None
+    print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
+    return EXIT_SLIDES
 
 
 def _urdf(args: argparse.Namespace, problem: Any) -> None:
@@ -179,7 +195,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
-    return _plan_verdict(s, args)
+    return _plan_verdict(s, args) or _slides(s, args)
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
@@ -198,9 +214,9 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"mu planned min {min(s['mu_planned']):.1f}, stowed min {min(s['mu_stowed']):.1f}, "
         f"arm removed min {min(s['mu_removed']):.1f} N rad; below the margin "
         f"{r['margin']:g}: {spans('below_margin')}; stowed below it, planned not: "
-        f"{spans('saved_by_planning')}"
+        f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
     )
-    return _plan_verdict(s, args)
+    return _plan_verdict(s, args) or _slides(s, args)
 
 
 def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
@@ -218,7 +234,7 @@ def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
     _announce(problem, "planner")
     s = run_fig8(problem, args.out)
     print(f"fig8: arm side per pose {s['sides']}")
-    return _plan_verdict(s, args)
+    return _plan_verdict(s, args) or _slides(s, args)
 
 
 def _fidelity(args: argparse.Namespace, problem: Any) -> None:
@@ -327,6 +343,15 @@ _ALLOW_UNSTABLE = (
     },
 )
 
+_ALLOW_SLIDING = (
+    "--allow-sliding",
+    {
+        "action": "store_true",
+        "help": "accept poses where the tracks would slide (tilt > atan(terrain.friction); "
+        "exit 0, warning)",
+    },
+)
+
 #: Commands of :data:`COMMANDS`: handlers of (args, the problem loaded and checked).
 PROBLEM_COMMANDS = frozenset(name for name, _, _ in COMMANDS)
 
@@ -334,9 +359,9 @@ PROBLEM_COMMANDS = frozenset(name for name, _, _ in COMMANDS)
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
     "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
-    "plan": [_ALLOW_UNSTABLE],
+    "plan": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
     "fig7": [_ALLOW_UNSTABLE],
-    "fig8": [_ALLOW_UNSTABLE],
+    "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
     "animation": [_ALLOW_UNSTABLE],
     "track": [
         (
@@ -353,6 +378,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ),
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
         _ALLOW_UNSTABLE,
+        _ALLOW_SLIDING,
     ],
     "fidelity": [
         ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})

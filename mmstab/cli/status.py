@@ -2,3 +2,5 @@
 
 #: Exit statuses.
 EXIT_OK, EXIT_BAD_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130
+#: The tracks would slide (``--allow-sliding`` accepts it).
+EXIT_SLIDES = 4

@@ -66,6 +66,11 @@ def _rest(args: argparse.Namespace) -> None:
         f" rad ({np.degrees(st.pitch):+.2f} deg), z {st.z:+.4f} m"
     )
     print(f"rest: mu {st.mu:.2f} N rad; flags: {', '.join(st.flags) or 'none'}")
+    print(
+        f"rest: tilt {np.degrees(st.tilt):.2f} deg, slides beyond "
+        f"{np.degrees(st.tilt + st.slip_margin):.2f} deg (friction {st.friction:g}): slip "
+        f"margin {np.degrees(st.slip_margin):+.2f} deg; limit crossed: {st.binding}"
+    )
     print(f"rest: {len(st.contacts)} contacts; support polygon (G, m):")
     print(np.array2string(st.support_polygon, prefix="  "))
     print(f"rest: G_T_B =\n{st.G_T_B}")

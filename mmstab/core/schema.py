@@ -299,13 +299,17 @@ SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2}
 #: ``terrain.compliance`` [m] of a heightmap: the tracks' bottom runs bear load this far
 #: above the ground (``mmstab.terrain.rest.RestSettings.compliance``); at most 0.2 m.
 COMPLIANCE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 0.2}
-TERRAIN_RAMP = obj(slope=SLOPE)
+#: ``terrain.friction``: Coulomb coefficient of the tracks on the ground [-], any form
+#: (default ``mmstab.terrain.base.DEFAULT_FRICTION``, 0.7); the slip limit is atan of it.
+FRICTION: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0, "maximum": 2}
+TERRAIN_RAMP = with_optional(obj(slope=SLOPE), friction=FRICTION)
 TERRAIN_FILE: dict[str, Any] = {
     "type": "object",
     "properties": {
         "file": {"type": "string", "minLength": 1},
         "resolution": POS,
         "compliance": COMPLIANCE,
+        "friction": FRICTION,
     },
     "required": ["file"],
     "additionalProperties": False,

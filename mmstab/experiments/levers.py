@@ -15,7 +15,8 @@ section, every number in ``results/levers/summary.json``:
 - **payload**: the heaviest payload held at the front, left and right on a side slope,
   arm planned (the best collision-free grid posture of V with the turret pointing there and
   the tool held out ``payload_reach`` beyond the tracks' footprint on that side), stowed
-  (links 1-3 folded, turret pointing there: the load rests over the base) and fixed (the
+  (links 1-3 folded, turret pointing away: the folded arm holds the load over the base on
+  that side, :func:`stowed_holding`) and fixed (the
   arm stretched level, turret pointing there); bisection on the mass.
 - **variants**: per robot file, the planned and stowed μ along the lap (CMA-ES, V on
   ``levers.variant_grid``), optionally along the circle of a rough-ground problem
@@ -422,6 +423,16 @@ def pointing_postures(
     return q[beyond_edge(robot, tool_points(robot, q), direction, reach)]
 
 
+def stowed_holding(robot: Robot, direction: str) -> FloatArray:
+    """The stowed posture (1, 4) [rad] whose folded arm holds the load toward ``direction``.
+
+    Links 1-3 fold back over the turret, so the wrist lies opposite the turret's direction:
+    the turret points away from where the load is (``DIRECTIONS`` + pi).
+    """
+    turret = (DIRECTIONS[direction] + math.pi) % (2 * math.pi)
+    return np.array([[turret, *robot.stowed[1:]]])
+
+
 def run_payload(problem: Problem, valid_q: FloatArray, settings: LeversSettings) -> dict[str, Any]:
     """Heaviest payload at the front and either side on the side slope, per arm mode."""
     robot = problem.robot
@@ -439,7 +450,7 @@ def run_payload(problem: Problem, valid_q: FloatArray, settings: LeversSettings)
         planned = pointing_postures(robot, valid_q, name, settings.payload_reach)
         modes = {
             "planned": planned,
-            "stowed": np.array([[direction % (2 * math.pi), *robot.stowed[1:]]]),
+            "stowed": stowed_holding(robot, name),
             "fixed": np.array([[direction % (2 * math.pi), 0.0, 0.0, 0.0]]),
         }
         row: dict[str, Any] = {"planned_postures": len(planned)}

@@ -18,7 +18,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
-from mmstab.runs.verdict import plan_verdict, planner_margin
+from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
 from mmstab.terrain import roll_pitch
@@ -168,6 +168,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     summary["stability"] = plan_verdict(
         summary["poses"], planner_margin(problem.section("planner"))
     )
+    summary["slip"] = slip_verdict(problem.terrain, [p["pose"] for p in summary["poses"]])
     quality = lap_quality(
         problem, planning_region(ws, problem.section("workspace")["method"]), plan
     )

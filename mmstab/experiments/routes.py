@@ -25,10 +25,11 @@ import numpy as np
 
 from mmstab.app import plan as make_plan
 from mmstab.core.files import MmstabError, write_figure, write_json
+from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
-from mmstab.runs.verdict import plan_verdict, planner_margin
+from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
 from mmstab.stability.static import mu_max
 
 #: Robot snapshots drawn in the 3-D figure.
@@ -45,6 +46,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
     from mmstab.stability.static import stability_along
 
     mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
+    slip = slip_verdict(problem.terrain, plan.poses)
     poses = [
         {
             "s": float(plan.s[k]),
@@ -85,6 +87,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
             "margin": risk.margin,
             "below_margin": [r._asdict() for r in risk.below_margin],
             "saved_by_planning": [r._asdict() for r in risk.saved_by_planning],
+            "slides": slide_stretches(slip, plan.s),
         },
         "ms_per_pose": float(1e3 * np.median(warm)),
         "ms_per_pose_max": float(1e3 * np.max(warm)),
@@ -93,7 +96,21 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "settings": plan.settings._asdict(),
         "poses": poses,
         "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),
+        "slip": slip,
     }
+
+
+def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
+    """Runs of poses where the tracks slide: arc lengths [m] and the worst tilt [rad]."""
+    s_m = np.asarray(s, dtype=float)
+    mask = np.zeros(s_m.size, dtype=bool)
+    tilt = np.zeros(s_m.size)
+    for b in slip["sliding_poses"]:
+        mask[b["index"]], tilt[b["index"]] = True, b["tilt"]
+    return [
+        {"start_s": float(s_m[k]), "end_s": float(s_m[j - 1]), "tilt_max": float(tilt[k:j].max())}
+        for k, j in true_runs(mask)
+    ]
 
 
 def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:

@@ -26,6 +26,7 @@ from mmstab.runs.tracking import (
     TrackingRun,
     summarize,
 )
+from mmstab.runs.verdict import slip_verdict
 from mmstab.viz.plotting import draw_base_topview, new_figure
 
 #: Sample spacing of the saved arrays (``run.npz``) [s].
@@ -111,6 +112,7 @@ def run_tracking(
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
+    summary["slip"] = slip_verdict(problem.terrain, run.state[keep, :3])
     save_settings(
         d,
         problem,

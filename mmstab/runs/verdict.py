@@ -14,6 +14,11 @@ weight acts outside the support polygon: the robot tips over. Two verdicts:
 
 The command line reports either on stderr and exits with status 3
 (:class:`mmstab.core.files.UnstableError`), unless ``--allow-unstable`` (plans only).
+
+A third verdict, the **slip limit** (:mod:`mmstab.stability.slip`): a plan or a run slides
+when the support's tilt at one of its base poses exceeds ``atan(terrain.friction)``;
+:func:`slip_verdict` lists those poses and the command line exits with status 4
+unless ``--allow-sliding`` (:mod:`mmstab.cli.commands`).
 """
 
 from __future__ import annotations
@@ -26,11 +31,13 @@ import numpy as np
 
 from mmstab.core.files import UnstableError
 from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.slip import terrain_slip
 from mmstab.stability.static import stability_along
 
 if TYPE_CHECKING:
     from mmstab.core.problem import Problem
     from mmstab.planner import Plan, RoutePlan
+    from mmstab.terrain.base import Terrain
 
 #: ``planner.margin`` when the problem does not set it [N rad].
 DEFAULT_MARGIN = 0.0
@@ -127,4 +134,50 @@ def describe_tipping(tipped: Mapping[str, Any]) -> str:
         f"the robot would tip over at t = {tipped['time_s']:.4g} s (step {tipped['step']}), "
         f"base at ({x:.3f}, {y:.3f}) m heading {heading:.3f} rad on the slope, "
         f"mu = {tipped['mu']:.4g} N rad; the run stopped there"
+    )
+
+
+def slip_verdict(terrain: Terrain, poses: Any) -> dict[str, Any]:
+    """Whether the tracks hold at every base pose (the friction cone, :mod:`..slip`).
+
+    Args:
+        terrain: the ground (its ``friction``).
+        poses: base poses (x [m], y [m], heading [rad]) (N, 3) in the terrain's map frame.
+
+    Returns:
+        ``slides``, ``friction``, ``critical_tilt`` [rad], ``tilt_max`` [rad],
+        ``margin_min`` [rad] and ``sliding_poses`` (index, pose, tilt [rad]).
+    """
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    if P.size == 0:
+        return {"slides": False, "sliding_poses": [], "friction": None}
+    slip = terrain_slip(terrain, P)
+    bad = [
+        {"index": int(k), "pose": [float(v) for v in P[k]], "tilt": float(slip.tilt[k])}
+        for k in np.flatnonzero(slip.slides)
+    ]
+    return {
+        "slides": bool(bad),
+        "friction": slip.friction,
+        "critical_tilt": slip.critical_tilt,
+        "tilt_max": float(np.max(slip.tilt)),
+        "margin_min": float(np.min(slip.margin)),
+        "criterion": "tilt of the support <= atan(friction) at every pose",
+        "sliding_poses": bad,
+    }
+
+
+def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
+    """One line naming the poses where the tracks slide."""
+    bad = verdict["sliding_poses"]
+    listed = "; ".join(
+        f"pose {b['index']} at ({b['pose'][0]:.3f}, {b['pose'][1]:.3f}) m heading "
+        f"{b['pose'][2]:.3f} rad: tilt {math.degrees(b['tilt']):.2f} deg"
+        for b in bad[:LISTED_POSES]
+    )
+    more = f"; and {len(bad) - LISTED_POSES} more" if len(bad) > LISTED_POSES else ""
+    return (
+        f"the tracks would slide at {len(bad)} of {total} poses: tilt beyond "
+        f"{math.degrees(verdict['critical_tilt']):.2f} deg = atan(friction "
+        f"{verdict['friction']:g}) ({listed}{more})"
     )

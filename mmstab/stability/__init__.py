@@ -2,5 +2,6 @@
 
 - ``static``: the force-angle measure (NumPy, batched, CasADi) and the μ trio along poses.
 - ``dynamic``: the dynamic force-angle measure with external wrenches.
+- ``slip``: the slip limit, the friction cone of a rigid robot on its support.
 - ``stance``: how the robot stands at a pose on any terrain (``mmstab rest``), stability maps.
 """

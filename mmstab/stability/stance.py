@@ -2,7 +2,9 @@
 
 :func:`stance` is what ``mmstab rest`` prints: roll, pitch, height, the resting pose,
 the touching contacts and the support polygon in G, the force-angle measure mu of the
-overall CoM under gravity (``m_T g``) on it and the operator flags. The polygon is the hull
+overall CoM under gravity (``m_T g``) on it, the slip limit (:mod:`mmstab.stability.slip`:
+the support's tilt against ``atan(terrain.friction)``), which of the two binds, and the
+operator flags. The polygon is the hull
 of the contacts that carry load: the touching ones and, on a heightmap, the tracks' bottom
 run within the compliance of the ground (:class:`mmstab.terrain.rest.RestSettings`). On
 the ramp the pose is the ramp's ``(x, y, heading)`` in S; on a heightmap ``(x, y, yaw)``
@@ -18,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import Robot
+from mmstab.stability.slip import slip_limit, terrain_friction
 from mmstab.stability.static import contact_force_angle
 from mmstab.terrain.base import GRAVITY_G, Terrain, roll_pitch
 from mmstab.terrain.heightmap import FloatArray
@@ -36,7 +39,12 @@ class Stance(NamedTuple):
         support_polygon: ordered polygon vertices in G (m, 3) [m]: the hull of the contacts
             that carry load.
         mu: force-angle measure on it [N rad] (> 0: statically stable).
-        flags: operator flags (``high_centred``, ``line_contact``, ``tips_over``, ...).
+        flags: operator flags (``high_centred``, ``line_contact``, ``tips_over``,
+            ``slides``, ...).
+        tilt: angle between gravity and -z_B at the resting pose [rad].
+        friction: the terrain's friction coefficient [-].
+        slip_margin: ``atan(friction) - tilt`` [rad] (> 0: the tracks hold).
+        binding: the limit crossed (``tip``, ``slip``, ``both``) or, when none is, ``none``.
     """
 
     roll: float
@@ -47,6 +55,10 @@ class Stance(NamedTuple):
     support_polygon: FloatArray
     mu: float
     flags: tuple[str, ...]
+    tilt: float
+    friction: float
+    slip_margin: float
+    binding: str
 
     def to_json(self) -> dict[str, Any]:
         """Exactly the keys of ``mmstab rest --json``."""
@@ -59,6 +71,10 @@ class Stance(NamedTuple):
             "support_polygon": self.support_polygon.tolist(),
             "mu": self.mu,
             "flags": list(self.flags),
+            "tilt": self.tilt,
+            "friction": self.friction,
+            "slip_margin": self.slip_margin,
+            "binding": self.binding,
         }
 
 
@@ -92,7 +108,18 @@ def stance(
     flags = stand.flags
     if line and "line_contact" not in flags:
         flags = (*flags, "line_contact")
-    return Stance(roll, pitch, float(T[2, 3]), T, stand.contacts_G, poly, mu, flags)
+    slip = slip_limit(T[:3, :3].T @ GRAVITY_G, terrain_friction(terrain))
+    slides = bool(slip.slides[0])
+    if slides:
+        flags = (*flags, "slides")
+    tips = not mu > 0 or "tips_over" in flags
+    binding = {(False, False): "none", (True, False): "tip", (False, True): "slip"}.get(
+        (tips, slides), "both"
+    )
+    return Stance(
+        roll, pitch, float(T[2, 3]), T, stand.contacts_G, poly, mu, flags,
+        float(slip.tilt[0]), slip.friction, float(slip.margin[0]), binding,
+    )  # fmt: skip
 
 
 # ------------------------------------------------------------------------ stability maps

@@ -33,6 +33,9 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 GRAVITY_G = np.array([0.0, 0.0, -9.81])  # [m/s^2]
+#: ``terrain.friction`` when the problem does not set it: rubber tracks on soil or grass
+#: (0.5-0.8) [-] (``docs/terrain.md``).
+DEFAULT_FRICTION = 0.7
 GROUND_SIZE = 3  #: local ground (z [m], roll [rad], pitch [rad]) per pose
 
 

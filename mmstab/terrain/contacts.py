@@ -7,11 +7,16 @@ z up. The candidates are the points of the base that can touch the ground:
   y = +-separation/2: a flat bottom from x = -L/2 to +L/2 at z = 0 (L = ``tracks.length``)
   and end arcs (sprocket, idler) of radius r_t = ``tracks.height``/2 centred at
   (+-L/2, r_t). Points along the bottom and along the lower half of each end arc (from
-  straight down to straight ahead/behind), on both track edges (y = centre +- width/2).
+  straight down to straight ahead/behind), on rows across the belt at most ``spacing``
+  apart, both track edges (y = centre +- width/2) included.
 * **flippers**: the box of :meth:`mmstab.model.robot.Flippers.box` at the flipper angle; points
   along its two lower long edges.
-* **chassis**: the bottom face of ``base.body`` (z = centre_z - size_z/2): its corners and
-  points along its edges.
+* **chassis**: the bottom face of ``base.body`` (z = centre_z - size_z/2): its corners,
+  points along its edges and a grid inside it, all at most ``spacing`` apart.
+
+Every sample of a belt or the underside is at most ``spacing`` from the next one along x
+and y, so the ground can reach into either between samples only by what it rises over
+half a spacing (``docs/terrain.md``: a bound measured on rough ground).
 """
 
 from __future__ import annotations
@@ -113,6 +118,22 @@ def chassis_outline(base: Base, spacing: float) -> FloatArray:
     return np.concatenate(pts)
 
 
+def chassis_inside(base: Base, spacing: float) -> FloatArray:
+    """Grid points strictly inside the chassis bottom face, at most ``spacing`` apart (n, 3)."""
+    body = base.body
+    z = body.center[2] - body.size[2] / 2
+    xs = _across(body.center[0], body.size[0], spacing)[1:-1]
+    ys = _across(body.center[1], body.size[1], spacing)[1:-1]
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    return np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], axis=1)
+
+
+def _across(centre: float, width: float, spacing: float) -> FloatArray:
+    """Values from centre - width/2 to centre + width/2 (both included), <= spacing apart."""
+    n = max(int(np.ceil(width / spacing - 1e-9)), 1) + 1
+    return np.linspace(centre - width / 2, centre + width / 2, n)
+
+
 def contact_candidates(
     base: Base,
     flipper_angle: float | None = None,
@@ -136,14 +157,14 @@ def contact_candidates(
     parts: list[FloatArray] = []
     codes: list[int] = []
     for yc in (t.separation / 2, -t.separation / 2):
-        for y in (yc + t.width / 2, yc - t.width / 2):
+        for y in _across(yc, t.width, spacing)[::-1]:  # the left edge first, as before
             parts.append(np.stack([prof[:, 0], np.full(len(prof), y), prof[:, 1]], axis=1))
             codes += [TRACK] * len(prof)
     for side in ("left", "right"):
         pts = flipper_edges(flippers, side, spacing)
         parts.append(pts)
         codes += [FLIPPER] * len(pts)
-    chassis = chassis_outline(base, spacing)
+    chassis = np.concatenate([chassis_outline(base, spacing), chassis_inside(base, spacing)])
     parts.append(chassis)
     codes += [CHASSIS] * len(chassis)
     return ContactCandidates(points=np.concatenate(parts), part=np.array(codes, dtype=np.int_))

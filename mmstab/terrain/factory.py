@@ -20,7 +20,7 @@ import numpy as np
 from mmstab.core import schema
 from mmstab.core.files import ConfigError, validate
 from mmstab.model.robot import Robot
-from mmstab.terrain.base import Terrain
+from mmstab.terrain.base import DEFAULT_FRICTION, Terrain
 from mmstab.terrain.generators import Grid, generate
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
@@ -38,7 +38,9 @@ def check_section(problem_path: Path, section: Any) -> str:
         raise ConfigError(problem_path, "terrain", "must be a mapping")
     if "generate" in section:
         gen = section["generate"]
-        top = schema.with_optional(schema.obj(generate={}), compliance=schema.COMPLIANCE)
+        top = schema.with_optional(
+            schema.obj(generate={}), compliance=schema.COMPLIANCE, friction=schema.FRICTION
+        )
         validate(problem_path, {"terrain": section}, schema.obj(terrain=top))
         if not isinstance(gen, dict):
             raise ConfigError(problem_path, "terrain.generate", "must be a mapping")
@@ -75,8 +77,9 @@ def from_section(
     """
     p = Path(problem_path)
     form = check_section(p, section)
+    friction = float(section.get("friction", DEFAULT_FRICTION))
     if form == "ramp":
-        return Ramp(section["slope"])
+        return Ramp(section["slope"], friction)
     if form == "file":
         target = p.parent / section["file"]
         if not target.is_file():
@@ -84,10 +87,10 @@ def from_section(
         hm = load_heightmap(target, section.get("resolution"))
     else:
         hm = generate(section["generate"])
-    terrain = HeightmapTerrain(hm)
+    terrain = HeightmapTerrain(hm, friction=friction)
     if "compliance" in section:
         settings = terrain.settings._replace(compliance=float(section["compliance"]))
-        terrain = HeightmapTerrain(hm, settings=settings)
+        terrain = HeightmapTerrain(hm, settings=settings, friction=friction)
     return terrain if robot is None else terrain.with_robot(robot)
 
 

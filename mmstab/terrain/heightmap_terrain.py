@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import Robot
 from mmstab.model.robot import with_flipper_angle as robot_with_flipper_angle
-from mmstab.terrain.base import GRAVITY_G, Support, as_poses, place_local
+from mmstab.terrain.base import DEFAULT_FRICTION, GRAVITY_G, Support, as_poses, place_local
 from mmstab.terrain.contacts import ContactCandidates, contact_candidates
 from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.polygon import support_vertices
@@ -62,6 +62,7 @@ class HeightmapTerrain:
         settings: resting-pose solver settings.
         reference: the pose whose resting plane :meth:`place_sx` uses (``None`` = the map
             centre, heading +x).
+        friction: Coulomb friction coefficient of the tracks on this ground [-].
     """
 
     heightmap: Heightmap
@@ -70,6 +71,7 @@ class HeightmapTerrain:
     arm_q: FloatArray | None = None
     settings: RestSettings = RestSettings()
     reference: FloatArray | None = None
+    friction: float = DEFAULT_FRICTION
     kind: str = "heightmap"
 
     # ---------------------------------------------------------------------- binding

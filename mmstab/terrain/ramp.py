@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull
 
 from mmstab.terrain.base import (
+    DEFAULT_FRICTION,
     GRAVITY_G,
     GROUND_SIZE,
     FloatArray,
@@ -58,8 +59,9 @@ class Ramp:
 
     kind = "ramp"
 
-    def __init__(self, slope: float):
+    def __init__(self, slope: float, friction: float = DEFAULT_FRICTION):
         self.slope = float(slope)
+        self.friction = float(friction)  # tracks on the ground, Coulomb [-]
         self.G_R_S = rot_x(self.slope)
 
     @property

@@ -5,6 +5,13 @@ margin, walking up the slope axis from its first value; the crossing between the
 slope above the margin and the first below is interpolated linearly in mu. If mu never
 drops below the margin the limit is the last slope and is marked censored (the true
 limit is steeper); if it is below at the first slope the limit is NaN.
+
+Slip limit (:mod:`mmstab.stability.slip`): the tracks slide once the slope exceeds
+``atan(terrain.friction)``, whatever the heading (a rigid robot on a plane; on a generated
+heightmap the slope axis is the generator's nominal slope, the local tilt at rest is not
+stored). Per heading and arm choice the summary says which limit binds first: ``slip``
+when the slip limit is below the tip envelope (a censored envelope counts as its axis end,
+a NaN one as 0), else ``tip``.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import write_figure
 from mmstab.model.robot import FloatArray
+from mmstab.terrain.base import DEFAULT_FRICTION
 
 MEASURES = (("mu_planned", "planned"), ("mu_stowed", "stowed"), ("mu_arm_removed", "arm removed"))
 
@@ -133,6 +141,22 @@ def heatmap_figure(ds: Any, path: Path) -> Path:
     return write_figure(path, fig)
 
 
+def slip_limit_rad(ds: Any) -> float:
+    """The slope at which the tracks slide [rad]: ``atan(friction)`` (``ds.attrs``)."""
+    return math.atan(float(ds.attrs.get("friction", DEFAULT_FRICTION)))
+
+
+def binds_first(env: Envelope, slip: float) -> list[str]:
+    """Per heading: ``slip`` when the tracks slide before the envelope's tip limit, else ``tip``.
+
+    Args:
+        env: the tip envelope (limits [rad]).
+        slip: the slip limit [rad].
+    """
+    tip = np.nan_to_num(env.limit, nan=0.0)
+    return ["slip" if slip < t else "tip" for t in tip]
+
+
 def variant_envelopes(ds: Any, sel: dict[str, Any], margin: float) -> dict[str, Envelope]:
     """The three envelopes (planned, stowed, arm removed) of one variant (``ds.sel(sel)``)."""
     cell = ds.sel(sel)
@@ -166,6 +190,9 @@ def envelope_figure(ds: Any, path: Path) -> Path:
             ax.plot(th, lim, style, lw=1.6, label=label, marker="." if len(th) < 40 else None)
         top = float(np.degrees(ds["slope"].values[-1]))
         ring = np.linspace(0, 2 * math.pi, 200)
+        slip = math.degrees(slip_limit_rad(ds))
+        label = f"tracks slide (friction {float(ds.attrs.get('friction', DEFAULT_FRICTION)):g})"
+        ax.plot(ring, np.full_like(ring, slip), color="tab:red", lw=1.0, ls="-.", label=label)
         ax.plot(ring, np.full_like(ring, top), color="0.6", lw=0.8, label="axis end (censored)")
         ax.set_rmin(0.0)
         ax.set_rmax(top * 1.04)
@@ -190,8 +217,11 @@ def summary(ds: Any, run: dict[str, Any]) -> dict[str, Any]:
     """``summary.json``: axes, per-variant envelopes and statistics, and the run."""
     margin = float(ds.attrs["margin"])
     done = ds["chunk_done"].values
+    slip = slip_limit_rad(ds)
     out: dict[str, Any] = {
         "margin_N_rad": margin,
+        "friction": float(ds.attrs.get("friction", DEFAULT_FRICTION)),
+        "slip_limit_deg": _num(math.degrees(slip)),
         "cells": int(ds["mu_planned"].size),
         "chunks_stored": int(done.sum()),
         "chunks": int(done.size),
@@ -227,6 +257,11 @@ def summary(ds: Any, run: dict[str, Any]) -> dict[str, Any]:
                 "planner_seconds_median": _num(float(np.nanmedian(cell["planner_seconds"]))),
                 "envelope_deg": {k: _list(v) for k, v in lim.items()},
                 "censored": {k: e.censored.tolist() for k, e in envs.items()},
+                "binds_first": {k: binds_first(e, slip) for k, e in envs.items()},
+                "slip_binds_share": {
+                    k: _num(float(np.mean([b == "slip" for b in binds_first(e, slip)])))
+                    for k, e in envs.items()
+                },
                 "min_limit_deg": {k: _num(float(np.nanmin(v))) for k, v in lim.items()},
                 "mean_limit_deg": {k: _num(float(np.nanmean(v))) for k, v in lim.items()},
                 "planning_gain_over_stowed_deg": {

@@ -96,6 +96,7 @@ def write_outputs(store: AtlasStore, out: Path, run: dict[str, Any]) -> dict[str
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN envelopes
         ds = lazy.load()
         ds.attrs["margin"] = store.spec.margin
+        ds.attrs["friction"] = store.spec.friction
         run = {**run, "history": list(ds.attrs.get("runs", []))}
         s = summary(ds, run)
         heatmap_figure(ds, out / "mu_polar.png")

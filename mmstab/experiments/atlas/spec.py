@@ -38,6 +38,7 @@ from mmstab.model.robot import FLIPPER_CONTACT_TOL, Robot, load_robot, with_flip
 from mmstab.model.robot import FloatArray as FloatArray
 from mmstab.model.robot import flipper_ground_angle as _ground_angle
 from mmstab.planner import PlannerSettings
+from mmstab.terrain.base import DEFAULT_FRICTION
 
 #: Largest atlas one section may ask for (cells).
 MAX_CELLS = 1_000_000
@@ -128,6 +129,8 @@ class AtlasSpec:
         settings: the problem's planner settings (its seed seeds every cell).
         workspace_grid: the problem's workspace grid (joint samples).
         planner_section: the problem's ``planner`` section as validated (for the key).
+        friction: the terrain's friction coefficient [-] (the slip limit; not in the key:
+            no cell's numbers depend on it).
     """
 
     path: Path
@@ -144,6 +147,7 @@ class AtlasSpec:
     settings: PlannerSettings
     workspace_grid: tuple[int, ...]
     planner_section: dict[str, Any]
+    friction: float = DEFAULT_FRICTION
 
     @property
     def shape(self) -> tuple[int, int, int, int, int, int]:
@@ -412,6 +416,7 @@ def atlas_spec(problem: Problem) -> AtlasSpec:
         settings=PlannerSettings.from_section(problem.section("planner")),
         workspace_grid=tuple(int(n) for n in problem.section("workspace")["grid"]),
         planner_section=dict(problem.section("planner")),
+        friction=float(problem.section("terrain").get("friction", DEFAULT_FRICTION)),
     )
     if spec.cells > MAX_CELLS:
         raise ConfigError(path, "atlas.axes", f"{spec.cells} cells; at most {MAX_CELLS}")
