@@ -65,14 +65,20 @@ class PostureSolver:
 
     def solve(self, target_com: FloatArray, seed: FloatArray, q_ref: FloatArray) -> FloatArray:
         """One IPOPT solve from ``seed`` (4,) staying near ``q_ref`` (4,) [rad]."""
-        sol = self._nlp(
-            x0=seed,
-            p=np.concatenate([target_com, q_ref]),
-            lbg=0.0,
-            ubg=0.0,
-            lbx=self.robot.joint_lower,
-            ubx=self.robot.joint_upper,
-        )
+        try:
+            sol = self._nlp(
+                x0=seed,
+                p=np.concatenate([target_com, q_ref]),
+                lbg=0.0,
+                ubg=0.0,
+                lbx=self.robot.joint_lower,
+                ubx=self.robot.joint_upper,
+            )
+        except RuntimeError:
+            # a Ctrl-C that lands outside IPOPT's own callback comes back as CasADi's
+            # RuntimeError ("... KeyboardInterrupt"): it is still the user's Ctrl-C
+            raise_if_interrupted()
+            raise
         raise_if_interrupted()  # CasADi's IPOPT interface swallows a Ctrl-C
         return np.asarray(sol["x"]).ravel()
 
