@@ -279,6 +279,8 @@ class Plan(NamedTuple):
         collision_free: whether each posture is collision-free (K,).
         targets: the per-pose planner results.
         settings: the settings used.
+        moves: ``method: roadmap``: the roadmap path into each pose's posture (K arrays
+            (n, 4) [rad], :mod:`mmstab.planner.roadmap`), else empty.
     """
 
     poses: FloatArray
@@ -289,6 +291,7 @@ class Plan(NamedTuple):
     collision_free: NDArray[np.bool_]
     targets: tuple[PoseTarget, ...]
     settings: PlannerSettings
+    moves: tuple[FloatArray, ...] = ()
 
 
 def solve_path(
@@ -320,6 +323,8 @@ def solve_path(
     poses = np.asarray(poses, dtype=float)
     if settings.method == "sequence":
         return _solve_sequence_path(robot, terrain, region, poses, settings, closed)
+    if settings.method == "roadmap":
+        return _solve_roadmap_path(robot, terrain, region, poses, settings, closed)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
@@ -411,6 +416,42 @@ def _solve_sequence_path(
         collision_free=np.ones(len(poses), dtype=bool),
         targets=targets,
         settings=settings,
+    )
+
+
+def _solve_roadmap_path(
+    robot: Robot,
+    terrain: Terrain,
+    region: CoMRegion,
+    poses: FloatArray,
+    settings: PlannerSettings,
+    closed: bool,
+) -> Plan:
+    """:func:`solve_path` with ``method: roadmap``: nodes of the posture roadmap of V's grid."""
+    from mmstab.planner.roadmap import solve_roadmap_sequence
+    from mmstab.workspace.roadmap import load_or_build_roadmap
+
+    t0 = time.perf_counter()
+    roadmap = load_or_build_roadmap(robot, getattr(region, "workspace", region))
+    seq = solve_roadmap_sequence(
+        robot, gravity_body_at(terrain, poses), roadmap, settings, stowed_flat_mu(robot),
+        closed, poses,
+    )  # fmt: skip
+    seconds = (time.perf_counter() - t0) / max(len(poses), 1)
+    targets = tuple(
+        PoseTarget(pose, seq.com[k].copy(), float(seq.fitness[k]), float(seq.mu[k]), (), -1, seconds)
+        for k, pose in enumerate(poses)
+    )
+    return Plan(
+        poses=poses,
+        fractions=np.arange(len(poses)) / len(poses),
+        target_com=seq.com,
+        postures=seq.postures,
+        realised_com_error=np.zeros(len(poses)),
+        collision_free=np.ones(len(poses), dtype=bool),
+        targets=targets,
+        settings=settings,
+        moves=seq.moves,
     )
 
 

@@ -84,6 +84,8 @@ class RoutePlan(NamedTuple):
         search_cpu_seconds: the same in CPU time of this process [s] (less sensitive to
             other processes on a shared machine).
         settings: the planner settings.
+        moves: ``method: roadmap``: the roadmap path into each pose's posture (K arrays
+            (n, 4) [rad]), else empty.
     """
 
     s: FloatArray
@@ -102,6 +104,7 @@ class RoutePlan(NamedTuple):
     search_seconds: FloatArray
     search_cpu_seconds: FloatArray
     settings: PlannerSettings
+    moves: tuple[FloatArray, ...] = ()
 
 
 class RiskStretch(NamedTuple):
@@ -159,7 +162,7 @@ def solve_route(
             first pose always goes through :func:`solve_pose` (cold).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
-    if settings.method == "sequence":
+    if settings.method in ("sequence", "roadmap"):  # roadmap: mmstab.planner.roadmap
         return _solve_route_sequence(robot, terrain, region, s, poses, settings, fractions)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
@@ -317,6 +320,7 @@ def _solve_route_sequence(
         search_seconds=np.full(K, per_pose),
         search_cpu_seconds=np.full(K, per_pose_cpu),
         settings=settings,
+        moves=plan.moves,
     )
 
 
