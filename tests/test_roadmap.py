@@ -145,3 +145,68 @@ def test_a_seeded_random_route_plans_on_the_roadmap(tmp_path, robot):
         u = np.linspace(0, 1, 4 * (int(rm.steps.max()) + 1) + 1)[:, None, None]
         q = (move[:-1][None] + u * np.diff(move, axis=0)[None]).reshape(-1, 4)
         assert not np.asarray(checker.collides(q)).any()
+
+
+def test_clearance_is_zero_exactly_where_the_checker_finds_contact(robot):
+    rng = np.random.default_rng(9)
+    q = rng.uniform(robot.joint_lower, robot.joint_upper, (300, 4))
+    checker = CollisionChecker(robot)
+    d = checker.clearance(q)
+    hit = np.asarray(checker.collides(q))
+    assert hit.any() and (~hit).any()
+    assert np.all(d[hit] == 0.0) and np.all(d[~hit] > 0.0)
+    # 1-Lipschitz in point motion: a joint move dq moves no point more than reach . |dq|
+    _, rm = build_workspace(robot, GRID, progress=False), None
+    from mmstab.workspace.roadmap import joint_reach
+
+    reach = joint_reach(robot, q)
+    dq = rng.normal(scale=0.01, size=q.shape)
+    moved = checker.clearance(q + dq)
+    assert np.all(np.abs(moved - d) <= np.abs(dq) @ reach + 1e-9)
+
+
+def test_arm_collision_verdict_and_exit_status():
+    import argparse
+
+    from mmstab.cli.commands import _arm_collision
+    from mmstab.runs.verdict import MIN_CLEARANCE, arm_collision_verdict
+
+    def summary(colliding: int, clearance: float) -> dict:
+        return {
+            "arm_self_collision": {
+                "samples": 10,
+                "pairs": {"upper_arm-track_left": colliding} if colliding else {},
+                "min_clearance_time_s": 1.5,
+                "verdict": arm_collision_verdict(colliding, clearance),
+            }
+        }
+
+    strict, lenient = argparse.Namespace(allow_collision=False), argparse.Namespace(allow_collision=True)
+    assert _arm_collision(summary(0, 2 * MIN_CLEARANCE), strict) is None
+    assert _arm_collision(summary(0, 0.5 * MIN_CLEARANCE), strict) == 5
+    assert _arm_collision(summary(3, 0.0), strict) == 5
+    assert _arm_collision(summary(3, 0.0), lenient) is None
+
+
+def test_plan_and_track_a_route_on_the_roadmap_from_the_cli(tmp_path):
+    """Method roadmap, planned and tracked: no arm contact, the clearance kept, no QP failure."""
+    import json
+
+    from test_route_plan import _cli, write
+
+    from mmstab.runs.verdict import MIN_CLEARANCE
+
+    data = rough_data(waypoints=[[-3.0, -0.6], [-1.0, -0.2]], speed=0.25)
+    data["planner"].update(method="roadmap", spacing=0.5)
+    data["controller"]["dt"] = 0.005
+    problem = write(tmp_path, data, "route.yaml")
+    out = _cli(["plan", str(problem), "-o", "plan"], tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    out = _cli(["track", str(problem), "-o", "track"], tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    t = json.loads((tmp_path / "track" / "summary.json").read_text())
+    arm = t["arm_self_collision"]
+    assert arm["colliding_samples"] == 0 and arm["verdict"]["safe"]
+    assert arm["min_clearance_m"] >= MIN_CLEARANCE
+    assert t["qp_failures"] == 0
+    assert t["posture_reference"]["reference"]["colliding_samples"] == 0

@@ -2,3 +2,5 @@
 
 #: Exit statuses.
 EXIT_OK, EXIT_BAD_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130
+#: A tracked run whose arm touched the robot or came closer than the required clearance.
+EXIT_ARM_COLLISION = 5

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.core.files import MmstabError
+from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.sequence import _diverse_top, _turret_bins, _viterbi
@@ -213,7 +214,11 @@ def solve_roadmap_sequence(
     for i, (a, b) in enumerate(pairs):
         fitness[b] -= motion[i][path[a], path[b]]
     before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
-    moves = [roadmap_move(roadmap, int(a), int(b)) for a, b in zip(before, nodes, strict=True)]
+    checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
+    moves = [
+        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b)))
+        for a, b in zip(before, nodes, strict=True)
+    ]
     if not closed or K == 1:  # from the start posture itself onto its node
         first = np.vstack([start_q, moves[0]])
         first[1:, 0] += np.round((start_q[0] - first[1, 0]) / (2 * np.pi)) * 2 * np.pi

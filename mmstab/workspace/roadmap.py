@@ -111,11 +111,37 @@ class Roadmap:
         for node in np.atleast_1d(idx):
             d = self.nodes_q[node] - qa
             d[0] = (d[0] + np.pi) % (2 * np.pi) - np.pi
-            n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
-            u = np.linspace(0.0, 1.0, n + 1)[:, None]
-            if not np.asarray(checker.collides(qa + u * d), dtype=bool).any():
+            if self.move_is_free(checker, qa, qa + d):
                 return int(node)
         raise MmstabError(f"roadmap: the posture {np.round(qa, 3).tolist()} rad reaches no node")
+
+    def move_is_free(self, checker: CollisionChecker, qa: FloatArray, qb: FloatArray) -> bool:
+        """Whether the straight move qa -> qb (4,) [rad] is free at the roadmap's resolution.
+
+        Checked postures are spaced so that no arm point moves more than ``resolution``
+        between two (the bound Σ_j reach_j |Δq_j|); the ends included.
+        """
+        d = np.asarray(qb, dtype=float) - qa
+        n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
+        u = np.linspace(0.0, 1.0, n + 1)[:, None]
+        return not bool(np.asarray(checker.collides(qa + u * d), dtype=bool).any())
+
+    def shortcut(self, checker: CollisionChecker, q: ArrayLike) -> FloatArray:
+        """A posture path (n, 4) [rad] (turret unwrapped) with its corners cut where free.
+
+        Greedy: from each kept posture, the farthest later one joined by a free straight
+        move (:meth:`move_is_free`); the lattice's staircase becomes straight moves. The
+        ends are kept; the result is never longer (triangle inequality).
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        keep, i = [0], 0
+        while i < len(qa) - 1:
+            j = len(qa) - 1
+            while j > i + 1 and not self.move_is_free(checker, qa[i], qa[j]):
+                j = (i + 1 + j) // 2 if j - i > 8 else j - 1
+            keep.append(j)
+            i = j
+        return qa[keep].copy()
 
     def path(self, a: int, b: int) -> NDArray[np.intp]:
         """Shortest roadmap path from node a to node b, both included.
