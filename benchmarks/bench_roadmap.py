@@ -88,6 +88,7 @@ def _ompl_query(ss: Any, space: Any, planner: Any, qa: Any, qb: Any, budget: flo
 
 
 def main() -> None:
+    """Run the queries and write the JSON (module text)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("problem", nargs="?", default="problems/rough.yaml")
     ap.add_argument("--queries", type=int, default=10)
@@ -113,6 +114,7 @@ def main() -> None:
     ss, space = _ompl_setup(robot, checker, rm)
     prm = og.PRMstar(ss.getSpaceInformation())
     rrt = og.RRTConnect(ss.getSpaceInformation())
+    straight: list[float] = []
     for a, b in pairs:
         qa, qb = rm.nodes_q[a], rm.nodes_q[b]
         t0 = time.perf_counter()
@@ -120,6 +122,9 @@ def main() -> None:
         t1 = time.perf_counter()
         cut = rm.shortcut(checker, path)
         t2 = time.perf_counter()
+        d = qb - qa
+        d[0] = (d[0] + np.pi) % (2 * np.pi) - np.pi
+        straight.append(float(np.linalg.norm(d)))
         rows["roadmap"].append(((t1 - t0) * 1e3, _length(path)))
         rows["shortcut"].append(((t2 - t0) * 1e3, _length(cut)))
         ss.setPlanner(rrt)
@@ -151,13 +156,17 @@ def main() -> None:
             "interior_checks_per_edge": rm.steps.tolist(),
             "build_seconds": rm.build_seconds,
         },
+        "straight_line_rad": straight,
+        "straight_line_median_rad": statistics.median(straight),
         "methods": summary,
         "machine": machine_info(ompl="2.0.1"),
     }
     write_json(Path(args.out), out)
     for name, s in summary.items():
-        print(f"{name:11s} solved {s['solved']}/{args.queries}  median {s['median_ms']:.1f} ms  "
-              f"length {s['median_length_rad']} rad")
+        print(
+            f"{name:11s} solved {s['solved']}/{args.queries}  median {s['median_ms']:.1f} ms  "
+            f"length {s['median_length_rad']} rad"
+        )
     print(f"roadmap build {rm.build_seconds:.1f} s, {len(rm.nodes_q)} nodes, {len(rm.edges)} edges")
 
 

@@ -10,6 +10,7 @@ import itertools
 import numpy as np
 import pytest
 import yaml
+from test_route_plan import ROUGH, rough_data
 
 from mmstab.core.problem import problem_from_dict
 from mmstab.model.collision import CollisionChecker
@@ -20,8 +21,6 @@ from mmstab.stability.static import mu_max
 from mmstab.workspace import build_workspace
 from mmstab.workspace.grid import joint_grid
 from mmstab.workspace.roadmap import build_roadmap, load_or_build_roadmap
-
-from test_route_plan import ROUGH, rough_data
 
 GRID = (10, 8, 8, 8)
 
@@ -156,7 +155,6 @@ def test_clearance_is_zero_exactly_where_the_checker_finds_contact(robot):
     assert hit.any() and (~hit).any()
     assert np.all(d[hit] == 0.0) and np.all(d[~hit] > 0.0)
     # 1-Lipschitz in point motion: a joint move dq moves no point more than reach . |dq|
-    _, rm = build_workspace(robot, GRID, progress=False), None
     from mmstab.workspace.roadmap import joint_reach
 
     reach = joint_reach(robot, q)
@@ -181,7 +179,10 @@ def test_arm_collision_verdict_and_exit_status():
             }
         }
 
-    strict, lenient = argparse.Namespace(allow_collision=False), argparse.Namespace(allow_collision=True)
+    strict, lenient = (
+        argparse.Namespace(allow_collision=False),
+        argparse.Namespace(allow_collision=True),
+    )
     assert _arm_collision(summary(0, 2 * MIN_CLEARANCE), strict) is None
     assert _arm_collision(summary(0, 0.5 * MIN_CLEARANCE), strict) == 5
     assert _arm_collision(summary(3, 0.0), strict) == 5
@@ -210,3 +211,47 @@ def test_plan_and_track_a_route_on_the_roadmap_from_the_cli(tmp_path):
     assert arm["min_clearance_m"] >= MIN_CLEARANCE
     assert t["qp_failures"] == 0
     assert t["posture_reference"]["reference"]["colliding_samples"] == 0
+
+
+def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
+    """summary.json quality: optima by brute force here, planned <= optimum over the roadmap."""
+    from mmstab.core.problem import load_problem
+    from mmstab.experiments.routes import run_route_plan
+    from mmstab.planner import gravity_body_at
+    from mmstab.planner.roadmap import node_coms
+    from mmstab.stability.static import stability_along
+
+    data = rough_data(waypoints=[[-3.0, -0.6], [-1.0, 0.2]])
+    data["planner"].update(method="roadmap", spacing=1.0)
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(data))
+    import os
+
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        s = run_route_plan(load_problem(path), tmp_path / "plan")
+        problem = load_problem(path)
+        from mmstab.workspace import load_or_build_workspace
+
+        ws = load_or_build_workspace(problem, progress=False)
+        rm = load_or_build_roadmap(problem.robot, ws)
+    finally:
+        os.chdir(cwd)
+    q = s["quality"]
+    poses = np.array([p["pose"] for p in s["poses"]])
+    coms = node_coms(problem.robot, rm)[
+        rm.component == rm.component[rm.nearest(problem.robot.stowed)[0]]
+    ]
+    # independent: μ of every reachable node at every pose through stability_along
+    g = gravity_body_at(problem.terrain, poses)
+    assert len(g) == len(q["mu_planned"])
+    for k, pose in enumerate(poses):
+        mu = stability_along(problem.robot, problem.terrain, np.tile(pose, (len(coms), 1)), coms)
+        assert q["mu_optimum_roadmap"][k] == pytest.approx(mu.reconfigured.max(), rel=1e-9)
+        assert q["mu_planned"][k] <= q["mu_optimum_roadmap"][k] + 1e-9
+    np.testing.assert_allclose(
+        q["gap_to_roadmap"],
+        (np.array(q["mu_optimum_roadmap"]) - q["mu_planned"]) / np.abs(q["mu_optimum_roadmap"]),
+    )
+    assert q["gap_to_V_median"] == pytest.approx(np.median(q["gap_to_V"]))

@@ -432,14 +432,17 @@ def _solve_roadmap_path(
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
     t0 = time.perf_counter()
-    roadmap = load_or_build_roadmap(robot, getattr(region, "workspace", region))
+    ws: Any = getattr(region, "workspace", region)  # valid_samples wraps V
+    roadmap = load_or_build_roadmap(robot, ws)
     seq = solve_roadmap_sequence(
         robot, gravity_body_at(terrain, poses), roadmap, settings, stowed_flat_mu(robot),
         closed, poses,
     )  # fmt: skip
     seconds = (time.perf_counter() - t0) / max(len(poses), 1)
     targets = tuple(
-        PoseTarget(pose, seq.com[k].copy(), float(seq.fitness[k]), float(seq.mu[k]), (), -1, seconds)
+        PoseTarget(
+            pose, seq.com[k].copy(), float(seq.fitness[k]), float(seq.mu[k]), (), -1, seconds
+        )
         for k, pose in enumerate(poses)
     )
     return Plan(

@@ -214,9 +214,7 @@ def _free_moves(
     return ok
 
 
-def build_roadmap(
-    robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION
-) -> Roadmap:
+def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION) -> Roadmap:
     """The lattice roadmap over V's collision-free grid postures (module text).
 
     Args:
