@@ -4,8 +4,8 @@ Usage: ``python benchmarks/bench_roadmap.py [PROBLEM.yaml] [--queries N] [--budg
 writes ``results/bench/roadmap.json``. The roadmap is the lattice over V's grid
 (:mod:`mmstab.workspace.roadmap`), built (timed) or read from its cache. Queries: N seeded
 pairs of roadmap nodes in the stowed arm's component. Per query and method: wall time [ms]
-and joint-space path length [rad] (Euclidean in (turret unwrapped, q1, q2, q3), the same
-metric for every method). Methods: the roadmap's shortest path (lattice staircase), the
+and joint-space path length [rad] (Euclidean in the four joints, the turret within its
+stops, the same metric for every method). Methods: the roadmap's shortest path (lattice staircase), the
 same shortcut (:meth:`Roadmap.shortcut`, straight moves checked at the roadmap's
 resolution), and OMPL 2.x (``pip install ompl``) RRT-Connect (+ its path simplifier) and
 PRM* (one planner for every query: multi-query, ``budget`` seconds each), all with
@@ -37,15 +37,13 @@ def _ompl_setup(robot: Any, checker: CollisionChecker, rm: Roadmap) -> tuple[Any
     from ompl import base as ob
     from ompl import geometric as og
 
-    space = ob.CompoundStateSpace()
-    space.addSubspace(ob.SO2StateSpace(), 1.0)
-    rv = ob.RealVectorStateSpace(3)
-    bounds = ob.RealVectorBounds(3)
-    for i in range(3):
-        bounds.setLow(i, float(robot.joint_lower[i + 1]))
-        bounds.setHigh(i, float(robot.joint_upper[i + 1]))
-    rv.setBounds(bounds)
-    space.addSubspace(rv, 1.0)
+    # R^4 within the joint limits: the turret's [0, 2 pi] ends at a stop (no SO(2) wrap)
+    space = ob.RealVectorStateSpace(4)
+    bounds = ob.RealVectorBounds(4)
+    for i in range(4):
+        bounds.setLow(i, float(robot.joint_lower[i]))
+        bounds.setHigh(i, float(robot.joint_upper[i]))
+    space.setBounds(bounds)
     ss = og.SimpleSetup(space)
     ss.setStateValidityChecker(lambda s: not checker.collides(_q(s)))
     # the roadmap's resolution: a joint step moving no point more than `resolution`
@@ -55,21 +53,18 @@ def _ompl_setup(robot: Any, checker: CollisionChecker, rm: Roadmap) -> tuple[Any
 
 
 def _q(s: Any) -> np.ndarray:
-    return np.array([s[0].value, s[1][0], s[1][1], s[1][2]])
+    return np.array([s[0], s[1], s[2], s[3]])
 
 
 def _set(space: Any, q: np.ndarray) -> Any:
     st = space.allocState()
-    st[0].value = float((q[0] + np.pi) % (2 * np.pi) - np.pi)
-    for i in range(3):
-        st[1][i] = float(q[i + 1])
+    for i in range(4):
+        st[i] = float(q[i])
     return st
 
 
 def _length(q: np.ndarray) -> float:
-    q = np.asarray(q, dtype=float).copy()
-    q[:, 0] = np.unwrap(q[:, 0])
-    return float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())
+    return float(np.linalg.norm(np.diff(np.asarray(q, dtype=float), axis=0), axis=1).sum())
 
 
 def _ompl_query(ss: Any, space: Any, planner: Any, qa: Any, qb: Any, budget: float, simplify: bool):
@@ -122,9 +117,7 @@ def main() -> None:
         t1 = time.perf_counter()
         cut = rm.shortcut(checker, path)
         t2 = time.perf_counter()
-        d = qb - qa
-        d[0] = (d[0] + np.pi) % (2 * np.pi) - np.pi
-        straight.append(float(np.linalg.norm(d)))
+        straight.append(float(np.linalg.norm(qb - qa)))
         rows["roadmap"].append(((t1 - t0) * 1e3, _length(path)))
         rows["shortcut"].append(((t2 - t0) * 1e3, _length(cut)))
         ss.setPlanner(rrt)

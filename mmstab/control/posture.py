@@ -243,7 +243,7 @@ def roadmap_knots(
         robot: the robot (joint-speed limits [rad/s]).
         fractions: the planned poses' fractions (K,) [-].
         postures: their postures (K, 4) [rad].
-        moves: the roadmap move into each pose (K arrays (n, 4) [rad], turret unwrapped).
+        moves: the roadmap move into each pose (K arrays (n, 4) [rad]).
     """
     K = len(postures)
     d0 = moves[0][0] - postures[-1]

@@ -53,8 +53,8 @@ class RoadmapSequence(NamedTuple):
         fitness: Eq. 6 per pose, the previous pose's choice as previous CoM (K,).
         mu: force-angle measure per pose [N rad] (K,).
         total: the sum of ``fitness``.
-        moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad], turret
-            unwrapped): from the start posture (open path) or from the last pose (closed).
+        moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
+            the start posture (open path) or from the last pose (closed).
         seconds: wall time [s].
     """
 
@@ -114,7 +114,7 @@ def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
 
 
 def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
-    """The shortest roadmap path a -> b as postures (n, 4) [rad], turret unwrapped.
+    """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
     A first search bounded by ``SEARCH_SLACK`` times the lattice distance (fast: it
     explores a neighbourhood), else the whole component.
@@ -124,7 +124,6 @@ def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
     if a == b:
         return roadmap.nodes_q[[a]].copy()
     d = roadmap.nodes_q[b] - roadmap.nodes_q[a]
-    d[0] = (d[0] + np.pi) % (2 * np.pi) - np.pi
     limit = SEARCH_SLACK * float(np.abs(d).sum()) + 2 * float(roadmap.lengths.max(initial=0))
     dist, pred = dijkstra(roadmap.graph, indices=a, return_predecessors=True, limit=limit)
     if not np.isfinite(dist[b]):
@@ -132,9 +131,7 @@ def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
     out = [b]
     while out[-1] != a:
         out.append(int(pred[out[-1]]))
-    q = roadmap.nodes_q[out[::-1]].copy()
-    q[:, 0] = np.unwrap(q[:, 0])
-    return q
+    return roadmap.nodes_q[out[::-1]].copy()
 
 
 def solve_roadmap_sequence(
@@ -195,7 +192,6 @@ def solve_roadmap_sequence(
         ok = np.ones((M, M), dtype=bool)
         if settings.turret_window is not None:
             d0 = roadmap.nodes_q[reach[cand[a]], 0][:, None] - roadmap.nodes_q[reach[cand[b]], 0]
-            d0 = (d0 + np.pi) % (2 * np.pi) - np.pi
             ok &= np.abs(d0) <= settings.turret_window + 1e-9
         allowed.append(ok)
     path, total = best_sequence(value, motion, allowed, closed)
@@ -221,7 +217,6 @@ def solve_roadmap_sequence(
     ]
     if not closed or K == 1:  # from the start posture itself onto its node
         first = np.vstack([start_q, moves[0]])
-        first[1:, 0] += np.round((start_q[0] - first[1, 0]) / (2 * np.pi)) * 2 * np.pi
         moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
     return RoadmapSequence(
         nodes=nodes,

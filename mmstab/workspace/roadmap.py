@@ -1,8 +1,7 @@
 """The posture roadmap: the arm's collision-free configuration space as a lattice graph.
 
 Nodes are V's collision-free grid postures (the workspace build labels them:
-``Workspace.valid_q``), edges join grid neighbours (one step along one joint; the turret
-wraps over its full turn) whose straight move is collision-free, checked with FCL
+``Workspace.valid_q``), edges join grid neighbours (one step along one joint) whose straight move is collision-free, checked with FCL
 (:class:`mmstab.model.collision.CollisionChecker`) at interior postures spaced so that no
 point of the arm moves more than ``resolution`` [m] between two checked postures
 (``docs/workspace.md``, "Posture roadmap"). Connected components say which postures the arm
@@ -33,7 +32,7 @@ from mmstab.core.files import MmstabError, write_npz
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.cache import DEFAULT_CACHE_DIR
-from mmstab.workspace.grid import FULL_TURN_TOL, JointGrid, joint_grid
+from mmstab.workspace.grid import JointGrid, joint_grid
 from mmstab.workspace.region import Workspace
 
 #: Largest motion of any point of the arm between two checked postures of an edge [m].
@@ -109,8 +108,7 @@ class Roadmap:
         )
         checker = CollisionChecker(robot)
         for node in np.atleast_1d(idx):
-            d = self.nodes_q[node] - qa
-            d[0] = (d[0] + np.pi) % (2 * np.pi) - np.pi
+            d = self.nodes_q[node] - qa  # the turret's range ends at a stop: no wrap
             if self.move_is_free(checker, qa, qa + d):
                 return int(node)
         raise MmstabError(f"roadmap: the posture {np.round(qa, 3).tolist()} rad reaches no node")
@@ -127,7 +125,7 @@ class Roadmap:
         return not bool(np.asarray(checker.collides(qa + u * d), dtype=bool).any())
 
     def shortcut(self, checker: CollisionChecker, q: ArrayLike) -> FloatArray:
-        """A posture path (n, 4) [rad] (turret unwrapped) with its corners cut where free.
+        """A posture path (n, 4) [rad] with its corners cut where free.
 
         Greedy: from each kept posture, the farthest later one joined by a free straight
         move (:meth:`move_is_free`); the lattice's staircase becomes straight moves. The
@@ -160,13 +158,11 @@ class Roadmap:
         return np.array(out[::-1], dtype=np.intp)
 
     def path_postures(self, a: int, b: int) -> FloatArray:
-        """The postures of the shortest path a -> b (n, 4) [rad], turret unwrapped."""
-        q = self.nodes_q[self.path(a, b)].copy()
-        q[:, 0] = np.unwrap(q[:, 0])
-        return q
+        """The postures of the shortest path a -> b (n, 4) [rad]."""
+        return self.nodes_q[self.path(a, b)].copy()
 
     def path_length(self, q: ArrayLike) -> float:
-        """Joint-space length of a posture path (n, 4) [rad], turret unwrapped."""
+        """Joint-space length of a posture path (n, 4) [rad]."""
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         return float(np.linalg.norm(np.diff(qa, axis=0), axis=1).sum())
 
@@ -237,13 +233,11 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     checker = CollisionChecker(robot)
     edges, lengths = [], []
     for j in range(4):
-        full_turn = abs((robot.joint_upper[j] - robot.joint_lower[j]) - 2 * np.pi) <= FULL_TURN_TOL
+        # no edge wraps the turret's full turn: its range ends at a stop (the posture at
+        # 2 pi is the one at 0, but the joint cannot move through the stop between them)
         nxt = idx.copy()
         nxt[:, j] += 1
         inside = nxt[:, j] < shape[j]
-        if full_turn:
-            nxt[:, j] %= shape[j]
-            inside[:] = shape[j] > 2
         rows = np.flatnonzero(inside)
         other = lookup[np.ravel_multi_index(tuple(nxt[rows].T), tuple(shape))]
         rows, other = rows[other >= 0], other[other >= 0]
@@ -286,7 +280,7 @@ def roadmap_arrays(rm: Roadmap) -> dict[str, object]:
 
 # ---------------------------------------------------------------------------------- cache
 #: Bump when the roadmap's construction or file format changes.
-ROADMAP_VERSION = 1
+ROADMAP_VERSION = 2
 _MEMORY: dict[str, Roadmap] = {}
 
 
