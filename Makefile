@@ -133,7 +133,7 @@ $(BENCH_STAMP): $(STAMP)
 
 ## every benchmark, each JSON in results/bench/ refreshed (12 min here under load; not part of make test)
 BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
-	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas
+	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas bench-roadmap
 .PHONY: $(BENCHES)
 bench: $(BENCHES)
 
@@ -190,6 +190,11 @@ terrain: setup
 ## ms per resting pose, batched vs one by one -> results/bench/terrain.json
 bench-terrain: setup
 	$(PY) benchmarks/bench_terrain.py $(TERRAINS)
+
+## posture roadmap (issue 24): lattice roadmap vs OMPL PRM* / RRT-Connect -> results/bench/roadmap.json
+.PHONY: bench-roadmap
+bench-roadmap: $(BENCH_STAMP)
+	$(PY) benchmarks/bench_roadmap.py problems/rough.yaml --rebuild
 
 ## edges (issue 13): are the size estimates of mmstab/core/sizes.py bounds here? -> results/bench/sizes.json
 .PHONY: bench-sizes

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
 
 #: Default output folder of each command (``-o`` overrides it).
 DEFAULT_OUT = {
@@ -130,11 +130,12 @@ def _track(args: argparse.Namespace, problem: Any) -> int | None:
         f"({s['us_per_step']:.1f} us/step); max error base {s['base_error_max_m']:.3g} m, "
         f"arm CoM {s['arm_com_error_max_m']:.3g} m; final {s['base_error_final_m']:.2g} m, "
         f"{s['arm_com_error_final_m']:.2g} m; QP failures {s['qp_failures']}; arm self-collision "
-        f"{100 * s['arm_self_collision']['colliding_share']:.1f} % of the samples; posture "
+        f"{100 * s['arm_self_collision']['colliding_share']:.1f} % of the samples, minimum "
+        f"clearance {s['arm_self_collision']['min_clearance_m']:.4f} m; posture "
         f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
         f"samples {s['posture_reference']['reference']['colliding_samples']}"
     )
-    return _tipped(s) or _slides(s, args)
+    return _tipped(s) or _slides(s, args) or _arm_collision(s, args)
 
 
 def _slides(s: dict[str, Any], args: argparse.Namespace) -> int | None:
@@ -151,6 +152,21 @@ def _slides(s: dict[str, Any], args: argparse.Namespace) -> int | None:
         return None
     print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
     return EXIT_SLIDES
+
+
+def _arm_collision(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``."""
+    from mmstab.runs.verdict import describe_arm_collision
+
+    report = summary["arm_self_collision"]
+    if report["verdict"]["safe"]:
+        return None
+    line = describe_arm_collision(report)
+    if args.allow_collision:
+        print(f"mmstab: warning: {line} (--allow-collision)", file=sys.stderr)
+        return None
+    print(f"mmstab: arm collision: {line}; pass --allow-collision to accept it", file=sys.stderr)
+    return EXIT_ARM_COLLISION
 
 
 def _urdf(args: argparse.Namespace, problem: Any) -> None:
@@ -379,6 +395,14 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
         _ALLOW_UNSTABLE,
         _ALLOW_SLIDING,
+        (
+            "--allow-collision",
+            {
+                "action": "store_true",
+                "help": "exit 0 (warning) when the tracked arm touches the robot or comes "
+                "closer than the required clearance (runs/verdict.py MIN_CLEARANCE)",
+            },
+        ),
     ],
     "fidelity": [
         ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})

@@ -4,3 +4,5 @@
 EXIT_OK, EXIT_BAD_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130
 #: The tracks would slide (``--allow-sliding`` accepts it).
 EXIT_SLIDES = 4
+#: A tracked run whose arm touched the robot or came closer than the required clearance.
+EXIT_ARM_COLLISION = 5

@@ -223,6 +223,55 @@ def _via_posture(
     return best
 
 
+#: Largest joint step between knots inserted along a roadmap move [rad] (the spline then
+#: follows the move's straight pieces closely).
+ROADMAP_KNOT_STEP = 0.1
+
+
+def roadmap_knots(
+    robot: Robot, fractions: FloatArray, postures: FloatArray, moves: tuple[FloatArray, ...]
+) -> tuple[FloatArray, FloatArray]:
+    """The plan's knots with its roadmap moves inserted (``planner: {method: roadmap}``).
+
+    Each move into pose k (from pose k−1, or on a closed plan from the last pose into pose
+    0 at s = 1) is cut into pieces of at most ``ROADMAP_KNOT_STEP`` per joint, placed between
+    the two poses' fractions in proportion to the time each piece takes at the joint-speed
+    limits (the move time-scaled to fill its interval). The open plan's move from the start
+    posture is the approach's (:mod:`mmstab.control.approach`), not inserted.
+
+    Args:
+        robot: the robot (joint-speed limits [rad/s]).
+        fractions: the planned poses' fractions (K,) [-].
+        postures: their postures (K, 4) [rad].
+        moves: the roadmap move into each pose (K arrays (n, 4) [rad]).
+    """
+    K = len(postures)
+    d0 = moves[0][0] - postures[-1]
+    closed = K > 1 and np.allclose(np.r_[np.cos(d0[0]) - 1.0, d0[1:]], 0.0, atol=1e-9)
+    f_out, q_out = [fractions], [postures]
+    for k, move in enumerate(moves):
+        if k == 0 and not closed:
+            continue
+        a, b = (fractions[-1], 1.0 + fractions[0]) if k == 0 else (fractions[k - 1], fractions[k])
+        pieces = [move[:1]]
+        for qa, qb in zip(move[:-1], move[1:], strict=True):
+            n = max(int(np.ceil(np.abs(qb - qa).max() / ROADMAP_KNOT_STEP)), 1)
+            pieces.append(qa + (np.arange(1, n + 1) / n)[:, None] * (qb - qa))
+        q = np.vstack(pieces)
+        tau = np.r_[0.0, np.cumsum((np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1))]
+        if len(q) < 3 or tau[-1] <= 0:
+            continue
+        f = a + (b - a) * tau[1:-1] / tau[-1]
+        keep = (f > a) & (f < b) & (f < 1.0)
+        f_out.append(f[keep])
+        q_out.append(q[1:-1][keep])
+    f_all, q_all = np.concatenate(f_out), np.vstack(q_out)
+    order = np.argsort(f_all, kind="stable")
+    f_all, q_all = f_all[order], q_all[order]
+    unique = np.r_[True, np.diff(f_all) > 1e-12]
+    return f_all[unique], q_all[unique]
+
+
 def build_posture_reference(
     robot: Robot, plan: PosturePlan, samples: int, *, repair: bool = True
 ) -> PostureReference:
@@ -245,6 +294,9 @@ def build_posture_reference(
     fractions = np.asarray(plan.fractions, dtype=float)
     postures = np.array(plan.postures, dtype=float, ndmin=2)
     com_body = periodic_spline(fractions, plan.target_com, "target_com")
+    moves = getattr(plan, "moves", ())
+    if len(moves) == len(postures) and len(postures):  # method roadmap: follow its moves
+        fractions, postures = roadmap_knots(robot, fractions, postures, moves)
     s = np.arange(samples) / samples
     checker = CollisionChecker(robot)
 

@@ -13,7 +13,7 @@ from typing import Any
 
 #: ``planner.method``: the names of the planner's searches (``mmstab.planner.searches.SEARCHES``
 #: registers one search per name; a test keeps both equal).
-PLANNER_METHODS = ("cmaes", "exhaustive", "sequence")
+PLANNER_METHODS = ("cmaes", "exhaustive", "sequence", "roadmap")
 
 NUM: dict[str, Any] = {"type": "number"}
 POS: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}

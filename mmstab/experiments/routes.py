@@ -6,7 +6,9 @@
   poses [N rad]), ``s`` (their arc lengths [m]), ``risk`` (the stretches below
   ``planner.margin``, and those where only the stowed arm is), ``ms_per_pose`` (median
   wall time of a warm-started pose's search; ``cpu_ms_per_pose`` its CPU time, less
-  sensitive to a shared machine), the per-pose details and the stability verdict;
+  sensitive to a shared machine), the per-pose details and the stability verdict, and
+  ``quality``: per pose the planned μ, the best μ over V's samples and (``method:
+  roadmap``) over the roadmap's reachable postures, and the gaps (:func:`route_quality`);
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
   risk stretches shaded;
 - ``route_3d.png``: the terrain, the route and the robot at rest with its planned posture
@@ -113,6 +115,42 @@ def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
     ]
 
 
+def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
+    """Per pose: planned μ, the best μ over V's samples and over the roadmap's reachable ones.
+
+    The optima are exhaustive (every sample scored at the pose, :func:`mmstab.planner.best_mu`);
+    the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`)
+    only with ``method: roadmap``. The gap is ``(optimum − planned) / optimum`` [-]: the
+    price of the motion term and of the path's constraints (negative where the plan beats V:
+    roadmap nodes need not lie in V's hull difference).
+    """
+    from mmstab.planner import best_mu, gravity_body_at, planning_region, region_samples
+    from mmstab.workspace import load_or_build_workspace
+
+    ws = load_or_build_workspace(problem, progress=False)
+    samples = region_samples(planning_region(ws, problem.section("workspace")["method"]))
+    gravity = gravity_body_at(problem.terrain, plan.poses)
+    robot = problem.robot
+    opt_v = np.array([best_mu(robot, g, samples)[0] for g in gravity])
+    out: dict[str, Any] = {"mu_planned": plan.mu_planned.tolist(), "mu_optimum_V": opt_v.tolist()}
+    gaps = {"V": (opt_v - plan.mu_planned) / np.abs(opt_v)}
+    if plan.settings.method == "roadmap":
+        from mmstab.planner.roadmap import node_coms
+        from mmstab.workspace.roadmap import load_or_build_roadmap
+
+        rm = load_or_build_roadmap(robot, ws)
+        start = rm.connect(robot.stowed, robot)
+        reach = node_coms(robot, rm)[rm.component == rm.component[start]]
+        opt_r = np.array([best_mu(robot, g, reach)[0] for g in gravity])
+        out["mu_optimum_roadmap"] = opt_r.tolist()
+        gaps["roadmap"] = (opt_r - plan.mu_planned) / np.abs(opt_r)
+    for name, gap in gaps.items():
+        out[f"gap_to_{name}"] = gap.tolist()
+        out[f"gap_to_{name}_median"] = float(np.median(gap))
+        out[f"gap_to_{name}_worst"] = float(np.max(gap))
+    return out
+
+
 def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Plan the problem's route, write the summary and the two figures (module docstring)."""
     plan = make_plan(problem)
@@ -121,6 +159,7 @@ def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str,
     risk = route_risk(plan, planner_margin(problem.section("planner")))
     d = output_dir(out, "plan")
     summary = route_summary(problem, plan, risk)
+    summary["quality"] = route_quality(problem, plan)
     write_figure(d / "route_mu.png", draw_route_mu(problem, plan, risk))
     write_figure(d / "route_3d.png", draw_route_3d(problem, plan))
     save_settings(d, problem)

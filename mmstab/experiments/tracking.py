@@ -141,18 +141,26 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
 
     Returns:
         samples checked, colliding samples and share, the colliding time intervals [s]
-        (from the first colliding sample to the first free one after it) and the colliding
-        pairs with the number of samples each.
+        (from the first colliding sample to the first free one after it), the colliding
+        pairs with the number of samples each, the minimum link clearance [m] and its time
+        [s], and the verdict (:func:`mmstab.runs.verdict.arm_collision_verdict`).
     """
     from mmstab.model.collision import CollisionChecker, sequence_collisions
+    from mmstab.runs.verdict import arm_collision_verdict
 
-    report, _ = sequence_collisions(CollisionChecker(problem.robot), t, q_arm)
+    checker = CollisionChecker(problem.robot)
+    report, _ = sequence_collisions(checker, t, q_arm)
+    clearance = checker.clearance(q_arm)
+    k = int(np.argmin(clearance))
     return {
         "samples": report.samples,
         "colliding_samples": report.colliding_samples,
         "colliding_share": report.colliding_share,
         "intervals_s": report.intervals,
         "pairs": report.pairs,
+        "min_clearance_m": float(clearance[k]),
+        "min_clearance_time_s": float(np.asarray(t)[k]),
+        "verdict": arm_collision_verdict(report.colliding_samples, float(clearance[k])),
     }
 
 

@@ -238,6 +238,30 @@ class CollisionChecker:
                 hit[todo] = self._fcl(pair, R, p, todo)
         return bool(hit[0]) if single else hit
 
+    def clearance(self, q: ArrayLike) -> FloatArray:
+        """Smallest distance between the bodies of any checked pair, per posture (N,) [m].
+
+        FCL's distance on every pair (GJK); 0 where a pair touches or intersects.
+
+        Args:
+            q: joint angles (N, 4) or (4,) [rad].
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        R, p = self.shape_poses(qa)
+        out = np.full(len(qa), np.inf)
+        request = fcl.DistanceRequest()
+        for pair in self.pairs:
+            a = self._link_objs[pair.link]
+            j = -1 if isinstance(pair.other, str) else pair.other
+            b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
+            for n in range(len(qa)):
+                a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))
+                if j >= 0:
+                    b.setTransform(fcl.Transform(R[n, j], p[n, j]))
+                d = fcl.distance(a, b, request, fcl.DistanceResult())
+                out[n] = min(out[n], max(float(d), 0.0))
+        return out
+
     def colliding_pairs(self, q: ArrayLike) -> list[str]:
         """Names of all pairs that intersect at one posture (FCL on every pair).
 

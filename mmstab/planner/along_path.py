@@ -45,6 +45,8 @@ class Plan(NamedTuple):
         collision_free: whether each posture is collision-free (K,).
         targets: the per-pose planner results.
         settings: the settings used.
+        moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) where the
+            search gives one (``method: roadmap``), else empty.
     """
 
     poses: FloatArray
@@ -55,6 +57,7 @@ class Plan(NamedTuple):
     collision_free: NDArray[np.bool_]
     targets: tuple[PoseTarget, ...]
     settings: PlannerSettings
+    moves: tuple[FloatArray, ...] = ()
 
 
 def solve_path(
@@ -162,7 +165,8 @@ def solve_whole_path(
     """:func:`solve_path` with a whole-path search: its CoMs come with their postures."""
     t0 = time.perf_counter()
     mu_max = stowed_flat_mu(robot)
-    task = PathTask(robot, region, gravity_body_at(terrain, poses), settings, mu_max, closed)
+    gravity = gravity_body_at(terrain, poses)
+    task = PathTask(robot, region, gravity, settings, mu_max, closed, poses)
     choice = search.choose_path(task)
     seconds = (time.perf_counter() - t0) / max(len(poses), 1)
     targets = tuple(
@@ -187,4 +191,5 @@ def solve_whole_path(
         collision_free=np.ones(len(poses), dtype=bool),
         targets=targets,
         settings=settings,
+        moves=choice.moves,
     )

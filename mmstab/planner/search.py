@@ -79,6 +79,7 @@ class PathTask(NamedTuple):
         settings: the planner settings.
         mu_max: Eq. 6's normaliser [N rad].
         closed: the path is a loop (the last pose moves back to the first).
+        poses: the base poses (K, 3) [m, m, rad], for messages naming a pose (or None).
     """
 
     robot: Robot
@@ -87,6 +88,7 @@ class PathTask(NamedTuple):
     settings: PlannerSettings
     mu_max: float
     closed: bool
+    poses: FloatArray | None = None
 
 
 class PathChoice(NamedTuple):
@@ -97,12 +99,15 @@ class PathChoice(NamedTuple):
         postures: collision-free postures realising them (K, 4) [rad].
         fitness: Eq. 6 per pose, with the previous pose's choice as previous CoM (K,).
         mu: force-angle measure per pose (K,) [N rad].
+        moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) where the
+            search knows one (``roadmap``), else empty: straight joint-space moves.
     """
 
     target_com: FloatArray
     postures: FloatArray
     fitness: FloatArray
     mu: FloatArray
+    moves: tuple[FloatArray, ...] = ()
 
 
 @runtime_checkable

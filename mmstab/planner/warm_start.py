@@ -82,6 +82,8 @@ class RoutePlan(NamedTuple):
         search_cpu_seconds: the same in CPU time of this process [s] (less sensitive to
             other processes on a shared machine).
         settings: the planner settings.
+        moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) with
+            ``method: roadmap``, else empty.
     """
 
     s: FloatArray
@@ -100,6 +102,7 @@ class RoutePlan(NamedTuple):
     search_seconds: FloatArray
     search_cpu_seconds: FloatArray
     settings: PlannerSettings
+    moves: tuple[FloatArray, ...] = ()
 
 
 def warm_settings(settings: PlannerSettings, sigma: float) -> PlannerSettings:
@@ -375,4 +378,5 @@ def _solve_route_whole(
         search_seconds=np.full(K, per_pose),
         search_cpu_seconds=np.full(K, per_pose_cpu),
         settings=settings,
+        moves=plan.moves,
     )

@@ -39,6 +39,10 @@ if TYPE_CHECKING:
     from mmstab.planner import Plan, RoutePlan
     from mmstab.terrain.base import Terrain
 
+#: Smallest clearance [m] between an arm link and the base or another link that a tracked
+#: run may reach (FCL distance at each saved sample); below it, or on contact, the run fails.
+MIN_CLEARANCE = 0.001
+
 #: ``planner.margin`` when the problem does not set it [N rad].
 DEFAULT_MARGIN = 0.0
 #: Unstable poses listed in one message (the rest are counted).
@@ -180,4 +184,31 @@ def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
         f"the tracks would slide at {len(bad)} of {total} poses: tilt beyond "
         f"{math.degrees(verdict['critical_tilt']):.2f} deg = atan(friction "
         f"{verdict['friction']:g}) ({listed}{more})"
+    )
+
+
+def arm_collision_verdict(colliding_samples: int, min_clearance: float) -> dict[str, Any]:
+    """Whether the tracked arm kept clear of the robot: no contact, clearance >= MIN_CLEARANCE.
+
+    Args:
+        colliding_samples: saved samples at which some arm link intersects [-].
+        min_clearance: the smallest link clearance over the run [m].
+    """
+    return {
+        "safe": colliding_samples == 0 and min_clearance >= MIN_CLEARANCE,
+        "required_clearance_m": MIN_CLEARANCE,
+        "min_clearance_m": float(min_clearance),
+        "colliding_samples": int(colliding_samples),
+    }
+
+
+def describe_arm_collision(report: Mapping[str, Any]) -> str:
+    """One line: how the tracked arm came too close to (or into) the robot."""
+    verdict = report["verdict"]
+    pairs = ", ".join(list(report.get("pairs", {}))[:3]) or "none in contact"
+    return (
+        f"the tracked arm touches the robot in {verdict['colliding_samples']} of "
+        f"{report['samples']} samples ({pairs}); minimum clearance "
+        f"{verdict['min_clearance_m'] * 1e3:.2f} mm at t = {report['min_clearance_time_s']:.4g} s"
+        f" (required {verdict['required_clearance_m'] * 1e3:.1f} mm)"
     )

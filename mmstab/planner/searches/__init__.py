@@ -13,6 +13,7 @@ from mmstab.core.files import MmstabError
 from mmstab.planner.search import PathSearch, PoseSearch
 from mmstab.planner.searches.cmaes import CmaesSearch
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
+from mmstab.planner.searches.roadmap import RoadmapSearch
 from mmstab.planner.searches.sequence import SequenceSearch
 
 #: ``planner.method`` -> its search.
@@ -20,6 +21,7 @@ SEARCHES: dict[str, PoseSearch | PathSearch] = {
     "cmaes": CmaesSearch(),
     "exhaustive": ExhaustiveSearch(),
     "sequence": SequenceSearch(),
+    "roadmap": RoadmapSearch(),
 }
 
 

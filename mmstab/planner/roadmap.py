@@ -1,0 +1,230 @@
+"""Postures along a path chosen on the posture roadmap (``planner: {method: roadmap}``).
+
+Like ``method: sequence`` (:mod:`mmstab.planner.sequence`) it maximises Eq. 6 summed along
+the path, each pose's motion term against the previous pose's choice, by dynamic
+programming over poses x candidate postures. The candidates are the roadmap's nodes
+(:mod:`mmstab.workspace.roadmap`) in the component of the arm's start posture (the stowed
+arm), each pose's ``sequence_candidates`` best by Eq. 6's stability term spread over the
+turret, with a stable posture only (μ > 0). Any two nodes of a component are joined by a
+roadmap path of checked collision-free moves, so every move the search chooses is
+feasible by construction: no lazy check, no round limit; the search is exact on the
+candidates. When some pose has no stable candidate (or the turret window leaves no
+sequence), :class:`NoPlanError` names the pose. The chosen moves' roadmap paths come with
+the answer, for the controller.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.core.files import MmstabError
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.sequence import _diverse_top, _turret_bins, _viterbi
+from mmstab.planner.settings import PlannerSettings
+from mmstab.workspace.roadmap import Roadmap
+
+#: Turret-angle bins over which each pose's candidates are spread.
+TURRET_BINS = 24
+#: A shortest-path search first looks this many times the lattice (L1) distance far [rad].
+SEARCH_SLACK = 1.5
+
+
+class NoPlanError(MmstabError):
+    """No sequence of reachable stable postures exists; ``pose`` is the first without one."""
+
+    def __init__(self, message: str, pose_index: int):
+        super().__init__(message)
+        self.pose_index = pose_index
+
+
+class RoadmapSequence(NamedTuple):
+    """The chosen roadmap nodes along the path.
+
+    Attributes:
+        nodes: the chosen node per pose (K,).
+        postures: their postures (K, 4) [rad].
+        com: their arm CoMs, body frame (K, 3) [m].
+        fitness: Eq. 6 per pose, the previous pose's choice as previous CoM (K,).
+        mu: force-angle measure per pose [N rad] (K,).
+        total: the sum of ``fitness``.
+        moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
+            the start posture (open path) or from the last pose (closed).
+        seconds: wall time [s].
+    """
+
+    nodes: NDArray[np.intp]
+    postures: FloatArray
+    com: FloatArray
+    fitness: FloatArray
+    mu: FloatArray
+    total: float
+    moves: tuple[FloatArray, ...]
+    seconds: float
+
+
+def best_sequence(
+    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
+) -> tuple[NDArray[np.intp], float]:
+    """Exact max of Σ value[k][c_k] − motion[k][c_{k−1}, c_k] over allowed moves.
+
+    Open: Viterbi. Closed (``motion``/``allowed`` have K entries, the last closing the loop):
+    Viterbi from every feasible first candidate in turn, the closing move folded into the
+    last pose's values. Total -inf when no sequence is allowed.
+    """
+    K = len(value)
+    if not closed or K == 1:
+        return _viterbi(value, motion[: K - 1], allowed[: K - 1])
+    best_path, best_total = np.zeros(K, dtype=np.intp), -np.inf
+    for start in np.flatnonzero(np.isfinite(value[0])):
+        v = np.full_like(value, -np.inf)
+        v[1:] = value[1:]
+        v[0, start] = value[0, start]
+        close = np.where(allowed[K - 1][:, start], -motion[K - 1][:, start], -np.inf)
+        v[K - 1] = v[K - 1] + close
+        path, total = _viterbi(v, motion[: K - 1], allowed[: K - 1])
+        if total > best_total:
+            best_path, best_total = path, total
+    return best_path, best_total
+
+
+def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int:
+    """The first pose that no allowed sequence of finite values reaches."""
+    alive = np.isfinite(value[0])
+    for k in range(len(value)):
+        if k:
+            alive = (allowed[k - 1] & alive[:, None]).any(axis=0) & np.isfinite(value[k])
+        if not alive.any():
+            return k
+    return len(value) - 1
+
+
+def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
+    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (computed once per roadmap)."""
+    cached = getattr(roadmap, "_node_com", None)
+    if cached is None:
+        cached = robot.arm_com(roadmap.nodes_q)
+        object.__setattr__(roadmap, "_node_com", cached)
+    return np.asarray(cached)
+
+
+def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
+    """The shortest roadmap path a -> b as postures (n, 4) [rad].
+
+    A first search bounded by ``SEARCH_SLACK`` times the lattice distance (fast: it
+    explores a neighbourhood), else the whole component.
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    if a == b:
+        return roadmap.nodes_q[[a]].copy()
+    d = roadmap.nodes_q[b] - roadmap.nodes_q[a]
+    limit = SEARCH_SLACK * float(np.abs(d).sum()) + 2 * float(roadmap.lengths.max(initial=0))
+    dist, pred = dijkstra(roadmap.graph, indices=a, return_predecessors=True, limit=limit)
+    if not np.isfinite(dist[b]):
+        return roadmap.path_postures(a, b)
+    out = [b]
+    while out[-1] != a:
+        out.append(int(pred[out[-1]]))
+    return roadmap.nodes_q[out[::-1]].copy()
+
+
+def solve_roadmap_sequence(
+    robot: Robot,
+    gravity_body: FloatArray,
+    roadmap: Roadmap,
+    settings: PlannerSettings,
+    mu_max: float,
+    closed: bool,
+    poses: FloatArray,
+    start_q: FloatArray | None = None,
+) -> RoadmapSequence:
+    """Choose one reachable roadmap node per pose (module text).
+
+    Args:
+        robot: the robot.
+        gravity_body: gravity in the body frame at each pose (K, 3) [m/s^2].
+        roadmap: the posture roadmap.
+        settings: planner settings (weights, ``turret_window``, ``sequence_candidates``).
+        mu_max: Eq. 6's normaliser [N rad].
+        closed: the path is a loop (the last pose's choice is the first's previous).
+        poses: base poses (K, 3) [m, m, rad], for the message when no plan exists.
+        start_q: the arm's start posture (4,) [rad]; default the stowed arm.
+
+    Raises:
+        NoPlanError: some pose has no reachable stable posture (the message names it).
+    """
+    t0 = time.perf_counter()
+    if robot.tool_wrench is not None:
+        raise MmstabError("planner: method roadmap does not take payload.wrench yet")
+    start_q = robot.stowed if start_q is None else np.asarray(start_q, dtype=float)
+    start = roadmap.connect(start_q, robot)
+    reach = np.flatnonzero(roadmap.component == roadmap.component[start])
+    samples = node_coms(robot, roadmap)[reach]
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    K, M = len(g), min(settings.sequence_candidates, len(reach))
+    diameter = float(np.ptp(samples, axis=0).max()) if len(samples) > 1 else 1.0
+    stowed = robot.arm_com(start_q)
+    stab = settings._replace(w_motion=0.0)
+    bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+    members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
+    cand = np.empty((K, M), dtype=np.intp)
+    value, mu = np.empty((K, M)), np.empty((K, M))
+    for k in range(K):
+        fit = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter)
+        v = fit.linear()(samples)
+        cand[k] = _diverse_top(v, bins, M, members)
+        mu[k] = fit.mu(samples[cand[k]])
+        value[k] = np.where(mu[k] > 0, v[cand[k]], -np.inf)
+    w = settings.w_motion / diameter**2
+    if not closed:
+        value[0] -= w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
+    pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
+    motion, allowed = [], []
+    for a, b in pairs:
+        ca, cb = samples[cand[a]], samples[cand[b]]
+        motion.append(w * np.sum((ca[:, None, :] - cb[None, :, :]) ** 2, axis=2))
+        ok = np.ones((M, M), dtype=bool)
+        if settings.turret_window is not None:
+            d0 = roadmap.nodes_q[reach[cand[a]], 0][:, None] - roadmap.nodes_q[reach[cand[b]], 0]
+            ok &= np.abs(d0) <= settings.turret_window + 1e-9
+        allowed.append(ok)
+    path, total = best_sequence(value, motion, allowed, closed)
+    if not np.isfinite(total):
+        k = _first_dead_pose(value, allowed)
+        x, y, h = np.asarray(poses, dtype=float)[k]
+        raise NoPlanError(
+            f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
+            f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
+            + (" within the turret window" if settings.turret_window is not None else ""),
+            k,
+        )
+    chosen = cand[np.arange(K), path]
+    nodes = reach[chosen]
+    fitness = value[np.arange(K), path].copy()
+    for i, (a, b) in enumerate(pairs):
+        fitness[b] -= motion[i][path[a], path[b]]
+    before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
+    checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
+    moves = [
+        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b)))
+        for a, b in zip(before, nodes, strict=True)
+    ]
+    if not closed or K == 1:  # from the start posture itself onto its node
+        first = np.vstack([start_q, moves[0]])
+        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
+    return RoadmapSequence(
+        nodes=nodes,
+        postures=roadmap.nodes_q[nodes].copy(),
+        com=samples[chosen].copy(),
+        fitness=fitness,
+        mu=mu[np.arange(K), path].copy(),
+        total=float(fitness.sum()),
+        moves=tuple(moves),
+        seconds=time.perf_counter() - t0,
+    )

@@ -1,0 +1,44 @@
+"""``method: roadmap``: one reachable posture-roadmap node per pose (:mod:`mmstab.planner.roadmap`).
+
+Exact on the roadmap's candidates (dynamic programming over poses x nodes, no round limit);
+the moves between the chosen postures are roadmap paths, collision-free by construction.
+Per pose (a caller planning one pose) it is the exhaustive reference.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mmstab.core.files import MmstabError
+from mmstab.planner.roadmap import solve_roadmap_sequence
+from mmstab.planner.search import PathChoice, PathTask, PoseChoice, PoseTask
+from mmstab.planner.searches.exhaustive import ExhaustiveSearch
+from mmstab.workspace.roadmap import load_or_build_roadmap
+
+
+class RoadmapSearch:
+    """The whole path over the posture roadmap's component reachable from the stowed arm."""
+
+    def choose(self, task: PoseTask) -> PoseChoice:
+        """The exhaustive answer at a single pose."""
+        return ExhaustiveSearch().choose(task)
+
+    def choose_path(self, task: PathTask) -> PathChoice:
+        """The chosen nodes' CoMs, postures and the roadmap moves into them."""
+        if task.region.workspace is None:
+            raise MmstabError("planner: method roadmap needs the labelled workspace V")
+        roadmap = load_or_build_roadmap(task.robot, task.region.workspace)
+        poses = np.zeros((len(task.gravity_body), 3)) if task.poses is None else task.poses
+        seq = solve_roadmap_sequence(
+            task.robot,
+            task.gravity_body,
+            roadmap,
+            task.settings,
+            task.mu_max,
+            task.closed,
+            poses,
+        )
+        return PathChoice(
+            target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
+            moves=seq.moves,
+        )  # fmt: skip

@@ -1,0 +1,318 @@
+"""The posture roadmap: the arm's collision-free configuration space as a lattice graph.
+
+Nodes are V's collision-free grid postures (the workspace build labels them:
+``Workspace.valid_q``), edges join grid neighbours (one step along one joint) whose
+straight move is collision-free, checked with FCL
+(:class:`mmstab.model.collision.CollisionChecker`) at interior postures spaced so that no
+point of the arm moves more than ``resolution`` [m] between two checked postures
+(``docs/workspace.md``, "Posture roadmap"). Connected components say which postures the arm
+can reach from another; shortest paths (``scipy.sparse.csgraph``) give the motion.
+
+Every edge's interior postures along joint j at fraction u of a step form the grid shifted
+by u steps along j, so the collision checker's reuse of answers across postures of equal
+relevant joints applies as in V's build: the roadmap costs a few V builds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
+
+from mmstab.core.files import MmstabError, write_npz
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.workspace.cache import DEFAULT_CACHE_DIR
+from mmstab.workspace.grid import JointGrid, joint_grid
+from mmstab.workspace.region import Workspace
+
+#: Largest motion of any point of the arm between two checked postures of an edge [m].
+DEFAULT_RESOLUTION = 0.02
+#: Postures per batch handed to the collision checker.
+CHECK_CHUNK = 16384
+#: Postures of V sampled to bound each joint's reach (seeded).
+REACH_SAMPLES = 20000
+
+
+@dataclass(frozen=True, eq=False)
+class Roadmap:
+    """The posture lattice graph.
+
+    Attributes:
+        grid: samples per joint (V's grid).
+        nodes_q: node postures (N, 4) [rad], collision-free grid postures.
+        edges: node pairs (E, 2) joined by a collision-free straight move.
+        lengths: joint-space length of each edge (E,) [rad].
+        component: connected component of each node (N,).
+        reach: per joint, the bound on the distance of any arm point from that joint's
+            axis (4,) [m].
+        steps: interior postures checked per edge along each joint (4,).
+        resolution: the largest point motion between checked postures [m].
+        build_seconds: wall time of the build [s].
+    """
+
+    grid: tuple[int, ...]
+    nodes_q: FloatArray
+    edges: NDArray[np.int64]
+    lengths: FloatArray
+    component: NDArray[np.int64]
+    reach: FloatArray
+    steps: NDArray[np.int64]
+    resolution: float
+    build_seconds: float = 0.0
+
+    @functools.cached_property
+    def graph(self) -> csr_matrix:
+        """The symmetric sparse adjacency matrix, edge weights = lengths [rad]."""
+        n = len(self.nodes_q)
+        a, b = self.edges[:, 0], self.edges[:, 1]
+        w = np.concatenate([self.lengths, self.lengths])
+        return csr_matrix((w, (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n))
+
+    @functools.cached_property
+    def _tree(self) -> cKDTree:
+        q = self.nodes_q
+        return cKDTree(np.column_stack([np.cos(q[:, 0]), np.sin(q[:, 0]), q[:, 1:]]))
+
+    def nearest(self, q: ArrayLike) -> NDArray[np.intp]:
+        """The node nearest to each posture (turret as an angle) (N,).
+
+        Args:
+            q: postures (N, 4) or (4,) [rad].
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        _, idx = self._tree.query(np.column_stack([np.cos(qa[:, 0]), np.sin(qa[:, 0]), qa[:, 1:]]))
+        return np.asarray(idx, dtype=np.intp)
+
+    def connect(self, q: ArrayLike, robot: Robot, candidates: int = 16) -> int:
+        """A node joined to posture q (4,) [rad] by a collision-free straight move.
+
+        The nearest of the ``candidates`` nearest nodes whose move from q, checked at the
+        roadmap's resolution, is free (a grid posture q is its own node).
+
+        Raises:
+            MmstabError: none is (q collides, or is boxed in at this grid's spacing).
+        """
+        qa = np.asarray(q, dtype=float).reshape(4)
+        _, idx = self._tree.query(
+            np.r_[np.cos(qa[0]), np.sin(qa[0]), qa[1:]], k=min(candidates, len(self.nodes_q))
+        )
+        checker = CollisionChecker(robot)
+        for node in np.atleast_1d(idx):
+            d = self.nodes_q[node] - qa  # the turret's range ends at a stop: no wrap
+            if self.move_is_free(checker, qa, qa + d):
+                return int(node)
+        raise MmstabError(f"roadmap: the posture {np.round(qa, 3).tolist()} rad reaches no node")
+
+    def move_is_free(self, checker: CollisionChecker, qa: FloatArray, qb: FloatArray) -> bool:
+        """Whether the straight move qa -> qb (4,) [rad] is free at the roadmap's resolution.
+
+        Checked postures are spaced so that no arm point moves more than ``resolution``
+        between two (the bound Σ_j reach_j |Δq_j|); the ends included.
+        """
+        d = np.asarray(qb, dtype=float) - qa
+        n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
+        u = np.linspace(0.0, 1.0, n + 1)[:, None]
+        return not bool(np.asarray(checker.collides(qa + u * d), dtype=bool).any())
+
+    def shortcut(self, checker: CollisionChecker, q: ArrayLike) -> FloatArray:
+        """A posture path (n, 4) [rad] with its corners cut where free.
+
+        Greedy: from each kept posture, the farthest later one joined by a free straight
+        move (:meth:`move_is_free`); the lattice's staircase becomes straight moves. The
+        ends are kept; the result is never longer (triangle inequality).
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        keep, i = [0], 0
+        while i < len(qa) - 1:
+            j = len(qa) - 1
+            while j > i + 1 and not self.move_is_free(checker, qa[i], qa[j]):
+                j = (i + 1 + j) // 2 if j - i > 8 else j - 1
+            keep.append(j)
+            i = j
+        return qa[keep].copy()
+
+    def path(self, a: int, b: int) -> NDArray[np.intp]:
+        """Shortest roadmap path from node a to node b, both included.
+
+        Raises:
+            MmstabError: a and b lie in different components.
+        """
+        if a == b:
+            return np.array([a], dtype=np.intp)
+        if self.component[a] != self.component[b]:
+            raise MmstabError(f"roadmap: nodes {a} and {b} are not connected")
+        _, pred = dijkstra(self.graph, indices=a, return_predecessors=True)
+        out = [b]
+        while out[-1] != a:
+            out.append(int(pred[out[-1]]))
+        return np.array(out[::-1], dtype=np.intp)
+
+    def path_postures(self, a: int, b: int) -> FloatArray:
+        """The postures of the shortest path a -> b (n, 4) [rad]."""
+        return self.nodes_q[self.path(a, b)].copy()
+
+    def path_length(self, q: ArrayLike) -> float:
+        """Joint-space length of a posture path (n, 4) [rad]."""
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        return float(np.linalg.norm(np.diff(qa, axis=0), axis=1).sum())
+
+
+def joint_reach(robot: Robot, q: FloatArray) -> FloatArray:
+    """Per joint j, the largest distance of a point of links j.. from joint j's origin [m].
+
+    Each link shape's centre distance plus its bounding radius, the maximum over postures q
+    (N, 4) [rad]: the distance depends only on the joints after j, which q samples.
+    """
+    checker = CollisionChecker(robot)
+    frames = robot.kinematics.link_frames(q)
+    _, p = checker.shape_poses(q, frames)
+    radius = np.array([link.geometry.bounding_radius for link in robot.links])
+    out = np.zeros(4)
+    for j in range(4):
+        o = frames[:, j, :3, 3]
+        d = np.linalg.norm(p[:, j:, :] - o[:, None, :], axis=2) + radius[j:]
+        out[j] = float(d.max())
+    return out
+
+
+def _grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
+    """Grid indices (N, 4) of grid postures q [rad]."""
+    lo = np.array([a[0] for a in jg.axes])
+    idx = np.rint((q - lo) / jg.step).astype(np.int64)
+    return np.minimum(idx, np.array(jg.shape) - 1)
+
+
+def _free_moves(
+    checker: CollisionChecker, q: FloatArray, j: int, step: float, steps: int
+) -> NDArray[np.bool_]:
+    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures."""
+    ok = np.ones(len(q), dtype=bool)
+    for s in range(1, steps + 1):
+        rows = np.flatnonzero(ok)
+        if not len(rows):
+            break
+        shifted = q[rows].copy()
+        shifted[:, j] += step * s / (steps + 1)
+        for c in range(0, len(rows), CHECK_CHUNK):
+            part = rows[c : c + CHECK_CHUNK]
+            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK]), dtype=bool)
+            ok[part[hit]] = False
+    return ok
+
+
+def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION) -> Roadmap:
+    """The lattice roadmap over V's collision-free grid postures (module text).
+
+    Args:
+        robot: the robot (the one V was built for).
+        ws: the workspace V (its grid and its collision-free postures).
+        resolution: largest point motion between checked postures of an edge [m].
+    """
+    t0 = time.perf_counter()
+    jg = joint_grid(robot, ws.grid)
+    shape = np.array(jg.shape)
+    nodes_q = np.asarray(ws.valid_q, dtype=float)
+    idx = _grid_index(jg, nodes_q)
+    flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
+    lookup = np.full(jg.size, -1, dtype=np.int64)
+    lookup[flat] = np.arange(len(nodes_q))
+    rng = np.random.default_rng(0)
+    sample = nodes_q[rng.choice(len(nodes_q), min(REACH_SAMPLES, len(nodes_q)), replace=False)]
+    reach = joint_reach(robot, sample)
+    steps = np.maximum(np.ceil(reach * jg.step / resolution).astype(np.int64) - 1, 0)
+    checker = CollisionChecker(robot)
+    edges, lengths = [], []
+    for j in range(4):
+        # no edge wraps the turret's full turn: its range ends at a stop (the posture at
+        # 2 pi is the one at 0, but the joint cannot move through the stop between them)
+        nxt = idx.copy()
+        nxt[:, j] += 1
+        inside = nxt[:, j] < shape[j]
+        rows = np.flatnonzero(inside)
+        other = lookup[np.ravel_multi_index(tuple(nxt[rows].T), tuple(shape))]
+        rows, other = rows[other >= 0], other[other >= 0]
+        free = _free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]))
+        edges.append(np.column_stack([rows[free], other[free]]))
+        lengths.append(np.full(int(free.sum()), float(jg.step[j])))
+    e = np.concatenate(edges).astype(np.int64) if edges else np.zeros((0, 2), np.int64)
+    w = np.concatenate(lengths)
+    n = len(nodes_q)
+    g = csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    _, component = connected_components(g, directed=False)
+    return Roadmap(
+        grid=tuple(int(x) for x in ws.grid),
+        nodes_q=nodes_q,
+        edges=e,
+        lengths=w,
+        component=component.astype(np.int64),
+        reach=reach,
+        steps=steps,
+        resolution=float(resolution),
+        build_seconds=time.perf_counter() - t0,
+    )
+
+
+def roadmap_key(robot: Robot, grid: tuple[int, ...], resolution: float, version: int) -> str:
+    """Cache key: robot description, base collision boxes (flipper setting), grid, resolution."""
+    boxes = robot.base.collision_boxes()
+    geo = np.concatenate([np.r_[b.frame_T_shape.ravel(), b.size] for b in boxes.values()])
+    text = (
+        f"roadmap{version}|{robot.source_hash}|{[int(n) for n in grid]}|{resolution!r}|"
+        f"{np.round(geo, 9).tobytes().hex()}"
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def roadmap_arrays(rm: Roadmap) -> dict[str, object]:
+    """The roadmap's fields as arrays (for ``.npz``)."""
+    return {f.name: getattr(rm, f.name) for f in dataclasses.fields(rm)}
+
+
+# ---------------------------------------------------------------------------------- cache
+#: Bump when the roadmap's construction or file format changes.
+ROADMAP_VERSION = 2
+_MEMORY: dict[str, Roadmap] = {}
+
+
+def load_or_build_roadmap(
+    robot: Robot,
+    ws: Workspace,
+    resolution: float = DEFAULT_RESOLUTION,
+    cache_dir: str | os.PathLike[str] | None = None,
+) -> Roadmap:
+    """The roadmap of a robot and its V: from memory, from the cache file, else built.
+
+    The file is ``results/workspace/roadmap-<key>.npz`` (:func:`roadmap_key`), written
+    atomically; an unreadable one is rebuilt.
+    """
+    key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
+    if key in _MEMORY:
+        return _MEMORY[key]
+    path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR) / f"roadmap-{key}.npz"
+    rm = None
+    if path.is_file():
+        try:
+            with np.load(path) as z:
+                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap)}
+            kw["grid"] = tuple(int(n) for n in kw["grid"])
+            kw["resolution"] = float(kw["resolution"])
+            kw["build_seconds"] = float(kw["build_seconds"])
+            rm = Roadmap(**kw)
+        except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
+            rm = None
+    if rm is None:
+        rm = build_roadmap(robot, ws, resolution)
+        write_npz(path, **roadmap_arrays(rm))
+    _MEMORY[key] = rm
+    return rm
