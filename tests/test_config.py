@@ -110,3 +110,45 @@ def test_cli_subprocess_bad_file_exit_status(tmp_path):
         cwd=ROOT,
     )
     assert missing.returncode == 2 and "no.yaml" in missing.stderr
+
+
+def _laughs(levels: int, width: int = 9) -> str:
+    """A "billion laughs" YAML: each level aliases the one below ``width`` times."""
+    lines = ["a0: &a0 [" + ", ".join(['"lol"'] * width) + "]"]
+    for i in range(1, levels):
+        lines.append(f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * width) + "]")
+    return "\n".join([*lines, f"robot: *a{levels - 1}"]) + "\n"
+
+
+def test_yaml_alias_expansion_is_counted_and_bounded(tmp_path):
+    import yaml
+
+    from mmstab.core.files import MAX_YAML_NODES, ConfigError, _expanded_size, read_yaml
+
+    # by hand: a list of 3 scalars is 4 nodes; a list aliasing it twice is 1 + 2 * 4 = 9; the
+    # top mapping holds 3 keys + the two lists + the alias again: 1 + 3 + 4 + 9 + 4 = 21
+    small = "a: &a [1, 2, 3]\nb: [*a, *a]\nc: *a\n"
+    assert _expanded_size(yaml.compose(small), {}) == 21
+    ok = tmp_path / "ok.yaml"
+    ok.write_text(small)
+    assert read_yaml(ok)["b"] == [[1, 2, 3], [1, 2, 3]]
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(_laughs(10))  # 9**10 scalars: refused while still a node graph
+    with pytest.raises(ConfigError, match="aliases") as err:
+        read_yaml(bomb)
+    assert str(bomb) in str(err.value)
+    assert _expanded_size(yaml.compose(_laughs(5)), {}) < MAX_YAML_NODES  # 9**5: allowed
+
+
+def test_cli_refuses_a_yaml_alias_bomb_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(_laughs(10))
+    proc = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(bomb)], capture_output=True, text=True
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "YAML nodes" in proc.stderr
+    assert "Traceback" not in proc.stderr

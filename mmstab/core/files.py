@@ -54,6 +54,44 @@ def _field_path(parts: Iterator[Any] | list[Any]) -> str:
     return out
 
 
+#: Most YAML nodes a file may expand to, aliases counted at every use [-]. A "billion
+#: laughs" file (aliases of aliases) is small on disk but expands exponentially when its
+#: data is walked; it is refused while still a node graph.
+MAX_YAML_NODES = 1_000_000
+
+
+def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:
+    """Nodes of ``node``'s tree with every alias expanded (linear time: shared nodes memoised)."""
+    key = id(node)
+    if key not in memo:
+        memo[key] = 1  # a recursive alias counts once (the constructor refuses it anyway)
+        if isinstance(node, yaml.SequenceNode):
+            memo[key] = 1 + sum(_expanded_size(n, memo) for n in node.value)
+        elif isinstance(node, yaml.MappingNode):
+            memo[key] = 1 + sum(
+                _expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value
+            )
+    return memo[key]
+
+
+def _safe_load_bounded(text: str) -> Any:
+    """``yaml.safe_load`` that refuses documents expanding past :data:`MAX_YAML_NODES`."""
+    loader = yaml.SafeLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        size = _expanded_size(node, {})
+        if size > MAX_YAML_NODES:
+            raise ValueError(
+                f"expands to more than {MAX_YAML_NODES:,} YAML nodes through its aliases "
+                f"({size:.3g})"
+            )
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
 def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a YAML mapping from ``path``, or raise :class:`ConfigError`."""
     p = Path(path)
@@ -62,7 +100,9 @@ def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(p, "", f"cannot read file ({exc.strerror})") from None
     try:
-        data = yaml.safe_load(text)
+        data = _safe_load_bounded(text)
+    except ValueError as exc:
+        raise ConfigError(p, "", str(exc)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else "YAML"
