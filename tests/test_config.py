@@ -152,3 +152,20 @@ def test_cli_refuses_a_yaml_alias_bomb_in_one_line(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "YAML nodes" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_a_planner_that_gives_up_exits_6_not_2(tmp_path, monkeypatch, capsys):
+    """A search that gives up is no bad input: its own status, one line naming the search."""
+    import mmstab.planner.sequence as sequence
+
+    def edit(p, r):
+        p["workspace"]["grid"] = [8, 6, 6, 6]
+        p["planner"].update(method="sequence", poses=4)
+
+    path = write_problem(tmp_path, edit)
+    monkeypatch.chdir(tmp_path)  # the workspace cache (results/workspace) goes there
+    monkeypatch.setattr(sequence, "MAX_ROUNDS", 0)  # gives up before its first round
+    status = main(["plan", str(path), "-o", str(tmp_path / "out")])
+    last = capsys.readouterr().err.splitlines()[-1]  # after the workspace's progress bar
+    assert status == 6
+    assert last == "mmstab: no plan: planner: sequence search did not settle in 0 rounds"

@@ -22,7 +22,13 @@ from pathlib import Path
 
 from mmstab.cli.checks import check_options, check_outputs
 from mmstab.cli.commands import COMMANDS, EXTRA_OPTIONS, PROBLEM_COMMANDS, _urdf, _urdf_out
-from mmstab.cli.status import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE
+from mmstab.cli.status import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_NO_PLAN,
+    EXIT_OK,
+    EXIT_UNSTABLE,
+)
 from mmstab.cli.terrain import _add_terrain_commands
 
 __all__ = ["build_parser", "check_options", "check_outputs", "entry", "main"]
@@ -98,13 +104,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    from mmstab.core.files import MmstabError, UnstableError
+    from mmstab.core.files import MmstabError, PlanningError, UnstableError
 
     try:
         return _run(build_parser().parse_args(argv))
     except UnstableError as exc:
         print(f"mmstab: unstable: {exc}", file=sys.stderr)
         return EXIT_UNSTABLE
+    except PlanningError as exc:
+        print(f"mmstab: no plan: {exc}", file=sys.stderr)
+        return EXIT_NO_PLAN
     except MmstabError as exc:
         print(f"mmstab: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

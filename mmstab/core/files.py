@@ -30,6 +30,12 @@ class UnstableError(MmstabError):
     exit_status = 3
 
 
+class PlanningError(MmstabError):
+    """The planner gave up or no plan exists: not bad input, not a verdict (exit status 6)."""
+
+    exit_status = 6
+
+
 class ConfigError(MmstabError):
     """A problem or robot file is invalid.
 

@@ -15,7 +15,7 @@ import cma
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.files import MmstabError
+from mmstab.core.files import PlanningError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness
 from mmstab.planner.regions import CoMRegion, as_region
@@ -141,7 +141,7 @@ def solve_start(
     while not es.stop():
         gen = ask_generation(es, region, s.max_resample)
         if not gen.inside.any() and first is None and not start_inside:
-            raise MmstabError(
+            raise PlanningError(
                 f"planner: no CMA-ES sample fell in the workspace V "
                 f"({s.max_resample} re-asks from {np.round(start_com, 3)} m, itself outside V); "
                 "V may be empty"

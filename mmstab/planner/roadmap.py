@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.files import MmstabError
+from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import pose_fitness
@@ -35,7 +35,7 @@ TURRET_BINS = 24
 SEARCH_SLACK = 1.5
 
 
-class NoPlanError(MmstabError):
+class NoPlanError(PlanningError):
     """No sequence of reachable stable postures exists; ``pose`` is the first without one."""
 
     def __init__(self, message: str, pose_index: int):

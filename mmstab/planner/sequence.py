@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.files import MmstabError
+from mmstab.core.files import PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness, pose_fitness
@@ -130,7 +130,7 @@ def solve_sequence(
         checker: collision checker (default: the robot's).
 
     Raises:
-        MmstabError: no sequence satisfies the constraints among the candidates.
+        PlanningError: no sequence satisfies the constraints among the candidates.
     """
     t0 = time.perf_counter()
     checker = CollisionChecker(robot) if checker is None else checker
@@ -228,7 +228,7 @@ def _search_lazily(
         (candidate per pose, rounds, moves forbidden); ``graph.allowed`` is updated.
 
     Raises:
-        MmstabError: no sequence is allowed, or it did not settle in ``MAX_ROUNDS``.
+        PlanningError: no sequence is allowed, or it did not settle in ``MAX_ROUNDS``.
     """
     cand, pairs, allowed = graph.cand, graph.pairs, graph.allowed
     checked: set[tuple[int, int, int]] = set()
@@ -237,7 +237,7 @@ def _search_lazily(
         rounds += 1
         path, total = _best(graph.value, graph.motion, allowed, closed)
         if not np.isfinite(total):
-            raise MmstabError(
+            raise PlanningError(
                 "planner: no sequence of V's postures has collision-free moves within the "
                 "turret window (raise planner.sequence_candidates or turret_window)"
             )
@@ -256,7 +256,7 @@ def _search_lazily(
         if not hit.any():
             break
     else:
-        raise MmstabError(f"planner: sequence search did not settle in {MAX_ROUNDS} rounds")
+        raise PlanningError(f"planner: sequence search did not settle in {MAX_ROUNDS} rounds")
     return path, rounds, forbidden
 
 
