@@ -54,4 +54,3 @@ def test_no_new_long_module_or_function_and_none_grows():
     assert set(functions) == set(LONG_FUNCTIONS), "update LONG_FUNCTIONS: only ever remove"
     assert all(modules[m] <= LONG_MODULES[m] for m in modules)
     assert all(functions[f] <= LONG_FUNCTIONS[f] for f in functions)
-
