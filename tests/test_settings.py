@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+import yaml
 from conftest import RAMP_YAML, ROOT, write_problem
 
 from mmstab.cli import main
@@ -256,3 +257,31 @@ def test_workspace_memory_constant_bounds_the_measured_peak(robot):
     assert peak < sizes.workspace_estimate(grid).bytes
     assert peak < n * sizes.WS_BYTES_PER_POSTURE + sizes.WS_CHUNK_BYTES  # one process here
     assert peak > n * 56  # at least the postures (32 B) and CoMs (24 B) it returns
+
+
+def test_generated_map_estimate_counts_the_generators_cells():
+    """The bound counts exactly the cells the generator would allocate (seeded sizes)."""
+    from mmstab.terrain.generators import Grid
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        size = (float(rng.uniform(0.5, 40.0)), float(rng.uniform(0.5, 40.0)))
+        res = float(rng.choice([0.01, 0.02, 0.05, 0.1, 0.25]))
+        est = sizes.terrain_estimate({"generate": {"size": list(size), "resolution": res}})
+        grid = Grid.of_size(size, res)
+        assert est is not None and est.bytes == grid.nx * grid.ny * sizes.TERRAIN_BYTES_PER_CELL
+    assert sizes.terrain_estimate({"slope": 0.1}) is None
+
+
+def test_a_10_km_map_at_1_cm_is_refused_before_any_allocation(tmp_path):
+    data = yaml.safe_load((ROOT / "problems" / "rough.yaml").read_text())
+    data["robot"] = str(ROOT / "problems" / "robots" / "cameleon.yaml")
+    data["terrain"]["generate"].update(size=[10000.0, 10000.0], resolution=0.01)
+    path = tmp_path / "huge.yaml"
+    path.write_text(yaml.safe_dump(data))
+    proc = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(path)], capture_output=True, text=True
+    )
+    assert proc.returncode == 2
+    line = proc.stderr.strip()
+    assert "\n" not in line and "terrain.generate.size" in line and "1e+12 map cells" in line
