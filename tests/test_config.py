@@ -169,3 +169,34 @@ def test_a_planner_that_gives_up_exits_6_not_2(tmp_path, monkeypatch, capsys):
     last = capsys.readouterr().err.splitlines()[-1]  # after the workspace's progress bar
     assert status == 6
     assert last == "mmstab: no plan: planner: sequence search did not settle in 0 rounds"
+
+
+def test_sections_a_command_does_not_read_are_optional(tmp_path):
+    """robot + terrain + path + planner margin is a whole route problem; typos still refused."""
+    import yaml
+
+    from mmstab.core.defaults import DEFAULT_SECTIONS
+
+    ramp = yaml.safe_load((ROOT / "problems" / "ramp.yaml").read_text())
+    assert {k: ramp[k] for k in DEFAULT_SECTIONS} == DEFAULT_SECTIONS  # the documented defaults
+    rough = yaml.safe_load((ROOT / "problems" / "rough.yaml").read_text())
+    minimal = {
+        "robot": str(ROOT / "problems" / "robots" / "cameleon.yaml"),
+        "terrain": rough["terrain"],
+        "path": {
+            "waypoints": [[-4.0, -0.5], [0.0, 0.5], [4.0, 0.0]],
+            "speed": 0.3,
+            "turn_radius": 1.0,
+        },
+        "planner": {"margin": 50.0},
+    }
+    path = tmp_path / "minimal.yaml"
+    path.write_text(yaml.safe_dump(minimal))
+    problem = load_problem(path)
+    assert problem.route is not None and problem.section("planner")["margin"] == 50.0
+    assert problem.section("controller")["dt"] == ramp["controller"]["dt"]
+    assert problem.section("planner")["method"] == "cmaes"  # SECTION_DEFAULTS wins over ramp's
+    minimal["planner"]["margn"] = 1.0
+    path.write_text(yaml.safe_dump(minimal))
+    with pytest.raises(ConfigError, match="margn"):
+        load_problem(path)

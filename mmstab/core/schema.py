@@ -9,7 +9,10 @@ ground) live beside the loaders.
 
 from __future__ import annotations
 
+import copy
 from typing import Any
+
+from mmstab.core.defaults import DEFAULT_SECTIONS
 
 #: ``planner.method``: the names of the planner's searches (``mmstab.planner.searches.SEARCHES``
 #: registers one search per name; a test keeps both equal).
@@ -207,11 +210,20 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
 
 
 def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
-    """A copy of a problem mapping with the omitted optional keys filled in."""
+    """A copy of a problem mapping with the omitted sections and keys filled in.
+
+    Precedence: the file's keys, then :data:`SECTION_DEFAULTS`, then the default problem's
+    values (:data:`mmstab.core.defaults.DEFAULT_SECTIONS`) for a section or key left out.
+    """
     out = dict(data)
-    for name, defaults in SECTION_DEFAULTS.items():
-        if isinstance(out.get(name), dict):
-            out[name] = {**defaults, **out[name]}
+    for name in {*DEFAULT_SECTIONS, *SECTION_DEFAULTS}:
+        given = out.get(name, {})
+        if isinstance(given, dict):
+            out[name] = {
+                **DEFAULT_SECTIONS.get(name, {}),
+                **SECTION_DEFAULTS.get(name, {}),
+                **copy.deepcopy(given),
+            }
     return out
 
 

@@ -92,6 +92,7 @@ PLAN_TYPICAL = {
 TERRAIN_SECONDS_PER_CELL = 1.0e-6
 TERRAIN_BYTES_PER_CELL = 320.0
 
+
 class Estimate(NamedTuple):
     """The work a size-like field asks for.
 
