@@ -421,7 +421,7 @@ def test_posture_task_alone_converges_to_a_constant_posture(robot, settings, rng
             "controller.posture_gain",
         ),
         (lambda c: c["posture_weight"].__setitem__(1, -1.0), "controller.posture_weight[1]"),
-        (lambda c: c.pop("approach_time"), "controller.approach_time"),
+        (lambda c: c.__setitem__("approach_time", -1.0), "controller.approach_time"),
     ],
 )
 def test_bad_controller_settings_name_the_field(tmp_path, edit, field):
