@@ -206,6 +206,21 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "sequence_candidates": 256,
     },
     "workspace": {"method": "hull_difference"},
+    "online": {
+        "map_topic": "/elevation_mapping/elevation_map",
+        "odom_topic": "/odom",
+        "horizon": 2.0,
+        "replan_tol": 0.01,
+        "record": {
+            "rate": 10.0,
+            "window": 6.0,
+            "range": 3.0,
+            "noise": 0.01,
+            "unknown": 0.005,
+            "odom_rate": 50.0,
+            "seed": 5,
+        },
+    },
 }
 
 
@@ -219,11 +234,12 @@ def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
     for name in {*DEFAULT_SECTIONS, *SECTION_DEFAULTS}:
         given = out.get(name, {})
         if isinstance(given, dict):
-            out[name] = {
-                **DEFAULT_SECTIONS.get(name, {}),
-                **SECTION_DEFAULTS.get(name, {}),
-                **copy.deepcopy(given),
-            }
+            default = {**DEFAULT_SECTIONS.get(name, {}), **SECTION_DEFAULTS.get(name, {})}
+            merged = {**default, **copy.deepcopy(given)}
+            for key, value in default.items():  # a partly given sub-section (controller.osqp)
+                if isinstance(value, dict) and isinstance(merged[key], dict):
+                    merged[key] = {**value, **merged[key]}
+            out[name] = merged
     return out
 
 
@@ -286,8 +302,29 @@ LEVERS: dict[str, Any] = with_optional(
     rough_problem={"type": "string", "minLength": 1},
 )
 
+# Online mode (mmstab follow, mmstab record; docs/online.md): topics, the receding horizon
+# [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, and the
+# generated recording: map rate [Hz], window side [m], sensor range [m], height noise (RMS)
+# [m], fraction of cells dropped as unknown, odometry rate [Hz], seed.
+ONLINE = obj(
+    map_topic={"type": "string", "pattern": "^/"},
+    odom_topic={"type": "string", "pattern": "^/"},
+    horizon=POS,
+    replan_tol=POS,
+    record=obj(
+        rate={"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+        window={"type": "number", "exclusiveMinimum": 0, "maximum": 100},
+        range=POS,
+        noise=NONNEG,
+        unknown={"type": "number", "minimum": 0, "maximum": 0.9},
+        odom_rate={"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+        seed=SEED,
+    ),
+)
+
 #: Sections a problem may leave out; the command that needs one says so when it is missing.
 OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {
+    "online": ONLINE,
     "atlas": ATLAS,
     "payload": PAYLOAD,
     "levers": LEVERS,
@@ -322,6 +359,10 @@ TERRAIN_FILE: dict[str, Any] = {
         "resolution": POS,
         "compliance": COMPLIANCE,
         "friction": FRICTION,
+        # a recording (.mcap, .bag, ROS 2 bag directory): its GridMap topic and the time [s]
+        # from its start (the last map by then; default the first)
+        "topic": {"type": "string", "minLength": 1},
+        "time": NONNEG,
     },
     "required": ["file"],
     "additionalProperties": False,

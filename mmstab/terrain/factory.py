@@ -5,6 +5,8 @@ Three forms, told apart by their key:
 * ``{slope: A}``: the planar ramp (:class:`~mmstab.terrain.ramp.Ramp`), A [rad];
 * ``{file: PATH, resolution: R}``: a heightmap file (``.npz``, GeoTIFF, STL/PLY/OBJ mesh),
   PATH relative to the problem file, R [m/cell] only to rasterise a mesh;
+* ``{file: REC, topic: T, time: S}``: one elevation map of a robot recording (``.mcap``,
+  ROS 1 ``.bag``, ROS 2 bag directory; :mod:`mmstab.terrain.recording`);
 * ``{generate: {kind: K, seed: S, size: [X, Y], resolution: R, ...}}``: a seeded generator
   (:mod:`mmstab.terrain.generators`; each kind's keys in ``schema.TERRAIN_KINDS``).
 """
@@ -26,6 +28,7 @@ from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.terrain.io import load_heightmap
 from mmstab.terrain.ramp import Ramp
+from mmstab.terrain.recording import DEFAULT_TOPIC, is_recording, load_grid_map
 
 
 def check_section(problem_path: Path, section: Any) -> str:
@@ -81,10 +84,7 @@ def from_section(
     if form == "ramp":
         return Ramp(section["slope"], friction)
     if form == "file":
-        target = p.parent / section["file"]
-        if not target.is_file():
-            raise ConfigError(p, "terrain.file", f"no heightmap file at {target}")
-        hm = load_heightmap(target, section.get("resolution"))
+        hm = _file_heightmap(p, section)
     else:
         hm = generate(section["generate"])
     terrain = HeightmapTerrain(hm, friction=friction)
@@ -92,6 +92,23 @@ def from_section(
         settings = terrain.settings._replace(compliance=float(section["compliance"]))
         terrain = HeightmapTerrain(hm, settings=settings, friction=friction)
     return terrain if robot is None else terrain.with_robot(robot)
+
+
+def _file_heightmap(problem_path: Path, section: dict[str, Any]) -> Heightmap:
+    """The heightmap of ``terrain: {file, ...}``: a heightmap file or a recording's map."""
+    target = problem_path.parent / section["file"]
+    if is_recording(target):
+        if not target.exists():
+            raise ConfigError(problem_path, "terrain.file", f"no recording at {target}")
+        return load_grid_map(
+            target, section.get("topic", DEFAULT_TOPIC), section.get("time")
+        ).heightmap
+    for key in ("topic", "time"):
+        if key in section:
+            raise ConfigError(problem_path, f"terrain.{key}", "only for a recording (.mcap, .bag)")
+    if not target.is_file():
+        raise ConfigError(problem_path, "terrain.file", f"no heightmap file at {target}")
+    return load_heightmap(target, section.get("resolution"))
 
 
 def ramp_heightmap(ramp: Ramp, size: tuple[float, float], resolution: float) -> Heightmap:

@@ -1,0 +1,139 @@
+"""``mmstab follow`` / ``make online``: a recording followed online, beside the offline plan.
+
+Writes to the output folder: ``summary.json`` (the run's numbers, the settings, the
+comparison with the offline plan), ``online.mcap`` (the run as a recording: joint states,
+TF, μ, the support polygon coloured by μ; :mod:`mmstab.runs.recording`) and ``online.png``
+(μ along the route, online and offline; the latency per map).
+
+The offline plan is the same warm-started planner over the same route poses on the
+problem's own terrain, all poses at once (:func:`mmstab.planner.warm_start.solve_route`).
+A pose's online answer is compared with it where the map **agrees** with that terrain
+(the resting gravity in B on the map within ``online.replan_tol`` of the offline one).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.core.files import write_figure, write_json
+from mmstab.core.problem import Problem
+from mmstab.planner.plan import problem_region
+from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.warm_start import RoutePlan, solve_route
+from mmstab.runs.online.follow import FollowSettings
+from mmstab.runs.online.horizon import angle_between
+from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summarize
+from mmstab.runs.recording import write_run
+from mmstab.stability.static import mu_max as stowed_flat_mu
+from mmstab.workspace import Workspace
+
+#: Relative μ difference the issue allows where the map agrees [-].
+MU_AGREEMENT = 0.02
+
+
+def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> RoutePlan:
+    """The offline plan on the problem's terrain at the route poses the run planned."""
+    from mmstab.workspace.ik import PostureSolver
+
+    route = problem.route
+    assert route is not None
+    ws, region = problem_region(problem, workspace, False)
+    settings = PlannerSettings.from_section(problem.section("planner"))
+    settings = settings._replace(method="cmaes", seeding="coarse")
+    s = run.s_grid
+    poses = route.route.sample(s).pose
+    realise = PostureSolver(problem.robot, ws).realise
+    return solve_route(problem.robot, problem.terrain, region, s, poses, settings, realise)
+
+
+def compare(run: FollowRun, offline: RoutePlan, gravity: np.ndarray, tol: float) -> dict[str, Any]:
+    """Online against offline μ per planned pose, where the map agrees (module text).
+
+    Args:
+        run: the online run.
+        offline: the offline plan at the run's planning grid.
+        gravity: gravity in B at those poses on the problem's terrain (K, 3) [m/s^2].
+        tol: the largest angle between the map's and the terrain's gravity that agrees [rad].
+    """
+    rows = []
+    for k, p in sorted(run.plans.items()):
+        agrees = angle_between(p.gravity_body, gravity[k]) <= tol
+        mu_off = float(offline.mu_planned[k])
+        rows.append((k, p.s, p.mu, mu_off, abs(p.mu - mu_off) / abs(mu_off), agrees))
+    rel = np.array([r[4] for r in rows if r[5]])
+    return {
+        "poses": len(rows),
+        "agreeing_poses": int(len(rel)),
+        "relative_difference": {
+            "median": float(np.median(rel)) if len(rel) else None,
+            "max": float(rel.max()) if len(rel) else None,
+            "within_2_percent": float((rel <= MU_AGREEMENT).mean()) if len(rel) else None,
+        },
+        "per_pose": [
+            {"k": k, "s_m": s, "mu_online": a, "mu_offline": b, "relative": r, "map_agrees": g}
+            for k, s, a, b, r, g in rows
+        ],
+    }
+
+
+def run_follow(
+    problem: Problem,
+    recording: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    limit: int | None = None,
+    workspace: Workspace | None = None,
+) -> dict[str, Any]:
+    """Follow ``recording`` and write the folder's files (module text); return the summary."""
+    out = Path(out)
+    t0 = time.perf_counter()
+    run = follow_recording(problem, recording, workspace, limit)
+    wall = time.perf_counter() - t0
+    summary = summarize(run)
+    settings = FollowSettings.of(problem)
+    summary["wall_seconds"] = wall
+    summary["recording"] = str(recording)
+    summary["settings"] = {
+        "online": problem.section("online"),
+        "planner": problem.section("planner"),
+    }
+    if run.plans:
+        t1 = time.perf_counter()
+        offline = offline_plan(problem, run, workspace)
+        gravity = problem.terrain.gravity_body(offline.poses)
+        summary["offline"] = compare(run, offline, gravity, settings.replan_tol)
+        summary["offline"]["seconds_per_pose"] = float(np.median(offline.search_seconds))
+        summary["offline"]["wall_seconds"] = time.perf_counter() - t1
+        _figure(out / "online.png", run, offline)
+    frames = run_frames(run)
+    if len(frames.t):
+        write_run(out / "online.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def _figure(path: Path, run: FollowRun, offline: RoutePlan) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    s = np.array([x.s for x in run.steps])
+    a.plot(s, [x.mu for x in run.steps], lw=1, label="online: mu now (posture now)")
+    ks = sorted(run.plans)
+    a.plot([run.plans[k].s for k in ks], [run.plans[k].mu for k in ks], "o", ms=3,
+           label="online: planned")  # fmt: skip
+    a.plot(offline.s, offline.mu_planned, "-", lw=1, label="offline plan")
+    a.plot(offline.s, offline.mu_stowed, ":", lw=1, label="arm stowed")
+    a.set(xlabel="route progress s [m]", ylabel="mu [N rad]", title="stability along the route")
+    a.legend(fontsize=7)
+    lat = np.array([x.latency for x in run.steps]) * 1e3
+    b.hist(lat, bins=40)
+    b.axvline(np.percentile(lat, 50), color="k", lw=1, label=f"p50 {np.percentile(lat, 50):.1f} ms")
+    b.axvline(np.percentile(lat, 99), color="r", lw=1, label=f"p99 {np.percentile(lat, 99):.1f} ms")
+    b.set(xlabel="latency per map [ms]", ylabel="maps", title="rest + re-plan + controller step")
+    b.legend(fontsize=7)
+    fig.tight_layout()
+    write_figure(path, fig)

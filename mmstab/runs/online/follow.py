@@ -1,0 +1,265 @@
+"""The online loop (``mmstab follow``): one update per elevation map, as on the robot.
+
+Per map (:meth:`Follower.update`), on that map alone:
+
+1. **where the robot is**: the odometry's (x, y, yaw), its progress ``s`` along the route
+   (the nearest route point, searched near the last one, so a route that passes a place
+   twice is not confused);
+2. **rest**: the base rests on the map at the odometry pose (μ of the arm's posture now);
+3. **re-plan** the horizon (:class:`~mmstab.runs.online.horizon.HorizonPlanner`): the
+   route's planned poses from behind the robot to ``online.horizon`` ahead, each re-planned
+   only when new or when the map changed its ground; what the map does not cover ahead is
+   reported (``covered_ahead``), not guessed;
+4. **step** the controller once: the task reference at ``s`` (base point on the route, the
+   planned arm CoM interpolated between the horizon's poses, their postures as the posture
+   task), the controller period set to the time since the last map; the arm's joint speeds
+   are the command, and the arm's posture advances by them (the follower's own integration:
+   a recording carries no joint states).
+
+Deterministic: the planner's generator is seeded (``planner.seed``) and no decision depends
+on the clock, so the same recording gives the same commands and μ; only ``latency`` [s]
+(wall time of the update, map decoding excluded) differs between runs.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import numpy as np
+
+from mmstab.control.controller import ControllerSettings, build_controller
+from mmstab.control.controller.step import Controller
+from mmstab.control.layout import ARM_JOINTS
+from mmstab.core.files import MmstabError
+from mmstab.core.problem import Problem
+from mmstab.model.robot import FloatArray
+from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
+from mmstab.planner.plan import problem_region
+from mmstab.planner.settings import PlannerSettings
+from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
+from mmstab.runs.online.stream import MapUpdate
+from mmstab.stability.dynamic import robot_mu
+from mmstab.terrain import place_local
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.workspace import Workspace
+
+#: Arc-length step of the route's samples for the progress search [m].
+PROGRESS_STEP = 0.01
+#: How far behind / ahead of the last progress the next one is searched [m].
+PROGRESS_BACK, PROGRESS_AHEAD = 0.5, 3.0
+
+
+class FollowSettings(NamedTuple):
+    """The ``online`` section's loop settings.
+
+    Attributes:
+        map_topic: GridMap topic.
+        odom_topic: Odometry topic.
+        horizon: planned poses this far ahead of the robot [m].
+        replan_tol: gravity change that re-plans a pose [rad].
+    """
+
+    map_topic: str
+    odom_topic: str
+    horizon: float
+    replan_tol: float
+
+    @classmethod
+    def of(cls, problem: Problem) -> FollowSettings:
+        """The problem's ``online`` section (defaults filled in)."""
+        o = problem.section("online")
+        return cls(o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]))
+
+
+class FollowStep(NamedTuple):
+    """The loop's answer to one map.
+
+    Attributes:
+        time: the map's time from the recording's start [s].
+        s: the robot's progress along the route [m].
+        pose: the odometry pose (x, y, yaw) [m, m, rad].
+        covered: the map covers the robot's own footprint.
+        mu: μ now, the arm at ``q`` [N rad] (NaN when not covered).
+        mu_planned: the horizon's planned μ at ``s`` (interpolated) [N rad].
+        q: the arm's posture when the map arrived [rad].
+        qdot: the command: joint speeds (tracks, arm) [rad/s].
+        status: the controller's QP status (0 = solved).
+        replanned: horizon poses re-planned on this map.
+        uncovered: horizon poses the map does not cover.
+        covered_ahead: the route planned on this map ahead of the robot [m].
+        latency: wall time of the update [s].
+        G_T_B: the resting pose on the map (4, 4) (NaN when not covered); computed after
+            the timed part, for the recording of the run.
+        polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
+    """
+
+    time: float
+    s: float
+    pose: FloatArray
+    covered: bool
+    mu: float
+    mu_planned: float
+    q: FloatArray
+    qdot: FloatArray
+    status: int
+    replanned: int
+    uncovered: int
+    covered_ahead: float
+    latency: float
+    G_T_B: FloatArray
+    polygon: FloatArray
+
+
+class Follower:
+    """The loop's state between maps (module text); build with :func:`build_follower`."""
+
+    def __init__(
+        self,
+        problem: Problem,
+        route: RoutePath,
+        horizon: HorizonPlanner,
+        controller: Controller,
+        settings: FollowSettings,
+    ) -> None:
+        self.problem, self.route, self.horizon = problem, route, horizon
+        self.controller, self.settings = controller, settings
+        self.robot = problem.robot
+        self.friction = float(getattr(problem.terrain, "friction", 0.7))
+        self.s_fine = np.arange(0.0, route.length + PROGRESS_STEP, PROGRESS_STEP)
+        self.xy_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose[:, :2]
+        self.s: float | None = None
+        self.q = np.array(self.robot.stowed, dtype=float)
+        self.last_time: float | None = None
+        self.period = float(controller.params.dt)
+        self.ground = np.zeros((1, 3))  # local ground (z, roll, pitch) last used [m, rad, rad]
+
+    def progress(self, xy: FloatArray) -> float:
+        """Arc length [m] of the route point nearest ``xy``, near the last progress."""
+        if self.s is None:
+            window = np.ones(len(self.s_fine), dtype=bool)
+        else:
+            window = (self.s_fine >= self.s - PROGRESS_BACK) & (
+                self.s_fine <= self.s + PROGRESS_AHEAD
+            )
+        idx = np.flatnonzero(window)
+        d = np.linalg.norm(self.xy_fine[idx] - xy, axis=1)
+        return float(min(self.s_fine[idx[int(np.argmin(d))]], self.route.length))
+
+    def update(self, u: MapUpdate) -> FollowStep:
+        """One map (module text)."""
+        t0 = time.perf_counter()
+        terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
+        pose = u.odometry.pose
+        self.s = s = self.progress(pose[:2])
+        q = self.q.copy()
+        ks = self.horizon.window(s, self.settings.horizon)
+        ref_pose = self.route.route.sample(np.array([s])).pose
+        # one rest for all: the robot, its reference pose, the horizon's poses
+        rested = rest_where_covered(
+            terrain, np.vstack([pose[None], ref_pose, self.horizon.poses_grid[ks]])
+        )
+        arm_com = np.asarray(self.robot.arm_com(q), dtype=float)
+        horizon = Rested(*(a[2:] for a in rested))
+        changes = self.horizon.update(terrain, ks, horizon, u.time, arm_com, q)
+        covered = bool(rested.covered[0])
+        g_now = rested.gravity_body[0]
+        mu = float(robot_mu(self.robot, g_now, q)[0]) if covered else float("nan")
+        for i in (1, 0):  # the reference pose's ground, else the robot's, else the last
+            if rested.covered[i]:
+                self.ground = rested.ground[i : i + 1]
+                break
+        target, q_ref, mu_planned = self._reference(s)
+        qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
+        latency = time.perf_counter() - t0
+        G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
+        if covered:  # for the run's recording, outside the timed update
+            support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
+            G_T_B, polygon = support.G_T_B, support.polygon_G
+        return FollowStep(
+            u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
+            len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
+        )  # fmt: skip
+
+    def _reference(self, s: float) -> tuple[FloatArray | None, FloatArray | None, float]:
+        """The planned arm CoM [m], posture [rad] and μ [N rad] at ``s``, between plans."""
+        plans = self.horizon.plans
+        known = sorted(k for k in plans if abs(plans[k].s - s) <= 2 * self._spacing())
+        if not known:
+            return None, None, float("nan")
+        ss = np.array([plans[k].s for k in known])
+        pick = lambda name: np.array([getattr(plans[k], name) for k in known])  # noqa: E731
+        coms, qs, mus = pick("target_com"), pick("q"), pick("mu")
+        interp = lambda v: np.array([np.interp(s, ss, v[:, i]) for i in range(v.shape[1])])  # noqa: E731
+        return interp(coms), interp(qs), float(np.interp(s, ss, mus))
+
+    def _spacing(self) -> float:
+        grid = self.horizon.s_grid
+        return float(grid[1] - grid[0]) if len(grid) > 1 else DEFAULT_SPACING
+
+    def _step(
+        self,
+        pose: FloatArray,
+        ref_pose: FloatArray,
+        q: FloatArray,
+        target: FloatArray | None,
+        q_ref: FloatArray | None,
+        now: float,
+    ) -> tuple[FloatArray, int]:
+        """One controller step toward the references at ``ref_pose``; advance the posture.
+
+        Args:
+            pose: the robot's pose (x, y, yaw) [m, m, rad].
+            ref_pose: the route's pose at the robot's progress (1, 3).
+            q: the arm's posture [rad].
+            target: the planned arm CoM there, body frame [m] (None: hold the arm's).
+            q_ref: the planned posture there [rad] (None: hold).
+            now: the map's time [s].
+        """
+        dt = self.period if self.last_time is None else max(now - self.last_time, 1e-3)
+        self.last_time = now
+        if abs(dt - self.controller.params.dt) > 1e-9:
+            self.controller.set_params(self.controller.params._replace(dt=dt))
+        offset = self.controller.settings.base_offset
+        com_body = self.robot.arm_com(q) if target is None else target
+        points = np.array([[offset, 0.0, 0.0], com_body])
+        placed = place_local(
+            np.repeat(ref_pose, 2, axis=0), np.repeat(self.ground, 2, axis=0), points
+        )
+        xi_des = np.concatenate([placed.points[0, :2], ref_pose[0, 2:], placed.points[1]])
+        state = np.concatenate([pose, [0.0, 0.0], q])
+        result = self.controller.solve(state, xi_des, None, q_ref, None, self.ground[0])
+        self.q = q + result.qdot[-ARM_JOINTS:] * dt  # qdot: tracks, then the arm
+        return result.qdot, int(result.status)
+
+    def _covered_ahead(self, s: float, ks: list[int], changes: HorizonUpdate) -> float:
+        """The route ahead of ``s`` [m] up to the first horizon pose the map does not cover."""
+        missing = [self.horizon.s_grid[k] for k in changes.uncovered if self.horizon.s_grid[k] > s]
+        end = float(self.horizon.s_grid[ks[-1]]) if ks else s
+        return max(min(missing, default=end) - s, 0.0)
+
+
+def build_follower(problem: Problem, workspace: Workspace | None = None) -> Follower:
+    """The loop for a route problem: V (cached), the planning grid, the IK, the controller.
+
+    Raises:
+        MmstabError: the problem's path is not a route, or V is empty.
+    """
+    from mmstab.workspace.ik import PostureSolver
+
+    route = problem.route
+    if route is None:
+        raise MmstabError(f"{problem.path}: path: not a route (waypoints or file)")
+    ws, region = problem_region(problem, workspace, False)
+    section = problem.section("planner")
+    s_grid = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
+    settings = FollowSettings.of(problem)
+    horizon = HorizonPlanner(
+        problem.robot, region, PlannerSettings.from_section(section), s_grid,
+        route.route.sample(s_grid).pose, PostureSolver(problem.robot, ws).realise,
+        settings.replan_tol,
+    )  # fmt: skip
+    ctrl = build_controller(
+        problem.robot, ControllerSettings.from_section(problem.section("controller"))
+    )
+    return Follower(problem, route, horizon, ctrl, settings)

@@ -1,0 +1,123 @@
+"""A recording followed map by map (:func:`follow_recording`), and what it shows.
+
+The run is the loop's answers (:class:`~mmstab.runs.online.follow.FollowStep` per map) and
+the horizon's last plan of every route pose it planned. :func:`summarize` gives the latency
+percentiles, how often the horizon re-planned, what the maps did not cover, μ along the way
+and the tip-over verdict; :func:`run_frames` the run as a recording's frames
+(:mod:`mmstab.runs.recording`).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mmstab.core.problem import Problem
+from mmstab.runs.online.follow import FollowStep, build_follower
+from mmstab.runs.online.horizon import HorizonPose
+from mmstab.runs.online.stream import map_updates
+from mmstab.runs.recording import RunFrames
+from mmstab.workspace import Workspace
+
+
+@dataclass
+class FollowRun:
+    """A followed recording.
+
+    Attributes:
+        steps: the loop's answer to every map, in order.
+        plans: the horizon's last plan of each route pose it planned, by grid index.
+        skipped: maps received before any odometry (not followed).
+        s_grid: arc lengths of the route's planned poses (K,) [m].
+    """
+
+    steps: list[FollowStep]
+    plans: dict[int, HorizonPose]
+    skipped: int
+    s_grid: np.ndarray
+
+
+def follow_recording(
+    problem: Problem,
+    path: str | os.PathLike[str],
+    workspace: Workspace | None = None,
+    limit: int | None = None,
+) -> FollowRun:
+    """Follow a recording's maps with the problem's robot, route and settings.
+
+    Args:
+        problem: a route problem (its ``online`` section names the topics).
+        path: the recording (``.mcap``, ``.bag``, ROS 2 bag directory).
+        workspace: V (default: loaded from its cache or built).
+        limit: follow only the first ``limit`` maps.
+
+    Raises:
+        ConfigError: an unreadable recording, missing topics, bad maps (one line each).
+    """
+    follower = build_follower(problem, workspace)
+    skipped = [0]
+    steps = []
+    s = follower.settings
+    for u in map_updates(path, s.map_topic, s.odom_topic, skipped):
+        steps.append(follower.update(u))
+        if limit is not None and len(steps) >= limit:
+            break
+    return FollowRun(steps, dict(follower.horizon.plans), skipped[0], follower.horizon.s_grid)
+
+
+def _stats(values: np.ndarray, scale: float = 1.0) -> dict[str, float]:
+    v = np.asarray(values, dtype=float) * scale
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return {"p50": float("nan"), "p99": float("nan"), "max": float("nan"), "mean": float("nan")}
+    return {
+        "p50": float(np.percentile(v, 50)),
+        "p99": float(np.percentile(v, 99)),
+        "max": float(v.max()),
+        "mean": float(v.mean()),
+    }
+
+
+def summarize(run: FollowRun) -> dict[str, Any]:
+    """The run's numbers (module text); everything but ``latency_ms`` is deterministic."""
+    st = run.steps
+    if not st:
+        return {"updates": 0, "skipped_maps": run.skipped}
+    mu = np.array([x.mu for x in st])
+    covered = np.array([x.covered for x in st])
+    ahead = np.array([x.covered_ahead for x in st])
+    status = np.array([x.status for x in st])
+    tipped = [x for x in st if x.covered and x.mu < 0]
+    return {
+        "updates": len(st),
+        "skipped_maps": run.skipped,
+        "time_s": [st[0].time, st[-1].time],
+        "progress_m": [st[0].s, st[-1].s],
+        "latency_ms": _stats(np.array([x.latency for x in st]), 1e3),
+        "replanned_poses": int(sum(x.replanned for x in st)),
+        "updates_with_replan": int(sum(x.replanned > 0 for x in st)),
+        "robot_not_covered_updates": int((~covered).sum()),
+        "horizon_uncovered_updates": int(sum(x.uncovered > 0 for x in st)),
+        "covered_ahead_m": {"min": float(ahead.min()), "median": float(np.median(ahead))},
+        "mu_min": float(np.nanmin(mu)) if covered.any() else float("nan"),
+        "mu_planned_min": float(min(p.mu for p in run.plans.values())) if run.plans else None,
+        "planned_poses": len(run.plans),
+        "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
+        "qp_failures": int((status != 0).sum()),
+        "tipped": None if not tipped else {"time_s": tipped[0].time, "s_m": tipped[0].s},
+    }
+
+
+def run_frames(run: FollowRun) -> RunFrames:
+    """The covered updates as a recording's frames (the resting pose, posture, μ, polygon)."""
+    st = [x for x in run.steps if x.covered]
+    return RunFrames(
+        np.array([x.time for x in st]),
+        np.array([x.G_T_B for x in st]).reshape(-1, 4, 4),
+        np.array([x.q for x in st]),
+        np.array([x.mu for x in st]),
+        [x.polygon for x in st],
+    )
