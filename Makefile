@@ -133,7 +133,7 @@ $(BENCH_STAMP): $(STAMP)
 
 ## every benchmark, each JSON in results/bench/ refreshed (12 min here under load; not part of make test)
 BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
-	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas bench-roadmap
+	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas bench-roadmap bench-online
 .PHONY: $(BENCHES)
 bench: $(BENCHES)
 
@@ -227,6 +227,16 @@ rough: setup
 	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable --allow-sliding
 	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/rough.yaml -o results/rough
+
+## issue 26 (docs/online.md): a generated robot recording of the rough route, followed online
+.PHONY: online bench-online
+online: setup
+	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
+	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online
+
+## latency per map of mmstab follow (one core) beside the offline planner -> results/bench/online.json
+bench-online: setup
+	$(PY) benchmarks/bench_online.py problems/rough.yaml --recording results/online/rough.mcap
 
 kerb: setup
 	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable --allow-sliding

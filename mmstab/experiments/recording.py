@@ -36,6 +36,8 @@ from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 FRAME, BASE_FRAME = "odom", "base_link"
 #: Cell size of a ramp sampled as the recorded ground [m].
 RAMP_RESOLUTION = 0.05
+#: Receive delay of a map after its stamp [s]: it is built from the odometry of its stamp.
+MAP_DELAY = 1e-3
 #: Radius of an occluded (unknown) patch of the recorded ground [m].
 OCCLUSION_RADIUS = 0.15
 
@@ -214,7 +216,8 @@ def record_route(
             xy = route.pose_at(np.array([t / route.lap_time]))[0, :2]
             hm, variance, start = window_map(ground, hidden, xy, settings)
             frame = GridMapFrame(hm, FRAME, t, {"variance": variance})
-            w.write(settings.map_topic, GRIDMAP, t, to_message(frame, ros1, start))
+            # received after the odometry it was built with (its stamp stays t)
+            w.write(settings.map_topic, GRIDMAP, t + MAP_DELAY, to_message(frame, ros1, start))
     path = Path(out)
     size = sum(f.stat().st_size for f in path.rglob("*")) if path.is_dir() else path.stat().st_size
     return Recording(path, len(t_map), len(t_odom), float(T), int(size))

@@ -12,7 +12,9 @@
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
   risk stretches shaded;
 - ``route_3d.png``: the terrain, the route and the robot at rest with its planned posture
-  at snapshots along the way.
+  at snapshots along the way;
+- ``plan.mcap``: the plan as a recording for Foxglove/RViz (the resting pose and posture
+  at each planned pose at its time on the route; :mod:`mmstab.runs.recording`).
 
 The tracking run of a route is ``mmstab track`` (:mod:`mmstab.experiments.tracking`, the
 same figures as the ramp's run).
@@ -31,6 +33,7 @@ from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
+from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
 from mmstab.stability.static import mu_max
 
@@ -162,6 +165,11 @@ def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str,
     summary["quality"] = route_quality(problem, plan)
     write_figure(d / "route_mu.png", draw_route_mu(problem, plan, risk))
     write_figure(d / "route_3d.png", draw_route_3d(problem, plan))
+    t = plan.fractions * problem.route.lap_time if problem.route is not None else plan.s
+    frames = frames_at(
+        problem.terrain, problem.robot, t, plan.poses, plan.postures, plan.mu_planned
+    )
+    write_run(d / "plan.mcap", problem.robot, frames, mu_max(problem.robot))
     save_settings(d, problem)
     write_json(d / "summary.json", summary)
     return summary

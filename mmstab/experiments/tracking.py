@@ -3,7 +3,8 @@
 Fig. 9: desired and actual paths of the base control point and the arm CoM on the slope.
 Fig. 10: tracking errors of both. Fig. 11: joint speeds of the arm and of the two tracks, with
 their limits. Fig. 12: stability μ along the run with the arm reconfiguring, removed, stowed.
-Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, the settings used).
+Writes ``results/tracking/`` (figures, ``summary.json``, ``run.npz``, ``run.mcap`` for
+Foxglove/RViz (:mod:`mmstab.runs.recording`), the settings used).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from mmstab.core.files import write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.model.robot import FloatArray
+from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.tracking import (
     JOINT_NAMES,
     STATE_NAMES,
@@ -27,10 +29,13 @@ from mmstab.runs.tracking import (
     summarize,
 )
 from mmstab.runs.verdict import slip_verdict
+from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.viz.plotting import draw_base_topview, new_figure
 
 #: Sample spacing of the saved arrays (``run.npz``) [s].
 SAVE_EVERY_S = 0.01
+#: Sample rate of the run's recording (``run.mcap``) [Hz].
+BAG_RATE = 10.0
 
 
 def run_tracking(
@@ -109,6 +114,7 @@ def run_tracking(
         posture_knot_fractions=run.posture.fractions,
         posture_knots=run.posture.postures,
     )
+    _write_bag(d, problem, run)
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
@@ -125,6 +131,15 @@ def run_tracking(
     )
     write_json(d / "summary.json", summary)
     return summary
+
+
+def _write_bag(d: Path, problem: Problem, run: TrackingRun) -> None:
+    """The run as ``run.mcap`` at ``BAG_RATE`` (:mod:`mmstab.runs.recording`; Foxglove, RViz)."""
+    every = max(int(round(1.0 / (BAG_RATE * run.dt))), 1)
+    k = np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+    frames = frames_at(problem.terrain, problem.robot, run.t[k], run.state[k, :3],
+                       run.state[k, 5:], run.mu.reconfigured[k])  # fmt: skip
+    write_run(d / "run.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
 
 
 def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:

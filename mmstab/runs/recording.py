@@ -27,6 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from mmstab.core.bags import ROS1, BagWriter, bag_kind
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
 from mmstab.terrain.gridmap import typestore
 
 ODOM, BASE = "odom", "base_link"
@@ -55,6 +56,26 @@ class RunFrames(NamedTuple):
     q: FloatArray
     mu: FloatArray
     polygons: list[FloatArray]
+
+
+def frames_at(
+    terrain: Terrain, robot: Robot, t: FloatArray, poses: FloatArray, q: FloatArray, mu: FloatArray
+) -> RunFrames:
+    """A run's samples as frames: the base rested on ``terrain`` at each pose.
+
+    Args:
+        terrain: the ground (its map frame is the recording's ``odom``).
+        robot: the robot.
+        t: times (N,) [s].
+        poses: base poses (x, y, yaw) (N, 3) in the terrain's map frame.
+        q: arm postures (N, n) [rad].
+        mu: μ (N,) [N rad].
+    """
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    polygons = [terrain.support(robot, p).polygon_G for p in poses]
+    G_T_B = np.asarray(terrain.G_T_B(poses)).reshape(-1, 4, 4)
+    return RunFrames(np.asarray(t, dtype=float), G_T_B, np.asarray(q, dtype=float),
+                     np.asarray(mu, dtype=float), polygons)  # fmt: skip
 
 
 def joint_names(robot: Robot) -> list[str]:
@@ -169,8 +190,8 @@ def _polygon(store: Any, ros1: bool, t: float, poly: FloatArray, mu: float, mu_m
 
 def _marker_extras(store: Any, marker: Any) -> dict[str, Any]:
     """Fields newer Marker definitions add (empty texture, mesh file)."""
-    types, out = store.types, {}
-    names = marker.__dataclass_fields__
+    types, names = store.types, marker.__dataclass_fields__
+    out: dict[str, Any] = {}
     if "texture" in names:
         out["texture_resource"] = ""
         out["texture"] = types["sensor_msgs/msg/CompressedImage"](

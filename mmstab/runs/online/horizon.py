@@ -30,7 +30,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds
 from mmstab.planner.fitness import Fitness, pose_fitness
 from mmstab.planner.pose import Realise, realise_target, solve_pose
-from mmstab.planner.regions import PlanningRegion
+from mmstab.planner.regions import PlanningRegion, SampleIndex
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm import warm_pose
 from mmstab.planner.warm_start import warm_settings, warm_sigma
@@ -151,6 +151,7 @@ class HorizonPlanner:
         self.mu_max = stowed_flat_mu(robot)
         self.plans: dict[int, HorizonPose] = {}
         self.moved = settings.sigma0_metres(region.diameter)
+        self.index: SampleIndex | None
         try:
             self.index = region.index
         except MmstabError:  # a region without samples: no guard
