@@ -175,7 +175,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
 # apart by ``waypoints`` / ``file``.
 PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=NUM, direction={"enum": ["ccw", "cw"]})
 _ROUTE_BASE = with_optional(
-    obj(speed=POS, turn_radius=POS),  # reference speed on lines [m/s], corner arcs [m]
+    obj(speed=POS, turn_radius=NONNEG),  # speed on lines [m/s], corner arcs [m] (0: pivots)
     acceleration=POS,  # optional [m/s^2], default 0.3
     lateral_acceleration=POS,  # optional [m/s^2], default 0.3
 )
