@@ -244,6 +244,22 @@ def test_turn_radius_zero_loads_and_too_small_a_radius_is_still_refused(tmp_path
         problem_from_dict(small_problem(turn_radius=-1.0), tmp_path / "p.yaml")
 
 
+def test_the_footprint_check_sweeps_the_pivot(tmp_path):
+    """Near the map's edge (x = 3 m) the turning base leaves the map where driving does not.
+
+    The footprint (``footprint_body`` of cameleon.yaml) reaches 0.587 m ahead of the body
+    origin and 0.671 m at its corners: driving to x = 2.35 m the front stays at 2.94 m,
+    pivoting there a corner sweeps past 3 m; the error names the pivot's waypoint.
+    """
+    straight = small_problem(waypoints=[[-1.5, 0.0], [2.35, 0.0]])
+    assert problem_from_dict(straight, tmp_path / "p.yaml").route is not None
+    turning = small_problem(waypoints=[[-1.5, 0.0], [2.35, 0.0], [2.35, 1.2]])
+    with pytest.raises(ConfigError, match=r"path.waypoints\[1\]: the route pivoting here leaves"):
+        problem_from_dict(turning, tmp_path / "p.yaml")
+    inward = small_problem(waypoints=[[-1.5, 0.0], [2.2, 0.0], [2.2, 1.2]])  # 2.2 + 0.671 < 3
+    assert problem_from_dict(inward, tmp_path / "p.yaml").route is not None
+
+
 def _cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "MPLBACKEND": "Agg"}
     return subprocess.run(

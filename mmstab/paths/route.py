@@ -224,6 +224,15 @@ def nearest_segment(waypoints: FloatArray, point: ArrayLike) -> int:
     return int(np.argmin(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
 
 
+def pivot_at(route: Route, s: float) -> int | None:
+    """The waypoint whose pivot turn the route is in at arc length ``s`` [m], else ``None``."""
+    corners = [c.waypoint for c in route.corners if c.pivot]
+    for k, (s0, s1) in enumerate(route.pivot_spans):
+        if s0 <= s <= s1:
+            return corners[k]
+    return None
+
+
 def route_path_from_section(
     problem_path: str | os.PathLike[str], section: dict[str, Any], robot: Robot, terrain: Terrain
 ) -> RoutePath:
@@ -257,12 +266,13 @@ def route_path_from_section(
         else:
             wp = Waypoints(np.asarray(section["waypoints"], dtype=float), None)
             where, field = p, "path.waypoints[{}]"
-        k = nearest_segment(wp.xy, off[1])
+        pivot = pivot_at(planned.route, off[0])
+        k = nearest_segment(wp.xy, off[1]) if pivot is None else pivot
         raise ConfigError(
             where,
             field.format(k),
-            f"the route from here leaves known ground at arc length {off[0]:.2f} m: the base's "
-            f"footprint reaches ({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an "
-            "unknown (NaN) cell",
+            f"the route {'from here' if pivot is None else 'pivoting here'} leaves known "
+            f"ground at arc length {off[0]:.2f} m: the base's footprint reaches "
+            f"({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an unknown (NaN) cell",
         )
     return RoutePath(route=planned.route, profile=planned.profile)
