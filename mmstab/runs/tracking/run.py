@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.control.approach import Approach
-from mmstab.control.controller import ARM, ARM_JOINTS, QPStatus, TaskModel
+from mmstab.control.controller import ARM, QPStatus, TaskModel
 from mmstab.control.posture import PostureReference
 from mmstab.control.reference import PlanLike
 from mmstab.core.files import MmstabError
@@ -192,11 +192,12 @@ def check_plan(plan: TrackingPlan, robot: Robot) -> None:
     try:
         postures = np.asarray(plan.postures, dtype=float)
     except (AttributeError, TypeError, ValueError) as exc:
-        raise MmstabError(f"plan: the posture task needs postures (K, 4): {exc}") from None
-    if postures.shape != (fractions.size, ARM_JOINTS):
+        raise MmstabError(f"plan: the posture task needs postures (K, n): {exc}") from None
+    n = robot.arm_joints
+    if postures.shape != (fractions.size, n):
         raise MmstabError(
             f"plan: postures {postures.shape} do not match fractions {fractions.shape} "
-            f"(the posture task needs one arm posture (4,) per fraction)"
+            f"(the posture task needs one arm posture ({n},) per fraction)"
         )
     outside = (postures < robot.joint_lower) | (postures > robot.joint_upper)
     if not np.all(np.isfinite(postures)) or outside.any():
