@@ -70,7 +70,8 @@ def build_advance(model: TaskModel, step: ca.Function) -> ca.Function:
         Function (state, reference, params) -> (state_next, qdot [rad/s] as applied, status,
         finite), sized by ``model.layout`` (4-DoF arm: 9, 23, 42 -> 9, 6): ``qdot`` is the
         step's answer when its status is SUCCESS and zero otherwise; ``finite`` is 1 when every
-        component of ``state_next`` is finite. dt [s] is read from the parameters (``ControllerParams.dt``).
+        component of ``state_next`` is finite. dt [s] is read from the parameters
+        (``ControllerParams.dt``).
     """
     lay = model.layout
     state = ca.MX.sym("state", lay.state)
