@@ -18,20 +18,21 @@ from mmstab.stability.static import StabilityCases
 from mmstab.terrain import Terrain
 from mmstab.workspace.ik import COM_TOLERANCE
 
-#: Names of the state components, for messages and saved arrays.
-STATE_NAMES = (
-    "x",
-    "y",
-    "heading",
-    "theta_l",
-    "theta_r",
-    "theta_0",
-    "theta_1",
-    "theta_2",
-    "theta_3",
-)
-#: Names of the joints (q̇ columns), as in the summary.
-JOINT_NAMES = ("track_left", "track_right", "link0", "link1", "link2", "link3")
+
+def state_names(arm_joints: int) -> tuple[str, ...]:
+    """Names of the state components for an arm of ``arm_joints`` joints."""
+    return ("x", "y", "heading", "theta_l", "theta_r", *(f"theta_{j}" for j in range(arm_joints)))
+
+
+def joint_names(arm_joints: int) -> tuple[str, ...]:
+    """Names of the joints (q̇ columns, as in the summary) for an arm of ``arm_joints`` joints."""
+    return ("track_left", "track_right", *(f"link{j}" for j in range(arm_joints)))
+
+
+#: Names of the state components of the 4-DoF arm's runs, for messages and saved arrays.
+STATE_NAMES = state_names(4)
+#: Names of the 4-DoF arm's joints (q̇ columns), as in the summary.
+JOINT_NAMES = joint_names(4)
 InitialArm = Literal["stowed", "planned"]
 #: The transient ends once the arm-CoM error stays within this share of its initial value.
 TRANSIENT_FRACTION = 0.01
@@ -87,8 +88,8 @@ class TrackingRun:
         xi: task ξ in M (N+1, 6) [m, m, rad, m, m, m].
         xi_des: reference ξ_des in M (N+1, 6).
         xi_dot_ref: reference rate (N+1, 6) [m/s, rad/s].
-        q_ref: arm posture reference (N+1, 4) [rad].
-        posture_error: q_ref − q_arm (N+1, 4) [rad].
+        q_ref: arm posture reference (N+1, n) [rad].
+        posture_error: q_ref − q_arm (N+1, n) [rad].
         base_error: distance of the base control point from its reference (N+1,) [m].
         heading_error: wrapped heading error γ_des − γ (N+1,) [rad].
         arm_com_error: distance of the arm CoM from its reference (N+1,) [m].

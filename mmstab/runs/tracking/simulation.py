@@ -29,13 +29,13 @@ from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.runs.tracking.backend import StepBackend, as_backend, build_advance
 from mmstab.runs.tracking.run import (
-    STATE_NAMES,
     Failure,
     InitialArm,
     Tipping,
     TrackingPlan,
     TrackingRun,
     check_plan,
+    state_names,
     task_batch,
 )
 from mmstab.stability.dynamic import robot_mu
@@ -46,7 +46,8 @@ _PROGRESS_CHUNK = 500  # steps between progress-bar updates
 
 
 def _describe_nonfinite(state: FloatArray) -> str:
-    bad = [STATE_NAMES[i] for i in np.flatnonzero(~np.isfinite(state))]
+    names = state_names(len(state) - 5)
+    bad = [names[i] for i in np.flatnonzero(~np.isfinite(state))]
     return ", ".join(bad) if bad else "none"
 
 
