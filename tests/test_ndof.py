@@ -199,8 +199,11 @@ def test_a_six_joint_grid_is_sampled_and_seeded(robot6, problem6):
     # every drawn posture is a grid posture: on each joint's axis
     for j, axis in enumerate(a.axes):
         assert np.isin(q[:, j], axis).all()
-    # the 4-DoF default grid is labelled whole, as before
-    assert sizes.workspace_postures([24, 29, 25, 25]) == (24 * 29 * 25 * 25, False)
+    # the 4-DoF default grid is labelled whole, as before, and so is a large grid without
+    # workspace.samples (then refused by the size bounds, naming the setting to use)
+    assert sizes.workspace_postures([24, 29, 25, 25], samples) == (24 * 29 * 25 * 25, False)
+    assert sizes.workspace_postures(grid) == (int(np.prod(grid)), False)
+    assert "set workspace.samples" in sizes.workspace_estimate(grid).work
 
 
 def test_per_joint_settings_must_match_the_arm(tmp_path):

@@ -165,7 +165,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
         ),
         # optional: grid postures drawn (seeded by seed) when the full grid is over the size
-        # bound (mmstab.core.sizes.workspace_postures); default WS_DEFAULT_SAMPLES
+        # bound (mmstab.core.sizes.workspace_postures); left out: the whole grid
         samples=INT_POS,
     ),
     "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)

@@ -45,10 +45,9 @@ WS_BYTES_PER_POSTURE = 250.0
 WS_CHUNK_BYTES = 32e6
 #: Worker processes of the workspace build (``mmstab.workspace.build_workspace``).
 WS_WORKERS = 2
-#: A joint grid of more postures than this is sampled, not labelled whole (6-DoF arms).
+#: A joint grid of more postures than this is sampled when ``workspace.samples`` is set
+#: (a 6-DoF arm's grid), not labelled whole.
 WS_FULL_GRID_MAX = 2_000_000
-#: Postures drawn from such a grid when ``workspace.samples`` is left out.
-WS_DEFAULT_SAMPLES = 200_000
 #: Precision of V (fig3): one point drawn in V and its nearest valid CoM [s] (measured
 #: 53 us with the cell size's fixed part).
 PRECISION_SECONDS_PER_SAMPLE = 1e-4
@@ -157,28 +156,30 @@ def human_seconds(s: float) -> str:
 def workspace_postures(grid: Sequence[int], samples: int | None = None) -> tuple[int, bool]:
     """The postures the workspace build labels, and whether it samples them.
 
-    The full joint grid (one posture per grid point) up to :data:`WS_FULL_GRID_MAX` postures;
-    beyond it (a 6-DoF arm's grid), ``samples`` grid postures drawn at random (seeded by
-    ``workspace.seed``; default :data:`WS_DEFAULT_SAMPLES`).
+    The full joint grid (one posture per grid point) up to :data:`WS_FULL_GRID_MAX` postures,
+    or without ``workspace.samples``; beyond it with ``samples`` set (a 6-DoF arm's grid),
+    ``samples`` grid postures drawn at random (seeded by ``workspace.seed``). A grid over the
+    bound without ``samples`` is estimated whole (and refused if too large, as any size).
 
     Returns:
         (postures labelled, True if sampled).
     """
     full = math.prod(int(k) for k in grid)
-    if full <= WS_FULL_GRID_MAX:
+    if full <= WS_FULL_GRID_MAX or samples is None:
         return full, False
-    return min(int(samples or WS_DEFAULT_SAMPLES), full), True
+    return min(int(samples), full), True
 
 
 def workspace_estimate(grid: Sequence[int], samples: int | None = None) -> Estimate:
     """The workspace build of a joint grid (samples per joint): full, or sampled above a bound."""
     n, sampled = workspace_postures(grid, samples)
     shape = " x ".join(str(int(k)) for k in grid)
+    hint = f"; over {WS_FULL_GRID_MAX}: set workspace.samples to sample it"
     return Estimate(
         "workspace.grid",
         f"{n} postures sampled of the {shape} grid (over {WS_FULL_GRID_MAX} postures)"
         if sampled
-        else f"{n} postures ({shape})",
+        else f"{n} postures ({shape}{hint if n > WS_FULL_GRID_MAX else ''})",
         n * WS_SECONDS_PER_POSTURE / workspace_workers(),
         n * WS_BYTES_PER_POSTURE + (workspace_workers() + 1) * WS_CHUNK_BYTES,
     )

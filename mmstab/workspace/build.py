@@ -88,7 +88,7 @@ def build_workspace(
             process.
         chunk: postures per chunk.
         progress: show a tqdm progress bar.
-        samples: postures drawn from a grid over the bound (default: the bound's default).
+        samples: postures drawn from a grid over the bound (None: the whole grid).
         seed: seed of that draw (``workspace.seed``).
     """
     t0 = time.perf_counter()

@@ -2,7 +2,7 @@
 
 One sampling per arm joint (any number of joints). A grid over the size bound
 (:func:`mmstab.core.sizes.workspace_postures`: a 6-DoF arm's) is not labelled whole: a seeded
-random draw of its postures is (``JointGrid.picks``).
+random draw of ``workspace.samples`` of its postures is (``JointGrid.picks``).
 """
 
 from __future__ import annotations
@@ -57,13 +57,13 @@ def joint_grid(
 
     A joint spanning a full turn (the turret, [0, 2 pi]) omits its upper end, which is
     the same posture as its lower end. A grid over the size bound
-    (:func:`mmstab.core.sizes.workspace_postures`) keeps ``samples`` of its postures, drawn
-    uniformly without replacement by ``numpy.random.default_rng(seed)``.
+    (:func:`mmstab.core.sizes.workspace_postures`) with ``samples`` set keeps ``samples`` of
+    its postures, drawn uniformly without replacement by ``numpy.random.default_rng(seed)``.
 
     Args:
         robot: the robot (joint limits).
         counts: samples per joint, one integer >= 2 per arm joint.
-        samples: postures drawn from a grid over the bound (default: the bound's default).
+        samples: postures drawn from a grid over the bound (None: the whole grid).
         seed: seed of that draw.
     """
     axes, step = [], []

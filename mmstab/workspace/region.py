@@ -126,6 +126,11 @@ class Workspace:
         """Number of grid postures."""
         return len(self.valid_q) + len(self.invalid_q)
 
+    @property
+    def how_sampled(self) -> str:
+        """`` sampled of the AxBx... grid`` when drawn from a grid over the bound, else ``""``."""
+        return f" sampled of the {'x'.join(map(str, self.grid))} grid" if self.samples else ""
+
     @functools.cached_property
     def volume_all(self) -> float:
         """Volume of hull(all CoMs) [m^3]."""

@@ -117,9 +117,8 @@ def simulate(
         s0 = initial_state(problem.base_path, arm)
     else:
         s0 = np.asarray(state0, dtype=float)
-    n_state = 5 + robot.arm_joints
-    if s0.shape != (n_state,):
-        raise MmstabError(f"initial state must have shape ({n_state},), got {s0.shape}")
+    if s0.shape != (5 + robot.arm_joints,):
+        raise MmstabError(f"initial state must be ({5 + robot.arm_joints},), got {s0.shape}")
     if not np.all(np.isfinite(s0)):
         raise MmstabError(f"initial state is not finite ({_describe_nonfinite(s0)})")
 
