@@ -259,7 +259,7 @@ def step_operations(problem: Problem, plugin: str) -> dict:
     """
     ctrl = build_controller(problem.robot, controller_settings(problem, plugin))
     sx_parts = [ctrl.qp]  # J, H, g, bounds, pre-solve checks
-    _, certificate = build_guard_and_certificate(ctrl.settings.kkt_tol)
+    _, certificate = build_guard_and_certificate(ctrl.settings.kkt_tol, ctrl.layout.joints)
     sx_parts.append(certificate)
     counted = {f.name(): f.n_instructions() - f.nnz_in() - f.nnz_out() for f in sx_parts}
     n = 6

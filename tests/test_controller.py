@@ -191,7 +191,7 @@ def test_certificate_judges_the_posture_term(robot, controllers, rng):
     from mmstab.control.controller.certificate import build_guard_and_certificate
 
     c = controllers["qrqp"]
-    _, certificate = build_guard_and_certificate(c.settings.kkt_tol)
+    _, certificate = build_guard_and_certificate(c.settings.kkt_tol, c.layout.joints)
     W_q = np.r_[0.0, 0.0, c.params.posture_weight]
     refused = 0
     for state in random_states(robot, rng, 10, margin=0.3):

@@ -40,7 +40,7 @@ def test_jacobian_is_the_rate_of_the_value_along_the_plant(model, problem, rng, 
             np.asarray(value(model.integrate(s, qdot, h), ground))
             - np.asarray(value(model.integrate(s, qdot, -h), ground))
         ).ravel() / (2 * h)
-        assert np.asarray(jac(s, ground)).shape == (task.size, 6)
+        assert np.asarray(jac(s, ground)).shape == (task.rows(model), 6)
         np.testing.assert_allclose(np.asarray(jac(s, ground)) @ qdot, fd, atol=1e-7)
 
 

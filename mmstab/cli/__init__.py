@@ -20,7 +20,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from mmstab.cli.checks import check_options, check_outputs
+from mmstab.cli.checks import check_options, check_outputs, report_route
 from mmstab.cli.commands import COMMANDS, EXTRA_OPTIONS, PROBLEM_COMMANDS, _urdf, _urdf_out
 from mmstab.cli.online import add_online_commands
 from mmstab.cli.status import (
@@ -86,6 +86,7 @@ def _run(args: argparse.Namespace) -> int:
     problem = load_problem(args.problem, force_size=args.force_size)
     check_options(args, problem)
     check_outputs(args, problem)
+    report_route(problem)
     return args.handler(args, problem) or EXIT_OK
 
 

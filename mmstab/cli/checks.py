@@ -68,3 +68,14 @@ def check_outputs(args: argparse.Namespace, problem: Any) -> None:
         if what == "codegen.directory":
             raise ConfigError(problem.path, what, f"cannot write to {folder}: {why}")
         raise MmstabError(f"{what} {folder}: {why}")
+
+
+def report_route(problem: Any) -> None:
+    """Say what the route check did: one ``route:`` line per pivot turn (none on a circle).
+
+    A corner whose arc does not fit between its neighbours, or every corner with
+    ``turn_radius: 0``, is driven as a pivot turn on the spot (``docs/routes.md``).
+    """
+    route = problem.route
+    for line in [] if route is None else route.report():
+        print(f"route: {line}")

@@ -87,7 +87,7 @@ def _workspace(args: argparse.Namespace, problem: Any) -> None:
     ws = workspace(problem, force=args.force, cache_dir=args.out)
     how = "loaded" if path.stat().st_mtime_ns == before else "built"
     print(
-        f"workspace: {ws.postures} postures, {len(ws.valid_com)} valid, "
+        f"workspace: {ws.postures} postures{ws.how_sampled}, {len(ws.valid_com)} valid, "
         f"{len(ws.invalid_com)} invalid, diameter {ws.diameter:.3f} m "
         f"(build {ws.build_seconds:.1f} s); {how}: {path}"
     )

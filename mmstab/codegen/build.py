@@ -168,10 +168,10 @@ def generate(
         for f in functions:
             gen.add(f)
         gen.generate(f"{tmp}/")
-        solver = boxqp_source() if plugin == "box" else None
+        solver = boxqp_source(ctrl.layout.joints) if plugin == "box" else None
         c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    layout = layout_header(settings.kkt_tol)
+    layout = layout_header(settings.kkt_tol, ctrl.layout.arm)
     for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout)):
         _write_text(path, text)
     stderr = compile_c([c_file], library, plugin, shared=True, native=native)

@@ -4,13 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from mmstab.control.controller import (
-    PARAMS_SIZE,
-    REFERENCE_SIZE,
-    STATE_SIZE,
-    Controller,
-    ControllerParams,
-)
+from mmstab.control.controller import Controller, ControllerParams
 from mmstab.control.plant import PLANT_NAME
 
 STEP_NAME = "controller_step"  #: the exported step (and the .c/.h file stem)
@@ -25,11 +19,12 @@ def closed_loop(ctrl: Controller) -> ca.Function:
     """One closed-loop step: controller step, then the exact-arc motion over ``params.dt``.
 
     Returns:
-        ``Function`` (state (9), reference (23), params (42)) -> (state_next (9), qdot (6)
-        [rad/s], status).
+        ``Function`` (state, reference, params) -> (state_next, qdot [rad/s], status), sized
+        by ``ctrl.layout`` (4-DoF arm: 9, 23, 42 -> 9, 6, 1).
     """
-    state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
-    p = ca.MX.sym("params", PARAMS_SIZE)
+    lay = ctrl.layout
+    state, ref = ca.MX.sym("state", lay.state), ca.MX.sym("reference", lay.reference)
+    p = ca.MX.sym("params", lay.params)
     qdot, status, _ = ctrl.step(state, ref, p)
     nxt = ctrl.model.f_integrate(state, qdot, ControllerParams.unpack(p).dt)
     return ca.Function(
@@ -45,13 +40,15 @@ def rollout_chunk(ctrl: Controller, steps: int = ROLLOUT_CHUNK) -> ca.Function:
     """``steps`` closed-loop steps in one Function (``mapaccum`` of :func:`closed_loop`).
 
     Returns:
-        ``Function`` ``controller_rollout`` (state0 (9), references (23 x steps), params (42))
-        -> (states after each step (9 x steps), qdot (6 x steps), status (1 x steps)).
+        ``Function`` ``controller_rollout`` (state0, references (· x steps), params) ->
+        (states after each step (· x steps), qdot (· x steps), status (1 x steps)), sized by
+        ``ctrl.layout`` (4-DoF arm: 9, 23, 42 -> 9, 6).
     """
+    lay = ctrl.layout
     acc = closed_loop(ctrl).mapaccum("closed_loop_acc", steps)
-    x0 = ca.MX.sym("state0", STATE_SIZE)
-    refs = ca.MX.sym("references", REFERENCE_SIZE, steps)
-    p = ca.MX.sym("params", PARAMS_SIZE)
+    x0 = ca.MX.sym("state0", lay.state)
+    refs = ca.MX.sym("references", lay.reference, steps)
+    p = ca.MX.sym("params", lay.params)
     states, qdot, status = acc(x0, refs, ca.repmat(p, 1, steps))
     return ca.Function(
         ROLLOUT_NAME,

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from mmstab.control.layout import JOINT_COUNT, JOINTS, STATE_SIZE
+from mmstab.control.layout import JOINTS, Layout
 from mmstab.model.robot import Robot
 
 PLANT_NAME = "controller_plant"  #: the plant's Function (and C symbol) name
@@ -29,11 +29,13 @@ def build_plant(robot: Robot) -> ca.Function:
         robot: the robot (sprocket radius r [m], track separation b [m]).
 
     Returns:
-        ``controller_plant`` (state (9), qdot (6) [rad/s], dt [s]) -> state after dt (9).
+        ``controller_plant`` (state (5 + n), qdot (2 + n) [rad/s], dt [s]) -> state after dt
+        (5 + n), for an arm of n joints (:class:`~mmstab.control.layout.Layout`).
     """
     tracks = robot.base.tracks
     r, b = tracks.sprocket_radius, tracks.separation
-    s, qdot, dt = ca.SX.sym("state", STATE_SIZE), ca.SX.sym("qdot", JOINT_COUNT), ca.SX.sym("dt")
+    lay = Layout.of(robot)
+    s, qdot, dt = ca.SX.sym("state", lay.state), ca.SX.sym("qdot", lay.joints), ca.SX.sym("dt")
     x, y, heading = s[0], s[1], s[2]
     v, w = r * (qdot[0] + qdot[1]) / 2, r * (qdot[1] - qdot[0]) / b
     half = w * dt / 2

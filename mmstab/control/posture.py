@@ -65,15 +65,16 @@ class PosturePlan(PlanLike, Protocol):
 
 
 def arm_com_jacobians(robot: Robot, q: ArrayLike) -> FloatArray:
-    """The arm-CoM Jacobians d g_a^B / d q at many postures (N, 3, 4) [m/rad].
+    """The arm-CoM Jacobians d g_a^B / d q at many postures (N, 3, n) [m/rad].
 
     Args:
         robot: the robot.
-        q: arm postures (N, 4) [rad].
+        q: arm postures (N, n) [rad].
     """
     qa = np.atleast_2d(np.asarray(q, dtype=float))
-    out = np.asarray(robot.kinematics.f_arm_com_jac.map(len(qa))(qa.T))  # (3, 4 N)
-    return out.reshape(3, len(qa), 4).transpose(1, 0, 2)
+    n = qa.shape[1]
+    out = np.asarray(robot.kinematics.f_arm_com_jac.map(len(qa))(qa.T))  # (3, n N)
+    return out.reshape(3, len(qa), n).transpose(1, 0, 2)
 
 
 def posture_com(robot: Robot, posture: PathSample) -> PathSample:

@@ -117,17 +117,17 @@ def initial_state(circle: BasePath, arm: ArrayLike, lateral_offset: float = 0.0)
 
     Args:
         circle: the base path (its pose at s = 0).
-        arm: the arm posture (4,) [rad] (e.g. the robot's stowed posture or a plan's first).
+        arm: the arm posture (n,) [rad] (e.g. the robot's stowed posture or a plan's first).
         lateral_offset: shift of the base to the left of the path [m].
 
     Returns:
-        [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
+        [x, y, γ, θ_l, θ_r, θ_0..θ_{n-1}] (5 + n,) [m, m, rad, rad...].
     """
     pose = circle.pose_at(0.0)[0]
     left = np.array([-np.sin(pose[2]), np.cos(pose[2])])
     arm = np.asarray(arm, dtype=float)
-    if arm.shape != (4,):
-        raise ValueError(f"the arm posture must be (4,), got {arm.shape}")
+    if arm.ndim != 1 or arm.size == 0:
+        raise ValueError(f"the arm posture must be (n,), got {arm.shape}")
     return np.r_[pose[:2] + lateral_offset * left, pose[2], 0.0, 0.0, arm]
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 from mmstab.core import schema
 from mmstab.core.files import ConfigError, MmstabError, read_yaml, validate
-from mmstab.core.settings import check_problem
+from mmstab.core.settings import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
 from mmstab.model.robot import Robot, load_robot
@@ -130,6 +130,7 @@ def problem_from_dict(
     else:
         validate(p, {"path": c}, schema.obj(path=schema.PATH_CIRCLE))
     robot = load_robot(robot_path)
+    check_arm_joints(p, data, robot.arm_joints)
     if "payload" in data:  # optional: without it the robot is the file's, unchanged
         robot = attach_payload(robot, payload_from_section(p, data["payload"]))
     terrain = from_section(p, data["terrain"], robot)

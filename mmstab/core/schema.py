@@ -40,6 +40,10 @@ def obj(**props: Any) -> dict[str, Any]:
     }
 
 
+#: The most arm joints a robot file may list (the QP has 2 + n variables).
+MAX_ARM_JOINTS = 12
+
+
 def with_optional(schema: dict[str, Any], **props: Any) -> dict[str, Any]:
     """A closed object schema with extra keys that may be left out (their default applies)."""
     return {**schema, "properties": {**schema["properties"], **props}}
@@ -91,8 +95,9 @@ ROBOT = obj(
     ),
     arm=obj(
         mount=obj(xyz=VEC3, rpy=VEC3),
-        links={"type": "array", "items": LINK, "minItems": 4, "maxItems": 4},
-        stowed=VEC4,
+        # any number of joints (the 4-DoF Cameleon, a 6-DoF variant: robots/cameleon_6dof.yaml)
+        links={"type": "array", "items": LINK, "minItems": 1, "maxItems": MAX_ARM_JOINTS},
+        stowed=vec_min(1),  # one angle per link
     ),
 )
 
@@ -142,9 +147,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         duration=POS,
         kp=vec(6, POS),
         w_a=vec(6, NONNEG),
-        w_b=vec(6, POS),
-        posture_gain=vec(4, NONNEG),
-        posture_weight=vec(4, NONNEG),
+        w_b=vec_min(3, POS),  # per joint: 2 sprockets + the arm's n (checked at load)
+        posture_gain=vec_min(1, NONNEG),  # per arm joint (n, checked at load)
+        posture_weight=vec_min(1, NONNEG),
         plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},
         feedforward={"type": "boolean"},
         base_offset=NONNEG,
@@ -152,11 +157,16 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         kkt_tol=POS,
         osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
     ),
-    "workspace": obj(
-        grid=vec(4, {"type": "integer", "minimum": 2}),
-        precision_samples=INT_POS,
-        seed=SEED,
-        method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
+    "workspace": with_optional(
+        obj(
+            grid=vec_min(1, {"type": "integer", "minimum": 2}),  # per arm joint (checked at load)
+            precision_samples=INT_POS,
+            seed=SEED,
+            method={"enum": ["hull_difference", "valid_samples"]},  # the planner's region
+        ),
+        # optional: grid postures drawn (seeded by seed) when the full grid is over the size
+        # bound (mmstab.core.sizes.workspace_postures); left out: the whole grid
+        samples=INT_POS,
     ),
     "codegen": obj(  # the controller step as generated C (mmstab/codegen.py)
         plugin={"enum": ["qpoases", "osqp", "qrqp", "daqp", "box"]},  # qpoases: refused, clearly
@@ -175,7 +185,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
 # apart by ``waypoints`` / ``file``.
 PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=NUM, direction={"enum": ["ccw", "cw"]})
 _ROUTE_BASE = with_optional(
-    obj(speed=POS, turn_radius=POS),  # reference speed on lines [m/s], corner arcs [m]
+    obj(speed=POS, turn_radius=NONNEG),  # speed on lines [m/s], corner arcs [m] (0: pivots)
     acceleration=POS,  # optional [m/s^2], default 0.3
     lateral_acceleration=POS,  # optional [m/s^2], default 0.3
 )

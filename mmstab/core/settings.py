@@ -66,6 +66,30 @@ def check_controller(path: Path, section: Mapping[str, Any]) -> None:
             )
 
 
+def check_arm_joints(path: Path, data: Mapping[str, Any], n: int) -> None:
+    """Per-joint settings sized for the robot's arm of ``n`` joints.
+
+    ``controller.w_b`` has 2 + n weights (sprockets, then the arm), ``controller.posture_gain``
+    and ``controller.posture_weight`` n, ``workspace.grid`` n sample counts.
+
+    Raises:
+        ConfigError: naming the first field of the wrong length.
+    """
+    wanted = {
+        "controller.w_b": 2 + n,
+        "controller.posture_gain": n,
+        "controller.posture_weight": n,
+        "workspace.grid": n,
+    }
+    for field, size in wanted.items():
+        section, key = field.split(".")
+        got = len(data[section][key])
+        if got != size:
+            raise ConfigError(
+                path, field, f"has {got} entries; the robot's {n}-joint arm needs {size}"
+            )
+
+
 def check_plugin(plugin: str) -> None:
     """Raise :class:`MmstabError` unless CasADi can generate C for ``plugin``."""
     if plugin == "qpoases":

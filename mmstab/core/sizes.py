@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -45,6 +45,9 @@ WS_BYTES_PER_POSTURE = 250.0
 WS_CHUNK_BYTES = 32e6
 #: Worker processes of the workspace build (``mmstab.workspace.build_workspace``).
 WS_WORKERS = 2
+#: A joint grid of more postures than this is sampled when ``workspace.samples`` is set
+#: (a 6-DoF arm's grid), not labelled whole.
+WS_FULL_GRID_MAX = 2_000_000
 #: Precision of V (fig3): one point drawn in V and its nearest valid CoM [s] (measured
 #: 53 us with the cell size's fixed part).
 PRECISION_SECONDS_PER_SAMPLE = 1e-4
@@ -150,12 +153,33 @@ def human_seconds(s: float) -> str:
 
 
 # ------------------------------------------------------------------------------- estimates
-def workspace_estimate(grid: list[int] | tuple[int, ...]) -> Estimate:
-    """The workspace build of a joint grid (samples per joint)."""
-    n = math.prod(int(k) for k in grid)
+def workspace_postures(grid: Sequence[int], samples: int | None = None) -> tuple[int, bool]:
+    """The postures the workspace build labels, and whether it samples them.
+
+    The full joint grid (one posture per grid point) up to :data:`WS_FULL_GRID_MAX` postures,
+    or without ``workspace.samples``; beyond it with ``samples`` set (a 6-DoF arm's grid),
+    ``samples`` grid postures drawn at random (seeded by ``workspace.seed``). A grid over the
+    bound without ``samples`` is estimated whole (and refused if too large, as any size).
+
+    Returns:
+        (postures labelled, True if sampled).
+    """
+    full = math.prod(int(k) for k in grid)
+    if full <= WS_FULL_GRID_MAX or samples is None:
+        return full, False
+    return min(int(samples), full), True
+
+
+def workspace_estimate(grid: Sequence[int], samples: int | None = None) -> Estimate:
+    """The workspace build of a joint grid (samples per joint): full, or sampled above a bound."""
+    n, sampled = workspace_postures(grid, samples)
+    shape = " x ".join(str(int(k)) for k in grid)
+    hint = f"; over {WS_FULL_GRID_MAX}: set workspace.samples to sample it"
     return Estimate(
         "workspace.grid",
-        f"{n} postures ({' x '.join(str(int(k)) for k in grid)})",
+        f"{n} postures sampled of the {shape} grid (over {WS_FULL_GRID_MAX} postures)"
+        if sampled
+        else f"{n} postures ({shape}{hint if n > WS_FULL_GRID_MAX else ''})",
         n * WS_SECONDS_PER_POSTURE / workspace_workers(),
         n * WS_BYTES_PER_POSTURE + (workspace_workers() + 1) * WS_CHUNK_BYTES,
     )
@@ -288,7 +312,9 @@ def estimates(
     terrain = terrain_estimate(data["terrain"])
     return {
         **({"terrain": terrain} if terrain is not None else {}),
-        "workspace": workspace_estimate(data["workspace"]["grid"]),
+        "workspace": workspace_estimate(
+            data["workspace"]["grid"], data["workspace"].get("samples")
+        ),
         "precision": precision_estimate(data["workspace"]),
         "controller": steps_estimate(field, duration, ctrl["dt"]),
         "planner": planner_estimate(data["planner"], poses),

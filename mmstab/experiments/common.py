@@ -47,3 +47,12 @@ def circular_extrema(values: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     maxima = np.flatnonzero((v > prev) & (v > nxt_diff) & (v >= nxt))
     minima = np.flatnonzero((v < prev) & (v < nxt_diff) & (v <= nxt))
     return maxima, minima
+
+
+def route_corners(problem: Problem) -> dict[str, Any]:
+    """``{"corners": [...]}``: how a route turns at each corner (arc or pivot), else ``{}``.
+
+    The route check's account for a summary (``mmstab.paths.route.RoutePath.corners``).
+    """
+    route = problem.route
+    return {} if route is None else {"corners": route.corners(), "pivots": route.report()}

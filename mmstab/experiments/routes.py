@@ -6,7 +6,9 @@
   poses [N rad]), ``s`` (their arc lengths [m]), ``risk`` (the stretches below
   ``planner.margin``, and those where only the stowed arm is), ``ms_per_pose`` (median
   wall time of a warm-started pose's search; ``cpu_ms_per_pose`` its CPU time, less
-  sensitive to a shared machine), the per-pose details and the stability verdict, and
+  sensitive to a shared machine), ``route`` (length, which includes the pivot turns' track
+  travel, duration, and how it turns at each corner: ``corners``, ``pivots``, the route
+  check's lines), the per-pose details and the stability verdict, and
   ``quality``: per pose the planned μ, the best μ over V's samples and (``method:
   roadmap``) over the roadmap's reachable postures, and the gaps (:func:`route_quality`);
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
@@ -31,7 +33,7 @@ from mmstab.app import plan as make_plan
 from mmstab.core.files import MmstabError, write_figure, write_json
 from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
-from mmstab.experiments.common import output_dir, save_settings
+from mmstab.experiments.common import output_dir, route_corners, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
@@ -81,6 +83,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
             "duration_s": route.duration,
             "max_curvature_per_m": route.route.max_curvature,
             "speed_max_m_s": float(route.profile.v.max()),
+            **route_corners(problem),
         },
         "mu_max": mu_max(robot),
         "s": plan.s.tolist(),

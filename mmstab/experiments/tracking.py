@@ -17,7 +17,7 @@ import numpy as np
 from mmstab.app import Backend, track
 from mmstab.core.files import write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
-from mmstab.experiments.common import output_dir, save_settings
+from mmstab.experiments.common import output_dir, route_corners, save_settings
 from mmstab.model.robot import FloatArray
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.tracking import (
@@ -118,7 +118,7 @@ def run_tracking(
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
-    summary["slip"] = slip_verdict(problem.terrain, run.state[keep, :3])
+    summary |= {"slip": slip_verdict(problem.terrain, run.state[keep, :3])} | route_corners(problem)
     save_settings(
         d,
         problem,

@@ -28,8 +28,14 @@ from mmstab.model.robot import Box, FloatArray, Geometry, Robot
 #: The base parts an arm link is checked against, in checking order.
 BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
 
-#: Non-adjacent arm link pairs checked against each other.
-ARM_PAIRS = ((0, 2), (0, 3), (1, 3))
+
+def arm_pairs(n: int) -> tuple[tuple[int, int], ...]:
+    """The non-adjacent arm link pairs (i, j), i < j − 1, checked against each other."""
+    return tuple((i, j) for i in range(n) for j in range(i + 2, n))
+
+
+#: Non-adjacent arm link pairs of the 4-DoF arm.
+ARM_PAIRS = arm_pairs(4)
 
 #: Slack added to a culling distance so that round-off never culls a touching pair [m].
 CULL_SLACK = 1e-9
@@ -147,7 +153,7 @@ class CollisionChecker:
             ]
             + [
                 Pair(f"{names[i]}-{names[j]}", i, j, tuple(range(i + 1, j + 1)))
-                for i, j in ARM_PAIRS
+                for i, j in arm_pairs(len(names))
             ]
         )
 
@@ -268,7 +274,7 @@ class CollisionChecker:
         Args:
             q: joint angles (4,) [rad].
         """
-        qa = np.asarray(q, dtype=float).reshape(1, 4)
+        qa = np.asarray(q, dtype=float).reshape(1, len(self.robot.links))
         R, p = self.shape_poses(qa)
         rows = np.zeros(1, dtype=np.intp)
         return [pair.name for pair in self.pairs if self._fcl(pair, R, p, rows)[0]]

@@ -1,4 +1,4 @@
-"""Robot description: a tracked base (body, two tracks, two flippers) and a 4-DoF arm.
+"""Robot description: a tracked base (body, two tracks, two flippers) and an n-DoF arm.
 
 Loaded from YAML (``problems/robots/*.yaml``), validated once, and held as frozen
 dataclasses of NumPy arrays. Frames follow ``docs/design.md``, "Frames": the body frame B has its
@@ -65,9 +65,9 @@ class Robot:
     Attributes:
         name: robot name.
         base: the tracked base.
-        links: the four arm links in chain order (link 0 = turret).
+        links: the arm links in chain order (link 0 = turret); n = ``len(links)`` joints.
         mount_T: pose of the arm's mounting frame in the body frame (4x4) [m].
-        stowed: the folded arm posture (4,) [rad].
+        stowed: the folded arm posture (n,) [rad].
         source_hash: SHA-256 of the description's content, for cache keys.
         tool_wrench: external wrench at the tool (the wrist frame's origin), body frame,
             ``[f (3) [N], n (3) [N m]]`` (6,), or None (``mmstab.model.payload``). It loads the
@@ -93,18 +93,23 @@ class Robot:
         return self.arm_mass + self.base.mass
 
     @property
+    def arm_joints(self) -> int:
+        """The arm's joint count n (``len(links)``, the robot file's ``arm.links``)."""
+        return len(self.links)
+
+    @property
     def joint_lower(self) -> FloatArray:
-        """Arm joint lower limits (4,) [rad]."""
+        """Arm joint lower limits (n,) [rad]."""
         return np.array([link.lower for link in self.links])
 
     @property
     def joint_upper(self) -> FloatArray:
-        """Arm joint upper limits (4,) [rad]."""
+        """Arm joint upper limits (n,) [rad]."""
         return np.array([link.upper for link in self.links])
 
     @property
     def joint_velocity(self) -> FloatArray:
-        """Arm joint speed limits (4,) [rad/s]."""
+        """Arm joint speed limits (n,) [rad/s]."""
         return np.array([link.velocity for link in self.links])
 
     @functools.cached_property
@@ -116,7 +121,7 @@ class Robot:
         """Arm CoM g_a in the body frame (Eq. 1 without G_T_B) [m].
 
         Args:
-            q: arm joint angles, (4,) or (N, 4) [rad].
+            q: arm joint angles, (n,) or (N, n) [rad].
 
         Returns:
             (3,) or (N, 3) [m].
@@ -175,6 +180,10 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
             )
         )
     stowed = np.array(data["arm"]["stowed"], float)
+    if len(stowed) != len(links):
+        raise ConfigError(
+            p, "arm.stowed", f"has {len(stowed)} angles for {len(links)} links (one per joint)"
+        )
     for i, (qi, link) in enumerate(zip(stowed, links, strict=True)):
         if not link.lower <= qi <= link.upper:
             raise ConfigError(p, f"arm.stowed[{i}]", f"{qi} is outside the joint limits")

@@ -1,9 +1,20 @@
-"""Route geometry: waypoints joined by straight lines, corners rounded by circular arcs.
+"""Route geometry: waypoints joined by straight lines, corners rounded by arcs or pivots.
 
 Each corner of the waypoint polyline is replaced by the arc of radius ``turn_radius``
 tangent to both of its segments (a fillet), so the route is tangent-continuous and its
 curvature is 0 on the lines and ``±1/turn_radius`` on the arcs: bounded by construction.
 The route is evaluated exactly (no sampling error) at any arc length.
+
+**Pivot turns.** Given a ``pivot_radius`` (half the track separation, ``b / 2``), a corner
+whose arc does not fit between its neighbours, and every corner when ``turn_radius`` is 0,
+is a pivot instead: the base stops at the waypoint and turns on the spot (position fixed,
+yaw from the leg before to the leg after, the shorter way), then drives the next leg. A
+pivot has no length in x-y, so the route's parameter ``s`` is not the distance the base
+centre travels there but the distance **the tracks run**: ``pivot_radius · |turn|`` (each
+track's surface moves that far, in opposite directions). So ``s`` keeps increasing through
+a pivot (the poses stay a function of one monotonic parameter), ``d yaw / ds = ±1 /
+pivot_radius`` there, and a speed ``ds/dt`` is each track's speed on lines and in pivots
+alike: the speed profile bounds the tracks with the same number (``mmstab.paths.speed``).
 """
 
 from __future__ import annotations
@@ -59,26 +70,91 @@ class Arc(NamedTuple):
         return abs(self.turn) * self.radius
 
 
+class Pivot(NamedTuple):
+    """A turn on the spot at a waypoint.
+
+    Attributes:
+        point: the waypoint (2,) in M [m], where the base stands while it turns.
+        radius: the pivot radius, half the track separation [m]: the route's parameter
+            advances by ``radius · |turn|`` (the distance each track runs).
+        turn: signed turn, + = left (counter-clockwise) [rad].
+    """
+
+    point: FloatArray
+    radius: float
+    turn: float
+
+    @property
+    def length(self) -> float:
+        """The distance each track runs while the base turns [m] (the parameter's share)."""
+        return abs(self.turn) * self.radius
+
+
+class Corner(NamedTuple):
+    """An interior waypoint and how the route turns there (the route check's report).
+
+    Attributes:
+        waypoint: its index in the waypoint list.
+        point: the waypoint (2,) in M [m].
+        turn: signed turn from the leg before to the leg after, + = left [rad].
+        pivot: whether the base turns on the spot there (else an arc, or no turn).
+        radius_fit: largest arc radius that fits between its neighbours [m] (``inf`` when
+            the corner was not refused an arc, 0 for ``turn_radius: 0``).
+    """
+
+    waypoint: int
+    point: FloatArray
+    turn: float
+    pivot: bool
+    radius_fit: float
+
+    def describe(self, turn_radius: float) -> str:
+        """One line: where, how far and why it pivots (``turn_radius`` [m])."""
+        side = "left" if self.turn > 0 else "right"
+        why = (
+            "turn_radius 0"
+            if turn_radius == 0
+            else f"its {turn_radius:g} m arc does not fit between its neighbours; "
+            f"a radius <= {self.radius_fit:.3f} m would"
+        )
+        return (
+            f"corner {self.waypoint} at ({self.point[0]:.2f}, {self.point[1]:.2f}) m: pivot turn "
+            f"of {np.degrees(abs(self.turn)):.0f} deg {side} ({why})"
+        )
+
+
 class RouteSample(NamedTuple):
     """Poses along a route and their derivative by arc length.
 
     Attributes:
         pose: (N, 3) of (x [m], y [m], yaw [rad]) in M; yaw continuous (not wrapped).
         rate: (N, 3) d pose / d s [1, 1, rad/m].
-        curvature: (N,) signed curvature [1/m] (+ = turning left).
+        curvature: (N,) signed curvature [1/m] (+ = turning left); in a pivot d yaw / ds,
+            ``±1 / pivot_radius`` (the base centre stands still).
+        pivot: (N,) whether the sample is in a pivot turn.
     """
 
     pose: FloatArray
     rate: FloatArray
     curvature: FloatArray
+    pivot: NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
 class Route:
-    """A route of lines and arcs, evaluated by arc length ``s`` in [0, length] [m]."""
+    """A route of lines, arcs and pivots, evaluated by arc length ``s`` in [0, length] [m].
 
-    pieces: tuple[Line | Arc, ...]
+    Attributes:
+        pieces: the pieces in driving order.
+        start_yaw: the yaw of the first leg [rad].
+        corners: the interior waypoints and how the route turns at each.
+        turn_radius: the corner arcs' radius it was built with [m] (0: pivots only).
+    """
+
+    pieces: tuple[Line | Arc | Pivot, ...]
     start_yaw: float
+    corners: tuple[Corner, ...] = ()
+    turn_radius: float = float("nan")
 
     @property
     def starts(self) -> FloatArray:
@@ -92,8 +168,19 @@ class Route:
 
     @property
     def max_curvature(self) -> float:
-        """Largest |curvature| along the route [1/m]."""
+        """Largest |curvature| along the route's arcs [1/m] (pivots are not curves)."""
         return max((1 / p.radius for p in self.pieces if isinstance(p, Arc)), default=0.0)
+
+    @property
+    def pivot_spans(self) -> FloatArray:
+        """Arc lengths where each pivot starts and ends (P, 2) [m]."""
+        starts = self.starts
+        rows = [starts[k : k + 2] for k, p in enumerate(self.pieces) if isinstance(p, Pivot)]
+        return np.array(rows, dtype=float).reshape(-1, 2)
+
+    def report(self) -> list[str]:
+        """One line per pivot turn: the route check's account of what it did."""
+        return [c.describe(self.turn_radius) for c in self.corners if c.pivot]
 
     def sample(self, s: ArrayLike) -> RouteSample:
         """Poses, their s-derivatives and curvature at arc lengths ``s`` [m] (clipped)."""
@@ -103,8 +190,9 @@ class Route:
         pose = np.empty((len(s_m), 3))
         rate = np.empty((len(s_m), 3))
         kappa = np.zeros(len(s_m))
+        pivot = np.zeros(len(s_m), dtype=bool)
         yaw0 = self.start_yaw + np.concatenate(
-            [[0.0], np.cumsum([p.turn if isinstance(p, Arc) else 0.0 for p in self.pieces])]
+            [[0.0], np.cumsum([0.0 if isinstance(p, Line) else p.turn for p in self.pieces])]
         )
         for k, piece in enumerate(self.pieces):
             rows = index == k
@@ -115,6 +203,13 @@ class Route:
                 pose[rows, :2] = piece.start + u[:, None] * piece.direction
                 pose[rows, 2] = yaw0[k]
                 rate[rows] = [piece.direction[0], piece.direction[1], 0.0]
+            elif isinstance(piece, Pivot):
+                sign = np.sign(piece.turn)
+                pose[rows, :2] = piece.point
+                pose[rows, 2] = yaw0[k] + sign * u / piece.radius
+                rate[rows] = [0.0, 0.0, sign / piece.radius]
+                kappa[rows] = sign / piece.radius
+                pivot[rows] = True
             else:
                 sign = np.sign(piece.turn)
                 angle = piece.start_angle + sign * u / piece.radius
@@ -125,7 +220,7 @@ class Route:
                 rate[rows, 1] = sign * np.cos(angle)
                 rate[rows, 2] = sign / piece.radius
                 kappa[rows] = sign / piece.radius
-        return RouteSample(pose=pose, rate=rate, curvature=kappa)
+        return RouteSample(pose=pose, rate=rate, curvature=kappa, pivot=pivot)
 
     def resample(self, spacing: float) -> FloatArray:
         """Arc lengths from 0 to the end, evenly spaced by at most ``spacing`` [m]."""
@@ -133,28 +228,29 @@ class Route:
         return np.linspace(0.0, self.length, n + 1)
 
 
-def _unit(v: FloatArray) -> FloatArray:
-    return v / np.linalg.norm(v)
+class _Legs(NamedTuple):
+    """The waypoint polyline.
 
-
-def route_from_waypoints(waypoints: ArrayLike, turn_radius: float) -> Route:
-    """Join waypoints by lines and round every corner with an arc of ``turn_radius``.
-
-    Args:
-        waypoints: (n >= 2, 2) points in M [m], in driving order.
-        turn_radius: radius of the corner arcs [m] (> 0).
-
-    Raises:
-        RouteError: fewer than two points, a repeated point, a reversal, or a corner whose
-            arc does not fit between its neighbours (``field`` names the waypoint).
+    Attributes:
+        points: the waypoints (n, 2) in M [m].
+        dirs: unit directions of the legs (n-1, 2).
+        lengths: the legs' lengths (n-1,) [m].
+        turns: the signed turn at each interior waypoint (n-2,), + = left [rad].
     """
+
+    points: FloatArray
+    dirs: FloatArray
+    lengths: FloatArray
+    turns: FloatArray
+
+
+def _legs(waypoints: ArrayLike) -> _Legs:
+    """The polyline of ``waypoints`` (n, 2) [m], refused as :func:`route_from_waypoints` says."""
     w = np.asarray(waypoints, dtype=float)
     if w.ndim != 2 or w.shape[1] != 2 or len(w) < 2:
         raise RouteError("waypoints", f"need at least two [x, y] points, got shape {w.shape}")
     if not np.all(np.isfinite(w)):
         raise RouteError("waypoints", "waypoints must be finite numbers")
-    if not turn_radius > 0:
-        raise RouteError("turn_radius", f"must be positive, got {turn_radius}")
     seg = np.diff(w, axis=0)
     lengths = np.linalg.norm(seg, axis=1)
     for k, length in enumerate(lengths):
@@ -163,24 +259,86 @@ def route_from_waypoints(waypoints: ArrayLike, turn_radius: float) -> Route:
     dirs = seg / lengths[:, None]
     cross = dirs[:-1, 0] * dirs[1:, 1] - dirs[:-1, 1] * dirs[1:, 0]
     turns = np.arctan2(cross, np.sum(dirs[:-1] * dirs[1:], axis=1))
-    tangent = turn_radius * np.tan(np.abs(turns) / 2)  # corner to arc ends, along each segment
     for k, turn in enumerate(turns):
         if abs(turn) > MAX_TURN:
             raise RouteError(f"waypoints[{k + 1}]", "the route reverses here; add a waypoint")
-    used = np.zeros(len(lengths))
-    used[:-1] += tangent
-    used[1:] += tangent
-    for k, (u, length) in enumerate(zip(used, lengths, strict=True)):
-        if u > length + 1e-12:
-            ends = {c: tangent[c - 1] for c in (k, k + 1) if 1 <= c <= len(w) - 2}
-            corner = max(ends, key=lambda c: ends[c])  # the sharper corner of the two
-            radius_fit = turn_radius * length / u
+    return _Legs(w, dirs, lengths, turns)
+
+
+class _Corners(NamedTuple):
+    """How each corner turns.
+
+    Attributes:
+        tangent: distance from the corner to its arc's ends along each leg (C,) [m] (0 at a
+            pivot).
+        pivot: whether it pivots (C,).
+        radius_fit: the largest arc radius that would fit there (C,) [m] (``inf``: no limit
+            met).
+    """
+
+    tangent: FloatArray
+    pivot: NDArray[np.bool_]
+    radius_fit: FloatArray
+
+
+def _choose_pivots(legs: _Legs, turn_radius: float, pivot_radius: float | None) -> _Corners:
+    """Arcs where they fit, pivots where they do not (``turn_radius`` 0: every turn pivots).
+
+    A leg too short for the arcs at its two ends gives up the sharper corner's arc (the one
+    taking more of it) for a pivot; repeated until every leg holds its arcs. Without a
+    ``pivot_radius`` the first such leg is refused, naming that corner.
+    """
+    turns, lengths = legs.turns, legs.lengths
+    pivot = np.zeros(len(turns), dtype=bool) if turn_radius > 0 else turns != 0
+    radius_fit = np.full(len(turns), np.inf if turn_radius > 0 else 0.0)
+    while True:
+        tangent = np.where(pivot, 0.0, turn_radius * np.tan(np.abs(turns) / 2))
+        used = np.zeros(len(lengths))
+        used[:-1] += tangent
+        used[1:] += tangent
+        over = np.flatnonzero(used > lengths + 1e-12)
+        if len(over) == 0:
+            return _Corners(tangent, pivot, radius_fit)
+        k = int(over[0])
+        ends = {c: tangent[c - 1] for c in (k, k + 1) if 1 <= c <= len(legs.points) - 2}
+        corner = max(ends, key=lambda c: ends[c])  # the sharper corner of the two
+        fit = turn_radius * lengths[k] / used[k]
+        if pivot_radius is None:
             raise RouteError(
                 f"waypoints[{corner}]",
-                f"the turn needs a radius <= {radius_fit:.3f} m to fit between its neighbours "
-                f"({length:.3f} m apart), below the route's turn_radius {turn_radius:.3f} m",
+                f"the turn needs a radius <= {fit:.3f} m to fit between its neighbours "
+                f"({lengths[k]:.3f} m apart), below the route's turn_radius {turn_radius:.3f} m",
             )
-    pieces: list[Line | Arc] = []
+        pivot[corner - 1], radius_fit[corner - 1] = True, fit
+
+
+def route_from_waypoints(
+    waypoints: ArrayLike, turn_radius: float, pivot_radius: float | None = None
+) -> Route:
+    """Join waypoints by lines and round every corner with an arc of ``turn_radius``.
+
+    Args:
+        waypoints: (n >= 2, 2) points in M [m], in driving order.
+        turn_radius: radius of the corner arcs [m] (> 0; 0 with a ``pivot_radius``: a pivot
+            turn at every corner).
+        pivot_radius: half the track separation [m], or ``None``. Given, a corner whose arc
+            does not fit between its neighbours is a pivot turn (module docstring);
+            ``None``: such a corner is refused.
+
+    Raises:
+        RouteError: fewer than two points, a repeated point, a reversal, or (without a
+            ``pivot_radius``) a corner whose arc does not fit between its neighbours
+            (``field`` names the waypoint).
+    """
+    if pivot_radius is not None and not pivot_radius > 0:
+        raise RouteError("pivot_radius", f"must be positive, got {pivot_radius}")
+    legs = _legs(waypoints)
+    if not (turn_radius > 0 or (turn_radius == 0 and pivot_radius is not None)):
+        raise RouteError("turn_radius", f"must be positive, got {turn_radius}")
+    w, dirs, lengths, turns = legs
+    chosen = _choose_pivots(legs, turn_radius, pivot_radius)
+    tangent = chosen.tangent
+    pieces: list[Line | Arc | Pivot] = []
     for k in range(len(lengths)):
         t_in = tangent[k - 1] if k > 0 else 0.0
         t_out = tangent[k] if k < len(turns) else 0.0
@@ -188,10 +346,21 @@ def route_from_waypoints(waypoints: ArrayLike, turn_radius: float) -> Route:
         b = w[k + 1] - dirs[k] * t_out
         if np.linalg.norm(b - a) > 0:
             pieces.append(Line(start=a, direction=dirs[k], length=float(np.linalg.norm(b - a))))
-        if k < len(turns) and abs(turns[k]) > 0:
+        if k < len(turns) and abs(turns[k]) > 0 and chosen.pivot[k]:
+            pieces.append(Pivot(w[k + 1].copy(), float(pivot_radius or 0.0), float(turns[k])))
+        elif k < len(turns) and abs(turns[k]) > 0:
             sign = np.sign(turns[k])
             normal = np.array([-dirs[k][1], dirs[k][0]]) * sign  # toward the arc's centre
             center = b + normal * turn_radius
             start_angle = float(np.arctan2(*(b - center)[::-1]))
             pieces.append(Arc(center, float(turn_radius), start_angle, float(turns[k])))
-    return Route(pieces=tuple(pieces), start_yaw=float(np.arctan2(dirs[0][1], dirs[0][0])))
+    corners = tuple(
+        Corner(k + 1, w[k + 1].copy(), float(turns[k]), bool(chosen.pivot[k]), chosen.radius_fit[k])
+        for k in range(len(turns))
+    )
+    return Route(
+        pieces=tuple(pieces),
+        start_yaw=float(np.arctan2(dirs[0][1], dirs[0][0])),
+        corners=corners,
+        turn_radius=float(turn_radius),
+    )

@@ -90,6 +90,10 @@ def route_from_section(
 ) -> PlannedRoute:
     """Build the route of a ``path:`` section (``waypoints`` or ``file``) with its speed.
 
+    A corner whose arc does not fit, and every corner with ``turn_radius: 0``, is a pivot
+    turn of radius ``limits.track_separation / 2`` (``mmstab.paths.geometry``; the route's
+    ``report()`` says which).
+
     Args:
         problem_path: the problem file (a ``file`` is relative to its folder).
         section: ``{waypoints: [[x, y], ...] | file: PATH, turn_radius: R [m], ...}``.
@@ -112,7 +116,9 @@ def route_from_section(
     if bad is not None:
         raise ConfigError(source, f"waypoint {bad}", "its yaw points against the route there")
     try:
-        route = route_from_waypoints(waypoints.xy, float(section["turn_radius"]))
+        route = route_from_waypoints(
+            waypoints.xy, float(section["turn_radius"]), limits.track_separation / 2
+        )
     except RouteError as exc:
         field = exc.field
         if prefix == "line" and field.startswith("waypoints["):

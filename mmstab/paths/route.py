@@ -10,8 +10,10 @@ or a route::
 under the robot's track limits, and checks it against the ground: every cell under the
 base's footprint along the way must be on the map and known (not NaN), and the turn radius
 must let both tracks drive forward (``turn_radius >= separation / 2``), otherwise the
-tracks cannot follow the curvature at any speed > 0. Errors name the problem (or route)
-file and the field, as every other section's.
+tracks cannot follow the curvature at any speed > 0; or be 0: a pivot turn (on the spot,
+the tracks running in opposite directions) at every corner. A corner whose arc does not fit
+between its neighbours is a pivot turn too; ``RoutePath.report()`` lists them. Errors name
+the problem (or route) file and the field, as every other section's.
 
 :class:`RoutePath` is the route parametrised by *time fraction* ``u = t / lap_time``: the
 controller's references are functions of a path fraction, and with the time fraction the
@@ -34,7 +36,7 @@ from numpy.typing import ArrayLike
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.model.robot import Robot
 from mmstab.paths.base import PathSample
-from mmstab.paths.geometry import FloatArray, Route
+from mmstab.paths.geometry import FloatArray, Pivot, Route
 from mmstab.paths.io import PlannedRoute, Waypoints, read_waypoints_csv, route_from_section
 from mmstab.paths.speed import SpeedLimits, SpeedProfile
 from mmstab.terrain.base import Terrain
@@ -135,6 +137,23 @@ class RoutePath:
         """``n`` poses evenly spread in arc length, first and last included -> (n, 3)."""
         return self.route.sample(np.linspace(0.0, self.length, max(n, 2))).pose
 
+    def report(self) -> list[str]:
+        """What the route check did: one line per pivot turn (none when every arc fits)."""
+        return self.route.report()
+
+    def corners(self) -> list[dict[str, Any]]:
+        """Every corner (waypoint index, point [m], turn [deg], ``arc`` or ``pivot``)."""
+        return [
+            {
+                "waypoint": c.waypoint,
+                "point": [float(c.point[0]), float(c.point[1])],
+                "turn_deg": float(np.degrees(c.turn)),
+                "kind": "pivot" if c.pivot else ("arc" if c.turn != 0 else "straight"),
+                "radius_fit_m": None if np.isinf(c.radius_fit) else float(c.radius_fit),
+            }
+            for c in self.route.corners
+        ]
+
 
 def speed_limits(robot: Robot, section: dict[str, Any]) -> SpeedLimits:
     """The speed limits of a route section for ``robot`` (its tracks' speed and separation)."""
@@ -164,9 +183,15 @@ def first_off_ground(
 ) -> tuple[float, FloatArray] | None:
     """The first arc length [m] and ground point where the footprint leaves known ground.
 
-    The footprint (n, 2) [m] in B is swept along the route every ``spacing`` [m]; a point
-    is bad when the terrain cannot give its height (off the map or an unknown cell).
+    The footprint (n, 2) [m] in B is swept along the route every ``spacing`` [m] (on a
+    route with pivot turns, finer: so that no footprint point moves more than ``spacing``
+    between two checks as the base turns on the spot); a point is bad when the terrain
+    cannot give its height (off the map or an unknown cell).
     """
+    if len(route.pivot_spans):
+        reach = float(np.max(np.hypot(footprint[:, 0], footprint[:, 1])))
+        pivot_radius = min(p.radius for p in route.pieces if isinstance(p, Pivot))
+        spacing *= min(1.0, pivot_radius / max(reach, 1e-9))
     s = route.resample(spacing)
     pose = route.sample(s).pose
     c, si = np.cos(pose[:, 2]), np.sin(pose[:, 2])
@@ -199,6 +224,15 @@ def nearest_segment(waypoints: FloatArray, point: ArrayLike) -> int:
     return int(np.argmin(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
 
 
+def pivot_at(route: Route, s: float) -> int | None:
+    """The waypoint whose pivot turn the route is in at arc length ``s`` [m], else ``None``."""
+    corners = [c.waypoint for c in route.corners if c.pivot]
+    for k, (s0, s1) in enumerate(route.pivot_spans):
+        if s0 <= s <= s1:
+            return corners[k]
+    return None
+
+
 def route_path_from_section(
     problem_path: str | os.PathLike[str], section: dict[str, Any], robot: Robot, terrain: Terrain
 ) -> RoutePath:
@@ -215,13 +249,13 @@ def route_path_from_section(
     """
     p = Path(problem_path)
     sep = robot.base.tracks.separation
-    if float(section["turn_radius"]) < sep / 2:
+    if 0 < float(section["turn_radius"]) < sep / 2:
         raise ConfigError(
             p,
             "path.turn_radius",
             f"{section['turn_radius']} m is below half the track separation ({sep / 2:.3f} m): "
             "the inner track would have to run backwards, the tracks cannot follow that "
-            "curvature at any speed",
+            "curvature at any speed (turn_radius 0: a pivot turn on the spot at every corner)",
         )
     planned: PlannedRoute = route_from_section(p, section, speed_limits(robot, section))
     off = first_off_ground(planned.route, terrain, footprint_body(robot))
@@ -232,12 +266,13 @@ def route_path_from_section(
         else:
             wp = Waypoints(np.asarray(section["waypoints"], dtype=float), None)
             where, field = p, "path.waypoints[{}]"
-        k = nearest_segment(wp.xy, off[1])
+        pivot = pivot_at(planned.route, off[0])
+        k = nearest_segment(wp.xy, off[1]) if pivot is None else pivot
         raise ConfigError(
             where,
             field.format(k),
-            f"the route from here leaves known ground at arc length {off[0]:.2f} m: the base's "
-            f"footprint reaches ({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an "
-            "unknown (NaN) cell",
+            f"the route {'from here' if pivot is None else 'pivoting here'} leaves known "
+            f"ground at arc length {off[0]:.2f} m: the base's footprint reaches "
+            f"({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an unknown (NaN) cell",
         )
     return RoutePath(route=planned.route, profile=planned.profile)

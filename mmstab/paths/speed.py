@@ -6,6 +6,13 @@ kappa the outer track runs at ``v (1 + |kappa| b / 2)``) and the lateral acceler
 ``v^2 |kappa|`` stays within ``lateral_acceleration``; changes of speed are limited to
 ``acceleration``. The route starts and ends at rest. Time follows from the profile
 (``dt = 2 ds / (v_i + v_{i+1})``, exact for constant acceleration).
+
+In a pivot turn (``mmstab.paths.geometry``) the parameter is the distance the tracks run,
+so ``v = ds/dt`` is each track's speed (in opposite directions) and the base's yaw rate is
+``v / pivot_radius``. The base stops before a pivot and starts again after it (``v = 0`` at
+both ends: the tracks reverse one side there), the tracks run at most ``speed`` in it (as on
+a line; ``speed`` is within ``headroom`` of their limit), and ``acceleration`` bounds their
+change of speed. There is no lateral acceleration: the base centre stands still.
 """
 
 from __future__ import annotations
@@ -80,6 +87,33 @@ def curvature_limit(limits: SpeedLimits, kappa: FloatArray) -> FloatArray:
     return np.minimum.reduce([np.full_like(k, limits.speed), tracks, lateral])
 
 
+def pivot_limit(limits: SpeedLimits) -> float:
+    """The tracks' speed in a pivot turn [m/s]: ``speed``, within what they allow."""
+    return min(limits.speed, straight_limit(limits))
+
+
+def _limit_at(route: Route, limits: SpeedLimits, s: FloatArray) -> FloatArray:
+    """The speed allowed at arc lengths ``s`` [m] by the curvature, or in a pivot [m/s]."""
+    smp = route.sample(s)
+    return np.where(smp.pivot, pivot_limit(limits), curvature_limit(limits, smp.curvature))
+
+
+def _stations(route: Route, ds: float) -> tuple[FloatArray, FloatArray]:
+    """The profile's arc lengths [m] and those where it is at rest (ends, pivots' ends) [m].
+
+    Without pivots, ``route.resample(ds)``. With them, the pivots' ends are stations too
+    (the base is at rest there), and one more between two rest stations with none between.
+    """
+    s = route.resample(ds)
+    spans = route.pivot_spans
+    if not len(spans):
+        return s, s[[0, -1]]
+    rest = np.unique(np.concatenate([s[[0, -1]], spans.ravel()]))
+    near = np.min(np.abs(s[:, None] - rest[None, :]), axis=1) < 1e-9
+    s = np.union1d(s[~near], np.concatenate([rest, 0.5 * (rest[:-1] + rest[1:])]))
+    return s, rest
+
+
 def speed_profile(route: Route, limits: SpeedLimits, ds: float = 0.01) -> SpeedProfile:
     """The speed profile of ``route`` under ``limits``, sampled every ``ds`` [m] or finer.
 
@@ -91,16 +125,16 @@ def speed_profile(route: Route, limits: SpeedLimits, ds: float = 0.01) -> SpeedP
             f"speed {limits.speed:.3f} m/s is above the tracks' {straight_limit(limits):.3f} m/s "
             f"({limits.headroom:.0%} of their limit)"
         )
-    s = route.resample(ds)
+    s, rest = _stations(route, ds)
     # the limit over each interval: arcs start/end exactly at piece boundaries, so take the
     # tighter of the two ends and the interval's midpoint
     mid = 0.5 * (s[:-1] + s[1:])
-    k_mid = route.sample(mid).curvature
-    v_cap = curvature_limit(limits, route.sample(s).curvature)
-    v_cap[:-1] = np.minimum(v_cap[:-1], curvature_limit(limits, k_mid))
-    v_cap[1:] = np.minimum(v_cap[1:], curvature_limit(limits, k_mid))
+    v_mid = _limit_at(route, limits, mid)
+    v_cap = _limit_at(route, limits, s)
+    v_cap[:-1] = np.minimum(v_cap[:-1], v_mid)
+    v_cap[1:] = np.minimum(v_cap[1:], v_mid)
     v = v_cap.copy()
-    v[0] = v[-1] = 0.0
+    v[np.searchsorted(s, rest)] = 0.0
     step = np.diff(s)
     for i in range(1, len(s)):  # accelerate no faster than allowed
         v[i] = min(v[i], np.sqrt(v[i - 1] ** 2 + 2 * limits.acceleration * step[i - 1]))

@@ -125,7 +125,7 @@ def solve_pose_by_pose(
             previous_q = q
             turret_q = q
         else:
-            q, ok = np.full(4, np.nan), False
+            q, ok = np.full(robot.arm_joints, np.nan), False
             if windowed:
                 _, row = region.index.tree.query(t.target_com)
                 turret_q = region.postures[int(row)]

@@ -202,7 +202,7 @@ def start_coms(robot: Robot, region: CoMRegion, starts: tuple[float, ...]) -> Fl
     moves to the region's nearest sample.
     """
     region = as_region(region)
-    q = np.zeros((len(starts), 4))
+    q = np.zeros((len(starts), robot.arm_joints))
     q[:, 0] = starts
     coms = robot.arm_com(q)
     outside = ~region.contains(coms)

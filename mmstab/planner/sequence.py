@@ -69,14 +69,14 @@ class SequenceResult(NamedTuple):
 def segments_collide(
     checker: CollisionChecker, q_from: FloatArray, q_to: FloatArray
 ) -> NDArray[np.bool_]:
-    """Whether straight joint-space moves q_from -> q_to (N, 4) [rad] collide anywhere.
+    """Whether straight joint-space moves q_from -> q_to (N, n) [rad] collide anywhere.
 
     Checked at ``SEGMENT_STEPS`` interior postures of each move in one batch (the ends are
     V's collision-free postures).
     """
     a, b = np.broadcast_arrays(np.atleast_2d(q_from), np.atleast_2d(q_to))
     u = (np.arange(1, SEGMENT_STEPS + 1) / (SEGMENT_STEPS + 1))[None, :, None]
-    q = (a[:, None, :] * (1 - u) + b[:, None, :] * u).reshape(-1, 4)
+    q = (a[:, None, :] * (1 - u) + b[:, None, :] * u).reshape(-1, a.shape[1])
     hit = np.asarray(checker.collides(q), dtype=bool).reshape(len(a), SEGMENT_STEPS)
     return np.asarray(hit.any(axis=1), dtype=bool)
 

@@ -210,7 +210,7 @@ def solve_route(
             )  # fmt: skip
             previous_q = q
         else:
-            q, ok = np.full(4, np.nan), False
+            q, ok = np.full(robot.arm_joints, np.nan), False
         moved = float(np.linalg.norm(target.target_com - previous_com)) if k > 0 else moved
         previous_com = target.target_com
         targets.append(target)

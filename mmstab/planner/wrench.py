@@ -46,7 +46,7 @@ class ToolMap(NamedTuple):
 
 
 def tool_points(robot: Robot, q: ArrayLike) -> FloatArray:
-    """Tool points (the wrist frame's origin) in B for postures (N, 4) [rad] -> (N, 3) [m]."""
+    """Tool points (the wrist frame's origin) in B for postures (N, n) [rad] -> (N, 3) [m]."""
     frames = robot.kinematics.link_frames(np.atleast_2d(np.asarray(q, dtype=float)))
     return np.asarray(frames[:, -1, :3, 3])
 
@@ -62,7 +62,7 @@ def tool_map(robot: Robot, region: CoMRegion) -> ToolMap:
 
 
 def _tool_map(robot: Robot, valid_q: FloatArray) -> ToolMap:
-    q = np.asarray(valid_q, dtype=float).reshape(-1, 4)
+    q = np.asarray(valid_q, dtype=float).reshape(-1, robot.arm_joints)
     if len(q) == 0:
         raise MmstabError(
             "planner: a tool wrench needs the workspace's collision-free postures (valid_q)"

@@ -37,9 +37,6 @@ from mmstab.codegen import (
 from mmstab.control.approach import run_reference
 from mmstab.control.controller import (
     ARM,
-    JOINT_COUNT,
-    REFERENCE_SIZE,
-    STATE_SIZE,
     Controller,
     ControllerParams,
     ControllerSettings,
@@ -163,8 +160,9 @@ def run_inputs(
         arm = problem.robot.stowed if postures is None else np.asarray(postures)[0]
         state0 = initial_state(problem.circle, arm)
     x0 = np.asarray(state0, dtype=float)
-    if x0.shape != (STATE_SIZE,):
-        raise ValueError(f"state0 must have shape ({STATE_SIZE},), got {x0.shape}")
+    n_state = 5 + problem.robot.arm_joints
+    if x0.shape != (n_state,):
+        raise ValueError(f"state0 must have shape ({n_state},), got {x0.shape}")
     reference = run_reference(
         problem.robot, problem.circle, problem.terrain, plan, x0[ARM], settings, t, posture
     ).step
@@ -182,8 +180,8 @@ class Rollout(NamedTuple):
 
     Attributes:
         times: t_k = k dt (steps + 1,) [s].
-        states: states at t_k (steps + 1, 9).
-        qdot: joint speeds applied over [t_k, t_k+1) (steps, 6) [rad/s].
+        states: states at t_k (steps + 1, 5 + n), n the arm's joints.
+        qdot: joint speeds applied over [t_k, t_k+1) (steps, 2 + n) [rad/s].
         status: :class:`QPStatus` of each step (steps,).
         errors: tracking error ξ_des − ξ at t_k (steps + 1, 6), heading wrapped to (−π, π].
         backend: the backend that ran it.
@@ -215,7 +213,8 @@ def tracking_errors(ctrl: Controller, states: FloatArray, reference: FloatArray)
 
 def _python_loop(ctrl: Controller, inputs: RunInputs) -> tuple[FloatArray, ...]:
     n = inputs.steps
-    states, qdot, status = np.empty((n + 1, STATE_SIZE)), np.empty((n, JOINT_COUNT)), np.empty(n)
+    lay = ctrl.layout
+    states, qdot, status = np.empty((n + 1, lay.state)), np.empty((n, lay.joints)), np.empty(n)
     states[0] = inputs.state0
     ctrl.set_params(ControllerParams.unpack(inputs.params))
     ref = inputs.reference
@@ -232,16 +231,17 @@ def _chunk_loop(chunk: ca.Function, inputs: RunInputs) -> tuple[FloatArray, ...]
     refs = inputs.reference[:n]
     pad = chunks * size - n  # the last chunk runs on past the end, on the last reference row
     padded = np.vstack([refs, np.repeat(refs[-1:], pad, axis=0)])
-    states, qdot, status = np.empty((STATE_SIZE, n + 1)), np.empty((JOINT_COUNT, n)), np.empty(n)
+    n_state, n_joints = chunk.size1_in(0), chunk.size1_out(1)
+    states, qdot, status = np.empty((n_state, n + 1)), np.empty((n_joints, n)), np.empty(n)
     states[:, 0] = inputs.state0
     # buffer evaluation on preallocated arrays (no DM conversions per chunk)
     buf: Any
     buf, run = chunk.buffer()
     x0, p = np.array(inputs.state0), np.array(inputs.params)
-    r = np.empty((size, REFERENCE_SIZE))
+    r = np.empty((size, chunk.size1_in(1)))
     out_x, out_q, out_s = (
-        np.empty((size, STATE_SIZE)),
-        np.empty((size, JOINT_COUNT)),
+        np.empty((size, n_state)),
+        np.empty((size, n_joints)),
         np.empty(size),
     )
     for i, a in enumerate((x0, r, p)):

@@ -401,7 +401,7 @@ def draw_poses_on_ground(
         Per pose, the artists of :func:`draw_robot` (nine bodies each).
     """
     P = np.asarray(poses, dtype=float).reshape(-1, 3)
-    Q = np.asarray(postures, dtype=float).reshape(-1, 4)
+    Q = np.asarray(postures, dtype=float).reshape(-1, len(robot.links))
     G_T_Bs = [terrain.G_T_B(p) for p in P]
     pts_G = np.concatenate(
         [mesh_points(robot_meshes(robot, q, T)) for q, T in zip(Q, G_T_Bs, strict=True)]

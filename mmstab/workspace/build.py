@@ -55,13 +55,13 @@ def label_chunk(
 
 
 def arm_com_from_frames(robot: Robot, frames: FloatArray) -> FloatArray:
-    """Arm CoM g_a (N, 3) in the body frame [m] from link frames B_T_R_i (N, 4, 4, 4).
+    """Arm CoM g_a (N, 3) in the body frame [m] from link frames B_T_R_i (N, n, 4, 4).
 
     The same quantity as ``robot.arm_com(q)`` (Eq. 1), without repeating the kinematics.
     """
     masses = np.array([link.mass for link in robot.links])
-    com_link = np.array([link.com for link in robot.links])[:, :, None]  # (4, 3, 1) in R_i
-    coms = (frames[..., :3, :3] @ com_link)[..., 0] + frames[..., :3, 3]  # (N, 4, 3) in B
+    com_link = np.array([link.com for link in robot.links])[:, :, None]  # (n, 3, 1) in R_i
+    coms = (frames[..., :3, :3] @ com_link)[..., 0] + frames[..., :3, 3]  # (N, n, 3) in B
     return (coms * masses[:, None]).sum(axis=1) / masses.sum()
 
 
@@ -71,21 +71,28 @@ def build_workspace(
     executor: Executor | None = None,
     chunk: int = DEFAULT_CHUNK,
     progress: bool = True,
+    samples: int | None = None,
+    seed: int = 0,
 ) -> Workspace:
-    """Label every grid posture and build V (no cache; see ``load_or_build_workspace``).
+    """Label every grid posture (or a draw of them) and build V (no cache).
+
+    See ``load_or_build_workspace`` for the cached build. A grid over the size bound
+    (:func:`mmstab.core.sizes.workspace_postures`) is sampled (:func:`joint_grid`).
 
     Args:
         robot: the robot.
-        grid: samples per joint, four integers >= 2.
+        grid: samples per joint, one integer >= 2 per arm joint.
         executor: runs the chunks (any ``concurrent.futures.Executor``); default: a
             :class:`~mmstab.core.pool.ChunkPool` of ``PARALLEL_WORKERS`` processes from
             ``PARALLEL_MIN_POSTURES`` postures on (stopped at once by Ctrl-C), else this
             process.
         chunk: postures per chunk.
         progress: show a tqdm progress bar.
+        samples: postures drawn from a grid over the bound (None: the whole grid).
+        seed: seed of that draw (``workspace.seed``).
     """
     t0 = time.perf_counter()
-    jg = joint_grid(robot, grid)
+    jg = joint_grid(robot, grid, samples, seed)
     n = jg.size
     bounds = [(s, min(s + chunk, n)) for s in range(0, n, chunk)]
     free = np.empty(n, dtype=bool)
@@ -108,6 +115,7 @@ def build_workspace(
                 com[start : start + len(f)] = c
                 bar.update(len(f))
     q = grid_postures(jg)
-    return workspace_from_clouds(
+    ws = workspace_from_clouds(
         grid, q[free], com[free], q[~free], com[~free], time.perf_counter() - t0
     )
+    return ws if jg.picks is None else dataclasses.replace(ws, samples=n, seed=int(seed))

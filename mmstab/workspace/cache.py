@@ -14,7 +14,7 @@ import numpy as np
 
 from mmstab.core.files import write_npz
 from mmstab.core.problem import Problem
-from mmstab.core.sizes import announce, workspace_estimate
+from mmstab.core.sizes import announce, workspace_estimate, workspace_postures
 from mmstab.model.robot import Robot
 from mmstab.workspace.build import build_workspace
 from mmstab.workspace.region import Workspace
@@ -26,9 +26,14 @@ DEFAULT_CACHE_DIR = Path("results") / "workspace"
 
 
 # ---------------------------------------------------------------------------------- cache
-def workspace_key(robot: Robot, grid: Sequence[int]) -> str:
-    """Cache key of a robot description, a grid and the code version."""
+def workspace_key(
+    robot: Robot, grid: Sequence[int], samples: int | None = None, seed: int = 0
+) -> str:
+    """Cache key of a robot description, a grid (and its draw, if sampled) and the version."""
     text = f"v{WORKSPACE_VERSION}|{robot.source_hash}|{[int(n) for n in grid]}"
+    count, sampled = workspace_postures(grid, samples)
+    if sampled:  # a whole grid's key is unchanged (the 4-DoF caches stay valid)
+        text += f"|samples={count}|seed={int(seed)}"
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -47,8 +52,9 @@ def load_workspace(path: str | os.PathLike[str]) -> Workspace:
     with np.load(path) as z:
         if int(z["version"]) != WORKSPACE_VERSION:
             raise ValueError(f"{path}: workspace cache version {int(z['version'])}")
-        kw = {f.name: z[f.name] for f in dataclasses.fields(Workspace)}
+        kw = {f.name: z[f.name] for f in dataclasses.fields(Workspace) if f.name in z}
     kw["grid"] = tuple(int(n) for n in kw["grid"])
+    kw["samples"], kw["seed"] = int(kw.get("samples", 0)), int(kw.get("seed", 0))
     kw["diameter"] = float(kw["diameter"])
     kw["build_seconds"] = float(kw["build_seconds"])
     return Workspace(**kw)
@@ -77,9 +83,9 @@ def load_or_build_workspace(
         cache_dir: cache folder (default ``results/workspace``).
         executor: passed to :func:`build_workspace`.
     """
-    grid = tuple(problem.section("workspace")["grid"])
-    path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR)
-    path = path / f"{workspace_key(problem.robot, grid)}.npz"
+    section = problem.section("workspace")
+    grid, samples, seed = tuple(section["grid"]), section.get("samples"), int(section["seed"])
+    path = workspace_cache_path(problem, cache_dir)
     if not force and path.is_file():
         try:
             return load_workspace(path)
@@ -90,8 +96,10 @@ def load_or_build_workspace(
                 file=sys.stderr,
             )
     if progress:
-        announce(workspace_estimate(grid))
-    ws = build_workspace(problem.robot, grid, executor=executor, progress=progress)
+        announce(workspace_estimate(grid, samples))
+    ws = build_workspace(
+        problem.robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
+    )
     save_workspace(path, ws)
     return ws
 
@@ -99,4 +107,8 @@ def load_or_build_workspace(
 def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:
     """Where ``load_or_build_workspace`` keeps the problem's workspace."""
     base = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR)
-    return base / f"{workspace_key(problem.robot, problem.section('workspace')['grid'])}.npz"
+    section = problem.section("workspace")
+    key = workspace_key(
+        problem.robot, section["grid"], section.get("samples"), int(section["seed"])
+    )
+    return base / f"{key}.npz"

@@ -35,15 +35,17 @@ class Fidelity(NamedTuple):
 def grid_cell_size(robot: Robot, ws: Workspace, rng: np.random.Generator, n: int = 2000) -> float:
     """Typical CoM-space size of one grid cell [m].
 
-    For a posture q the cell is the joint-space box q + [0, step]^4; its CoM-space size is
-    the largest distance from g_a(q) to the arm CoM at the cell's 15 other corners. This
+    For a posture q the cell is the joint-space box q + [0, step]^n; its CoM-space size is
+    the largest distance from g_a(q) to the arm CoM at the cell's 2^n − 1 other corners. This
     returns the median over up to ``n`` valid postures drawn with ``rng``.
     """
     step = joint_grid(robot, ws.grid).step
     q = ws.valid_q[rng.choice(len(ws.valid_q), size=min(n, len(ws.valid_q)), replace=False)]
-    corners = np.array([[(k >> j) & 1 for j in range(4)] for k in range(1, 16)]) * step
+    n = len(step)
+    corners = np.array([[(k >> j) & 1 for j in range(n)] for k in range(1, 2**n)]) * step
     com0 = robot.arm_com(q)
-    com = robot.arm_com((q[:, None, :] + corners[None]).reshape(-1, 4)).reshape(len(q), 15, 3)
+    shifted = (q[:, None, :] + corners[None]).reshape(-1, n)
+    com = robot.arm_com(shifted).reshape(len(q), len(corners), 3)
     return float(np.median(np.linalg.norm(com - com0[:, None], axis=2).max(axis=1)))
 
 

@@ -45,12 +45,14 @@ class PostureSolver:
 
         self.robot = robot
         self.checker = CollisionChecker(robot)
-        self.valid_q = np.empty((0, 4)) if workspace is None else np.asarray(workspace.valid_q)
+        self.valid_q = (
+            np.empty((0, robot.arm_joints)) if workspace is None else np.asarray(workspace.valid_q)
+        )
         valid_com = np.asarray(workspace.valid_com) if len(self.valid_q) else None
         self._tree = None if valid_com is None else run_interruptibly(cKDTree, valid_com)
         self.n_seeds = seeds
         kin = robot.kinematics
-        target, q_ref = ca.SX.sym("target", 3), ca.SX.sym("q_ref", 4)
+        target, q_ref = ca.SX.sym("target", 3), ca.SX.sym("q_ref", robot.arm_joints)
         nlp = {
             "x": kin.q,
             "p": ca.vertcat(target, q_ref),
@@ -64,7 +66,7 @@ class PostureSolver:
         self._nlp = ca.nlpsol("arm_com_ik", "ipopt", nlp, opts)
 
     def solve(self, target_com: FloatArray, seed: FloatArray, q_ref: FloatArray) -> FloatArray:
-        """One IPOPT solve from ``seed`` (4,) staying near ``q_ref`` (4,) [rad]."""
+        """One IPOPT solve from ``seed`` (n,) staying near ``q_ref`` (n,) [rad]."""
         try:
             sol = self._nlp(
                 x0=seed,

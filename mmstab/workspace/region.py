@@ -28,10 +28,10 @@ class Workspace:
     """The arm-CoM workspace V and the clouds it was built from (body frame B).
 
     Attributes:
-        grid: samples per joint.
-        valid_q: collision-free postures (Nv, 4) [rad].
+        grid: samples per joint (one per arm joint).
+        valid_q: collision-free postures (Nv, n) [rad].
         valid_com: their arm CoMs (Nv, 3) [m].
-        invalid_q: colliding postures (Ni, 4) [rad].
+        invalid_q: colliding postures (Ni, n) [rad].
         invalid_com: their arm CoMs (Ni, 3) [m].
         A_all: facet normals of hull(all CoMs) (F, 3); ``A_all p <= b_all`` inside.
         b_all: offsets (F,) [m].
@@ -39,9 +39,12 @@ class Workspace:
         b_bad: offsets (G,) [m].
         diameter: d_workspace, the diameter of hull(all CoMs) (Eq. 6) [m].
         build_seconds: wall time of the build (0 if unknown) [s].
+        samples: 0 when every grid posture was labelled; else the number drawn from the grid
+            (a grid over the size bound, :func:`mmstab.core.sizes.workspace_postures`).
+        seed: the draw's seed (0 for a whole grid).
     """
 
-    grid: tuple[int, int, int, int]
+    grid: tuple[int, ...]
     valid_q: FloatArray
     valid_com: FloatArray
     invalid_q: FloatArray
@@ -52,6 +55,8 @@ class Workspace:
     b_bad: FloatArray
     diameter: float
     build_seconds: float = 0.0
+    samples: int = 0
+    seed: int = 0
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Whether body-frame points lie in V: in hull(all) and not in hull(invalid).
@@ -121,6 +126,11 @@ class Workspace:
         """Number of grid postures."""
         return len(self.valid_q) + len(self.invalid_q)
 
+    @property
+    def how_sampled(self) -> str:
+        """`` sampled of the AxBx... grid`` when drawn from a grid over the bound, else ``""``."""
+        return f" sampled of the {'x'.join(map(str, self.grid))} grid" if self.samples else ""
+
     @functools.cached_property
     def volume_all(self) -> float:
         """Volume of hull(all CoMs) [m^3]."""
@@ -151,18 +161,19 @@ def workspace_from_clouds(
 
     Args:
         grid: samples per joint.
-        valid_q: collision-free postures (Nv, 4) [rad].
+        valid_q: collision-free postures (Nv, n) [rad], n = ``len(grid)``.
         valid_com: their arm CoMs (Nv, 3), body frame [m].
-        invalid_q: colliding postures (Ni, 4) [rad]; may be empty (then V = hull(all)).
+        invalid_q: colliding postures (Ni, n) [rad]; may be empty (then V = hull(all)).
         invalid_com: their arm CoMs (Ni, 3) [m].
         build_seconds: wall time of the labelling, recorded in the result [s].
 
     Raises:
         MmstabError: no valid posture, or a degenerate (flat, too small) cloud.
     """
-    vq, vc = np.asarray(valid_q, float).reshape(-1, 4), np.asarray(valid_com, float).reshape(-1, 3)
+    n = len(grid)
+    vq, vc = np.asarray(valid_q, float).reshape(-1, n), np.asarray(valid_com, float).reshape(-1, 3)
     iq, ic = (
-        np.asarray(invalid_q, float).reshape(-1, 4),
+        np.asarray(invalid_q, float).reshape(-1, n),
         np.asarray(invalid_com, float).reshape(-1, 3),
     )
     if len(vc) == 0:
@@ -174,7 +185,7 @@ def workspace_from_clouds(
     else:
         hs_bad = HalfSpaces(np.zeros((0, 3)), np.zeros(0))
     return Workspace(
-        grid=tuple(int(n) for n in grid),  # type: ignore[arg-type]
+        grid=tuple(int(k) for k in grid),
         valid_q=vq,
         valid_com=vc,
         invalid_q=iq,

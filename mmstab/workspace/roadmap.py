@@ -103,7 +103,7 @@ class Roadmap:
         Raises:
             MmstabError: none is (q collides, or is boxed in at this grid's spacing).
         """
-        qa = np.asarray(q, dtype=float).reshape(4)
+        qa = np.asarray(q, dtype=float).reshape(len(self.grid))
         _, idx = self._tree.query(
             np.r_[np.cos(qa[0]), np.sin(qa[0]), qa[1:]], k=min(candidates, len(self.nodes_q))
         )
@@ -178,8 +178,8 @@ def joint_reach(robot: Robot, q: FloatArray) -> FloatArray:
     frames = robot.kinematics.link_frames(q)
     _, p = checker.shape_poses(q, frames)
     radius = np.array([link.geometry.bounding_radius for link in robot.links])
-    out = np.zeros(4)
-    for j in range(4):
+    out = np.zeros(robot.arm_joints)
+    for j in range(robot.arm_joints):
         o = frames[:, j, :3, 3]
         d = np.linalg.norm(p[:, j:, :] - o[:, None, :], axis=2) + radius[j:]
         out[j] = float(d.max())
@@ -219,6 +219,11 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         ws: the workspace V (its grid and its collision-free postures).
         resolution: largest point motion between checked postures of an edge [m].
     """
+    if ws.samples:
+        raise MmstabError(
+            f"the roadmap joins grid neighbours: it needs a whole-grid workspace, not "
+            f"{ws.samples} postures drawn from the {ws.grid} grid (a smaller workspace.grid)"
+        )
     t0 = time.perf_counter()
     jg = joint_grid(robot, ws.grid)
     shape = np.array(jg.shape)
@@ -233,7 +238,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     steps = np.maximum(np.ceil(reach * jg.step / resolution).astype(np.int64) - 1, 0)
     checker = CollisionChecker(robot)
     edges, lengths = [], []
-    for j in range(4):
+    for j in range(robot.arm_joints):
         # no edge wraps the turret's full turn: its range ends at a stop (the posture at
         # 2 pi is the one at 0, but the joint cannot move through the stop between them)
         nxt = idx.copy()

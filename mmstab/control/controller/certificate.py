@@ -15,7 +15,6 @@ from typing import NamedTuple
 import casadi as ca
 
 from mmstab.control.controller.qp import all_finite, tree_reduce
-from mmstab.control.layout import JOINT_COUNT
 from mmstab.model.robot import FloatArray
 
 
@@ -29,7 +28,7 @@ class QPStatus(IntEnum):
 
 
 class ControlResult(NamedTuple):
-    """One step's answer: joint speeds (6,) [rad/s], status, success, Eq. 7 cost at ``qdot``."""
+    """One step's answer: joint speeds (2 + n,) [rad/s], status, success, Eq. 7 cost at ``qdot``."""
 
     qdot: FloatArray
     status: QPStatus
@@ -37,14 +36,17 @@ class ControlResult(NamedTuple):
     objective: float
 
 
-def build_guard_and_certificate(kkt_tol: float) -> tuple[ca.Function, ca.Function]:
+def build_guard_and_certificate(kkt_tol: float, n: int) -> tuple[ca.Function, ca.Function]:
     """The pre-solve guard and the post-solve certificate (tolerance ``kkt_tol`` [rad/s]).
+
+    Args:
+        kkt_tol: the certificate's tolerance [rad/s].
+        n: the QP's variables (the joints: 2 + the arm's).
 
     Returns:
         ``guard`` (H, g, lbx, ubx, status) -> a harmless QP unless the status is SUCCESS;
         ``certificate`` (x, H, g, lbx, ubx, cost0, status) -> (qdot, status, objective).
     """
-    n = JOINT_COUNT
     H, g = ca.SX.sym("H", n, n), ca.SX.sym("g", n)
     lbx, ubx, status = ca.SX.sym("lbx", n), ca.SX.sym("ubx", n), ca.SX.sym("status")
     ok = status == float(QPStatus.SUCCESS)

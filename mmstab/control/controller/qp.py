@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import casadi as ca
 
-from mmstab.control.layout import PARAMS_SIZE, REFERENCE_SIZE, ControllerParams, StepReference
+from mmstab.control.layout import ControllerParams, StepReference
 from mmstab.control.limits import JointPositionLimit, JointVelocityLimit, Limit
 from mmstab.control.limits.base import intersect
 from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, Task, TaskModel, TaskTarget
@@ -34,12 +34,12 @@ class QPData(NamedTuple):
     """The QP of one step: min ½ q̇ᵀHq̇ + gᵀq̇ + cost0 s.t. lbx ≤ q̇ ≤ ubx; pre-solve status.
 
     Attributes:
-        H: Hessian (6, 6).
-        g: gradient (6,).
-        lbx: lower bounds on q̇ (6,) [rad/s].
-        ubx: upper bounds on q̇ (6,) [rad/s].
+        H: Hessian (2 + n, 2 + n), n the arm's joints.
+        g: gradient (2 + n,).
+        lbx: lower bounds on q̇ (2 + n,) [rad/s].
+        ubx: upper bounds on q̇ (2 + n,) [rad/s].
         xi_dot_des: the task rate asked for ξ̇_des (6,) [m/s, rad/s].
-        q_dot_posture: the arm joint rates the posture task asks for q̇_post (4,) [rad/s].
+        q_dot_posture: the arm joint rates the posture task asks for q̇_post (n,) [rad/s].
         cost0: the constant of the cost (its value at q̇ = 0).
         status: the pre-solve status (:class:`~mmstab.control.controller.QPStatus` value).
     """
@@ -117,14 +117,20 @@ def build_qp(model: TaskModel, statuses: tuple[float, float, float]) -> ca.Funct
         statuses: the status values for (success, non-finite input, infeasible bounds).
 
     Returns:
-        ``qp`` (state (9), reference (23), params (42)) -> (H, g, lbx, ubx, xi_dot_des,
-        q_dot_posture, cost0, status); see the module docstring for the formulas.
+        ``qp`` (state (5 + n), reference (15 + 2n), params (18 + 6n)) -> (H, g, lbx, ubx,
+        xi_dot_des, q_dot_posture, cost0, status), n the arm's joints (``model.layout``); see
+        the module docstring for the formulas.
     """
     success, nonfinite, infeasible = statuses
     s, ground = model.state, model.ground
-    ref, p = ca.SX.sym("reference", REFERENCE_SIZE), ca.SX.sym("params", PARAMS_SIZE)
+    lay = model.layout
+    ref, p = ca.SX.sym("reference", lay.reference), ca.SX.sym("params", lay.params)
     P, R = ControllerParams.unpack(p), StepReference.unpack(ref)
-    tasks: tuple[Task, Task, Task] = (BasePointTask(model.base_offset), ArmCoMTask(), PostureTask())
+    tasks: tuple[Task, Task, Task] = (
+        BasePointTask(model.base_offset),
+        ArmCoMTask(),
+        PostureTask(),
+    )
     limits: list[Limit] = [JointVelocityLimit(), JointPositionLimit()]
     base, com, posture = (t.objective(model, x) for t, x in zip(tasks, targets(R, P), strict=True))
     H = base.H + com.H + posture.H + ca.diag(P.w_b)

@@ -18,23 +18,10 @@ from mmstab.control.controller.certificate import (
 )
 from mmstab.control.controller.qp import QPData, build_qp
 from mmstab.control.controller.settings import PLUGINS, ControllerSettings
-from mmstab.control.layout import (
-    ARM,
-    ARM_JOINTS,
-    JOINT_COUNT,
-    PARAMS_SIZE,
-    REFERENCE_SIZE,
-    STATE_SIZE,
-    TASK_SIZE,
-    ControllerParams,
-    StepReference,
-)
+from mmstab.control.layout import ARM, TASK_SIZE, ControllerParams, StepReference
 from mmstab.control.tasks import TaskModel
 from mmstab.model.robot import Robot
 from mmstab.terrain import GROUND_SIZE
-
-#: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref and the local ground in the reference vector.
-_REFERENCE_SLICES = tuple(StepReference.offsets().values())
 
 
 def _shape_error(name: str, value: Any, n: int) -> ValueError:
@@ -78,9 +65,10 @@ class Controller:
             for inspection and tests.
         conic: the CasADi ``conic`` (dense H, no linear constraints), or for the ``box``
             plugin the dedicated solver (:mod:`~mmstab.control.controller.boxqp`, same arguments).
-        step: ``Function`` (state (9), reference (23) = [ξ_des, ξ̇_ref, q_ref, q̇_ref, ground]
-            (:class:`StepReference`), params (42) (:class:`ControllerParams`)) ->
-            (qdot (6) [rad/s], status (QPStatus as float), objective): J + QP assembly +
+        layout: the packed sizes for the robot's arm of n joints (``model.layout``).
+        step: ``Function`` (state (5 + n), reference (15 + 2n) = [ξ_des, ξ̇_ref, q_ref, q̇_ref,
+            ground] (:class:`StepReference`), params (18 + 6n) (:class:`ControllerParams`)) ->
+            (qdot (2 + n) [rad/s], status (QPStatus as float), objective): J + QP assembly +
             conic + certificate, one call; what the code generator exports.
         steps: number of ``solve`` calls.
         failures: number of them that returned the safe action (status != SUCCESS).
@@ -96,9 +84,10 @@ class Controller:
             self.model,
             (float(QPStatus.SUCCESS), float(QPStatus.NONFINITE_INPUT), float(QPStatus.INFEASIBLE)),
         )
-        n = JOINT_COUNT
+        self.layout = lay = self.model.layout
+        n = lay.joints
         if settings.plugin == "box":  # the dedicated box-QP solver (same signature)
-            self.conic = build_boxqp()
+            self.conic = build_boxqp(n)
         else:
             with quiet_stdout():
                 self.conic = ca.conic(
@@ -107,9 +96,9 @@ class Controller:
                     {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity(0, n)},
                     _conic_options(settings),
                 )
-        guard, certificate = build_guard_and_certificate(settings.kkt_tol)
-        state, ref = ca.MX.sym("state", STATE_SIZE), ca.MX.sym("reference", REFERENCE_SIZE)
-        p = ca.MX.sym("params", PARAMS_SIZE)
+        guard, certificate = build_guard_and_certificate(settings.kkt_tol, n)
+        state, ref = ca.MX.sym("state", lay.state), ca.MX.sym("reference", lay.reference)
+        p = ca.MX.sym("params", lay.params)
         # the certificate judges the whole cost: task, regularisation and posture terms
         H, g, lbx, ubx, _, _, cost0, status = self.qp(state, ref, p)
         if settings.plugin == "box":
@@ -128,7 +117,9 @@ class Controller:
         )
         self.steps = self.failures = 0
         # Preallocated arguments/results bound once to the Function's buffer (fast calls).
-        self._state, self._ref = np.zeros(STATE_SIZE), np.zeros(REFERENCE_SIZE)
+        #: The slices of ξ_des, ξ̇_ref, q_ref, q̇_ref and the local ground in the reference.
+        self._slices = tuple(StepReference.offsets(lay.arm).values())
+        self._state, self._ref = np.zeros(lay.state), np.zeros(lay.reference)
         self._p = self.params.pack()
         self._qdot, self._status, self._objective = np.zeros(n), np.zeros(1), np.zeros(1)
         # (the stubs ask for a byte size the SWIG typemap fills in from the memoryview)
@@ -161,10 +152,10 @@ class Controller:
         ground: ArrayLike | None,
     ) -> None:
         # written out (no loop): this runs every control step
-        xi_sl, xi_dot_sl, q_sl, q_dot_sl, ground_sl = _REFERENCE_SLICES
-        ref = self._ref
-        if np.shape(state) != (STATE_SIZE,):
-            raise _shape_error("state", state, STATE_SIZE)
+        xi_sl, xi_dot_sl, q_sl, q_dot_sl, ground_sl = self._slices
+        ref, arm = self._ref, self.layout.arm
+        if np.shape(state) != self._state.shape:
+            raise _shape_error("state", state, self._state.size)
         self._state[:] = state
         if np.shape(xi_des) != (TASK_SIZE,):
             raise _shape_error("xi_des", xi_des, TASK_SIZE)
@@ -177,14 +168,14 @@ class Controller:
             ref[xi_dot_sl] = xi_dot_ref
         if q_ref is None:  # the posture held: the posture task only damps the arm
             ref[q_sl] = self._state[ARM]
-        elif np.shape(q_ref) != (ARM_JOINTS,):
-            raise _shape_error("q_ref", q_ref, ARM_JOINTS)
+        elif np.shape(q_ref) != (arm,):
+            raise _shape_error("q_ref", q_ref, arm)
         else:
             ref[q_sl] = q_ref
         if q_dot_ref is None:
             ref[q_dot_sl] = 0.0
-        elif np.shape(q_dot_ref) != (ARM_JOINTS,):
-            raise _shape_error("q_dot_ref", q_dot_ref, ARM_JOINTS)
+        elif np.shape(q_dot_ref) != (arm,):
+            raise _shape_error("q_dot_ref", q_dot_ref, arm)
         else:
             ref[q_dot_sl] = q_dot_ref
         if ground is None:  # the pose rests level on M's plane (the ramp)
@@ -206,13 +197,13 @@ class Controller:
         """One control step: joint speeds for the current state and reference.
 
         Args:
-            state: [x, y, γ, θ_l, θ_r, θ_0..θ_3] (9,) [m, m, rad, rad...].
+            state: [x, y, γ, θ_l, θ_r, θ_0..θ_{n-1}] (5 + n,) [m, m, rad, rad...].
             xi_des: desired task ξ_des (6,) in M [m, m, rad, m, m, m].
             xi_dot_ref: task feed-forward ξ̇_ref (6,) [m/s, rad/s] (used if ``feedforward``);
                 default zero.
-            q_ref: arm posture reference (4,) [rad]; default the current arm posture (the
+            q_ref: arm posture reference (n,) [rad]; default the current arm posture (the
                 posture task then only damps the arm speeds, with W_q on top of W_B).
-            q_dot_ref: posture feed-forward q̇_ref (4,) [rad/s] (used if ``feedforward``);
+            q_dot_ref: posture feed-forward q̇_ref (n,) [rad/s] (used if ``feedforward``);
                 default zero.
             ground: local ground (z [m], roll [rad], pitch [rad]) of the reference pose
                 (:meth:`mmstab.terrain.Terrain.local_ground`); default zero (the ramp).
@@ -264,7 +255,7 @@ class Controller:
         Arguments as :meth:`solve`.
         """
         qp = self.qp_data(state, xi_des, xi_dot_ref, q_ref, q_dot_ref, ground)
-        zero = np.zeros(JOINT_COUNT)
+        zero = np.zeros(self.layout.joints)
         if qp.status is not QPStatus.SUCCESS:
             return ControlResult(zero, QPStatus(qp.status), False, qp.cost0)
         with quiet_stdout() if self._quiet else contextlib.nullcontext():

@@ -9,7 +9,8 @@ Eq. 7 plus the posture task:
 - :class:`BasePointTask`: the base control point (x, y) and the heading (3 rows, heading
   error wrapped);
 - :class:`ArmCoMTask`: the arm CoM in the map frame (3 rows);
-- :class:`PostureTask`: the arm joints toward a posture (4 rows; the redundant arm direction).
+- :class:`PostureTask`: the arm joints toward a posture (one row per arm joint; the redundant
+  arm directions).
 
 Every task reads the robot through :class:`TaskModel`: the symbolic state, the local ground,
 the track kinematics B(γ) and the one placement of body points (:mod:`mmstab.terrain`). The

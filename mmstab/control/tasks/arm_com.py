@@ -18,5 +18,5 @@ class ArmCoMTask(Task):
         return model.place(model.com_body)
 
     def jacobian(self, model: TaskModel) -> ca.SX:
-        """(3, 6): through the base pose (tracks) and the arm joints."""
+        """(3, 2 + n): through the base pose (tracks) and the arm joints."""
         return model.rate_jacobian(self.value(model))

@@ -32,8 +32,8 @@ class TaskObjective(NamedTuple):
     """A task's share of the QP: ½ q̇ᵀ H q̇ + gᵀ q̇ + cost0, and the rate it asks for.
 
     Attributes:
-        H: Hessian (6, 6).
-        g: gradient (6,).
+        H: Hessian (2 + n, 2 + n), n the arm's joints.
+        g: gradient (2 + n,).
         cost0: the constant (the cost at q̇ = 0).
         rate: the desired task rate v = K e + f ṙ_ref (m,).
     """
@@ -47,8 +47,12 @@ class TaskObjective(NamedTuple):
 class Task(abc.ABC):
     """A task of the controller: a quantity of the robot with a target (pink's ``Task``)."""
 
-    #: Number of rows.
+    #: Number of rows (tasks whose rows depend on the robot override :meth:`rows`).
     size: int
+
+    def rows(self, model: TaskModel) -> int:
+        """Number of rows for the model's robot (``size`` unless the task says otherwise)."""
+        return self.size
 
     @abc.abstractmethod
     def value(self, model: TaskModel) -> ca.SX:
@@ -56,7 +60,7 @@ class Task(abc.ABC):
 
     @abc.abstractmethod
     def jacobian(self, model: TaskModel) -> ca.SX:
-        """D value / dt = J q̇: J (size, 6), with respect to the joint speeds."""
+        """D value / dt = J q̇: J (rows, 2 + n), with respect to the joint speeds."""
 
     def error(self, model: TaskModel, target: Any) -> ca.SX:
         """Target − value (size,); angular rows wrap it where the task says so."""

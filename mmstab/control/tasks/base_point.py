@@ -29,7 +29,7 @@ class BasePointTask(Task):
         return ca.vertcat(point[:2], model.state[2])
 
     def jacobian(self, model: TaskModel) -> ca.SX:
-        """(3, 6): the track columns only (the arm does not move the base)."""
+        """(3, 2 + n): the track columns only (the arm does not move the base)."""
         return model.rate_jacobian(self.value(model))
 
     def error(self, model: TaskModel, target: Any) -> ca.SX:

@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.control.layout import ARM, POSE, STATE_SIZE
+from mmstab.control.layout import ARM, POSE, Layout
 from mmstab.control.plant import build_plant
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain import GROUND_SIZE, place_local_sx
@@ -22,12 +22,13 @@ class TaskModel:
     Attributes:
         robot: the robot.
         base_offset: base control point ahead of the body origin [m].
-        state: the symbolic state (9,) SX.
+        layout: the packed sizes for the robot's arm (n joints).
+        state: the symbolic state (5 + n,) SX.
         ground: the symbolic local ground (3,) SX [m, rad, rad].
         track_map: B(γ) (3, 2) SX [m/rad, rad/rad].
         com_body: the arm CoM g_a^B(q_arm) (3,) SX [m].
         xi: ξ = [base point and heading, arm CoM] (6,) SX (the base-point and arm-CoM tasks).
-        J: the task Jacobian (6x6) SX: ξ̇ = J q̇ (the ground held constant).
+        J: the task Jacobian (6, 2 + n) SX: ξ̇ = J q̇ (the ground held constant).
         f_task: ``Function`` (state, ground) -> xi.
         f_jacobian: ``Function`` (state, ground) -> J.
         f_integrate: the plant (:func:`mmstab.control.plant.build_plant`).
@@ -41,7 +42,8 @@ class TaskModel:
         self.base_offset = float(base_offset)
         tracks = robot.base.tracks
         r, b = tracks.sprocket_radius, tracks.separation
-        s = self.state = ca.SX.sym("state", STATE_SIZE)
+        self.layout = Layout.of(robot)
+        s = self.state = ca.SX.sym("state", self.layout.state)
         ground = self.ground = ca.SX.sym("ground", GROUND_SIZE)
         c, sn = ca.cos(s[2]), ca.sin(s[2])
         self.track_map = ca.vertcat(
@@ -63,25 +65,25 @@ class TaskModel:
         return place_local_sx(self.state[POSE], self.ground, point_body)
 
     def rate_jacobian(self, expr: ca.SX) -> ca.SX:
-        """J of ``expr(pose, q_arm)`` with respect to q̇: [∂/∂pose · B(γ) | ∂/∂q_arm] (m, 6)."""
+        """J of ``expr(pose, q_arm)`` with respect to q̇: [∂/∂pose · B(γ) | ∂/∂q_arm] (m, 2 + n)."""
         s = self.state
         return ca.horzcat(ca.jacobian(expr, s[POSE]) @ self.track_map, ca.jacobian(expr, s[ARM]))
 
     def task(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
-        """ξ at a state (9,) and local ground (3,) -> (6,) [m, m, rad, m, m, m]."""
+        """ξ at a state (5 + n,) and local ground (3,) -> (6,) [m, m, rad, m, m, m]."""
         return np.asarray(self.f_task(np.asarray(state, float), np.asarray(ground, float))).ravel()
 
     def task_batch(self, states: ArrayLike, ground: ArrayLike) -> FloatArray:
-        """ξ for many states (N, 9) and their local ground (N, 3) -> (N, 6) (one mapped call)."""
+        """ξ for states (N, 5 + n) and their local ground (N, 3) -> (N, 6) (one mapped call)."""
         s = np.atleast_2d(np.asarray(states, dtype=float))
         g = np.broadcast_to(np.asarray(ground, dtype=float), (len(s), GROUND_SIZE))
         return np.asarray(self.f_task.map(len(s))(s.T, g.T)).T
 
     def jacobian(self, state: ArrayLike, ground: ArrayLike = (0.0, 0.0, 0.0)) -> FloatArray:
-        """J at a state (9,) and local ground (3,) -> (6, 6) [m/rad, rad/rad]."""
+        """J at a state (5 + n,) and local ground (3,) -> (6, 2 + n) [m/rad, rad/rad]."""
         return np.asarray(self.f_jacobian(np.asarray(state, float), np.asarray(ground, float)))
 
     def integrate(self, state: ArrayLike, qdot: ArrayLike, dt: float) -> FloatArray:
-        """State after ``dt`` [s] at constant joint speeds ``qdot`` (6,) [rad/s] (the plant)."""
+        """State after ``dt`` [s] at constant joint speeds ``qdot`` (2 + n,) [rad/s] (the plant)."""
         out = self.f_integrate(np.asarray(state, dtype=float), np.asarray(qdot, dtype=float), dt)
         return np.asarray(out).ravel()

@@ -4,24 +4,27 @@ from __future__ import annotations
 
 import casadi as ca
 
-from mmstab.control.layout import ARM, ARM_JOINTS, JOINT_COUNT
+from mmstab.control.layout import ARM, SPROCKETS
 from mmstab.control.tasks.base import Task
 from mmstab.control.tasks.model import TaskModel
 
 
 class PostureTask(Task):
-    """q_arm → q_ref: the arm's redundant direction (3 CoM rows, 4 arm joints).
+    """q_arm → q_ref: the arm's redundant directions (3 CoM rows, n arm joints).
 
     No wrap: q_ref is in limit coordinates. With small weights (well under the CoM rows') the
     CoM task dominates and this only chooses the remaining arm direction.
     """
 
-    size = ARM_JOINTS
+    def rows(self, model: TaskModel) -> int:
+        """n: one row per arm joint (``model.layout.arm``)."""
+        return model.layout.arm
 
     def value(self, model: TaskModel) -> ca.SX:
-        """q_arm (4,) [rad]."""
+        """q_arm (n,) [rad]."""
         return model.state[ARM]
 
     def jacobian(self, model: TaskModel) -> ca.SX:
-        """S (4, 6): selects the arm columns of q̇."""
-        return ca.horzcat(ca.SX.zeros(ARM_JOINTS, JOINT_COUNT - ARM_JOINTS), ca.SX.eye(ARM_JOINTS))
+        """S (n, 2 + n): selects the arm columns of q̇."""
+        n = self.rows(model)
+        return ca.horzcat(ca.SX.zeros(n, SPROCKETS), ca.SX.eye(n))

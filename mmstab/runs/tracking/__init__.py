@@ -56,6 +56,8 @@ from mmstab.runs.tracking.run import (
     TrackingPlan,
     TrackingRun,
     check_plan,
+    joint_names,
+    state_names,
     task_batch,
 )
 from mmstab.runs.tracking.simulation import simulate
@@ -64,6 +66,8 @@ from mmstab.runs.tracking.summary import summarize, transient_end
 __all__ = [
     "JOINT_NAMES",
     "STATE_NAMES",
+    "joint_names",
+    "state_names",
     "TRANSIENT_FRACTION",
     "Failure",
     "InitialArm",

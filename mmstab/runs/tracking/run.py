@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.control.approach import Approach
-from mmstab.control.controller import ARM, ARM_JOINTS, QPStatus, TaskModel
+from mmstab.control.controller import ARM, QPStatus, TaskModel
 from mmstab.control.posture import PostureReference
 from mmstab.control.reference import PlanLike
 from mmstab.core.files import MmstabError
@@ -18,20 +18,21 @@ from mmstab.stability.static import StabilityCases
 from mmstab.terrain import Terrain
 from mmstab.workspace.ik import COM_TOLERANCE
 
-#: Names of the state components, for messages and saved arrays.
-STATE_NAMES = (
-    "x",
-    "y",
-    "heading",
-    "theta_l",
-    "theta_r",
-    "theta_0",
-    "theta_1",
-    "theta_2",
-    "theta_3",
-)
-#: Names of the joints (q̇ columns), as in the summary.
-JOINT_NAMES = ("track_left", "track_right", "link0", "link1", "link2", "link3")
+
+def state_names(arm_joints: int) -> tuple[str, ...]:
+    """Names of the state components for an arm of ``arm_joints`` joints."""
+    return ("x", "y", "heading", "theta_l", "theta_r", *(f"theta_{j}" for j in range(arm_joints)))
+
+
+def joint_names(arm_joints: int) -> tuple[str, ...]:
+    """Names of the joints (q̇ columns, as in the summary) for an arm of ``arm_joints`` joints."""
+    return ("track_left", "track_right", *(f"link{j}" for j in range(arm_joints)))
+
+
+#: Names of the state components of the 4-DoF arm's runs, for messages and saved arrays.
+STATE_NAMES = state_names(4)
+#: Names of the 4-DoF arm's joints (q̇ columns), as in the summary.
+JOINT_NAMES = joint_names(4)
 InitialArm = Literal["stowed", "planned"]
 #: The transient ends once the arm-CoM error stays within this share of its initial value.
 TRANSIENT_FRACTION = 0.01
@@ -87,8 +88,8 @@ class TrackingRun:
         xi: task ξ in M (N+1, 6) [m, m, rad, m, m, m].
         xi_des: reference ξ_des in M (N+1, 6).
         xi_dot_ref: reference rate (N+1, 6) [m/s, rad/s].
-        q_ref: arm posture reference (N+1, 4) [rad].
-        posture_error: q_ref − q_arm (N+1, 4) [rad].
+        q_ref: arm posture reference (N+1, n) [rad].
+        posture_error: q_ref − q_arm (N+1, n) [rad].
         base_error: distance of the base control point from its reference (N+1,) [m].
         heading_error: wrapped heading error γ_des − γ (N+1,) [rad].
         arm_com_error: distance of the arm CoM from its reference (N+1,) [m].
@@ -192,11 +193,12 @@ def check_plan(plan: TrackingPlan, robot: Robot) -> None:
     try:
         postures = np.asarray(plan.postures, dtype=float)
     except (AttributeError, TypeError, ValueError) as exc:
-        raise MmstabError(f"plan: the posture task needs postures (K, 4): {exc}") from None
-    if postures.shape != (fractions.size, ARM_JOINTS):
+        raise MmstabError(f"plan: the posture task needs postures (K, n): {exc}") from None
+    n = robot.arm_joints
+    if postures.shape != (fractions.size, n):
         raise MmstabError(
             f"plan: postures {postures.shape} do not match fractions {fractions.shape} "
-            f"(the posture task needs one arm posture (4,) per fraction)"
+            f"(the posture task needs one arm posture ({n},) per fraction)"
         )
     outside = (postures < robot.joint_lower) | (postures > robot.joint_upper)
     if not np.all(np.isfinite(postures)) or outside.any():

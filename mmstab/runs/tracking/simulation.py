@@ -14,10 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from mmstab.control.approach import run_reference
 from mmstab.control.controller import (
     ARM,
-    JOINT_COUNT,
     PLUGINS,
-    REFERENCE_SIZE,
-    STATE_SIZE,
     ControllerParams,
     ControllerSettings,
     QPStatus,
@@ -32,13 +29,13 @@ from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.runs.tracking.backend import StepBackend, as_backend, build_advance
 from mmstab.runs.tracking.run import (
-    STATE_NAMES,
     Failure,
     InitialArm,
     Tipping,
     TrackingPlan,
     TrackingRun,
     check_plan,
+    state_names,
     task_batch,
 )
 from mmstab.stability.dynamic import robot_mu
@@ -49,7 +46,8 @@ _PROGRESS_CHUNK = 500  # steps between progress-bar updates
 
 
 def _describe_nonfinite(state: FloatArray) -> str:
-    bad = [STATE_NAMES[i] for i in np.flatnonzero(~np.isfinite(state))]
+    names = state_names(len(state) - 5)
+    bad = [names[i] for i in np.flatnonzero(~np.isfinite(state))]
     return ", ".join(bad) if bad else "none"
 
 
@@ -119,8 +117,8 @@ def simulate(
         s0 = initial_state(problem.base_path, arm)
     else:
         s0 = np.asarray(state0, dtype=float)
-    if s0.shape != (STATE_SIZE,):
-        raise MmstabError(f"initial state must have shape ({STATE_SIZE},), got {s0.shape}")
+    if s0.shape != (5 + robot.arm_joints,):
+        raise MmstabError(f"initial state must be ({5 + robot.arm_joints},), got {s0.shape}")
     if not np.all(np.isfinite(s0)):
         raise MmstabError(f"initial state is not finite ({_describe_nonfinite(s0)})")
 
@@ -228,19 +226,18 @@ def _run_loop(
 
     Args:
         advance: from :func:`build_advance`.
-        state0: initial state (9,).
-        reference: packed :class:`~mmstab.control.layout.StepReference` per sample (steps+1, 23);
-            row
-            k is used in period k.
-        params: packed controller parameters (42,).
+        state0: initial state (5 + n,), n the arm's joints (9 for the 4-DoF arm).
+        reference: packed :class:`~mmstab.control.layout.StepReference` per sample
+            (steps+1, 15 + 2n); row k is used in period k.
+        params: packed controller parameters (18 + 6n,).
         steps: number of control periods.
         dt: control period [s] (for messages).
         progress: show a progress bar.
-        first_tip: states (n, 9) -> index of the first that tips over, or None; checked
+        first_tip: states (m, 5 + n) -> index of the first that tips over, or None; checked
             after every chunk of steps: the run stops at that sample (shorter arrays).
 
     Returns:
-        (states (m+1, 9), applied q̇ (m, 6) [rad/s], statuses (m,), wall time [s]), m = steps
+        (states (m+1, 5 + n), applied q̇ (m, 2 + n) [rad/s], statuses (m,), wall time [s]), m = steps
         unless the robot tipped.
 
     Raises:
@@ -248,12 +245,13 @@ def _run_loop(
     """
     from tqdm import tqdm
 
-    states = np.empty((steps + 1, STATE_SIZE))
-    qdots = np.empty((steps, JOINT_COUNT))
+    n_state, n_joints = advance.size1_in(0), advance.size1_out(1)
+    states = np.empty((steps + 1, n_state))
+    qdots = np.empty((steps, n_joints))
     statuses = np.empty(steps, dtype=np.int8)
     states[0] = state0
-    s_buf, r_buf, p_buf = state0.copy(), np.zeros(REFERENCE_SIZE), params.copy()
-    nxt, qd, st, fin = np.zeros(STATE_SIZE), np.zeros(JOINT_COUNT), np.zeros(1), np.zeros(1)
+    s_buf, r_buf, p_buf = state0.copy(), np.zeros(advance.size1_in(1)), params.copy()
+    nxt, qd, st, fin = np.zeros(n_state), np.zeros(n_joints), np.zeros(1), np.zeros(1)
     bar = tqdm(total=steps, desc="tracking", unit="step", disable=not progress, leave=False)
     # C-level stdout silenced: the plugin's banner when its memory is set up (qpOASES), and
     # OSQP's polish line

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.model.robot import FloatArray
-from mmstab.runs.tracking.run import JOINT_NAMES, TRANSIENT_FRACTION, TrackingRun
+from mmstab.runs.tracking.run import TRANSIENT_FRACTION, TrackingRun, joint_names
 
 
 def transient_end(run: TrackingRun) -> int:
@@ -33,7 +33,7 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
     ``posture_reference`` is the posture
     reference's collision check and via postures (:meth:`PostureReference.summary`).
     """
-    names = JOINT_NAMES
+    names = joint_names(run.qdot.shape[1] - 2)
 
     def arm_dict(values: FloatArray) -> dict[str, float]:
         return dict(zip(names[2:], np.asarray(values, dtype=float).tolist(), strict=True))
