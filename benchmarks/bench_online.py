@@ -33,6 +33,7 @@ from mmstab.workspace import load_or_build_workspace  # noqa: E402
 
 
 def main() -> None:
+    """Follow the recording ``--repeats`` times, plan offline beside it, write the JSON."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("problem", nargs="?", default="problems/rough.yaml")
     ap.add_argument("--recording", default="results/online/rough.mcap")

@@ -223,7 +223,8 @@ def test_a_map_without_elevation_is_refused() -> None:
 
 def _problem(tmp_path: Path, terrain: str) -> Path:
     robot = ROOT / "problems" / "robots" / "cameleon.yaml"
-    text = f"robot: {robot}\nterrain: {terrain}\npath: {{waypoints: [[0.0, 0.0], [0.6, 0.0]], speed: 0.2, turn_radius: 0.5}}\n"
+    route = "{waypoints: [[0.0, 0.0], [0.6, 0.0]], speed: 0.2, turn_radius: 0.5}"
+    text = f"robot: {robot}\nterrain: {terrain}\npath: {route}\n"
     path = tmp_path / "p.yaml"
     path.write_text(text)
     return path

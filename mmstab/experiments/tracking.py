@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mmstab.app import Backend, track
 from mmstab.core.files import write_figure, write_json, write_npz
@@ -83,13 +84,13 @@ def run_tracking(
         allow_unstable=allow_unstable,
     )
     d = output_dir(out, "tracking")
-    every = max(int(round(SAVE_EVERY_S / run.dt)), 1)
-    keep = np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+    keep = _samples(run, SAVE_EVERY_S)
     collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
     _fig9(d, problem, run)
     _fig10(d, run, collisions["intervals_s"])
     _fig11(d, run)
     _fig12(d, problem, run)
+    _write_bag(d, problem, run)
     applied = np.vstack([run.qdot, run.qdot[-1:]])  # q̇ over [t_k, t_k+1), repeated at the end
     write_npz(
         d / "run.npz",
@@ -114,7 +115,6 @@ def run_tracking(
         posture_knot_fractions=run.posture.fractions,
         posture_knots=run.posture.postures,
     )
-    _write_bag(d, problem, run)
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
@@ -133,10 +133,15 @@ def run_tracking(
     return summary
 
 
+def _samples(run: TrackingRun, spacing: float) -> NDArray[np.int_]:
+    """Indices of the run's samples ``spacing`` [s] apart, the last one included."""
+    every = max(int(round(spacing / run.dt)), 1)
+    return np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+
+
 def _write_bag(d: Path, problem: Problem, run: TrackingRun) -> None:
     """The run as ``run.mcap`` at ``BAG_RATE`` (:mod:`mmstab.runs.recording`; Foxglove, RViz)."""
-    every = max(int(round(1.0 / (BAG_RATE * run.dt))), 1)
-    k = np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+    k = _samples(run, 1.0 / BAG_RATE)
     frames = frames_at(problem.terrain, problem.robot, run.t[k], run.state[k, :3],
                        run.state[k, 5:], run.mu.reconfigured[k])  # fmt: skip
     write_run(d / "run.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))

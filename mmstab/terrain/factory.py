@@ -8,7 +8,7 @@ Three forms, told apart by their key:
 * ``{file: REC, topic: T, time: S}``: one elevation map of a robot recording (``.mcap``,
   ROS 1 ``.bag``, ROS 2 bag directory; :mod:`mmstab.terrain.recording`);
 * ``{generate: {kind: K, seed: S, size: [X, Y], resolution: R, ...}}``: a seeded generator
-  (:mod:`mmstab.terrain.generators`; each kind's keys in ``schema.TERRAIN_KINDS``).
+  (:mod:`mmstab.terrain.generators`; each kind's keys in ``schema_terrain.TERRAIN_KINDS``).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core import schema
+from mmstab.core import schema, schema_terrain
 from mmstab.core.files import ConfigError, validate
 from mmstab.model.robot import Robot
 from mmstab.terrain.base import DEFAULT_FRICTION, Terrain
@@ -42,22 +42,24 @@ def check_section(problem_path: Path, section: Any) -> str:
     if "generate" in section:
         gen = section["generate"]
         top = schema.with_optional(
-            schema.obj(generate={}), compliance=schema.COMPLIANCE, friction=schema.FRICTION
+            schema.obj(generate={}),
+            compliance=schema_terrain.COMPLIANCE,
+            friction=schema_terrain.FRICTION,
         )
         validate(problem_path, {"terrain": section}, schema.obj(terrain=top))
         if not isinstance(gen, dict):
             raise ConfigError(problem_path, "terrain.generate", "must be a mapping")
         kind = gen.get("kind")
-        if kind not in schema.TERRAIN_KINDS:
-            kinds = ", ".join(schema.TERRAIN_KINDS)
+        if kind not in schema_terrain.TERRAIN_KINDS:
+            kinds = ", ".join(schema_terrain.TERRAIN_KINDS)
             raise ConfigError(problem_path, "terrain.generate.kind", f"must be one of {kinds}")
-        sub = schema.terrain_generate_schema(kind)
+        sub = schema_terrain.terrain_generate_schema(kind)
         validate(problem_path, {"terrain": {"generate": gen}}, _wrap(_wrap(sub, "generate")))
         return "generate"
     if "file" in section:
-        validate(problem_path, {"terrain": section}, _wrap(schema.TERRAIN_FILE))
+        validate(problem_path, {"terrain": section}, _wrap(schema_terrain.TERRAIN_FILE))
         return "file"
-    validate(problem_path, {"terrain": section}, _wrap(schema.TERRAIN_RAMP))
+    validate(problem_path, {"terrain": section}, _wrap(schema_terrain.TERRAIN_RAMP))
     return "ramp"
 
 

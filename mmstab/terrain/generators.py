@@ -196,7 +196,7 @@ def _rough(g: Grid, s: dict[str, Any], rng: np.random.Generator) -> Heightmap:
     )
 
 
-#: kind -> builder(grid, settings, rng); the settings' keys are in ``schema.TERRAIN_KINDS``.
+#: kind -> builder(grid, settings, rng); the settings' keys are in ``schema_terrain.TERRAIN_KINDS``.
 KINDS: dict[str, Callable[[Grid, dict[str, Any], np.random.Generator], Heightmap]] = {
     "plane": _plane,
     "kerb": _kerb,
@@ -211,7 +211,7 @@ def generate(settings: dict[str, Any]) -> Heightmap:
 
     Args:
         settings: ``kind``, ``seed``, ``size`` [m, m], ``resolution`` [m/cell], the
-            kind's own keys (``schema.TERRAIN_KINDS``) and optional ``features``: a
+            kind's own keys (``schema_terrain.TERRAIN_KINDS``) and optional ``features``: a
             ``ditch`` and/or a ``kerb`` (their kinds' keys) added to the elevation.
     """
     grid = Grid.of_size(tuple(settings["size"]), settings["resolution"])
