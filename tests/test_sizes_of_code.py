@@ -26,7 +26,7 @@ LONG_MODULES = {
 LONG_FUNCTIONS = {
     "experiments/atlas/driver.py:run_chunks": 96,
     "experiments/atlas/runner.py:run_atlas": 87,
-    "experiments/tracking.py:run_tracking": 91,
+    "experiments/tracking.py:run_tracking": 92,
     "planner/roadmap.py:solve_roadmap_sequence": 94,
     "runs/tracking/simulation.py:simulate": 159,
     "viz/animation.py:render_animation": 142,
