@@ -415,7 +415,7 @@ def test_posture_task_alone_converges_to_a_constant_posture(robot, settings, rng
         (lambda c: c.__setitem__("kp", [5.0, 5.0, 5.0, 5.0, 5.0, 2000.0]), "controller.kp"),
         (lambda c: c.__setitem__("plugin", "quadprog"), "controller.plugin"),
         (lambda c: c["w_b"].__setitem__(2, 0.0), "controller.w_b[2]"),
-        (lambda c: c["osqp"].pop("eps_abs"), "controller.osqp.eps_abs"),
+        (lambda c: c["osqp"].__setitem__("eps_abs", -1.0), "controller.osqp.eps_abs"),
         (
             lambda c: c.__setitem__("posture_gain", [5.0, 5.0, 5.0, 2000.0]),
             "controller.posture_gain",
