@@ -88,7 +88,8 @@ class ModelSettings:
         noslip_iterations: MuJoCo's no-slip post-solver iterations (0 = off).
         wheel_spacing: largest gap between wheel centres along the flat run [m].
         wheel_mass_fraction: share of a track's mass carried by its wheels [-].
-        suspension_deflection: wheel spring deflection under the mean wheel load [m].
+        suspension_deflection: wheel spring deflection under the mean wheel load [m]
+            (0: rigid wheels, no suspension joint).
         suspension_damping: damping ratio of a wheel spring with its share of the mass [-].
         track_kv: velocity-servo gain of each wheel at the rim [N/(m/s)].
         wheel_armature: reflected rotor inertia of each wheel joint [kg m^2].
@@ -197,19 +198,25 @@ def ground_xml(ground: Ground) -> tuple[str, str]:
 
 
 def _wheel_xml(name: str, k: int, wheels: Wheels, robot: Robot, s: ModelSettings) -> list[str]:
-    """Wheel ``k`` of a track: a sprung slide along the track's z, then the driven hinge."""
+    """Wheel ``k`` of a track: a sprung slide along the track's z (if any), the driven hinge."""
     x, n = float(wheels.x[k]), 2 * len(wheels.x)
-    stiff = robot.total_mass * float(-GRAVITY_G[2]) / n / s.suspension_deflection
-    damp = 2 * s.suspension_damping * np.sqrt(stiff * robot.total_mass / n)
-    spring = (
-        f'stiffness="{_f(stiff)}" damping="{_f(damp)}" springref="{_f(-s.suspension_deflection)}"'
+    joints = []
+    if s.suspension_deflection > 0:
+        stiff = robot.total_mass * float(-GRAVITY_G[2]) / n / s.suspension_deflection
+        damp = 2 * s.suspension_damping * np.sqrt(stiff * robot.total_mass / n)
+        spring = f'stiffness="{_f(stiff)}" damping="{_f(damp)}"'
+        ref = _f(-s.suspension_deflection)
+        joints.append(
+            f'<joint name="{name}_z" type="slide" axis="0 0 1" {spring} springref="{ref}"/>'
+        )
+    joints.append(
+        f'<joint name="{name}" type="hinge" axis="0 1 0" armature="{s.wheel_armature!r}"/>'
     )
     at_wheel = homogeneous(np.eye(3), [-x, 0.0, 0.0])
     axle = homogeneous(_AXLE_Y, np.zeros(3))
     return [
         f'<body name="{name}" pos="{_f(x)} 0 0">',
-        f'  <joint name="{name}_z" type="slide" axis="0 0 1" {spring}/>',
-        f'  <joint name="{name}" type="hinge" axis="0 1 0" armature="{s.wheel_armature!r}"/>',
+        *("  " + j for j in joints),
         f"  {_inertial_xml(wheels.inertial(k).moved(at_wheel))}",
         f'  <geom name="{name}" type="cylinder" size="{_f([wheels.radius, wheels.width / 2])}" '
         f"{_frame(axle)}/>",
@@ -315,16 +322,14 @@ def start_pose(
     along its normal. On a heightmap (M = G): the attitude of the plane fitted under the
     tracks, the lowest track sample ``drop_height`` above the ground.
     """
+    x, y, heading = (float(v) for v in np.asarray(pose, dtype=float))
+    c, s = np.cos(heading), np.sin(heading)
     grid = ground_heightmap(ground)
     if grid is None:
-        x, y, heading = (float(v) for v in np.asarray(pose, dtype=float))
-        c, s = np.cos(heading), np.sin(heading)
         M_T_B = homogeneous([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], [x, y, 0.0])
         G_T_B = _plane_T(ground) @ M_T_B
         G_T_B[:3, 3] += settings.drop_height * G_T_B[:3, 2]
         return G_T_B
-    x, y, heading = (float(v) for v in np.asarray(pose, dtype=float))
-    c, s = np.cos(heading), np.sin(heading)
     t = robot.base.tracks
     gx, gy = np.meshgrid(np.linspace(-t.length / 2, t.length / 2, 15), [-1.0, 1.0])
     body = np.stack([gx.ravel(), gy.ravel() * (t.separation + t.width) / 2], -1)
@@ -368,7 +373,8 @@ def build_robot_mjcf(
     n = len(track_wheels(robot, s).x)
     asset, ground_geom = ground_xml(ground)
     T = start_pose(robot, ground, pose, s)
-    qpos = np.concatenate([T[:3, 3], _quat(T[:3, :3]), np.zeros(4 * n), q])
+    joints_per_wheel = 2 if s.suspension_deflection > 0 else 1
+    qpos = np.concatenate([T[:3, 3], _quat(T[:3, :3]), np.zeros(2 * n * joints_per_wheel), q])
     ctrl = np.concatenate([np.zeros(2 * n), q])
     base = "\n".join("      " + line for line in _base_xml(robot, s, payload))
     actuators = "\n".join("    " + line for line in _actuators_xml(robot, s, n))

@@ -123,6 +123,7 @@ class RobotSim:
         Args:
             track_speeds: (left, right) track surface speeds [m/s]; (0, 0) brakes.
             arm_q_target: the arm servos' targets (4,) [rad]; None keeps the current ones.
+                A step input: interpolate large moves (a 3.8 rad step throws the robot over).
             duration: simulated time [s] (rounded to whole steps, at least one).
         """
         m, d = self.model, self.data
