@@ -278,7 +278,7 @@ def _full_set() -> bool:
 
 @pytest.mark.skipif(not _full_set(), reason=f"the full set: {FULL_ENV}=1 (make random-routes)")
 def test_the_full_set_of_random_routes(tmp_path):
-    """The issue's 20 routes over 20 maps on the default grid; results/random_routes/summary.json."""
+    """The issue's 20 routes over 20 maps, default grid: results/random_routes/summary.json."""
     pairs = []
     for k in range(FULL_PAIRS):
         path = pair_problem(k, tmp_path)

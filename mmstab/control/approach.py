@@ -73,11 +73,11 @@ def nearest_free(
 
 
 def eased_polyline(knots: FloatArray, postures: FloatArray) -> Any:
-    """Straight moves between ``postures`` (M, 4) [rad] at ``knots`` (M,) in [0, 1], at rest at each.
+    """Straight moves between ``postures`` (M, 4) [rad] at ``knots`` (M,) in [0, 1].
 
-    Each piece is followed at the cubic smoothstep 3τ² − 2τ³ (τ the piece's fraction), so
-    the path stays on the checked straight moves and its rate is continuous (0 at the
-    knots). Returns ``path(u, nu=0)``: postures (nu 0) or d/du (nu 1) at u.
+    At rest at each knot: each piece is followed at the cubic smoothstep 3τ² − 2τ³ (τ the
+    piece's fraction), so the path stays on the checked straight moves and its rate is
+    continuous (0 at the knots). Returns ``path(u, nu=0)``: postures (nu 0) or d/du (nu 1) at u.
     """
     h, step = np.diff(knots), np.diff(postures, axis=0)
 
@@ -287,8 +287,8 @@ def arm_references(
         samples = posture_samples(settings.lap_time, settings.dt)
         posture = build_posture_reference(robot, plan, samples)
     approach = None
-    moves = getattr(plan, "moves", ())
-    move = moves[0] if len(moves) == len(plan.postures) and len(moves) else None
+    moves: tuple[FloatArray, ...] = tuple(getattr(plan, "moves", ()))
+    move = moves[0] if moves and len(moves) == len(plan.postures) else None
     if settings.approach_time > 0:
         approach = build_approach(
             robot, q0, posture, settings.approach_time, settings.lap_time, settings.dt, move=move

@@ -278,14 +278,16 @@ def posture_reference(
     The postures are unwrapped (:func:`unwrap_postures`) and joined by the periodic cubic
     spline that :func:`arm_reference` uses for the CoMs, or with ``linear`` by straight
     joint moves at rest at each posture (:func:`periodic_polyline`: a plan whose moves
-    between postures were checked, the roadmap's, is followed on those moves). Where the spline overshoots a joint limit
-    between postures, the value is clipped to the limit and its rate set to zero.
+    between postures were checked, the roadmap's, is followed on those moves). Where the
+    spline overshoots a joint limit between postures, the value is clipped to the limit
+    and its rate set to zero.
 
     Args:
         fractions: path fractions (K,) increasing in [0, 1) [-].
         postures: arm postures at them (K, 4) [rad], within the limits.
         lower: joint lower limits (4,) [rad].
         upper: joint upper limits (4,) [rad].
+        linear: straight moves between the postures (:func:`periodic_polyline`).
 
     Returns:
         ``ref(s) -> PathSample`` with q_ref (N, 4) [rad] and d q_ref / ds (N, 4) [rad].
