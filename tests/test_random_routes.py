@@ -311,3 +311,33 @@ def test_the_full_set_of_random_routes(tmp_path):
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     assert passed == FULL_PAIRS, summary["failed"]
+
+
+# ------------------------------------------------------------------------- the fixes
+def test_a_polyline_reference_stays_on_its_moves_and_rests_at_each_knot(rng):
+    from mmstab.control.approach import eased_polyline
+    from mmstab.control.reference import periodic_polyline
+
+    f = np.array([0.1, 0.3, 0.35, 0.8])
+    q = rng.uniform(-1, 1, (4, 4))
+    ref = periodic_polyline(f, q)
+    # on the straight move from knot 1 to knot 2, at the smoothstep of the fraction
+    s = 0.3 + 0.05 * np.array([0.0, 0.25, 0.5, 1.0])
+    tau = np.array([0.0, 0.25, 0.5, 1.0])
+    expected = q[1] + (3 * tau**2 - 2 * tau**3)[:, None] * (q[2] - q[1])
+    np.testing.assert_allclose(ref(s).value, expected, atol=1e-12)
+    np.testing.assert_allclose(ref(f).rate, 0.0, atol=1e-12)  # at rest at every knot
+    np.testing.assert_allclose(ref(0.1 + 1.0).value, q[[0]], atol=1e-12)  # period 1
+    # mid-way through the closing move (0.8 -> 1.1) at 1.5 times its mean rate
+    mid = ref(0.95)
+    np.testing.assert_allclose(mid.value[0], 0.5 * (q[3] + q[0]), atol=1e-12)
+    np.testing.assert_allclose(mid.rate[0], 1.5 * (q[0] - q[3]) / 0.3, rtol=1e-12)
+    u = rng.uniform(0, 1, 50)
+    h = 1e-7
+    fd = (ref(u + h).value - ref(u - h).value) / (2 * h)
+    np.testing.assert_allclose(ref(u).rate, fd, atol=1e-5)
+    # the approach's open form: the same pieces on [0, 1]
+    path = eased_polyline(np.array([0.0, 0.4, 1.0]), q[:3])
+    np.testing.assert_allclose(path(0.2), 0.5 * (q[0] + q[1]), atol=1e-12)
+    np.testing.assert_allclose(path(np.array([0.0, 0.4, 1.0]), 1), 0.0, atol=1e-12)
+    np.testing.assert_allclose(path(1.0), q[2], atol=1e-12)
