@@ -242,3 +242,9 @@ kerb: setup
 	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable --allow-sliding
 	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/kerb.yaml -o results/kerb
+
+## issue 24: 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
+## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json
+.PHONY: random-routes
+random-routes: setup
+	MMSTAB_RANDOM_ROUTES=1 $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set

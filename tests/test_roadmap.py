@@ -255,3 +255,29 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
         (np.array(q["mu_optimum_roadmap"]) - q["mu_planned"]) / np.abs(q["mu_optimum_roadmap"]),
     )
     assert q["gap_to_V_median"] == pytest.approx(np.median(q["gap_to_V"]))
+
+
+def test_shortcuts_keep_the_move_clearance(robot, small):
+    """Every cut the shortcut makes keeps MOVE_CLEARANCE (dense FCL distance); lattice
+    steps it keeps are edges of the roadmap."""
+    from mmstab.workspace.roadmap import MOVE_CLEARANCE
+
+    _, rm = small
+    rng = np.random.default_rng(31)
+    checker = CollisionChecker(robot)
+    comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    edges = {tuple(e) for e in np.sort(rm.edges, axis=1).tolist()}
+    node_of = {tuple(q): i for i, q in enumerate(np.round(rm.nodes_q, 12).tolist())}
+    cuts = 0
+    for a, b in rng.choice(comp, (6, 2)):
+        lattice = rm.path_postures(int(a), int(b))
+        short = rm.shortcut(checker, lattice)
+        np.testing.assert_array_equal(short[[0, -1]], lattice[[0, -1]])
+        for qa, qb in zip(short[:-1], short[1:], strict=True):
+            i, j = node_of[tuple(np.round(qa, 12))], node_of[tuple(np.round(qb, 12))]
+            if tuple(sorted((i, j))) in edges:
+                continue
+            cuts += 1
+            u = np.linspace(0.0, 1.0, 200)[:, None]
+            assert checker.clearance(qa + u * (qb - qa)).min() >= MOVE_CLEARANCE
+    assert cuts > 0

@@ -72,6 +72,46 @@ def nearest_free(
     return np.array(cand)[np.flatnonzero(free)[0]] if free.any() else None
 
 
+def eased_polyline(knots: FloatArray, postures: FloatArray) -> Any:
+    """Straight moves between ``postures`` (M, 4) [rad] at ``knots`` (M,) in [0, 1].
+
+    At rest at each knot: each piece is followed at the cubic smoothstep 3τ² − 2τ³ (τ the
+    piece's fraction), so the path stays on the checked straight moves and its rate is
+    continuous (0 at the knots). Returns ``path(u, nu=0)``: postures (nu 0) or d/du (nu 1) at u.
+    """
+    h, step = np.diff(knots), np.diff(postures, axis=0)
+
+    def path(u: ArrayLike, nu: int = 0) -> FloatArray:
+        ua = np.atleast_1d(np.asarray(u, dtype=float))
+        k = np.clip(np.searchsorted(knots, ua, side="right") - 1, 0, len(h) - 1)
+        tau = np.clip((ua - knots[k]) / h[k], 0.0, 1.0)
+        if nu:
+            out = (6 * tau * (1 - tau) / h[k])[:, None] * step[k]
+        else:
+            out = postures[k] + (tau * tau * (3 - 2 * tau))[:, None] * step[k]
+        return out[0] if np.ndim(u) == 0 else out
+
+    return path
+
+
+def roadmap_approach_knots(
+    robot: Robot, move: FloatArray, posture: PostureReference, s_end: float
+) -> tuple[FloatArray, FloatArray]:
+    """The approach of a roadmap plan: its first move, then the lap's knots up to ``s_end``.
+
+    The plan's move from the start posture onto its first posture (checked), then the lap
+    reference's knots in (0, ``s_end``) and its posture at ``s_end`` (the lap's checked
+    moves): knots (M,) in [0, 1] in proportion to each piece's time at the joint-speed
+    limits, and the postures (M, 4) [rad].
+    """
+    inside = (posture.fractions > 0) & (posture.fractions < s_end)
+    q = np.vstack([move, posture.postures[inside], posture(s_end).value])
+    keep = np.r_[True, np.abs(np.diff(q, axis=0)).max(axis=1) > 1e-12]
+    q = q[keep]
+    tau = np.r_[0.0, np.cumsum((np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1))]
+    return tau / tau[-1], q
+
+
 @dataclasses.dataclass(frozen=True)
 class Approach:
     """The arm's start-up reference: from the initial posture onto the lap's references.
@@ -94,6 +134,8 @@ class Approach:
         check: the path as used (x = time [s]).
         path: the spline A(u).
         robot: the robot (arm-CoM kinematics, joint limits).
+        eased: A is an :func:`eased_polyline` (a roadmap plan's checked moves, at rest at
+            each knot), followed at u = t / duration.
     """
 
     duration: float
@@ -104,10 +146,14 @@ class Approach:
     check: SequenceCollisions
     path: Any
     robot: Robot
+    eased: bool = False
 
     def posture(self, t: ArrayLike) -> PathSample:
         """q_ref (N, 4) [rad] and its rate (N, 4) [rad/s] at times t (N,) [s]."""
         u, du = time_scaling(np.atleast_1d(np.asarray(t, dtype=float)) / self.duration)
+        if self.eased:  # at rest at every knot already
+            u = np.clip(np.atleast_1d(np.asarray(t, dtype=float)) / self.duration, 0.0, 1.0)
+            du = np.where((u > 0) & (u < 1), 1.0, 0.0)
         q, dq = self.path(u), self.path(u, 1) * (du / self.duration)[:, None]
         lo, hi = self.robot.joint_lower, self.robot.joint_upper
         inside = (q >= lo) & (q <= hi)
@@ -141,8 +187,13 @@ def build_approach(
     dt: float,
     *,
     step: float = 0.05,
+    move: FloatArray | None = None,
 ) -> Approach:
     """The start-up reference from the arm posture ``q0`` onto the lap's references.
+
+    With ``move`` (a roadmap plan's checked move from ``q0`` onto its first posture) the
+    path follows it and the lap's checked moves, at rest at each knot
+    (:func:`roadmap_approach_knots`, :func:`eased_polyline`); else straight (repaired).
 
     Args:
         robot: the robot.
@@ -152,6 +203,7 @@ def build_approach(
         lap_time: time of one lap [s].
         dt: control period [s]: the path is checked at every one.
         step: resolution of the via-posture search [rad] (:func:`nearest_free`).
+        move: the plan's move from ``q0`` (n, 4) [rad], starting at ``q0``.
 
     Raises:
         ValueError: a duration that is not positive.
@@ -162,13 +214,19 @@ def build_approach(
         raise ValueError(f"the approach needs a positive duration, got {duration}")
     q_end = posture(duration / lap_time).value[0]
     knots, postures = np.array([0.0, 1.0]), np.vstack([np.asarray(q0, dtype=float), q_end])
+    eased = move is not None and np.allclose(move[0], q0, atol=1e-9)
+    if eased and move is not None:
+        knots, postures = roadmap_approach_knots(robot, move, posture, duration / lap_time)
     t = np.arange(int(np.floor(duration / dt)) + 1) * dt
     checker = CollisionChecker(robot)
     unchecked = SequenceCollisions(0, 0, 0.0, [], {})
 
     def make(knots: FloatArray, postures: FloatArray) -> Approach:
-        path = CubicSpline(knots, postures, bc_type="natural")
-        return Approach(duration, knots, postures, (), unchecked, unchecked, path, robot)
+        if eased:
+            path = eased_polyline(knots, postures)
+        else:
+            path = CubicSpline(knots, postures, bc_type="natural")
+        return Approach(duration, knots, postures, (), unchecked, unchecked, path, robot, eased)
 
     approach = make(knots, postures)
     planned, hit = sequence_collisions(checker, t, approach.posture(t).value)
@@ -229,9 +287,11 @@ def arm_references(
         samples = posture_samples(settings.lap_time, settings.dt)
         posture = build_posture_reference(robot, plan, samples)
     approach = None
+    moves: tuple[FloatArray, ...] = tuple(getattr(plan, "moves", ()))
+    move = moves[0] if moves and len(moves) == len(plan.postures) else None
     if settings.approach_time > 0:
         approach = build_approach(
-            robot, q0, posture, settings.approach_time, settings.lap_time, settings.dt
+            robot, q0, posture, settings.approach_time, settings.lap_time, settings.dt, move=move
         )
     return ArmReferences(posture, approach)
 

@@ -5,6 +5,10 @@ arm-CoM task toward g_ref(s). Both come from the plan's postures:
 
 1. **Interpolate the postures**: the periodic cubic spline that the plan's CoMs used to be
    interpolated with (:func:`mmstab.control.reference.posture_reference`, the turret unwrapped).
+   A roadmap plan (``planner: {method: roadmap}``) is followed on its checked moves
+   instead: straight joint moves between their vertices, at rest at each
+   (:func:`roadmap_knots`): a spline through them would leave the checked moves and, on
+   random routes, touched the body where the moves pass within millimetres of it.
 2. **Its CoM is the CoM reference**: g_ref^B(s) = g_a^B(q_ref(s)), rate J_a q̇_ref
    (:meth:`PostureReference.com_body`). At the planned poses it is the planned CoM (to the
    IK's 10⁻⁴ m). Splining the planned CoMs instead (:func:`mmstab.control.reference.arm_reference`)
@@ -224,20 +228,16 @@ def _via_posture(
     return best
 
 
-#: Largest joint step between knots inserted along a roadmap move [rad] (the spline then
-#: follows the move's straight pieces closely).
-ROADMAP_KNOT_STEP = 0.1
-
-
 def roadmap_knots(
     robot: Robot, fractions: FloatArray, postures: FloatArray, moves: tuple[FloatArray, ...]
 ) -> tuple[FloatArray, FloatArray]:
     """The plan's knots with its roadmap moves inserted (``planner: {method: roadmap}``).
 
-    Each move into pose k (from pose k−1, or on a closed plan from the last pose into pose
-    0 at s = 1) is cut into pieces of at most ``ROADMAP_KNOT_STEP`` per joint, placed between
-    the two poses' fractions in proportion to the time each piece takes at the joint-speed
-    limits (the move time-scaled to fill its interval). The open plan's move from the start
+    The vertices of each move into pose k (from pose k−1, or on a closed plan from the last
+    pose into pose 0 at s = 1) are placed between the two poses' fractions in proportion to
+    the time each straight piece takes at the joint-speed limits (the move time-scaled to
+    fill its interval); the reference moves straight between them, at rest at each
+    (:func:`mmstab.control.reference.periodic_polyline`). The open plan's move from the start
     posture is the approach's (:mod:`mmstab.control.approach`), not inserted.
 
     Args:
@@ -254,11 +254,7 @@ def roadmap_knots(
         if k == 0 and not closed:
             continue
         a, b = (fractions[-1], 1.0 + fractions[0]) if k == 0 else (fractions[k - 1], fractions[k])
-        pieces = [move[:1]]
-        for qa, qb in zip(move[:-1], move[1:], strict=True):
-            n = max(int(np.ceil(np.abs(qb - qa).max() / ROADMAP_KNOT_STEP)), 1)
-            pieces.append(qa + (np.arange(1, n + 1) / n)[:, None] * (qb - qa))
-        q = np.vstack(pieces)
+        q = np.asarray(move, dtype=float)
         tau = np.r_[0.0, np.cumsum((np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1))]
         if len(q) < 3 or tau[-1] <= 0:
             continue
@@ -296,13 +292,14 @@ def build_posture_reference(
     postures = np.array(plan.postures, dtype=float, ndmin=2)
     com_body = periodic_spline(fractions, plan.target_com, "target_com")
     moves = getattr(plan, "moves", ())
-    if len(moves) == len(postures) and len(postures):  # method roadmap: follow its moves
+    linear = len(moves) == len(postures) and len(postures) > 0
+    if linear:  # method roadmap: follow its moves, straight between their knots
         fractions, postures = roadmap_knots(robot, fractions, postures, moves)
     s = np.arange(samples) / samples
     checker = CollisionChecker(robot)
 
     def make(fractions: FloatArray, postures: FloatArray) -> tuple[PostureReference, Any, Any]:
-        spline = posture_reference(fractions, postures, lo, hi)
+        spline = posture_reference(fractions, postures, lo, hi, linear=linear)
         q = spline(s).value
         check, hit = sequence_collisions(checker, s, q)
         gap = float(np.linalg.norm(robot.arm_com(q) - com_body(s).value, axis=1).max())

@@ -172,6 +172,40 @@ def periodic_spline(
     return periodic
 
 
+def periodic_polyline(
+    fractions: ArrayLike, values: ArrayLike, name: str = "values"
+) -> Callable[[ArrayLike], PathSample]:
+    """Straight moves between consecutive ``values`` (K, n) at ``fractions`` (K,), period 1.
+
+    Between two knots the value moves on the straight line joining them (a polyline that
+    was checked stays checked), at rest at each knot: the time-scaling is the cubic
+    smoothstep 3τ² − 2τ³ of the interval's fraction τ, so the rate is continuous (0 at the
+    knots) and at most 1.5 times the interval's mean rate.
+
+    Args:
+        fractions: path fractions (K,) increasing in [0, 1) [-].
+        values: the knots' values (K, n) [any unit].
+        name: what the values are, for messages.
+
+    Returns:
+        ``f(s) -> PathSample``: value (N, n) and d/ds (N, n) at fractions s (any real s).
+    """
+    f = np.asarray(fractions, dtype=float)
+    v = np.asarray(values, dtype=float)
+    _check_fractions(f, v, name)
+    x, y = np.r_[f, f[0] + 1], np.vstack([v, v[:1]])
+    h, step = np.diff(x), np.diff(y, axis=0)
+
+    def polyline(s: ArrayLike) -> PathSample:
+        u = f[0] + np.mod(np.atleast_1d(np.asarray(s, dtype=float)) - f[0], 1.0)
+        k = np.clip(np.searchsorted(x, u, side="right") - 1, 0, len(h) - 1)
+        tau = np.clip((u - x[k]) / h[k], 0.0, 1.0)
+        ease, rate = tau * tau * (3 - 2 * tau), 6 * tau * (1 - tau) / h[k]
+        return PathSample(y[k] + ease[:, None] * step[k], rate[:, None] * step[k])
+
+    return polyline
+
+
 def arm_reference(
     plan: PlanLike, circle: BasePath, terrain: Terrain
 ) -> Callable[[ArrayLike], PathSample]:
@@ -232,19 +266,28 @@ def unwrap_postures(postures: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> 
 
 
 def posture_reference(
-    fractions: ArrayLike, postures: ArrayLike, lower: ArrayLike, upper: ArrayLike
+    fractions: ArrayLike,
+    postures: ArrayLike,
+    lower: ArrayLike,
+    upper: ArrayLike,
+    *,
+    linear: bool = False,
 ) -> Callable[[ArrayLike], PathSample]:
     """The arm posture reference q_ref(s) along the lap: the plan's postures interpolated.
 
     The postures are unwrapped (:func:`unwrap_postures`) and joined by the periodic cubic
-    spline that :func:`arm_reference` uses for the CoMs. Where the spline overshoots a joint
-    limit between postures, the value is clipped to the limit and its rate set to zero.
+    spline that :func:`arm_reference` uses for the CoMs, or with ``linear`` by straight
+    joint moves at rest at each posture (:func:`periodic_polyline`: a plan whose moves
+    between postures were checked, the roadmap's, is followed on those moves). Where the
+    spline overshoots a joint limit between postures, the value is clipped to the limit
+    and its rate set to zero.
 
     Args:
         fractions: path fractions (K,) increasing in [0, 1) [-].
         postures: arm postures at them (K, 4) [rad], within the limits.
         lower: joint lower limits (4,) [rad].
         upper: joint upper limits (4,) [rad].
+        linear: straight moves between the postures (:func:`periodic_polyline`).
 
     Returns:
         ``ref(s) -> PathSample`` with q_ref (N, 4) [rad] and d q_ref / ds (N, 4) [rad].
@@ -253,7 +296,8 @@ def posture_reference(
         ValueError: fractions not increasing in [0, 1), or shapes that do not match.
     """
     lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    spline = periodic_spline(fractions, unwrap_postures(postures, lo, hi), "postures")
+    interpolate = periodic_polyline if linear else periodic_spline
+    spline = interpolate(fractions, unwrap_postures(postures, lo, hi), "postures")
 
     def reference(s: ArrayLike) -> PathSample:
         q, dq = spline(s)

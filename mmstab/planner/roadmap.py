@@ -15,7 +15,9 @@ the answer, for the controller.
 
 from __future__ import annotations
 
+import functools
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -27,7 +29,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.sequence import _diverse_top, _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
-from mmstab.workspace.roadmap import Roadmap
+from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
 TURRET_BINS = 24
@@ -113,6 +115,51 @@ def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
     return np.asarray(cached)
 
 
+def nodes_clear(
+    robot: Robot, roadmap: Roadmap, reach: NDArray[np.intp], rows: NDArray[np.intp]
+) -> NDArray[np.bool_]:
+    """Whether the nodes ``reach[rows]`` keep :data:`MOVE_CLEARANCE` [m] from the robot.
+
+    The FCL clearance of a node is measured on first use and kept with the roadmap.
+    """
+    cached = getattr(roadmap, "_node_clearance", None)
+    if cached is None:
+        cached = np.full(len(roadmap.nodes_q), np.nan)
+        object.__setattr__(roadmap, "_node_clearance", cached)
+    nodes = reach[rows]
+    todo = nodes[np.isnan(cached[nodes])]
+    if todo.size:
+        cached[todo] = CollisionChecker(robot).clearance(roadmap.nodes_q[todo])
+    return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
+
+
+def clear_candidates(
+    values: FloatArray,
+    bins: NDArray[np.intp],
+    count: int,
+    members: list[NDArray[np.intp]],
+    clear: Callable[[NDArray[np.intp]], NDArray[np.bool_]],
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """A pose's ``count`` candidates spread over the turret, each clear of the robot.
+
+    The best of each turret bin in turn (``_diverse_top``); a chosen row that is not
+    ``clear`` gets value -inf and the choice is made again, until every finite choice is
+    clear. Returns the rows and the values (-inf where not clear).
+
+    The tracked arm follows the plan's postures within a few millimetres, and a tracking
+    run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``): on random routes postures
+    1.5 mm from the body were chosen and touched it when tracked.
+    """
+    v = np.array(values, dtype=float)
+    while True:
+        rows = _diverse_top(v, bins, count, members)
+        finite = rows[np.isfinite(v[rows])]
+        bad = finite[~clear(finite)]
+        if bad.size == 0:
+            return rows, v
+        v[bad] = -np.inf
+
+
 def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
     """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
@@ -172,13 +219,13 @@ def solve_roadmap_sequence(
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+    clear = functools.partial(nodes_clear, robot, roadmap, reach)
     members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
     cand = np.empty((K, M), dtype=np.intp)
     value, mu = np.empty((K, M)), np.empty((K, M))
-    for k in range(K):
+    for k in range(K):  # clear: the node keeps MOVE_CLEARANCE from the robot
         fit = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter)
-        v = fit.linear()(samples)
-        cand[k] = _diverse_top(v, bins, M, members)
+        cand[k], v = clear_candidates(fit.linear()(samples), bins, M, members, clear)
         mu[k] = fit.mu(samples[cand[k]])
         value[k] = np.where(mu[k] > 0, v[cand[k]], -np.inf)
     w = settings.w_motion / diameter**2

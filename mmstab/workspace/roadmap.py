@@ -38,6 +38,12 @@ from mmstab.workspace.region import Workspace
 
 #: Largest motion of any point of the arm between two checked postures of an edge [m].
 DEFAULT_RESOLUTION = 0.02
+#: Smallest clearance [m] between an arm link and the robot that a shortcut's straight
+#: move keeps (:meth:`Roadmap.shortcut`): the tracked arm follows the moves within a few
+#: millimetres, and a tracking run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``).
+MOVE_CLEARANCE = 0.003
+#: Largest motion of any arm point between two postures whose clearance is measured [m].
+CLEARANCE_STEP = 0.004
 #: Postures per batch handed to the collision checker.
 CHECK_CHUNK = 16384
 #: Postures of V sampled to bound each joint's reach (seeded).
@@ -125,18 +131,47 @@ class Roadmap:
         u = np.linspace(0.0, 1.0, n + 1)[:, None]
         return not bool(np.asarray(checker.collides(qa + u * d), dtype=bool).any())
 
-    def shortcut(self, checker: CollisionChecker, q: ArrayLike) -> FloatArray:
-        """A posture path (n, 4) [rad] with its corners cut where free.
+    def move_is_clear(
+        self, checker: CollisionChecker, qa: FloatArray, qb: FloatArray, clearance: float
+    ) -> bool:
+        """Whether the straight move qa -> qb (4,) [rad] keeps ``clearance`` [m] everywhere.
 
-        Greedy: from each kept posture, the farthest later one joined by a free straight
-        move (:meth:`move_is_free`); the lattice's staircase becomes straight moves. The
-        ends are kept; the result is never longer (triangle inequality).
+        Free at the roadmap's resolution (:meth:`move_is_free`), then the clearance
+        measured at postures between which no arm point moves more than
+        :data:`CLEARANCE_STEP`: at least ``clearance + CLEARANCE_STEP / 2`` at each of
+        them bounds it by ``clearance`` between them (clearance is 1-Lipschitz in point
+        motion).
+        """
+        if not self.move_is_free(checker, qa, qb):
+            return False
+        d = np.asarray(qb, dtype=float) - qa
+        n = int(np.ceil(float(self.reach @ np.abs(d)) / CLEARANCE_STEP)) + 1
+        u = np.linspace(0.0, 1.0, n + 1)[:, None]
+        return bool(checker.clearance(qa + u * d).min() >= clearance + CLEARANCE_STEP / 2)
+
+    def shortcut(
+        self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE
+    ) -> FloatArray:
+        """A posture path (n, 4) [rad] with its corners cut where free and clear.
+
+        Greedy: from each kept posture, the farthest later one joined by a straight move
+        that keeps ``clearance`` [m] (:meth:`move_is_clear`; 0: free at the roadmap's
+        resolution, :meth:`move_is_free`); the lattice's staircase becomes straight moves.
+        The ends are kept; the result is never longer (triangle inequality). A cut never
+        passes closer to the robot than ``clearance``, so it never takes the arm nearer
+        than the lattice path it replaces when that path keeps ``clearance`` itself.
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
+
+        def ok(a: FloatArray, b: FloatArray) -> bool:
+            if clearance <= 0:
+                return self.move_is_free(checker, a, b)
+            return self.move_is_clear(checker, a, b, clearance)
+
         keep, i = [0], 0
         while i < len(qa) - 1:
             j = len(qa) - 1
-            while j > i + 1 and not self.move_is_free(checker, qa[i], qa[j]):
+            while j > i + 1 and not ok(qa[i], qa[j]):
                 j = (i + 1 + j) // 2 if j - i > 8 else j - 1
             keep.append(j)
             i = j
