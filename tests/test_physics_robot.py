@@ -99,7 +99,11 @@ def mujoco_composite(model, data):
 def test_mass_com_inertia_equal_mmstab(path, with_payload):
     robot = load_robot(path)
     payload = PAYLOAD if with_payload else None
-    xml = build_robot_mjcf(robot, Ramp(0.3), payload=payload, pose=(0.4, -0.2, 0.8), arm_q=POSTURE)
+    # any number of joints: the first four as for the 4-DoF arm, the wrist's bent by 0.2 rad
+    posture = np.resize(POSTURE, robot.arm_joints) + np.where(
+        np.arange(robot.arm_joints) < 4, 0, 0.2
+    )
+    xml = build_robot_mjcf(robot, Ramp(0.3), payload=payload, pose=(0.4, -0.2, 0.8), arm_q=posture)
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
@@ -108,16 +112,16 @@ def test_mass_com_inertia_equal_mmstab(path, with_payload):
     # mmstab's mass model: m_T and g_o (Eq. 5) of the robot with the payload folded in
     loaded = attach_payload(robot, payload) if payload else robot
     assert abs(mass - loaded.total_mass) < 1e-9
-    assert np.abs(com - loaded.overall_com(loaded.arm_com(POSTURE))).max() < 1e-9
+    assert np.abs(com - loaded.overall_com(loaded.arm_com(posture))).max() < 1e-9
     # mmstab has no whole-robot inertia: its parts' (the URDF export's) summed about g_o
-    parts = mmstab_parts(robot, POSTURE, payload)
+    parts = mmstab_parts(robot, posture, payload)
     g_o = sum(m * c for m, c, _ in parts) / sum(m for m, _, _ in parts)
     reference = sum(tensor + point(m, c - g_o) for m, c, tensor in parts)
     assert np.abs(inertia - reference).max() < 1e-9
     # the arm's bodies are mmstab's DH frames R_i
     b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base")
     G_R_B, G_p_B = data.xmat[b].reshape(3, 3), data.xpos[b]
-    for link, B_T_R in zip(robot.links, robot.kinematics.link_frames(POSTURE), strict=True):
+    for link, B_T_R in zip(robot.links, robot.kinematics.link_frames(posture), strict=True):
         i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"arm_{link.name}")
         assert np.abs(G_R_B.T @ data.xmat[i].reshape(3, 3) - B_T_R[:3, :3]).max() < 1e-12
         assert np.abs(G_R_B.T @ (data.xpos[i] - G_p_B) - B_T_R[:3, 3]).max() < 1e-12

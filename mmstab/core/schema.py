@@ -216,6 +216,15 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "sequence_candidates": 256,
     },
     "workspace": {"method": "hull_difference"},
+    "physics": {
+        "control_dt": 0.004,
+        "duration": None,
+        "tip_angle": 0.35,
+        "slip_distance": 0.05,
+        "slip_window": 1.0,
+        "check_dt": 0.02,
+        "backend": "interpreted",
+    },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",
         "odom_topic": "/odom",
@@ -332,8 +341,23 @@ ONLINE = obj(
     ),
 )
 
+# The controller in the loop on the whole robot in MuJoCo (mmstab simulate; docs/physics.md):
+# control period [s], simulated time [s] (null: the controller's / the route's), the chassis
+# tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
+# slide, the period of those checks [s], and the controller step's backend.
+PHYSICS = obj(
+    control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
+    duration={"oneOf": [{"type": "null"}, POS]},
+    tip_angle={"type": "number", "exclusiveMinimum": 0, "maximum": 1.5},
+    slip_distance=POS,
+    slip_window=POS,
+    check_dt=POS,
+    backend={"enum": ["interpreted", "generated"]},
+)
+
 #: Sections a problem may leave out; the command that needs one says so when it is missing.
 OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {
+    "physics": PHYSICS,
     "online": ONLINE,
     "atlas": ATLAS,
     "payload": PAYLOAD,

@@ -1,0 +1,62 @@
+"""``mmstab simulate``: the tracking run in MuJoCo with the controller in the loop."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+
+
+def _simulate(args: argparse.Namespace) -> int | None:
+    from mmstab.core.files import MmstabError, check_output_dir
+    from mmstab.core.problem import load_problem
+    from mmstab.experiments.simulate import run_simulate
+
+    problem = load_problem(args.problem)
+    out = Path(args.out or "results/physics")
+    check_output_dir(out)
+    if args.duration is not None and not args.duration > 0:
+        raise MmstabError(f"--duration: must be positive, got {args.duration}")
+    s = run_simulate(problem, out, args.duration)
+    print(
+        f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller) at "
+        f"{s['real_time_factor']:.1f}x real time; base error max {s['base_error_max_m']:.3f} m, "
+        f"arm CoM {s['arm_com_error_max_m']:.3f} m; QP failures {s['qp_failures']}"
+    )
+    d = s["mu_difference"]
+    print(
+        f"simulate: mu min predicted {s['mu_predicted_min']:.1f}, simulated "
+        f"{s['mu_simulated_min']:.1f} N rad (median difference {d['median_abs']:.1f} N rad); "
+        f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
+        f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
+    )
+    if s["tipped"] is not None:
+        line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
+        print(f"mmstab: unstable: {line}", file=sys.stderr)
+        return EXIT_UNSTABLE
+    if s["slid"] is not None:
+        line = (
+            f"the robot slides in MuJoCo at {s['slid']['time_s']:.2f} s (more than "
+            f"{s['slip_distance_m']:g} m downhill in {s['slip_window_s']:g} s)"
+        )
+        if not args.allow_sliding:
+            print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
+            return EXIT_SLIDES
+        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
+    return None
+
+
+def add_physics_commands(sub: Any) -> None:
+    """``simulate`` (docs/physics.md)."""
+    h = "track the problem's path on the whole robot in MuJoCo, the controller in the loop"
+    p = sub.add_parser("simulate", help=h, description=h)
+    p.add_argument(
+        "problem", help="problem YAML file (its physics: section; e.g. problems/ramp.yaml)"
+    )
+    p.add_argument("-o", "--out", default=None, help="output folder (default results/physics)")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s]")
+    p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the robot slides")
+    p.set_defaults(handler=_simulate)

@@ -1,0 +1,124 @@
+"""``mmstab simulate`` / ``make physics``: the tracking run in MuJoCo, controller in the loop.
+
+Plans the problem (as ``mmstab track`` does), then runs the closed loop of
+:mod:`mmstab.physics.closed_loop` on the whole robot in MuJoCo along the problem's path
+(the ramp lap or a route) and, beside it for comparison, the kinematic run of
+:mod:`mmstab.runs.tracking`. Writes to the output folder: ``summary.json`` (verdicts:
+tipped, slid; base and arm-CoM errors; predicted against simulated μ; QP failures; the
+real-time factor), ``physics.png`` and the settings (``problem.yaml``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.app import generated_step, plan
+from mmstab.control.controller import ControllerSettings, build_controller
+from mmstab.control.reference import initial_state
+from mmstab.core.files import write_figure, write_json
+from mmstab.core.problem import Problem
+from mmstab.experiments.common import output_dir, save_settings
+from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
+
+
+def loop_settings(problem: Problem) -> LoopSettings:
+    """The problem's ``physics:`` section (defaults filled in)."""
+    s = problem.section("physics")
+    return LoopSettings(
+        control_dt=float(s["control_dt"]),
+        duration=None if s["duration"] is None else float(s["duration"]),
+        tip_angle=float(s["tip_angle"]),
+        slip_distance=float(s["slip_distance"]),
+        slip_window=float(s["slip_window"]),
+        check_dt=float(s["check_dt"]),
+        backend=str(s["backend"]),
+    )
+
+
+def controller_settings(problem: Problem) -> ControllerSettings:
+    """The controller's settings; a route sets its own lap time and duration."""
+    cs = ControllerSettings.from_section(problem.section("controller"))
+    if problem.route is not None:
+        cs = dataclasses.replace(
+            cs, lap_time=problem.route.lap_time, duration=problem.route.duration
+        )
+    return cs
+
+
+def run_simulate(
+    problem: Problem, out: str | Path | None = None, duration: float | None = None
+) -> dict[str, Any]:
+    """Plan, run the closed loop in MuJoCo, write the summary and figure (module text)."""
+    loop = loop_settings(problem)
+    if duration is not None:
+        loop = dataclasses.replace(loop, duration=float(duration))
+    cs = controller_settings(problem)
+    if loop.backend == "generated":
+        step = generated_step(problem).function
+        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
+    else:
+        step = build_controller(problem.robot, cs).step
+    arm_plan = plan(problem)
+    state0 = initial_state(problem.base_path, problem.robot.stowed)
+    run = run_closed_loop(problem, arm_plan, step, cs, loop, state0)
+    d = output_dir(out, "physics")
+    summary = summarize(run, loop)
+    summary["backend"] = loop.backend
+    _figure(d / "physics.png", run)
+    save_settings(d, problem, physics=dataclasses.asdict(loop))
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
+    """The run's numbers: verdicts, errors, μ predicted against simulated, speed."""
+    both = np.isfinite(run.mu_simulated) & np.isfinite(run.mu_predicted)
+    diff = run.mu_simulated[both] - run.mu_predicted[both]
+    return {
+        "duration_s": float(run.t[-1]),
+        "control_dt_s": float(run.t[1] - run.t[0]) if len(run.t) > 1 else None,
+        "tipped": None if run.tipped is None else {"time_s": run.tipped},
+        "slid": None if run.slid is None else {"time_s": run.slid},
+        "tip_angle_rad": loop.tip_angle,
+        "tilt_off_rest_max_rad": float(np.nanmax(run.tilt_error)),
+        "slip_distance_m": loop.slip_distance,
+        "slip_window_s": loop.slip_window,
+        "downhill_drift_max_m": float(np.max(run.slip)),
+        "base_error_max_m": float(run.base_error.max()),
+        "base_error_final_m": float(run.base_error[-1]),
+        "arm_com_error_max_m": float(run.arm_com_error.max()),
+        "arm_com_error_final_m": float(run.arm_com_error[-1]),
+        "qp_failures": int(np.sum(run.status != 0)),
+        "mu_predicted_min": float(np.min(run.mu_predicted)),
+        "mu_simulated_min": float(np.nanmin(run.mu_simulated)),
+        "mu_difference": {
+            "median_abs": float(np.median(np.abs(diff))),
+            "median_relative": float(np.median(np.abs(diff) / np.abs(run.mu_predicted[both]))),
+            "max_abs": float(np.max(np.abs(diff))),
+            "samples": int(both.sum()),
+        },
+        "real_time_factor": run.real_time_factor,
+        "wall_seconds": run.wall_seconds,
+    }
+
+
+def _figure(path: Path, run: PhysicsRun) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    ok = np.isfinite(run.mu_simulated)
+    a.plot(run.t, run.mu_predicted, lw=1, label="mmstab: predicted at the simulated pose")
+    a.plot(run.t[ok], run.mu_simulated[ok], lw=1, label="MuJoCo: loaded contacts")
+    a.set(xlabel="t [s]", ylabel="mu [N rad]", title="stability in the closed loop")
+    a.legend(fontsize=7)
+    b.plot(run.t, run.base_error, lw=1, label="base control point")
+    b.plot(run.t, run.arm_com_error, lw=1, label="arm CoM")
+    b.plot(run.t, np.abs(run.slip), lw=1, label="downhill drift (1 s)")
+    b.set(xlabel="t [s]", ylabel="[m]", title="tracking errors in MuJoCo")
+    b.legend(fontsize=7)
+    fig.tight_layout()
+    write_figure(path, fig)

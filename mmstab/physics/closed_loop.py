@@ -1,0 +1,280 @@
+"""The controller in the loop on the whole robot in MuJoCo (``mmstab simulate``).
+
+The tracking run of :mod:`mmstab.runs.tracking`, with MuJoCo as the plant instead of the
+kinematic one: every control period ``physics.control_dt`` the controller's step (the
+interpreted CasADi Function, or the generated C through ``casadi.external``) reads the
+state MuJoCo produced, the base pose (x, y, heading) in the terrain's map frame M from the
+simulated chassis and the arm's joint angles from its joints, against the same references
+as the kinematic run (:func:`mmstab.control.approach.run_reference`). Its joint speeds drive
+the model (:mod:`mmstab.physics.robot_sim`):
+
+- tracks: each side's wheels at the sprocket's surface speed, r·θ̇ [m/s];
+- arm: the position servos' targets advance by q̇·dt from where they were (a velocity
+  command through a position loop, as joint controllers run it).
+
+Per control period the run records the simulated state, the commanded speeds, the task
+errors, mmstab's predicted μ at the simulated pose (the base rested on the terrain, the arm
+as simulated) and the **simulated μ**: the force-angle measure of the contacts MuJoCo loads
+(contact points with a positive normal force, their hull along gravity) with the simulated
+overall CoM and m·g. Verdicts: **tipped** when the chassis turns more than ``tip_angle`` off
+its resting attitude on the terrain; **slid** when, over any ``slip_window`` seconds, the
+base moved more than ``slip_distance`` *down the slope* beyond what the tracks commanded
+(the kinematic plant's motion from each simulated state; :func:`downhill_drift`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mmstab.control.approach import run_reference
+from mmstab.control.plant import build_plant
+from mmstab.core.problem import Problem
+from mmstab.model.robot import FloatArray
+from mmstab.physics.robot_model import ModelSettings
+from mmstab.physics.robot_sim import RobotSim, RobotState
+from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.static import contact_force_angle
+from mmstab.terrain.base import GRAVITY_G
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """The ``physics:`` section of a problem.
+
+    Attributes:
+        control_dt: control period [s] (a whole number of MuJoCo steps).
+        duration: simulated time [s]; None: the controller's (a route's driving time).
+        tip_angle: chassis tilt off its resting attitude that counts as tipped [rad].
+        slip_distance: uncommanded downhill displacement that counts as sliding [m].
+        slip_window: the window over which it is measured [s].
+        check_dt: period of the tip check and the simulated μ [s] (reports, not control).
+        backend: ``interpreted`` or ``generated`` (the C step).
+    """
+
+    control_dt: float = 0.004
+    duration: float | None = None
+    tip_angle: float = 0.35
+    slip_distance: float = 0.05
+    slip_window: float = 1.0
+    check_dt: float = 0.02
+    backend: str = "interpreted"
+
+
+@dataclass
+class PhysicsRun:
+    """A closed-loop run in MuJoCo (arrays per control period, N + 1 samples).
+
+    Attributes:
+        t: times [s].
+        state: simulated controller states (x, y, heading in M, sprockets, arm) (N+1, 5+n).
+        qdot: commanded joint speeds (N, 2+n) [rad/s].
+        status: the controller's QP status per period (N,).
+        base_error: base control point's distance from its reference [m].
+        arm_com_error: arm CoM's distance from its reference [m].
+        mu_predicted: mmstab's μ at the simulated pose and posture [N rad].
+        mu_simulated: μ of MuJoCo's loaded contacts [N rad] (every ``check_dt``; NaN between
+            and where no contact is loaded).
+        tilt_error: chassis tilt off the terrain's resting attitude [rad] (every ``check_dt``).
+        slip: uncommanded downhill displacement over the last ``slip_window`` [m].
+        tipped: time it tipped [s], or None.
+        slid: time it slid [s], or None.
+        real_time_factor: simulated time / wall time (controller included) [-].
+        wall_seconds: wall time of the loop [s].
+    """
+
+    t: FloatArray
+    state: FloatArray
+    qdot: FloatArray
+    status: FloatArray
+    base_error: FloatArray
+    arm_com_error: FloatArray
+    mu_predicted: FloatArray
+    mu_simulated: FloatArray
+    tilt_error: FloatArray
+    slip: FloatArray
+    tipped: float | None
+    slid: float | None
+    real_time_factor: float
+    wall_seconds: float
+
+
+def simulated_mu(sim: RobotSim, mass: float) -> float:
+    """μ of MuJoCo's contacts now: their hull along gravity, the CoM, m·g [N rad].
+
+    Every active contact counts (touching or penetrating, loaded or not this instant): the
+    soft contacts' forces flicker step to step as the wheels bounce at the sub-millimetre
+    scale, their set does not.
+    """
+    d = sim.data
+    if d.ncon == 0:
+        return float("nan")
+    points = np.array([d.contact[i].pos for i in range(d.ncon)])
+    com = d.subtree_com[0]  # the world body's subtree: the whole robot
+    return contact_force_angle(points, com, mass * GRAVITY_G).mu
+
+
+def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
+    """The simulated base pose (x, y, heading) in the terrain's map frame M."""
+    M_T_B = M_T_G @ state.G_T_B
+    return np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
+
+
+def tilt_off_rest(problem: Problem, pose: FloatArray, G_T_B: FloatArray) -> float:
+    """Angle between the simulated chassis z axis and its resting one on the terrain [rad]."""
+    z_rest = np.asarray(problem.terrain.G_T_B(pose))[:3, 2]
+    c = float(np.clip(z_rest @ G_T_B[:3, 2], -1.0, 1.0))
+    return float(np.arccos(c))
+
+
+def downhill_drift(
+    plant: Any,
+    gravity_body: FloatArray,
+    states: FloatArray,
+    qdots: FloatArray,
+    dt: float,
+    window: int,
+) -> FloatArray:
+    """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
+
+    Each period's simulated motion minus the kinematic plant's from the same simulated state
+    (what the tracks commanded), projected on the downhill direction at the pose (gravity in
+    B, turned by the heading into M's plane), summed over the last ``window`` periods. A
+    sliding robot drifts downhill; the tracks' servo lag and skid in turns move it either way.
+
+    Args:
+        plant: :func:`mmstab.control.plant.build_plant` of the robot.
+        gravity_body: gravity in B at each period's start (N, 3) [m/s^2].
+        states: simulated states (N + 1, 5 + n).
+        qdots: commanded joint speeds (N, 2 + n) [rad/s].
+        dt: control period [s].
+        window: periods summed.
+    """
+    n = len(qdots)
+    pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
+    err = states[1 : n + 1, :2] - pred[:, :2]
+    c, s = np.cos(states[:n, 2]), np.sin(states[:n, 2])
+    g = gravity_body[:n]
+    down = np.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1]], axis=1)
+    norm = np.linalg.norm(down, axis=1, keepdims=True)
+    along = np.sum(err * np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9), 1)
+    acc = np.concatenate([[0.0], np.cumsum(along)])
+    lag = np.maximum(np.arange(n + 1) - window, 0)
+    return np.asarray(acc - acc[lag])
+
+
+def build_sim(problem: Problem, state0: FloatArray, settings: ModelSettings | None) -> RobotSim:
+    """The robot at the run's start pose on the problem's terrain, settled."""
+    n = problem.robot.arm_joints
+    sim = RobotSim(
+        problem.robot, problem.terrain, pose=state0[:3], arm_q=state0[-n:], settings=settings
+    )
+    sim.step((0.0, 0.0), state0[-n:], 0.5)  # set down at rest
+    return sim
+
+
+def run_closed_loop(
+    problem: Problem,
+    plan: Any,
+    step: Any,
+    ctrl_settings: Any,
+    loop: LoopSettings,
+    state0: FloatArray,
+    model_settings: ModelSettings | None = None,
+) -> PhysicsRun:
+    """Track the problem's path in MuJoCo with the controller in the loop (module text).
+
+    Args:
+        problem: the problem (robot, terrain, path).
+        plan: the arm plan (``fractions``, ``target_com``, ``postures``).
+        step: the controller step ``(state, reference, params) -> (qdot, status, objective)``.
+        ctrl_settings: the controller settings (gains, limits, ``base_offset``, lap time).
+        loop: this loop's settings.
+        state0: the start state (x, y, heading in M, sprockets, arm) [m, rad].
+        model_settings: the MuJoCo model's numbers (default :class:`ModelSettings`).
+    """
+    from mmstab.control.layout import ControllerParams
+
+    robot = problem.robot
+    n = robot.arm_joints
+    sim = build_sim(problem, state0, model_settings)
+    substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
+    dt = substeps * sim.model.opt.timestep
+    duration = ctrl_settings.duration if loop.duration is None else loop.duration
+    steps = max(int(round(duration / dt)), 1)
+    t = np.arange(steps + 1) * dt
+    ref = run_reference(robot, problem.base_path, problem.terrain, plan, state0[-n:],
+                        ctrl_settings, t).step.pack()  # fmt: skip
+    params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
+    M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
+    r = robot.base.tracks.sprocket_radius
+    mass = float(sim.model.body_subtreemass[0])
+    every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
+    states = np.zeros((steps + 1, 5 + n))
+    qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
+    mu_sim, tilt = np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
+    now = sim.state()
+    state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
+    target, tipped = state[-n:].copy(), None
+    t0 = time.perf_counter()
+    for k in range(steps + 1):
+        states[k] = state
+        if k % every == 0 or k == steps:
+            mu_sim[k] = simulated_mu(sim, mass)
+            tilt[k] = tilt_off_rest(problem, state[:3], now.G_T_B)
+            if tilt[k] > loop.tip_angle:
+                tipped = float(t[k])
+                break
+        if k == steps:
+            break
+        qd, st, _ = step(state, ref[k], params)
+        qdots[k], status[k] = np.asarray(qd).ravel(), float(st)
+        target = target + qdots[k, 2:] * dt
+        now = sim.step(r * qdots[k, :2], target, dt)
+        sprockets = state[3:5] + qdots[k, :2] * dt
+        state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
+    wall = time.perf_counter() - t0
+    m = k + 1
+    return _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
+                   status[: m - 1], ref[:m], mu_sim[:m], tilt[:m], tipped, wall, dt)  # fmt: skip
+
+
+def _finish(
+    problem: Problem,
+    ctrl_settings: Any,
+    loop: LoopSettings,
+    t: FloatArray,
+    states: FloatArray,
+    qdots: FloatArray,
+    status: FloatArray,
+    ref: FloatArray,
+    mu_sim: FloatArray,
+    tilt: FloatArray,
+    tipped: float | None,
+    wall: float,
+    dt: float,
+) -> PhysicsRun:
+    """Errors, predicted μ and the slip verdict of a finished loop."""
+    from mmstab.control.tasks import TaskModel
+    from mmstab.runs.tracking.run import task_batch
+
+    robot, n = problem.robot, problem.robot.arm_joints
+    model = TaskModel(robot, ctrl_settings.base_offset)
+    xi, _ = task_batch(model, problem.terrain, states)
+    xi_des = ref[:, :6]
+    gravity = problem.terrain.gravity_body(states[:, :3])
+    mu_pred = robot_mu(robot, gravity, states[:, -n:])
+    window = int(round(loop.slip_window / dt))
+    slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
+    over = np.flatnonzero(slip > loop.slip_distance)
+    return PhysicsRun(
+        t=t, state=states, qdot=qdots, status=status,
+        base_error=np.linalg.norm(xi_des[:, :2] - xi[:, :2], axis=1),
+        arm_com_error=np.linalg.norm(xi_des[:, 3:] - xi[:, 3:], axis=1),
+        mu_predicted=np.asarray(mu_pred), mu_simulated=mu_sim, tilt_error=tilt, slip=slip,
+        tipped=tipped, slid=float(t[over[0]]) if len(over) else None,
+        real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
+    )  # fmt: skip
