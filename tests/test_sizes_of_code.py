@@ -26,7 +26,6 @@ LONG_FUNCTIONS = {
     "experiments/atlas/runner.py:run_atlas": 87,
     "experiments/tracking.py:run_tracking": 92,
     "planner/roadmap.py:solve_roadmap_sequence": 94,
-    "viz/animation.py:render_animation": 142,
 }
 
 
