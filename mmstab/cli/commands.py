@@ -1,14 +1,18 @@
-"""The problem commands of ``mmstab``: their handlers, default outputs and options."""
+"""The problem commands of ``mmstab``: their handlers and default outputs.
+
+Their options are :mod:`mmstab.cli.options`'s, their exit-status verdicts
+:mod:`mmstab.cli.verdicts`'s (both re-exported here).
+"""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.options import EXTRA_OPTIONS
+from mmstab.cli.verdicts import arm_collision_status, plan_status, slides_status, tipped_status
 
 #: Default output folder of each command (``-o`` overrides it).
 DEFAULT_OUT = {
@@ -40,6 +44,23 @@ USES_WORKSPACE = {
 PLANS = ("plan", "fig7", "fig8", "track", "animation")
 
 Handler = Callable[[argparse.Namespace, Any], int | None]
+
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_OUT",
+    "EXTRA_OPTIONS",
+    "PLANS",
+    "PROBLEM_COMMANDS",
+    "USES_WORKSPACE",
+    "Handler",
+    "_arm_collision",
+    "arm_collision_status",
+    "plan_status",
+    "slides_status",
+    "tipped_status",
+]
+
+_arm_collision = arm_collision_status  # its former name
 
 
 def _problem(args: argparse.Namespace) -> Any:
@@ -104,15 +125,6 @@ def _fig3(args: argparse.Namespace, problem: Any) -> None:
     )
 
 
-def _tipped(summary: dict[str, Any]) -> int | None:
-    from mmstab.runs.verdict import describe_tipping
-
-    if summary.get("tipped") is None:
-        return None
-    print(f"mmstab: unstable: {describe_tipping(summary['tipped'])}", file=sys.stderr)
-    return EXIT_UNSTABLE
-
-
 def _track(args: argparse.Namespace, problem: Any) -> int | None:
     from mmstab.experiments.tracking import run_tracking
 
@@ -135,38 +147,7 @@ def _track(args: argparse.Namespace, problem: Any) -> int | None:
         f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
         f"samples {s['posture_reference']['reference']['colliding_samples']}"
     )
-    return _tipped(s) or _slides(s, args) or _arm_collision(s, args)
-
-
-def _slides(s: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report poses where the tracks slide on stderr; exit status 4 unless ``--allow-sliding``."""
-    from mmstab.runs.verdict import describe_sliding
-
-    verdict = s.get("slip")
-    if verdict is None or not verdict["slides"]:
-        return None
-    total = len(s["poses"]) if isinstance(s.get("poses"), list) else s.get("steps", 1)
-    line = describe_sliding(verdict, total)
-    if args.allow_sliding:
-        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
-        return None
-    print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
-    return EXIT_SLIDES
-
-
-def _arm_collision(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``."""
-    from mmstab.runs.verdict import describe_arm_collision
-
-    report = summary["arm_self_collision"]
-    if report["verdict"]["safe"]:
-        return None
-    line = describe_arm_collision(report)
-    if args.allow_collision:
-        print(f"mmstab: warning: {line} (--allow-collision)", file=sys.stderr)
-        return None
-    print(f"mmstab: arm collision: {line}; pass --allow-collision to accept it", file=sys.stderr)
-    return EXIT_ARM_COLLISION
+    return tipped_status(s) or slides_status(s, args) or arm_collision_status(s, args)
 
 
 def _urdf(args: argparse.Namespace, problem: Any) -> None:
@@ -179,22 +160,6 @@ def _urdf(args: argparse.Namespace, problem: Any) -> None:
 
 def _urdf_out(args: argparse.Namespace, name: str) -> str:
     return str(args.out) if args.out is not None else f"results/urdf/{name}.urdf"
-
-
-def _plan_verdict(s: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report an unstable plan on stderr; exit status 3 unless ``--allow-unstable``."""
-    from mmstab.runs.verdict import describe_plan_verdict
-
-    verdict = s["stability"]
-    if verdict["stable"]:
-        return None
-    total = len(s["poses"]) if isinstance(s.get("poses"), list) else 1
-    line = describe_plan_verdict(verdict, total)
-    if args.allow_unstable:
-        print(f"mmstab: warning: {line} (--allow-unstable)", file=sys.stderr)
-        return None
-    print(f"mmstab: unstable: {line}; pass --allow-unstable to accept it", file=sys.stderr)
-    return EXIT_UNSTABLE
 
 
 def _plan(args: argparse.Namespace, problem: Any) -> int | None:
@@ -211,7 +176,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
-    return _plan_verdict(s, args) or _slides(s, args)
+    return plan_status(s, args) or slides_status(s, args)
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
@@ -232,7 +197,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"{r['margin']:g}: {spans('below_margin')}; stowed below it, planned not: "
         f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
     )
-    return _plan_verdict(s, args) or _slides(s, args)
+    return plan_status(s, args) or slides_status(s, args)
 
 
 def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
@@ -241,7 +206,7 @@ def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
     s = run_fig7(problem, args.out)
     com = [round(float(x), 3) for x in s["target_com"]]
     print(f"fig7: target arm CoM {com} m, mu {s['mu_planned']:.1f} N rad")
-    return _plan_verdict(s, args)
+    return plan_status(s, args)
 
 
 def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
@@ -250,7 +215,7 @@ def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
     _announce(problem, "planner")
     s = run_fig8(problem, args.out)
     print(f"fig8: arm side per pose {s['sides']}")
-    return _plan_verdict(s, args) or _slides(s, args)
+    return plan_status(s, args) or slides_status(s, args)
 
 
 def _fidelity(args: argparse.Namespace, problem: Any) -> None:
@@ -292,7 +257,7 @@ def _animation(args: argparse.Namespace, problem: Any) -> int | None:
     _announce(problem, *(("animation",) if stored else ("planner", "controller", "animation")))
     s = run_animation(problem, args.out, allow_unstable=args.allow_unstable)
     print(f"animation: {s['frames']} frames -> {s['gif']}")
-    return _tipped(s)
+    return tipped_status(s)
 
 
 def _atlas(args: argparse.Namespace, problem: Any) -> None:
@@ -351,92 +316,5 @@ COMMANDS: list[tuple[str, str, Handler]] = [
     ("levers", "payload, flippers, lap speed and robot variants as stability levers", _levers),
 ]
 
-_ALLOW_UNSTABLE = (
-    "--allow-unstable",
-    {
-        "action": "store_true",
-        "help": "accept a plan with poses at or below the stability margin (exit 0, warning)",
-    },
-)
-
-_ALLOW_SLIDING = (
-    "--allow-sliding",
-    {
-        "action": "store_true",
-        "help": "accept poses where the tracks would slide (tilt > atan(terrain.friction); "
-        "exit 0, warning)",
-    },
-)
-
 #: Commands of :data:`COMMANDS`: handlers of (args, the problem loaded and checked).
 PROBLEM_COMMANDS = frozenset(name for name, _, _ in COMMANDS)
-
-#: Options beyond ``problem``, ``--out`` and ``--force-size``, by command name.
-EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
-    "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
-    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
-    "plan": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
-    "fig7": [_ALLOW_UNSTABLE],
-    "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
-    "animation": [_ALLOW_UNSTABLE],
-    "track": [
-        (
-            "--plugin",
-            {"help": "QP plugin: qpoases, osqp, qrqp, daqp or box (default: the problem's)"},
-        ),
-        (
-            "--backend",
-            {
-                "choices": ("interpreted", "generated"),
-                "default": "interpreted",
-                "help": "controller step: CasADi interpreted, or the generated C library",
-            },
-        ),
-        ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
-        _ALLOW_UNSTABLE,
-        _ALLOW_SLIDING,
-        (
-            "--allow-collision",
-            {
-                "action": "store_true",
-                "help": "exit 0 (warning) when the tracked arm touches the robot or comes "
-                "closer than the required clearance (runs/verdict.py MIN_CLEARANCE)",
-            },
-        ),
-    ],
-    "fidelity": [
-        ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
-    ],
-    "atlas": [
-        (
-            "--scheduler",
-            {"default": None, "help": "address of a running Dask scheduler (default: local)"},
-        ),
-        ("--workers", {"type": int, "default": None, "help": "local workers (default: cores)"}),
-        (
-            "--threads",
-            {"action": "store_true", "help": "local workers as threads of one process"},
-        ),
-    ],
-    "codegen": [
-        (
-            "--plugin",
-            {
-                "default": None,
-                "help": "QP plugin: box, qrqp, daqp or osqp (default codegen.plugin)",
-            },
-        ),
-        ("--force", {"action": "store_true", "help": "regenerate even if up to date"}),
-        (
-            "--native",
-            {
-                "action": "store_true",
-                "help": "compile with -march=native (this machine's instruction set only)",
-            },
-        ),
-        (
-            "--example",
-            {"action": "store_true", "help": "also build the embedded example (embedded/)"},
-        ),
-    ],
-}

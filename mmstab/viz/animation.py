@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -41,6 +42,8 @@ from mmstab.viz.plotting import plt
 
 #: Colour map of the margin: 0 (tipping) .. mu_scale (as stable as the run gets).
 MU_CMAP = "RdYlGn"
+#: Resolution of the GIF's figure [dots per inch].
+DPI = 80
 
 
 class AnimationInfo(NamedTuple):
@@ -117,7 +120,6 @@ def render_animation(
         ValueError: inconsistent shapes or non-finite poses/postures/times.
     """
     import matplotlib
-    from matplotlib.animation import FuncAnimation, PillowWriter
 
     t = np.asarray(times, dtype=float)
     poses = np.asarray(base_poses, dtype=float)
@@ -128,18 +130,33 @@ def render_animation(
     finite_mu = m[np.isfinite(m)]
     scale = mu_scale if mu_scale is not None else float(finite_mu.max(initial=0.0))
     scale = scale if scale > 0 else 1.0
-    cmap = matplotlib.colormaps[MU_CMAP]
 
-    def mu_color(value: float) -> Any:
-        return "0.6" if not np.isfinite(value) else cmap(float(np.clip(value / scale, 0, 1)))
-
-    dpi = 80
-    fig = plt.figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
+    fig = plt.figure(figsize=(size[0] / DPI, size[1] / DPI), dpi=DPI)
     ax3d: Any = fig.add_axes((0.0, 0.0, 0.6, 0.92), projection="3d")
-    ax_mu = fig.add_axes((0.67, 0.16, 0.21, 0.7))
-    ax_bar = fig.add_axes((0.9, 0.16, 0.03, 0.7))
+    G_T_Bs, travelled = _draw_scene(ax3d, robot, terrain, poses, q, idx, view)
+    panel = _draw_margin_panel(fig, t, m, scale)
+    cmap = matplotlib.colormaps[MU_CMAP]
+    frames = _Frames(ax3d, robot, terrain, t, poses, q, m, cmap, scale, G_T_Bs, travelled, panel)
+    path = _save_gif(fig, frames, idx, Path(out_path), fps, progress)
+    return AnimationInfo(path=path, frames=len(idx), indices=idx)
 
-    # static scene: ground patch holding every drawn robot (cut to the map), the planned track
+
+def _draw_scene(
+    ax3d: Any,
+    robot: Robot,
+    terrain: Terrain,
+    poses: FloatArray,
+    q: FloatArray,
+    idx: NDArray[np.intp],
+    view: tuple[float, float],
+) -> tuple[dict[int, FloatArray], LayerLines]:
+    """The static scene: the ground, the planned and the (empty) travelled track, the camera.
+
+    The ground patch holds every drawn robot (cut to the map).
+
+    Returns:
+        The body poses ``G_T_B`` of the frames' samples, and the travelled track's artist.
+    """
     G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
     pts_G = np.concatenate([mesh_points(robot_meshes(robot, q[k], G_T_Bs[int(k)])) for k in idx])
     pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)
@@ -152,8 +169,30 @@ def render_animation(
     set_equal_aspect(ax3d, np.vstack([pts_G, corners_G]), margin=0.0, zoom=1.3)
     ax3d.view_init(elev=view[0], azim=view[1])
     ax3d.set_axis_off()
+    return G_T_Bs, travelled
 
-    # margin over time, the current instant, and a bar
+
+class MarginPanel(NamedTuple):
+    """The right-hand panel's moving artists.
+
+    Attributes:
+        done: the margin so far (line).
+        now: the current instant (marker).
+        bar: the current margin (bar).
+        title: the figure's title (time and margin).
+    """
+
+    done: Any
+    now: Any
+    bar: Any
+    title: Any
+
+
+def _draw_margin_panel(fig: Any, t: FloatArray, m: FloatArray, scale: float) -> MarginPanel:
+    """Margin ``m`` [N rad] over time ``t`` [s], the current instant, and a bar of it."""
+    ax_mu = fig.add_axes((0.67, 0.16, 0.21, 0.7))
+    ax_bar = fig.add_axes((0.9, 0.16, 0.03, 0.7))
+    finite_mu = m[np.isfinite(m)]
     ax_mu.plot(t, m, color="0.75", lw=1.0)
     (mu_done,) = ax_mu.plot([], [], color="C0", lw=1.4)
     (mu_now,) = ax_mu.plot([], [], "o", ms=5, mec="k", mew=0.6)
@@ -174,41 +213,77 @@ def render_animation(
     ax_bar.set_xticks([])
     ax_bar.tick_params(labelsize=7, labelleft=False, labelright=True, right=True, left=False)
     title = fig.suptitle("", fontsize=9)
+    return MarginPanel(mu_done, mu_now, bar, title)
 
-    robot_artists: list[Any] = []
 
-    def update(k: int) -> list[Any]:
-        for art in robot_artists:
+@dataclass
+class _Frames:
+    """Draws frame ``k`` (a sample index): the robot there, the track so far, the margin."""
+
+    ax3d: Any
+    robot: Robot
+    terrain: Terrain
+    t: FloatArray
+    poses: FloatArray
+    q: FloatArray
+    m: FloatArray
+    cmap: Any
+    scale: float
+    G_T_Bs: dict[int, FloatArray]
+    travelled: LayerLines
+    panel: MarginPanel
+    robot_artists: list[Any] = field(default_factory=list)
+
+    def mu_color(self, value: float) -> Any:
+        """The colour of margin ``value`` [N rad] (grey when unknown)."""
+        if not np.isfinite(value):
+            return "0.6"
+        return self.cmap(float(np.clip(value / self.scale, 0, 1)))
+
+    def __call__(self, k: int) -> list[Any]:
+        for art in self.robot_artists:
             art.remove()
-        robot_artists.clear()
-        color = mu_color(m[k])
-        robot_artists.extend(
-            draw_robot(ax3d, robot, q[k], G_T_Bs[k], support=True, support_color=color)
+        self.robot_artists.clear()
+        t, m, panel = self.t, self.m, self.panel
+        color = self.mu_color(m[k])
+        self.robot_artists.extend(
+            draw_robot(
+                self.ax3d, self.robot, self.q[k], self.G_T_Bs[k], support=True, support_color=color
+            )
         )
-        done = np.column_stack([poses[: k + 1, :2], np.full(k + 1, 2e-3)])
+        done = np.column_stack([self.poses[: k + 1, :2], np.full(k + 1, 2e-3)])
         if k == 0:
             done = np.vstack([done, done])
-        travelled.set_segments([transform_points(terrain.G_T_M(), done)])
-        mu_done.set_data(t[: k + 1], m[: k + 1])
-        mu_now.set_data([t[k]], [m[k]])
-        mu_now.set_color(color)
-        bar.set_height(m[k] if np.isfinite(m[k]) else 0.0)
-        bar.set_color(color)
-        bar.set_edgecolor("k")
-        title.set_text(f"t = {t[k]:.2f} s    $\\mu$ = {m[k]:.1f} N rad")
-        return robot_artists
+        self.travelled.set_segments([transform_points(self.terrain.G_T_M(), done)])
+        panel.done.set_data(t[: k + 1], m[: k + 1])
+        panel.now.set_data([t[k]], [m[k]])
+        panel.now.set_color(color)
+        panel.bar.set_height(m[k] if np.isfinite(m[k]) else 0.0)
+        panel.bar.set_color(color)
+        panel.bar.set_edgecolor("k")
+        panel.title.set_text(f"t = {t[k]:.2f} s    $\\mu$ = {m[k]:.1f} N rad")
+        return self.robot_artists
 
-    path = Path(out_path)
+
+def _save_gif(
+    fig: Any, frames: _Frames, idx: NDArray[np.intp], path: Path, fps: int, progress: bool
+) -> Path:
+    """Render ``frames`` at the samples ``idx`` into the GIF ``path`` (atomically); close ``fig``.
+
+    The GIF is written to a temporary file and renamed, so ``path`` is never half-written.
+    """
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".gif")
     os.close(fd)
-    anim = FuncAnimation(fig, update, frames=[int(k) for k in idx], blit=False, repeat=False)
+    anim = FuncAnimation(fig, frames, frames=[int(k) for k in idx], blit=False, repeat=False)
     bar_progress = tqdm(total=len(idx), desc="animation", unit="frame", disable=not progress)
     try:
         anim.save(
             tmp,
             writer=PillowWriter(fps=fps),
-            dpi=dpi,
+            dpi=DPI,
             progress_callback=lambda i, n: bar_progress.update(1),
         )
         os.chmod(tmp, default_file_mode())  # mkstemp makes it private (0600)
@@ -219,4 +294,4 @@ def render_animation(
     finally:
         bar_progress.close()
         plt.close(fig)
-    return AnimationInfo(path=path, frames=len(idx), indices=idx)
+    return path

@@ -18,6 +18,7 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import dask
@@ -166,67 +167,101 @@ def run_chunks(
     pending = iter(tasks)
     todo = sum(t.block.cells for t in tasks)
     total = total_cells if total_cells is not None else todo
-    chunks = cells = 0
-
-    def submit(task: ChunkTask) -> Any:
-        variant = by_variant[task.block.variant[:3]]  # V is per robot x flipper x payload
-        return client.submit(compute_chunk, variant, task, pure=False)
 
     t0 = time.perf_counter()
     bar = tqdm(total=total, initial=done_cells, unit="cell", disable=not progress, desc="atlas")
-    active: dict[Any, ChunkTask] = {}  # future -> its chunk
-    stored: set[str] = set()
-    patience = STALL_SECONDS  # [s] without a chunk back before resubmitting
-    last_back = time.perf_counter()
-
-    def launch(task: ChunkTask) -> None:
-        active[submit(task)] = task
-
+    flight = InFlight(client, by_variant, pending, on_result, bar)
     for task in itertools.islice(pending, window):
-        launch(task)
+        flight.launch(task)
     try:
-        while active:
+        while flight.active:
             try:
-                finished = wait(list(active), timeout=patience, return_when="FIRST_COMPLETED")
+                finished = wait(
+                    list(flight.active), timeout=flight.patience, return_when="FIRST_COMPLETED"
+                )
             except DaskTimeoutError:
-                # no chunk came back for STALL_SECONDS: submit the outstanding ones again
-                # (cells are deterministic, so whichever copy answers first is the same)
-                quiet = time.perf_counter() - last_back
-                if quiet > MAX_STALLS * max(STALL_SECONDS, patience):
-                    raise MmstabError(
-                        f"the Dask cluster returned no chunk for {quiet:.0f} s"
-                    ) from None
-                for task in list(active.values()):
-                    launch(task)
+                flight.resubmit()
                 continue
             for future in finished.done:
-                task = active.pop(future)
-                key = repr(task.block)
-                if key in stored:
-                    continue
-                result = future.result()
-                last_back = time.perf_counter()
-                patience = max(
-                    STALL_MIN_SECONDS,
-                    STALL_FACTOR * result.seconds,
-                    patience if chunks else 0.0,
-                )
-                stored.add(key)
-                on_result(result)
-                chunks += 1
-                cells += result.block.cells
-                bar.update(result.block.cells)
-                twins = [f for f, t in active.items() if repr(t.block) == key]
-                for f in twins:  # a resubmitted copy of a chunk already stored
-                    active.pop(f)
-                client.cancel(twins)
-                nxt = next(pending, None)
-                if nxt is not None:
-                    launch(nxt)
+                flight.take(future)
     except BaseException:
-        client.cancel(list(active))
+        client.cancel(list(flight.active))
         raise
     finally:
         bar.close()
         client.cancel(futures)
-    return RunStats(chunks, cells, time.perf_counter() - t0, workers, threads)
+    return RunStats(flight.chunks, flight.cells, time.perf_counter() - t0, workers, threads)
+
+
+@dataclass
+class InFlight:
+    """The window of chunks in flight on the cluster and what has come back.
+
+    Attributes:
+        client: the ``distributed.Client``.
+        by_variant: the scattered payload of each (robot, flipper, payload) index.
+        pending: the chunks not submitted yet.
+        on_result: called on each chunk back (stores it).
+        bar: the progress bar (cells).
+        active: future -> its chunk, for every chunk in flight.
+        stored: the chunks back (``repr`` of their block): a resubmitted twin is dropped.
+        patience: seconds without a chunk back before resubmitting [s].
+        last_back: ``time.perf_counter()`` when the last chunk came back [s].
+        chunks: chunks back.
+        cells: cells back.
+    """
+
+    client: Any
+    by_variant: dict[Any, Any]
+    pending: Iterator[ChunkTask]
+    on_result: Callable[[ChunkResult], None]
+    bar: Any
+    active: dict[Any, ChunkTask] = field(default_factory=dict)
+    stored: set[str] = field(default_factory=set)
+    patience: float = STALL_SECONDS
+    last_back: float = field(default_factory=time.perf_counter)
+    chunks: int = 0
+    cells: int = 0
+
+    def launch(self, task: ChunkTask) -> None:
+        """Submit ``task`` with its variant's payload."""
+        variant = self.by_variant[task.block.variant[:3]]  # V is per robot x flipper x payload
+        self.active[self.client.submit(compute_chunk, variant, task, pure=False)] = task
+
+    def resubmit(self) -> None:
+        """No chunk came back within ``patience``: submit the outstanding ones again.
+
+        Cells are deterministic, so whichever copy answers first is the same. After
+        ``MAX_STALLS`` times the patience without a chunk back, the run gives up.
+        """
+        quiet = time.perf_counter() - self.last_back
+        if quiet > MAX_STALLS * max(STALL_SECONDS, self.patience):
+            raise MmstabError(f"the Dask cluster returned no chunk for {quiet:.0f} s") from None
+        for task in list(self.active.values()):
+            self.launch(task)
+
+    def take(self, future: Any) -> None:
+        """Store the chunk of a finished ``future`` (once), drop its twins, launch the next."""
+        task = self.active.pop(future)
+        key = repr(task.block)
+        if key in self.stored:
+            return
+        result = future.result()
+        self.last_back = time.perf_counter()
+        self.patience = max(
+            STALL_MIN_SECONDS,
+            STALL_FACTOR * result.seconds,
+            self.patience if self.chunks else 0.0,
+        )
+        self.stored.add(key)
+        self.on_result(result)
+        self.chunks += 1
+        self.cells += result.block.cells
+        self.bar.update(result.block.cells)
+        twins = [f for f, t in self.active.items() if repr(t.block) == key]
+        for f in twins:  # a resubmitted copy of a chunk already stored
+            self.active.pop(f)
+        self.client.cancel(twins)
+        nxt = next(self.pending, None)
+        if nxt is not None:
+            self.launch(nxt)

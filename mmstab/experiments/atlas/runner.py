@@ -12,7 +12,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.atlas.cell import ChunkResult, ChunkTask, VariantPayload
 from mmstab.experiments.atlas.driver import RunStats, dask_client, run_chunks
 from mmstab.experiments.atlas.figures import envelope_figure, heatmap_figure, summary
-from mmstab.experiments.atlas.spec import AtlasSpec, Variant, atlas_spec
+from mmstab.experiments.atlas.spec import AtlasSpec, Block, Variant, atlas_spec
 from mmstab.experiments.atlas.store import AtlasStore
 from mmstab.stability.static import mu_max
 
@@ -143,55 +143,85 @@ def run_atlas(
     stored_cells = spec.cells - sum(b.cells for b in missing)
     stats = RunStats(0, 0, 0.0, 0, 0)
     if missing:
-        needed = sorted({b.variant[:3] for b in missing})
-        tasks = [
-            ChunkTask(
-                b, spec.slopes[b.slope], spec.headings[b.heading], spec.terrains[b.variant[3]]
-            )
-            for b in missing
-        ]
-
-        written = [0, 0]  # chunks, cells stored by this run (for an interrupted run's log)
-
-        def on_result(result: ChunkResult) -> None:
-            store.write_chunk(result)
-            written[0] += 1
-            written[1] += result.block.cells
-            if on_chunk is not None:
-                on_chunk(result)
-
-        t0 = time.perf_counter()
-        try:
-            with dask_client(scheduler, workers, processes) as client:
-                # V of each variant, loaded or built once the cluster answers
-                payloads = [
-                    payload(spec, spec.variant(i), progress, workspace_cache) for i in needed
-                ]
-                stats = run_chunks(
-                    client,
-                    payloads,
-                    tasks,
-                    on_result,
-                    progress=progress,
-                    total_cells=spec.cells,
-                    done_cells=stored_cells,
-                )
-        except KeyboardInterrupt:
-            partial = RunStats(written[0], written[1], time.perf_counter() - t0, 0, 0)
-            store.log_run({**_run_record(scheduler, partial), "interrupted": True})
-            left = len(store.missing())
-            print(
-                f"atlas: interrupted; {left} of {len(spec.blocks())} chunks left in "
-                f"{store.path}; rerun the same command to resume",
-                file=sys.stderr,
-            )
-            raise
+        cluster = Cluster(scheduler, workers, processes)
+        stats = compute_missing(
+            spec, store, missing, cluster, progress, on_chunk, workspace_cache, stored_cells
+        )
     run = {**_run_record(scheduler, stats), "cells_already_stored": stored_cells}
     if stats.cells:
         store.log_run(run)
     if not figures:
         return {"run": run}
     return write_outputs(store, d, run)
+
+
+class Cluster(NamedTuple):
+    """Where the chunks run (:func:`mmstab.experiments.atlas.driver.dask_client`).
+
+    Attributes:
+        scheduler: address of a running Dask scheduler; None = a new local cluster.
+        workers: local cluster size (None = one process per core).
+        processes: local cluster of processes (True) or of threads in one process.
+    """
+
+    scheduler: str | None
+    workers: int | None
+    processes: bool
+
+
+def compute_missing(
+    spec: AtlasSpec,
+    store: AtlasStore,
+    missing: list[Block],
+    cluster: Cluster,
+    progress: bool,
+    on_chunk: Callable[[ChunkResult], None] | None,
+    workspace_cache: Path | None,
+    stored_cells: int,
+) -> RunStats:
+    """Compute the ``missing`` chunks on the cluster and store each as it comes back.
+
+    An interrupted run (Ctrl-C) logs what it stored and says how to resume, then re-raises.
+    """
+    needed = sorted({b.variant[:3] for b in missing})
+    tasks = [
+        ChunkTask(b, spec.slopes[b.slope], spec.headings[b.heading], spec.terrains[b.variant[3]])
+        for b in missing
+    ]
+
+    written = [0, 0]  # chunks, cells stored by this run (for an interrupted run's log)
+
+    def on_result(result: ChunkResult) -> None:
+        store.write_chunk(result)
+        written[0] += 1
+        written[1] += result.block.cells
+        if on_chunk is not None:
+            on_chunk(result)
+
+    t0 = time.perf_counter()
+    try:
+        with dask_client(*cluster) as client:
+            # V of each variant, loaded or built once the cluster answers
+            payloads = [payload(spec, spec.variant(i), progress, workspace_cache) for i in needed]
+            return run_chunks(
+                client,
+                payloads,
+                tasks,
+                on_result,
+                progress=progress,
+                total_cells=spec.cells,
+                done_cells=stored_cells,
+            )
+    except KeyboardInterrupt:
+        partial = RunStats(written[0], written[1], time.perf_counter() - t0, 0, 0)
+        store.log_run({**_run_record(cluster.scheduler, partial), "interrupted": True})
+        left = len(store.missing())
+        print(
+            f"atlas: interrupted; {left} of {len(spec.blocks())} chunks left in "
+            f"{store.path}; rerun the same command to resume",
+            file=sys.stderr,
+        )
+        raise
 
 
 def _run_record(scheduler: str | None, stats: RunStats) -> dict[str, Any]:

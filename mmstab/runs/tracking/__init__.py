@@ -42,7 +42,8 @@ and with the arm removed (``arm_removed``, the base alone), gravity from each re
 
 Modules: :mod:`~mmstab.runs.tracking.backend` (the step and one control period),
 :mod:`~mmstab.runs.tracking.run` (what a run records), :mod:`~mmstab.runs.tracking.simulation`
-(:func:`simulate`), :mod:`~mmstab.runs.tracking.summary` (:func:`summarize`).
+(:func:`simulate`: set-up and record), :mod:`~mmstab.runs.tracking.loop` (the control loop),
+:mod:`~mmstab.runs.tracking.summary` (:func:`summarize`).
 """
 
 from mmstab.runs.tracking.backend import StepBackend, as_backend, build_advance

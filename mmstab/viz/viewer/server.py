@@ -6,6 +6,9 @@ base bodies in B, arm links posed by ``B_T_R[i]``) and, at the current instant, 
 polygon coloured by μ, the overall CoM, its projection along gravity and the closest
 tip-over axis. The GUI has a timeline (slider, play/pause, speed) over the run, the arm mode
 (planned / stowed / arm removed) and a single-pose editor (x, y, yaw, joints) with μ live.
+The scene's nodes are added by :mod:`~mmstab.viz.viewer.static` and
+:mod:`~mmstab.viz.viewer.robot_view`, the GUI by :mod:`~mmstab.viz.viewer.controls`; the
+:class:`Viewer` here connects them and plays the run.
 """
 
 from __future__ import annotations
@@ -20,20 +23,19 @@ import numpy as np
 
 from mmstab.runs.store import Run
 from mmstab.stability.static import mu_max
-from mmstab.viz.viewer.ground import (
-    problem_ground,
+from mmstab.viz.viewer.controls import SPEEDS, add_controls
+from mmstab.viz.viewer.ground import problem_ground
+from mmstab.viz.viewer.robot_view import (
+    BASE_OPACITY,
+    SUPPORT_LIFT,
+    add_robot_view,
+    draw_instant,
+    set_see_through,
 )
-from mmstab.viz.viewer.scene import (
-    ARM_MODES,
-    Instant,
-    arm_posture,
-    instant,
-    mu_color,
-    polygon_fan,
-    robot_body_meshes,
-    route_points,
-)
-from mmstab.viz.viewer.static import _wrap, _wrap_pose, add_static_scene, wxyz
+from mmstab.viz.viewer.scene import ARM_MODES, Instant, arm_posture, instant, mu_color, route_points
+from mmstab.viz.viewer.static import _wrap, _wrap_pose, add_static_scene
+
+__all__ = ["BASE_OPACITY", "FRAME_S", "NODES", "RUN_NODES", "SPEEDS", "SUPPORT_LIFT", "Viewer"]
 
 #: Scene nodes the viewer always adds (the run adds ``/route/travelled`` and ``/plan/...``).
 NODES = (
@@ -58,12 +60,6 @@ NODES = (
 )
 #: Nodes added with a run.
 RUN_NODES = ("/route/travelled", "/plan/arm_com_targets")
-#: Playback speeds offered (run seconds per wall-clock second).
-SPEEDS = ("0.25x", "0.5x", "1x", "2x", "5x")
-#: The support polygon and the CoM's projection are drawn this far above the ground [m].
-SUPPORT_LIFT = 3e-3
-#: Opacity of the base bodies when seen through (the support polygon lies under them).
-BASE_OPACITY = 0.45
 #: Playback frame period [s].
 FRAME_S = 0.05
 
@@ -132,86 +128,27 @@ class Viewer:
         with contextlib.redirect_stdout(io.StringIO()):
             self.server.stop()
 
-    # ---------------------------------------------------------------------------- the scene
+    # ----------------------------------------------------------------- the scene and GUI
     def _build_scene(self) -> None:
-        scene: Any = self.server.scene
         problem, ground = self.problem, self.ground
         self.extent, reference = add_static_scene(self.server, problem, ground, self.run)
-        self._robot = scene.add_frame("/robot", show_axes=False)
-        self._links: list[Any] = []
-        self._base_bodies: list[Any] = []
-        for body in robot_body_meshes(self.robot):
-            handle = scene.add_mesh_simple(
-                f"/robot/{body.name}",
-                body.vertices,
-                body.faces,
-                color=body.rgb,
-                flat_shading=body.link is None,
-                opacity=BASE_OPACITY if body.link is None else None,
-            )
-            (self._base_bodies if body.link is None else self._links).append(handle)
-        self._support = scene.add_mesh_simple(
-            "/stability/support_polygon",
-            np.zeros((3, 3)),
-            np.array([[0, 1, 2]]),
-            color=(0, 160, 0),
-            opacity=0.55,
-            side="double",
-            cast_shadow=False,
-        )
-        self._com = scene.add_icosphere("/stability/com", radius=0.03, color=(20, 20, 20))
-        self._projection = scene.add_icosphere(
-            "/stability/com_projection", radius=0.02, color=(120, 60, 160)
-        )
-        self._gravity = scene.add_line_segments(
-            "/stability/gravity_line", np.zeros((1, 2, 3)), (120, 60, 160), thickness=0.006
-        )
-        self._axis = scene.add_line_segments(
-            "/stability/tip_axis", np.zeros((1, 2, 3)), (200, 0, 0), thickness=0.025
-        )
+        self._view = add_robot_view(self.server, self.robot)
         centre = route_points(ground, reference).mean(axis=0)
         self.server.initial_camera.look_at = tuple(centre)
         span = max(self.extent.x_max - self.extent.x_min, self.extent.y_max - self.extent.y_min)
         self.server.initial_camera.position = tuple(centre + np.array([0.35, -0.5, 0.38]) * span)
 
-    # ------------------------------------------------------------------------------ the GUI
     def _build_gui(self) -> None:
-        gui: Any = self.server.gui  # handles typed loosely: viser's setters confuse mypy
-        robot = self.robot
-        self._readout = gui.add_markdown("")
-        self._mode = gui.add_dropdown("arm", ARM_MODES, initial_value=self.mode)
+        c = add_controls(self.server, self.problem, self.run, self.extent, self.mode, self.editing)
+        self._readout, self._mode, self._see_through = c.readout, c.mode, c.see_through
+        self._time, self._play, self._speed = c.time, c.play, c.speed
+        self._edit = c.edit
+        self._pose_sliders, self._joint_sliders = c.pose_sliders, c.joint_sliders
         self._mode.on_update(lambda _: self._set_mode(self._mode.value))
-        self._see_through = gui.add_checkbox("see-through base", initial_value=True)
         self._see_through.on_update(lambda _: self._set_see_through(self._see_through.value))
-        self._time: Any = None
-        if self.run is not None:
-            run = self.run
-            with gui.add_folder("Run"):
-                step = float(np.median(np.diff(run.t))) if run.samples > 1 else 1.0
-                self._time = gui.add_slider("time [s]", 0.0, float(run.t[-1]), max(step, 1e-6), 0.0)
-                self._play = gui.add_button("Play")
-                self._speed = gui.add_dropdown("speed", SPEEDS, initial_value="1x")
+        if self._time is not None:
             self._time.on_update(lambda _: self._on_time())
             self._play.on_click(lambda _: self._toggle_clicked())
-        with gui.add_folder("Pose", expand_by_default=self.run is None):
-            self._edit = gui.add_checkbox("move a single pose", initial_value=self.editing)
-            e = self.extent
-            pose0 = self.problem.base_path.pose_at([0.0])[0]
-            self._pose_sliders = [
-                gui.add_slider("x [m]", e.x_min, e.x_max, 0.01, round(float(pose0[0]), 2)),
-                gui.add_slider("y [m]", e.y_min, e.y_max, 0.01, round(float(pose0[1]), 2)),
-                gui.add_slider("yaw [rad]", -np.pi, np.pi, 0.01, round(_wrap(pose0[2]), 2)),
-            ]
-            self._joint_sliders = [
-                gui.add_slider(
-                    f"{link.name} [rad]",
-                    float(link.lower),
-                    float(link.upper),
-                    0.01,
-                    float(np.clip(robot.stowed[i], link.lower, link.upper)),
-                )
-                for i, link in enumerate(robot.links)
-            ]
         self._edit.on_update(lambda _: self._set_editing(self._edit.value))
         for slider in self._pose_sliders + self._joint_sliders:
             slider.on_update(lambda _: self._on_pose())
@@ -241,23 +178,7 @@ class Viewer:
 
     def _draw(self, now: Instant) -> None:
         mu = self.shown_mu()
-        rgb = mu_color(mu, self.mu_scale)
-        lift = SUPPORT_LIFT * now.G_T_B[:3, 2]  # off the ground along the body's z, to show
-        with self.server.atomic():
-            self._robot.position = now.G_T_B[:3, 3]
-            self._robot.wxyz = wxyz(now.G_T_B[:3, :3])
-            for i, handle in enumerate(self._links):
-                handle.visible = now.B_T_R is not None
-                if now.B_T_R is not None:
-                    handle.position = now.B_T_R[i][:3, 3]
-                    handle.wxyz = wxyz(now.B_T_R[i][:3, :3])
-            self._support.vertices = (now.polygon_G + lift).astype(np.float32)
-            self._support.faces = polygon_fan(now.polygon_G)
-            self._support.color = rgb
-            self._com.position = now.com_G
-            self._projection.position = now.com_projection_G + lift
-            self._gravity.points = np.array([[now.com_G, now.com_projection_G]], dtype=np.float32)
-            self._axis.points = (now.axis_G + 2 * lift)[None].astype(np.float32)
+        draw_instant(self.server, self._view, now, mu_color(mu, self.mu_scale))
         self._readout.content = self._readout_text(now, mu)
 
     def _readout_text(self, now: Instant, mu: float) -> str:
@@ -314,8 +235,7 @@ class Viewer:
         self.refresh()
 
     def _set_see_through(self, see_through: bool) -> None:
-        for handle in self._base_bodies:
-            handle.opacity = BASE_OPACITY if see_through else None
+        set_see_through(self._view, see_through)
 
     def set_mode(self, mode: str) -> Instant:
         """Show the arm as ``planned``, ``stowed`` or ``arm removed``."""

@@ -1,0 +1,92 @@
+"""The options of the problem commands beyond ``problem``, ``--out`` and ``--force-size``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+_ALLOW_UNSTABLE = (
+    "--allow-unstable",
+    {
+        "action": "store_true",
+        "help": "accept a plan with poses at or below the stability margin (exit 0, warning)",
+    },
+)
+
+_ALLOW_SLIDING = (
+    "--allow-sliding",
+    {
+        "action": "store_true",
+        "help": "accept poses where the tracks would slide (tilt > atan(terrain.friction); "
+        "exit 0, warning)",
+    },
+)
+
+#: Options beyond ``problem``, ``--out`` and ``--force-size``, by command name.
+EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
+    "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
+    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
+    "plan": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
+    "fig7": [_ALLOW_UNSTABLE],
+    "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
+    "animation": [_ALLOW_UNSTABLE],
+    "track": [
+        (
+            "--plugin",
+            {"help": "QP plugin: qpoases, osqp, qrqp, daqp or box (default: the problem's)"},
+        ),
+        (
+            "--backend",
+            {
+                "choices": ("interpreted", "generated"),
+                "default": "interpreted",
+                "help": "controller step: CasADi interpreted, or the generated C library",
+            },
+        ),
+        ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
+        _ALLOW_UNSTABLE,
+        _ALLOW_SLIDING,
+        (
+            "--allow-collision",
+            {
+                "action": "store_true",
+                "help": "exit 0 (warning) when the tracked arm touches the robot or comes "
+                "closer than the required clearance (runs/verdict.py MIN_CLEARANCE)",
+            },
+        ),
+    ],
+    "fidelity": [
+        ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
+    ],
+    "atlas": [
+        (
+            "--scheduler",
+            {"default": None, "help": "address of a running Dask scheduler (default: local)"},
+        ),
+        ("--workers", {"type": int, "default": None, "help": "local workers (default: cores)"}),
+        (
+            "--threads",
+            {"action": "store_true", "help": "local workers as threads of one process"},
+        ),
+    ],
+    "codegen": [
+        (
+            "--plugin",
+            {
+                "default": None,
+                "help": "QP plugin: box, qrqp, daqp or osqp (default codegen.plugin)",
+            },
+        ),
+        ("--force", {"action": "store_true", "help": "regenerate even if up to date"}),
+        (
+            "--native",
+            {
+                "action": "store_true",
+                "help": "compile with -march=native (this machine's instruction set only)",
+            },
+        ),
+        (
+            "--example",
+            {"action": "store_true", "help": "also build the embedded example (embedded/)"},
+        ),
+    ],
+}
