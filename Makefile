@@ -133,7 +133,7 @@ $(BENCH_STAMP): $(STAMP)
 
 ## every benchmark, each JSON in results/bench/ refreshed (12 min here under load; not part of make test)
 BENCHES := bench-codegen bench-controller bench-track bench-step-terrain bench-workspace \
-	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas bench-roadmap bench-online
+	bench-plan bench-terrain bench-drop bench-sizes bench-view bench-atlas bench-roadmap bench-online bench-physics
 .PHONY: $(BENCHES)
 bench: $(BENCHES)
 
@@ -227,6 +227,15 @@ rough: setup
 	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable --allow-sliding
 	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/rough.yaml -o results/rough
+
+## issue 25 (docs/physics.md): the ramp lap in MuJoCo with the controller in the loop -> results/physics/
+.PHONY: physics bench-physics
+physics: setup
+	$(MMSTAB) simulate problems/ramp.yaml -o results/physics
+
+## real-time factor of the MuJoCo model and the closed loop (one core) -> results/bench/physics.json
+bench-physics: setup
+	$(PY) benchmarks/bench_physics.py
 
 ## issue 26 (docs/online.md): a generated robot recording of the rough route, followed online
 .PHONY: online bench-online

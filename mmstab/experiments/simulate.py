@@ -117,7 +117,7 @@ def _figure(path: Path, run: PhysicsRun) -> None:
     a.legend(fontsize=7)
     b.plot(run.t, run.base_error, lw=1, label="base control point")
     b.plot(run.t, run.arm_com_error, lw=1, label="arm CoM")
-    b.plot(run.t, np.abs(run.slip), lw=1, label="downhill drift (1 s)")
+    b.plot(run.t, run.slip, lw=1, label="uncommanded drift downhill over 1 s (< 0: uphill)")
     b.set(xlabel="t [s]", ylabel="[m]", title="tracking errors in MuJoCo")
     b.legend(fontsize=7)
     fig.tight_layout()
