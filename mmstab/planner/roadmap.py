@@ -15,7 +15,6 @@ the answer, for the controller.
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -115,6 +114,15 @@ def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
     return np.asarray(cached)
 
 
+def _clearances(robot: Robot, roadmap: Roadmap) -> FloatArray:
+    """The roadmap's per-node clearance cache [m] (NaN: not measured yet)."""
+    cached = getattr(roadmap, "_node_clearance", None)
+    if cached is None:
+        cached = np.full(len(roadmap.nodes_q), np.nan)
+        object.__setattr__(roadmap, "_node_clearance", cached)
+    return np.asarray(cached)
+
+
 def nodes_clear(
     robot: Robot, roadmap: Roadmap, reach: NDArray[np.intp], rows: NDArray[np.intp]
 ) -> NDArray[np.bool_]:
@@ -122,15 +130,32 @@ def nodes_clear(
 
     The FCL clearance of a node is measured on first use and kept with the roadmap.
     """
-    cached = getattr(roadmap, "_node_clearance", None)
-    if cached is None:
-        cached = np.full(len(roadmap.nodes_q), np.nan)
-        object.__setattr__(roadmap, "_node_clearance", cached)
+    cached = _clearances(robot, roadmap)
     nodes = reach[rows]
     todo = nodes[np.isnan(cached[nodes])]
     if todo.size:
         cached[todo] = CollisionChecker(robot).clearance(roadmap.nodes_q[todo])
     return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
+
+
+class NodeClearance(NamedTuple):
+    """The reachable nodes' clearance test.
+
+    ``clear(rows)``: whether ``reach[rows]`` keep the clearance; ``too_close()``: the rows
+    of ``reach`` already measured too close at earlier poses.
+    """
+
+    robot: Robot
+    roadmap: Roadmap
+    reach: NDArray[np.intp]
+
+    def __call__(self, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+        """Whether ``reach[rows]`` keep :data:`MOVE_CLEARANCE` (measured on first use)."""
+        return nodes_clear(self.robot, self.roadmap, self.reach, rows)
+
+    def too_close(self) -> NDArray[np.intp]:
+        """Rows of ``reach`` whose clearance, measured at an earlier pose, is too small."""
+        return np.flatnonzero(_clearances(self.robot, self.roadmap)[self.reach] < MOVE_CLEARANCE)
 
 
 def clear_candidates(
@@ -144,13 +169,18 @@ def clear_candidates(
 
     The best of each turret bin in turn (``_diverse_top``); a chosen row that is not
     ``clear`` gets value -inf and the choice is made again, until every finite choice is
-    clear. Returns the rows and the values (-inf where not clear).
+    clear. Returns the rows and the values (-inf where not clear). A ``clear`` with a
+    ``too_close()`` (:class:`NodeClearance`) names the rows earlier poses measured too close:
+    they are set to -inf first, so the choice is remade only for rows measured here for
+    the first time.
 
     The tracked arm follows the plan's postures within a few millimetres, and a tracking
     run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``): on random routes postures
     1.5 mm from the body were chosen and touched it when tracked.
     """
     v = np.array(values, dtype=float)
+    if isinstance(clear, NodeClearance):
+        v[clear.too_close()] = -np.inf
     while True:
         rows = _diverse_top(v, bins, count, members)
         finite = rows[np.isfinite(v[rows])]
@@ -219,7 +249,7 @@ def solve_roadmap_sequence(
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
-    clear = functools.partial(nodes_clear, robot, roadmap, reach)
+    clear = NodeClearance(robot, roadmap, reach)
     members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
     cand = np.empty((K, M), dtype=np.intp)
     value, mu = np.empty((K, M)), np.empty((K, M))
