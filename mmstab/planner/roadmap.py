@@ -15,6 +15,7 @@ the answer, for the controller.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -138,7 +139,8 @@ def nodes_clear(
     return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
 
 
-class NodeClearance(NamedTuple):
+@dataclasses.dataclass(frozen=True)
+class NodeClearance:
     """The reachable nodes' clearance test.
 
     ``clear(rows)``: whether ``reach[rows]`` keep the clearance; ``too_close()``: the rows
