@@ -1,0 +1,123 @@
+"""Tasks and limits as lists: a new task is one class plus its registration, solved by the QP.
+
+The example task, arm joint centring, is written here as a user would write its module
+(``docs/controller.md``, "Adding a controller task"): a :class:`Task` with its name, rows,
+value, Jacobian and slots, registered in :data:`TASKS` and built by :func:`build_tasks`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from mmstab.control.controller import ControllerParams, ControllerSettings, build_controller
+from mmstab.control.layout import ARM, SPROCKETS, StepReference
+from mmstab.control.limits import DEFAULT_LIMITS, LIMITS, build_limits
+from mmstab.control.tasks import (
+    DEFAULT_TASKS,
+    TASKS,
+    ArmCoMTask,
+    BasePointTask,
+    PostureTask,
+    Slot,
+    Task,
+    TaskModel,
+    TaskSlots,
+    TaskTarget,
+    build_tasks,
+    task_map,
+)
+
+
+class JointCentringTask(Task):
+    """q_arm → the middle of each joint's range, (q_min + q_max)/2 [rad] (the example task)."""
+
+    name = "joint_centring"
+    # the target is computed from q_min and q_max (no slot of its own); gains and weights are
+    # the posture task's
+    slots = TaskSlots(None, None, Slot("posture_gain"), Slot("posture_weight"))
+
+    def rows(self, model: TaskModel) -> int:
+        """n: one row per arm joint."""
+        return model.layout.arm
+
+    def value(self, model: TaskModel) -> ca.SX:
+        """q_arm (n,) [rad]."""
+        return model.state[ARM]
+
+    def jacobian(self, model: TaskModel) -> ca.SX:
+        """(n, 2 + n): the arm columns of q̇."""
+        n = self.rows(model)
+        return ca.horzcat(ca.SX.zeros(n, SPROCKETS), ca.SX.eye(n))
+
+    def target(self, reference: StepReference, params: ControllerParams) -> TaskTarget:
+        """The middle of the joint ranges, at rest (no feed-forward rate)."""
+        return super().target(reference, params)._replace(value=(params.q_min + params.q_max) / 2)
+
+
+@pytest.fixture
+def registered(monkeypatch):
+    """The example task's registration line: its class in ``TASKS`` under its name."""
+    monkeypatch.setitem(TASKS, JointCentringTask.name, JointCentringTask)
+
+
+@pytest.fixture(scope="module")
+def settings(problem):
+    return dataclasses.replace(
+        ControllerSettings.from_section(problem.section("controller")), plugin="box"
+    )
+
+
+def test_the_registries_name_the_default_lists(settings):
+    assert DEFAULT_TASKS == ("base_point", "arm_com", "posture")
+    assert [type(t) for t in build_tasks(settings)] == [BasePointTask, ArmCoMTask, PostureTask]
+    assert build_tasks(settings)[0].offset == settings.base_offset  # type: ignore[attr-defined]
+    assert DEFAULT_LIMITS == ("joint_velocity", "joint_position") == tuple(LIMITS)
+    assert [limit.name for limit in build_limits()] == list(DEFAULT_LIMITS)
+    with pytest.raises(ValueError, match="joint_centring"):
+        build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))  # not registered here
+
+
+def test_the_task_map_is_the_tasks_of_xi_in_row_order(settings):
+    base, com, posture = build_tasks(settings)
+    assert task_map([posture, com, base]) == (base, com)
+    with pytest.raises(ValueError, match="do not tile"):
+        task_map([base, posture])  # ξ's CoM rows: no task
+    with pytest.raises(ValueError, match="do not tile"):
+        task_map([base, com, BasePointTask(0.1)])  # rows 0..3 twice
+
+
+def test_a_registered_task_is_summed_into_the_qp_and_solved(problem, settings, registered, rng):
+    """The example task adds exactly Sᵀ W_q S to H and −Sᵀ W_q K_q (q_mid − q) to g."""
+    robot = problem.robot
+    plain = build_controller(robot, settings)
+    tasks = build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))
+    centred = build_controller(robot, settings, tasks=tasks)
+    assert [t.name for t in centred.tasks] == [*DEFAULT_TASKS, "joint_centring"]
+    P = centred.params
+    mid = (robot.joint_lower + robot.joint_upper) / 2
+    checked = 0
+    for _ in range(20):
+        q = rng.uniform(robot.joint_lower, robot.joint_upper) * 0.5 + mid * 0.5
+        state = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi), 0.0, 0.0, q]
+        xi_des = plain.model.task(state) + rng.normal(0, 0.05, 6)
+        a, b = plain.qp_data(state, xi_des), centred.qp_data(state, xi_des)
+        v = P.posture_gain * (mid - q)  # the centring rate [rad/s]
+        dH, dg = np.zeros((6, 6)), np.zeros(6)
+        dH[2:, 2:], dg[2:] = np.diag(P.posture_weight), -P.posture_weight * v
+        np.testing.assert_allclose(b.H - a.H, dH, atol=1e-12)
+        np.testing.assert_allclose(b.g - a.g, dg, atol=1e-12)
+        assert b.cost0 - a.cost0 == pytest.approx(0.5 * v @ (P.posture_weight * v), abs=1e-12)
+        np.testing.assert_array_equal(b.lbx, a.lbx)
+        np.testing.assert_array_equal(b.xi_dot_des, a.xi_dot_des)
+        res = centred.solve(state, xi_des)
+        assert res.success
+        unconstrained = np.linalg.solve(b.H, -b.g)
+        if np.all((b.lbx < unconstrained) & (unconstrained < b.ubx)):  # interior: the optimum
+            np.testing.assert_allclose(res.qdot, unconstrained, atol=1e-9)
+            assert not np.allclose(res.qdot, plain.solve(state, xi_des).qdot, atol=1e-9)
+            checked += 1
+    assert checked >= 10
