@@ -29,6 +29,7 @@ from mmstab.control.controller import (
     StepReference,
     build_controller,
 )
+from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import Layout, layout_header
 from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, build_task_model
 from mmstab.core import sizes
@@ -181,7 +182,12 @@ def test_generated_step_equals_interpreted(robot6, problem6, rng, tmp_path):
     assert statuses.count(QPStatus.SUCCESS) > 200
     header = gen.layout.read_text()
     assert "#define MMSTAB_N_ARM 6" in header and "#define MMSTAB_N_PARAMS 54" in header
-    assert header == layout_header(settings.kkt_tol, 6)
+    notes = slot_notes(ctrl.tasks, ctrl.limits, ctrl.model)
+    assert header == layout_header(settings.kkt_tol, 6, notes)
+    assert (
+        "/* task posture (6 rows): q_ref q_dot_ref posture_gain posture_weight feedforward */"
+        in header
+    )
 
 
 # ----------------------------------------------------------------------------- workspace

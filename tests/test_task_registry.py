@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from mmstab.control.controller import ControllerParams, ControllerSettings, build_controller
-from mmstab.control.layout import ARM, SPROCKETS, StepReference
+from mmstab.control.controller.qp import slot_notes
+from mmstab.control.layout import ARM, SPROCKETS, StepReference, layout_header
 from mmstab.control.limits import DEFAULT_LIMITS, LIMITS, build_limits
 from mmstab.control.tasks import (
     DEFAULT_TASKS,
@@ -121,3 +122,23 @@ def test_a_registered_task_is_summed_into_the_qp_and_solved(problem, settings, r
             assert not np.allclose(res.qdot, plain.solve(state, xi_des).qdot, atol=1e-9)
             checked += 1
     assert checked >= 10
+
+
+def test_the_c_header_names_each_task_s_slots_and_each_limit_s_rows(problem, settings, registered):
+    """controller_layout.h's comments: the packed fields each task reads, rows each limit bounds."""
+    tasks = build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))
+    ctrl = build_controller(problem.robot, settings, tasks=tasks)
+    notes = slot_notes(ctrl.tasks, ctrl.limits, ctrl.model)
+    assert notes == [
+        "task base_point (3 rows): xi_des[0:3] xi_dot_ref[0:3] kp[0:3] w_a[0:3] feedforward",
+        "task arm_com (3 rows): xi_des[3:6] xi_dot_ref[3:6] kp[3:6] w_a[3:6] feedforward",
+        "task posture (4 rows): q_ref q_dot_ref posture_gain posture_weight feedforward",
+        "task joint_centring (4 rows): - - posture_gain posture_weight feedforward",
+        "limit joint_velocity: qdot[0:6]",
+        "limit joint_position: qdot[2:6]",
+    ]
+    plain, header = layout_header(settings.kkt_tol), layout_header(settings.kkt_tol, notes=notes)
+    assert [line for line in header.splitlines() if "#define" in line] == [
+        line for line in plain.splitlines() if "#define" in line
+    ]  # comments only: every macro, and so the packed order, as before
+    assert f"/* {notes[3]} */" in header

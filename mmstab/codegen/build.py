@@ -21,6 +21,7 @@ from mmstab.codegen.postprocess import postprocess
 from mmstab.codegen.settings import CODEGEN_PLUGINS, CodegenSettings, check_plugin
 from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.controller.boxqp import boxqp_source
+from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import layout_header
 from mmstab.core.files import _atomic, write_json
 from mmstab.model.robot import Robot
@@ -171,7 +172,8 @@ def generate(
         solver = boxqp_source(ctrl.layout.joints) if plugin == "box" else None
         c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    layout = layout_header(settings.kkt_tol, ctrl.layout.arm)
+    notes = slot_notes(ctrl.tasks, ctrl.limits, ctrl.model)
+    layout = layout_header(settings.kkt_tol, ctrl.layout.arm, notes)
     for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout)):
         _write_text(path, text)
     stderr = compile_c([c_file], library, plugin, shared=True, native=native)

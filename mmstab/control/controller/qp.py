@@ -88,6 +88,23 @@ def all_finite(x: ca.SX) -> ca.SX:
     return ca.fabs(tree_reduce(ca.vec(x) * 2.0**-1000, ca.plus)) < ca.inf
 
 
+def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel) -> list[str]:
+    """What each task reads of the packed inputs and which rows of q̇ each limit bounds.
+
+    One line per task and limit, in the QP's order (``controller_layout.h``'s comments):
+    ``task base_point: xi_des[0:3] xi_dot_ref[0:3] kp[0:3] w_a[0:3] feedforward`` (a
+    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``.
+    """
+    lines = []
+    for t in tasks:
+        read = [("-" if slot is None else slot.describe()) for slot in t.slots]
+        lines.append(f"task {t.name} ({t.rows(model)} rows): {' '.join(read)} feedforward")
+    for limit in limits:
+        start, stop = limit.rows(model.layout)
+        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]")
+    return lines
+
+
 def build_qp(
     model: TaskModel,
     tasks: Sequence[Task],
