@@ -13,6 +13,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from mmstab.codegen.build import generate
+from mmstab.codegen.functions import STEP_NAME
 from mmstab.control.controller import ControllerParams, ControllerSettings, build_controller
 from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import ARM, SPROCKETS, StepReference, layout_header
@@ -142,3 +144,34 @@ def test_the_c_header_names_each_task_s_slots_and_each_limit_s_rows(problem, set
         line for line in plain.splitlines() if "#define" in line
     ]  # comments only: every macro, and so the packed order, as before
     assert f"/* {notes[3]} */" in header
+
+
+@pytest.mark.slow
+def test_the_generated_c_of_a_registered_task_equals_the_interpreted_step(
+    problem, settings, registered, rng, tmp_path
+):
+    """The new task reaches the generated step: C and interpreted agree, and differ from default."""
+    robot = problem.robot
+    tasks = build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))
+    gen = generate((robot, settings), tmp_path / "centred", "box", tasks=tasks)
+    assert "task joint_centring (4 rows)" in gen.layout.read_text()
+    ext = gen.load(STEP_NAME)
+    centred, plain = (
+        build_controller(robot, settings, tasks=tasks),
+        build_controller(robot, settings),
+    )
+    p = centred.params.pack()
+    worst, moved = 0.0, 0
+    for _ in range(200):
+        q = rng.uniform(robot.joint_lower, robot.joint_upper)
+        s = np.r_[rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi), 0.0, 0.0, q]
+        ref = StepReference(
+            plain.model.task(s) + rng.normal(0, 0.1, 6), np.zeros(6), q, np.zeros(4), np.zeros(3)
+        ).pack()
+        a = [np.asarray(v) for v in centred.step(s, ref, p)]
+        b = [np.asarray(v) for v in ext(s, ref, p)]
+        assert a[1].item() == b[1].item() == 0.0  # SUCCESS
+        worst = max(worst, max(float(np.max(np.abs(x - y))) for x, y in zip(a, b, strict=True)))
+        moved += not np.allclose(a[0], np.asarray(plain.step(s, ref, p)[0]), atol=1e-9)
+    assert worst <= 1e-10
+    assert moved == 200  # the task changed every step's answer

@@ -23,6 +23,8 @@ from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.controller.boxqp import boxqp_source
 from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import layout_header
+from mmstab.control.limits import Limit
+from mmstab.control.tasks import Task
 from mmstab.core.files import _atomic, write_json
 from mmstab.model.robot import Robot
 
@@ -125,6 +127,8 @@ def generate(
     *,
     force: bool = False,
     native: bool = False,
+    tasks: Sequence[Task] | None = None,
+    limits: Sequence[Limit] | None = None,
 ) -> GeneratedController:
     """Generate the controller step's C and compile it, unless already up to date.
 
@@ -137,6 +141,10 @@ def generate(
         force: regenerate and recompile even if up to date.
         native: compile with ``-march=native`` (opt-in; the library then runs on this CPU
             family only; part of the cache key).
+        tasks: the controller's tasks (default the registry's,
+            :data:`mmstab.control.tasks.DEFAULT_TASKS`); a different list gives different
+            Functions, so a different cache key.
+        limits: its limits (default :data:`mmstab.control.limits.DEFAULT_LIMITS`).
 
     Returns:
         Paths of the C file, header and library, and the cache key.
@@ -149,7 +157,7 @@ def generate(
     plugin = cg.plugin if plugin is None else plugin
     check_plugin(plugin)
     out = Path(out_dir) if out_dir is not None else Path(cg.directory) / plugin
-    ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin))
+    ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin), tasks, limits)
     functions = export_functions(ctrl)
     names = tuple(f.name() for f in functions)
     key = cache_key(functions, plugin, native)
