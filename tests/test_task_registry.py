@@ -91,6 +91,17 @@ def test_the_task_map_is_the_tasks_of_xi_in_row_order(settings):
         task_map([base, posture])  # ξ's CoM rows: no task
     with pytest.raises(ValueError, match="do not tile"):
         task_map([base, com, BasePointTask(0.1)])  # rows 0..3 twice
+    with pytest.raises(ValueError, match="do not tile"):
+        task_map([])
+
+
+def test_a_task_without_a_value_slot_must_compute_its_target(problem, settings):
+    class Unfinished(JointCentringTask):
+        name = "unfinished"
+        target = Task.target  # the slots' reading alone, which has no value to read
+
+    with pytest.raises(TypeError, match="'unfinished' has no value slot"):
+        build_controller(problem.robot, settings, tasks=[*build_tasks(settings), Unfinished()])
 
 
 def test_a_registered_task_is_summed_into_the_qp_and_solved(problem, settings, registered, rng):

@@ -131,6 +131,7 @@ def build_qp(
     lay = model.layout
     ref, p = ca.SX.sym("reference", lay.reference), ca.SX.sym("params", lay.params)
     P, R = ControllerParams.unpack(p), StepReference.unpack(ref)
+    xi_tasks = task_map(tasks)  # checked first: no tasks, or none of ξ, is a ValueError
     objectives = [t.objective(model, t.target(R, P)) for t in tasks]
     H, g, cost0 = objectives[0].H, objectives[0].g, objectives[0].cost0
     for o in objectives[1:]:
@@ -138,7 +139,7 @@ def build_qp(
     H = H + ca.diag(P.w_b)
     lbx, ubx = intersect(limits, s, P)
     rate = {id(t): o.rate for t, o in zip(tasks, objectives, strict=True)}
-    xi_dot_des = ca.vertcat(*(rate[id(t)] for t in task_map(tasks)))
+    xi_dot_des = ca.vertcat(*(rate[id(t)] for t in xi_tasks))
     posture = [rate[id(t)] for t in tasks if t.slots.value and t.slots.value.field == "q_ref"]
     q_dot_posture = ca.vertcat(*posture) if posture else ca.SX.zeros(lay.arm)
     # the inputs: finite inputs give a finite H and g (short of overflow, which the

@@ -106,7 +106,10 @@ class Task(abc.ABC):
         return cls()
 
     def target(self, reference: StepReference, params: ControllerParams) -> TaskTarget:
-        """The target at one step, read from the slots (:attr:`slots`); feed-forward ``f``."""
+        """The target at one step, read from the slots (:attr:`slots`); feed-forward ``f``.
+
+        A slot of None reads as None (the value: the overriding task fills it in) or 0 (the rate).
+        """
         value, rate, gain, weight = (
             None if slot is None else slot.read(reference, params) for slot in self.slots
         )
@@ -129,7 +132,13 @@ class Task(abc.ABC):
         return target - self.value(model)
 
     def objective(self, model: TaskModel, target: TaskTarget) -> TaskObjective:
-        """½‖v − J q̇‖²_W with v = K e + f ṙ_ref: H = Jᵀ W J, g = −Jᵀ W v, cost0 = ½ vᵀ W v."""
+        """½‖v − J q̇‖²_W with v = K e + f ṙ_ref: H = Jᵀ W J, g = −Jᵀ W v, cost0 = ½ vᵀ W v.
+
+        Raises:
+            TypeError: a target without a value (no value slot, and ``target`` not overridden).
+        """
+        if target.value is None:
+            raise TypeError(f"task {self.name!r} has no value slot: it must override target()")
         rate = target.gain * self.error(model, target.value) + target.feedforward * target.rate
         J = self.jacobian(model)
         JtW = J.T @ ca.diag(target.weight)
