@@ -188,15 +188,7 @@ def import_cycles() -> list[list[str]]:
 
 
 #: Circles still to break, each with its reason (none may be added).
-KNOWN_CYCLES: list[list[str]] = [
-    # TaskModel builds its default tasks (issue 27 item 4 moves that into the QP builder)
-    [
-        "mmstab.control.tasks.arm_com",
-        "mmstab.control.tasks.base",
-        "mmstab.control.tasks.base_point",
-        "mmstab.control.tasks.model",
-    ],
-]
+KNOWN_CYCLES: list[list[str]] = []  # none: the task model imports no task (issue 27)
 
 
 def test_no_import_cycles():

@@ -88,10 +88,14 @@ def test_task_and_jacobian_match_numpy(robot, controllers, rng):
     model = controllers["qpoases"].model
     for state in random_states(robot, rng, 40):
         np.testing.assert_allclose(
-            model.task(state), numpy_task(robot, state, model.base_offset), atol=1e-12
+            model.task(state),
+            numpy_task(robot, state, controllers["qpoases"].settings.base_offset),
+            atol=1e-12,
         )
         np.testing.assert_allclose(
-            model.jacobian(state), numpy_jacobian(robot, state, model.base_offset), atol=1e-8
+            model.jacobian(state),
+            numpy_jacobian(robot, state, controllers["qpoases"].settings.base_offset),
+            atol=1e-8,
         )
 
 
@@ -104,7 +108,7 @@ def test_task_on_a_tilted_local_ground_is_M_T_B_applied(robot, controllers, rng)
         ground = rng.normal(0, 0.3, 3)
         T = local_transforms(state[:3], ground)[0]
         com_M = T[:3, :3] @ robot.arm_com(state[5:9]) + T[:3, 3]
-        point = T[:3, :3] @ [model.base_offset, 0, 0] + T[:3, 3]
+        point = T[:3, :3] @ [controllers["qpoases"].settings.base_offset, 0, 0] + T[:3, 3]
         np.testing.assert_allclose(
             model.task(state, ground), np.r_[point[:2], state[2], com_M], atol=1e-12
         )
@@ -176,7 +180,7 @@ def test_qp_matrices_are_eq7_with_the_posture_task(robot, controllers, rng):
     for state in random_states(robot, rng, 10):
         ref = random_reference(robot, c, state, rng)
         qp = c.qp_data(state, *ref)
-        H, g, cost0, xdd, qdp = numpy_qp(robot, P, state, c.model.base_offset, *ref)
+        H, g, cost0, xdd, qdp = numpy_qp(robot, P, state, c.settings.base_offset, *ref)
         np.testing.assert_allclose(qp.xi_dot_des, xdd, atol=1e-12)
         np.testing.assert_allclose(qp.q_dot_posture, qdp, atol=1e-12)
         np.testing.assert_allclose(qp.H, H, atol=1e-8)
@@ -238,11 +242,11 @@ def test_unconstrained_step_is_weighted_least_squares(robot, controllers, rng):
     for state in random_states(robot, rng, 20):
         ref = random_reference(robot, c, state, rng)
         res = c.solve(state, *ref)
-        H, g, _, xdd, qdp = numpy_qp(robot, P, state, c.model.base_offset, *ref)
+        H, g, _, xdd, qdp = numpy_qp(robot, P, state, c.settings.base_offset, *ref)
         expected = np.linalg.solve(H, -g)
         assert res.success
         np.testing.assert_allclose(res.qdot, expected, rtol=1e-6, atol=1e-7)
-        J, W_A = numpy_jacobian(robot, state, c.model.base_offset), np.diag(P.w_a)
+        J, W_A = numpy_jacobian(robot, state, c.settings.base_offset), np.diag(P.w_a)
         r, r_q = xdd - J @ res.qdot, res.qdot[2:] - qdp
         cost = 0.5 * r @ W_A @ r + 0.5 * res.qdot @ np.diag(P.w_b) @ res.qdot
         cost += 0.5 * r_q @ (P.posture_weight * r_q)

@@ -416,11 +416,11 @@ def test_flipper_limits_are_not_hashed(tmp_path, problem):
 
 def test_controller_com_task_carries_the_payload(robot):
     """The CoM task's value and Jacobian are those of the loaded arm (placed in M)."""
-    from mmstab.control.tasks.model import TaskModel
+    from mmstab.control.tasks import build_task_model
 
     loaded = attach_payload(robot, Payload(3.0, np.array([0.05, 0.0, 0.0])))
     state = np.array([0.3, -0.2, 0.4, 0.0, 0.0, 0.5, 0.6, -0.7, 0.3])  # pose, sprockets, arm
-    plain, heavy = TaskModel(robot, 0.2), TaskModel(loaded, 0.2)
+    plain, heavy = build_task_model(robot, 0.2), build_task_model(loaded, 0.2)
     c, s = math.cos(0.4), math.sin(0.4)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     for model, r in ((plain, robot), (heavy, loaded)):

@@ -29,8 +29,9 @@ from mmstab.control.controller import (
     StepReference,
     build_controller,
 )
+from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import Layout, layout_header
-from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, TaskModel
+from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, build_task_model
 from mmstab.core import sizes
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
@@ -100,7 +101,7 @@ def test_com_jacobian_equals_finite_differences(robot6, rng):
 @pytest.mark.parametrize("task", [BasePointTask(0.2), ArmCoMTask(), PostureTask()])
 def test_task_jacobians_are_the_rates_along_the_plant(robot6, rng, task):
     """(value(s after +h) − value(s after −h)) / 2h = J q̇ for the 6-joint arm."""
-    model = TaskModel(robot6, 0.2)
+    model = build_task_model(robot6, 0.2)
     value = ca.Function("v", [model.state, model.ground], [task.value(model)])
     jac = ca.Function("J", [model.state, model.ground], [task.jacobian(model)])
     h = 1e-6
@@ -181,7 +182,12 @@ def test_generated_step_equals_interpreted(robot6, problem6, rng, tmp_path):
     assert statuses.count(QPStatus.SUCCESS) > 200
     header = gen.layout.read_text()
     assert "#define MMSTAB_N_ARM 6" in header and "#define MMSTAB_N_PARAMS 54" in header
-    assert header == layout_header(settings.kkt_tol, 6)
+    notes = slot_notes(ctrl.tasks, ctrl.limits, ctrl.model)
+    assert header == layout_header(settings.kkt_tol, 6, notes)
+    assert (
+        "/* task posture (6 rows): q_ref q_dot_ref posture_gain posture_weight feedforward */"
+        in header
+    )
 
 
 # ----------------------------------------------------------------------------- workspace

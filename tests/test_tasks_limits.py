@@ -7,14 +7,20 @@ import numpy as np
 import pytest
 
 from mmstab.control.controller import ControllerParams, ControllerSettings
-from mmstab.control.limits import JointPositionLimit, JointVelocityLimit
-from mmstab.control.limits.base import intersect
-from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, TaskModel, TaskTarget
+from mmstab.control.layout import Layout
+from mmstab.control.limits import JointPositionLimit, JointVelocityLimit, intersect
+from mmstab.control.tasks import (
+    ArmCoMTask,
+    BasePointTask,
+    PostureTask,
+    TaskTarget,
+    build_task_model,
+)
 
 
 @pytest.fixture(scope="module")
 def model(problem):
-    return TaskModel(problem.robot, 0.2)
+    return build_task_model(problem.robot, 0.2)
 
 
 def states(robot, rng, n):
@@ -102,5 +108,11 @@ def test_limits_bound_and_intersect(problem, rng):
         hi, np.r_[P.qdot_max[:2], np.minimum(P.qdot_max[2:], (robot.joint_upper - q) / P.dt)]
     )
     assert hi[2] == pytest.approx(1e-4 / P.dt) and hi[2] < P.qdot_max[2]
-    pos = JointPositionLimit().bounds(s, Ps)
-    assert np.isinf(np.asarray(ca.evalf(pos.lower[:2]))).all()  # the sprockets turn freely
+    assert JointPositionLimit().rows(Layout(4)) == (2, 6)  # the sprockets turn freely
+    assert JointVelocityLimit().rows(Layout(4)) == (0, 6)
+    free = ca.Function(
+        "free",
+        [s, ca.vertcat(*[ca.vec(x) for x in Ps])],
+        [intersect([JointPositionLimit()], s, Ps).lower],
+    )
+    assert np.isneginf(np.asarray(free(state, P.pack())).ravel()[:2]).all()

@@ -21,10 +21,10 @@ from mmstab.control.controller import (
     ControllerParams,
     ControllerSettings,
     QPStatus,
-    TaskModel,
     build_controller,
 )
 from mmstab.control.reference import initial_state
+from mmstab.control.tasks import build_task_model
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import load_problem
 from mmstab.runs.tracking import simulate, summarize, task_batch
@@ -192,7 +192,7 @@ def test_simulated_motion_matches_the_jacobian(problem):
     for dt in (1e-3, 5e-4):
         settings = dataclasses.replace(base, dt=dt)
         run = simulate(problem, plan, duration=0.4, progress=False, settings=settings)
-        model = TaskModel(robot, settings.base_offset)
+        model = build_task_model(robot, settings.base_offset)
         k = np.arange(0, run.steps, 7)
         for i in k[:40]:  # the plant: exact arc for the base, q̇ dt for the joints
             np.testing.assert_allclose(
@@ -216,7 +216,7 @@ def test_simulated_motion_matches_the_jacobian(problem):
 
 def test_task_batch_matches_the_casadi_task(problem, rng):
     robot = problem.robot
-    model = TaskModel(robot, 0.2)
+    model = build_task_model(robot, 0.2)
     states = np.column_stack(
         [
             rng.uniform(-2, 2, (20, 3)),

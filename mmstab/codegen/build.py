@@ -19,9 +19,12 @@ from mmstab.codegen.compiler import compile_c, compile_command
 from mmstab.codegen.functions import ROLLOUT_CHUNK, STEP_NAME, export_functions
 from mmstab.codegen.postprocess import postprocess
 from mmstab.codegen.settings import CODEGEN_PLUGINS, CodegenSettings, check_plugin
-from mmstab.control.controller import ControllerSettings, build_controller
+from mmstab.control.controller import Controller, ControllerSettings, build_controller
 from mmstab.control.controller.boxqp import boxqp_source
+from mmstab.control.controller.qp import slot_notes
 from mmstab.control.layout import layout_header
+from mmstab.control.limits import Limit
+from mmstab.control.tasks import Task
 from mmstab.core.files import _atomic, write_json
 from mmstab.model.robot import Robot
 
@@ -29,7 +32,8 @@ if TYPE_CHECKING:
     from mmstab.core.problem import Problem
 
 LAYOUT_HEADER = "controller_layout.h"  #: sizes and packed layouts of the arguments, for C
-FORMAT_VERSION = 6  #: bump when the generated content or post-processing changes
+#: Bump when the generated content or post-processing changes (7: the header's slot notes).
+FORMAT_VERSION = 7
 
 
 class GeneratedController(NamedTuple):
@@ -117,6 +121,12 @@ def cache_key(functions: Sequence[ca.Function], plugin: str, native: bool = Fals
     return h.hexdigest()
 
 
+def _layout(ctrl: Controller) -> str:
+    """``controller_layout.h``, with a comment line per task (its slots) and limit (its rows)."""
+    notes = slot_notes(ctrl.tasks, ctrl.limits, ctrl.model)
+    return layout_header(ctrl.settings.kkt_tol, ctrl.layout.arm, notes)
+
+
 def generate(
     source: Problem | tuple[Robot, ControllerSettings],
     out_dir: str | os.PathLike[str] | None = None,
@@ -124,6 +134,8 @@ def generate(
     *,
     force: bool = False,
     native: bool = False,
+    tasks: Sequence[Task] | None = None,
+    limits: Sequence[Limit] | None = None,
 ) -> GeneratedController:
     """Generate the controller step's C and compile it, unless already up to date.
 
@@ -136,6 +148,8 @@ def generate(
         force: regenerate and recompile even if up to date.
         native: compile with ``-march=native`` (opt-in; the library then runs on this CPU
             family only; part of the cache key).
+        tasks: the controller's tasks (default the registry's); part of the cache key.
+        limits: its limits (default the registry's); part of the cache key.
 
     Returns:
         Paths of the C file, header and library, and the cache key.
@@ -148,7 +162,7 @@ def generate(
     plugin = cg.plugin if plugin is None else plugin
     check_plugin(plugin)
     out = Path(out_dir) if out_dir is not None else Path(cg.directory) / plugin
-    ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin))
+    ctrl = build_controller(robot, dataclasses.replace(settings, plugin=plugin), tasks, limits)
     functions = export_functions(ctrl)
     names = tuple(f.name() for f in functions)
     key = cache_key(functions, plugin, native)
@@ -171,8 +185,7 @@ def generate(
         solver = boxqp_source(ctrl.layout.joints) if plugin == "box" else None
         c_text = postprocess(Path(tmp, f"{STEP_NAME}.c").read_text(), ctrl.conic.name(), solver)
         h_text = Path(tmp, f"{STEP_NAME}.h").read_text()
-    layout = layout_header(settings.kkt_tol, ctrl.layout.arm)
-    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, layout)):
+    for path, text in ((c_file, c_text), (h_file, h_text), (l_file, _layout(ctrl))):
         _write_text(path, text)
     stderr = compile_c([c_file], library, plugin, shared=True, native=native)
     for stale in out.glob(f"lib{STEP_NAME}_*.so"):

@@ -19,6 +19,7 @@ step so the embedded example never repeats them by hand).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -234,7 +235,9 @@ REFERENCE_SIZE = StepReference.size()
 PARAMS_SIZE = ControllerParams.size()
 
 
-def layout_header(kkt_tol: float | None = None, arm: int = ARM_JOINTS) -> str:
+def layout_header(
+    kkt_tol: float | None = None, arm: int = ARM_JOINTS, notes: Sequence[str] = ()
+) -> str:
     """``controller_layout.h``: the step's argument sizes and packed layouts as C macros.
 
     ``MMSTAB_N_*`` sizes (state, joints, task, arm joints, reference, params, local ground),
@@ -245,6 +248,9 @@ def layout_header(kkt_tol: float | None = None, arm: int = ARM_JOINTS) -> str:
         kkt_tol: the certificate's tolerance [rad/s], written as ``MMSTAB_KKT_TOL`` (the
             embedded example checks every step's KKT conditions with it); None: not written.
         arm: the arm's joint count (:class:`Layout`).
+        notes: comment lines written after the offsets (the code generator's: which task
+            reads which slots, which limit bounds which rows,
+            :func:`mmstab.control.controller.qp.slot_notes`); they change no macro.
     """
     lay = Layout(arm)
     sizes = {
@@ -276,6 +282,7 @@ def layout_header(kkt_tol: float | None = None, arm: int = ARM_JOINTS) -> str:
             for k, v in ControllerParams.offsets(arm).items()
         ),
         "",
+        *([f"/* {note} */" for note in notes] + [""] if notes else []),
         *(
             ["/* the step's certificate tolerance [rad/s] (controller.kkt_tol) */"]
             + [f"#define MMSTAB_KKT_TOL {kkt_tol!r}", ""]

@@ -9,25 +9,25 @@
 
 so H = Σ Jᵀ W J + W_B, g = −Σ Jᵀ W v (:meth:`mmstab.control.tasks.Task.objective`) and
 lbx/ubx the intersection of the limits (:func:`mmstab.control.limits.base.intersect`); W_B > 0, so
-the QP is strictly convex. The targets come from the step's reference and parameters
-(:mod:`mmstab.control.layout`); the tasks are evaluated at the reference's local ground.
+the QP is strictly convex. As pink's ``build_ik``, :func:`build_qp` loops over the tasks
+(each reads its target from its slots of the step's reference and parameters,
+:meth:`~mmstab.control.tasks.Task.target`) and the limits (each bounds its rows of q̇); the
+lists are the registries' defaults (:data:`mmstab.control.tasks.DEFAULT_TASKS`,
+:data:`mmstab.control.limits.DEFAULT_LIMITS`) unless the caller gives others. The tasks are
+evaluated at the reference's local ground.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import casadi as ca
 
 from mmstab.control.layout import ControllerParams, StepReference
-from mmstab.control.limits import JointPositionLimit, JointVelocityLimit, Limit
-from mmstab.control.limits.base import intersect
-from mmstab.control.tasks import ArmCoMTask, BasePointTask, PostureTask, Task, TaskModel, TaskTarget
+from mmstab.control.limits import Limit, intersect
+from mmstab.control.tasks import Task, TaskModel, task_map
 from mmstab.model.robot import FloatArray
-
-#: The rows of ξ (reference, gains, weights) of the base-point and arm-CoM tasks.
-BASE_ROWS, COM_ROWS = slice(0, 3), slice(3, 6)
 
 
 class QPData(NamedTuple):
@@ -88,60 +88,65 @@ def all_finite(x: ca.SX) -> ca.SX:
     return ca.fabs(tree_reduce(ca.vec(x) * 2.0**-1000, ca.plus)) < ca.inf
 
 
-def targets(R: StepReference, P: ControllerParams) -> tuple[TaskTarget, TaskTarget, TaskTarget]:
-    """The base-point, arm-CoM and posture targets from the step's reference and parameters."""
-    return (
-        TaskTarget(
-            R.xi_des[BASE_ROWS],
-            R.xi_dot_ref[BASE_ROWS],
-            P.kp[BASE_ROWS],
-            P.w_a[BASE_ROWS],
-            P.feedforward,
-        ),
-        TaskTarget(
-            R.xi_des[COM_ROWS],
-            R.xi_dot_ref[COM_ROWS],
-            P.kp[COM_ROWS],
-            P.w_a[COM_ROWS],
-            P.feedforward,
-        ),
-        TaskTarget(R.q_ref, R.q_dot_ref, P.posture_gain, P.posture_weight, P.feedforward),
-    )
+def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel) -> list[str]:
+    """What each task reads of the packed inputs and which rows of q̇ each limit bounds.
+
+    One line per task and limit, in the QP's order (``controller_layout.h``'s comments):
+    ``task base_point: xi_des[0:3] xi_dot_ref[0:3] kp[0:3] w_a[0:3] feedforward`` (a
+    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``.
+    """
+    lines = []
+    for t in tasks:
+        read = [("-" if slot is None else slot.describe()) for slot in t.slots]
+        lines.append(f"task {t.name} ({t.rows(model)} rows): {' '.join(read)} feedforward")
+    for limit in limits:
+        start, stop = limit.rows(model.layout)
+        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]")
+    return lines
 
 
-def build_qp(model: TaskModel, statuses: tuple[float, float, float]) -> ca.Function:
+def build_qp(
+    model: TaskModel,
+    tasks: Sequence[Task],
+    limits: Sequence[Limit],
+    statuses: tuple[float, float, float],
+) -> ca.Function:
     """SX Function (state, reference, params) -> the QP's matrices and the pre-solve status.
 
     Args:
         model: the task kinematics.
+        tasks: the tasks, summed in this order (their values of ξ_des tile ξ,
+            :func:`~mmstab.control.tasks.task_map`).
+        limits: the limits, intersected in this order.
         statuses: the status values for (success, non-finite input, infeasible bounds).
 
     Returns:
         ``qp`` (state (5 + n), reference (15 + 2n), params (18 + 6n)) -> (H, g, lbx, ubx,
         xi_dot_des, q_dot_posture, cost0, status), n the arm's joints (``model.layout``); see
-        the module docstring for the formulas.
+        the module docstring for the formulas. ``xi_dot_des`` stacks the rates of the tasks of
+        ξ, ``q_dot_posture`` those of the tasks whose target is ``q_ref`` (zero without one).
     """
     success, nonfinite, infeasible = statuses
     s, ground = model.state, model.ground
     lay = model.layout
     ref, p = ca.SX.sym("reference", lay.reference), ca.SX.sym("params", lay.params)
     P, R = ControllerParams.unpack(p), StepReference.unpack(ref)
-    tasks: tuple[Task, Task, Task] = (
-        BasePointTask(model.base_offset),
-        ArmCoMTask(),
-        PostureTask(),
-    )
-    limits: list[Limit] = [JointVelocityLimit(), JointPositionLimit()]
-    base, com, posture = (t.objective(model, x) for t, x in zip(tasks, targets(R, P), strict=True))
-    H = base.H + com.H + posture.H + ca.diag(P.w_b)
-    g = base.g + com.g + posture.g
-    cost0 = base.cost0 + com.cost0 + posture.cost0
+    xi_tasks = task_map(tasks)  # checked first: no tasks, or none of ξ, is a ValueError
+    objectives = [t.objective(model, t.target(R, P)) for t in tasks]
+    H, g, cost0 = objectives[0].H, objectives[0].g, objectives[0].cost0
+    for o in objectives[1:]:
+        H, g, cost0 = H + o.H, g + o.g, cost0 + o.cost0
+    H = H + ca.diag(P.w_b)
     lbx, ubx = intersect(limits, s, P)
+    rate = {id(t): o.rate for t, o in zip(tasks, objectives, strict=True)}
+    xi_dot_des = ca.vertcat(*(rate[id(t)] for t in xi_tasks))
+    posture = [rate[id(t)] for t in tasks if t.slots.value and t.slots.value.field == "q_ref"]
+    q_dot_posture = ca.vertcat(*posture) if posture else ca.SX.zeros(lay.arm)
     # the inputs: finite inputs give a finite H and g (short of overflow, which the
     # certificate refuses as SOLVER_FAILED)
     finite = all_finite(ca.vertcat(s, ref, p))
     status = ca.if_else(finite, ca.if_else(all_true(lbx <= ubx), success, infeasible), nonfinite)
-    outputs = [H, g, lbx, ubx, ca.vertcat(base.rate, com.rate), posture.rate, cost0, status]
+    outputs = [H, g, lbx, ubx, xi_dot_des, q_dot_posture, cost0, status]
     # cse: shared subexpressions (sin/cos of the joints, products of the Jacobian) once
     at_ground = ca.Function("qp_at_ground", [s, ground, ref, p], outputs, {"cse": True})
     return ca.Function(

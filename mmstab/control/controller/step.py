@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Sequence
 from typing import Any
 
 import casadi as ca
@@ -19,7 +20,8 @@ from mmstab.control.controller.certificate import (
 from mmstab.control.controller.qp import QPData, build_qp
 from mmstab.control.controller.settings import PLUGINS, ControllerSettings
 from mmstab.control.layout import ARM, TASK_SIZE, ControllerParams, StepReference
-from mmstab.control.tasks import TaskModel
+from mmstab.control.limits import Limit, build_limits
+from mmstab.control.tasks import Task, TaskModel, build_tasks, task_map
 from mmstab.model.robot import Robot
 from mmstab.terrain import GROUND_SIZE
 
@@ -57,11 +59,16 @@ class Controller:
     Attributes:
         robot: the robot.
         settings: the settings it was built with.
-        model: task kinematics (ξ, J, motion integration).
+        tasks: the tasks of the QP, summed in this order (default
+            :data:`~mmstab.control.tasks.DEFAULT_TASKS`).
+        limits: its limits, intersected in this order (default
+            :data:`~mmstab.control.limits.DEFAULT_LIMITS`).
+        model: task kinematics (ξ of the tasks' :func:`~mmstab.control.tasks.task_map`, J,
+            motion integration).
         params: the run-time parameters (joint limits, gains, weights, dt).
         qp: ``Function`` (state, reference, params) -> (H, g, lbx, ubx, xi_dot_des,
             q_dot_posture, cost0, status): the QP's matrices
-            (:func:`mmstab.control.tasks.build_qp`),
+            (:func:`mmstab.control.controller.qp.build_qp`),
             for inspection and tests.
         conic: the CasADi ``conic`` (dense H, no linear constraints), or for the ``box``
             plugin the dedicated solver (:mod:`~mmstab.control.controller.boxqp`, same arguments).
@@ -74,14 +81,24 @@ class Controller:
         failures: number of them that returned the safe action (status != SUCCESS).
     """
 
-    def __init__(self, robot: Robot, settings: ControllerSettings):
+    def __init__(
+        self,
+        robot: Robot,
+        settings: ControllerSettings,
+        tasks: Sequence[Task] | None = None,
+        limits: Sequence[Limit] | None = None,
+    ):
         if settings.plugin not in PLUGINS:
             raise ValueError(f"unknown QP plugin {settings.plugin!r}; choose one of {PLUGINS}")
         self.robot, self.settings = robot, settings
-        self.model = TaskModel(robot, settings.base_offset)
+        self.tasks = tuple(build_tasks(settings) if tasks is None else tasks)
+        self.limits = tuple(build_limits() if limits is None else limits)
+        self.model = TaskModel(robot, task_map(self.tasks))
         self.params = ControllerParams.from_settings(robot, settings)
         self.qp = build_qp(
             self.model,
+            self.tasks,
+            self.limits,
             (float(QPStatus.SUCCESS), float(QPStatus.NONFINITE_INPUT), float(QPStatus.INFEASIBLE)),
         )
         self.layout = lay = self.model.layout
@@ -271,14 +288,22 @@ class Controller:
         return ControlResult(qdot, QPStatus.SUCCESS, True, float(objective))
 
 
-def build_controller(robot: Robot, settings: ControllerSettings) -> Controller:
+def build_controller(
+    robot: Robot,
+    settings: ControllerSettings,
+    tasks: Sequence[Task] | None = None,
+    limits: Sequence[Limit] | None = None,
+) -> Controller:
     """Build the controller once (CasADi expressions, conic, ``step`` Function).
 
     Args:
         robot: the robot (joint and track speed limits, kinematics).
         settings: the ``controller:`` settings (plugin, gains, weights, dt, base offset).
+        tasks: the QP's tasks (default: :data:`~mmstab.control.tasks.DEFAULT_TASKS` built
+            from ``settings``, :func:`~mmstab.control.tasks.build_tasks`).
+        limits: its limits (default: :data:`~mmstab.control.limits.DEFAULT_LIMITS`).
 
     Raises:
-        ValueError: an unknown plugin.
+        ValueError: an unknown plugin, or tasks whose ξ_des rows do not tile ξ.
     """
-    return Controller(robot, settings)
+    return Controller(robot, settings, tasks, limits)

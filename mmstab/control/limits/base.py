@@ -1,34 +1,55 @@
-"""The limit interface (as pink's ``Limit``): bounds on the joint speeds."""
+"""The limit interface (as pink's ``Limit``): bounds on some of the joint speeds."""
 
 from __future__ import annotations
 
 import abc
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import casadi as ca
 
-from mmstab.control.layout import ControllerParams
+from mmstab.control.layout import BASE_STATE, ControllerParams, Layout
 
 
 class Bounds(NamedTuple):
-    """Lower and upper bounds on q̇ (6,) [rad/s] (CasADi; ±inf where unbounded)."""
+    """Lower and upper bounds on the limit's rows of q̇ [rad/s] (CasADi)."""
 
     lower: Any
     upper: Any
 
 
 class Limit(abc.ABC):
-    """A limit of the controller: bounds on q̇ from the state and the parameters."""
+    """A limit of the controller: bounds on rows of q̇ from the state and the parameters."""
+
+    #: The limit's name in the registry (:data:`mmstab.control.limits.LIMITS`).
+    name: str
+
+    def rows(self, layout: Layout) -> tuple[int, int]:
+        """The rows of q̇ (2 + n,) it bounds, (start, stop); every joint unless it says otherwise."""
+        return (0, layout.joints)
 
     @abc.abstractmethod
     def bounds(self, state: ca.SX, params: ControllerParams) -> Bounds:
-        """The bounds at a state (9,) with the run-time parameters."""
+        """The bounds of its rows at a state (5 + n,) with the run-time parameters."""
 
 
-def intersect(limits: list[Limit], state: ca.SX, params: ControllerParams) -> Bounds:
-    """The intersection of several limits' bounds: max of the lowers, min of the uppers."""
-    lower, upper = limits[0].bounds(state, params)
-    for limit in limits[1:]:
+def intersect(limits: Sequence[Limit], state: ca.SX, params: ControllerParams) -> Bounds:
+    """The intersection of the limits' bounds, row by row: max of the lowers, min of the uppers.
+
+    Each row takes the bounds of the limits that declare it, in the limits' order (a row no
+    limit bounds is ±inf); the result has the 2 + n rows of q̇.
+    """
+    layout = Layout(state.numel() - BASE_STATE)
+    lower: list[Any] = [-ca.inf] * layout.joints
+    upper: list[Any] = [ca.inf] * layout.joints
+    bounded = [False] * layout.joints
+    for limit in limits:
+        start, stop = limit.rows(layout)
         b = limit.bounds(state, params)
-        lower, upper = ca.fmax(lower, b.lower), ca.fmin(upper, b.upper)
-    return Bounds(lower, upper)
+        for k, row in enumerate(range(start, stop)):
+            if bounded[row]:
+                lower[row] = ca.fmax(lower[row], b.lower[k])
+                upper[row] = ca.fmin(upper[row], b.upper[k])
+            else:
+                lower[row], upper[row], bounded[row] = b.lower[k], b.upper[k], True
+    return Bounds(ca.vertcat(*lower), ca.vertcat(*upper))

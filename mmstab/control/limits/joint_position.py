@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import casadi as ca
 
-from mmstab.control.layout import ARM, SPROCKETS, ControllerParams
+from mmstab.control.layout import ARM, SPROCKETS, ControllerParams, Layout
 from mmstab.control.limits.base import Bounds, Limit
 
 
 class JointPositionLimit(Limit):
     """(q_min − q)/dt ≤ q̇ ≤ (q_max − q)/dt on the arm joints; the sprockets turn freely."""
 
+    name = "joint_position"
+
+    def rows(self, layout: Layout) -> tuple[int, int]:
+        """The arm joints' rows (the sprockets turn freely)."""
+        return (SPROCKETS, layout.joints)
+
     def bounds(self, state: ca.SX, params: ControllerParams) -> Bounds:
-        """Bounds (2 + n,) [rad/s]; ±inf on the sprockets."""
+        """Bounds on the arm joints (n,) [rad/s]."""
         q_arm = state[ARM]
-        inf = ca.DM.ones(SPROCKETS) * ca.inf
-        return Bounds(
-            ca.vertcat(-inf, (params.q_min - q_arm) / params.dt),
-            ca.vertcat(inf, (params.q_max - q_arm) / params.dt),
-        )
+        return Bounds((params.q_min - q_arm) / params.dt, (params.q_max - q_arm) / params.dt)

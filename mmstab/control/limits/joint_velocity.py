@@ -11,6 +11,8 @@ from mmstab.control.limits.base import Bounds, Limit
 class JointVelocityLimit(Limit):
     """−q̇_max ≤ q̇ ≤ q̇_max for every joint (``params.qdot_max``, sprockets then the arm)."""
 
+    name = "joint_velocity"
+
     def bounds(self, state: ca.SX, params: ControllerParams) -> Bounds:
-        """(−q̇_max, q̇_max) (6,) [rad/s]."""
+        """(−q̇_max, q̇_max) (2 + n,) [rad/s]."""
         return Bounds(-params.qdot_max, params.qdot_max)

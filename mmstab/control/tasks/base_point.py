@@ -6,7 +6,7 @@ from typing import Any
 
 import casadi as ca
 
-from mmstab.control.tasks.base import Task
+from mmstab.control.tasks.base import Slot, Task, TaskSlots
 from mmstab.control.tasks.model import TaskModel
 
 
@@ -18,10 +18,19 @@ class BasePointTask(Task):
     two track speeds (the look-ahead point of differential-drive tracking).
     """
 
+    name = "base_point"
     size = 3
+    slots = TaskSlots(
+        Slot("xi_des", (0, 3)), Slot("xi_dot_ref", (0, 3)), Slot("kp", (0, 3)), Slot("w_a", (0, 3))
+    )
 
     def __init__(self, offset: float):
         self.offset = float(offset)
+
+    @classmethod
+    def from_settings(cls, settings: Any) -> BasePointTask:
+        """The point ``settings.base_offset`` [m] ahead of the body origin."""
+        return cls(settings.base_offset)
 
     def value(self, model: TaskModel) -> ca.SX:
         """[g_bx, g_by, γ] (3,) [m, m, rad]."""

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Protocol
+
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
@@ -12,8 +15,24 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain import GROUND_SIZE, place_local_sx
 
 
+class MappedTask(Protocol):
+    """What the task map ξ needs of a task (:class:`mmstab.control.tasks.Task` gives it)."""
+
+    def value(self, model: TaskModel) -> ca.SX:
+        """The task's value at the model's state and ground."""
+        ...
+
+    def jacobian(self, model: TaskModel) -> ca.SX:
+        """Its Jacobian with respect to the joint speeds."""
+        ...
+
+
 class TaskModel:
     """The robot as the tasks see it (pink's ``Configuration``), and the task map ξ.
+
+    It holds the model only: the tasks whose values make ξ are handed in
+    (:func:`mmstab.control.tasks.base.task_map`; :func:`mmstab.control.tasks.build_task_model`
+    for the default ones), so this module imports no task.
 
     The base pose is part of the state, not a function of q: the tracked base is
     nonholonomic, pose rate = B(γ) [θ̇_l, θ̇_r] with B the 3x2 track map, so a quantity
@@ -21,25 +40,22 @@ class TaskModel:
 
     Attributes:
         robot: the robot.
-        base_offset: base control point ahead of the body origin [m].
         layout: the packed sizes for the robot's arm (n joints).
         state: the symbolic state (5 + n,) SX.
         ground: the symbolic local ground (3,) SX [m, rad, rad].
         track_map: B(γ) (3, 2) SX [m/rad, rad/rad].
         com_body: the arm CoM g_a^B(q_arm) (3,) SX [m].
-        xi: ξ = [base point and heading, arm CoM] (6,) SX (the base-point and arm-CoM tasks).
+        xi: ξ (6,) SX: the mapped tasks' values stacked (by default [base point and heading,
+            arm CoM]).
         J: the task Jacobian (6, 2 + n) SX: ξ̇ = J q̇ (the ground held constant).
         f_task: ``Function`` (state, ground) -> xi.
         f_jacobian: ``Function`` (state, ground) -> J.
         f_integrate: the plant (:func:`mmstab.control.plant.build_plant`).
     """
 
-    def __init__(self, robot: Robot, base_offset: float):
-        from mmstab.control.tasks.arm_com import ArmCoMTask
-        from mmstab.control.tasks.base_point import BasePointTask
-
+    def __init__(self, robot: Robot, xi_tasks: Sequence[MappedTask]):
+        """The model of ``robot``; ξ stacks the values of ``xi_tasks`` (in order)."""
         self.robot = robot
-        self.base_offset = float(base_offset)
         tracks = robot.base.tracks
         r, b = tracks.sprocket_radius, tracks.separation
         self.layout = Layout.of(robot)
@@ -52,9 +68,8 @@ class TaskModel:
             ca.horzcat(-r / b, r / b),
         )
         self.com_body = robot.kinematics.f_arm_com(s[ARM])  # g_a^B(q_arm), inlined as SX
-        tasks = (BasePointTask(self.base_offset), ArmCoMTask())
-        self.xi = ca.vertcat(*(t.value(self) for t in tasks))
-        self.J = ca.vertcat(*(t.jacobian(self) for t in tasks))
+        self.xi = ca.vertcat(*(t.value(self) for t in xi_tasks))
+        self.J = ca.vertcat(*(t.jacobian(self) for t in xi_tasks))
         names = ["state", "ground"]
         self.f_task = ca.Function("task", [s, ground], [self.xi], names, ["xi"])
         self.f_jacobian = ca.Function("task_jacobian", [s, ground], [self.J], names, ["J"])

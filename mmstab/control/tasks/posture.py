@@ -5,7 +5,7 @@ from __future__ import annotations
 import casadi as ca
 
 from mmstab.control.layout import ARM, SPROCKETS
-from mmstab.control.tasks.base import Task
+from mmstab.control.tasks.base import Slot, Task, TaskSlots
 from mmstab.control.tasks.model import TaskModel
 
 
@@ -15,6 +15,11 @@ class PostureTask(Task):
     No wrap: q_ref is in limit coordinates. With small weights (well under the CoM rows') the
     CoM task dominates and this only chooses the remaining arm direction.
     """
+
+    name = "posture"
+    slots = TaskSlots(
+        Slot("q_ref"), Slot("q_dot_ref"), Slot("posture_gain"), Slot("posture_weight")
+    )
 
     def rows(self, model: TaskModel) -> int:
         """n: one row per arm joint (``model.layout.arm``)."""

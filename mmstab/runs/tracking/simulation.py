@@ -23,11 +23,11 @@ from mmstab.control.controller import (
     ControllerParams,
     ControllerSettings,
     QPStatus,
-    TaskModel,
     build_controller,
 )
 from mmstab.control.posture import PostureReference
 from mmstab.control.reference import initial_state
+from mmstab.control.tasks import build_task_model
 from mmstab.core.files import MmstabError, UnstableError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
@@ -224,7 +224,7 @@ def set_up(
         model = controller.model
     else:
         backend = as_backend(step)
-        model = TaskModel(robot, settings.base_offset)
+        model = build_task_model(robot, settings.base_offset)
     params = ControllerParams.from_settings(robot, settings).pack()
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
