@@ -258,11 +258,11 @@ def _finish(
     dt: float,
 ) -> PhysicsRun:
     """Errors, predicted μ and the slip verdict of a finished loop."""
-    from mmstab.control.tasks import TaskModel
+    from mmstab.control.tasks import build_task_model
     from mmstab.runs.tracking.run import task_batch
 
     robot, n = problem.robot, problem.robot.arm_joints
-    model = TaskModel(robot, ctrl_settings.base_offset)
+    model = build_task_model(robot, ctrl_settings.base_offset)
     xi, _ = task_batch(model, problem.terrain, states)
     xi_des = ref[:, :6]
     gravity = problem.terrain.gravity_body(states[:, :3])

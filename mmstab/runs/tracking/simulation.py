@@ -27,7 +27,7 @@ from mmstab.control.controller import (
 )
 from mmstab.control.posture import PostureReference
 from mmstab.control.reference import initial_state
-from mmstab.control.tasks import build_task_model
+from mmstab.control.tasks import TaskModel, build_task_model
 from mmstab.core.files import MmstabError, UnstableError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
