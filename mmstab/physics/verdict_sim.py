@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 from mmstab.model.payload import Payload
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.physics.robot_model import ModelSettings
-from mmstab.physics.robot_sim import RobotSim
+from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.terrain.ramp import Ramp
 
 VERDICTS = ("holds", "slides", "tips")
@@ -57,14 +57,15 @@ class SimSettings(NamedTuple):
         settle: :meth:`RobotSim.settle` duration [s].
         hold: time held (braked or driven) after settling [s].
         sample: recording interval [s].
-        ramp: time over which a driven case's track speed rises to ``speed`` [s].
+        ramp: time over which a driven case's track speed rises to ``speed``, updated every
+            integration step [s].
         model: the MuJoCo model's numbers (e.g. ``suspension_deflection`` 0: rigid wheels).
     """
 
     settle: float = 1.0
     hold: float = 2.5
     sample: float = 0.05
-    ramp: float = 0.5
+    ramp: float = 1.0
     model: ModelSettings = ModelSettings()
 
 
@@ -151,6 +152,25 @@ def _wheel_angles(sim: RobotSim) -> Callable[[], float]:
     return lambda: float(np.mean(sim.data.qpos[adr]))
 
 
+def _drive(
+    sim: RobotSim, q: FloatArray, speed: float, ramp: float, t0: float, duration: float, dt: float
+) -> RobotState:
+    """Advance ``duration`` [s] from ``t0`` [s]: the track speed rises linearly to ``speed``
+    [m/s] over ``ramp`` [s], the command updated every step ``dt`` [s] while it rises.
+
+    A stiff velocity servo turns a jump of its command into a large rim force: a jump of
+    a few mm/s per sample saturates the contacts' friction along the track, which an
+    elliptic cone takes from the friction across it (the robot slides sideways).
+    """
+    if speed == 0 or t0 >= ramp:
+        return sim.step((speed, speed), q, duration)
+    state = sim.state()
+    for j in range(1, max(1, int(round(duration / dt))) + 1):
+        v = speed * min(1.0, (t0 + j * dt) / ramp)
+        state = sim.step((v, v), q, dt)
+    return state
+
+
 def simulate_case(
     robot: Robot,
     payload: Payload | None,
@@ -191,10 +211,10 @@ def simulate_case(
     position, angle, slip = state.G_T_B[:3, 3].copy(), wheel_angle(), 0.0
     n = max(1, int(round(settings.hold / settings.sample)))
     rows = []
+    dt = float(m.opt.timestep)
     for k in range(1, n + 1):
         t = k * settings.sample
-        v = speed * min(1.0, t / settings.ramp) if settings.ramp > 0 else speed
-        state = sim.step((v, v), q, settings.sample)
+        state = _drive(sim, q, speed, settings.ramp, t - settings.sample, settings.sample, dt)
         belt = radius * (wheel_angle() - angle) * state.G_T_B[:3, 0]  # belts' travel [m]
         moved = state.G_T_B[:3, 3] - position
         slip -= float((moved - belt) @ uphill)
