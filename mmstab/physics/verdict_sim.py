@@ -155,8 +155,9 @@ def _wheel_angles(sim: RobotSim) -> Callable[[], float]:
 def _drive(
     sim: RobotSim, q: FloatArray, speed: float, ramp: float, t0: float, duration: float, dt: float
 ) -> RobotState:
-    """Advance ``duration`` [s] from ``t0`` [s]: the track speed rises linearly to ``speed``
-    [m/s] over ``ramp`` [s], the command updated every step ``dt`` [s] while it rises.
+    """Advance ``duration`` [s] from ``t0`` [s], the track speed rising to ``speed`` [m/s].
+
+    It rises linearly over ``ramp`` [s], the command updated every step ``dt`` [s].
 
     A stiff velocity servo turns a jump of its command into a large rim force: a jump of
     a few mm/s per sample saturates the contacts' friction along the track, which an
