@@ -28,7 +28,9 @@ def verdicts_figure(summary: dict[str, Any], path: str | Path) -> Path:
         ax.imshow(counts, cmap="Blues")
         for i in range(3):
             for j in range(3):
-                ax.text(j, i, str(counts[i, j]), ha="center", va="center")
+                dark = counts[i, j] > counts.max() / 2
+                color = "white" if dark else "black"
+                ax.text(j, i, str(counts[i, j]), ha="center", va="center", color=color)
         ax.set_xticks(range(3), VERDICTS)
         ax.set_yticks(range(3), VERDICTS)
         ax.set_xlabel("MuJoCo")
