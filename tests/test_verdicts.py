@@ -127,7 +127,7 @@ def test_coarse_grid_agrees_with_mujoco(postures, settings):
     assert {p.binds for p in predictions} == {"tip", "slip"}
     assert {c.verdict for c in cases} == {"holds", "tips", "slides"}
     sim = sim_settings(settings)["rigid"]
-    simulated = [case_sim(postures, sim, THRESHOLDS, c.config, c.slope) for c in cases]
+    simulated = [case_sim(postures, sim, THRESHOLDS, c.config, c.angle) for c in cases]
     wrong = [
         (c.config, c.verdict, s.verdict)
         for s, c in zip(simulated, cases, strict=True)

@@ -123,7 +123,7 @@ def case_row(case: Case, prediction: Prediction, sim: Any) -> dict[str, Any]:
         "binds": prediction.binds,
         "critical_deg": float(np.degrees(prediction.critical)),
         "offset_deg": float(np.degrees(case.offset)),
-        "slope_deg": float(np.degrees(case.slope)),
+        "slope_deg": float(np.degrees(case.angle)),
         "posture": case.posture.tolist(),
         "mu": case.mu,
         "mmstab": case.verdict,
@@ -185,7 +185,7 @@ def _tasks(
 ) -> list[tuple[Any, ...]]:
     """Every simulation of the run: each case on each model, then the bisections."""
     tasks: list[tuple[Any, ...]] = [
-        ("case", model, c.row, c.config, c.slope) for model in settings["models"] for c in cases
+        ("case", model, c.row, c.config, c.angle) for model in settings["models"] for c in cases
     ]
     b = settings["bisection"]
     for model in b["models"]:

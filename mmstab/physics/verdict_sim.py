@@ -33,7 +33,8 @@ from mmstab.model.payload import Payload
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
-from mmstab.terrain.ramp import Ramp
+from mmstab.terrain.base import Terrain
+from mmstab.terrain.factory import planar_terrain
 
 VERDICTS = ("holds", "slides", "tips")
 
@@ -102,6 +103,11 @@ class SimVerdict(NamedTuple):
     tilt_deg: float
     slip_m: float
     arm_ground: bool
+
+
+def planar_ground(angle: float, friction: float) -> Terrain:
+    """The planar ramp of a case: slope ``angle`` [rad], Coulomb ``friction`` [-]."""
+    return planar_terrain(angle, friction)
 
 
 def first_crossing(time: FloatArray, values: FloatArray, threshold: float) -> float:
@@ -196,7 +202,7 @@ def simulate_case(
         settings: durations.
         stop: ``stop(tilt_deg, slip_m)`` ends the run early when true (a verdict is in).
     """
-    ramp = Ramp(slope, friction=friction)
+    ramp = planar_ground(slope, friction)
     q = np.asarray(posture, dtype=float)
     pose = (0.0, 0.0, heading)
     sim = RobotSim(robot, ramp, payload=payload, pose=pose, arm_q=q, settings=settings.model)

@@ -1,6 +1,6 @@
 """mmstab's verdicts on a grid of ramp cases around the edge: tips, holds or slides.
 
-A configuration is (heading, payload, arm, friction, track speed) on a :class:`Ramp`. Its
+A configuration is (heading, payload, arm, friction, track speed) on a planar ramp. Its
 arm is ``stowed`` (``robot.stowed``), ``planned`` (at each slope, the posture of the
 workspace V that maximises the force-angle measure there: the planner's stability optimum,
 ``w_motion`` 0) or a fixed named posture. mmstab predicts, per configuration,
@@ -27,11 +27,16 @@ from scipy.optimize import brentq
 from mmstab.model.parts import Box
 from mmstab.model.payload import Payload, attach_payload
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.physics.verdict_sim import SimSettings, SimVerdict, Thresholds, sim_verdict
+from mmstab.physics.verdict_sim import (
+    SimSettings,
+    SimVerdict,
+    Thresholds,
+    planar_ground,
+    sim_verdict,
+)
 from mmstab.planner.exhaustive import best_mu
 from mmstab.stability.slip import binding_limit
 from mmstab.stability.static import robot_force_angle
-from mmstab.terrain.ramp import Ramp
 
 #: Slopes searched for the tip slope [rad] (0 to 89 deg).
 SLOPE_RANGE = (0.0, np.radians(89.0))
@@ -78,7 +83,7 @@ class Case(NamedTuple):
         row: the case's row in the grid.
         config: the configuration.
         offset: slope minus the predicted critical slope [rad].
-        slope: the ramp's slope [rad].
+        angle: the ramp's slope [rad].
         posture: arm joint angles held [rad] (4,).
         mu: mmstab's force-angle measure there [N rad].
         verdict: mmstab's verdict (:func:`predicted_verdict`).
@@ -87,7 +92,7 @@ class Case(NamedTuple):
     row: int
     config: Config
     offset: float
-    slope: float
+    angle: float
     posture: FloatArray
     mu: float
     verdict: str
@@ -155,7 +160,9 @@ class ArmPostures:
     def at(self, config: Config, slope: float) -> tuple[FloatArray, float]:
         """(posture (4,) [rad], mu [N rad]) of a configuration at a slope [rad]."""
         robot = self.loaded(config.payload)
-        gravity = Ramp(slope).gravity_body(np.array([[0.0, 0.0, config.heading]]))[0]
+        gravity = planar_ground(slope, config.friction).gravity_body(
+            np.array([[0.0, 0.0, config.heading]])
+        )[0]
         if config.arm == "planned":
             mu, k = best_mu(robot, gravity, self.candidate_coms(config.payload))
             return self.candidates[k].copy(), mu
