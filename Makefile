@@ -107,6 +107,13 @@ bench-plan: setup
 fidelity: setup
 	$(MMSTAB) fidelity $(PROBLEM)
 
+## issue 25: mmstab's tips / holds / slides against MuJoCo's on a grid of edge cases
+## -> results/verdicts/summary.json, verdicts.png (docs/physics.md, "Verdicts against MuJoCo")
+.PHONY: verdicts
+VERDICTS ?= problems/verdicts.yaml
+verdicts: setup
+	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
+
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
 tracking: setup

@@ -96,6 +96,19 @@ def from_section(
     return terrain if robot is None else terrain.with_robot(robot)
 
 
+def planar_terrain(slope: float, friction: float = DEFAULT_FRICTION) -> Terrain:
+    """A planar ramp as a :class:`Terrain`, without a problem file's range checks.
+
+    For checks beyond what a problem may ask (the MuJoCo verdict grid goes to friction 4 and
+    slopes near 80 deg); a problem's terrain comes from :func:`from_section`.
+
+    Args:
+        slope: the plane's slope about G's x axis [rad].
+        friction: Coulomb coefficient of tracks on ground [-].
+    """
+    return Ramp(float(slope), float(friction))
+
+
 def _file_heightmap(problem_path: Path, section: dict[str, Any]) -> Heightmap:
     """The heightmap of ``terrain: {file, ...}``: a heightmap file or a recording's map."""
     target = problem_path.parent / section["file"]
