@@ -109,6 +109,7 @@ def run_follow(
         summary["offline"]["seconds_per_pose"] = float(np.median(offline.search_seconds))
         summary["offline"]["wall_seconds"] = time.perf_counter() - t1
         _figure(out / "online.png", run, offline)
+        _snapshot(out / "online_map.png", problem, run, recording)
     frames = run_frames(run)
     if len(frames.t):
         write_run(out / "online.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
@@ -136,4 +137,58 @@ def _figure(path: Path, run: FollowRun, offline: RoutePlan) -> None:
     b.set(xlabel="latency per map [ms]", ylabel="maps", title="rest + re-plan + controller step")
     b.legend(fontsize=7)
     fig.tight_layout()
+    write_figure(path, fig)
+
+
+def _snapshot(
+    path: Path, problem: Problem, run: FollowRun, recording: str | os.PathLike[str]
+) -> None:
+    """The robot on its map at the middle covered update: what the loop saw and planned.
+
+    The map as the recording held it (unknown cells left out), the robot at its odometry
+    pose rested on it with the arm as it was (support polygon drawn), and the horizon's
+    planned poses ahead as ghosts with their planned postures.
+    """
+    import matplotlib.pyplot as plt
+
+    from mmstab.runs.online.follow import FollowSettings
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+    from mmstab.terrain.recording import load_grid_map
+    from mmstab.viz.drawing import draw_robot, set_equal_aspect
+
+    covered = [x for x in run.steps if x.covered]
+    if not covered:
+        return
+    step = covered[len(covered) // 2]
+    topic = FollowSettings.of(problem).map_topic
+    grid = load_grid_map(recording, topic, step.time)
+    hm, robot = grid.heightmap, problem.robot
+    terrain = HeightmapTerrain(hm).with_robot(robot)
+    fig = plt.figure(figsize=(9, 6), constrained_layout=True)
+    ax = fig.add_subplot(1, 1, 1, projection="3d")
+    ax.computed_zorder = False
+    ny, nx = hm.shape
+    x = hm.origin[0] + hm.resolution * np.arange(nx)
+    y = hm.origin[1] + hm.resolution * np.arange(ny)
+    X, Y = np.meshgrid(x, y)
+    Z = np.ma.masked_invalid(hm.elevation)
+    ax.plot_surface(X, Y, Z, cmap="terrain", alpha=0.8, linewidth=0, antialiased=False, zorder=0)
+    draw_robot(ax, robot, step.q, terrain.with_robot(robot, arm_q=step.q).G_T_B(step.pose),
+               support=True)  # fmt: skip
+    ahead = [p for p in run.plans.values() if step.s < p.s <= step.s + 2.0]
+    for p in ahead:
+        try:
+            T = terrain.G_T_B(p.pose)
+        except Exception:  # noqa: BLE001 - a pose the map does not cover: not drawn
+            continue
+        draw_robot(ax, robot, p.q, T, alpha=0.25)
+    finite = np.isfinite(hm.elevation)
+    set_equal_aspect(ax, np.column_stack([X[finite], Y[finite], hm.elevation[finite]]))
+    ax.view_init(elev=40, azim=-60)
+    ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
+    ax.set_title(
+        f"map at {step.time:.1f} s (s = {step.s:.2f} m): the robot now (mu {step.mu:.0f} N rad) "
+        f"and the horizon's planned poses ahead",
+        fontsize=9,
+    )
     write_figure(path, fig)
