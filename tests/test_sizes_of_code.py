@@ -14,14 +14,9 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mmstab"
 MAX_MODULE_LINES, MAX_FUNCTION_LINES = 400, 80
 
 #: Modules still over the bar: path -> lines.
-LONG_MODULES = {
-    "physics/mujoco_drop.py": 425,
-}
+LONG_MODULES: dict[str, int] = {}
 #: Functions still over the bar: "path:function" -> lines.
-LONG_FUNCTIONS = {
-    "experiments/tracking.py:run_tracking": 92,
-    "planner/roadmap.py:solve_roadmap_sequence": 94,
-}
+LONG_FUNCTIONS: dict[str, int] = {}
 
 
 def measure() -> tuple[dict[str, int], dict[str, int]]:

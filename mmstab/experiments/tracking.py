@@ -91,6 +91,27 @@ def run_tracking(
     _fig11(d, run)
     _fig12(d, problem, run)
     _write_bag(d, problem, run)
+    _write_arrays(d, plan, run, keep)
+    summary = summarize(run)
+    summary["plan_poses"] = int(np.asarray(plan.fractions).size)
+    summary["arm_self_collision"] = collisions
+    summary |= {"slip": slip_verdict(problem.terrain, run.state[keep, :3])} | route_corners(problem)
+    save_settings(
+        d,
+        problem,
+        tracking={
+            "plugin": run.plugin,
+            "backend": run.backend,
+            "duration": float(run.t[-1]),
+            "initial_arm": run.initial_arm,
+        },
+    )
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def _write_arrays(d: Path, plan: TrackingPlan, run: TrackingRun, keep: NDArray[np.int_]) -> None:
+    """The run's arrays at the kept samples, and the plan's, as ``run.npz``."""
     applied = np.vstack([run.qdot, run.qdot[-1:]])  # q̇ over [t_k, t_k+1), repeated at the end
     write_npz(
         d / "run.npz",
@@ -115,22 +136,6 @@ def run_tracking(
         posture_knot_fractions=run.posture.fractions,
         posture_knots=run.posture.postures,
     )
-    summary = summarize(run)
-    summary["plan_poses"] = int(np.asarray(plan.fractions).size)
-    summary["arm_self_collision"] = collisions
-    summary |= {"slip": slip_verdict(problem.terrain, run.state[keep, :3])} | route_corners(problem)
-    save_settings(
-        d,
-        problem,
-        tracking={
-            "plugin": run.plugin,
-            "backend": run.backend,
-            "duration": float(run.t[-1]),
-            "initial_arm": run.initial_arm,
-        },
-    )
-    write_json(d / "summary.json", summary)
-    return summary
 
 
 def _samples(run: TrackingRun, spacing: float) -> NDArray[np.int_]:

@@ -1,4 +1,9 @@
-"""Independent checks of the terrain model: MuJoCo heightfield drops vs a predictor.
+"""The whole robot in MuJoCo: model from the YAML, controller in the loop, verdict checks.
+
+:mod:`~mmstab.physics.robot_model` generates the robot's MJCF, :mod:`~mmstab.physics.robot_sim`
+simulates it, :mod:`~mmstab.physics.closed_loop` runs the controller on it,
+:mod:`~mmstab.physics.verdicts` / :mod:`~mmstab.physics.verdict_sim` hold mmstab's tip and
+slide verdicts against it. The heightfield drops of the base alone:
 
 :mod:`~mmstab.physics.mujoco_drop` builds the MuJoCo model and drops the robot;
 :mod:`~mmstab.physics.compare` compares a predictor with the drops;

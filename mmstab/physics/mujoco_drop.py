@@ -19,7 +19,6 @@ positive roll lifts the left side, positive pitch lifts the nose.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -28,7 +27,13 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.model.robot import Box, FloatArray, Robot
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.physics.drop_geometry import (
+    collision_geoms,
+    mass_properties,
+    pose_matrix,
+    surface_points,
+)
 from mmstab.physics.heightfield import Heightmap, heightmap, hfield_mjcf
 from mmstab.physics.plane import fit_plane, roll_pitch, tilted_frame
 
@@ -70,95 +75,6 @@ class DropSettings:
     linear_tol: float = 2e-3
     angular_tol: float = 1e-2
     check_every: int = 10
-
-
-class CollisionGeom(NamedTuple):
-    """One collision shape in B, posed by ``B_T_geom`` (4, 4).
-
-    ``kind`` is ``"box"`` (``size`` = full edge lengths [m]) or ``"cylinder"`` (``size`` =
-    (radius, length) [m], axis = the shape's z).
-    """
-
-    name: str
-    kind: str
-    size: FloatArray
-    B_T_geom: FloatArray
-
-
-class MassProperties(NamedTuple):
-    """Rigid-body mass [kg], CoM in B (3,) [m] and inertia about the CoM in B (3, 3) [kg m^2]."""
-
-    mass: float
-    com_body: FloatArray
-    inertia_body: FloatArray
-
-
-def _pose(rotation: ArrayLike, center: ArrayLike) -> FloatArray:
-    T = np.eye(4)
-    T[:3, :3] = rotation
-    T[:3, 3] = center
-    return T
-
-
-def _box_geom(name: str, box: Box) -> CollisionGeom:
-    return CollisionGeom(name, "box", np.asarray(box.size, float), box.frame_T_shape)
-
-
-def collision_geoms(robot: Robot, flipper_angle: float | None = None) -> list[CollisionGeom]:
-    """The base's collision shapes in B (tracks, sprockets/idlers, flippers, chassis).
-
-    Args:
-        robot: the robot.
-        flipper_angle: flipper angle [rad] (positive raises the tip); None = the robot's.
-    """
-    base = robot.base
-    flippers = base.flippers
-    if flipper_angle is not None:
-        flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
-    t = base.tracks
-    r = t.height / 2
-    axis_y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z -> y
-    geoms: list[CollisionGeom] = []
-    for side, sign in (("left", 1.0), ("right", -1.0)):
-        geoms.append(_box_geom(f"track_{side}", t.box(side)))  # type: ignore[arg-type]
-        for end, sx in (("front", 1.0), ("rear", -1.0)):
-            c = np.array([sx * t.length / 2, sign * t.separation / 2, r])
-            geoms.append(
-                CollisionGeom(
-                    f"wheel_{side}_{end}", "cylinder", np.array([r, t.width]), _pose(axis_y, c)
-                )
-            )
-        geoms.append(_box_geom(f"flipper_{side}", flippers.box(side)))  # type: ignore[arg-type]
-    geoms.append(_box_geom("chassis", base.body))
-    return geoms
-
-
-def mass_properties(robot: Robot, arm_posture: ArrayLike | None = None) -> MassProperties:
-    """Total mass, overall CoM and a reasonable inertia of the robot as one rigid body.
-
-    The base is a uniform box (the tracks' outline) of the base mass centred at its CoM;
-    each arm link is a point mass at its CoM at the posture (stowed by default).
-
-    Args:
-        robot: the robot.
-        arm_posture: arm joint angles (4,) [rad]; None = ``robot.stowed``.
-    """
-    q = robot.stowed if arm_posture is None else np.asarray(arm_posture, dtype=float)
-    t = robot.base.tracks
-    dims = np.array([t.length + t.height, t.separation + t.width, t.height])
-    m_b = robot.base.mass
-    link_coms = robot.kinematics.link_coms(q)  # (4, 3) in B
-    link_masses = np.array([link.mass for link in robot.links])
-    com = (m_b * robot.base.com + link_masses @ link_coms) / (m_b + link_masses.sum())
-
-    def shifted(mass: float, r: FloatArray) -> FloatArray:
-        return mass * (float(r @ r) * np.eye(3) - np.outer(r, r))
-
-    inertia = np.diag(m_b / 12 * (dims @ dims - dims**2))
-    inertia = inertia + shifted(m_b, robot.base.com - com)
-    for m, c in zip(link_masses, link_coms, strict=True):
-        inertia = inertia + shifted(float(m), c - com)
-    return MassProperties(float(m_b + link_masses.sum()), com, inertia)
 
 
 def _quat(R: FloatArray) -> FloatArray:
@@ -229,29 +145,6 @@ def build_model(
   </worldbody>
 </mujoco>
 """
-
-
-def surface_points(geoms: list[CollisionGeom], spacing: float = 0.02) -> FloatArray:
-    """Points on the collision shapes' surfaces in B (n, 3) [m], about ``spacing`` apart."""
-    pts = []
-    for g in geoms:
-        if g.kind == "box":
-            axes = [
-                np.linspace(-h, h, max(2, int(np.ceil(2 * h / spacing)) + 1)) for h in g.size / 2
-            ]
-            grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-            on_face = np.any(np.isclose(np.abs(grid), g.size / 2), axis=1)
-            local = grid[on_face]
-        else:
-            r, length = g.size
-            a = np.linspace(
-                0, 2 * np.pi, max(8, int(np.ceil(2 * np.pi * r / spacing))), endpoint=False
-            )
-            z = np.linspace(-length / 2, length / 2, max(2, int(np.ceil(length / spacing)) + 1))
-            A, Z = np.meshgrid(a, z, indexing="ij")
-            local = np.stack([r * np.cos(A), r * np.sin(A), Z], -1).reshape(-1, 3)
-        pts.append(local @ g.B_T_geom[:3, :3].T + g.B_T_geom[:3, 3])
-    return np.concatenate(pts)
 
 
 class DropResult(NamedTuple):
@@ -333,7 +226,7 @@ class DropModel:
         self.terrain_geom = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, "terrain")
         self.body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "base")
 
-    def initial_pose(self, pose: ArrayLike) -> FloatArray:
+    def initialpose_matrix(self, pose: ArrayLike) -> FloatArray:
         """Release pose G_T_B (4, 4) for (x [m], y [m], yaw [rad]) in G: gap ``drop_height``."""
         x, y, yaw = np.asarray(pose, dtype=float)
         c, s = np.cos(yaw), np.sin(yaw)
@@ -347,7 +240,7 @@ class DropModel:
             R = tilted_frame(0.0, 0.0, yaw)
         p = self.points_body @ R.T + [x, y, 0.0]
         z0 = float(np.max(self.heightmap.height(p[:, :2]) - p[:, 2])) + self.settings.drop_height
-        return _pose(R, [x, y, z0])
+        return pose_matrix(R, [x, y, z0])
 
     def drop_one(self, pose: ArrayLike, start: ArrayLike | None = None) -> dict[str, Any]:
         """Drop at one (x, y, yaw) in G and settle; the fields of :class:`DropResult`.
@@ -358,7 +251,7 @@ class DropModel:
                 predicted rest, to see whether MuJoCo stays there).
         """
         m, d, s = self.model, self.data, self.settings
-        T0 = self.initial_pose(pose) if start is None else np.asarray(start, dtype=float)
+        T0 = self.initialpose_matrix(pose) if start is None else np.asarray(start, dtype=float)
         mujoco.mj_resetData(m, d)
         d.qpos[:3] = T0[:3, 3]
         d.qpos[3:7] = _quat(T0[:3, :3])
@@ -378,7 +271,7 @@ class DropModel:
         wall = time.perf_counter() - t_wall
         mujoco.mj_forward(m, d)
         R = d.xmat[self.body].reshape(3, 3).copy()
-        G_T_B = _pose(R, d.xpos[self.body].copy())
+        G_T_B = pose_matrix(R, d.xpos[self.body].copy())
         dist = [d.contact[i].dist for i in range(d.ncon)]
         names = set()
         for i in range(d.ncon):

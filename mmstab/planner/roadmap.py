@@ -192,6 +192,87 @@ def clear_candidates(
         v[bad] = -np.inf
 
 
+def _pose_candidates(
+    robot: Robot,
+    g: FloatArray,
+    samples: FloatArray,
+    stowed: FloatArray,
+    stab: PlannerSettings,
+    mu_max: float,
+    diameter: float,
+    count: int,
+    bins: NDArray[np.intp],
+    members: list[NDArray[np.intp]],
+    clear: Callable[[NDArray[np.intp]], NDArray[np.bool_]],
+) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
+    """Each pose's ``count`` clear candidates among the reachable nodes' CoMs.
+
+    Args: gravity ``g`` in B (K, 3) [m/s^2]; the nodes' CoMs ``samples`` (N, 3) [m]; the
+    rest as :func:`solve_roadmap_sequence` builds them. Returns (rows (K, count), Eq. 6
+    values with -inf where unstable or not clear, μ (K, count) [N rad]).
+    """
+    K = len(g)
+    cand = np.empty((K, count), dtype=np.intp)
+    value, mu = np.empty((K, count)), np.empty((K, count))
+    for k in range(K):  # clear: the node keeps MOVE_CLEARANCE from the robot
+        fit = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter)
+        cand[k], v = clear_candidates(fit.linear()(samples), bins, count, members, clear)
+        mu[k] = fit.mu(samples[cand[k]])
+        value[k] = np.where(mu[k] > 0, v[cand[k]], -np.inf)
+    return cand, value, mu
+
+
+def _transitions(
+    samples: FloatArray,
+    turret: FloatArray,
+    cand: NDArray[np.intp],
+    pairs: list[tuple[int, int]],
+    w: float,
+    window: float | None,
+) -> tuple[list[FloatArray], list[NDArray[np.bool_]]]:
+    """Eq. 6's motion term between consecutive poses' candidates, and the allowed moves.
+
+    The term is ``w`` [1/m^2] times the squared CoM distance [m]; a move is allowed when
+    link0 (``turret`` [rad] per node) changes by at most ``window`` [rad] (None: any).
+    """
+    M = cand.shape[1]
+    motion, allowed = [], []
+    for a, b in pairs:
+        ca, cb = samples[cand[a]], samples[cand[b]]
+        motion.append(w * np.sum((ca[:, None, :] - cb[None, :, :]) ** 2, axis=2))
+        ok = np.ones((M, M), dtype=bool)
+        if window is not None:
+            ok &= np.abs(turret[cand[a]][:, None] - turret[cand[b]]) <= window + 1e-9
+        allowed.append(ok)
+    return motion, allowed
+
+
+def _moves(
+    robot: Robot,
+    roadmap: Roadmap,
+    start: int,
+    start_q: FloatArray,
+    nodes: NDArray[np.intp],
+    closed: bool,
+) -> list[FloatArray]:
+    """The arm's moves into each chosen node: shortest roadmap paths, shortcut where free.
+
+    From the start node (an open path) or the last pose's node (a loop); an open path's
+    first move starts at the start posture ``start_q`` [rad] itself.
+    """
+    K = len(nodes)
+    before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
+    checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
+    moves = [
+        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b)))
+        for a, b in zip(before, nodes, strict=True)
+    ]
+    if not closed or K == 1:  # from the start posture itself onto its node
+        first = np.vstack([start_q, moves[0]])
+        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
+    return moves
+
+
 def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
     """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
@@ -253,26 +334,16 @@ def solve_roadmap_sequence(
     bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
     clear = NodeClearance(robot, roadmap, reach)
     members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
-    cand = np.empty((K, M), dtype=np.intp)
-    value, mu = np.empty((K, M)), np.empty((K, M))
-    for k in range(K):  # clear: the node keeps MOVE_CLEARANCE from the robot
-        fit = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter)
-        cand[k], v = clear_candidates(fit.linear()(samples), bins, M, members, clear)
-        mu[k] = fit.mu(samples[cand[k]])
-        value[k] = np.where(mu[k] > 0, v[cand[k]], -np.inf)
+    cand, value, mu = _pose_candidates(
+        robot, g, samples, stowed, stab, mu_max, diameter, M, bins, members, clear
+    )
     w = settings.w_motion / diameter**2
     if not closed:
         value[0] -= w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
-    motion, allowed = [], []
-    for a, b in pairs:
-        ca, cb = samples[cand[a]], samples[cand[b]]
-        motion.append(w * np.sum((ca[:, None, :] - cb[None, :, :]) ** 2, axis=2))
-        ok = np.ones((M, M), dtype=bool)
-        if settings.turret_window is not None:
-            d0 = roadmap.nodes_q[reach[cand[a]], 0][:, None] - roadmap.nodes_q[reach[cand[b]], 0]
-            ok &= np.abs(d0) <= settings.turret_window + 1e-9
-        allowed.append(ok)
+    motion, allowed = _transitions(
+        samples, roadmap.nodes_q[reach, 0], cand, pairs, w, settings.turret_window
+    )
     path, total = best_sequence(value, motion, allowed, closed)
     if not np.isfinite(total):
         k = _first_dead_pose(value, allowed)
@@ -288,15 +359,7 @@ def solve_roadmap_sequence(
     fitness = value[np.arange(K), path].copy()
     for i, (a, b) in enumerate(pairs):
         fitness[b] -= motion[i][path[a], path[b]]
-    before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
-    checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
-    moves = [
-        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b)))
-        for a, b in zip(before, nodes, strict=True)
-    ]
-    if not closed or K == 1:  # from the start posture itself onto its node
-        first = np.vstack([start_q, moves[0]])
-        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
+    moves = _moves(robot, roadmap, int(start), start_q, nodes, closed)
     return RoadmapSequence(
         nodes=nodes,
         postures=roadmap.nodes_q[nodes].copy(),
