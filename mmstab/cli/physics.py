@@ -37,6 +37,12 @@ def _simulate(args: argparse.Namespace) -> int | None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)
         return EXIT_UNSTABLE
+    if s["left_map"] is not None:  # past the map the model does not hold: not allowable
+        line = f"the robot left its map in MuJoCo at {s['left_map']['time_s']:.2f} s"
+        if s["slid"] is not None:
+            line += f" (it slid from {s['slid']['time_s']:.2f} s)"
+        print(f"mmstab: slides: {line}", file=sys.stderr)
+        return EXIT_SLIDES
     if s["slid"] is not None:
         line = (
             f"the robot slides in MuJoCo at {s['slid']['time_s']:.2f} s (more than "

@@ -83,6 +83,7 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "control_dt_s": float(run.t[1] - run.t[0]) if len(run.t) > 1 else None,
         "tipped": None if run.tipped is None else {"time_s": run.tipped},
         "slid": None if run.slid is None else {"time_s": run.slid},
+        "left_map": None if run.left_map is None else {"time_s": run.left_map},
         "tip_angle_rad": loop.tip_angle,
         "tilt_off_rest_max_rad": float(np.nanmax(run.tilt_error)),
         "slip_distance_m": loop.slip_distance,

@@ -24,6 +24,7 @@ base moved more than ``slip_distance`` *down the slope* beyond what the tracks c
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -32,6 +33,7 @@ import numpy as np
 
 from mmstab.control.approach import run_reference
 from mmstab.control.plant import build_plant
+from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_model import ModelSettings
@@ -84,6 +86,8 @@ class PhysicsRun:
         slid: time it slid [s], or None.
         real_time_factor: simulated time / wall time (controller included) [-].
         wall_seconds: wall time of the loop [s].
+        left_map: time the simulated robot left the terrain's map [s] (the run ends at the
+            check before), or None.
     """
 
     t: FloatArray
@@ -100,6 +104,7 @@ class PhysicsRun:
     slid: float | None
     real_time_factor: float
     wall_seconds: float
+    left_map: float | None = None
 
 
 def simulated_mu(sim: RobotSim, mass: float) -> float:
@@ -218,13 +223,17 @@ def run_closed_loop(
     mu_sim, tilt = np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
     now = sim.state()
     state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
-    target, tipped = state[-n:].copy(), None
+    target, tipped, left, checked = state[-n:].copy(), None, None, 0
     t0 = time.perf_counter()
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
-            mu_sim[k] = simulated_mu(sim, mass)
-            tilt[k] = tilt_off_rest(problem, state[:3], now.G_T_B)
+            try:
+                tilt[k] = tilt_off_rest(problem, state[:3], now.G_T_B)
+            except MmstabError:  # the simulated robot left its map: the run ends before
+                left, k = float(t[k]), checked
+                break
+            mu_sim[k], checked = simulated_mu(sim, mass), k
             if tilt[k] > loop.tip_angle:
                 tipped = float(t[k])
                 break
@@ -238,8 +247,9 @@ def run_closed_loop(
         state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
     wall = time.perf_counter() - t0
     m = k + 1
-    return _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
-                   status[: m - 1], ref[:m], mu_sim[:m], tilt[:m], tipped, wall, dt)  # fmt: skip
+    run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
+                  status[: m - 1], ref[:m], mu_sim[:m], tilt[:m], tipped, wall, dt)  # fmt: skip
+    return dataclasses.replace(run, left_map=left)
 
 
 def _finish(
