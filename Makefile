@@ -248,7 +248,7 @@ bench-physics: setup
 .PHONY: online bench-online
 online: setup
 	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
-	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online
+	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding
 
 ## latency per map of mmstab follow (one core) beside the offline planner -> results/bench/online.json
 bench-online: setup

@@ -185,8 +185,14 @@ def test_cli_record_then_follow(tmp_path: Path) -> None:
     assert "31 maps and 151 odometry messages over 3.0 s" in r.stdout
     out = tmp_path / "out"
     r = run("follow", str(p), "--bag", str(bag), "-o", str(out), "--limit", "20")
-    assert r.returncode == 0, r.stderr
+    # the route starts on the 31.5 deg side slope, its first poses tilted beyond atan(0.7)
+    assert r.returncode == 4 and "mmstab: slides: the tracks would slide" in r.stderr
     s = json.loads((out / "summary.json").read_text())
+    assert (
+        s["slides"]["tilt_rad"] > s["slides"]["critical_tilt_rad"] == pytest.approx(np.arctan(0.7))
+    )
+    r = run("follow", str(p), "--bag", str(bag), "-o", str(out), "--limit", "20", "--allow-sliding")
+    assert r.returncode == 0, r.stderr
     assert s["updates"] == 20 and "latency p50" in r.stdout
     with (out / "online.mcap").open("rb") as fh:
         channels = {c.topic for c in make_reader(fh).get_summary().channels.values()}

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_UNSTABLE
+from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
 
 
 def _problem(args: argparse.Namespace) -> Any:
@@ -75,6 +76,17 @@ def _follow(args: argparse.Namespace) -> int | None:
             print(f"mmstab: unstable: {line}; pass --allow-unstable to accept it", file=sys.stderr)
             return EXIT_UNSTABLE
         print(f"mmstab: warning: {line} (--allow-unstable)", file=sys.stderr)
+    if s["slides"] is not None:
+        v = s["slides"]
+        line = (
+            f"the tracks would slide on {v['maps']} maps, first at {v['time_s']:.2f} s (s = "
+            f"{v['s_m']:.2f} m): tilt {math.degrees(v['tilt_rad']):.2f} deg beyond "
+            f"{math.degrees(v['critical_tilt_rad']):.2f} deg = atan(friction {s['friction']:g})"
+        )
+        if not args.allow_sliding:
+            print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
+            return EXIT_SLIDES
+        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
     return None
 
 
@@ -100,4 +112,5 @@ def add_online_commands(sub: Any) -> None:
     p.add_argument("-o", "--out", default=None, help="output folder (default results/online)")
     p.add_argument("--limit", type=int, default=None, help="follow only the first N maps")
     p.add_argument("--allow-unstable", action="store_true", help="exit 0 even if the robot tips")
+    p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the tracks slide")
     p.set_defaults(handler=_follow)

@@ -40,6 +40,7 @@ from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
 from mmstab.runs.online.stream import MapUpdate
 from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.slip import support_tilt, terrain_friction
 from mmstab.terrain import place_local
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace import Workspace
@@ -92,6 +93,8 @@ class FollowStep(NamedTuple):
         G_T_B: the resting pose on the map (4, 4) (NaN when not covered); computed after
             the timed part, for the recording of the run.
         polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
+        tilt: the support's tilt on the map (gravity against -z_B) [rad] (NaN when not
+            covered); the tracks slide beyond atan(friction) (:mod:`mmstab.stability.slip`).
     """
 
     time: float
@@ -109,6 +112,7 @@ class FollowStep(NamedTuple):
     latency: float
     G_T_B: FloatArray
     polygon: FloatArray
+    tilt: float
 
 
 class Follower:
@@ -125,7 +129,7 @@ class Follower:
         self.problem, self.route, self.horizon = problem, route, horizon
         self.controller, self.settings = controller, settings
         self.robot = problem.robot
-        self.friction = float(getattr(problem.terrain, "friction", 0.7))
+        self.friction = terrain_friction(problem.terrain)
         self.s_fine = np.arange(0.0, route.length + PROGRESS_STEP, PROGRESS_STEP)
         self.xy_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose[:, :2]
         self.s: float | None = None
@@ -165,6 +169,7 @@ class Follower:
         covered = bool(rested.covered[0])
         g_now = rested.gravity_body[0]
         mu = float(robot_mu(self.robot, g_now, q)[0]) if covered else float("nan")
+        tilt = float(support_tilt(g_now)[0]) if covered else float("nan")
         for i in (1, 0):  # the reference pose's ground, else the robot's, else the last
             if rested.covered[i]:
                 self.ground = rested.ground[i : i + 1]
@@ -179,6 +184,7 @@ class Follower:
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
+            tilt,
         )  # fmt: skip
 
     def _reference(self, s: float) -> tuple[FloatArray | None, FloatArray | None, float]:

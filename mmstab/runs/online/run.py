@@ -32,12 +32,14 @@ class FollowRun:
         plans: the horizon's last plan of each route pose it planned, by grid index.
         skipped: maps received before any odometry (not followed).
         s_grid: arc lengths of the route's planned poses (K,) [m].
+        friction: the tracks' friction on the ground [-] (the problem's terrain).
     """
 
     steps: list[FollowStep]
     plans: dict[int, HorizonPose]
     skipped: int
     s_grid: np.ndarray
+    friction: float
 
 
 def follow_recording(
@@ -65,7 +67,9 @@ def follow_recording(
         steps.append(follower.update(u))
         if limit is not None and len(steps) >= limit:
             break
-    return FollowRun(steps, dict(follower.horizon.plans), skipped[0], follower.horizon.s_grid)
+    return FollowRun(
+        steps, dict(follower.horizon.plans), skipped[0], follower.horizon.s_grid, follower.friction
+    )
 
 
 def _stats(values: np.ndarray, scale: float = 1.0) -> dict[str, float]:
@@ -82,7 +86,11 @@ def _stats(values: np.ndarray, scale: float = 1.0) -> dict[str, float]:
 
 
 def summarize(run: FollowRun) -> dict[str, Any]:
-    """The run's numbers (module text); everything but ``latency_ms`` is deterministic."""
+    """The run's numbers (module text); everything but ``latency_ms`` is deterministic.
+
+    ``slides``: the first map on which the robot's support tilts beyond atan(friction) (the
+    slip limit, :mod:`mmstab.stability.slip`), or None.
+    """
     st = run.steps
     if not st:
         return {"updates": 0, "skipped_maps": run.skipped}
@@ -91,6 +99,9 @@ def summarize(run: FollowRun) -> dict[str, Any]:
     ahead = np.array([x.covered_ahead for x in st])
     status = np.array([x.status for x in st])
     tipped = [x for x in st if x.covered and x.mu < 0]
+    tilt = np.array([x.tilt for x in st])
+    critical = float(np.arctan(run.friction))
+    sliding = [x for x in st if x.covered and x.tilt > critical]
     return {
         "updates": len(st),
         "skipped_maps": run.skipped,
@@ -108,6 +119,17 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
         "qp_failures": int((status != 0).sum()),
         "tipped": None if not tipped else {"time_s": tipped[0].time, "s_m": tipped[0].s},
+        "tilt_max_rad": float(np.nanmax(tilt)) if covered.any() else float("nan"),
+        "friction": run.friction,
+        "slides": None
+        if not sliding
+        else {
+            "time_s": sliding[0].time,
+            "s_m": sliding[0].s,
+            "tilt_rad": sliding[0].tilt,
+            "critical_tilt_rad": critical,
+            "maps": len(sliding),
+        },
     }
 
 
