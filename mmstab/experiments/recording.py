@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mmstab.core.bags import ROS1, BagWriter, bag_kind
 from mmstab.core.files import MmstabError
@@ -28,6 +27,7 @@ from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.paths.route import RoutePath
 from mmstab.runs.online.stream import ODOMETRY
+from mmstab.runs.recording import transform_stamped
 from mmstab.terrain.factory import as_heightmap
 from mmstab.terrain.gridmap import GRIDMAP, GridMapFrame, to_message, typestore
 from mmstab.terrain.heightmap import Heightmap
@@ -223,30 +223,22 @@ def record_route(
     return Recording(path, len(t_map), len(t_odom), float(T), int(size))
 
 
-def _stamp(store: Any, t: float) -> Any:
-    sec = int(np.floor(t))
-    return store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
-
-
-def _header(store: Any, ros1: bool, t: float, frame: str) -> Any:
-    extra = {"seq": 0} if ros1 else {}
-    return store.types["std_msgs/msg/Header"](stamp=_stamp(store, t), frame_id=frame, **extra)
-
-
 def _odometry(store: Any, ros1: bool, t: float, G_T_B: FloatArray, speed: float) -> tuple[Any, Any]:
     """nav_msgs/Odometry and its tf2_msgs/TFMessage at time t [s] for the resting pose."""
     T = store.types
-    x, y, z, w = Rotation.from_matrix(G_T_B[:3, :3]).as_quat()
-    quat = T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
-    p = G_T_B[:3, 3]
-    point = T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2])
+    tf = transform_stamped(store, ros1, t, FRAME, BASE_FRAME, G_T_B)
+    p = tf.transform.translation
     vec = T["geometry_msgs/msg/Vector3"]
     cov = np.zeros(36)
     odom = T[ODOMETRY](
-        header=_header(store, ros1, t, FRAME),
+        header=tf.header,
         child_frame_id=BASE_FRAME,
         pose=T["geometry_msgs/msg/PoseWithCovariance"](
-            pose=T["geometry_msgs/msg/Pose"](position=point, orientation=quat), covariance=cov
+            pose=T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=p.x, y=p.y, z=p.z),
+                orientation=tf.transform.rotation,
+            ),
+            covariance=cov,
         ),
         twist=T["geometry_msgs/msg/TwistWithCovariance"](
             twist=T["geometry_msgs/msg/Twist"](
@@ -255,11 +247,4 @@ def _odometry(store: Any, ros1: bool, t: float, G_T_B: FloatArray, speed: float)
             covariance=cov,
         ),
     )
-    transform = T["geometry_msgs/msg/TransformStamped"](
-        header=_header(store, ros1, t, FRAME),
-        child_frame_id=BASE_FRAME,
-        transform=T["geometry_msgs/msg/Transform"](
-            translation=vec(x=p[0], y=p[1], z=p[2]), rotation=quat
-        ),
-    )
-    return odom, T["tf2_msgs/msg/TFMessage"](transforms=[transform])
+    return odom, T["tf2_msgs/msg/TFMessage"](transforms=[tf])

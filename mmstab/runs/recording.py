@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from mmstab.core.bags import ROS1, BagWriter, bag_kind
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain import Terrain
-from mmstab.terrain.gridmap import typestore
+from mmstab.terrain.gridmap import ros_header, ros_time, typestore
 
 ODOM, BASE = "odom", "base_link"
 TOPICS = {
@@ -103,9 +103,9 @@ def write_run(path: str | os.PathLike[str], robot: Robot, frames: RunFrames, mu_
             t = float(t)
             w.write("/joint_states", TOPICS["/joint_states"], t,
                     _joint_state(store, ros1, t, names, frames.q[i]))  # fmt: skip
-            transforms = [_transform(store, ros1, t, ODOM, BASE, frames.G_T_B[i])]
+            transforms = [transform_stamped(store, ros1, t, ODOM, BASE, frames.G_T_B[i])]
             transforms += [
-                _transform(store, ros1, t, BASE, f"arm_frame_{j}", B_T_R[i, j])
+                transform_stamped(store, ros1, t, BASE, f"arm_frame_{j}", B_T_R[i, j])
                 for j in range(len(names))
             ]
             w.write("/tf", TOPICS["/tf"], t, store.types[TOPICS["/tf"]](transforms=transforms))
@@ -116,30 +116,26 @@ def write_run(path: str | os.PathLike[str], robot: Robot, frames: RunFrames, mu_
     return Path(path)
 
 
-def _time(store: Any, t: float) -> Any:
-    sec = int(np.floor(t))
-    return store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
-
-
-def _header(store: Any, ros1: bool, t: float, frame: str) -> Any:
-    extra = {"seq": 0} if ros1 else {}
-    return store.types["std_msgs/msg/Header"](stamp=_time(store, t), frame_id=frame, **extra)
-
-
 def _joint_state(store: Any, ros1: bool, t: float, names: list[str], q: FloatArray) -> Any:
     empty = np.zeros(0)
     return store.types[TOPICS["/joint_states"]](
-        header=_header(store, ros1, t, ""), name=names, position=np.asarray(q, dtype=float),
+        header=ros_header(store, ros1, t, ""), name=names, position=np.asarray(q, dtype=float),
         velocity=empty, effort=empty,
     )  # fmt: skip
 
 
-def _transform(store: Any, ros1: bool, t: float, parent: str, child: str, T: FloatArray) -> Any:
+def transform_stamped(
+    store: Any, ros1: bool, t: float, parent: str, child: str, T: FloatArray
+) -> Any:
+    """``geometry_msgs/TransformStamped`` of ``parent_T_child`` (4, 4) at ``t`` [s].
+
+    Also the odometry's pose (:mod:`mmstab.experiments.recording`): one quaternion convention.
+    """
     types = store.types
     x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
     p = T[:3, 3]
     return types["geometry_msgs/msg/TransformStamped"](
-        header=_header(store, ros1, t, parent),
+        header=ros_header(store, ros1, t, parent),
         child_frame_id=child,
         transform=types["geometry_msgs/msg/Transform"](
             translation=types["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
@@ -167,7 +163,7 @@ def _polygon(store: Any, ros1: bool, t: float, poly: FloatArray, mu: float, mu_m
     )
     marker = types[TOPICS["/support_polygon"]]
     fields = {
-        "header": _header(store, ros1, t, ODOM),
+        "header": ros_header(store, ros1, t, ODOM),
         "ns": "support_polygon",
         "id": 0,
         "type": 4,  # LINE_STRIP
@@ -175,7 +171,7 @@ def _polygon(store: Any, ros1: bool, t: float, poly: FloatArray, mu: float, mu_m
         "pose": pose,
         "scale": types["geometry_msgs/msg/Vector3"](x=0.01, y=0.0, z=0.0),
         "color": types["std_msgs/msg/ColorRGBA"](r=r, g=g, b=b, a=1.0),
-        "lifetime": types["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+        "lifetime": ros_time(store, 0.0, "Duration"),
         "frame_locked": False,
         "points": [point(x=p[0], y=p[1], z=p[2]) for p in closed],
         "colors": [],
@@ -195,7 +191,7 @@ def _marker_extras(store: Any, marker: Any) -> dict[str, Any]:
     if "texture" in names:
         out["texture_resource"] = ""
         out["texture"] = types["sensor_msgs/msg/CompressedImage"](
-            header=_header(store, False, 0.0, ""), format="", data=np.zeros(0, dtype=np.uint8)
+            header=ros_header(store, False, 0.0, ""), format="", data=np.zeros(0, dtype=np.uint8)
         )
         out["uv_coordinates"] = []
     if "mesh_file" in names:
@@ -211,12 +207,9 @@ def _trajectory(store: Any, ros1: bool, frames: RunFrames, names: list[str]) -> 
     empty = np.zeros(0)
     points = []
     for t, q in zip(frames.t - frames.t[0], frames.q, strict=True):
-        sec = int(np.floor(t))
-        when = types["builtin_interfaces/msg/Duration"](
-            sec=sec, nanosec=int(round((t - sec) * 1e9))
-        )
+        when = ros_time(store, float(t), "Duration")
         points.append(point(positions=np.asarray(q, dtype=float), velocities=empty,
                             accelerations=empty, effort=empty, time_from_start=when))  # fmt: skip
     return types[TOPICS["/arm_trajectory"]](
-        header=_header(store, ros1, float(frames.t[0]), BASE), joint_names=names, points=points
+        header=ros_header(store, ros1, float(frames.t[0]), BASE), joint_names=names, points=points
     )

@@ -80,6 +80,20 @@ def typestore(ros1: bool = False) -> Any:
     return store
 
 
+def ros_time(store: Any, t: float, kind: str = "Time") -> Any:
+    """A ``builtin_interfaces`` ``Time`` (or ``Duration``) of ``t`` [s] in ``store``."""
+    sec = int(np.floor(t))
+    return store.types[f"builtin_interfaces/msg/{kind}"](
+        sec=sec, nanosec=int(round((t - sec) * 1e9))
+    )
+
+
+def ros_header(store: Any, ros1: bool, t: float, frame_id: str) -> Any:
+    """A ``std_msgs/Header`` at ``t`` [s] in ``frame_id`` (ROS 1's carries ``seq``)."""
+    extra = {"seq": 0} if ros1 else {}
+    return store.types["std_msgs/msg/Header"](stamp=ros_time(store, t), frame_id=frame_id, **extra)
+
+
 @dataclass(frozen=True)
 class GridMapFrame:
     """One elevation map, in mmstab's layout.
@@ -181,12 +195,7 @@ def to_message(
     hm = frame.heightmap
     ny, nx = hm.elevation.shape
     rows, cols = nx, ny  # grid_map: rows along x, columns along y
-    sec = int(np.floor(frame.stamp))
-    stamp = t["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((frame.stamp - sec) * 1e9)))
-    header_args: dict[str, Any] = {"stamp": stamp, "frame_id": frame.frame_id}
-    if ros1:
-        header_args["seq"] = 0
-    header = t["std_msgs/msg/Header"](**header_args)
+    header = ros_header(store, ros1, frame.stamp, frame.frame_id)
     length = np.array([rows, cols], dtype=float) * hm.resolution
     centre = hm.origin - hm.resolution / 2 + length / 2
     pose = t["geometry_msgs/msg/Pose"](
