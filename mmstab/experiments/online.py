@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core.files import write_figure, write_json
+from mmstab.core.files import MmstabError, write_figure, write_json
 from mmstab.core.problem import Problem
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
@@ -179,7 +179,7 @@ def _snapshot(
     for p in ahead:
         try:
             T = terrain.G_T_B(p.pose)
-        except Exception:  # noqa: BLE001 - a pose the map does not cover: not drawn
+        except MmstabError:  # a pose the map does not cover (OffMapError): not drawn
             continue
         draw_robot(ax, robot, p.q, T, alpha=0.25)
     finite = np.isfinite(hm.elevation)
