@@ -53,6 +53,7 @@ from mmstab.model.urdf import arm_link_inertia, base_link_inertias, dh_constant_
 from mmstab.physics.heightfield import Heightmap, heightmap, hfield_mjcf
 from mmstab.physics.plane import fit_plane, tilted_frame
 from mmstab.physics.robot_mass import Inertial, Wheels, inertial_of, minus, principal
+from mmstab.physics.track_belt import belt_equalities
 from mmstab.stability.slip import terrain_friction
 from mmstab.terrain.base import GRAVITY_G, Terrain
 
@@ -88,10 +89,10 @@ class ModelSettings:
         noslip_iterations: MuJoCo's no-slip post-solver iterations (0 = off).
         wheel_spacing: largest gap between wheel centres along the flat run [m].
         wheel_mass_fraction: share of a track's mass carried by its wheels [-].
-        suspension_deflection: wheel spring deflection under the mean wheel load [m]
-            (0: rigid wheels, no suspension joint).
+        suspension_deflection: wheel spring deflection under the mean wheel load [m] (0: rigid).
         suspension_damping: damping ratio of a wheel spring with its share of the mass [-].
         track_kv: velocity-servo gain of each wheel at the rim [N/(m/s)].
+        track_belt: tie each side's wheel spins together, as its belt (:mod:`.track_belt`).
         wheel_armature: reflected rotor inertia of each wheel joint [kg m^2].
         arm_kp: position-servo stiffness of every arm joint [N m/rad].
         arm_kv: position-servo damping of every arm joint [N m s/rad].
@@ -109,6 +110,7 @@ class ModelSettings:
     suspension_deflection: float = 0.001
     suspension_damping: float = 1.0
     track_kv: float = 2000.0
+    track_belt: bool = False
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
     arm_kv: float = 100.0
@@ -241,9 +243,8 @@ def _track_xml(robot: Robot, side: str, track: Inertial, s: ModelSettings) -> li
 def _arm_xml(robot: Robot, payload: Payload | None, armature: float) -> list[str]:
     """Nested arm bodies, one per link, each at mmstab's DH frame R_i.
 
-    Body R_i sits at ``Rz(theta_offset_i) C_i`` in R_{i-1} (the mount for i = 0) at q = 0;
-    its hinge turns about R_{i-1}'s z axis through R_{i-1}'s origin, i.e. axis
-    ``C_i^-1 z`` through ``C_i^-1 0`` in R_i, so the joint angle is mmstab's ``q_i``.
+    Body R_i sits at ``Rz(theta_offset_i) C_i`` in R_{i-1} (the mount for i = 0) at q = 0, its
+    hinge on R_{i-1}'s z axis (``C_i^-1 z`` through ``C_i^-1 0`` in R_i): the angle is ``q_i``.
     """
     out, parent_T = [], robot.mount_T
     for i, link in enumerate(robot.links):
@@ -388,6 +389,7 @@ def build_robot_mjcf(
 {base}
     </body>
   </worldbody>
+  <equality>{"".join(belt_equalities(n, s.solref) if s.track_belt else [])}</equality>
   <actuator>
 {actuators}
   </actuator>
