@@ -115,15 +115,16 @@ def test_planned_postures_clear_the_ground(cameleon, postures):
 
 # ------------------------------------------------------------------ the coarse grid
 def test_coarse_grid_agrees_with_mujoco(postures, settings):
-    """48 cases on the rigid-wheel model: roll and pitch, slip- and tip-bound, braked and
-    driven, each arm, +-1.5 deg around mmstab's critical slope.
+    """72 cases on the rigid-wheel model: roll and pitch, slip- and tip-bound, braked and
+    driven, each arm, -1.5, -0.5 and +1.5 deg around mmstab's critical slope.
 
-    At 0.5 deg below atan(mu) with the friction load along the tracks (heading 90) the
-    rigid model slides 1 deg early (docs/physics.md): the full grid has those cases.
+    The -0.5 deg cases facing uphill hold the belted tracks (``track_belt``): with
+    independent wheels the load along the tracks made the rigid model slide there, 0.5-1
+    deg below atan(mu) (docs/physics.md, "Every disagreement, why").
     """
     arms = ["stowed", "planned", "reach"]
     grid = configs(np.radians([0.0, 90.0]), [3.0], arms, [0.7, 4.0], [0.0, 0.05])
-    predictions, cases = build_cases(postures, grid, np.radians([-1.5, 1.5]))
+    predictions, cases = build_cases(postures, grid, np.radians([-1.5, -0.5, 1.5]))
     assert {p.binds for p in predictions} == {"tip", "slip"}
     assert {c.verdict for c in cases} == {"holds", "tips", "slides"}
     sim = sim_settings(settings)["rigid"]
