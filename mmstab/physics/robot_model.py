@@ -53,7 +53,6 @@ from mmstab.model.urdf import arm_link_inertia, base_link_inertias, dh_constant_
 from mmstab.physics.heightfield import Heightmap, heightmap, hfield_mjcf
 from mmstab.physics.plane import fit_plane, tilted_frame
 from mmstab.physics.robot_mass import Inertial, Wheels, inertial_of, minus, principal
-from mmstab.physics.track_belt import belt_equalities
 from mmstab.stability.slip import terrain_friction
 from mmstab.terrain.base import GRAVITY_G, Terrain
 
@@ -82,17 +81,18 @@ class ModelSettings:
     """Numbers of the MuJoCo model that the robot description does not give.
 
     Attributes:
-        timestep: integration step [s] (``implicitfast`` integrator).
+        timestep: integration step [s].
+        integrator: MuJoCo's; ``discrete`` solves contacts with the servos' damping (physics.md).
         solref: contact (time constant [s], damping ratio [-]).
         solimp: contact impedance (dmin, dmax, width [m], midpoint, power).
         impratio: frictional-to-normal impedance ratio (elliptic cones): high = less creep.
         noslip_iterations: MuJoCo's no-slip post-solver iterations (0 = off).
         wheel_spacing: largest gap between wheel centres along the flat run [m].
         wheel_mass_fraction: share of a track's mass carried by its wheels [-].
-        suspension_deflection: wheel spring deflection under the mean wheel load [m] (0: rigid).
+        suspension_deflection: wheel spring deflection under the mean wheel load [m]
+            (0: rigid wheels, no suspension joint).
         suspension_damping: damping ratio of a wheel spring with its share of the mass [-].
         track_kv: velocity-servo gain of each wheel at the rim [N/(m/s)].
-        track_belt: tie each side's wheel spins together, as its belt (:mod:`.track_belt`).
         wheel_armature: reflected rotor inertia of each wheel joint [kg m^2].
         arm_kp: position-servo stiffness of every arm joint [N m/rad].
         arm_kv: position-servo damping of every arm joint [N m s/rad].
@@ -101,6 +101,7 @@ class ModelSettings:
     """
 
     timestep: float = 0.002
+    integrator: str = "implicitfast"
     solref: tuple[float, float] = (0.006, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 10.0
@@ -110,7 +111,6 @@ class ModelSettings:
     suspension_deflection: float = 0.001
     suspension_damping: float = 1.0
     track_kv: float = 2000.0
-    track_belt: bool = False
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
     arm_kv: float = 100.0
@@ -175,7 +175,7 @@ def mjcf_header(settings: ModelSettings, friction: float) -> str:
     """
     s = settings
     return f"""  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
-  <option timestep="{s.timestep!r}" gravity="{_f(GRAVITY_G)}" integrator="implicitfast"
+  <option timestep="{s.timestep!r}" gravity="{_f(GRAVITY_G)}" integrator="{s.integrator}"
           solver="Newton" cone="elliptic" impratio="{s.impratio!r}"
           noslip_iterations="{s.noslip_iterations}" iterations="100"/>
   <default>
@@ -243,8 +243,9 @@ def _track_xml(robot: Robot, side: str, track: Inertial, s: ModelSettings) -> li
 def _arm_xml(robot: Robot, payload: Payload | None, armature: float) -> list[str]:
     """Nested arm bodies, one per link, each at mmstab's DH frame R_i.
 
-    Body R_i sits at ``Rz(theta_offset_i) C_i`` in R_{i-1} (the mount for i = 0) at q = 0, its
-    hinge on R_{i-1}'s z axis (``C_i^-1 z`` through ``C_i^-1 0`` in R_i): the angle is ``q_i``.
+    Body R_i sits at ``Rz(theta_offset_i) C_i`` in R_{i-1} (the mount for i = 0) at q = 0;
+    its hinge turns about R_{i-1}'s z axis through R_{i-1}'s origin, i.e. axis
+    ``C_i^-1 z`` through ``C_i^-1 0`` in R_i, so the joint angle is mmstab's ``q_i``.
     """
     out, parent_T = [], robot.mount_T
     for i, link in enumerate(robot.links):
@@ -389,7 +390,6 @@ def build_robot_mjcf(
 {base}
     </body>
   </worldbody>
-  <equality>{"".join(belt_equalities(n, s.solref) if s.track_belt else [])}</equality>
   <actuator>
 {actuators}
   </actuator>
