@@ -118,9 +118,9 @@ def test_coarse_grid_agrees_with_mujoco(postures, settings):
     """72 cases on the rigid-wheel model: roll and pitch, slip- and tip-bound, braked and
     driven, each arm, -1.5, -0.5 and +1.5 deg around mmstab's critical slope.
 
-    The -0.5 deg cases facing uphill hold the belted tracks (``track_belt``): with
-    independent wheels the load along the tracks made the rigid model slide there, 0.5-1
-    deg below atan(mu) (docs/physics.md, "Every disagreement, why").
+    The -0.5 deg cases facing uphill hold the brakes' fix (``integrator: discrete``): on
+    ``implicitfast`` the load along the tracks made the rigid wheels hop and slide there
+    (65 of these 72 cases agreed; docs/physics.md, "Verdicts against MuJoCo").
     """
     arms = ["stowed", "planned", "reach"]
     grid = configs(np.radians([0.0, 90.0]), [3.0], arms, [0.7, 4.0], [0.0, 0.05])
