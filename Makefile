@@ -249,6 +249,7 @@ bench-physics: setup
 online: setup
 	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
 	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding
+	$(PY) -m mmstab.viz.viewer.snapshot problems/rough.yaml results/online results/online/viewer.png 0.45 3.0
 
 ## latency per map of mmstab follow (one core) beside the offline planner -> results/bench/online.json
 bench-online: setup

@@ -21,6 +21,7 @@ from mmstab.runs.online.follow import build_follower
 from mmstab.runs.online.run import follow_recording
 from mmstab.runs.online.stream import ODOMETRY, map_updates
 from mmstab.runs.recording import TOPICS, RunFrames, joint_names, write_run
+from mmstab.runs.store import load_run
 from mmstab.terrain.gridmap import GRIDMAP, typestore
 from mmstab.terrain.recording import messages
 
@@ -91,6 +92,17 @@ def test_follow_reproduces_the_offline_plan_where_the_map_agrees(
     assert s["planned_collision_free"] == s["planned_poses"]
     assert (tmp_path / "online.png").is_file() and (tmp_path / "online.mcap").is_file()
     assert json.loads((tmp_path / "summary.json").read_text())["updates"] == 81
+    # the viewer replays the run: a stored run of this problem, frame for frame
+    replay = load_run(tmp_path, problem)
+    st = [x for x in follow_recording(problem, path).steps if x.covered]
+    assert replay.samples == len(st) == 81
+    assert np.allclose(replay.poses, [x.pose for x in st])
+    assert np.allclose(replay.q, [x.q for x in st])
+    assert np.allclose(replay.mu["planned"], [x.mu for x in st], rtol=1e-9)  # μ the loop gave
+    assert (replay.mu["stowed"] < replay.mu["arm removed"]).all()  # the stowed arm hangs back
+    route = problem.route
+    planned_s = [r["s_m"] for r in off["per_pose"]]
+    assert route is not None and np.allclose(route.s_at(replay.plan_fractions), planned_s)
 
 
 def test_the_same_recording_gives_the_same_answers(clean: tuple[mmstab.Problem, Path]) -> None:

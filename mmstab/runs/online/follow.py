@@ -95,6 +95,8 @@ class FollowStep(NamedTuple):
         polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
         tilt: the support's tilt on the map (gravity against -z_B) [rad] (NaN when not
             covered); the tracks slide beyond atan(friction) (:mod:`mmstab.stability.slip`).
+        gravity_body: gravity in B at rest on the map, as ``mu`` used it [m/s^2] (NaN when
+            not covered).
     """
 
     time: float
@@ -113,6 +115,7 @@ class FollowStep(NamedTuple):
     G_T_B: FloatArray
     polygon: FloatArray
     tilt: float
+    gravity_body: FloatArray
 
 
 class Follower:
@@ -184,7 +187,7 @@ class Follower:
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
-            tilt,
+            tilt, g_now,
         )  # fmt: skip
 
     def _reference(self, s: float) -> tuple[FloatArray | None, FloatArray | None, float]:
