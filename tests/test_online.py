@@ -28,11 +28,11 @@ from mmstab.terrain.recording import messages
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def problem_file(tmp_path: Path, **record: float) -> Path:
-    """problems/rough.yaml with the given ``online.record`` settings."""
+def problem_file(tmp_path: Path, planner: str = "roadmap", **record: float) -> Path:
+    """problems/rough.yaml with the given ``online.record`` settings and online planner."""
     data = yaml.safe_load((ROOT / "problems" / "rough.yaml").read_text())
     data["robot"] = str(ROOT / "problems" / "robots" / "cameleon.yaml")
-    data["online"] = {"record": dict(record)}
+    data["online"] = {"record": dict(record), "planner": planner}
     path = tmp_path / "rough.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
@@ -103,6 +103,57 @@ def test_follow_reproduces_the_offline_plan_where_the_map_agrees(
     route = problem.route
     planned_s = [r["s_m"] for r in off["per_pose"]]
     assert route is not None and np.allclose(route.s_at(replay.plan_fractions), planned_s)
+
+
+def test_the_warm_planner_online_reproduces_its_offline_plan(
+    clean: tuple[mmstab.Problem, Path], tmp_path: Path
+) -> None:
+    _, path = clean  # the same recording, planned by CMA-ES in V (online.planner: warm)
+    problem = mmstab.load_problem(problem_file(tmp_path, "warm", noise=0.0, unknown=0.0))
+    s = run_follow(problem, path, tmp_path, limit=50)
+    off = s["offline"]
+    assert s["qp_failures"] == 0 and s["planned_collision_free"] == s["planned_poses"] >= 3
+    assert off["agreeing_poses"] == off["poses"] and off["relative_difference"]["max"] <= 0.02
+
+
+def test_online_roadmap_moves_are_collision_free_and_the_reference_follows_them(
+    clean: tuple[mmstab.Problem, Path],
+) -> None:
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.runs.online.roadmap_horizon import RoadmapHorizon, along
+
+    problem, path = clean
+    follower = build_follower(problem)
+    horizon = follower.horizon
+    assert isinstance(horizon, RoadmapHorizon)
+    steps = [
+        follower.update(u) for u in map_updates(path, "/elevation_mapping/elevation_map", "/odom")
+    ]
+    checker, roadmap = CollisionChecker(problem.robot), horizon.roadmap
+    ks = sorted(horizon.plans)
+    assert len(ks) >= 5 and ks == list(range(ks[0], ks[-1] + 1))
+    for k in ks:
+        move = horizon.move(k)
+        start = horizon.plans[k - 1].q if k - 1 in horizon.plans else problem.robot.stowed
+        assert np.allclose(move[0], start) and np.allclose(move[-1], horizon.plans[k].q)
+        for a, b in zip(move[:-1], move[1:], strict=True):  # every segment checked with FCL
+            assert roadmap.move_is_free(checker, a, b)
+        assert np.allclose(along(move, 0.0), move[0]) and np.allclose(along(move, 1.0), move[-1])
+    # between two planned poses the posture reference lies on the move into the second
+    k = ks[len(ks) // 2]
+    a, b = horizon.plans[k - 1].s, horizon.plans[k].s
+    _, q_ref, _ = horizon.reference(0.25 * a + 0.75 * b, b - a)
+    assert q_ref is not None and np.allclose(q_ref, along(horizon.move(k), 0.75))
+    assert all(x.status == 0 for x in steps)
+
+
+def test_along_a_polyline() -> None:
+    from mmstab.runs.online.roadmap_horizon import along
+
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 3.0]])  # length 4
+    assert np.allclose(along(path, 0.125), [0.5, 0.0])
+    assert np.allclose(along(path, 0.5), [1.0, 1.0])
+    assert np.allclose(along(path[:1], 0.7), [0.0, 0.0])
 
 
 def test_the_same_recording_gives_the_same_answers(clean: tuple[mmstab.Problem, Path]) -> None:

@@ -230,6 +230,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "odom_topic": "/odom",
         "horizon": 2.0,
         "replan_tol": 0.01,
+        "planner": "roadmap",
         "record": {
             "rate": 10.0,
             "window": 6.0,
@@ -322,14 +323,16 @@ LEVERS: dict[str, Any] = with_optional(
 )
 
 # Online mode (mmstab follow, mmstab record; docs/online.md): topics, the receding horizon
-# [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, and the
-# generated recording: map rate [Hz], window side [m], sensor range [m], height noise (RMS)
+# [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, how a pose
+# is planned (roadmap: nodes of the posture roadmap; warm: CMA-ES in V), and the generated
+# recording: map rate [Hz], window side [m], sensor range [m], height noise (RMS)
 # [m], fraction of cells dropped as unknown, odometry rate [Hz], seed.
 ONLINE = obj(
     map_topic={"type": "string", "pattern": "^/"},
     odom_topic={"type": "string", "pattern": "^/"},
     horizon=POS,
     replan_tol=POS,
+    planner={"enum": ["roadmap", "warm"]},
     record=obj(
         rate={"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         window={"type": "number", "exclusiveMinimum": 0, "maximum": 100},

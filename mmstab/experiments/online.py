@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import save_settings
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm_start import RoutePlan, solve_route
+from mmstab.planner.warm_start import solve_route
 from mmstab.runs.online.follow import FollowSettings
 from mmstab.runs.online.horizon import angle_between
 from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summarize
@@ -40,22 +40,60 @@ from mmstab.workspace import Workspace
 MU_AGREEMENT = 0.02
 
 
-def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> RoutePlan:
-    """The offline plan on the problem's terrain at the route poses the run planned."""
+class OfflinePlan(NamedTuple):
+    """The offline plan at the run's planning grid, for the comparison.
+
+    Attributes:
+        s: arc lengths of the planned poses (K,) [m].
+        poses: the poses (K, 3) [m, m, rad].
+        mu_planned: μ of the planned posture (K,) [N rad].
+        mu_stowed: μ with the arm stowed (K,) [N rad].
+        search_seconds: wall time of the search per pose [s] (K,).
+    """
+
+    s: np.ndarray
+    poses: np.ndarray
+    mu_planned: np.ndarray
+    mu_stowed: np.ndarray
+    search_seconds: np.ndarray
+
+
+def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> OfflinePlan:
+    """The offline plan on the problem's terrain at the route poses the run planned.
+
+    With the same planner as the online loop (``online.planner``): all poses at once on
+    the posture roadmap (``method: roadmap``), or warm-started CMA-ES pose after pose.
+    """
     from mmstab.workspace.ik import PostureSolver
 
     route = problem.route
     assert route is not None
     ws, region = problem_region(problem, workspace, False)
     settings = PlannerSettings.from_section(problem.section("planner"))
-    settings = settings._replace(method="cmaes", seeding="coarse")
     s = run.s_grid
     poses = route.route.sample(s).pose
-    realise = PostureSolver(problem.robot, ws).realise
-    return solve_route(problem.robot, problem.terrain, region, s, poses, settings, realise)
+    robot = problem.robot
+    if FollowSettings.of(problem).planner == "roadmap":
+        from mmstab.planner.roadmap import solve_roadmap_sequence
+        from mmstab.workspace.roadmap import load_or_build_roadmap
+
+        gravity = problem.terrain.gravity_body(poses)
+        roadmap = load_or_build_roadmap(robot, ws)
+        seq = solve_roadmap_sequence(
+            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses
+        )
+        stowed = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu
+        per_pose = np.full(len(s), seq.seconds / len(s))
+        return OfflinePlan(s, poses, seq.mu, stowed, per_pose)
+    settings = settings._replace(method="cmaes", seeding="coarse")
+    realise = PostureSolver(robot, ws).realise
+    plan = solve_route(robot, problem.terrain, region, s, poses, settings, realise)
+    return OfflinePlan(s, poses, plan.mu_planned, plan.mu_stowed, plan.search_seconds)
 
 
-def compare(run: FollowRun, offline: RoutePlan, gravity: np.ndarray, tol: float) -> dict[str, Any]:
+def compare(
+    run: FollowRun, offline: OfflinePlan, gravity: np.ndarray, tol: float
+) -> dict[str, Any]:
     """Online against offline μ per planned pose, where the map agrees (module text).
 
     Args:
@@ -154,7 +192,7 @@ def write_replay(out: Path, problem: Problem, run: FollowRun) -> None:
     save_settings(out, problem, online_replay=True)
 
 
-def _figure(path: Path, run: FollowRun, offline: RoutePlan) -> None:
+def _figure(path: Path, run: FollowRun, offline: OfflinePlan) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))

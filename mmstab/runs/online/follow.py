@@ -38,6 +38,7 @@ from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
+from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import MapUpdate
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import support_tilt, terrain_friction
@@ -59,18 +60,25 @@ class FollowSettings(NamedTuple):
         odom_topic: Odometry topic.
         horizon: planned poses this far ahead of the robot [m].
         replan_tol: gravity change that re-plans a pose [rad].
+        planner: ``"roadmap"`` (postures on the posture roadmap,
+            :mod:`~mmstab.runs.online.roadmap_horizon`) or ``"warm"`` (CMA-ES in V,
+            :mod:`~mmstab.runs.online.horizon`).
     """
 
     map_topic: str
     odom_topic: str
     horizon: float
     replan_tol: float
+    planner: str
 
     @classmethod
     def of(cls, problem: Problem) -> FollowSettings:
         """The problem's ``online`` section (defaults filled in)."""
         o = problem.section("online")
-        return cls(o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]))
+        return cls(
+            o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]),
+            str(o["planner"]),
+        )  # fmt: skip
 
 
 class FollowStep(NamedTuple):
@@ -125,7 +133,7 @@ class Follower:
         self,
         problem: Problem,
         route: RoutePath,
-        horizon: HorizonPlanner,
+        horizon: HorizonPlanner | RoadmapHorizon,
         controller: Controller,
         settings: FollowSettings,
     ) -> None:
@@ -177,7 +185,7 @@ class Follower:
             if rested.covered[i]:
                 self.ground = rested.ground[i : i + 1]
                 break
-        target, q_ref, mu_planned = self._reference(s)
+        target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         latency = time.perf_counter() - t0
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
@@ -189,18 +197,6 @@ class Follower:
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
             tilt, g_now,
         )  # fmt: skip
-
-    def _reference(self, s: float) -> tuple[FloatArray | None, FloatArray | None, float]:
-        """The planned arm CoM [m], posture [rad] and μ [N rad] at ``s``, between plans."""
-        plans = self.horizon.plans
-        known = sorted(k for k in plans if abs(plans[k].s - s) <= 2 * self._spacing())
-        if not known:
-            return None, None, float("nan")
-        ss = np.array([plans[k].s for k in known])
-        pick = lambda name: np.array([getattr(plans[k], name) for k in known])  # noqa: E731
-        coms, qs, mus = pick("target_com"), pick("q"), pick("mu")
-        interp = lambda v: np.array([np.interp(s, ss, v[:, i]) for i in range(v.shape[1])])  # noqa: E731
-        return interp(coms), interp(qs), float(np.interp(s, ss, mus))
 
     def _spacing(self) -> float:
         grid = self.horizon.s_grid
@@ -255,6 +251,7 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
         MmstabError: the problem's path is not a route, or V is empty.
     """
     from mmstab.workspace.ik import PostureSolver
+    from mmstab.workspace.roadmap import load_or_build_roadmap
 
     route = problem.route
     if route is None:
@@ -263,11 +260,18 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
     section = problem.section("planner")
     s_grid = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
     settings = FollowSettings.of(problem)
-    horizon = HorizonPlanner(
-        problem.robot, region, PlannerSettings.from_section(section), s_grid,
-        route.route.sample(s_grid).pose, PostureSolver(problem.robot, ws).realise,
-        settings.replan_tol,
-    )  # fmt: skip
+    planner, poses = PlannerSettings.from_section(section), route.route.sample(s_grid).pose
+    horizon: HorizonPlanner | RoadmapHorizon
+    if settings.planner == "roadmap":
+        roadmap = load_or_build_roadmap(problem.robot, ws)
+        horizon = RoadmapHorizon(
+            problem.robot, roadmap, planner, s_grid, poses, settings.replan_tol
+        )
+    else:
+        horizon = HorizonPlanner(
+            problem.robot, region, planner, s_grid, poses,
+            PostureSolver(problem.robot, ws).realise, settings.replan_tol,
+        )  # fmt: skip
     ctrl = build_controller(
         problem.robot, ControllerSettings.from_section(problem.section("controller"))
     )
