@@ -199,6 +199,44 @@ def test_maps_before_odometry_are_skipped_and_frames_must_match(tmp_path: Path) 
         list(ups)
 
 
+def with_joint_states(src: Path, out: Path, names: list[str], q: np.ndarray) -> None:
+    """``src``'s maps and odometry, and a ``/joint_states`` message with each odometry."""
+    store = typestore(False)
+    msgs = list(messages(src, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
+    with BagWriter(out, store) as w:
+        for m in msgs:
+            w.write(m.topic, m.msgtype, m.time, m.message)
+            if m.topic == "/odom":
+                js = store.types["sensor_msgs/msg/JointState"](
+                    header=m.message.header, name=names, position=np.array(q, dtype=float),
+                    velocity=np.zeros(0), effort=np.zeros(0),
+                )  # fmt: skip
+                w.write("/joint_states", "sensor_msgs/msg/JointState", m.time, js)
+
+
+def test_measured_joint_states_replace_the_integrated_posture(
+    clean: tuple[mmstab.Problem, Path], tmp_path: Path
+) -> None:
+    problem, path = clean
+    robot = problem.robot
+    names = joint_names(robot)
+    held = np.array(robot.stowed, dtype=float)  # the arm reports it never left the stow
+    rec = tmp_path / "joints.mcap"
+    with_joint_states(path, rec, names[::-1], held[::-1])  # any order: picked by name
+    data = yaml.safe_load(problem.path.read_text())
+    data["online"]["joints_topic"] = "/joint_states"
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(data))
+    measured = follow_recording(mmstab.load_problem(tmp_path / "p.yaml"), rec, limit=30)
+    integrated = follow_recording(problem, rec, limit=30)
+    assert all(x.measured and np.array_equal(x.q, held) for x in measured.steps)
+    assert not any(x.measured for x in integrated.steps)
+    assert max(np.abs(x.q - held).max() for x in integrated.steps) > 0.05  # the arm moved
+    bad = tmp_path / "bad.mcap"
+    with_joint_states(path, bad, names[:-1], held[:-1])
+    with pytest.raises(mmstab.ConfigError, match=f"no joint '{names[-1]}'"):
+        follow_recording(mmstab.load_problem(tmp_path / "p.yaml"), bad, limit=3)
+
+
 @pytest.mark.parametrize("name", ["run.mcap", "run.bag", "run_dir"])
 def test_runs_round_trip_as_recordings(tmp_path: Path, name: str) -> None:
     problem = mmstab.load_problem(ROOT / "problems" / "kerb.yaml")

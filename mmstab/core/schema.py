@@ -231,6 +231,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "horizon": 2.0,
         "replan_tol": 0.01,
         "planner": "roadmap",
+        "joints_topic": None,
         "record": {
             "rate": 10.0,
             "window": 6.0,
@@ -324,15 +325,17 @@ LEVERS: dict[str, Any] = with_optional(
 
 # Online mode (mmstab follow, mmstab record; docs/online.md): topics, the receding horizon
 # [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, how a pose
-# is planned (roadmap: nodes of the posture roadmap; warm: CMA-ES in V), and the generated
-# recording: map rate [Hz], window side [m], sensor range [m], height noise (RMS)
-# [m], fraction of cells dropped as unknown, odometry rate [Hz], seed.
+# is planned (roadmap: nodes of the posture roadmap; warm: CMA-ES in V), the arm's measured
+# JointState topic (null: the loop integrates its commands), and the generated recording:
+# map rate [Hz], window side [m], sensor range [m], height noise (RMS) [m], fraction of
+# cells dropped as unknown, odometry rate [Hz], seed.
 ONLINE = obj(
     map_topic={"type": "string", "pattern": "^/"},
     odom_topic={"type": "string", "pattern": "^/"},
     horizon=POS,
     replan_tol=POS,
     planner={"enum": ["roadmap", "warm"]},
+    joints_topic={"oneOf": [{"type": "null"}, {"type": "string", "pattern": "^/"}]},
     record=obj(
         rate={"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         window={"type": "number", "exclusiveMinimum": 0, "maximum": 100},

@@ -63,6 +63,8 @@ class FollowSettings(NamedTuple):
         planner: ``"roadmap"`` (postures on the posture roadmap,
             :mod:`~mmstab.runs.online.roadmap_horizon`) or ``"warm"`` (CMA-ES in V,
             :mod:`~mmstab.runs.online.horizon`).
+        joints_topic: the arm's measured ``sensor_msgs/JointState`` topic; None: the arm's
+            posture is the loop's own integration of its commands.
     """
 
     map_topic: str
@@ -70,6 +72,7 @@ class FollowSettings(NamedTuple):
     horizon: float
     replan_tol: float
     planner: str
+    joints_topic: str | None
 
     @classmethod
     def of(cls, problem: Problem) -> FollowSettings:
@@ -77,7 +80,7 @@ class FollowSettings(NamedTuple):
         o = problem.section("online")
         return cls(
             o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]),
-            str(o["planner"]),
+            str(o["planner"]), o["joints_topic"],
         )  # fmt: skip
 
 
@@ -105,6 +108,7 @@ class FollowStep(NamedTuple):
             covered); the tracks slide beyond atan(friction) (:mod:`mmstab.stability.slip`).
         gravity_body: gravity in B at rest on the map, as ``mu`` used it [m/s^2] (NaN when
             not covered).
+        measured: ``q`` is the recording's joint state (else the loop's own integration).
     """
 
     time: float
@@ -124,6 +128,7 @@ class FollowStep(NamedTuple):
     polygon: FloatArray
     tilt: float
     gravity_body: FloatArray
+    measured: bool
 
 
 class Follower:
@@ -167,6 +172,8 @@ class Follower:
         terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
         pose = u.odometry.pose
         self.s = s = self.progress(pose[:2])
+        if u.joints is not None:  # the arm as measured, not as commanded
+            self.q = np.array(u.joints.q, dtype=float)
         q = self.q.copy()
         ks = self.horizon.window(s, self.settings.horizon)
         ref_pose = self.route.route.sample(np.array([s])).pose
@@ -195,7 +202,7 @@ class Follower:
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
-            tilt, g_now,
+            tilt, g_now, u.joints is not None,
         )  # fmt: skip
 
     def _spacing(self) -> float:
