@@ -19,7 +19,7 @@ from mmstab.experiments.recording import record_route
 from mmstab.model.urdf import robot_to_urdf
 from mmstab.runs.online.follow import build_follower
 from mmstab.runs.online.run import follow_recording
-from mmstab.runs.online.stream import ODOMETRY, map_updates
+from mmstab.runs.online.stream import ODOMETRY, map_updates, odometry_of
 from mmstab.runs.recording import TOPICS, RunFrames, joint_names, write_run
 from mmstab.runs.store import load_run
 from mmstab.terrain.gridmap import GRIDMAP, typestore
@@ -197,6 +197,47 @@ def test_maps_before_odometry_are_skipped_and_frames_must_match(tmp_path: Path) 
     assert counts[0] == 5 and first.time == pytest.approx(0.5)
     with pytest.raises(mmstab.ConfigError, match="map in 'odom' but odometry in 'map'"):
         list(ups)
+
+
+def test_a_map_in_another_frame_takes_the_odometry_through_tf(tmp_path: Path) -> None:
+    from mmstab.runs.online.frames import pose_matrix
+    from mmstab.runs.recording import transform_stamped
+
+    problem = mmstab.load_problem(problem_file(tmp_path, noise=0.0, unknown=0.0))
+    path = tmp_path / "r.mcap"
+    record_route(problem, path, 1.0)
+    store = typestore(False)
+    msgs = list(messages(path, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
+    truth = [
+        u.odometry.pose for u in map_updates(path, "/elevation_mapping/elevation_map", "/odom")
+    ]
+    map_T_site = pose_matrix(np.array([1.0, -2.0, 0.3]))  # static: map -> site
+    site_T_odom = pose_matrix(np.array([-0.5, 0.7, -1.1]))  # moving: site -> odom
+    odom_T_map = np.linalg.inv(map_T_site @ site_T_odom)
+    tf_type = "tf2_msgs/msg/TFMessage"
+    out = tmp_path / "tf.mcap"
+    with BagWriter(out, store) as w:
+        static = transform_stamped(store, False, 0.0, "map", "site", map_T_site)
+        w.write("/tf_static", tf_type, 0.0, store.types[tf_type](transforms=[static]))
+        for m in msgs:
+            if m.topic == "/odom":  # the odometry in its own frame, the map stays in 'map'
+                moving = transform_stamped(store, False, m.time, "site", "odom", site_T_odom)
+                w.write("/tf", tf_type, m.time, store.types[tf_type](transforms=[moving]))
+                pp = m.message.pose.pose
+                T = odom_T_map @ pose_matrix(odometry_of(m.time, m.message).pose)
+                pp.position.x, pp.position.y = T[0, 3], T[1, 3]
+                h = np.arctan2(T[1, 0], T[0, 0]) / 2
+                q = pp.orientation  # the heading alone: the loop reads no more of it
+                q.x, q.y, q.z, q.w = 0.0, 0.0, np.sin(h), np.cos(h)
+                m.message.header.frame_id = "odom"
+            else:
+                m.message.header.frame_id = "map"
+            w.write(m.topic, m.msgtype, m.time, m.message)
+    got = list(map_updates(out, "/elevation_mapping/elevation_map", "/odom"))
+    assert len(got) == len(truth) and all(u.odometry.frame_id == "map" for u in got)
+    for u, pose in zip(got, truth, strict=True):  # back in the map's frame
+        assert np.allclose(u.odometry.pose[:2], pose[:2], atol=1e-9)
+        assert np.isclose(np.angle(np.exp(1j * (u.odometry.pose[2] - pose[2]))), 0.0, atol=1e-9)
 
 
 def with_joint_states(src: Path, out: Path, names: list[str], q: np.ndarray) -> None:

@@ -3,8 +3,10 @@
 Odometry is ``nav_msgs/Odometry`` (its pose in the map's frame); the base pose the loop uses
 is (x, y, yaw) of the last odometry message received before the map. A map that arrives
 before any odometry is skipped (and counted). Times are from the recording's start [s].
-Optionally the arm's measured posture: the last ``sensor_msgs/JointState`` received before
-the map, its positions picked by the arm's joint names (those of ``mmstab urdf``).
+A map in another frame than the odometry takes the odometry's pose through the recording's
+TF (:mod:`mmstab.runs.online.frames`). Optionally the arm's measured posture: the last
+``sensor_msgs/JointState`` received before the map, its positions picked by the arm's joint
+names (those of ``mmstab urdf``).
 """
 
 from __future__ import annotations
@@ -18,8 +20,9 @@ import numpy as np
 
 from mmstab.core.files import ConfigError
 from mmstab.model.robot import FloatArray
+from mmstab.runs.online.frames import TF_MESSAGE, TF_TOPICS, TransformBuffer, planar, pose_matrix
 from mmstab.terrain.gridmap import GRIDMAP, GridMapFrame, from_message
-from mmstab.terrain.recording import messages
+from mmstab.terrain.recording import messages, open_recording
 
 ODOMETRY = "nav_msgs/msg/Odometry"
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -127,9 +130,16 @@ def map_updates(
     topics: dict[str, str | tuple[str, ...]] = {map_topic: GRIDMAP, odom_topic: ODOMETRY}
     if joints is not None:
         topics[joints[0]] = JOINT_STATE
+    with open_recording(path) as reader:
+        recorded = {c.topic for c in reader.connections}
+    tf = TransformBuffer()
+    topics.update({name: TF_MESSAGE for name in TF_TOPICS if name in recorded})
     for m in messages(path, topics):
         if m.topic == odom_topic:
             last = odometry_of(m.time, m.message)
+            continue
+        if m.topic in TF_TOPICS:
+            tf.add(m.message)
             continue
         if joints is not None and m.topic == joints[0]:
             arm = joints_of(path, m.topic, m.time, m.message, joints[1])
@@ -139,10 +149,16 @@ def map_updates(
                 counts[0] += 1
             continue
         grid = from_message(m.message, f"{path} [{map_topic} at {m.time:.3f} s]")
+        odom = last
         if grid.frame_id != last.frame_id:
-            raise ConfigError(
-                path,
-                "frame_id",
-                f"map in {grid.frame_id!r} but odometry in {last.frame_id!r} (no TF lookup)",
-            )
-        yield MapUpdate(m.time, grid, last, arm)
+            T = tf.lookup(grid.frame_id, last.frame_id)
+            if T is None:
+                raise ConfigError(
+                    path,
+                    "frame_id",
+                    f"map in {grid.frame_id!r} but odometry in {last.frame_id!r}, and no "
+                    f"transform between them on {' or '.join(TF_TOPICS)} by {m.time:.3f} s",
+                )
+            pose = planar(T @ pose_matrix(last.pose))
+            odom = Odometry(last.time, grid.frame_id, pose, last.speed)
+        yield MapUpdate(m.time, grid, odom, arm)
