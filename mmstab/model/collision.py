@@ -244,13 +244,32 @@ class CollisionChecker:
                 hit[todo] = self._fcl(pair, R, p, todo)
         return bool(hit[0]) if single else hit
 
-    def clearance(self, q: ArrayLike) -> FloatArray:
+    def _gap(self, pair: Pair, p: FloatArray) -> FloatArray:
+        """Lower bound on the pair's distance per posture (N,) [m].
+
+        Bounding spheres (the base box itself for link-vs-base pairs); negative where
+        they overlap.
+        """
+        centre = p[:, pair.link]
+        radius = self._link_radius[pair.link]
+        if isinstance(pair.other, str):
+            box = self.base_boxes[pair.other]
+            local = (centre - box.center) @ box.frame_T_shape[:3, :3]
+            outside = local - np.clip(local, -box.size / 2, box.size / 2)
+            return np.linalg.norm(outside, axis=1) - radius - CULL_SLACK
+        d = np.linalg.norm(centre - p[:, pair.other], axis=1)
+        return d - radius - self._link_radius[pair.other] - CULL_SLACK
+
+    def clearance(self, q: ArrayLike, cull_above: float | None = None) -> FloatArray:
         """Smallest distance between the bodies of any checked pair, per posture (N,) [m].
 
-        FCL's distance on every pair (GJK); 0 where a pair touches or intersects.
+        FCL's distance (GJK); 0 where a pair touches or intersects.
 
         Args:
             q: joint angles (N, 4) or (4,) [rad].
+            cull_above: skip the pairs whose bounding spheres stay at least this far [m]
+                apart (None: every pair): the answer is then exact where it is below
+                ``cull_above`` and a lower bound, at least ``cull_above``, elsewhere.
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         R, p = self.shape_poses(qa)
@@ -260,7 +279,13 @@ class CollisionChecker:
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other
             b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
-            for n in range(len(qa)):
+            rows = np.arange(len(qa))
+            if cull_above is not None:
+                gap = self._gap(pair, p)
+                far = gap >= cull_above
+                out[far] = np.minimum(out[far], gap[far])
+                rows = np.flatnonzero(~far)
+            for n in rows:
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))
                 if j >= 0:
                     b.setTransform(fcl.Transform(R[n, j], p[n, j]))

@@ -147,7 +147,8 @@ class Roadmap:
         d = np.asarray(qb, dtype=float) - qa
         n = int(np.ceil(float(self.reach @ np.abs(d)) / CLEARANCE_STEP)) + 1
         u = np.linspace(0.0, 1.0, n + 1)[:, None]
-        return bool(checker.clearance(qa + u * d).min() >= clearance + CLEARANCE_STEP / 2)
+        need = clearance + CLEARANCE_STEP / 2  # exact below `need`: pairs farther are culled
+        return bool(checker.clearance(qa + u * d, cull_above=need).min() >= need)
 
     def shortcut(
         self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE
