@@ -125,6 +125,8 @@ class ComponentView(NamedTuple):
         diameter: the CoMs' largest extent along an axis [m] (Eq. 6's ``d_workspace``).
         bins: turret bin of each (N,).
         clusters: the nodes grouped for the candidates' bounds.
+        joint_span: the postures' L1 extent, Σ_j (max q_j − min q_j) [rad] (the
+            ``motion_cost: joints`` normaliser).
     """
 
     reach: NDArray[np.intp]
@@ -132,6 +134,7 @@ class ComponentView(NamedTuple):
     diameter: float
     bins: NDArray[np.intp]
     clusters: NodeClusters
+    joint_span: float
 
 
 def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
@@ -151,27 +154,32 @@ def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
             diameter=float(np.ptp(samples, axis=0).max()) if len(samples) > 1 else 1.0,
             bins=bins,
             clusters=node_clusters(samples, bins, TURRET_BINS),
+            joint_span=max(float(np.ptp(roadmap.nodes_q[reach], axis=0).sum()), 1e-9),
         )
     return views[comp]
 
 
 def _transitions(
-    samples: FloatArray,
+    points: FloatArray,
     turret: FloatArray,
     cand: NDArray[np.intp],
     pairs: list[tuple[int, int]],
     w: float,
     window: float | None,
+    metric: str,
 ) -> tuple[list[FloatArray], list[NDArray[np.bool_]]]:
-    """Eq. 6's motion term between consecutive poses' candidates, and the allowed moves.
+    """The motion term between consecutive poses' candidates, and the allowed moves.
 
-    The term is ``w`` [1/m^2] times the squared CoM distance [m]; a move is allowed when
-    link0 (``turret`` [rad] per node) changes by at most ``window`` [rad] (None: any).
+    The term is ``w`` times the squared distance between the candidates' ``points`` (N, d):
+    their CoMs [m] with ``metric`` ``sqeuclidean`` (Eq. 6), their postures [rad] with
+    ``cityblock`` (the lattice distance, then squared); a move is allowed when link0
+    (``turret`` [rad] per node) changes by at most ``window`` [rad] (None: any).
     """
     M = cand.shape[1]
     motion, allowed = [], []
     for a, b in pairs:
-        motion.append(w * cdist(samples[cand[a]], samples[cand[b]], "sqeuclidean"))
+        d = cdist(points[cand[a]], points[cand[b]], metric)
+        motion.append(w * (d if metric == "sqeuclidean" else d * d))
         ok = np.ones((M, M), dtype=bool)
         if window is not None:
             ok &= np.abs(turret[cand[a]][:, None] - turret[cand[b]]) <= window + 1e-9
@@ -286,12 +294,19 @@ def solve_roadmap_sequence(
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
     clear = NodeClearance(robot, roadmap, reach)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
-    w = settings.w_motion / diameter**2
+    if settings.motion_cost == "joints":  # the lattice distance between postures [rad]
+        points, metric = roadmap.nodes_q[reach], "cityblock"
+        w, first = settings.w_motion / view.joint_span**2, np.abs(points[cand[0]] - start_q)
+        first_cost = w * first.sum(axis=1) ** 2
+    else:  # Eq. 6: the CoM distance [m]
+        points, metric = samples, "sqeuclidean"
+        w = settings.w_motion / diameter**2
+        first_cost = w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
     if not closed:
-        value[0] -= w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
+        value[0] -= first_cost
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
     motion, allowed = _transitions(
-        samples, roadmap.nodes_q[reach, 0], cand, pairs, w, settings.turret_window
+        points, roadmap.nodes_q[reach, 0], cand, pairs, w, settings.turret_window, metric
     )
     path, total = best_sequence(value, motion, allowed, closed)
     if not np.isfinite(total):
