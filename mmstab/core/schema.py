@@ -215,7 +215,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "restarts": 0,
         "turret_window": None,
         "sequence_candidates": 256,
-        "motion_cost": "com",
+        "motion_cost": "joints",
     },
     "workspace": {"method": "hull_difference"},
     "physics": {
