@@ -303,3 +303,20 @@ def test_the_motion_cost_is_the_lattice_distance_or_eq6(robot, small, cost):
         moved = np.sum((seq.com - before) ** 2, axis=1) / np.ptp(coms, axis=0).max() ** 2
     expected = 0.5 * seq.mu / mu_max(robot) - 0.5 * moved
     np.testing.assert_allclose(seq.fitness, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_astar_moves_are_shortest_roadmap_paths(small):
+    """A* with the L1 heuristic: a path of edges as short as Dijkstra's, pair by pair."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from mmstab.planner.roadmap import astar
+
+    _, rm = small
+    comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    edges = {tuple(e) for e in np.sort(rm.edges, axis=1).tolist()}
+    for a, b in np.random.default_rng(8).choice(comp, (12, 2)):
+        path = astar(rm, int(a), int(b))
+        assert path is not None and path[0] == a and path[-1] == b
+        assert all(tuple(sorted(e)) in edges for e in zip(path[:-1], path[1:], strict=True))
+        length = np.abs(np.diff(rm.nodes_q[path], axis=0)).sum()
+        assert length == pytest.approx(dijkstra(rm.graph, indices=int(a))[b], rel=1e-12)

@@ -293,6 +293,37 @@ class CollisionChecker:
                 out[n] = min(out[n], max(float(d), 0.0))
         return out
 
+    def keeps_clearance(self, q: ArrayLike, need: float, step: float) -> bool:
+        """Whether every posture of a sequence keeps ``need`` [m] between every checked pair.
+
+        Exact at each posture, with fewer FCL calls than :meth:`clearance`: consecutive
+        postures of ``q`` (N, 4) [rad] must move no point of the arm more than ``step`` [m],
+        so a pair measured ``d`` apart cannot come within ``need`` for the next
+        ``(d − need) / step`` postures (half that for a pair of two moving links), which are
+        skipped; pairs whose bounding spheres stay ``need`` apart are not measured; the first
+        posture found closer ends the check.
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        R, p = self.shape_poses(qa)
+        request = fcl.DistanceRequest()
+        for pair in sorted(self.pairs, key=lambda pr: isinstance(pr.other, str)):
+            a = self._link_objs[pair.link]
+            j = -1 if isinstance(pair.other, str) else pair.other
+            b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
+            rate = step * (2.0 if j >= 0 else 1.0)  # how fast the pair's distance can shrink
+            safe_until = 0
+            for n in np.flatnonzero(self._gap(pair, p) < need):
+                if n < safe_until:
+                    continue
+                a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))
+                if j >= 0:
+                    b.setTransform(fcl.Transform(R[n, j], p[n, j]))
+                d = float(fcl.distance(a, b, request, fcl.DistanceResult()))
+                if d < need:
+                    return False
+                safe_until = int(n) + 1 + int((d - need) / rate)
+        return True
+
     def colliding_pairs(self, q: ArrayLike) -> list[str]:
         """Names of all pairs that intersect at one posture (FCL on every pair).
 

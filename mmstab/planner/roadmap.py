@@ -15,6 +15,7 @@ the answer, for the controller.
 
 from __future__ import annotations
 
+import heapq
 import time
 from typing import NamedTuple
 
@@ -34,8 +35,8 @@ from mmstab.workspace.roadmap import Roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
 TURRET_BINS = 24
-#: A shortest-path search first looks this many times the lattice (L1) distance far [rad].
-SEARCH_SLACK = 1.5
+#: Node expansions of an A* query before the whole component is searched instead.
+ASTAR_EXPANSIONS = 20000
 
 
 class NoPlanError(PlanningError):
@@ -230,13 +231,54 @@ def start_tree(roadmap: Roadmap, start: int) -> tuple[int, NDArray[np.int32]]:
     return start, trees[start]
 
 
+def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
+    """A shortest roadmap path a -> b (nodes), by A* with the lattice (L1) distance to b.
+
+    Every edge changes one joint by its length and never wraps the turret, so the L1
+    distance is a consistent lower bound and the path is a shortest one; with ties
+    broken towards the deepest node, a free staircase costs about its length in node
+    expansions where Dijkstra's search bounded at 1.5 times the distance (the previous
+    query) explored a 4-D ball of nodes (16 ms a move on a random route). None when
+    ``ASTAR_EXPANSIONS`` nodes did not reach b.
+    """
+    lists = getattr(roadmap, "_lists", None)  # Python lists: the loop's cheapest reads
+    if lists is None:
+        g = roadmap.graph
+        lists = (g.indptr.tolist(), g.indices.tolist(), g.data.tolist(), roadmap.nodes_q.tolist())
+        object.__setattr__(roadmap, "_lists", lists)
+    ptr, nbr, w, q = lists
+    goal = q[b]
+
+    def h(n: int) -> float:
+        return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
+
+    best, parent = {a: 0.0}, {a: a}
+    heap = [(h(a), 0.0, a)]
+    for _ in range(ASTAR_EXPANSIONS):
+        if not heap:
+            return None
+        _, neg_g, n = heapq.heappop(heap)
+        if n == b:
+            out = [b]
+            while out[-1] != a:
+                out.append(parent[out[-1]])
+            return np.array(out[::-1], dtype=np.intp)
+        if -neg_g > best[n]:
+            continue  # a stale entry
+        for k in range(ptr[n], ptr[n + 1]):
+            m, cost = nbr[k], best[n] + w[k]
+            if cost < best.get(m, np.inf):
+                best[m], parent[m] = cost, n
+                heapq.heappush(heap, (cost + h(m), -cost, m))
+    return None
+
+
 def roadmap_move(
     roadmap: Roadmap, a: int, b: int, tree: tuple[int, NDArray[np.int32]] | None = None
 ) -> FloatArray:
     """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
-    From ``tree``'s root (:func:`start_tree`) along the tree; else a first search bounded
-    by ``SEARCH_SLACK`` times the lattice distance (fast: it explores a neighbourhood),
+    From ``tree``'s root (:func:`start_tree`) along the tree; else A* (:func:`astar`),
     else the whole component.
     """
     if a == b:
@@ -244,11 +286,8 @@ def roadmap_move(
     if tree is not None and tree[0] == a:
         pred = tree[1]
     else:
-        d = roadmap.nodes_q[b] - roadmap.nodes_q[a]
-        limit = SEARCH_SLACK * float(np.abs(d).sum()) + 2 * float(roadmap.lengths.max(initial=0))
-        dist, pred = dijkstra(roadmap.graph, indices=a, return_predecessors=True, limit=limit)
-        if not np.isfinite(dist[b]):
-            return roadmap.path_postures(a, b)
+        path = astar(roadmap, a, b)
+        return roadmap.path_postures(a, b) if path is None else roadmap.nodes_q[path]
     out = [b]
     while out[-1] != a:
         out.append(int(pred[out[-1]]))
