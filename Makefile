@@ -100,7 +100,7 @@ plan-paper: setup
 
 bench-plan: setup
 	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml --alternatives
-	$(PY) benchmarks/plan_route.py problems/rough.yaml
+	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity

@@ -134,6 +134,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             restarts={"type": "integer", "minimum": 0, "maximum": 8},
             turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
+            motion_cost={"enum": ["com", "joints"]},  # method roadmap's motion term
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
         # optional: flipper angles searched per pose between the robot's flipper limits,
@@ -214,6 +215,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "restarts": 0,
         "turret_window": None,
         "sequence_candidates": 256,
+        "motion_cost": "joints",
     },
     "workspace": {"method": "hull_difference"},
     "physics": {
