@@ -160,7 +160,39 @@ def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
     return views[comp]
 
 
-def _transitions(
+class MotionCost(NamedTuple):
+    """Eq. 6's motion term between roadmap postures (``planner.motion_cost``).
+
+    Attributes:
+        points: each reach row's point in the cost's space (N, d): its posture [rad]
+            (``joints``: the lattice, L1, distance) or its arm CoM [m] (``com``: Eq. 6's).
+        metric: ``cityblock`` (the distance then squared) or ``sqeuclidean``.
+        weight: the term's weight on the squared distance (normalised by the span).
+    """
+
+    points: FloatArray
+    metric: str
+    weight: float
+
+    def point_of(self, robot: Robot, q: FloatArray) -> FloatArray:
+        """A posture ``q`` [rad] in the cost's space."""
+        return np.asarray(q, dtype=float) if self.metric == "cityblock" else robot.arm_com(q)
+
+    def from_point(self, rows: NDArray[np.intp], point: FloatArray) -> FloatArray:
+        """The term from ``point`` (in the cost's space) to the reach rows ``rows``."""
+        d = cdist(self.points[rows], np.atleast_2d(point), self.metric)[:, 0]
+        return self.weight * (d if self.metric == "sqeuclidean" else d * d)
+
+
+def motion_cost(roadmap: Roadmap, view: ComponentView, settings: PlannerSettings) -> MotionCost:
+    """The motion term of ``settings.motion_cost`` on the component ``view``."""
+    if settings.motion_cost == "joints":  # the lattice distance between postures [rad]
+        points = roadmap.nodes_q[view.reach]
+        return MotionCost(points, "cityblock", settings.w_motion / view.joint_span**2)
+    return MotionCost(view.samples, "sqeuclidean", settings.w_motion / view.diameter**2)
+
+
+def transitions(
     points: FloatArray,
     turret: FloatArray,
     cand: NDArray[np.intp],
@@ -333,20 +365,14 @@ def solve_roadmap_sequence(
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
     clear = NodeClearance(robot, roadmap, reach)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
-    if settings.motion_cost == "joints":  # the lattice distance between postures [rad]
-        points, metric = roadmap.nodes_q[reach], "cityblock"
-        w, first = settings.w_motion / view.joint_span**2, np.abs(points[cand[0]] - start_q)
-        first_cost = w * first.sum(axis=1) ** 2
-    else:  # Eq. 6: the CoM distance [m]
-        points, metric = samples, "sqeuclidean"
-        w = settings.w_motion / diameter**2
-        first_cost = w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
+    cost = motion_cost(roadmap, view, settings)
     if not closed:
-        value[0] -= first_cost
+        value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
-    motion, allowed = _transitions(
-        points, roadmap.nodes_q[reach, 0], cand, pairs, w, settings.turret_window, metric
-    )
+    motion, allowed = transitions(
+        cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
+        cost.metric,
+    )  # fmt: skip
     path, total = best_sequence(value, motion, allowed, closed)
     if not np.isfinite(total):
         k = _first_dead_pose(value, allowed)

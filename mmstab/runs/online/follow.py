@@ -274,6 +274,7 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
         horizon = RoadmapHorizon(
             problem.robot, roadmap, planner, s_grid, poses, settings.replan_tol
         )
+        horizon.warm_up()
     else:
         horizon = HorizonPlanner(
             problem.robot, region, planner, s_grid, poses,

@@ -30,6 +30,8 @@ from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import roadmap as rp
+from mmstab.planner.candidates import NodeClearance, route_candidates
+from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPose, HorizonUpdate, Rested, angle_between
 from mmstab.stability.static import mu_max as stowed_flat_mu
@@ -82,12 +84,10 @@ class RoadmapHorizon:
         self.s_grid, self.poses_grid, self.replan_tol = s_grid, poses_grid, replan_tol
         self.mu_max = stowed_flat_mu(robot)
         start = roadmap.connect(robot.stowed, robot)
-        self.reach = np.flatnonzero(roadmap.component == roadmap.component[start])
-        self.samples = rp.node_coms(robot, roadmap)[self.reach]
-        self.diameter = float(np.ptp(self.samples, axis=0).max()) if len(self.samples) > 1 else 1.0
-        self.bins = rp._turret_bins(roadmap.nodes_q[self.reach, 0], rp.TURRET_BINS)
-        self.members = [np.flatnonzero(self.bins == b) for b in range(rp.TURRET_BINS)]
-        self.clear = rp.NodeClearance(robot, roadmap, self.reach)
+        self.view = rp.component_view(robot, roadmap, start)
+        self.reach, self.samples = self.view.reach, self.view.samples
+        self.cost = rp.motion_cost(roadmap, self.view, settings)
+        self.clear = NodeClearance(robot, roadmap, self.reach)
         self.count = min(settings.sequence_candidates, len(self.reach))
         self.candidates: dict[int, Candidates] = {}
         self.plans: dict[int, HorizonPose] = {}
@@ -95,6 +95,26 @@ class RoadmapHorizon:
         self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
         self._moves: dict[tuple[int, int], FloatArray] = {}
         self._checker = CollisionChecker(robot)
+
+    def warm_up(self, tilt: float = 0.3) -> None:
+        """Measure, before the first map, the clearance of the nodes likely to be chosen.
+
+        The candidates of flat ground and of ground tilted by ``tilt`` [rad] in each of four
+        directions: a node's clearance is measured on its first choice and kept, so the
+        first maps need not measure the usual ones (as a robot prepares before it drives).
+        """
+        c, s = np.cos(tilt), np.sin(tilt)
+        down = np.array([[0, 0, -1], [s, 0, -c], [-s, 0, -c], [0, s, -c], [0, -s, -c]])
+        stab = self.settings._replace(w_motion=0.0)
+        stowed = self.robot.arm_com(self.robot.stowed)
+        fits = [
+            pose_fitness(
+                self.robot, 9.81 * g, stowed, stab, self.mu_max, self.view.diameter
+            ).linear()
+            for g in down
+        ]
+        v = self.view
+        route_candidates(fits, self.samples, v.bins, v.clusters, self.count, self.clear)
 
     def window(self, s_now: float, ahead: float) -> list[int]:
         """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
@@ -137,40 +157,44 @@ class RoadmapHorizon:
             first = replanned[0]
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
-            self._choose(chain, arm_com, arm_q, now)
+            self._choose(chain, arm_q, now)
         return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
 
     def _score(self, ks: list[int], gravity: FloatArray, now: float) -> None:
         """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch."""
         stab = self.settings._replace(w_motion=0.0)
         stowed = self.robot.arm_com(self.robot.stowed)
-        rows, value, mu = rp._pose_candidates(
-            self.robot, gravity, self.samples, stowed, stab, self.mu_max, self.diameter,
-            self.count, self.bins, self.members, self.clear,
-        )  # fmt: skip
+        fits = [
+            pose_fitness(self.robot, g, stowed, stab, self.mu_max, self.view.diameter).linear()
+            for g in gravity
+        ]
+        v = self.view
+        rows, value, mu = route_candidates(
+            fits, self.samples, v.bins, v.clusters, self.count, self.clear
+        )
         for i, k in enumerate(ks):
             self.candidates[k] = Candidates(gravity[i], rows[i], value[i], mu[i], now)
 
-    def _choose(self, chain: list[int], arm_com: FloatArray, arm_q: FloatArray, now: float) -> None:
+    def _choose(self, chain: list[int], arm_q: FloatArray, now: float) -> None:
         """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``."""
-        w = self.settings.w_motion / self.diameter**2
         cands = [self.candidates[k] for k in chain]
         cand = np.array([c.rows for c in cands])
         value = np.array([c.value for c in cands])
         before = self.nodes.get(chain[0] - 1)
-        prev_com = arm_com if before is None else rp.node_coms(self.robot, self.roadmap)[before]
-        value[0] = value[0] - w * np.sum((self.samples[cand[0]] - prev_com) ** 2, axis=1)
+        cost = self.cost
+        if before is None:  # from the arm as it is
+            start = cost.point_of(self.robot, np.asarray(arm_q, dtype=float))
+        else:  # from the previous pose's node
+            start = cost.points[int(np.searchsorted(self.reach, before))]
+        value[0] = value[0] - cost.from_point(cand[0], start)
         turret = self.roadmap.nodes_q[self.reach, 0]
-        allowed_first = np.ones(len(cand[0]), dtype=bool)
-        if before is not None and self.settings.turret_window is not None:
-            allowed_first = (
-                np.abs(turret[cand[0]] - self.roadmap.nodes_q[before, 0])
-                <= self.settings.turret_window + 1e-9
-            )
-        value[0] = np.where(allowed_first, value[0], -np.inf)
+        window = self.settings.turret_window
+        if before is not None and window is not None:
+            far = np.abs(turret[cand[0]] - self.roadmap.nodes_q[before, 0]) > window + 1e-9
+            value[0] = np.where(far, -np.inf, value[0])
         pairs = [(i, i + 1) for i in range(len(chain) - 1)]
-        motion, allowed = rp._transitions(
-            self.samples, turret, cand, pairs, w, self.settings.turret_window
+        motion, allowed = rp.transitions(
+            cost.points, turret, cand, pairs, cost.weight, window, cost.metric
         )
         path, total = rp.best_sequence(value, motion, allowed, False)
         if not np.isfinite(total):  # keep the last plans; the loop reports the pose
