@@ -33,7 +33,6 @@ import numpy as np
 
 from mmstab.control.approach import run_reference
 from mmstab.control.plant import build_plant
-from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_model import ModelSettings
@@ -107,18 +106,26 @@ class PhysicsRun:
     left_map: float | None = None
 
 
-def simulated_mu(sim: RobotSim, mass: float) -> float:
-    """μ of MuJoCo's contacts now: their hull along gravity, the CoM, m·g [N rad].
+def contact_points(sim: RobotSim) -> FloatArray:
+    """MuJoCo's active contact points now, (ncon, 3) in G [m] (a copy).
 
     Every active contact counts (touching or penetrating, loaded or not this instant): the
     soft contacts' forces flicker step to step as the wheels bounce at the sub-millimetre
     scale, their set does not.
     """
-    d = sim.data
-    if d.ncon == 0:
+    return np.array(sim.data.contact.pos[: sim.data.ncon])
+
+
+def simulated_mu(points: FloatArray, com: FloatArray, mass: float) -> float:
+    """μ of MuJoCo's contacts: their hull along gravity, the CoM [m], m·g [N rad].
+
+    Args:
+        points: the active contact points (n, 3) in G [m] (:func:`contact_points`).
+        com: the robot's overall CoM in G (3,) [m].
+        mass: the robot's mass [kg].
+    """
+    if len(points) == 0:
         return float("nan")
-    points = np.array([d.contact[i].pos for i in range(d.ncon)])
-    com = d.subtree_com[0]  # the world body's subtree: the whole robot
     return contact_force_angle(points, com, mass * GRAVITY_G).mu
 
 
@@ -128,11 +135,56 @@ def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
     return np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
 
 
-def tilt_off_rest(problem: Problem, pose: FloatArray, G_T_B: FloatArray) -> float:
-    """Angle between the simulated chassis z axis and its resting one on the terrain [rad]."""
-    z_rest = np.asarray(problem.terrain.G_T_B(pose))[:3, 2]
-    c = float(np.clip(z_rest @ G_T_B[:3, 2], -1.0, 1.0))
-    return float(np.arccos(c))
+def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> FloatArray:
+    """Angles between simulated chassis z axes and their resting ones on the terrain [rad].
+
+    Batched: poses (N, 3) (x, y, heading in M), simulated G_T_B (N, 4, 4). NaN where the
+    pose's ground is off the terrain's map.
+    """
+    rest = getattr(problem.terrain, "rest", None)
+    if rest is not None:  # a heightmap: off-map poses come back NaN
+        z_rest = rest(poses, strict=False).G_T_B[:, :3, 2]
+    else:
+        z_rest = np.asarray(problem.terrain.G_T_B(poses)).reshape(-1, 4, 4)[:, :3, 2]
+    c = np.clip(np.einsum("ni,ni->n", z_rest, G_T_B[:, :3, 2]), -1.0, 1.0)
+    return np.asarray(np.arccos(c))
+
+
+class TipCheck:
+    """The tip and off-map checks of a run, evaluated in batches (the rest solve batched).
+
+    Records the simulated pose every ``check_dt`` and evaluates ``batch`` records at once:
+    the verdict is that of the first record over the tip angle (or off the map); the run
+    stops there, the periods simulated after it (at most a batch) are dropped.
+    """
+
+    def __init__(self, problem: Problem, tip_angle: float, batch: int = 25):
+        self.problem, self.tip_angle, self.batch = problem, tip_angle, batch
+        self.index: list[int] = []
+        self.poses: list[FloatArray] = []
+        self.frames: list[FloatArray] = []
+        self.tilt: list[float] = []
+        self.end: tuple[int, int, str] | None = None  # (last period, event's, kind)
+
+    def record(self, k: int, pose: FloatArray, G_T_B: FloatArray, last: bool) -> bool:
+        """Record period ``k``; True when the run must stop (tipped or off its map)."""
+        self.index.append(k)
+        self.poses.append(pose)
+        self.frames.append(G_T_B)
+        if len(self.index) - len(self.tilt) >= self.batch or last:
+            new = tilts_off_rest(self.problem, np.array(self.poses[len(self.tilt) :]),
+                                 np.array(self.frames[len(self.tilt) :]))  # fmt: skip
+            for j, value in enumerate(new, start=len(self.tilt)):
+                if not np.isfinite(value):  # off the map: the run ends at the check before
+                    self.end = (self.index[max(j - 1, 0)], self.index[j], "left_map")
+                    self.index, self.tilt = self.index[:j], self.tilt[:j]
+                    return True
+                self.tilt.append(float(value))
+                if value > self.tip_angle:
+                    self.end = (self.index[j], self.index[j], "tipped")
+                    self.index = self.index[: j + 1]
+                    return True
+        return False
 
 
 def downhill_drift(
@@ -216,29 +268,20 @@ def run_closed_loop(
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
     r = robot.base.tracks.sprocket_radius
-    mass = float(sim.model.body_subtreemass[0])
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states = np.zeros((steps + 1, 5 + n))
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
-    mu_sim, tilt = np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
+    checks, contacts = TipCheck(problem, loop.tip_angle), []
     now = sim.state()
     state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
-    target, tipped, left, checked = state[-n:].copy(), None, None, 0
+    target = state[-n:].copy()
     t0 = time.perf_counter()
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
-            try:
-                tilt[k] = tilt_off_rest(problem, state[:3], now.G_T_B)
-            except MmstabError:  # the simulated robot left its map: the run ends before
-                left, k = float(t[k]), checked
+            contacts.append((contact_points(sim), sim.data.subtree_com[0].copy()))
+            if checks.record(k, state[:3], now.G_T_B, k == steps) or k == steps:
                 break
-            mu_sim[k], checked = simulated_mu(sim, mass), k
-            if tilt[k] > loop.tip_angle:
-                tipped = float(t[k])
-                break
-        if k == steps:
-            break
         qd, st, _ = step(state, ref[k], params)
         qdots[k], status[k] = np.asarray(qd).ravel(), float(st)
         target = target + qdots[k, 2:] * dt
@@ -246,10 +289,19 @@ def run_closed_loop(
         sprockets = state[3:5] + qdots[k, :2] * dt
         state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
     wall = time.perf_counter() - t0
-    m = k + 1
+    m = (checks.end[0] if checks.end else k) + 1
+    mu_sim, tilt = np.full(m, np.nan), np.full(m, np.nan)
+    mass = float(sim.model.body_subtreemass[0])
+    for j, (i, value) in enumerate(zip(checks.index, checks.tilt, strict=False)):
+        tilt[i], mu_sim[i] = value, simulated_mu(*contacts[j], mass)
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
-                  status[: m - 1], ref[:m], mu_sim[:m], tilt[:m], tipped, wall, dt)  # fmt: skip
-    return dataclasses.replace(run, left_map=left)
+                  status[: m - 1], ref[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
+    end = checks.end
+    return dataclasses.replace(
+        run,
+        tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
+        left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
+    )
 
 
 def _finish(
