@@ -83,8 +83,8 @@ class ModelSettings:
         wheel: road wheels' collision shape (:data:`WHEEL_SHAPES`).
     """
 
-    timestep: float = 0.002
-    solref: tuple[float, float] = (0.006, 1.0)
+    timestep: float = 0.004
+    solref: tuple[float, float] = (0.01, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 10.0
     noslip_iterations: int = 0
@@ -92,14 +92,14 @@ class ModelSettings:
     wheel_mass_fraction: float = 0.25
     suspension_deflection: float = 0.001
     suspension_damping: float = 1.0
-    suspension_armature: float = 0.0
+    suspension_armature: float = 0.2
     track_kv: float = 2000.0
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
     arm_kv: float = 100.0
     arm_armature: float = 0.05
     drop_height: float = 0.001
-    wheel: str = "cylinder"
+    wheel: str = "sphere"
 
 
 def track_wheels(robot: Robot, settings: ModelSettings) -> Wheels:
@@ -205,11 +205,10 @@ def _wheel_xml(name: str, k: int, wheels: Wheels, robot: Robot, s: ModelSettings
     ]
 
 
-#: Road-wheel collision shapes (``docs/physics.md``): ``cylinder``, track-wide (on a plane
-#: two contacts, the rim edges); ``sphere``, one sphere per wheel centred on a rim edge,
-#: alternately the outer and inner one (the end wheels on the outer edge, so the contacts'
-#: hull is the track's outline; one contact each, cheap on a heightfield); ``sphere_pair``,
-#: a sphere on each rim edge (the cylinder's contact lines).
+#: Road-wheel collision shapes (``docs/physics.md``): ``sphere``, one sphere per wheel
+#: centred on the track's outer rim edge (one contact each, on the outline mmstab's support
+#: polygon uses; the cheapest on a heightfield); ``cylinder``, track-wide (two contacts on a
+#: plane, the rim edges); ``sphere_pair``, a sphere on each rim edge (the cylinder's lines).
 WHEEL_SHAPES = ("cylinder", "sphere", "sphere_pair")
 
 
@@ -219,8 +218,7 @@ def _wheel_geoms(name: str, k: int, wheels: Wheels, shape: str, outer: float) ->
     if shape == "cylinder":
         axle = homogeneous(_AXLE_Y, np.zeros(3))
         return [f'<geom name="{name}" type="cylinder" size="{r} {_f(half)}" {_frame(axle)}/>']
-    inner = k % 2 == 1 and k < len(wheels.x) - 1  # both end wheels on the outer edge
-    by_shape = {"sphere": [-outer * half if inner else outer * half], "sphere_pair": [half, -half]}
+    by_shape = {"sphere": [outer * half], "sphere_pair": [half, -half]}
     edges = by_shape.get(shape)
     if edges is None:
         raise MmstabError(f"MuJoCo robot model: wheel must be one of {WHEEL_SHAPES}, not {shape!r}")
