@@ -33,6 +33,14 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
+    if s["arm_ground_contact"] is not None:
+        a = s["arm_ground_contact"]
+        print(
+            f"mmstab: warning: the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
+            f"({100 * a['fraction_of_checks']:.0f} % of the checks): the plan's postures reach "
+            "below the ground (the workspace knows the robot's body only)",
+            file=sys.stderr,
+        )
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)

@@ -36,6 +36,8 @@ def loop_settings(problem: Problem) -> LoopSettings:
         slip_window=float(s["slip_window"]),
         check_dt=float(s["check_dt"]),
         backend=str(s["backend"]),
+        wheel=str(s["wheel"]),
+        timestep=float(s["timestep"]),
     )
 
 
@@ -77,6 +79,8 @@ def run_simulate(
 def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
     """The run's numbers: verdicts, errors, μ predicted against simulated, speed."""
     both = np.isfinite(run.mu_simulated) & np.isfinite(run.mu_predicted)
+    arm = np.zeros(0) if run.arm_ground is None else run.arm_ground
+    checked, touching = np.isfinite(arm), np.flatnonzero(arm == 1)
     diff = run.mu_simulated[both] - run.mu_predicted[both]
     return {
         "duration_s": float(run.t[-1]),
@@ -94,6 +98,12 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "arm_com_error_max_m": float(run.arm_com_error.max()),
         "arm_com_error_final_m": float(run.arm_com_error[-1]),
         "qp_failures": int(np.sum(run.status != 0)),
+        "arm_ground_contact": None
+        if len(touching) == 0
+        else {
+            "first_time_s": float(run.t[touching[0]]),
+            "fraction_of_checks": float(len(touching) / checked.sum()),
+        },
         "mu_predicted_min": float(np.min(run.mu_predicted)),
         "mu_simulated_min": float(np.nanmin(run.mu_simulated)),
         "mu_difference": {

@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from mmstab.control.approach import run_reference
@@ -54,6 +55,9 @@ class LoopSettings:
         slip_window: the window over which it is measured [s].
         check_dt: period of the tip check and the simulated μ [s] (reports, not control).
         backend: ``interpreted`` or ``generated`` (the C step).
+        wheel: the road wheels' collision shape (:data:`~mmstab.physics.robot_model.WHEEL_SHAPES`).
+        timestep: MuJoCo's integration step [s] (the contacts' time constant is kept at
+            2.5 steps at least: MuJoCo needs 2).
     """
 
     control_dt: float = 0.004
@@ -63,6 +67,14 @@ class LoopSettings:
     slip_window: float = 1.0
     check_dt: float = 0.02
     backend: str = "interpreted"
+    wheel: str = "sphere"
+    timestep: float = 0.004
+
+    def model_settings(self) -> ModelSettings:
+        """The MuJoCo model's numbers with this section's wheel shape and step."""
+        base = ModelSettings()
+        solref = (max(base.solref[0], 2.5 * self.timestep), base.solref[1])
+        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref)
 
 
 @dataclass
@@ -87,6 +99,9 @@ class PhysicsRun:
         wall_seconds: wall time of the loop [s].
         left_map: time the simulated robot left the terrain's map [s] (the run ends at the
             check before), or None.
+        arm_ground: 1 where an arm link touches the ground, 0 where none does (every
+            ``check_dt``; NaN between): mmstab's workspace checks the arm against the
+            robot's body only, so a planned posture may reach into the ground.
     """
 
     t: FloatArray
@@ -104,16 +119,40 @@ class PhysicsRun:
     real_time_factor: float
     wall_seconds: float
     left_map: float | None = None
+    arm_ground: FloatArray | None = None
 
 
-def contact_points(sim: RobotSim) -> FloatArray:
-    """MuJoCo's active contact points now, (ncon, 3) in G [m] (a copy).
+#: Wheels this close to the ground [m] count as support in the simulated μ.
+NEAR_GROUND = 0.001
 
-    Every active contact counts (touching or penetrating, loaded or not this instant): the
-    soft contacts' forces flicker step to step as the wheels bounce at the sub-millimetre
-    scale, their set does not.
+
+def contact_points(sim: RobotSim, wheels: list[int]) -> FloatArray:
+    """MuJoCo's contact points now and the wheels' within ``NEAR_GROUND``, (n, 3) in G [m].
+
+    Every active contact counts (touching or penetrating, loaded or not this instant), and
+    every wheel geom (ids ``wheels``) within 1 mm of the ground at its nearest point: the
+    soft contacts open and close step to step as the wheels bounce at the sub-millimetre
+    scale (a sphere wheel's single contact most, when the arm presses on the ground), the
+    set of wheels within 1 mm does not.
     """
-    return np.array(sim.data.contact.pos[: sim.data.ncon])
+    m, d = sim.model, sim.data
+    points = [np.array(d.contact.pos[: d.ncon])]
+    fromto = np.zeros(6)
+    for g in wheels:
+        if mujoco.mj_geomDistance(m, d, g, sim.terrain, NEAR_GROUND, fromto) < NEAR_GROUND:
+            points.append(fromto[3:].copy()[None])
+    return np.concatenate(points)
+
+
+def arm_touches_ground(sim: RobotSim) -> bool:
+    """Whether an arm link's geom touches now (robot geoms collide with the ground only)."""
+    d, m = sim.data, sim.model
+    touching = d.contact.dist[: d.ncon] <= 0  # not the ones listed within the contact gap
+    geoms = np.concatenate(
+        [d.contact.geom1[: d.ncon][touching], d.contact.geom2[: d.ncon][touching]]
+    )
+    arm = [g for g in set(geoms.tolist()) if str(m.geom(g).name).startswith("arm_")]
+    return bool(arm)
 
 
 def simulated_mu(points: FloatArray, com: FloatArray, mass: float) -> float:
@@ -251,13 +290,13 @@ def run_closed_loop(
         ctrl_settings: the controller settings (gains, limits, ``base_offset``, lap time).
         loop: this loop's settings.
         state0: the start state (x, y, heading in M, sprockets, arm) [m, rad].
-        model_settings: the MuJoCo model's numbers (default :class:`ModelSettings`).
+        model_settings: the MuJoCo model's numbers (default: ``loop.model_settings()``).
     """
     from mmstab.control.layout import ControllerParams
 
     robot = problem.robot
     n = robot.arm_joints
-    sim = build_sim(problem, state0, model_settings)
+    sim = build_sim(problem, state0, model_settings or loop.model_settings())
     substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
     dt = substeps * sim.model.opt.timestep
     duration = ctrl_settings.duration if loop.duration is None else loop.duration
@@ -272,6 +311,7 @@ def run_closed_loop(
     states = np.zeros((steps + 1, 5 + n))
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
     checks, contacts = TipCheck(problem, loop.tip_angle), []
+    wheels = [g for g in range(sim.model.ngeom) if sim.model.geom(g).name.startswith("wheel_")]
     now = sim.state()
     state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
     target = state[-n:].copy()
@@ -279,7 +319,8 @@ def run_closed_loop(
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
-            contacts.append((contact_points(sim), sim.data.subtree_com[0].copy()))
+            contacts.append((contact_points(sim, wheels), sim.data.subtree_com[0].copy(),
+                             arm_touches_ground(sim)))  # fmt: skip
             if checks.record(k, state[:3], now.G_T_B, k == steps) or k == steps:
                 break
         qd, st, _ = step(state, ref[k], params)
@@ -290,10 +331,11 @@ def run_closed_loop(
         state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
     wall = time.perf_counter() - t0
     m = (checks.end[0] if checks.end else k) + 1
-    mu_sim, tilt = np.full(m, np.nan), np.full(m, np.nan)
+    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     mass = float(sim.model.body_subtreemass[0])
     for j, (i, value) in enumerate(zip(checks.index, checks.tilt, strict=False)):
-        tilt[i], mu_sim[i] = value, simulated_mu(*contacts[j], mass)
+        points, com, arm[i] = contacts[j]
+        tilt[i], mu_sim[i] = value, simulated_mu(points, com, mass)
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
     end = checks.end
@@ -301,6 +343,7 @@ def run_closed_loop(
         run,
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
+        arm_ground=arm,
     )
 
 

@@ -93,6 +93,7 @@ class RobotSim:
         self.gravity_feedforward = gravity_feedforward
         m = self.model
         self.base = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "base")
+        self.terrain = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "terrain")
         names = [f"arm_{link.name}" for link in robot.links]
         joints = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
         self.arm_qpos = np.array([m.jnt_qposadr[j] for j in joints])
