@@ -85,6 +85,19 @@ def test_downhill_drift_by_hand() -> None:
     for k in range(n):
         driven.append(np.array(plant(driven[-1], qd[k], dt)).ravel())
     assert np.abs(downhill_drift(plant, gravity, np.array(driven), qd, dt, 100)).max() < 1e-12
+    # tracks commanded uphill at 0.05 m/s that slip and climb at half of it: no slide
+    c_, s_ = np.cos(0.3 + np.pi / 2), np.sin(0.3 + np.pi / 2)  # +y_B = uphill, in M
+    climb = states.copy()
+    climb[:, :2] = np.arange(n + 1)[:, None] * 0.00025 * np.array([c_, s_])
+    climb[:, 2] = 0.3 + np.pi / 2  # heading uphill: x_B = +y_B of the first case
+    up = np.tile([-1.0, 0.0, -9.0], (n, 1))  # downhill = -x_B
+    qd_up = np.tile([0.05 / robot.base.tracks.sprocket_radius] * 2 + [0.0] * 4, (n, 1))
+    slipping = downhill_drift(plant, up, climb, qd_up, dt, 100)
+    assert slipping[-1] == pytest.approx(-0.025)  # moved 2.5 cm uphill: A, not A - C
+    # the same tracks sliding back at 0.05 m/s while commanded uphill: the 5 cm it slid
+    back = climb.copy()
+    back[:, :2] = -back[:, :2] * 2
+    assert downhill_drift(plant, up, back, qd_up, dt, 100)[-1] == pytest.approx(0.05)
 
 
 def test_cli_simulate(tmp_path: Path) -> None:

@@ -20,9 +20,10 @@ def _simulate(args: argparse.Namespace) -> int | None:
     check_output_dir(out)
     if args.duration is not None and not args.duration > 0:
         raise MmstabError(f"--duration: must be positive, got {args.duration}")
-    s = run_simulate(problem, out, args.duration)
+    s = run_simulate(problem, out, args.duration, args.arm)
     print(
-        f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller) at "
+        f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller, "
+        f"{s['arm']} arm, {s['model']['wheel']} wheels) at "
         f"{s['real_time_factor']:.1f}x real time; base error max {s['base_error_max_m']:.3f} m, "
         f"arm CoM {s['arm_com_error_max_m']:.3f} m; QP failures {s['qp_failures']}"
     )
@@ -72,5 +73,11 @@ def add_physics_commands(sub: Any) -> None:
     )
     p.add_argument("-o", "--out", default=None, help="output folder (default results/physics)")
     p.add_argument("--duration", type=float, default=None, help="simulated time [s]")
+    p.add_argument(
+        "--arm",
+        choices=["planned", "stowed"],
+        default=None,
+        help="the plan's arm postures or the arm held stowed (default: physics.arm)",
+    )
     p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the robot slides")
     p.set_defaults(handler=_simulate)

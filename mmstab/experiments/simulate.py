@@ -38,6 +38,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
         backend=str(s["backend"]),
         wheel=str(s["wheel"]),
         timestep=float(s["timestep"]),
+        arm=str(s["arm"]),
     )
 
 
@@ -51,13 +52,36 @@ def controller_settings(problem: Problem) -> ControllerSettings:
     return cs
 
 
+def stowed_plan(robot: Any, arm_plan: Any) -> Any:
+    """The plan with the arm held stowed at every pose (the planned arm's peer)."""
+    k = len(arm_plan.fractions)
+    return arm_plan._replace(
+        target_com=np.tile(robot.arm_com(robot.stowed), (k, 1)),
+        postures=np.tile(robot.stowed, (k, 1)),
+        moves=(),
+    )
+
+
 def run_simulate(
-    problem: Problem, out: str | Path | None = None, duration: float | None = None
+    problem: Problem,
+    out: str | Path | None = None,
+    duration: float | None = None,
+    arm: str | None = None,
 ) -> dict[str, Any]:
-    """Plan, run the closed loop in MuJoCo, write the summary and figure (module text)."""
+    """Plan, run the closed loop in MuJoCo, write the summary and figure (module text).
+
+    Args:
+        problem: the problem (its ``physics:`` section).
+        out: output folder.
+        duration: simulated time [s]; None: the section's.
+        arm: ``planned`` or ``stowed`` (the arm held stowed along the path); None: the
+            section's.
+    """
     loop = loop_settings(problem)
     if duration is not None:
         loop = dataclasses.replace(loop, duration=float(duration))
+    if arm is not None:
+        loop = dataclasses.replace(loop, arm=arm)
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
@@ -65,11 +89,14 @@ def run_simulate(
     else:
         step = build_controller(problem.robot, cs).step
     arm_plan = plan(problem)
+    if loop.arm == "stowed":
+        arm_plan = stowed_plan(problem.robot, arm_plan)
     state0 = initial_state(problem.base_path, problem.robot.stowed)
     run = run_closed_loop(problem, arm_plan, step, cs, loop, state0)
     d = output_dir(out, "physics")
     summary = summarize(run, loop)
-    summary["backend"] = loop.backend
+    summary["backend"], summary["arm"] = loop.backend, loop.arm
+    summary["model"] = {"wheel": loop.wheel, "timestep_s": loop.timestep}
     _figure(d / "physics.png", run)
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)

@@ -58,6 +58,7 @@ class LoopSettings:
         wheel: the road wheels' collision shape (:data:`~mmstab.physics.robot_model.WHEEL_SHAPES`).
         timestep: MuJoCo's integration step [s] (the contacts' time constant is kept at
             2.5 steps at least: MuJoCo needs 2).
+        arm: ``planned`` (the plan's postures) or ``stowed`` (the arm held stowed).
     """
 
     control_dt: float = 0.004
@@ -69,6 +70,7 @@ class LoopSettings:
     backend: str = "interpreted"
     wheel: str = "sphere"
     timestep: float = 0.004
+    arm: str = "planned"
 
     def model_settings(self) -> ModelSettings:
         """The MuJoCo model's numbers with this section's wheel shape and step."""
@@ -174,6 +176,53 @@ def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
     return np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
 
 
+def read_back(sim: RobotSim, M_T_G: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(pose (x, y, heading) in M, G_T_B (4, 4), arm angles) now.
+
+    :meth:`RobotSim.state`'s part the loop needs, without its attitude and velocities (it
+    runs every control period).
+    """
+    d, b = sim.data, sim.base
+    G_T_B = np.eye(4)
+    G_T_B[:3, :3], G_T_B[:3, 3] = d.xmat[b].reshape(3, 3), d.xpos[b]
+    M_T_B = M_T_G @ G_T_B
+    pose = np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
+    return pose, G_T_B, d.qpos[sim.arm_qpos]
+
+
+class BufferedStep:
+    """The controller step called through CasADi's buffers: no conversion per call.
+
+    ``step(state, reference, params) -> (qdot, status, objective)`` as a CasADi Function
+    (interpreted or the generated C through ``casadi.external``); a plain callable is
+    called as it is. CasADi's call converts every argument to a DM and back (42 µs a call
+    for the generated step); its buffer evaluation reads and writes NumPy arrays in place
+    (1 µs).
+    """
+
+    def __init__(self, step: Any, n_state: int, n_ref: int, params: FloatArray):
+        self.step, self.params = step, np.ascontiguousarray(params, dtype=float)
+        self.state, self.ref = np.zeros(n_state), np.zeros(n_ref)
+        self.qdot, self.status, self.objective = np.zeros(n_state - 3), np.zeros(1), np.zeros(1)
+        self.evaluate = None
+        if hasattr(step, "buffer"):
+            buf, self.evaluate = step.buffer()
+            for i, a in enumerate((self.state, self.ref, self.params)):
+                buf.set_arg(i, a.data)
+            for i, a in enumerate((self.qdot, self.status, self.objective)):
+                buf.set_res(i, a.data)
+            self._buf = buf  # keeps the buffers alive
+
+    def __call__(self, state: FloatArray, ref: FloatArray) -> tuple[FloatArray, float]:
+        """(qdot (2 + n,) [rad/s], QP status) at ``state`` against ``ref``."""
+        if self.evaluate is None:
+            qd, st, _ = self.step(state, ref, self.params)
+            return np.asarray(qd, dtype=float).ravel(), float(st)
+        self.state[:], self.ref[:] = state, ref
+        self.evaluate()
+        return self.qdot.copy(), float(self.status[0])
+
+
 def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> FloatArray:
     """Angles between simulated chassis z axes and their resting ones on the terrain [rad].
 
@@ -236,10 +285,14 @@ def downhill_drift(
 ) -> FloatArray:
     """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
 
-    Each period's simulated motion minus the kinematic plant's from the same simulated state
+    Each period's simulated motion and the kinematic plant's from the same simulated state
     (what the tracks commanded), projected on the downhill direction at the pose (gravity in
-    B, turned by the heading into M's plane), summed over the last ``window`` periods. A
-    sliding robot drifts downhill; the tracks' servo lag and skid in turns move it either way.
+    B, turned by the heading into M's plane), each summed over the last ``window`` periods:
+    the drift is the simulated sum minus the commanded one, but never more than the simulated
+    sum itself (``min(A - C, A)``). A sliding robot moves downhill (A > 0) beyond the command;
+    the tracks' servo lag and skid in turns move it either way; tracks that slip while they
+    climb (a kerb) fall short of an uphill command (A - C > 0) while the base still moves
+    uphill (A < 0): no slide.
 
     Args:
         plant: :func:`mmstab.control.plant.build_plant` of the robot.
@@ -251,15 +304,20 @@ def downhill_drift(
     """
     n = len(qdots)
     pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
-    err = states[1 : n + 1, :2] - pred[:, :2]
     c, s = np.cos(states[:n, 2]), np.sin(states[:n, 2])
     g = gravity_body[:n]
     down = np.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1]], axis=1)
     norm = np.linalg.norm(down, axis=1, keepdims=True)
-    along = np.sum(err * np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9), 1)
-    acc = np.concatenate([[0.0], np.cumsum(along)])
+    down = np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9)
     lag = np.maximum(np.arange(n + 1) - window, 0)
-    return np.asarray(acc - acc[lag])
+
+    def windowed(motion: FloatArray) -> FloatArray:
+        acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
+        return np.asarray(acc - acc[lag])
+
+    simulated = windowed(states[1 : n + 1, :2] - states[:n, :2])
+    commanded = windowed(pred[:, :2] - states[:n, :2])
+    return np.minimum(simulated - commanded, simulated)
 
 
 def build_sim(problem: Problem, state0: FloatArray, settings: ModelSettings | None) -> RobotSim:
@@ -312,8 +370,9 @@ def run_closed_loop(
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
     checks, contacts = TipCheck(problem, loop.tip_angle), []
     wheels = [g for g in range(sim.model.ngeom) if sim.model.geom(g).name.startswith("wheel_")]
-    now = sim.state()
-    state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
+    controller = BufferedStep(step, 5 + n, ref.shape[1], params)
+    pose, G_T_B, arm_q = read_back(sim, M_T_G)
+    state = np.concatenate([pose, [0.0, 0.0], arm_q])
     target = state[-n:].copy()
     t0 = time.perf_counter()
     for k in range(steps + 1):
@@ -321,14 +380,14 @@ def run_closed_loop(
         if k % every == 0 or k == steps:
             contacts.append((contact_points(sim, wheels), sim.data.subtree_com[0].copy(),
                              arm_touches_ground(sim)))  # fmt: skip
-            if checks.record(k, state[:3], now.G_T_B, k == steps) or k == steps:
+            if checks.record(k, state[:3], G_T_B, k == steps) or k == steps:
                 break
-        qd, st, _ = step(state, ref[k], params)
-        qdots[k], status[k] = np.asarray(qd).ravel(), float(st)
+        qdots[k], status[k] = controller(state, ref[k])
         target = target + qdots[k, 2:] * dt
-        now = sim.step(r * qdots[k, :2], target, dt)
+        sim.advance(r * qdots[k, :2], target, substeps)
         sprockets = state[3:5] + qdots[k, :2] * dt
-        state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
+        pose, G_T_B, arm_q = read_back(sim, M_T_G)
+        state = np.concatenate([pose, sprockets, arm_q])
     wall = time.perf_counter() - t0
     m = (checks.end[0] if checks.end else k) + 1
     mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
