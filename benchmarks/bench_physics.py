@@ -8,7 +8,9 @@ held, on the ramp's plane, on rough.yaml's heightfield (5 cm cells) and on kerb.
 state every 4 ms) on the ramp lap (plane) and along rough.yaml's route (heightfield), with
 the interpreted controller and with the generated C step. Each case runs on the default
 model (the problem's ``physics:`` section: sphere wheels, 4 ms step) and, as the peer in the
-same run, on the model before it (cylinder wheels, 2 ms step). Medians over the repeats.
+same run, on the model before it (cylinder wheels, 2 ms step). Medians over the repeats, of
+the wall-clock factor and of the CPU-time one (simulated time / this process's CPU time:
+the factor on a core of one's own; other jobs on a shared machine slow the wall clock).
 """
 
 from __future__ import annotations
@@ -42,22 +44,24 @@ CYLINDER_2MS = ModelSettings(
 PLANE, ROUGH, KERB = "problems/ramp.yaml", "problems/rough.yaml", "problems/kerb.yaml"
 
 
-def model_alone(problem_path: str, seconds: float, settings: ModelSettings | None) -> float:
-    """Real-time factor of the model driving straight at 0.2 m/s, the arm held."""
+def model_alone(
+    problem_path: str, seconds: float, settings: ModelSettings | None
+) -> tuple[float, float]:
+    """Real-time factors (wall, CPU) of the model driving straight at 0.2 m/s, arm held."""
     problem = load_problem(problem_path)
     pose = initial_state(problem.base_path, problem.robot.stowed)[:3]
     if settings is None:
         settings = loop_settings(problem).model_settings()
     sim = RobotSim(problem.robot, problem.terrain, pose=pose, settings=settings)
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     sim.step((0.2, 0.2), problem.robot.stowed, seconds)
-    return seconds / (time.perf_counter() - t0)
+    return seconds / (time.perf_counter() - t0), seconds / (time.process_time() - cpu0)
 
 
 def closed_loop(
     problem_path: str, seconds: float, backend: str, settings: ModelSettings | None
-) -> float:
-    """Real-time factor of the problem's closed loop (controller included), first seconds."""
+) -> tuple[float, float]:
+    """Real-time factors (wall, CPU) of the problem's closed loop (controller included)."""
     problem = load_problem(problem_path)
     cs = controller_settings(problem)
     loop = dataclasses.replace(loop_settings(problem), duration=seconds)
@@ -68,15 +72,15 @@ def closed_loop(
         step = build_controller(problem.robot, cs).step
     state0 = initial_state(problem.base_path, problem.robot.stowed)
     run = run_closed_loop(problem, app.plan(problem), step, cs, loop, state0, settings)
-    return run.real_time_factor
+    return run.real_time_factor, float(run.t[-1] / (run.cpu_seconds or float("nan")))
 
 
-def cases(seconds: float) -> dict[str, Callable[[], float]]:
+def cases(seconds: float) -> dict[str, Callable[[], tuple[float, float]]]:
     """Every case, by name: ``<what>_<ground>[_<backend>]`` on the default model.
 
     Then the same with ``_cylinder_2ms``: the peer, the model before.
     """
-    out: dict[str, Callable[[], float]] = {}
+    out: dict[str, Callable[[], tuple[float, float]]] = {}
     for suffix, model in (("", None), ("_cylinder_2ms", CYLINDER_2MS)):
         out |= {
             f"model_alone_plane{suffix}": lambda m=model: model_alone(PLANE, seconds, m),
@@ -105,15 +109,17 @@ def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     load_before = machine_info()["load_average"]
-    result = {
-        name: statistics.median(f() for _ in range(args.repeats))
-        for name, f in cases(args.seconds).items()
-    }
-    out = {"real_time_factor": result, "target": 10.0, "seconds": args.seconds,
-           "repeats": args.repeats, "load_average_before": load_before,
+    wall, cpu = {}, {}
+    for name, f in cases(args.seconds).items():
+        runs = [f() for _ in range(args.repeats)]
+        wall[name] = statistics.median(w for w, _ in runs)
+        cpu[name] = statistics.median(c for _, c in runs)
+    out = {"real_time_factor": wall, "real_time_factor_cpu": cpu, "target": 10.0,
+           "seconds": args.seconds, "repeats": args.repeats, "load_average_before": load_before,
            "machine": machine_info(one_core=True)}  # fmt: skip
     write_json(args.out, out)
-    print("real-time factor: " + ", ".join(f"{k} {v:.1f}x" for k, v in result.items()))
+    print("real-time factor (wall, CPU): " + ", ".join(
+        f"{k} {wall[k]:.1f}x {cpu[k]:.1f}x" for k in wall))  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -101,6 +101,8 @@ class PhysicsRun:
         wall_seconds: wall time of the loop [s].
         left_map: time the simulated robot left the terrain's map [s] (the run ends at the
             check before), or None.
+        cpu_seconds: CPU time of this process in the loop [s]: simulated time / it is the
+            real-time factor on a core of one's own (a shared machine slows the wall time).
         arm_ground: 1 where an arm link touches the ground, 0 where none does (every
             ``check_dt``; NaN between): mmstab's workspace checks the arm against the
             robot's body only, so a planned posture may reach into the ground.
@@ -122,6 +124,7 @@ class PhysicsRun:
     wall_seconds: float
     left_map: float | None = None
     arm_ground: FloatArray | None = None
+    cpu_seconds: float | None = None
 
 
 #: Wheels this close to the ground [m] count as support in the simulated μ.
@@ -374,7 +377,7 @@ def run_closed_loop(
     pose, G_T_B, arm_q = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
     target = state[-n:].copy()
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
@@ -388,7 +391,7 @@ def run_closed_loop(
         sprockets = state[3:5] + qdots[k, :2] * dt
         pose, G_T_B, arm_q = read_back(sim, M_T_G)
         state = np.concatenate([pose, sprockets, arm_q])
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
     mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     mass = float(sim.model.body_subtreemass[0])
@@ -403,6 +406,7 @@ def run_closed_loop(
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
         arm_ground=arm,
+        cpu_seconds=cpu,
     )
 
 
