@@ -16,8 +16,8 @@ import mmstab
 from mmstab import app
 from mmstab.control.plant import build_plant
 from mmstab.control.reference import initial_state
-from mmstab.experiments.simulate import controller_settings, loop_settings
-from mmstab.physics.closed_loop import downhill_drift, run_closed_loop
+from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
+from mmstab.physics.closed_loop import TipCheck, downhill_drift, run_closed_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -111,3 +111,41 @@ def test_cli_simulate(tmp_path: Path) -> None:
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["duration_s"] == pytest.approx(1.0) and s["tipped"] is None and s["qp_failures"] == 0
     assert "x real time" in r.stdout and (tmp_path / "physics.png").is_file()
+    assert s["arm"] == "planned" and s["model"] == {"wheel": "sphere", "timestep_s": 0.004}
+    assert s["real_time_factor_cpu"] > 0
+    # a 5.7 deg ramp: mmstab's slip check flags no pose, so the bar covers the whole run
+    assert s["slip_predicted_fraction"] == 0.0 and s["no_slip_predicted_fraction"] == 1.0
+    assert s["base_error_max_where_no_slip_predicted_m"] == s["base_error_max_m"]
+
+
+def test_tip_check_in_batches_finds_the_first_tilted_record() -> None:
+    """Records evaluated 4 at a time: the verdict is the first record over the tip angle."""
+    problem = mmstab.load_problem(ROOT / "problems" / "kerb.yaml")  # a 6 m heightmap
+    checks = TipCheck(problem, tip_angle=0.35, batch=4)
+    poses = np.array([[-2.0 + 0.1 * k, 0.0, 0.0] for k in range(10)])
+    rest = problem.terrain.G_T_B(poses)
+    tilted = rest.copy()
+    c, s_ = np.cos(0.5), np.sin(0.5)
+    tilted[5:, :3, :3] = rest[5:, :3, :3] @ np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])
+    stops = []
+    for k in range(10):  # the loop stops at the first True
+        stops.append(checks.record(10 * k, poses[k], tilted[k], k == 9))
+        if stops[-1]:
+            break
+    assert stops == [False] * 7 + [True]  # evaluated at the 8th record
+    assert checks.end == (50, 50, "tipped") and checks.index == [0, 10, 20, 30, 40, 50]
+    assert np.allclose(checks.tilt[:5], 0.0, atol=1e-9) and checks.tilt[5] == pytest.approx(0.5)
+    off = TipCheck(problem, tip_angle=0.35, batch=2)
+    outside = np.array([[2.0, 0.0, 0.0], [9.0, 0.0, 0.0]])  # the second off the map
+    assert off.record(0, outside[0], rest[0], False) is False
+    assert off.record(7, outside[1], rest[0], False) is True
+    assert off.end == (0, 7, "left_map") and off.index == [0] and len(off.tilt) == 1
+
+
+def test_stowed_plan_holds_the_arm_stowed(ramp) -> None:
+    problem, plan = ramp
+    stowed = stowed_plan(problem.robot, plan)
+    k = len(plan.fractions)
+    assert np.array_equal(stowed.postures, np.tile(problem.robot.stowed, (k, 1)))
+    com = problem.robot.arm_com(problem.robot.stowed)
+    assert np.allclose(stowed.target_com, com) and np.array_equal(stowed.fractions, plan.fractions)

@@ -125,6 +125,7 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "arm_com_error_max_m": float(run.arm_com_error.max()),
         "arm_com_error_final_m": float(run.arm_com_error[-1]),
         "qp_failures": int(np.sum(run.status != 0)),
+        **_where_no_slip(run, loop),
         "arm_ground_contact": None
         if len(touching) == 0
         else {
@@ -143,6 +144,25 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "wall_seconds": run.wall_seconds,
         "real_time_factor_cpu": float(run.t[-1] / run.cpu_seconds) if run.cpu_seconds else None,
     }
+
+
+def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
+    """The base error away from mmstab's predicted slip.
+
+    Where none of the simulated poses of the last ``slip_window`` is flagged by mmstab's
+    slip check (the issue's bar: the routes track where mmstab predicts no slide).
+    """
+    flags = np.zeros(len(run.t), bool) if run.slip_predicted is None else run.slip_predicted
+    dt = run.t[1] - run.t[0] if len(run.t) > 1 else loop.control_dt
+    window = max(int(round(loop.slip_window / dt)), 1)
+    recent = np.convolve(flags.astype(float), np.ones(window))[: len(flags)] > 0
+    clear = ~recent
+    return {
+        "slip_predicted_fraction": float(flags.mean()),
+        "base_error_max_where_no_slip_predicted_m": float(run.base_error[clear].max())
+        if clear.any() else None,
+        "no_slip_predicted_fraction": float(clear.mean()),
+    }  # fmt: skip
 
 
 def _figure(path: Path, run: PhysicsRun) -> None:

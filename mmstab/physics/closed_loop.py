@@ -39,6 +39,7 @@ from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.stability.dynamic import robot_mu
+from mmstab.stability.slip import slip_limit, terrain_friction
 from mmstab.stability.static import contact_force_angle
 from mmstab.terrain.base import GRAVITY_G
 
@@ -101,6 +102,8 @@ class PhysicsRun:
         wall_seconds: wall time of the loop [s].
         left_map: time the simulated robot left the terrain's map [s] (the run ends at the
             check before), or None.
+        slip_predicted: mmstab's slip check at each simulated pose (its resting support
+            tilted beyond atan(friction); :mod:`mmstab.stability.slip`) (N + 1,) bool.
         cpu_seconds: CPU time of this process in the loop [s]: simulated time / it is the
             real-time factor on a core of one's own (a shared machine slows the wall time).
         arm_ground: 1 where an arm link touches the ground, 0 where none does (every
@@ -125,6 +128,7 @@ class PhysicsRun:
     left_map: float | None = None
     arm_ground: FloatArray | None = None
     cpu_seconds: float | None = None
+    slip_predicted: FloatArray | None = None
 
 
 #: Wheels this close to the ground [m] count as support in the simulated μ.
@@ -444,5 +448,6 @@ def _finish(
         arm_com_error=np.linalg.norm(xi_des[:, 3:] - xi[:, 3:], axis=1),
         mu_predicted=np.asarray(mu_pred), mu_simulated=mu_sim, tilt_error=tilt, slip=slip,
         tipped=tipped, slid=float(t[over[0]]) if len(over) else None,
+        slip_predicted=slip_limit(gravity, terrain_friction(problem.terrain)).slides,
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
     )  # fmt: skip
