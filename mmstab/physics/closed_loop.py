@@ -35,12 +35,7 @@ from mmstab.control.approach import run_reference
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
-from mmstab.physics.loop_checks import (
-    TipCheck,
-    arm_touches_ground,
-    contact_points,
-    simulated_mu,
-)
+from mmstab.physics.loop_checks import TipCheck, contact_records, simulated_mu
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.stability.dynamic import robot_mu
@@ -280,8 +275,7 @@ def run_closed_loop(
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states = np.zeros((steps + 1, 5 + n))
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
-    checks, contacts = TipCheck(problem, loop.tip_angle), []
-    wheels = [g for g in range(sim.model.ngeom) if sim.model.geom(g).name.startswith("wheel_")]
+    checks, positions = TipCheck(problem, loop.tip_angle), []
     controller = BufferedStep(step, 5 + n, ref.shape[1], params)
     pose, G_T_B, arm_q = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
@@ -290,8 +284,7 @@ def run_closed_loop(
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
-            contacts.append((contact_points(sim, wheels), sim.data.subtree_com[0].copy(),
-                             arm_touches_ground(sim)))  # fmt: skip
+            positions.append(sim.data.qpos.copy())  # contacts and μ after the run
             if checks.record(k, state[:3], G_T_B, k == steps) or k == steps:
                 break
         qdots[k], status[k] = controller(state, ref[k])
@@ -304,9 +297,10 @@ def run_closed_loop(
     m = (checks.end[0] if checks.end else k) + 1
     mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     mass = float(sim.model.body_subtreemass[0])
-    for j, (i, value) in enumerate(zip(checks.index, checks.tilt, strict=False)):
-        points, com, arm[i] = contacts[j]
-        tilt[i], mu_sim[i] = value, simulated_mu(points, com, mass)
+    for (i, value), (points, com, touches) in zip(
+        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
+    ):
+        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
     end = checks.end

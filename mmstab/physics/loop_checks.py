@@ -6,6 +6,8 @@ measured on and the μ itself; whether the arm touches the ground.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import mujoco
 import numpy as np
 
@@ -35,6 +37,24 @@ def contact_points(sim: RobotSim, wheels: list[int]) -> FloatArray:
         if mujoco.mj_geomDistance(m, d, g, sim.terrain, NEAR_GROUND, fromto) < NEAR_GROUND:
             points.append(fromto[3:].copy()[None])
     return np.concatenate(points)
+
+
+def contact_records(
+    sim: RobotSim, positions: list[FloatArray]
+) -> Iterator[tuple[FloatArray, FloatArray, bool]]:
+    """(contact points (n, 3) [m], CoM (3,) [m], arm on the ground) at recorded ``qpos``.
+
+    After a run: the loop records the generalized positions at its checks only, and the
+    contacts (:func:`contact_points`) and the overall CoM are found here from each, by
+    MuJoCo's position stage (kinematics and collision) on the simulation's data, which
+    they overwrite: the reports cost the loop nothing.
+    """
+    m, d = sim.model, sim.data
+    wheels = [g for g in range(m.ngeom) if m.geom(g).name.startswith("wheel_")]
+    for qpos in positions:
+        d.qpos[:] = qpos
+        mujoco.mj_fwdPosition(m, d)
+        yield contact_points(sim, wheels), d.subtree_com[0].copy(), arm_touches_ground(sim)
 
 
 def arm_touches_ground(sim: RobotSim) -> bool:
