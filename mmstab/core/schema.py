@@ -226,6 +226,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "slip_window": 1.0,
         "check_dt": 0.02,
         "backend": "interpreted",
+        "wheel": "sphere",
+        "timestep": 0.004,
+        "arm": "planned",
     },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",
@@ -352,7 +355,9 @@ ONLINE = obj(
 # The controller in the loop on the whole robot in MuJoCo (mmstab simulate; docs/physics.md):
 # control period [s], simulated time [s] (null: the controller's / the route's), the chassis
 # tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
-# slide, the period of those checks [s], and the controller step's backend.
+# slide, the period of those checks [s], the controller step's backend, the road wheels'
+# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices") and the
+# arm: the plan's postures or held stowed.
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -361,6 +366,9 @@ PHYSICS = obj(
     slip_window=POS,
     check_dt=POS,
     backend={"enum": ["interpreted", "generated"]},
+    wheel={"enum": ["sphere", "cylinder", "sphere_pair"]},
+    timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
+    arm={"enum": ["planned", "stowed"]},
 )
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.
