@@ -22,13 +22,13 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import dijkstra
-from scipy.spatial.distance import cdist
 
 from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
 from mmstab.workspace.roadmap import Roadmap
@@ -158,66 +158,6 @@ def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
             joint_span=max(float(np.ptp(roadmap.nodes_q[reach], axis=0).sum()), 1e-9),
         )
     return views[comp]
-
-
-class MotionCost(NamedTuple):
-    """Eq. 6's motion term between roadmap postures (``planner.motion_cost``).
-
-    Attributes:
-        points: each reach row's point in the cost's space (N, d): its posture [rad]
-            (``joints``: the lattice, L1, distance) or its arm CoM [m] (``com``: Eq. 6's).
-        metric: ``cityblock`` (the distance then squared) or ``sqeuclidean``.
-        weight: the term's weight on the squared distance (normalised by the span).
-    """
-
-    points: FloatArray
-    metric: str
-    weight: float
-
-    def point_of(self, robot: Robot, q: FloatArray) -> FloatArray:
-        """A posture ``q`` [rad] in the cost's space."""
-        return np.asarray(q, dtype=float) if self.metric == "cityblock" else robot.arm_com(q)
-
-    def from_point(self, rows: NDArray[np.intp], point: FloatArray) -> FloatArray:
-        """The term from ``point`` (in the cost's space) to the reach rows ``rows``."""
-        d = cdist(self.points[rows], np.atleast_2d(point), self.metric)[:, 0]
-        return self.weight * (d if self.metric == "sqeuclidean" else d * d)
-
-
-def motion_cost(roadmap: Roadmap, view: ComponentView, settings: PlannerSettings) -> MotionCost:
-    """The motion term of ``settings.motion_cost`` on the component ``view``."""
-    if settings.motion_cost == "joints":  # the lattice distance between postures [rad]
-        points = roadmap.nodes_q[view.reach]
-        return MotionCost(points, "cityblock", settings.w_motion / view.joint_span**2)
-    return MotionCost(view.samples, "sqeuclidean", settings.w_motion / view.diameter**2)
-
-
-def transitions(
-    points: FloatArray,
-    turret: FloatArray,
-    cand: NDArray[np.intp],
-    pairs: list[tuple[int, int]],
-    w: float,
-    window: float | None,
-    metric: str,
-) -> tuple[list[FloatArray], list[NDArray[np.bool_]]]:
-    """The motion term between consecutive poses' candidates, and the allowed moves.
-
-    The term is ``w`` times the squared distance between the candidates' ``points`` (N, d):
-    their CoMs [m] with ``metric`` ``sqeuclidean`` (Eq. 6), their postures [rad] with
-    ``cityblock`` (the lattice distance, then squared); a move is allowed when link0
-    (``turret`` [rad] per node) changes by at most ``window`` [rad] (None: any).
-    """
-    M = cand.shape[1]
-    motion, allowed = [], []
-    for a, b in pairs:
-        d = cdist(points[cand[a]], points[cand[b]], metric)
-        motion.append(w * (d if metric == "sqeuclidean" else d * d))
-        ok = np.ones((M, M), dtype=bool)
-        if window is not None:
-            ok &= np.abs(turret[cand[a]][:, None] - turret[cand[b]]) <= window + 1e-9
-        allowed.append(ok)
-    return motion, allowed
 
 
 def _moves(
@@ -365,7 +305,8 @@ def solve_roadmap_sequence(
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
     clear = NodeClearance(robot, roadmap, reach)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
-    cost = motion_cost(roadmap, view, settings)
+    span = (view.diameter, view.joint_span)
+    cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
     if not closed:
         value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])

@@ -32,6 +32,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import roadmap as rp
 from mmstab.planner.candidates import NodeClearance, route_candidates
 from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPose, HorizonUpdate, Rested, angle_between
 from mmstab.stability.static import mu_max as stowed_flat_mu
@@ -86,7 +87,8 @@ class RoadmapHorizon:
         start = roadmap.connect(robot.stowed, robot)
         self.view = rp.component_view(robot, roadmap, start)
         self.reach, self.samples = self.view.reach, self.view.samples
-        self.cost = rp.motion_cost(roadmap, self.view, settings)
+        span = (self.view.diameter, self.view.joint_span)
+        self.cost = motion_cost(roadmap.nodes_q[self.reach], self.samples, span, settings)
         self.clear = NodeClearance(robot, roadmap, self.reach)
         self.count = min(settings.sequence_candidates, len(self.reach))
         self.candidates: dict[int, Candidates] = {}
@@ -193,7 +195,7 @@ class RoadmapHorizon:
             far = np.abs(turret[cand[0]] - self.roadmap.nodes_q[before, 0]) > window + 1e-9
             value[0] = np.where(far, -np.inf, value[0])
         pairs = [(i, i + 1) for i in range(len(chain) - 1)]
-        motion, allowed = rp.transitions(
+        motion, allowed = transitions(
             cost.points, turret, cand, pairs, cost.weight, window, cost.metric
         )
         path, total = rp.best_sequence(value, motion, allowed, False)
