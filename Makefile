@@ -100,7 +100,7 @@ plan-paper: setup
 
 bench-plan: setup
 	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml --alternatives
-	$(PY) benchmarks/plan_route.py problems/rough.yaml
+	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
@@ -235,10 +235,17 @@ rough: setup
 	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/rough.yaml -o results/rough
 
-## issue 25 (docs/physics.md): the ramp lap in MuJoCo with the controller in the loop -> results/physics/
+## issue 25 (docs/physics.md): the ramp lap and the shipped routes in MuJoCo with the controller
+## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. The routes' planned
+## arm reaches into the ground (the workspace knows the robot's body only): those runs tip
+## (exit 3) and make goes on ("-"); the stowed arm's runs are the routes' tracking in physics.
 .PHONY: physics bench-physics
 physics: setup
-	$(MMSTAB) simulate problems/ramp.yaml -o results/physics
+	$(MMSTAB) simulate problems/ramp.yaml -o results/physics --allow-sliding
+	$(MMSTAB) simulate problems/kerb.yaml -o results/physics/kerb_stowed --arm stowed
+	$(MMSTAB) simulate problems/rough.yaml -o results/physics/rough_stowed --arm stowed --allow-sliding
+	-$(MMSTAB) simulate problems/kerb.yaml -o results/physics/kerb_planned
+	-$(MMSTAB) simulate problems/rough.yaml -o results/physics/rough_planned --allow-sliding
 
 ## real-time factor of the MuJoCo model and the closed loop (one core) -> results/bench/physics.json
 bench-physics: setup
@@ -249,6 +256,7 @@ bench-physics: setup
 online: setup
 	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
 	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding
+	$(PY) -m mmstab.viz.viewer.snapshot problems/rough.yaml results/online results/online/viewer.png 0.45 3.0
 
 ## latency per map of mmstab follow (one core) beside the offline planner -> results/bench/online.json
 bench-online: setup

@@ -83,30 +83,24 @@ def _ompl_query(ss: Any, space: Any, planner: Any, qa: Any, qb: Any, budget: flo
     return ms, _length(np.array([_q(s) for s in states]))
 
 
-def main() -> None:
-    """Run the queries and write the JSON (module text)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("problem", nargs="?", default="problems/rough.yaml")
-    ap.add_argument("--queries", type=int, default=10)
-    ap.add_argument("--budget", type=float, default=2.0, help="OMPL seconds per query")
-    ap.add_argument("--rebuild", action="store_true", help="time a fresh roadmap build")
-    ap.add_argument("--out", default="results/bench/roadmap.json")
-    args = ap.parse_args()
-    problem = load_problem(args.problem)
-    robot = problem.robot
-    ws = load_or_build_workspace(problem, progress=False)
-    if args.rebuild:
-        rm = build_roadmap(robot, ws)
-    else:
-        rm = load_or_build_roadmap(robot, ws)
-    checker = CollisionChecker(robot)
+def query_pairs(robot: Any, rm: Roadmap, queries: int, seed: int = 0) -> np.ndarray:
+    """``queries`` seeded pairs of nodes (queries, 2) in the stowed arm's component."""
     start = rm.connect(robot.stowed, robot)
     comp = np.flatnonzero(rm.component == rm.component[start])
-    rng = np.random.default_rng(0)
-    pairs = rng.choice(comp, (args.queries, 2))
-    rows: dict[str, list[Any]] = {k: [] for k in ("roadmap", "shortcut", "rrtconnect", "prmstar")}
+    return np.random.default_rng(seed).choice(comp, (queries, 2))
+
+
+def compare_queries(
+    robot: Any, rm: Roadmap, pairs: np.ndarray, budget: float
+) -> tuple[dict[str, Any], list[float]]:
+    """Per method (roadmap, shortcut, rrtconnect, prmstar): solved, median ms and length.
+
+    Returns the summary per method and the straight-line length of each pair [rad].
+    """
     from ompl import geometric as og
 
+    checker = CollisionChecker(robot)
+    rows: dict[str, list[Any]] = {k: [] for k in ("roadmap", "shortcut", "rrtconnect", "prmstar")}
     ss, space = _ompl_setup(robot, checker, rm)
     prm = og.PRMstar(ss.getSpaceInformation())
     rrt = og.RRTConnect(ss.getSpaceInformation())
@@ -123,10 +117,10 @@ def main() -> None:
         rows["shortcut"].append(((t2 - t0) * 1e3, _length(cut)))
         ss.setPlanner(rrt)
         rrt.clear()
-        rows["rrtconnect"].append(_ompl_query(ss, space, rrt, qa, qb, args.budget, True))
+        rows["rrtconnect"].append(_ompl_query(ss, space, rrt, qa, qb, budget, True))
         ss.setPlanner(prm)
         prm.clearQuery()
-        rows["prmstar"].append(_ompl_query(ss, space, prm, qa, qb, args.budget, False))
+        rows["prmstar"].append(_ompl_query(ss, space, prm, qa, qb, budget, False))
     summary = {}
     for name, r in rows.items():
         solved = [x for x in r if x[1] is not None]
@@ -136,6 +130,30 @@ def main() -> None:
             "median_length_rad": statistics.median(x[1] for x in solved) if solved else None,
             "per_query": [{"ms": x[0], "length_rad": x[1]} for x in r],
         }
+    return summary, straight
+
+
+def main() -> None:
+    """Run the queries and write the JSON (module text)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("problem", nargs="?", default="problems/rough.yaml")
+    ap.add_argument("--queries", type=int, default=10)
+    ap.add_argument("--budget", type=float, default=2.0, help="OMPL seconds per query")
+    ap.add_argument("--rebuild", action="store_true", help="time a fresh roadmap build")
+    ap.add_argument("--out", default="results/bench/roadmap.json")
+    args = ap.parse_args()
+    problem = load_problem(args.problem)
+    robot = problem.robot
+    ws = load_or_build_workspace(problem, progress=False)
+    if args.rebuild:
+        rm = build_roadmap(robot, ws)
+    else:
+        rm = load_or_build_roadmap(robot, ws)
+    start = rm.connect(robot.stowed, robot)
+    comp = np.flatnonzero(rm.component == rm.component[start])
+    summary, straight = compare_queries(
+        robot, rm, query_pairs(robot, rm, args.queries), args.budget
+    )
     out = {
         "problem": args.problem,
         "queries": args.queries,

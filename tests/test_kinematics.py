@@ -120,3 +120,16 @@ def test_global_com_functions_match_numpy_and_finite_differences(robot, rng):
                 axis=1,
             )
             np.testing.assert_allclose(np.asarray(jac(q, pose)), J_fd, atol=1e-8)
+
+
+def test_a_robot_pickles_after_its_kinematics_were_built(robot) -> None:
+    """Dask sends robots between processes: the CasADi kinematics stay behind."""
+    import copy as copying
+    import pickle
+
+    robot = copying.copy(robot)
+    q = np.array([[0.3, -0.2, 0.4, 0.1], [1.0, 0.5, -0.5, 0.0]])
+    com = robot.arm_com(q)  # builds the CasADi kinematics
+    copy = pickle.loads(pickle.dumps(robot))
+    assert "kinematics" not in copy.__dict__
+    assert np.array_equal(copy.arm_com(q), com)

@@ -19,19 +19,20 @@ from mmstab.experiments.recording import record_route
 from mmstab.model.urdf import robot_to_urdf
 from mmstab.runs.online.follow import build_follower
 from mmstab.runs.online.run import follow_recording
-from mmstab.runs.online.stream import ODOMETRY, map_updates
+from mmstab.runs.online.stream import ODOMETRY, map_updates, odometry_of
 from mmstab.runs.recording import TOPICS, RunFrames, joint_names, write_run
+from mmstab.runs.store import load_run
 from mmstab.terrain.gridmap import GRIDMAP, typestore
 from mmstab.terrain.recording import messages
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def problem_file(tmp_path: Path, **record: float) -> Path:
-    """problems/rough.yaml with the given ``online.record`` settings."""
+def problem_file(tmp_path: Path, planner: str = "roadmap", **record: float) -> Path:
+    """problems/rough.yaml with the given ``online.record`` settings and online planner."""
     data = yaml.safe_load((ROOT / "problems" / "rough.yaml").read_text())
     data["robot"] = str(ROOT / "problems" / "robots" / "cameleon.yaml")
-    data["online"] = {"record": dict(record)}
+    data["online"] = {"record": dict(record), "planner": planner}
     path = tmp_path / "rough.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
@@ -91,6 +92,68 @@ def test_follow_reproduces_the_offline_plan_where_the_map_agrees(
     assert s["planned_collision_free"] == s["planned_poses"]
     assert (tmp_path / "online.png").is_file() and (tmp_path / "online.mcap").is_file()
     assert json.loads((tmp_path / "summary.json").read_text())["updates"] == 81
+    # the viewer replays the run: a stored run of this problem, frame for frame
+    replay = load_run(tmp_path, problem)
+    st = [x for x in follow_recording(problem, path).steps if x.covered]
+    assert replay.samples == len(st) == 81
+    assert np.allclose(replay.poses, [x.pose for x in st])
+    assert np.allclose(replay.q, [x.q for x in st])
+    assert np.allclose(replay.mu["planned"], [x.mu for x in st], rtol=1e-9)  # μ the loop gave
+    assert (replay.mu["stowed"] < replay.mu["arm removed"]).all()  # the stowed arm hangs back
+    route = problem.route
+    planned_s = [r["s_m"] for r in off["per_pose"]]
+    assert route is not None and np.allclose(route.s_at(replay.plan_fractions), planned_s)
+
+
+def test_the_warm_planner_online_reproduces_its_offline_plan(
+    clean: tuple[mmstab.Problem, Path], tmp_path: Path
+) -> None:
+    _, path = clean  # the same recording, planned by CMA-ES in V (online.planner: warm)
+    problem = mmstab.load_problem(problem_file(tmp_path, "warm", noise=0.0, unknown=0.0))
+    s = run_follow(problem, path, tmp_path, limit=50)
+    off = s["offline"]
+    assert s["qp_failures"] == 0 and s["planned_collision_free"] == s["planned_poses"] >= 3
+    assert off["agreeing_poses"] == off["poses"] and off["relative_difference"]["max"] <= 0.02
+
+
+def test_online_roadmap_moves_are_collision_free_and_the_reference_follows_them(
+    clean: tuple[mmstab.Problem, Path],
+) -> None:
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.runs.online.roadmap_horizon import RoadmapHorizon, along
+
+    problem, path = clean
+    follower = build_follower(problem)
+    horizon = follower.horizon
+    assert isinstance(horizon, RoadmapHorizon)
+    steps = [
+        follower.update(u) for u in map_updates(path, "/elevation_mapping/elevation_map", "/odom")
+    ]
+    checker, roadmap = CollisionChecker(problem.robot), horizon.roadmap
+    ks = sorted(horizon.plans)
+    assert len(ks) >= 5 and ks == list(range(ks[0], ks[-1] + 1))
+    for k in ks:
+        move = horizon.move(k)
+        start = horizon.plans[k - 1].q if k - 1 in horizon.plans else problem.robot.stowed
+        assert np.allclose(move[0], start) and np.allclose(move[-1], horizon.plans[k].q)
+        for a, b in zip(move[:-1], move[1:], strict=True):  # every segment checked with FCL
+            assert roadmap.move_is_free(checker, a, b)
+        assert np.allclose(along(move, 0.0), move[0]) and np.allclose(along(move, 1.0), move[-1])
+    # between two planned poses the posture reference lies on the move into the second
+    k = ks[len(ks) // 2]
+    a, b = horizon.plans[k - 1].s, horizon.plans[k].s
+    _, q_ref, _ = horizon.reference(0.25 * a + 0.75 * b, b - a)
+    assert q_ref is not None and np.allclose(q_ref, along(horizon.move(k), 0.75))
+    assert all(x.status == 0 for x in steps)
+
+
+def test_along_a_polyline() -> None:
+    from mmstab.runs.online.roadmap_horizon import along
+
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 3.0]])  # length 4
+    assert np.allclose(along(path, 0.125), [0.5, 0.0])
+    assert np.allclose(along(path, 0.5), [1.0, 1.0])
+    assert np.allclose(along(path[:1], 0.7), [0.0, 0.0])
 
 
 def test_the_same_recording_gives_the_same_answers(clean: tuple[mmstab.Problem, Path]) -> None:
@@ -134,6 +197,85 @@ def test_maps_before_odometry_are_skipped_and_frames_must_match(tmp_path: Path) 
     assert counts[0] == 5 and first.time == pytest.approx(0.5)
     with pytest.raises(mmstab.ConfigError, match="map in 'odom' but odometry in 'map'"):
         list(ups)
+
+
+def test_a_map_in_another_frame_takes_the_odometry_through_tf(tmp_path: Path) -> None:
+    from mmstab.runs.online.frames import pose_matrix
+    from mmstab.runs.recording import transform_stamped
+
+    problem = mmstab.load_problem(problem_file(tmp_path, noise=0.0, unknown=0.0))
+    path = tmp_path / "r.mcap"
+    record_route(problem, path, 1.0)
+    store = typestore(False)
+    msgs = list(messages(path, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
+    truth = [
+        u.odometry.pose for u in map_updates(path, "/elevation_mapping/elevation_map", "/odom")
+    ]
+    map_T_site = pose_matrix(np.array([1.0, -2.0, 0.3]))  # static: map -> site
+    site_T_odom = pose_matrix(np.array([-0.5, 0.7, -1.1]))  # moving: site -> odom
+    odom_T_map = np.linalg.inv(map_T_site @ site_T_odom)
+    tf_type = "tf2_msgs/msg/TFMessage"
+    out = tmp_path / "tf.mcap"
+    with BagWriter(out, store) as w:
+        static = transform_stamped(store, False, 0.0, "map", "site", map_T_site)
+        w.write("/tf_static", tf_type, 0.0, store.types[tf_type](transforms=[static]))
+        for m in msgs:
+            if m.topic == "/odom":  # the odometry in its own frame, the map stays in 'map'
+                moving = transform_stamped(store, False, m.time, "site", "odom", site_T_odom)
+                w.write("/tf", tf_type, m.time, store.types[tf_type](transforms=[moving]))
+                pp = m.message.pose.pose
+                T = odom_T_map @ pose_matrix(odometry_of(m.time, m.message).pose)
+                pp.position.x, pp.position.y = T[0, 3], T[1, 3]
+                h = np.arctan2(T[1, 0], T[0, 0]) / 2
+                q = pp.orientation  # the heading alone: the loop reads no more of it
+                q.x, q.y, q.z, q.w = 0.0, 0.0, np.sin(h), np.cos(h)
+                m.message.header.frame_id = "odom"
+            else:
+                m.message.header.frame_id = "map"
+            w.write(m.topic, m.msgtype, m.time, m.message)
+    got = list(map_updates(out, "/elevation_mapping/elevation_map", "/odom"))
+    assert len(got) == len(truth) and all(u.odometry.frame_id == "map" for u in got)
+    for u, pose in zip(got, truth, strict=True):  # back in the map's frame
+        assert np.allclose(u.odometry.pose[:2], pose[:2], atol=1e-9)
+        assert np.isclose(np.angle(np.exp(1j * (u.odometry.pose[2] - pose[2]))), 0.0, atol=1e-9)
+
+
+def with_joint_states(src: Path, out: Path, names: list[str], q: np.ndarray) -> None:
+    """``src``'s maps and odometry, and a ``/joint_states`` message with each odometry."""
+    store = typestore(False)
+    msgs = list(messages(src, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
+    with BagWriter(out, store) as w:
+        for m in msgs:
+            w.write(m.topic, m.msgtype, m.time, m.message)
+            if m.topic == "/odom":
+                js = store.types["sensor_msgs/msg/JointState"](
+                    header=m.message.header, name=names, position=np.array(q, dtype=float),
+                    velocity=np.zeros(0), effort=np.zeros(0),
+                )  # fmt: skip
+                w.write("/joint_states", "sensor_msgs/msg/JointState", m.time, js)
+
+
+def test_measured_joint_states_replace_the_integrated_posture(
+    clean: tuple[mmstab.Problem, Path], tmp_path: Path
+) -> None:
+    problem, path = clean
+    robot = problem.robot
+    names = joint_names(robot)
+    held = np.array(robot.stowed, dtype=float)  # the arm reports it never left the stow
+    rec = tmp_path / "joints.mcap"
+    with_joint_states(path, rec, names[::-1], held[::-1])  # any order: picked by name
+    data = yaml.safe_load(problem.path.read_text())
+    data["online"]["joints_topic"] = "/joint_states"
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(data))
+    measured = follow_recording(mmstab.load_problem(tmp_path / "p.yaml"), rec, limit=30)
+    integrated = follow_recording(problem, rec, limit=30)
+    assert all(x.measured and np.array_equal(x.q, held) for x in measured.steps)
+    assert not any(x.measured for x in integrated.steps)
+    assert max(np.abs(x.q - held).max() for x in integrated.steps) > 0.05  # the arm moved
+    bad = tmp_path / "bad.mcap"
+    with_joint_states(path, bad, names[:-1], held[:-1])
+    with pytest.raises(mmstab.ConfigError, match=f"no joint '{names[-1]}'"):
+        follow_recording(mmstab.load_problem(tmp_path / "p.yaml"), bad, limit=3)
 
 
 @pytest.mark.parametrize("name", ["run.mcap", "run.bag", "run_dir"])

@@ -11,12 +11,15 @@ solves the contacts with that damping (``ModelSettings.integrator``; docs/physic
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import PROBLEMS
 
 mujoco = pytest.importorskip("mujoco")
 
+from mmstab.experiments.verdicts import load_settings, sim_settings  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
 from mmstab.physics.robot_model import ModelSettings  # noqa: E402
 from mmstab.physics.robot_sim import RobotSim  # noqa: E402
@@ -29,9 +32,10 @@ from mmstab.physics.verdict_sim import (  # noqa: E402
 from mmstab.terrain.base import GRAVITY_G  # noqa: E402
 
 FRICTION = 0.7
-#: The verdict grid's rigid model (problems/verdicts.yaml): stiff brakes, no suspension.
-RIGID = ModelSettings(suspension_deflection=0.0, track_kv=2.0e5, integrator="discrete")
-IMPLICITFAST = ModelSettings(suspension_deflection=0.0, track_kv=2.0e5)
+#: The verdict grid's rigid model (problems/verdicts.yaml): stiff brakes, no suspension,
+#: the discrete integrator; and the same on implicitfast.
+RIGID = sim_settings(load_settings(PROBLEMS / "verdicts.yaml"))["rigid"].model
+IMPLICITFAST = dataclasses.replace(RIGID, integrator="implicitfast")
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +62,8 @@ def normal_forces(robot, settings, slope, heading, hold=0.5):
 
 def test_integrator_setting(cameleon):
     """The default stays ``implicitfast``; the setting reaches the compiled model."""
-    assert ModelSettings().integrator == "implicitfast"
+    assert ModelSettings().integrator == "implicitfast" and RIGID.integrator == "discrete"
+    assert RIGID.suspension_deflection == 0.0 and RIGID.track_kv == 2.0e5
     default = RobotSim(cameleon, settings=IMPLICITFAST).model.opt.integrator
     assert default == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert RobotSim(cameleon, settings=RIGID).model.opt.integrator == (

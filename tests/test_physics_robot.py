@@ -13,6 +13,7 @@ from scipy.optimize import brentq, fsolve
 
 mujoco = pytest.importorskip("mujoco")
 
+from mmstab.core.files import MmstabError  # noqa: E402
 from mmstab.model.payload import Payload, attach_payload  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
 from mmstab.model.urdf import arm_link_inertia, base_link_inertias  # noqa: E402
@@ -147,6 +148,28 @@ def test_model_parts_and_actuators(cameleon):
     assert np.allclose(sim.data.geom_xmat[g].reshape(3, 3), box.frame_T_shape[:3, :3])
 
 
+@pytest.mark.parametrize("wheel", ["sphere", "cylinder", "sphere_pair"])
+def test_wheel_shapes_touch_on_the_rim_edges(cameleon, wheel):
+    """At rest on the floor the wheels touch on their rim edges (EDGES) only, < 1 mm deep.
+
+    Nearly all of them at any instant (the soft contacts flicker: one may be open).
+    """
+    sim = RobotSim(cameleon, settings=ModelSettings(wheel=wheel))
+    sim.step((0.0, 0.0), None, 0.5)
+    d, t = sim.data, cameleon.base.tracks
+    points = np.array(d.contact.pos[: d.ncon])
+    expected = 2 * len(EDGES[wheel]) * len(track_wheels(cameleon, ModelSettings()).x)
+    assert 0.9 * expected <= d.ncon <= expected
+    ys = {round(s * (t.separation / 2 + e * t.width / 2), 6) for s in (1, -1) for e in EDGES[wheel]}
+    assert set(np.round(points[:, 1], 3)) == {round(y, 3) for y in ys}
+    assert np.all(points[:, 2] > -1e-3) and np.all(points[:, 2] < 1e-3)
+
+
+def test_unknown_wheel_shape_is_refused(cameleon):
+    with pytest.raises(MmstabError, match="wheel must be one of"):
+        build_robot_mjcf(cameleon, settings=ModelSettings(wheel="tyre"))
+
+
 def test_arm_holds_and_follows_targets(cameleon):
     sim = RobotSim(cameleon, arm_q=cameleon.stowed)
     held = sim.step((0.0, 0.0), None, 1.0)
@@ -245,16 +268,21 @@ def test_tips_at_the_predicted_slope(cameleon):
 
 
 # ------------------------------------------------------------------------------- driving
-def coulomb_turn_ratio(robot, left, right, friction=DEFAULT_FRICTION):
+#: Where each wheel shape touches a plane across its track: rim edges, +1 = outer [-].
+EDGES = {"sphere": (1,), "cylinder": (-1, 1), "sphere_pair": (-1, 1)}
+
+
+def coulomb_turn_ratio(robot, left, right, wheel="sphere", friction=DEFAULT_FRICTION):
     """Yaw rate / (right - left) / b of a rigid skid-steer on Coulomb friction.
 
-    The contacts of the model (each wheel's two rim edges, both tracks) carry equal loads;
-    each pushes against its slip velocity (chassis velocity + belt velocity) with mu N. The
-    steady state (vx, vy, yaw rate) balances forces and yaw moment.
+    The contacts of the model (each wheel's contacts on its rim edges: the outer one for
+    spheres, both for cylinders; both tracks) carry equal loads; each pushes against its
+    slip velocity (chassis velocity + belt velocity) with mu N. The steady state (vx, vy,
+    yaw rate) balances forces and yaw moment.
     """
     t = robot.base.tracks
     xs = track_wheels(robot, ModelSettings()).x
-    ys = [s * (t.separation / 2 + e * t.width / 2) for s in (1, -1) for e in (-1, 1)]
+    ys = [s * (t.separation / 2 + e * t.width / 2) for s in (1, -1) for e in EDGES[wheel]]
     P = np.array([(x, y) for y in ys for x in xs])
     belt = np.where(P[:, 1] > 0, left, right)
 
@@ -270,9 +298,9 @@ def coulomb_turn_ratio(robot, left, right, friction=DEFAULT_FRICTION):
     return w / ideal
 
 
-def drive(robot, left, right, spin_up=1.0, duration=2.0):
+def drive(robot, left, right, wheel="sphere", spin_up=1.0, duration=2.0):
     """Mean base speed [m/s] and yaw rate [rad/s] over ``duration`` after ``spin_up``."""
-    sim = RobotSim(robot)
+    sim = RobotSim(robot, settings=ModelSettings(wheel=wheel))
     sim.step((0.0, 0.0), None, 0.5)
     a = sim.step((left, right), None, spin_up)
     b = sim.step((left, right), None, duration)
@@ -281,15 +309,17 @@ def drive(robot, left, right, spin_up=1.0, duration=2.0):
     return distance / duration, turn / duration, b
 
 
+@pytest.mark.parametrize("wheel", ["sphere", "cylinder"])
 @pytest.mark.parametrize("speed", [0.3, 0.6])
-def test_straight_line_at_the_commanded_speed(cameleon, speed):
-    v, w, end = drive(cameleon, speed, speed)
-    report(track_speed=speed, speed_ratio=v / speed, yaw_rate=w)
+def test_straight_line_at_the_commanded_speed(cameleon, speed, wheel):
+    v, w, end = drive(cameleon, speed, speed, wheel)
+    report(track_speed=speed, speed_ratio=v / speed, yaw_rate=w, lateral=end.velocity_body[1])
     assert abs(v / speed - 1.0) < 0.1
     assert abs(w) < 0.01 and abs(end.velocity_body[1]) < 0.01
 
 
-def test_pivot_turn_rate(cameleon):
+@pytest.mark.parametrize("wheel", ["sphere", "cylinder"])
+def test_pivot_turn_rate(cameleon, wheel):
     """Left = -right = 0.3 m/s: the yaw rate against the ideal 2 v / b.
 
     Skid-steer loses some: the tracks slide sideways at their ends, so the belts also slip.
@@ -298,9 +328,9 @@ def test_pivot_turn_rate(cameleon):
     the arm stowed), so B's origin drifts on a circle of that order (< 10 cm).
     """
     v = 0.3
-    speed, w, _ = drive(cameleon, -v, v)
+    speed, w, _ = drive(cameleon, -v, v, wheel)
     ideal = 2 * v / cameleon.base.tracks.separation
-    coulomb = coulomb_turn_ratio(cameleon, -v, v)
+    coulomb = coulomb_turn_ratio(cameleon, -v, v, wheel)
     radius = speed / abs(w)
     report(yaw_rate=w, ideal=ideal, ratio=w / ideal, coulomb_ratio=coulomb, radius=radius)
     assert abs(w / ideal - coulomb) < 0.1
@@ -308,11 +338,12 @@ def test_pivot_turn_rate(cameleon):
     assert radius < 0.1
 
 
-def test_one_track_turn_rate(cameleon):
+@pytest.mark.parametrize("wheel", ["sphere", "cylinder"])
+def test_one_track_turn_rate(cameleon, wheel):
     """Left braked, right 0.4 m/s: yaw rate and forward speed against the Coulomb model."""
-    speed, w, _ = drive(cameleon, 0.0, 0.4)
+    speed, w, _ = drive(cameleon, 0.0, 0.4, wheel)
     ideal = 0.4 / cameleon.base.tracks.separation
-    coulomb = coulomb_turn_ratio(cameleon, 0.0, 0.4)
+    coulomb = coulomb_turn_ratio(cameleon, 0.0, 0.4, wheel)
     report(yaw_rate=w, ratio=w / ideal, coulomb_ratio=coulomb)
     assert abs(w / ideal - coulomb) < 0.1
 

@@ -184,6 +184,8 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     except NoPlanError as e:
         return record | {"planned": False, "error": str(e)}
     record["plan_seconds"] = time.perf_counter() - t0
+    # the search's own time per pose (the roadmap warm after the first pair; no IK)
+    record["plan_ms_per_pose"] = 1e3 * float(np.median(plan.search_seconds))
     below = plan.mu_planned < plan.mu_stowed - MU_RTOL * np.abs(plan.mu_stowed)
     record |= {
         "planned": True,
@@ -306,6 +308,9 @@ def test_the_full_set_of_random_routes(tmp_path):
             f"{MIN_CLEARANCE} m; at least one pivot turn"
         ),
         "seconds_total": sum(p["seconds"] for p in pairs),
+        "plan_ms_per_pose_median": float(
+            np.median([p["plan_ms_per_pose"] for p in pairs if "plan_ms_per_pose" in p])
+        ),
         "results": pairs,
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -341,3 +346,22 @@ def test_a_polyline_reference_stays_on_its_moves_and_rests_at_each_knot(rng):
     np.testing.assert_allclose(path(0.2), 0.5 * (q[0] + q[1]), atol=1e-12)
     np.testing.assert_allclose(path(np.array([0.0, 0.4, 1.0]), 1), 0.0, atol=1e-12)
     np.testing.assert_allclose(path(1.0), q[2], atol=1e-12)
+
+
+def test_roadmap_knots_give_every_piece_the_same_peak_acceleration(robot):
+    """Pieces 0.05-1 rad long, filling one interval: equal smoothstep accelerations 6 Δ / h²
+    (pair 5 overshot the end of a 0.05 rad piece placed by its time at the speed limit)."""
+    from mmstab.control.posture import roadmap_knots
+
+    steps = np.array([1.0, 0.05, 0.4, 0.2])
+    move = np.zeros((5, 4))
+    move[:, 0] = 0.5 + np.r_[0.0, np.cumsum(steps)]
+    postures = np.vstack([move[0], move[-1]])
+    f, q = roadmap_knots(robot, np.array([0.0, 0.5]), postures, (move[[0]], move))
+    np.testing.assert_allclose(
+        f, [0.0, *(0.5 * np.cumsum(np.sqrt(steps))[:-1] / np.sqrt(steps).sum()), 0.5]
+    )
+    np.testing.assert_allclose(q, move, atol=1e-12)
+    h = np.diff(f)
+    accel = 6 * steps / h**2
+    np.testing.assert_allclose(accel, accel[0], rtol=1e-9)

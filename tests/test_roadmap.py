@@ -281,3 +281,42 @@ def test_shortcuts_keep_the_move_clearance(robot, small):
             u = np.linspace(0.0, 1.0, 200)[:, None]
             assert checker.clearance(qa + u * (qb - qa)).min() >= MOVE_CLEARANCE
     assert cuts > 0
+
+
+@pytest.mark.parametrize("cost", ["joints", "com"])
+def test_the_motion_cost_is_the_lattice_distance_or_eq6(robot, small, cost):
+    """Each pose's reported fitness: the stability term minus the motion cost of its move."""
+    _, rm = small
+    tilt = np.linspace(0.0, 0.5, 5)
+    g = -9.81 * np.column_stack([np.sin(tilt), 0.4 * np.sin(tilt), np.cos(tilt)])
+    s = PlannerSettings.from_section(yaml.safe_load(ROUGH.read_text())["planner"])
+    s = s._replace(method="roadmap", motion_cost=cost, w_stability=0.5, w_motion=0.5)
+    seq = solve_roadmap_sequence(robot, g, rm, s, mu_max(robot), False, np.zeros((5, 3)))
+    reach = rm.component == rm.component[rm.connect(robot.stowed, robot)]
+    if cost == "joints":
+        before = np.vstack([robot.stowed, seq.postures[:-1]])
+        span = np.ptp(rm.nodes_q[reach], axis=0).sum()
+        moved = (np.abs(seq.postures - before).sum(axis=1) / span) ** 2
+    else:
+        before = np.vstack([robot.arm_com(robot.stowed), seq.com[:-1]])
+        coms = robot.arm_com(rm.nodes_q[reach])
+        moved = np.sum((seq.com - before) ** 2, axis=1) / np.ptp(coms, axis=0).max() ** 2
+    expected = 0.5 * seq.mu / mu_max(robot) - 0.5 * moved
+    np.testing.assert_allclose(seq.fitness, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_astar_moves_are_shortest_roadmap_paths(small):
+    """A* with the L1 heuristic: a path of edges as short as Dijkstra's, pair by pair."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from mmstab.planner.roadmap import astar
+
+    _, rm = small
+    comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    edges = {tuple(e) for e in np.sort(rm.edges, axis=1).tolist()}
+    for a, b in np.random.default_rng(8).choice(comp, (12, 2)):
+        path = astar(rm, int(a), int(b))
+        assert path is not None and path[0] == a and path[-1] == b
+        assert all(tuple(sorted(e)) in edges for e in zip(path[:-1], path[1:], strict=True))
+        length = np.abs(np.diff(rm.nodes_q[path], axis=0)).sum()
+        assert length == pytest.approx(dijkstra(rm.graph, indices=int(a))[b], rel=1e-12)

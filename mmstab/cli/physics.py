@@ -20,10 +20,12 @@ def _simulate(args: argparse.Namespace) -> int | None:
     check_output_dir(out)
     if args.duration is not None and not args.duration > 0:
         raise MmstabError(f"--duration: must be positive, got {args.duration}")
-    s = run_simulate(problem, out, args.duration)
+    s = run_simulate(problem, out, args.duration, args.arm)
     print(
-        f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller) at "
-        f"{s['real_time_factor']:.1f}x real time; base error max {s['base_error_max_m']:.3f} m, "
+        f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller, "
+        f"{s['arm']} arm, {s['model']['wheel']} wheels) at "
+        f"{s['real_time_factor']:.1f}x real time ({s['real_time_factor_cpu']:.1f}x in CPU time); "
+        f"base error max {s['base_error_max_m']:.3f} m, "
         f"arm CoM {s['arm_com_error_max_m']:.3f} m; QP failures {s['qp_failures']}"
     )
     d = s["mu_difference"]
@@ -33,6 +35,14 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
+    if s["arm_ground_contact"] is not None:
+        a = s["arm_ground_contact"]
+        print(
+            f"mmstab: warning: the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
+            f"({100 * a['fraction_of_checks']:.0f} % of the checks): the plan's postures reach "
+            "below the ground (the workspace knows the robot's body only)",
+            file=sys.stderr,
+        )
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)
@@ -64,5 +74,11 @@ def add_physics_commands(sub: Any) -> None:
     )
     p.add_argument("-o", "--out", default=None, help="output folder (default results/physics)")
     p.add_argument("--duration", type=float, default=None, help="simulated time [s]")
+    p.add_argument(
+        "--arm",
+        choices=["planned", "stowed"],
+        default=None,
+        help="the plan's arm postures or the arm held stowed (default: physics.arm)",
+    )
     p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the robot slides")
     p.set_defaults(handler=_simulate)

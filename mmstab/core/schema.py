@@ -134,6 +134,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             restarts={"type": "integer", "minimum": 0, "maximum": 8},
             turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
+            motion_cost={"enum": ["com", "joints"]},  # method roadmap's motion term
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
         # optional: flipper angles searched per pose between the robot's flipper limits,
@@ -214,6 +215,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "restarts": 0,
         "turret_window": None,
         "sequence_candidates": 256,
+        "motion_cost": "joints",
     },
     "workspace": {"method": "hull_difference"},
     "physics": {
@@ -224,12 +226,17 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "slip_window": 1.0,
         "check_dt": 0.02,
         "backend": "interpreted",
+        "wheel": "sphere",
+        "timestep": 0.004,
+        "arm": "planned",
     },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",
         "odom_topic": "/odom",
         "horizon": 2.0,
         "replan_tol": 0.01,
+        "planner": "roadmap",
+        "joints_topic": None,
         "record": {
             "rate": 10.0,
             "window": 6.0,
@@ -322,14 +329,18 @@ LEVERS: dict[str, Any] = with_optional(
 )
 
 # Online mode (mmstab follow, mmstab record; docs/online.md): topics, the receding horizon
-# [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, and the
-# generated recording: map rate [Hz], window side [m], sensor range [m], height noise (RMS)
-# [m], fraction of cells dropped as unknown, odometry rate [Hz], seed.
+# [m] ahead of the robot, the gravity change [rad] that re-plans a horizon pose, how a pose
+# is planned (roadmap: nodes of the posture roadmap; warm: CMA-ES in V), the arm's measured
+# JointState topic (null: the loop integrates its commands), and the generated recording:
+# map rate [Hz], window side [m], sensor range [m], height noise (RMS) [m], fraction of
+# cells dropped as unknown, odometry rate [Hz], seed.
 ONLINE = obj(
     map_topic={"type": "string", "pattern": "^/"},
     odom_topic={"type": "string", "pattern": "^/"},
     horizon=POS,
     replan_tol=POS,
+    planner={"enum": ["roadmap", "warm"]},
+    joints_topic={"oneOf": [{"type": "null"}, {"type": "string", "pattern": "^/"}]},
     record=obj(
         rate={"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         window={"type": "number", "exclusiveMinimum": 0, "maximum": 100},
@@ -344,7 +355,9 @@ ONLINE = obj(
 # The controller in the loop on the whole robot in MuJoCo (mmstab simulate; docs/physics.md):
 # control period [s], simulated time [s] (null: the controller's / the route's), the chassis
 # tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
-# slide, the period of those checks [s], and the controller step's backend.
+# slide, the period of those checks [s], the controller step's backend, the road wheels'
+# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices") and the
+# arm: the plan's postures or held stowed.
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -353,6 +366,9 @@ PHYSICS = obj(
     slip_window=POS,
     check_dt=POS,
     backend={"enum": ["interpreted", "generated"]},
+    wheel={"enum": ["sphere", "cylinder", "sphere_pair"]},
+    timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
+    arm={"enum": ["planned", "stowed"]},
 )
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.

@@ -3,7 +3,9 @@
 Writes to the output folder: ``summary.json`` (the run's numbers, the settings, the
 comparison with the offline plan), ``online.mcap`` (the run as a recording: joint states,
 TF, μ, the support polygon coloured by μ; :mod:`mmstab.runs.recording`) and ``online.png``
-(μ along the route, online and offline; the latency per map).
+(μ along the route, online and offline; the latency per map), and the run in the form of a
+tracking run (``run.npz`` and ``problem.yaml``, :mod:`mmstab.runs.store`), so that the
+browser viewer replays it: ``mmstab view PROBLEM --run OUT``.
 
 The offline plan is the same warm-started planner over the same route poses on the
 problem's own terrain, all poses at once (:func:`mmstab.planner.warm_start.solve_route`).
@@ -16,42 +18,82 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from mmstab.core.files import MmstabError, write_figure, write_json
+from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
+from mmstab.experiments.common import save_settings
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm_start import RoutePlan, solve_route
+from mmstab.planner.warm_start import solve_route
 from mmstab.runs.online.follow import FollowSettings
 from mmstab.runs.online.horizon import angle_between
 from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summarize
 from mmstab.runs.recording import write_run
 from mmstab.stability.static import mu_max as stowed_flat_mu
+from mmstab.stability.static import robot_force_angle
 from mmstab.workspace import Workspace
 
 #: Relative μ difference the issue allows where the map agrees [-].
 MU_AGREEMENT = 0.02
 
 
-def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> RoutePlan:
-    """The offline plan on the problem's terrain at the route poses the run planned."""
+class OfflinePlan(NamedTuple):
+    """The offline plan at the run's planning grid, for the comparison.
+
+    Attributes:
+        s: arc lengths of the planned poses (K,) [m].
+        poses: the poses (K, 3) [m, m, rad].
+        mu_planned: μ of the planned posture (K,) [N rad].
+        mu_stowed: μ with the arm stowed (K,) [N rad].
+        search_seconds: wall time of the search per pose [s] (K,).
+    """
+
+    s: np.ndarray
+    poses: np.ndarray
+    mu_planned: np.ndarray
+    mu_stowed: np.ndarray
+    search_seconds: np.ndarray
+
+
+def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> OfflinePlan:
+    """The offline plan on the problem's terrain at the route poses the run planned.
+
+    With the same planner as the online loop (``online.planner``): all poses at once on
+    the posture roadmap (``method: roadmap``), or warm-started CMA-ES pose after pose.
+    """
     from mmstab.workspace.ik import PostureSolver
 
     route = problem.route
     assert route is not None
     ws, region = problem_region(problem, workspace, False)
     settings = PlannerSettings.from_section(problem.section("planner"))
-    settings = settings._replace(method="cmaes", seeding="coarse")
     s = run.s_grid
     poses = route.route.sample(s).pose
-    realise = PostureSolver(problem.robot, ws).realise
-    return solve_route(problem.robot, problem.terrain, region, s, poses, settings, realise)
+    robot = problem.robot
+    if FollowSettings.of(problem).planner == "roadmap":
+        from mmstab.planner.roadmap import solve_roadmap_sequence
+        from mmstab.workspace.roadmap import load_or_build_roadmap
+
+        gravity = problem.terrain.gravity_body(poses)
+        roadmap = load_or_build_roadmap(robot, ws)
+        seq = solve_roadmap_sequence(
+            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses
+        )
+        stowed = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu
+        per_pose = np.full(len(s), seq.seconds / len(s))
+        return OfflinePlan(s, poses, seq.mu, stowed, per_pose)
+    settings = settings._replace(method="cmaes", seeding="coarse")
+    realise = PostureSolver(robot, ws).realise
+    plan = solve_route(robot, problem.terrain, region, s, poses, settings, realise)
+    return OfflinePlan(s, poses, plan.mu_planned, plan.mu_stowed, plan.search_seconds)
 
 
-def compare(run: FollowRun, offline: RoutePlan, gravity: np.ndarray, tol: float) -> dict[str, Any]:
+def compare(
+    run: FollowRun, offline: OfflinePlan, gravity: np.ndarray, tol: float
+) -> dict[str, Any]:
     """Online against offline μ per planned pose, where the map agrees (module text).
 
     Args:
@@ -113,11 +155,44 @@ def run_follow(
     frames = run_frames(run)
     if len(frames.t):
         write_run(out / "online.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
+        write_replay(out, problem, run)
     write_json(out / "summary.json", summary)
     return summary
 
 
-def _figure(path: Path, run: FollowRun, offline: RoutePlan) -> None:
+def write_replay(out: Path, problem: Problem, run: FollowRun) -> None:
+    """The covered updates as a stored run that the viewer replays (module text).
+
+    Per covered map: the odometry pose, the track angles the commands integrate to (the loop
+    knows no measured ones), the arm's posture, and μ with the arm as it was, stowed and
+    removed, each at the map's resting attitude (what the loop saw, not the true ground);
+    the planned poses' arm CoMs at their share of the route.
+    """
+    st = [x for x in run.steps if x.covered]
+    t = np.array([x.time for x in st])
+    gravity = np.array([x.gravity_body for x in st])
+    robot = problem.robot
+    q = np.array([x.q for x in st])
+    dt = np.diff(np.concatenate([[t[0]], t]))
+    tracks = np.cumsum(np.array([x.qdot[:2] for x in st]) * dt[:, None], axis=0)
+    state = np.column_stack([np.array([x.pose for x in st]), tracks, q])
+    ks = sorted(run.plans)
+    route = problem.route
+    assert route is not None  # follow needs a route
+    write_npz(
+        out / "run.npz",
+        t=t,
+        state=state,
+        mu_reconfigured=robot_force_angle(robot, gravity, robot.arm_com(q)).mu,
+        mu_stowed=robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu,
+        mu_arm_removed=robot_force_angle(robot, gravity, None).mu,
+        plan_fractions=route.fraction_of_s([run.plans[k].s for k in ks]),
+        plan_target_com=np.array([run.plans[k].target_com for k in ks]).reshape(-1, 3),
+    )
+    save_settings(out, problem, online_replay=True)
+
+
+def _figure(path: Path, run: FollowRun, offline: OfflinePlan) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))

@@ -36,6 +36,9 @@ def loop_settings(problem: Problem) -> LoopSettings:
         slip_window=float(s["slip_window"]),
         check_dt=float(s["check_dt"]),
         backend=str(s["backend"]),
+        wheel=str(s["wheel"]),
+        timestep=float(s["timestep"]),
+        arm=str(s["arm"]),
     )
 
 
@@ -49,13 +52,36 @@ def controller_settings(problem: Problem) -> ControllerSettings:
     return cs
 
 
+def stowed_plan(robot: Any, arm_plan: Any) -> Any:
+    """The plan with the arm held stowed at every pose (the planned arm's peer)."""
+    k = len(arm_plan.fractions)
+    return arm_plan._replace(
+        target_com=np.tile(robot.arm_com(robot.stowed), (k, 1)),
+        postures=np.tile(robot.stowed, (k, 1)),
+        moves=(),
+    )
+
+
 def run_simulate(
-    problem: Problem, out: str | Path | None = None, duration: float | None = None
+    problem: Problem,
+    out: str | Path | None = None,
+    duration: float | None = None,
+    arm: str | None = None,
 ) -> dict[str, Any]:
-    """Plan, run the closed loop in MuJoCo, write the summary and figure (module text)."""
+    """Plan, run the closed loop in MuJoCo, write the summary and figure (module text).
+
+    Args:
+        problem: the problem (its ``physics:`` section).
+        out: output folder.
+        duration: simulated time [s]; None: the section's.
+        arm: ``planned`` or ``stowed`` (the arm held stowed along the path); None: the
+            section's.
+    """
     loop = loop_settings(problem)
     if duration is not None:
         loop = dataclasses.replace(loop, duration=float(duration))
+    if arm is not None:
+        loop = dataclasses.replace(loop, arm=arm)
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
@@ -63,11 +89,14 @@ def run_simulate(
     else:
         step = build_controller(problem.robot, cs).step
     arm_plan = plan(problem)
+    if loop.arm == "stowed":
+        arm_plan = stowed_plan(problem.robot, arm_plan)
     state0 = initial_state(problem.base_path, problem.robot.stowed)
     run = run_closed_loop(problem, arm_plan, step, cs, loop, state0)
     d = output_dir(out, "physics")
     summary = summarize(run, loop)
-    summary["backend"] = loop.backend
+    summary["backend"], summary["arm"] = loop.backend, loop.arm
+    summary["model"] = {"wheel": loop.wheel, "timestep_s": loop.timestep}
     _figure(d / "physics.png", run)
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)
@@ -77,6 +106,8 @@ def run_simulate(
 def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
     """The run's numbers: verdicts, errors, μ predicted against simulated, speed."""
     both = np.isfinite(run.mu_simulated) & np.isfinite(run.mu_predicted)
+    arm = np.zeros(0) if run.arm_ground is None else run.arm_ground
+    checked, touching = np.isfinite(arm), np.flatnonzero(arm == 1)
     diff = run.mu_simulated[both] - run.mu_predicted[both]
     return {
         "duration_s": float(run.t[-1]),
@@ -94,6 +125,13 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "arm_com_error_max_m": float(run.arm_com_error.max()),
         "arm_com_error_final_m": float(run.arm_com_error[-1]),
         "qp_failures": int(np.sum(run.status != 0)),
+        **_where_no_slip(run, loop),
+        "arm_ground_contact": None
+        if len(touching) == 0
+        else {
+            "first_time_s": float(run.t[touching[0]]),
+            "fraction_of_checks": float(len(touching) / checked.sum()),
+        },
         "mu_predicted_min": float(np.min(run.mu_predicted)),
         "mu_simulated_min": float(np.nanmin(run.mu_simulated)),
         "mu_difference": {
@@ -104,7 +142,27 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         },
         "real_time_factor": run.real_time_factor,
         "wall_seconds": run.wall_seconds,
+        "real_time_factor_cpu": float(run.t[-1] / run.cpu_seconds) if run.cpu_seconds else None,
     }
+
+
+def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
+    """The base error away from mmstab's predicted slip.
+
+    Where none of the simulated poses of the last ``slip_window`` is flagged by mmstab's
+    slip check (the issue's bar: the routes track where mmstab predicts no slide).
+    """
+    flags = np.zeros(len(run.t), bool) if run.slip_predicted is None else run.slip_predicted
+    dt = run.t[1] - run.t[0] if len(run.t) > 1 else loop.control_dt
+    window = max(int(round(loop.slip_window / dt)), 1)
+    recent = np.convolve(flags.astype(float), np.ones(window))[: len(flags)] > 0
+    clear = ~recent
+    return {
+        "slip_predicted_fraction": float(flags.mean()),
+        "base_error_max_where_no_slip_predicted_m": float(run.base_error[clear].max())
+        if clear.any() else None,
+        "no_slip_predicted_fraction": float(clear.mean()),
+    }  # fmt: skip
 
 
 def _figure(path: Path, run: PhysicsRun) -> None:

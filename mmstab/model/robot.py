@@ -117,6 +117,15 @@ class Robot:
         """Symbolic (CasADi) and batched (NumPy) arm kinematics, built once."""
         return ArmKinematics(self.links, self.mount_T)
 
+    def __getstate__(self) -> dict[str, object]:
+        """The state to pickle: all but the built kinematics, rebuilt on first use.
+
+        CasADi's SX does not pickle: a Dask worker sending a used robot to a peer failed.
+        """
+        state = dict(self.__dict__)
+        state.pop("kinematics", None)
+        return state
+
     def arm_com(self, q: ArrayLike) -> FloatArray:
         """Arm CoM g_a in the body frame (Eq. 1 without G_T_B) [m].
 

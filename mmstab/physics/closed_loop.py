@@ -33,14 +33,13 @@ import numpy as np
 
 from mmstab.control.approach import run_reference
 from mmstab.control.plant import build_plant
-from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
+from mmstab.physics.loop_checks import TipCheck, contact_records, simulated_mu
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.stability.dynamic import robot_mu
-from mmstab.stability.static import contact_force_angle
-from mmstab.terrain.base import GRAVITY_G
+from mmstab.stability.slip import slip_limit, terrain_friction
 
 
 @dataclass(frozen=True)
@@ -55,6 +54,10 @@ class LoopSettings:
         slip_window: the window over which it is measured [s].
         check_dt: period of the tip check and the simulated μ [s] (reports, not control).
         backend: ``interpreted`` or ``generated`` (the C step).
+        wheel: the road wheels' collision shape (:data:`~mmstab.physics.robot_model.WHEEL_SHAPES`).
+        timestep: MuJoCo's integration step [s] (the contacts' time constant is kept at
+            2.5 steps at least: MuJoCo needs 2).
+        arm: ``planned`` (the plan's postures) or ``stowed`` (the arm held stowed).
     """
 
     control_dt: float = 0.004
@@ -64,6 +67,15 @@ class LoopSettings:
     slip_window: float = 1.0
     check_dt: float = 0.02
     backend: str = "interpreted"
+    wheel: str = "sphere"
+    timestep: float = 0.004
+    arm: str = "planned"
+
+    def model_settings(self) -> ModelSettings:
+        """The MuJoCo model's numbers with this section's wheel shape and step."""
+        base = ModelSettings()
+        solref = (max(base.solref[0], 2.5 * self.timestep), base.solref[1])
+        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref)
 
 
 @dataclass
@@ -88,6 +100,13 @@ class PhysicsRun:
         wall_seconds: wall time of the loop [s].
         left_map: time the simulated robot left the terrain's map [s] (the run ends at the
             check before), or None.
+        slip_predicted: mmstab's slip check at each simulated pose (its resting support
+            tilted beyond atan(friction); :mod:`mmstab.stability.slip`) (N + 1,) bool.
+        cpu_seconds: CPU time of this process in the loop [s]: simulated time / it is the
+            real-time factor on a core of one's own (a shared machine slows the wall time).
+        arm_ground: 1 where an arm link touches the ground, 0 where none does (every
+            ``check_dt``; NaN between): mmstab's workspace checks the arm against the
+            robot's body only, so a planned posture may reach into the ground.
     """
 
     t: FloatArray
@@ -105,21 +124,9 @@ class PhysicsRun:
     real_time_factor: float
     wall_seconds: float
     left_map: float | None = None
-
-
-def simulated_mu(sim: RobotSim, mass: float) -> float:
-    """μ of MuJoCo's contacts now: their hull along gravity, the CoM, m·g [N rad].
-
-    Every active contact counts (touching or penetrating, loaded or not this instant): the
-    soft contacts' forces flicker step to step as the wheels bounce at the sub-millimetre
-    scale, their set does not.
-    """
-    d = sim.data
-    if d.ncon == 0:
-        return float("nan")
-    points = np.array([d.contact[i].pos for i in range(d.ncon)])
-    com = d.subtree_com[0]  # the world body's subtree: the whole robot
-    return contact_force_angle(points, com, mass * GRAVITY_G).mu
+    arm_ground: FloatArray | None = None
+    cpu_seconds: float | None = None
+    slip_predicted: FloatArray | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -128,11 +135,51 @@ def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
     return np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
 
 
-def tilt_off_rest(problem: Problem, pose: FloatArray, G_T_B: FloatArray) -> float:
-    """Angle between the simulated chassis z axis and its resting one on the terrain [rad]."""
-    z_rest = np.asarray(problem.terrain.G_T_B(pose))[:3, 2]
-    c = float(np.clip(z_rest @ G_T_B[:3, 2], -1.0, 1.0))
-    return float(np.arccos(c))
+def read_back(sim: RobotSim, M_T_G: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(pose (x, y, heading) in M, G_T_B (4, 4), arm angles) now.
+
+    :meth:`RobotSim.state`'s part the loop needs, without its attitude and velocities (it
+    runs every control period).
+    """
+    d, b = sim.data, sim.base
+    G_T_B = np.eye(4)
+    G_T_B[:3, :3], G_T_B[:3, 3] = d.xmat[b].reshape(3, 3), d.xpos[b]
+    M_T_B = M_T_G @ G_T_B
+    pose = np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
+    return pose, G_T_B, d.qpos[sim.arm_qpos]
+
+
+class BufferedStep:
+    """The controller step called through CasADi's buffers: no conversion per call.
+
+    ``step(state, reference, params) -> (qdot, status, objective)`` as a CasADi Function
+    (interpreted or the generated C through ``casadi.external``); a plain callable is
+    called as it is. CasADi's call converts every argument to a DM and back (42 µs a call
+    for the generated step); its buffer evaluation reads and writes NumPy arrays in place
+    (1 µs).
+    """
+
+    def __init__(self, step: Any, n_state: int, n_ref: int, params: FloatArray):
+        self.step, self.params = step, np.ascontiguousarray(params, dtype=float)
+        self.state, self.ref = np.zeros(n_state), np.zeros(n_ref)
+        self.qdot, self.status, self.objective = np.zeros(n_state - 3), np.zeros(1), np.zeros(1)
+        self.evaluate = None
+        if hasattr(step, "buffer"):
+            buf, self.evaluate = step.buffer()
+            for i, a in enumerate((self.state, self.ref, self.params)):
+                buf.set_arg(i, a.data)
+            for i, a in enumerate((self.qdot, self.status, self.objective)):
+                buf.set_res(i, a.data)
+            self._buf = buf  # keeps the buffers alive
+
+    def __call__(self, state: FloatArray, ref: FloatArray) -> tuple[FloatArray, float]:
+        """(qdot (2 + n,) [rad/s], QP status) at ``state`` against ``ref``."""
+        if self.evaluate is None:
+            qd, st, _ = self.step(state, ref, self.params)
+            return np.asarray(qd, dtype=float).ravel(), float(st)
+        self.state[:], self.ref[:] = state, ref
+        self.evaluate()
+        return self.qdot.copy(), float(self.status[0])
 
 
 def downhill_drift(
@@ -145,10 +192,14 @@ def downhill_drift(
 ) -> FloatArray:
     """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
 
-    Each period's simulated motion minus the kinematic plant's from the same simulated state
+    Each period's simulated motion and the kinematic plant's from the same simulated state
     (what the tracks commanded), projected on the downhill direction at the pose (gravity in
-    B, turned by the heading into M's plane), summed over the last ``window`` periods. A
-    sliding robot drifts downhill; the tracks' servo lag and skid in turns move it either way.
+    B, turned by the heading into M's plane), each summed over the last ``window`` periods:
+    the drift is the simulated sum minus the commanded one, but never more than the simulated
+    sum itself (``min(A - C, A)``). A sliding robot moves downhill (A > 0) beyond the command;
+    the tracks' servo lag and skid in turns move it either way; tracks that slip while they
+    climb (a kerb) fall short of an uphill command (A - C > 0) while the base still moves
+    uphill (A < 0): no slide.
 
     Args:
         plant: :func:`mmstab.control.plant.build_plant` of the robot.
@@ -160,15 +211,20 @@ def downhill_drift(
     """
     n = len(qdots)
     pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
-    err = states[1 : n + 1, :2] - pred[:, :2]
     c, s = np.cos(states[:n, 2]), np.sin(states[:n, 2])
     g = gravity_body[:n]
     down = np.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1]], axis=1)
     norm = np.linalg.norm(down, axis=1, keepdims=True)
-    along = np.sum(err * np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9), 1)
-    acc = np.concatenate([[0.0], np.cumsum(along)])
+    down = np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9)
     lag = np.maximum(np.arange(n + 1) - window, 0)
-    return np.asarray(acc - acc[lag])
+
+    def windowed(motion: FloatArray) -> FloatArray:
+        acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
+        return np.asarray(acc - acc[lag])
+
+    simulated = windowed(states[1 : n + 1, :2] - states[:n, :2])
+    commanded = windowed(pred[:, :2] - states[:n, :2])
+    return np.minimum(simulated - commanded, simulated)
 
 
 def build_sim(problem: Problem, state0: FloatArray, settings: ModelSettings | None) -> RobotSim:
@@ -199,13 +255,13 @@ def run_closed_loop(
         ctrl_settings: the controller settings (gains, limits, ``base_offset``, lap time).
         loop: this loop's settings.
         state0: the start state (x, y, heading in M, sprockets, arm) [m, rad].
-        model_settings: the MuJoCo model's numbers (default :class:`ModelSettings`).
+        model_settings: the MuJoCo model's numbers (default: ``loop.model_settings()``).
     """
     from mmstab.control.layout import ControllerParams
 
     robot = problem.robot
     n = robot.arm_joints
-    sim = build_sim(problem, state0, model_settings)
+    sim = build_sim(problem, state0, model_settings or loop.model_settings())
     substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
     dt = substeps * sim.model.opt.timestep
     duration = ctrl_settings.duration if loop.duration is None else loop.duration
@@ -216,40 +272,45 @@ def run_closed_loop(
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
     r = robot.base.tracks.sprocket_radius
-    mass = float(sim.model.body_subtreemass[0])
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states = np.zeros((steps + 1, 5 + n))
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
-    mu_sim, tilt = np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
-    now = sim.state()
-    state = np.concatenate([map_pose(now, M_T_G), [0.0, 0.0], now.arm_q])
-    target, tipped, left, checked = state[-n:].copy(), None, None, 0
-    t0 = time.perf_counter()
+    checks, positions = TipCheck(problem, loop.tip_angle), []
+    controller = BufferedStep(step, 5 + n, ref.shape[1], params)
+    pose, G_T_B, arm_q = read_back(sim, M_T_G)
+    state = np.concatenate([pose, [0.0, 0.0], arm_q])
+    target = state[-n:].copy()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(steps + 1):
         states[k] = state
         if k % every == 0 or k == steps:
-            try:
-                tilt[k] = tilt_off_rest(problem, state[:3], now.G_T_B)
-            except MmstabError:  # the simulated robot left its map: the run ends before
-                left, k = float(t[k]), checked
+            positions.append(sim.data.qpos.copy())  # contacts and μ after the run
+            if checks.record(k, state[:3], G_T_B, k == steps) or k == steps:
                 break
-            mu_sim[k], checked = simulated_mu(sim, mass), k
-            if tilt[k] > loop.tip_angle:
-                tipped = float(t[k])
-                break
-        if k == steps:
-            break
-        qd, st, _ = step(state, ref[k], params)
-        qdots[k], status[k] = np.asarray(qd).ravel(), float(st)
+        qdots[k], status[k] = controller(state, ref[k])
         target = target + qdots[k, 2:] * dt
-        now = sim.step(r * qdots[k, :2], target, dt)
+        sim.advance(r * qdots[k, :2], target, substeps)
         sprockets = state[3:5] + qdots[k, :2] * dt
-        state = np.concatenate([map_pose(now, M_T_G), sprockets, now.arm_q])
-    wall = time.perf_counter() - t0
-    m = k + 1
+        pose, G_T_B, arm_q = read_back(sim, M_T_G)
+        state = np.concatenate([pose, sprockets, arm_q])
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    m = (checks.end[0] if checks.end else k) + 1
+    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
+    mass = float(sim.model.body_subtreemass[0])
+    for (i, value), (points, com, touches) in zip(
+        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
+    ):
+        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
-                  status[: m - 1], ref[:m], mu_sim[:m], tilt[:m], tipped, wall, dt)  # fmt: skip
-    return dataclasses.replace(run, left_map=left)
+                  status[: m - 1], ref[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
+    end = checks.end
+    return dataclasses.replace(
+        run,
+        tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
+        left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
+        arm_ground=arm,
+        cpu_seconds=cpu,
+    )
 
 
 def _finish(
@@ -286,5 +347,6 @@ def _finish(
         arm_com_error=np.linalg.norm(xi_des[:, 3:] - xi[:, 3:], axis=1),
         mu_predicted=np.asarray(mu_pred), mu_simulated=mu_sim, tilt_error=tilt, slip=slip,
         tipped=tipped, slid=float(t[over[0]]) if len(over) else None,
+        slip_predicted=slip_limit(gravity, terrain_friction(problem.terrain)).slides,
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
     )  # fmt: skip

@@ -50,30 +50,11 @@ from mmstab.core.files import MmstabError
 from mmstab.model.payload import Payload
 from mmstab.model.robot import Box, FloatArray, Geometry, Robot, homogeneous
 from mmstab.model.urdf import arm_link_inertia, base_link_inertias, dh_constant_T, rot_z_T
-from mmstab.physics.heightfield import Heightmap, heightmap, hfield_mjcf
-from mmstab.physics.plane import fit_plane, tilted_frame
+from mmstab.physics.heightfield import hfield_mjcf
 from mmstab.physics.robot_mass import Inertial, Wheels, inertial_of, minus, principal
+from mmstab.physics.robot_start import Ground, ground_heightmap, plane_T, start_pose
 from mmstab.stability.slip import terrain_friction
-from mmstab.terrain.base import GRAVITY_G, Terrain
-
-#: What the robot stands on: an mmstab terrain, a bare heightmap, or None (the flat floor).
-Ground = Terrain | Heightmap | None
-
-
-def ground_heightmap(ground: Ground) -> Heightmap | None:
-    """The heightmap of a heightmap ground (NaN cells refused), None for a planar one.
-
-    Raises:
-        MmstabError: a terrain that is neither planar (``kind == "ramp"``) nor a heightmap.
-    """
-    if ground is None or isinstance(ground, Heightmap):
-        return ground
-    grid = getattr(ground, "heightmap", None)
-    if grid is not None:
-        return heightmap(grid.elevation, grid.resolution, grid.origin)
-    if ground.kind != "ramp":
-        raise MmstabError(f"MuJoCo robot model: no ground model for terrain kind {ground.kind!r}")
-    return None
+from mmstab.terrain.base import GRAVITY_G
 
 
 @dataclass(frozen=True)
@@ -92,17 +73,20 @@ class ModelSettings:
         suspension_deflection: wheel spring deflection under the mean wheel load [m]
             (0: rigid wheels, no suspension joint).
         suspension_damping: damping ratio of a wheel spring with its share of the mass [-].
+        suspension_armature: reflected mass on each wheel's spring joint [kg] (lets a
+            4 ms step integrate the 0.18 kg wheel on its spring without chatter).
         track_kv: velocity-servo gain of each wheel at the rim [N/(m/s)].
         wheel_armature: reflected rotor inertia of each wheel joint [kg m^2].
         arm_kp: position-servo stiffness of every arm joint [N m/rad].
         arm_kv: position-servo damping of every arm joint [N m s/rad].
         arm_armature: reflected rotor inertia of every arm joint [kg m^2].
         drop_height: gap between the wheels and the ground at the start [m].
+        wheel: road wheels' collision shape (:data:`WHEEL_SHAPES`).
     """
 
-    timestep: float = 0.002
+    timestep: float = 0.004
     integrator: str = "implicitfast"
-    solref: tuple[float, float] = (0.006, 1.0)
+    solref: tuple[float, float] = (0.01, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 10.0
     noslip_iterations: int = 0
@@ -110,12 +94,14 @@ class ModelSettings:
     wheel_mass_fraction: float = 0.25
     suspension_deflection: float = 0.001
     suspension_damping: float = 1.0
+    suspension_armature: float = 0.2
     track_kv: float = 2000.0
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
     arm_kv: float = 100.0
     arm_armature: float = 0.05
     drop_height: float = 0.001
+    wheel: str = "sphere"
 
 
 def track_wheels(robot: Robot, settings: ModelSettings) -> Wheels:
@@ -184,24 +170,20 @@ def mjcf_header(settings: ModelSettings, friction: float) -> str:
   </default>"""
 
 
-def _plane_T(ground: Ground) -> FloatArray:
-    """Pose in G of a planar ground's map frame M (its plane is z_M = 0)."""
-    return np.eye(4) if ground is None or isinstance(ground, Heightmap) else ground.G_T_M()
-
-
 def ground_xml(ground: Ground) -> tuple[str, str]:
     """(asset, worldbody geom) of the ground, geom named ``terrain`` (:data:`Ground`)."""
     grid = ground_heightmap(ground)
     if grid is not None:
         field = hfield_mjcf(grid)
         return field.asset, field.geom.replace("/>", ' contype="1" conaffinity="0"/>')
-    attrs = f'type="plane" size="0 0 1" {_frame(_plane_T(ground))} contype="1" conaffinity="0"'
+    attrs = f'type="plane" size="0 0 1" {_frame(plane_T(ground))} contype="1" conaffinity="0"'
     return "", f'<geom name="terrain" {attrs}/>'
 
 
 def _wheel_xml(name: str, k: int, wheels: Wheels, robot: Robot, s: ModelSettings) -> list[str]:
     """Wheel ``k`` of a track: a sprung slide along the track's z (if any), the driven hinge."""
     x, n = float(wheels.x[k]), 2 * len(wheels.x)
+    outer = 1.0 if "left" in name else -1.0  # the left track's outer edge is at +y_B
     joints = []
     if s.suspension_deflection > 0:
         stiff = robot.total_mass * float(-GRAVITY_G[2]) / n / s.suspension_deflection
@@ -209,21 +191,41 @@ def _wheel_xml(name: str, k: int, wheels: Wheels, robot: Robot, s: ModelSettings
         spring = f'stiffness="{_f(stiff)}" damping="{_f(damp)}"'
         ref = _f(-s.suspension_deflection)
         joints.append(
-            f'<joint name="{name}_z" type="slide" axis="0 0 1" {spring} springref="{ref}"/>'
+            f'<joint name="{name}_z" type="slide" axis="0 0 1" {spring} springref="{ref}" '
+            f'armature="{s.suspension_armature!r}"/>'
         )
     joints.append(
         f'<joint name="{name}" type="hinge" axis="0 1 0" armature="{s.wheel_armature!r}"/>'
     )
     at_wheel = homogeneous(np.eye(3), [-x, 0.0, 0.0])
-    axle = homogeneous(_AXLE_Y, np.zeros(3))
     return [
         f'<body name="{name}" pos="{_f(x)} 0 0">',
         *("  " + j for j in joints),
         f"  {_inertial_xml(wheels.inertial(k).moved(at_wheel))}",
-        f'  <geom name="{name}" type="cylinder" size="{_f([wheels.radius, wheels.width / 2])}" '
-        f"{_frame(axle)}/>",
+        *("  " + g for g in _wheel_geoms(name, k, wheels, s.wheel, outer)),
         "</body>",
     ]
+
+
+#: Road-wheel collision shapes (``docs/physics.md``): ``sphere``, one sphere per wheel
+#: centred on the track's outer rim edge (one contact each, on the outline mmstab's support
+#: polygon uses; the cheapest on a heightfield); ``cylinder``, track-wide (two contacts on a
+#: plane, the rim edges); ``sphere_pair``, a sphere on each rim edge (the cylinder's lines).
+WHEEL_SHAPES = ("cylinder", "sphere", "sphere_pair")
+
+
+def _wheel_geoms(name: str, k: int, wheels: Wheels, shape: str, outer: float) -> list[str]:
+    """Wheel ``k``'s collision geoms in its body's frame (axle along y; ``outer`` = +-1 [-])."""
+    r, half = _f(wheels.radius), wheels.width / 2
+    if shape == "cylinder":
+        axle = homogeneous(_AXLE_Y, np.zeros(3))
+        return [f'<geom name="{name}" type="cylinder" size="{r} {_f(half)}" {_frame(axle)}/>']
+    by_shape = {"sphere": [outer * half], "sphere_pair": [half, -half]}
+    edges = by_shape.get(shape)
+    if edges is None:
+        raise MmstabError(f"MuJoCo robot model: wheel must be one of {WHEEL_SHAPES}, not {shape!r}")
+    return [f'<geom name="{name}{"_b" * i}" type="sphere" size="{r}" pos="0 {_f(y)} 0"/>'
+            for i, y in enumerate(edges)]  # fmt: skip
 
 
 def _track_xml(robot: Robot, side: str, track: Inertial, s: ModelSettings) -> list[str]:
@@ -315,34 +317,6 @@ def _actuators_xml(robot: Robot, s: ModelSettings, n_wheels: int) -> list[str]:
     return out
 
 
-def start_pose(
-    robot: Robot, ground: Ground, pose: ArrayLike, settings: ModelSettings
-) -> FloatArray:
-    """G_T_B (4, 4) at the start, ``drop_height`` above the ground, pose (x, y, heading) in M.
-
-    On a plane: the terrain's resting pose (the tracks' flat runs on the plane), lifted
-    along its normal. On a heightmap (M = G): the attitude of the plane fitted under the
-    tracks, the lowest track sample ``drop_height`` above the ground.
-    """
-    x, y, heading = (float(v) for v in np.asarray(pose, dtype=float))
-    c, s = np.cos(heading), np.sin(heading)
-    grid = ground_heightmap(ground)
-    if grid is None:
-        M_T_B = homogeneous([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], [x, y, 0.0])
-        G_T_B = _plane_T(ground) @ M_T_B
-        G_T_B[:3, 3] += settings.drop_height * G_T_B[:3, 2]
-        return G_T_B
-    t = robot.base.tracks
-    gx, gy = np.meshgrid(np.linspace(-t.length / 2, t.length / 2, 15), [-1.0, 1.0])
-    body = np.stack([gx.ravel(), gy.ravel() * (t.separation + t.width) / 2], -1)
-    xy = body @ np.array([[c, s], [-s, c]]) + [x, y]
-    a, b, _ = fit_plane(xy, grid.height(xy))
-    R = tilted_frame(a, b, heading)
-    p = np.column_stack([body, np.zeros(len(body))]) @ R.T + [x, y, 0.0]
-    z = float(np.max(grid.height(p[:, :2]) - p[:, 2])) + settings.drop_height
-    return homogeneous(R, [x, y, z])
-
-
 def build_robot_mjcf(
     robot: Robot,
     ground: Ground = None,
@@ -374,7 +348,7 @@ def build_robot_mjcf(
     q = robot.stowed if arm_q is None else np.asarray(arm_q, dtype=float)
     n = len(track_wheels(robot, s).x)
     asset, ground_geom = ground_xml(ground)
-    T = start_pose(robot, ground, pose, s)
+    T = start_pose(robot, ground, pose, s.drop_height)
     joints_per_wheel = 2 if s.suspension_deflection > 0 else 1
     qpos = np.concatenate([T[:3, 3], _quat(T[:3, :3]), np.zeros(2 * n * joints_per_wheel), q])
     ctrl = np.concatenate([np.zeros(2 * n), q])

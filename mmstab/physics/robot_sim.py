@@ -93,6 +93,7 @@ class RobotSim:
         self.gravity_feedforward = gravity_feedforward
         m = self.model
         self.base = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "base")
+        self.terrain = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "terrain")
         names = [f"arm_{link.name}" for link in robot.links]
         joints = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
         self.arm_qpos = np.array([m.jnt_qposadr[j] for j in joints])
@@ -126,20 +127,23 @@ class RobotSim:
                 A step input: interpolate large moves (a 3.8 rad step throws the robot over).
             duration: simulated time [s] (rounded to whole steps, at least one).
         """
+        n = max(1, int(round(duration / self.model.opt.timestep)))
+        self.advance(track_speeds, arm_q_target, n)
+        return self.state()
+
+    def advance(self, track_speeds: ArrayLike, arm_q_target: ArrayLike | None, n: int) -> None:
+        """:meth:`step`'s simulation without the read-back: ``n`` MuJoCo steps [-]."""
         m, d = self.model, self.data
-        left, right = (float(v) for v in np.asarray(track_speeds, dtype=float))
-        d.ctrl[self.track_ctrl["left"]] = left
-        d.ctrl[self.track_ctrl["right"]] = right
+        d.ctrl[self.track_ctrl["left"]] = track_speeds[0]  # type: ignore[index]
+        d.ctrl[self.track_ctrl["right"]] = track_speeds[1]  # type: ignore[index]
         if arm_q_target is not None:
-            d.ctrl[self.arm_ctrl] = np.asarray(arm_q_target, dtype=float)
-        n = max(1, int(round(duration / m.opt.timestep)))
+            d.ctrl[self.arm_ctrl] = arm_q_target
         if not self.gravity_feedforward:
             mujoco.mj_step(m, d, nstep=n)
-            return self.state()
+            return
         for _ in range(n):
             d.qfrc_applied[self.arm_dof] = d.qfrc_bias[self.arm_dof]
             mujoco.mj_step(m, d)
-        return self.state()
 
     def settle(self, duration: float = 1.0, pieces: int = 20) -> RobotState:
         """Set the robot down quasi-statically: tracks braked, arm held at its targets.

@@ -15,26 +15,28 @@ the answer, for the controller.
 
 from __future__ import annotations
 
-import dataclasses
+import heapq
 import time
-from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse.csgraph import dijkstra
 
 from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.fitness import pose_fitness
-from mmstab.planner.sequence import _diverse_top, _turret_bins, _viterbi
+from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
-from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
+from mmstab.workspace.roadmap import Roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
 TURRET_BINS = 24
-#: A shortest-path search first looks this many times the lattice (L1) distance far [rad].
-SEARCH_SLACK = 1.5
+#: Node expansions of an A* query before the whole component is searched instead.
+ASTAR_EXPANSIONS = 20000
 
 
 class NoPlanError(PlanningError):
@@ -115,136 +117,47 @@ def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
     return np.asarray(cached)
 
 
-def _clearances(robot: Robot, roadmap: Roadmap) -> FloatArray:
-    """The roadmap's per-node clearance cache [m] (NaN: not measured yet)."""
-    cached = getattr(roadmap, "_node_clearance", None)
-    if cached is None:
-        cached = np.full(len(roadmap.nodes_q), np.nan)
-        object.__setattr__(roadmap, "_node_clearance", cached)
-    return np.asarray(cached)
+class ComponentView(NamedTuple):
+    """What every plan from one roadmap component needs, computed once and kept.
 
-
-def nodes_clear(
-    robot: Robot, roadmap: Roadmap, reach: NDArray[np.intp], rows: NDArray[np.intp]
-) -> NDArray[np.bool_]:
-    """Whether the nodes ``reach[rows]`` keep :data:`MOVE_CLEARANCE` [m] from the robot.
-
-    The FCL clearance of a node is measured on first use and kept with the roadmap.
-    """
-    cached = _clearances(robot, roadmap)
-    nodes = reach[rows]
-    todo = nodes[np.isnan(cached[nodes])]
-    if todo.size:
-        cached[todo] = CollisionChecker(robot).clearance(roadmap.nodes_q[todo])
-    return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
-
-
-@dataclasses.dataclass(frozen=True)
-class NodeClearance:
-    """The reachable nodes' clearance test.
-
-    ``clear(rows)``: whether ``reach[rows]`` keep the clearance; ``too_close()``: the rows
-    of ``reach`` already measured too close at earlier poses.
+    Attributes:
+        reach: the component's nodes (N,).
+        samples: their arm CoMs, body frame (N, 3) [m].
+        diameter: the CoMs' largest extent along an axis [m] (Eq. 6's ``d_workspace``).
+        bins: turret bin of each (N,).
+        clusters: the nodes grouped for the candidates' bounds.
+        joint_span: the postures' L1 extent, Σ_j (max q_j − min q_j) [rad] (the
+            ``motion_cost: joints`` normaliser).
     """
 
-    robot: Robot
-    roadmap: Roadmap
     reach: NDArray[np.intp]
-
-    def __call__(self, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
-        """Whether ``reach[rows]`` keep :data:`MOVE_CLEARANCE` (measured on first use)."""
-        return nodes_clear(self.robot, self.roadmap, self.reach, rows)
-
-    def too_close(self) -> NDArray[np.intp]:
-        """Rows of ``reach`` whose clearance, measured at an earlier pose, is too small."""
-        return np.flatnonzero(_clearances(self.robot, self.roadmap)[self.reach] < MOVE_CLEARANCE)
+    samples: FloatArray
+    diameter: float
+    bins: NDArray[np.intp]
+    clusters: NodeClusters
+    joint_span: float
 
 
-def clear_candidates(
-    values: FloatArray,
-    bins: NDArray[np.intp],
-    count: int,
-    members: list[NDArray[np.intp]],
-    clear: Callable[[NDArray[np.intp]], NDArray[np.bool_]],
-) -> tuple[NDArray[np.intp], FloatArray]:
-    """A pose's ``count`` candidates spread over the turret, each clear of the robot.
-
-    The best of each turret bin in turn (``_diverse_top``); a chosen row that is not
-    ``clear`` gets value -inf and the choice is made again, until every finite choice is
-    clear. Returns the rows and the values (-inf where not clear). A ``clear`` with a
-    ``too_close()`` (:class:`NodeClearance`) names the rows earlier poses measured too close:
-    they are set to -inf first, so the choice is remade only for rows measured here for
-    the first time.
-
-    The tracked arm follows the plan's postures within a few millimetres, and a tracking
-    run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``): on random routes postures
-    1.5 mm from the body were chosen and touched it when tracked.
-    """
-    v = np.array(values, dtype=float)
-    if isinstance(clear, NodeClearance):
-        v[clear.too_close()] = -np.inf
-    while True:
-        rows = _diverse_top(v, bins, count, members)
-        finite = rows[np.isfinite(v[rows])]
-        bad = finite[~clear(finite)]
-        if bad.size == 0:
-            return rows, v
-        v[bad] = -np.inf
-
-
-def _pose_candidates(
-    robot: Robot,
-    g: FloatArray,
-    samples: FloatArray,
-    stowed: FloatArray,
-    stab: PlannerSettings,
-    mu_max: float,
-    diameter: float,
-    count: int,
-    bins: NDArray[np.intp],
-    members: list[NDArray[np.intp]],
-    clear: Callable[[NDArray[np.intp]], NDArray[np.bool_]],
-) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
-    """Each pose's ``count`` clear candidates among the reachable nodes' CoMs.
-
-    Args: gravity ``g`` in B (K, 3) [m/s^2]; the nodes' CoMs ``samples`` (N, 3) [m]; the
-    rest as :func:`solve_roadmap_sequence` builds them. Returns (rows (K, count), Eq. 6
-    values with -inf where unstable or not clear, μ (K, count) [N rad]).
-    """
-    K = len(g)
-    cand = np.empty((K, count), dtype=np.intp)
-    value, mu = np.empty((K, count)), np.empty((K, count))
-    for k in range(K):  # clear: the node keeps MOVE_CLEARANCE from the robot
-        fit = pose_fitness(robot, g[k], stowed, stab, mu_max, diameter)
-        cand[k], v = clear_candidates(fit.linear()(samples), bins, count, members, clear)
-        mu[k] = fit.mu(samples[cand[k]])
-        value[k] = np.where(mu[k] > 0, v[cand[k]], -np.inf)
-    return cand, value, mu
-
-
-def _transitions(
-    samples: FloatArray,
-    turret: FloatArray,
-    cand: NDArray[np.intp],
-    pairs: list[tuple[int, int]],
-    w: float,
-    window: float | None,
-) -> tuple[list[FloatArray], list[NDArray[np.bool_]]]:
-    """Eq. 6's motion term between consecutive poses' candidates, and the allowed moves.
-
-    The term is ``w`` [1/m^2] times the squared CoM distance [m]; a move is allowed when
-    link0 (``turret`` [rad] per node) changes by at most ``window`` [rad] (None: any).
-    """
-    M = cand.shape[1]
-    motion, allowed = [], []
-    for a, b in pairs:
-        ca, cb = samples[cand[a]], samples[cand[b]]
-        motion.append(w * np.sum((ca[:, None, :] - cb[None, :, :]) ** 2, axis=2))
-        ok = np.ones((M, M), dtype=bool)
-        if window is not None:
-            ok &= np.abs(turret[cand[a]][:, None] - turret[cand[b]]) <= window + 1e-9
-        allowed.append(ok)
-    return motion, allowed
+def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
+    """The :class:`ComponentView` of node ``start``'s component (kept with the roadmap)."""
+    views = getattr(roadmap, "_views", None)
+    if views is None:
+        views = {}
+        object.__setattr__(roadmap, "_views", views)
+    comp = int(roadmap.component[start])
+    if comp not in views:
+        reach = np.flatnonzero(roadmap.component == comp)
+        samples = node_coms(robot, roadmap)[reach]
+        bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+        views[comp] = ComponentView(
+            reach=reach,
+            samples=samples,
+            diameter=float(np.ptp(samples, axis=0).max()) if len(samples) > 1 else 1.0,
+            bins=bins,
+            clusters=node_clusters(samples, bins, TURRET_BINS),
+            joint_span=max(float(np.ptp(roadmap.nodes_q[reach], axis=0).sum()), 1e-9),
+        )
+    return views[comp]
 
 
 def _moves(
@@ -263,8 +176,9 @@ def _moves(
     K = len(nodes)
     before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
     checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
+    tree = start_tree(roadmap, start)
     moves = [
-        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b)))
+        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b), tree))
         for a, b in zip(before, nodes, strict=True)
     ]
     if not closed or K == 1:  # from the start posture itself onto its node
@@ -273,21 +187,79 @@ def _moves(
     return moves
 
 
-def roadmap_move(roadmap: Roadmap, a: int, b: int) -> FloatArray:
+def start_tree(roadmap: Roadmap, start: int) -> tuple[int, NDArray[np.int32]]:
+    """Shortest-path tree from node ``start`` (its predecessors), kept with the roadmap.
+
+    Every plan's first move leaves the arm's start node (the stowed arm's): one search
+    over the whole component, once.
+    """
+    trees = getattr(roadmap, "_trees", None)
+    if trees is None:
+        trees = {}
+        object.__setattr__(roadmap, "_trees", trees)
+    if start not in trees:
+        _, pred = dijkstra(roadmap.graph, indices=start, return_predecessors=True)
+        trees[start] = pred
+    return start, trees[start]
+
+
+def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
+    """A shortest roadmap path a -> b (nodes), by A* with the lattice (L1) distance to b.
+
+    Every edge changes one joint by its length and never wraps the turret, so the L1
+    distance is a consistent lower bound and the path is a shortest one; with ties
+    broken towards the deepest node, a free staircase costs about its length in node
+    expansions where Dijkstra's search bounded at 1.5 times the distance (the previous
+    query) explored a 4-D ball of nodes (16 ms a move on a random route). None when
+    ``ASTAR_EXPANSIONS`` nodes did not reach b.
+    """
+    lists = getattr(roadmap, "_lists", None)  # Python lists: the loop's cheapest reads
+    if lists is None:
+        g = roadmap.graph
+        lists = (g.indptr.tolist(), g.indices.tolist(), g.data.tolist(), roadmap.nodes_q.tolist())
+        object.__setattr__(roadmap, "_lists", lists)
+    ptr, nbr, w, q = lists
+    goal = q[b]
+
+    def h(n: int) -> float:
+        return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
+
+    best, parent = {a: 0.0}, {a: a}
+    heap = [(h(a), 0.0, a)]
+    for _ in range(ASTAR_EXPANSIONS):
+        if not heap:
+            return None
+        _, neg_g, n = heapq.heappop(heap)
+        if n == b:
+            out = [b]
+            while out[-1] != a:
+                out.append(parent[out[-1]])
+            return np.array(out[::-1], dtype=np.intp)
+        if -neg_g > best[n]:
+            continue  # a stale entry
+        for k in range(ptr[n], ptr[n + 1]):
+            m, cost = nbr[k], best[n] + w[k]
+            if cost < best.get(m, np.inf):
+                best[m], parent[m] = cost, n
+                heapq.heappush(heap, (cost + h(m), -cost, m))
+    return None
+
+
+def roadmap_move(
+    roadmap: Roadmap, a: int, b: int, tree: tuple[int, NDArray[np.int32]] | None = None
+) -> FloatArray:
     """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
-    A first search bounded by ``SEARCH_SLACK`` times the lattice distance (fast: it
-    explores a neighbourhood), else the whole component.
+    From ``tree``'s root (:func:`start_tree`) along the tree; else A* (:func:`astar`),
+    else the whole component.
     """
-    from scipy.sparse.csgraph import dijkstra
-
     if a == b:
         return roadmap.nodes_q[[a]].copy()
-    d = roadmap.nodes_q[b] - roadmap.nodes_q[a]
-    limit = SEARCH_SLACK * float(np.abs(d).sum()) + 2 * float(roadmap.lengths.max(initial=0))
-    dist, pred = dijkstra(roadmap.graph, indices=a, return_predecessors=True, limit=limit)
-    if not np.isfinite(dist[b]):
-        return roadmap.path_postures(a, b)
+    if tree is not None and tree[0] == a:
+        pred = tree[1]
+    else:
+        path = astar(roadmap, a, b)
+        return roadmap.path_postures(a, b) if path is None else roadmap.nodes_q[path]
     out = [b]
     while out[-1] != a:
         out.append(int(pred[out[-1]]))
@@ -324,26 +296,24 @@ def solve_roadmap_sequence(
         raise MmstabError("planner: method roadmap does not take payload.wrench yet")
     start_q = robot.stowed if start_q is None else np.asarray(start_q, dtype=float)
     start = roadmap.connect(start_q, robot)
-    reach = np.flatnonzero(roadmap.component == roadmap.component[start])
-    samples = node_coms(robot, roadmap)[reach]
+    view = component_view(robot, roadmap, start)
+    reach, samples, diameter = view.reach, view.samples, view.diameter
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     K, M = len(g), min(settings.sequence_candidates, len(reach))
-    diameter = float(np.ptp(samples, axis=0).max()) if len(samples) > 1 else 1.0
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
-    bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+    fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
     clear = NodeClearance(robot, roadmap, reach)
-    members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
-    cand, value, mu = _pose_candidates(
-        robot, g, samples, stowed, stab, mu_max, diameter, M, bins, members, clear
-    )
-    w = settings.w_motion / diameter**2
+    cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
+    span = (view.diameter, view.joint_span)
+    cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
     if not closed:
-        value[0] -= w * np.sum((samples[cand[0]] - stowed) ** 2, axis=1)
+        value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
-    motion, allowed = _transitions(
-        samples, roadmap.nodes_q[reach, 0], cand, pairs, w, settings.turret_window
-    )
+    motion, allowed = transitions(
+        cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
+        cost.metric,
+    )  # fmt: skip
     path, total = best_sequence(value, motion, allowed, closed)
     if not np.isfinite(total):
         k = _first_dead_pose(value, allowed)

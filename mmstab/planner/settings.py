@@ -51,6 +51,12 @@ class PlannerSettings(NamedTuple):
             poses [rad]; None: unbounded (``mmstab.planner.turret``).
         sequence_candidates: samples per pose among which ``method: sequence`` chooses
             (``mmstab.planner.sequence``).
+        motion_cost: ``method: roadmap``'s motion term between consecutive postures (the
+            other methods use Eq. 6's): ``joints`` (the default: the squared lattice
+            distance, the L1 joint distance [rad], over the reachable postures' L1 extent
+            squared; the roadmap distance where a monotone lattice path is free, a lower
+            bound elsewhere) or ``com`` (Eq. 6's: the squared CoM distance over the
+            diameter squared).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
     """
@@ -77,6 +83,7 @@ class PlannerSettings(NamedTuple):
     turret_window: float | None = None
     sequence_candidates: int = 256
     flipper_angles: int = 0
+    motion_cost: str = "joints"
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -105,6 +112,7 @@ class PlannerSettings(NamedTuple):
             turret_window=None if cfg["turret_window"] is None else float(cfg["turret_window"]),
             sequence_candidates=int(cfg["sequence_candidates"]),
             flipper_angles=int(cfg.get("flipper_angles", 0)),
+            motion_cost=str(cfg["motion_cost"]),
         )
 
     def sigma0_metres(self, diameter: float) -> float:

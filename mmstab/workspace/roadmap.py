@@ -44,6 +44,8 @@ DEFAULT_RESOLUTION = 0.02
 MOVE_CLEARANCE = 0.003
 #: Largest motion of any arm point between two postures whose clearance is measured [m].
 CLEARANCE_STEP = 0.004
+#: A move's checked postures go to the checker every this many first (:func:`_coarse_first`).
+COARSE_STRIDE = 8
 #: Postures per batch handed to the collision checker.
 CHECK_CHUNK = 16384
 #: Postures of V sampled to bound each joint's reach (seeded).
@@ -128,26 +130,29 @@ class Roadmap:
         """
         d = np.asarray(qb, dtype=float) - qa
         n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
-        u = np.linspace(0.0, 1.0, n + 1)[:, None]
-        return not bool(np.asarray(checker.collides(qa + u * d), dtype=bool).any())
+        for u in _coarse_first(n):
+            if np.asarray(checker.collides(qa + u[:, None] * d), dtype=bool).any():
+                return False
+        return True
 
     def move_is_clear(
         self, checker: CollisionChecker, qa: FloatArray, qb: FloatArray, clearance: float
     ) -> bool:
         """Whether the straight move qa -> qb (4,) [rad] keeps ``clearance`` [m] everywhere.
 
-        Free at the roadmap's resolution (:meth:`move_is_free`), then the clearance
-        measured at postures between which no arm point moves more than
+        The clearance at postures between which no arm point moves more than
         :data:`CLEARANCE_STEP`: at least ``clearance + CLEARANCE_STEP / 2`` at each of
         them bounds it by ``clearance`` between them (clearance is 1-Lipschitz in point
-        motion).
+        motion), so the move is also free (:meth:`CollisionChecker.keeps_clearance`).
         """
-        if not self.move_is_free(checker, qa, qb):
-            return False
         d = np.asarray(qb, dtype=float) - qa
         n = int(np.ceil(float(self.reach @ np.abs(d)) / CLEARANCE_STEP)) + 1
-        u = np.linspace(0.0, 1.0, n + 1)[:, None]
-        return bool(checker.clearance(qa + u * d).min() >= clearance + CLEARANCE_STEP / 2)
+        q = qa + np.linspace(0.0, 1.0, n + 1)[:, None] * d
+        need, stride = clearance + CLEARANCE_STEP / 2, COARSE_STRIDE
+        # every stride-th posture first: a move that fails is mostly rejected there
+        if not checker.keeps_clearance(q[::stride], need, CLEARANCE_STEP * stride):
+            return False
+        return checker.keeps_clearance(q, need, CLEARANCE_STEP)
 
     def shortcut(
         self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE
@@ -201,6 +206,17 @@ class Roadmap:
         """Joint-space length of a posture path (n, 4) [rad]."""
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         return float(np.linalg.norm(np.diff(qa, axis=0), axis=1).sum())
+
+
+def _coarse_first(n: int, stride: int = COARSE_STRIDE) -> tuple[FloatArray, FloatArray]:
+    """The fractions i / n, i = 0..n, in two batches: every ``stride``-th, then the rest.
+
+    A move that fails usually fails over a stretch, which the first batch finds at a
+    ``stride``-th of the cost; a move that passes is checked at every fraction all the same.
+    """
+    i = np.arange(n + 1)
+    first = (i % stride == 0) | (i == n)
+    return i[first] / n, i[~first] / n
 
 
 def joint_reach(robot: Robot, q: FloatArray) -> FloatArray:

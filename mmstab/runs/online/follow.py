@@ -38,6 +38,7 @@ from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
+from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import MapUpdate
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import support_tilt, terrain_friction
@@ -59,18 +60,28 @@ class FollowSettings(NamedTuple):
         odom_topic: Odometry topic.
         horizon: planned poses this far ahead of the robot [m].
         replan_tol: gravity change that re-plans a pose [rad].
+        planner: ``"roadmap"`` (postures on the posture roadmap,
+            :mod:`~mmstab.runs.online.roadmap_horizon`) or ``"warm"`` (CMA-ES in V,
+            :mod:`~mmstab.runs.online.horizon`).
+        joints_topic: the arm's measured ``sensor_msgs/JointState`` topic; None: the arm's
+            posture is the loop's own integration of its commands.
     """
 
     map_topic: str
     odom_topic: str
     horizon: float
     replan_tol: float
+    planner: str
+    joints_topic: str | None
 
     @classmethod
     def of(cls, problem: Problem) -> FollowSettings:
         """The problem's ``online`` section (defaults filled in)."""
         o = problem.section("online")
-        return cls(o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]))
+        return cls(
+            o["map_topic"], o["odom_topic"], float(o["horizon"]), float(o["replan_tol"]),
+            str(o["planner"]), o["joints_topic"],
+        )  # fmt: skip
 
 
 class FollowStep(NamedTuple):
@@ -95,6 +106,9 @@ class FollowStep(NamedTuple):
         polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
         tilt: the support's tilt on the map (gravity against -z_B) [rad] (NaN when not
             covered); the tracks slide beyond atan(friction) (:mod:`mmstab.stability.slip`).
+        gravity_body: gravity in B at rest on the map, as ``mu`` used it [m/s^2] (NaN when
+            not covered).
+        measured: ``q`` is the recording's joint state (else the loop's own integration).
     """
 
     time: float
@@ -113,6 +127,8 @@ class FollowStep(NamedTuple):
     G_T_B: FloatArray
     polygon: FloatArray
     tilt: float
+    gravity_body: FloatArray
+    measured: bool
 
 
 class Follower:
@@ -122,7 +138,7 @@ class Follower:
         self,
         problem: Problem,
         route: RoutePath,
-        horizon: HorizonPlanner,
+        horizon: HorizonPlanner | RoadmapHorizon,
         controller: Controller,
         settings: FollowSettings,
     ) -> None:
@@ -156,6 +172,8 @@ class Follower:
         terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
         pose = u.odometry.pose
         self.s = s = self.progress(pose[:2])
+        if u.joints is not None:  # the arm as measured, not as commanded
+            self.q = np.array(u.joints.q, dtype=float)
         q = self.q.copy()
         ks = self.horizon.window(s, self.settings.horizon)
         ref_pose = self.route.route.sample(np.array([s])).pose
@@ -174,7 +192,7 @@ class Follower:
             if rested.covered[i]:
                 self.ground = rested.ground[i : i + 1]
                 break
-        target, q_ref, mu_planned = self._reference(s)
+        target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         latency = time.perf_counter() - t0
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
@@ -184,20 +202,8 @@ class Follower:
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
-            tilt,
+            tilt, g_now, u.joints is not None,
         )  # fmt: skip
-
-    def _reference(self, s: float) -> tuple[FloatArray | None, FloatArray | None, float]:
-        """The planned arm CoM [m], posture [rad] and μ [N rad] at ``s``, between plans."""
-        plans = self.horizon.plans
-        known = sorted(k for k in plans if abs(plans[k].s - s) <= 2 * self._spacing())
-        if not known:
-            return None, None, float("nan")
-        ss = np.array([plans[k].s for k in known])
-        pick = lambda name: np.array([getattr(plans[k], name) for k in known])  # noqa: E731
-        coms, qs, mus = pick("target_com"), pick("q"), pick("mu")
-        interp = lambda v: np.array([np.interp(s, ss, v[:, i]) for i in range(v.shape[1])])  # noqa: E731
-        return interp(coms), interp(qs), float(np.interp(s, ss, mus))
 
     def _spacing(self) -> float:
         grid = self.horizon.s_grid
@@ -252,6 +258,7 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
         MmstabError: the problem's path is not a route, or V is empty.
     """
     from mmstab.workspace.ik import PostureSolver
+    from mmstab.workspace.roadmap import load_or_build_roadmap
 
     route = problem.route
     if route is None:
@@ -260,11 +267,19 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
     section = problem.section("planner")
     s_grid = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
     settings = FollowSettings.of(problem)
-    horizon = HorizonPlanner(
-        problem.robot, region, PlannerSettings.from_section(section), s_grid,
-        route.route.sample(s_grid).pose, PostureSolver(problem.robot, ws).realise,
-        settings.replan_tol,
-    )  # fmt: skip
+    planner, poses = PlannerSettings.from_section(section), route.route.sample(s_grid).pose
+    horizon: HorizonPlanner | RoadmapHorizon
+    if settings.planner == "roadmap":
+        roadmap = load_or_build_roadmap(problem.robot, ws)
+        horizon = RoadmapHorizon(
+            problem.robot, roadmap, planner, s_grid, poses, settings.replan_tol
+        )
+        horizon.warm_up()
+    else:
+        horizon = HorizonPlanner(
+            problem.robot, region, planner, s_grid, poses,
+            PostureSolver(problem.robot, ws).realise, settings.replan_tol,
+        )  # fmt: skip
     ctrl = build_controller(
         problem.robot, ControllerSettings.from_section(problem.section("controller"))
     )

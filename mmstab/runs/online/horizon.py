@@ -198,6 +198,23 @@ class HorizonPlanner:
             replanned.append(k)
         return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
 
+    def reference(
+        self, s: float, spacing: float
+    ) -> tuple[FloatArray | None, FloatArray | None, float]:
+        """The planned arm CoM [m], posture [rad] and μ [N rad] at ``s`` [m], between plans.
+
+        Interpolated between the planned poses within ``2 spacing`` [m] of ``s``.
+        """
+        plans = self.plans
+        known = sorted(k for k in plans if abs(plans[k].s - s) <= 2 * spacing)
+        if not known:
+            return None, None, float("nan")
+        ss = np.array([plans[k].s for k in known])
+        pick = lambda name: np.array([getattr(plans[k], name) for k in known])  # noqa: E731
+        coms, qs, mus = pick("target_com"), pick("q"), pick("mu")
+        interp = lambda v: np.array([np.interp(s, ss, v[:, i]) for i in range(v.shape[1])])  # noqa: E731
+        return interp(coms), interp(qs), float(np.interp(s, ss, mus))
+
     def _plan(
         self,
         terrain: Terrain,

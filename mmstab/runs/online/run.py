@@ -19,7 +19,7 @@ from mmstab.core.problem import Problem
 from mmstab.runs.online.follow import FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
 from mmstab.runs.online.stream import map_updates
-from mmstab.runs.recording import RunFrames
+from mmstab.runs.recording import RunFrames, joint_names
 from mmstab.workspace import Workspace
 
 
@@ -63,7 +63,8 @@ def follow_recording(
     skipped = [0]
     steps = []
     s = follower.settings
-    for u in map_updates(path, s.map_topic, s.odom_topic, skipped):
+    joints = None if s.joints_topic is None else (s.joints_topic, joint_names(problem.robot))
+    for u in map_updates(path, s.map_topic, s.odom_topic, skipped, joints):
         steps.append(follower.update(u))
         if limit is not None and len(steps) >= limit:
             break
@@ -108,6 +109,7 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "time_s": [st[0].time, st[-1].time],
         "progress_m": [st[0].s, st[-1].s],
         "latency_ms": _stats(np.array([x.latency for x in st]), 1e3),
+        "arm_posture": "measured" if any(x.measured for x in st) else "integrated",
         "replanned_poses": int(sum(x.replanned for x in st)),
         "updates_with_replan": int(sum(x.replanned > 0 for x in st)),
         "robot_not_covered_updates": int((~covered).sum()),

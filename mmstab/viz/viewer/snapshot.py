@@ -166,15 +166,21 @@ def hide_notifications(page: Any) -> None:
 
 
 def write_screenshot(
-    problem_path: str | Path, run_dir: str | Path | None, out: str | Path, at: float = 0.9
+    problem_path: str | Path,
+    run_dir: str | Path | None,
+    out: str | Path,
+    at: float = 0.9,
+    close: float | None = None,
 ) -> Snapshot:
     """The README's picture: the viewer of a problem (and run) at a share of the run, as PNG.
 
     Args:
         problem_path: the problem YAML file.
-        run_dir: a run folder of ``mmstab track``, or ``None``.
+        run_dir: a run folder of ``mmstab track`` (or ``mmstab follow``), or ``None``.
         out: the PNG to write (e.g. ``results/view/viewer.png``).
         at: where in the run, as a share of its samples in [0, 1].
+        close: the camera this far [m] from the robot, looking at it; ``None``: the whole
+            scene (a long route's robot is a few pixels then).
     """
     from mmstab.core.problem import load_problem
     from mmstab.runs.store import load_run
@@ -185,7 +191,14 @@ def write_screenshot(
     viewer = Viewer(problem, run, host="127.0.0.1", port=0)
     try:
         if run is not None:
-            viewer.show_sample(int(round(at * (run.samples - 1))))
+            now = viewer.show_sample(int(round(at * (run.samples - 1))))
+            if close is not None:  # the camera as the scene sets it, nearer the robot
+                target = now.G_T_B[:3, 3]
+                viewer.server.initial_camera.look_at = tuple(target)
+                view = np.array([0.35, -0.5, 0.38])
+                viewer.server.initial_camera.position = tuple(
+                    target + close * view / np.linalg.norm(view)
+                )
         return screenshot(
             viewer.url,
             out,
@@ -197,17 +210,25 @@ def write_screenshot(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m mmstab.viz.viewer.snapshot PROBLEM RUN_DIR OUT.png`` (make view-screenshot)."""
+    """``python -m mmstab.viz.viewer.snapshot PROBLEM RUN_DIR OUT.png [AT [CLOSE]]``.
+
+    ``make view-screenshot`` and ``make online``; AT is the share of the run, CLOSE the
+    camera's distance from the robot [m] (default: the whole scene).
+    """
     import sys
 
     args = sys.argv[1:] if argv is None else argv
-    if len(args) != 3:
-        print(
-            "usage: python -m mmstab.viz.viewer.snapshot PROBLEM RUN_DIR OUT.png", file=sys.stderr
-        )
+    usage = "usage: python -m mmstab.viz.viewer.snapshot PROBLEM RUN_DIR OUT.png [AT [CLOSE]]"
+    try:
+        at = float(args[3]) if len(args) > 3 else 0.9
+        close = float(args[4]) if len(args) > 4 else None
+    except ValueError:
+        args = []
+    if not 3 <= len(args) <= 5:
+        print(usage, file=sys.stderr)
         return 2
     try:
-        shot = write_screenshot(args[0], args[1], args[2])
+        shot = write_screenshot(args[0], args[1], args[2], at, close)
     except MmstabError as exc:
         print(f"mmstab: error: {exc}", file=sys.stderr)
         return 2

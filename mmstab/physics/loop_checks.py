@@ -1,0 +1,133 @@
+"""The closed loop's checks on the simulated robot (:mod:`mmstab.physics.closed_loop`).
+
+The tip and off-map check, batched (:class:`TipCheck`); the contact set the simulated μ is
+measured on and the μ itself; whether the arm touches the ground.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import mujoco
+import numpy as np
+
+from mmstab.core.problem import Problem
+from mmstab.model.robot import FloatArray
+from mmstab.physics.robot_sim import RobotSim
+from mmstab.stability.static import contact_force_angle
+from mmstab.terrain.base import GRAVITY_G
+
+#: Wheels this close to the ground [m] count as support in the simulated μ.
+NEAR_GROUND = 0.001
+
+
+def contact_points(sim: RobotSim, wheels: list[int]) -> FloatArray:
+    """MuJoCo's contact points now and the wheels' within ``NEAR_GROUND``, (n, 3) in G [m].
+
+    Every active contact counts (touching or penetrating, loaded or not this instant), and
+    every wheel geom (ids ``wheels``) within 1 mm of the ground at its nearest point: the
+    soft contacts open and close step to step as the wheels bounce at the sub-millimetre
+    scale (a sphere wheel's single contact most, when the arm presses on the ground), the
+    set of wheels within 1 mm does not.
+    """
+    m, d = sim.model, sim.data
+    points = [np.array(d.contact.pos[: d.ncon])]
+    fromto = np.zeros(6)
+    for g in wheels:
+        if mujoco.mj_geomDistance(m, d, g, sim.terrain, NEAR_GROUND, fromto) < NEAR_GROUND:
+            points.append(fromto[3:].copy()[None])
+    return np.concatenate(points)
+
+
+def contact_records(
+    sim: RobotSim, positions: list[FloatArray]
+) -> Iterator[tuple[FloatArray, FloatArray, bool]]:
+    """(contact points (n, 3) [m], CoM (3,) [m], arm on the ground) at recorded ``qpos``.
+
+    After a run: the loop records the generalized positions at its checks only, and the
+    contacts (:func:`contact_points`) and the overall CoM are found here from each, by
+    MuJoCo's position stage (kinematics and collision) on the simulation's data, which
+    they overwrite: the reports cost the loop nothing.
+    """
+    m, d = sim.model, sim.data
+    wheels = [g for g in range(m.ngeom) if m.geom(g).name.startswith("wheel_")]
+    for qpos in positions:
+        d.qpos[:] = qpos
+        mujoco.mj_fwdPosition(m, d)
+        yield contact_points(sim, wheels), d.subtree_com[0].copy(), arm_touches_ground(sim)
+
+
+def arm_touches_ground(sim: RobotSim) -> bool:
+    """Whether an arm link's geom touches now (robot geoms collide with the ground only)."""
+    d, m = sim.data, sim.model
+    touching = d.contact.dist[: d.ncon] <= 0  # not the ones listed within the contact gap
+    geoms = np.concatenate(
+        [d.contact.geom1[: d.ncon][touching], d.contact.geom2[: d.ncon][touching]]
+    )
+    arm = [g for g in set(geoms.tolist()) if str(m.geom(g).name).startswith("arm_")]
+    return bool(arm)
+
+
+def simulated_mu(points: FloatArray, com: FloatArray, mass: float) -> float:
+    """μ of MuJoCo's contacts: their hull along gravity, the CoM [m], m·g [N rad].
+
+    Args:
+        points: the active contact points (n, 3) in G [m] (:func:`contact_points`).
+        com: the robot's overall CoM in G (3,) [m].
+        mass: the robot's mass [kg].
+    """
+    if len(points) == 0:
+        return float("nan")
+    return contact_force_angle(points, com, mass * GRAVITY_G).mu
+
+
+def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> FloatArray:
+    """Angles between simulated chassis z axes and their resting ones on the terrain [rad].
+
+    Batched: poses (N, 3) (x, y, heading in M), simulated G_T_B (N, 4, 4). NaN where the
+    pose's ground is off the terrain's map.
+    """
+    rest = getattr(problem.terrain, "rest", None)
+    if rest is not None:  # a heightmap: off-map poses come back NaN
+        z_rest = rest(poses, strict=False).G_T_B[:, :3, 2]
+    else:
+        z_rest = np.asarray(problem.terrain.G_T_B(poses)).reshape(-1, 4, 4)[:, :3, 2]
+    c = np.clip(np.einsum("ni,ni->n", z_rest, G_T_B[:, :3, 2]), -1.0, 1.0)
+    return np.asarray(np.arccos(c))
+
+
+class TipCheck:
+    """The tip and off-map checks of a run, evaluated in batches (the rest solve batched).
+
+    Records the simulated pose every ``check_dt`` and evaluates ``batch`` records at once:
+    the verdict is that of the first record over the tip angle (or off the map); the run
+    stops there, the periods simulated after it (at most a batch) are dropped.
+    """
+
+    def __init__(self, problem: Problem, tip_angle: float, batch: int = 25):
+        self.problem, self.tip_angle, self.batch = problem, tip_angle, batch
+        self.index: list[int] = []
+        self.poses: list[FloatArray] = []
+        self.frames: list[FloatArray] = []
+        self.tilt: list[float] = []
+        self.end: tuple[int, int, str] | None = None  # (last period, event's, kind)
+
+    def record(self, k: int, pose: FloatArray, G_T_B: FloatArray, last: bool) -> bool:
+        """Record period ``k``; True when the run must stop (tipped or off its map)."""
+        self.index.append(k)
+        self.poses.append(pose)
+        self.frames.append(G_T_B)
+        if len(self.index) - len(self.tilt) >= self.batch or last:
+            new = tilts_off_rest(self.problem, np.array(self.poses[len(self.tilt) :]),
+                                 np.array(self.frames[len(self.tilt) :]))  # fmt: skip
+            for j, value in enumerate(new, start=len(self.tilt)):
+                if not np.isfinite(value):  # off the map: the run ends at the check before
+                    self.end = (self.index[max(j - 1, 0)], self.index[j], "left_map")
+                    self.index, self.tilt = self.index[:j], self.tilt[:j]
+                    return True
+                self.tilt.append(float(value))
+                if value > self.tip_angle:
+                    self.end = (self.index[j], self.index[j], "tipped")
+                    self.index = self.index[: j + 1]
+                    return True
+        return False

@@ -1,0 +1,288 @@
+"""Each pose's candidate roadmap nodes, without scoring every node (branch and bound).
+
+``method: roadmap`` (:mod:`mmstab.planner.roadmap`) gives each pose the ``count`` best
+reachable nodes by Eq. 6's stability term, spread round robin over turret bins (the best
+of every bin in turn, :func:`spread_top`), each clear of the robot. Scoring all 288,097
+nodes of the default roadmap at every pose (an ``arctan2`` per tip-over axis) took 26 of
+the 42 ms per pose. Here the nodes are grouped once per roadmap component into clusters
+(turret bin x a :data:`CLUSTER_SIZE` voxel of the arm CoM), and at every pose of a route
+(one batch) each cluster gets bounds on its members' values; only the clusters whose upper
+bound reaches a threshold that some cluster certifies are scored. The answer is exactly
+that of scoring every node (``tests/test_roadmap_candidates.py``).
+
+**Bounds.** Axis j's tip-over angle is ``atan2(s_j, c_j)`` with ``(s_j, c_j)`` affine in the
+arm CoM (:mod:`mmstab.planner.fitness`): within a ball of radius r about a cluster's centre
+the pair moves by at most ``δ_j = r ||[∂s_j; ∂c_j]||_F``, so the angle by at most
+``asin(δ_j / ρ_j)`` (ρ_j: the pair's norm at the centre), when ``δ_j < ρ_j`` and the interval
+stays inside (−π, π]; otherwise the axis is unbounded (±π). The value is
+``w μ = w |f| min_j θ_j``: bounds per axis give bounds on the value.
+
+**Threshold.** A pose's chosen rows have a rank within their bin below R (the smallest R
+with Σ_b min(R, n_b) ≥ count, n_b the bin's rows). A cluster with at least R eligible
+members (not known too close) whose lower bound is L proves that the bin's R-th best
+eligible value is ≥ L; every row ranked above R then lies in a cluster whose upper bound is
+≥ L. A bin where no cluster proves a threshold is scored whole.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.fitness import LinearFitness
+from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
+
+#: Edge of the arm-CoM voxel that groups nodes into clusters [m]: 4 cm, 5,755 clusters on
+#: the default roadmap, 2.4 % of the nodes scored on problems/rough.yaml (2 cm: 19,709
+#: clusters, 1.0 %, but the clusters' bounds cost 4x more; 5 cm: 3.3 %).
+CLUSTER_SIZE = 0.04
+#: Widening of every bounded angle [rad]: float32 round-off of the bounds (the sine and
+#: cosine parts are ~10^2 N m, their round-off ~10^-5 N m, so the angle's ~10^-7 rad).
+ANGLE_SLACK = 1e-5
+#: Slack on the threshold test (value units): round-off never drops a row from the choice.
+BOUND_SLACK = 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeClusters:
+    """Rows of the reachable nodes grouped by cluster (turret bin x CoM voxel).
+
+    Attributes:
+        rows: reach rows grouped by cluster, ascending within each (N,).
+        start: offsets of each cluster's rows in ``rows`` (C + 1,).
+        centre: each cluster's centre, body frame (C, 3) [m].
+        radius: its members' largest distance from the centre (C,) [m].
+        cluster_bin: turret bin of each cluster (C,), ascending.
+        bin_start: offsets of each bin's clusters (B + 1,).
+        cluster_of: cluster of each reach row (N,).
+        bin_rows: rows per bin (B,).
+    """
+
+    rows: NDArray[np.intp]
+    start: NDArray[np.intp]
+    centre: FloatArray
+    radius: FloatArray
+    cluster_bin: NDArray[np.intp]
+    bin_start: NDArray[np.intp]
+    cluster_of: NDArray[np.intp]
+    bin_rows: NDArray[np.intp]
+
+
+def node_clusters(
+    coms: FloatArray, bins: NDArray[np.intp], count: int, size: float = CLUSTER_SIZE
+) -> NodeClusters:
+    """Group nodes with CoMs ``coms`` (N, 3) [m] and turret bins ``bins`` (N,) of ``count``."""
+    vox = np.floor((coms - coms.min(axis=0)) / size).astype(np.int64)
+    dims = tuple(int(d) for d in vox.max(axis=0) + 1)
+    key = np.ravel_multi_index((bins.astype(np.int64), *vox.T), (count, *dims))
+    uniq, inv = np.unique(key, return_inverse=True)
+    inv = inv.reshape(-1)
+    rows = np.argsort(inv, kind="stable")
+    n = np.bincount(inv, minlength=len(uniq))
+    start = np.r_[0, np.cumsum(n)]
+    lo = np.full((len(uniq), 3), np.inf)
+    hi = np.full((len(uniq), 3), -np.inf)
+    np.minimum.at(lo, inv, coms)
+    np.maximum.at(hi, inv, coms)
+    centre = (lo + hi) / 2
+    radius = np.zeros(len(uniq))
+    np.maximum.at(radius, inv, np.linalg.norm(coms - centre[inv], axis=1))
+    cluster_bin = (uniq // int(np.prod(dims))).astype(np.intp)
+    bin_start = np.searchsorted(cluster_bin, np.arange(count + 1)).astype(np.intp)
+    return NodeClusters(
+        rows=rows.astype(np.intp),
+        start=start.astype(np.intp),
+        centre=centre,
+        radius=radius * (1 + 1e-9) + 1e-12,  # round-off of the centre never shrinks it
+        cluster_bin=cluster_bin,
+        bin_start=bin_start,
+        cluster_of=inv.astype(np.intp),
+        bin_rows=np.bincount(bins, minlength=count).astype(np.intp),
+    )
+
+
+def rank_bound(bin_rows: NDArray[np.intp], count: int) -> int:
+    """The smallest R with Σ_b min(R, n_b) ≥ count: chosen rows rank below R in their bin."""
+    n = np.sort(np.asarray(bin_rows))
+    for r in range(1, int(n.max(initial=0)) + 1):
+        if int(np.minimum(n, r).sum()) >= count:
+            return r
+    return int(n.max(initial=0))
+
+
+def cluster_bounds(cl: NodeClusters, fits: list[LinearFitness]) -> tuple[FloatArray, FloatArray]:
+    """Lower and upper bounds (K, C) of each cluster's members' values at K poses.
+
+    The value is LinearFitness's with no motion term: ``w_stability · μ``. Computed in
+    float32 (half the time), each angle's interval widened by :data:`ANGLE_SLACK` to
+    cover its round-off.
+    """
+    f32 = np.float32
+    sg = np.stack([f.sin_gain for f in fits]).astype(f32)  # (K, 3, n)
+    cg = np.stack([f.cos_gain for f in fits]).astype(f32)
+    centre = cl.centre.astype(f32)
+    s = centre @ sg
+    s += np.stack([f.sin_offset for f in fits]).astype(f32)[:, None, :]  # (K, C, n)
+    c = centre @ cg
+    c += np.stack([f.cos_offset for f in fits]).astype(f32)[:, None, :]
+    theta = np.arctan2(s, c)
+    rho = np.hypot(s, c)
+    gain = np.sqrt(np.sum(sg**2, axis=1) + np.sum(cg**2, axis=1))  # (K, n)
+    delta = cl.radius.astype(f32)[None, :, None] * gain[:, None, :]
+    bounded = delta < rho
+    np.divide(delta, rho, out=delta, where=bounded)
+    spread = np.arcsin(np.minimum(delta, f32(1.0)))
+    spread += f32(ANGLE_SLACK)
+    bounded &= (theta - spread > -np.pi) & (theta + spread <= np.pi)
+    upper = np.where(bounded, theta + spread, f32(np.pi)).min(axis=2)
+    lower = np.where(bounded, theta - spread, f32(-np.pi)).min(axis=2)
+    scale = np.array([f.w_stability * f.force for f in fits])[:, None]
+    return lower.astype(float) * scale, upper.astype(float) * scale
+
+
+def scored_rows(
+    cl: NodeClusters, fits: list[LinearFitness], eligible: NDArray[np.bool_], rank: int
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """Reach rows (ascending) that hold every pose's rows ranked below ``rank`` per bin.
+
+    Returns the rows and the thresholds (K, bins): at pose k, bin b's rows ranked below
+    ``rank`` have values at least ``tau[k, b]`` (-inf: the bin is taken whole).
+
+    Args:
+        cl: the clusters.
+        fits: Eq. 6 per pose (the motion term is not used).
+        eligible: whether each reach row may be chosen (not known too close) (N,).
+        rank: R of :func:`rank_bound`.
+    """
+    lower, upper = cluster_bounds(cl, fits)
+    members = np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius))
+    # per bin, clusters by lower bound (best first): the R-th best eligible value is at
+    # least the bound of the first cluster at which the members counted reach R
+    span = 2 * float(np.abs(lower).max(initial=0.0)) + 1.0
+    order = np.argsort(cl.cluster_bin * span - lower, axis=1)  # bins stay grouped
+    counted = np.cumsum(members[order], axis=1)
+    full = np.flatnonzero(np.diff(cl.bin_start) > 0)
+    first = cl.bin_start[full]
+    before = np.where(first > 0, counted[:, np.maximum(first - 1, 0)], 0)  # (K, bins)
+    within = counted - np.repeat(before, np.diff(cl.bin_start)[full], axis=1)
+    proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
+    tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
+    tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
+    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0)
+    take = np.flatnonzero(keep)
+    if take.size == 0:  # no clusters (an empty component)
+        return np.zeros(0, dtype=np.intp), tau
+    sizes = cl.start[take + 1] - cl.start[take]
+    offset = np.repeat(cl.start[take] - np.r_[0, np.cumsum(sizes)[:-1]], sizes)
+    return np.sort(cl.rows[np.arange(int(sizes.sum())) + offset]), tau
+
+
+def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+    """``count`` rows: the best of every turret bin in turn (round robin), best first.
+
+    The same answer as :func:`mmstab.planner.sequence._diverse_top` (ties by row order),
+    without a Python loop over the bins.
+    """
+    order = np.argsort(-values, kind="stable")
+    b = bins[order]
+    by_bin = np.argsort(b, kind="stable")  # value order kept within each bin
+    sb = b[by_bin]
+    rank = np.empty(len(order), dtype=np.intp)
+    rank[by_bin] = np.arange(len(order)) - np.searchsorted(sb, sb, side="left")
+    chosen = order[np.lexsort((-values[order], rank))][:count]
+    return chosen[np.argsort(-values[chosen], kind="stable")]
+
+
+def _clearances(roadmap: Roadmap) -> FloatArray:
+    """The roadmap's per-node clearance cache [m] (NaN: not measured yet)."""
+    cached = getattr(roadmap, "_node_clearance", None)
+    if cached is None:
+        cached = np.full(len(roadmap.nodes_q), np.nan)
+        object.__setattr__(roadmap, "_node_clearance", cached)
+    return np.asarray(cached)
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeClearance:
+    """The reachable nodes' clearance test: a node must keep :data:`MOVE_CLEARANCE` [m].
+
+    The tracked arm follows the plan's postures within a few millimetres, and a tracking
+    run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``): on random routes postures
+    1.5 mm from the body were chosen and touched it when tracked. A node's FCL clearance is
+    measured on first use and kept with the roadmap.
+    """
+
+    robot: Robot
+    roadmap: Roadmap
+    reach: NDArray[np.intp]
+
+    def __call__(self, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+        """Whether the nodes ``reach[rows]`` keep the clearance (measured on first use)."""
+        cached = _clearances(self.roadmap)
+        nodes = self.reach[rows]
+        todo = nodes[np.isnan(cached[nodes])]
+        if todo.size:
+            checker = CollisionChecker(self.robot)
+            cached[todo] = checker.clearance(self.roadmap.nodes_q[todo], MOVE_CLEARANCE)
+        return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
+
+    def eligible(self) -> NDArray[np.bool_]:
+        """Per reach row: not measured too close yet (N,)."""
+        return ~(_clearances(self.roadmap)[self.reach] < MOVE_CLEARANCE)
+
+
+class Candidates(NamedTuple):
+    """Each pose's candidate nodes.
+
+    Attributes:
+        rows: reach rows (K, count).
+        value: Eq. 6's stability term (K, count); -inf where unstable (μ ≤ 0) or not clear.
+        mu: force-angle measure (K, count) [N rad].
+    """
+
+    rows: NDArray[np.intp]
+    value: FloatArray
+    mu: FloatArray
+
+
+def route_candidates(
+    fits: list[LinearFitness],
+    samples: FloatArray,
+    bins: NDArray[np.intp],
+    cl: NodeClusters,
+    count: int,
+    clear: NodeClearance,
+) -> Candidates:
+    """Every pose's ``count`` best clear nodes spread over the turret bins (module text).
+
+    Args:
+        fits: Eq. 6 per pose (stability term only: ``w_motion`` 0).
+        samples: the reach rows' arm CoMs, body frame (N, 3) [m].
+        bins: their turret bins (N,).
+        cl: their clusters (:func:`node_clusters`).
+        count: candidates per pose (at most N).
+        clear: the clearance test; a chosen node measured too close is dropped and the
+            choice is made again, until every finite choice is clear.
+    """
+    K, rank = len(fits), rank_bound(cl.bin_rows, count)
+    rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
+    while True:
+        eligible = clear.eligible()
+        sub, tau = scored_rows(cl, fits, eligible, rank)
+        bad, sub_bins, sub_com = ~eligible[sub], bins[sub], samples[sub]
+        for k, fit in enumerate(fits):
+            v = fit(sub_com)
+            v[bad] = -np.inf
+            top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
+            pick = top[spread_top(v[top], sub_bins[top], count)]
+            rows[k], value[k] = sub[pick], v[pick]
+        chosen = np.unique(rows[np.isfinite(value)])
+        if clear(chosen).all():
+            break
+    mu = np.stack([fit.mu(samples[r]) for fit, r in zip(fits, rows, strict=True)])
+    return Candidates(rows, np.where(mu > 0, value, -np.inf), mu)

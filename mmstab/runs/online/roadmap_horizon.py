@@ -1,0 +1,272 @@
+"""The receding horizon on the posture roadmap (``online: {planner: roadmap}``).
+
+The same horizon as :class:`~mmstab.runs.online.horizon.HorizonPlanner` (the route's planned
+poses from behind the robot to ``online.horizon`` ahead, each rested on the latest map, a
+pose re-scored when new or when the map turned its gravity by more than
+``online.replan_tol``, what the map does not cover reported), but each pose's posture is a
+node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the offline
+``method: roadmap`` chooses it (:mod:`mmstab.planner.roadmap`):
+
+- a pose's candidates are its best reachable nodes by Eq. 6's stability term, spread over
+  the turret, each clear of the robot; they are scored once per ground the pose gets and
+  kept while the map confirms it (the warm start: nothing is searched twice);
+- after an update that re-scored a pose, the choices from the first re-scored pose to the
+  last covered one are made again, exactly, by dynamic programming over the kept
+  candidates (Eq. 6's motion term between consecutive choices, the turret window), from
+  the previous pose's choice (or, at the start, the arm's posture);
+- the posture reference between two planned poses runs along the roadmap path between
+  their nodes (shortcut where free), so the arm's commanded moves are collision-free by
+  construction, as offline.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.core.files import MmstabError
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner import roadmap as rp
+from mmstab.planner.candidates import NodeClearance, route_candidates
+from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.settings import PlannerSettings
+from mmstab.runs.online.horizon import HorizonPose, HorizonUpdate, Rested, angle_between
+from mmstab.stability.static import mu_max as stowed_flat_mu
+from mmstab.terrain import Terrain
+from mmstab.workspace.roadmap import Roadmap
+
+
+class Candidates(NamedTuple):
+    """One pose's candidate nodes on the ground it was scored on.
+
+    Attributes:
+        gravity_body: gravity in B there [m/s^2].
+        rows: rows of the reachable nodes (M,).
+        value: Eq. 6's stability term of each (-inf: unstable or not clear) (M,).
+        mu: μ of each [N rad] (M,).
+        scored_at: the update's time [s].
+    """
+
+    gravity_body: FloatArray
+    rows: NDArray[np.intp]
+    value: FloatArray
+    mu: FloatArray
+    scored_at: float
+
+
+class RoadmapHorizon:
+    """The horizon's plans on the posture roadmap, updated map by map (module text).
+
+    Args:
+        robot: the robot.
+        roadmap: the posture roadmap of the robot's V.
+        settings: the planner settings (weights, ``turret_window``, ``sequence_candidates``).
+        s_grid: arc lengths of the route's planned poses (K,) [m].
+        poses_grid: those poses (K, 3) in the map frame [m, m, rad].
+        replan_tol: gravity change that re-scores a pose [rad].
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        roadmap: Roadmap,
+        settings: PlannerSettings,
+        s_grid: FloatArray,
+        poses_grid: FloatArray,
+        replan_tol: float,
+    ) -> None:
+        if robot.tool_wrench is not None:
+            raise MmstabError("online: planner roadmap does not take payload.wrench yet")
+        self.robot, self.roadmap, self.settings = robot, roadmap, settings
+        self.s_grid, self.poses_grid, self.replan_tol = s_grid, poses_grid, replan_tol
+        self.mu_max = stowed_flat_mu(robot)
+        start = roadmap.connect(robot.stowed, robot)
+        self.view = rp.component_view(robot, roadmap, start)
+        self.reach, self.samples = self.view.reach, self.view.samples
+        span = (self.view.diameter, self.view.joint_span)
+        self.cost = motion_cost(roadmap.nodes_q[self.reach], self.samples, span, settings)
+        self.clear = NodeClearance(robot, roadmap, self.reach)
+        self.count = min(settings.sequence_candidates, len(self.reach))
+        self.candidates: dict[int, Candidates] = {}
+        self.plans: dict[int, HorizonPose] = {}
+        self.nodes: dict[int, int] = {}  # the chosen node per planned pose
+        self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
+        self._moves: dict[tuple[int, int], FloatArray] = {}
+        self._checker = CollisionChecker(robot)
+
+    def warm_up(self, tilt: float = 0.3) -> None:
+        """Measure, before the first map, the clearance of the nodes likely to be chosen.
+
+        The candidates of flat ground and of ground tilted by ``tilt`` [rad] in each of four
+        directions: a node's clearance is measured on its first choice and kept, so the
+        first maps need not measure the usual ones (as a robot prepares before it drives).
+        """
+        c, s = np.cos(tilt), np.sin(tilt)
+        down = np.array([[0, 0, -1], [s, 0, -c], [-s, 0, -c], [0, s, -c], [0, -s, -c]])
+        stab = self.settings._replace(w_motion=0.0)
+        stowed = self.robot.arm_com(self.robot.stowed)
+        fits = [
+            pose_fitness(
+                self.robot, 9.81 * g, stowed, stab, self.mu_max, self.view.diameter
+            ).linear()
+            for g in down
+        ]
+        v = self.view
+        route_candidates(fits, self.samples, v.bins, v.clusters, self.count, self.clear)
+
+    def window(self, s_now: float, ahead: float) -> list[int]:
+        """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
+        first = max(int(np.searchsorted(self.s_grid, s_now, side="right")) - 1, 0)
+        last = int(np.searchsorted(self.s_grid, s_now + ahead, side="right"))
+        return list(range(first, max(last, first + 1)))
+
+    def update(
+        self,
+        terrain: Terrain,
+        ks: list[int],
+        rested: Rested,
+        now: float,
+        arm_com: FloatArray,
+        arm_q: FloatArray,
+    ) -> HorizonUpdate:
+        """Re-score the poses whose ground changed, then choose again from the first of them.
+
+        Args:
+            terrain: the latest map (not read: the rests in ``rested`` are its answer).
+            ks: the horizon's grid indices, in driving order.
+            rested: those poses rested on the map.
+            now: the update's time [s].
+            arm_com: the arm's CoM now, body frame [m].
+            arm_q: the arm's posture now [rad].
+        """
+        replanned, kept, uncovered = [], [], []
+        for i, k in enumerate(ks):
+            if not rested.covered[i]:
+                uncovered.append(k)
+                continue
+            old = self.candidates.get(k)
+            g = rested.gravity_body[i]
+            if old is not None and angle_between(g, old.gravity_body) <= self.replan_tol:
+                kept.append(k)
+            else:
+                replanned.append(k)
+        if replanned:
+            self._score(replanned, rested.gravity_body[[ks.index(k) for k in replanned]], now)
+            first = replanned[0]
+            chain = [k for k in ks if k >= first and k in self.candidates]
+            chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
+            self._choose(chain, arm_q, now)
+        return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
+
+    def _score(self, ks: list[int], gravity: FloatArray, now: float) -> None:
+        """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch."""
+        stab = self.settings._replace(w_motion=0.0)
+        stowed = self.robot.arm_com(self.robot.stowed)
+        fits = [
+            pose_fitness(self.robot, g, stowed, stab, self.mu_max, self.view.diameter).linear()
+            for g in gravity
+        ]
+        v = self.view
+        rows, value, mu = route_candidates(
+            fits, self.samples, v.bins, v.clusters, self.count, self.clear
+        )
+        for i, k in enumerate(ks):
+            self.candidates[k] = Candidates(gravity[i], rows[i], value[i], mu[i], now)
+
+    def _choose(self, chain: list[int], arm_q: FloatArray, now: float) -> None:
+        """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``."""
+        cands = [self.candidates[k] for k in chain]
+        cand = np.array([c.rows for c in cands])
+        value = np.array([c.value for c in cands])
+        before = self.nodes.get(chain[0] - 1)
+        cost = self.cost
+        if before is None:  # from the arm as it is
+            start = cost.point_of(self.robot, np.asarray(arm_q, dtype=float))
+        else:  # from the previous pose's node
+            start = cost.points[int(np.searchsorted(self.reach, before))]
+        value[0] = value[0] - cost.from_point(cand[0], start)
+        turret = self.roadmap.nodes_q[self.reach, 0]
+        window = self.settings.turret_window
+        if before is not None and window is not None:
+            far = np.abs(turret[cand[0]] - self.roadmap.nodes_q[before, 0]) > window + 1e-9
+            value[0] = np.where(far, -np.inf, value[0])
+        pairs = [(i, i + 1) for i in range(len(chain) - 1)]
+        motion, allowed = transitions(
+            cost.points, turret, cand, pairs, cost.weight, window, cost.metric
+        )
+        path, total = rp.best_sequence(value, motion, allowed, False)
+        if not np.isfinite(total):  # keep the last plans; the loop reports the pose
+            return
+        if before is None:
+            self.start_q[chain[0]] = np.array(arm_q, dtype=float)
+        for i, k in enumerate(chain):
+            row = int(cand[i, path[i]])
+            node = int(self.reach[row])
+            q = self.roadmap.nodes_q[node].copy()
+            mu = float(cands[i].mu[path[i]])
+            self.nodes[k] = node
+            self.plans[k] = HorizonPose(
+                k, float(self.s_grid[k]), self.poses_grid[k], cands[i].gravity_body,
+                self.samples[row].copy(), q, mu, True, now,
+            )  # fmt: skip
+
+    def move(self, k: int) -> FloatArray:
+        """The arm's move into pose ``k``'s posture (n, 4) [rad], along the roadmap.
+
+        From pose ``k - 1``'s node, or from the arm's posture when ``k - 1`` was not planned
+        (then joined to its nearest clear node). Computed once per pair of nodes.
+        """
+        b = self.nodes[k]
+        a = self.nodes.get(k - 1)
+        if a is None:
+            q0 = self.start_q.get(k, self.robot.stowed)
+            a = self.roadmap.connect(q0, self.robot)
+            head = np.asarray(q0, dtype=float)[None]
+        else:
+            head = np.zeros((0, self.roadmap.nodes_q.shape[1]))
+        key = (a, b)
+        if key not in self._moves:
+            path = rp.roadmap_move(self.roadmap, a, b)
+            self._moves[key] = self.roadmap.shortcut(self._checker, path)
+        return np.vstack([head, self._moves[key]])
+
+    def reference(
+        self, s: float, spacing: float
+    ) -> tuple[FloatArray | None, FloatArray | None, float]:
+        """The planned arm CoM [m], posture [rad] and μ [N rad] at ``s`` [m].
+
+        Between planned poses k - 1 and k the posture runs along the roadmap move into k, by
+        the share of the way from ``s_{k-1}`` to ``s_k``; the CoM and μ are interpolated.
+        """
+        ks = sorted(k for k in self.plans if abs(self.plans[k].s - s) <= 2 * spacing)
+        if not ks:
+            return None, None, float("nan")
+        ahead = [k for k in ks if self.plans[k].s >= s]
+        k = ahead[0] if ahead else ks[-1]
+        p = self.plans[k]
+        prev = self.plans.get(k - 1)
+        if prev is None or s >= p.s:
+            return p.target_com, p.q, p.mu
+        share = float(np.clip((s - prev.s) / max(p.s - prev.s, 1e-9), 0.0, 1.0))
+        q_ref = along(self.move(k), share)
+        com = prev.target_com + share * (p.target_com - prev.target_com)
+        return com, q_ref, prev.mu + share * (p.mu - prev.mu)
+
+
+def along(path: FloatArray, share: float) -> FloatArray:
+    """The point at ``share`` in [0, 1] of a polyline's length (n, d)."""
+    if len(path) == 1:
+        return path[0].copy()
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    total = float(seg.sum())
+    if total <= 0.0:
+        return path[-1].copy()
+    d = share * total
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    i = int(np.clip(np.searchsorted(cum, d, side="right") - 1, 0, len(seg) - 1))
+    t = (d - cum[i]) / seg[i] if seg[i] > 0 else 0.0
+    return path[i] + t * (path[i + 1] - path[i])

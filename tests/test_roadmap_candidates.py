@@ -1,0 +1,144 @@
+"""method roadmap's candidates by branch and bound (mmstab.planner.candidates) equal the
+candidates of scoring every node; the culled clearance is exact below its cut."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mmstab.model.collision import CollisionChecker
+from mmstab.planner.candidates import (
+    cluster_bounds,
+    node_clusters,
+    rank_bound,
+    route_candidates,
+    scored_rows,
+    spread_top,
+)
+from mmstab.planner.fitness import linear_fitness
+from mmstab.planner.roadmap import TURRET_BINS, node_coms
+from mmstab.planner.sequence import _diverse_top, _turret_bins
+from mmstab.stability.static import base_polygon, mu_max
+from mmstab.workspace import build_workspace
+from mmstab.workspace.roadmap import build_roadmap
+
+GRID = (12, 10, 9, 9)
+
+
+@pytest.fixture(scope="module")
+def nodes(robot):
+    ws = build_workspace(robot, GRID, progress=False)
+    rm = build_roadmap(robot, ws)
+    reach = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    coms = node_coms(robot, rm)[reach]
+    bins = _turret_bins(rm.nodes_q[reach, 0], TURRET_BINS)
+    return coms, bins, rm
+
+
+def _fits(robot, coms, rng, poses):
+    """Eq. 6's stability term at random tilts up to 0.6 rad (gravity in B)."""
+    polygon = base_polygon(robot).vertices
+    out = []
+    for _ in range(poses):
+        tilt, az = rng.uniform(0, 0.6), rng.uniform(-np.pi, np.pi)
+        g = -9.81 * np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+        w = 0.9 / mu_max(robot)
+        out.append(linear_fitness(robot, polygon, g, robot.arm_com(robot.stowed), w, 0.0))
+    return out
+
+
+class FakeClearance:
+    """A clearance test with a fixed set of too-close rows, learnt as rows are measured."""
+
+    def __init__(self, too_close: np.ndarray, n: int):
+        self.bad = np.zeros(n, dtype=bool)
+        self.bad[too_close] = True
+        self.known = np.zeros(n, dtype=bool)
+
+    def __call__(self, rows):
+        self.known[rows] = True
+        return ~self.bad[rows]
+
+    def eligible(self):
+        return ~(self.known & self.bad)
+
+
+def _reference(fit, coms, bins, count, clear):
+    """Every node scored; a chosen too-close node dropped and the choice remade."""
+    members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
+    v = fit(coms)
+    v[~clear.eligible()] = -np.inf
+    while True:
+        rows = _diverse_top(v, bins, count, members)
+        finite = rows[np.isfinite(v[rows])]
+        bad = finite[~clear(finite)]
+        if bad.size == 0:
+            return rows, v[rows]
+        v[bad] = -np.inf
+
+
+@pytest.mark.parametrize("size", [0.02, 0.05])
+def test_branch_and_bound_candidates_equal_scoring_every_node(robot, nodes, size):
+    coms, bins, _ = nodes
+    rng = np.random.default_rng(5)
+    fits = _fits(robot, coms, rng, 12)
+    cl = node_clusters(coms, bins, TURRET_BINS, size)
+    too_close = rng.choice(len(coms), len(coms) // 20, replace=False)
+    count = 96
+    got = route_candidates(fits, coms, bins, cl, count, FakeClearance(too_close, len(coms)))
+    every, rank = np.ones(len(coms), dtype=bool), rank_bound(cl.bin_rows, count)
+    scored = [len(scored_rows(cl, [f], every, rank)[0]) / len(coms) for f in fits]
+    assert np.median(scored) < 0.5, scored  # the bounds prune (else the test proves little)
+    ref_clear = FakeClearance(too_close, len(coms))
+    for k, fit in enumerate(fits):
+        rows, value = _reference(fit, coms, bins, count, ref_clear)
+        np.testing.assert_array_equal(got.rows[k], rows)
+        mu = fit.mu(coms[rows])
+        np.testing.assert_array_equal(got.value[k], np.where(mu > 0, value, -np.inf))
+
+
+def test_cluster_bounds_hold_for_every_member(robot, nodes):
+    coms, bins, _ = nodes
+    fits = _fits(robot, coms, np.random.default_rng(9), 6)
+    cl = node_clusters(coms, bins, TURRET_BINS, 0.05)
+    lower, upper = cluster_bounds(cl, fits)
+    for k, fit in enumerate(fits):
+        v = fit(coms)
+        assert np.all(v <= upper[k, cl.cluster_of] + 1e-12)
+        assert np.all(v >= lower[k, cl.cluster_of] - 1e-12)
+        # bounds that prune: most clusters are bounded within 0.05 of their value range
+        assert np.median(upper[k] - lower[k]) < 0.05
+
+
+def test_spread_top_equals_the_round_robin_with_ties_and_minus_infinity():
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        n = int(rng.integers(5, 400))
+        values = np.round(rng.normal(size=n), 1)  # many ties
+        values[rng.random(n) < 0.2] = -np.inf
+        bins = rng.integers(0, 7, n)
+        count = int(rng.integers(1, n + 1))
+        np.testing.assert_array_equal(
+            spread_top(values, bins, count), _diverse_top(values, bins, count)
+        )
+
+
+def test_rank_bound():
+    assert rank_bound(np.array([100, 100, 100]), 7) == 3
+    assert rank_bound(np.array([1, 1, 100]), 10) == 8  # 1 + 1 + 8
+    assert rank_bound(np.array([5, 5]), 10) == 5
+
+
+def test_culled_clearance_is_exact_below_the_cut(robot, nodes):
+    """Collision-free grid postures, some a few mm from the robot, some far."""
+    rm = nodes[2]
+    q = rm.nodes_q[np.random.default_rng(4).choice(len(rm.nodes_q), 400, replace=False)]
+    checker = CollisionChecker(robot)
+    exact = checker.clearance(q)
+    for cut in (0.003, 0.008):  # (a link keeps 1 cm from the body at every posture)
+        culled = checker.clearance(q, cull_above=cut)
+        below = exact < cut
+        assert below.any() and (~below).any()
+        np.testing.assert_array_equal(culled[below], exact[below])
+        assert np.all(culled[~below] >= cut)
+        assert np.all(culled[~below] <= exact[~below] + 1e-12)
