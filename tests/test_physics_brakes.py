@@ -61,8 +61,8 @@ def normal_forces(robot, settings, slope, heading, hold=0.5):
 
 
 def test_integrator_setting(cameleon):
-    """The default stays ``implicitfast``; the setting reaches the compiled model."""
-    assert ModelSettings().integrator == "implicitfast" and RIGID.integrator == "discrete"
+    """The default is ``discrete`` (contacts see the brakes); the setting reaches the model."""
+    assert ModelSettings().integrator == "discrete" and RIGID.integrator == "discrete"
     assert RIGID.suspension_deflection == 0.0 and RIGID.track_kv == 2.0e5
     default = RobotSim(cameleon, settings=IMPLICITFAST).model.opt.integrator
     assert default == mujoco.mjtIntegrator.mjINT_IMPLICITFAST

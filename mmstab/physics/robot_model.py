@@ -85,7 +85,7 @@ class ModelSettings:
     """
 
     timestep: float = 0.004
-    integrator: str = "implicitfast"
+    integrator: str = "discrete"
     solref: tuple[float, float] = (0.01, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 10.0
