@@ -108,13 +108,17 @@ def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int
     return len(value) - 1
 
 
+def _ground_note(ground: float | None) -> str:
+    """The ground test in the no-plan message (``planner.ground_clearance`` [m])."""
+    return "" if ground is None else f" with the arm {ground:g} m above the ground plane"
+
+
 def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
-    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (computed once per roadmap)."""
-    cached = getattr(roadmap, "_node_com", None)
-    if cached is None:
-        cached = robot.arm_com(roadmap.nodes_q)
-        object.__setattr__(roadmap, "_node_com", cached)
-    return np.asarray(cached)
+    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (kept with the roadmap).
+
+    ``robot`` is the roadmap's own (its cache key holds the robot's hash).
+    """
+    return np.asarray(roadmap.node_com)
 
 
 class ComponentView(NamedTuple):
@@ -303,7 +307,7 @@ def solve_roadmap_sequence(
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
-    clear = NodeClearance(robot, roadmap, reach)
+    clear = NodeClearance(robot, roadmap, reach, settings.ground_clearance)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
@@ -321,7 +325,8 @@ def solve_roadmap_sequence(
         raise NoPlanError(
             f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
             f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
-            + (" within the turret window" if settings.turret_window is not None else ""),
+            + (" within the turret window" if settings.turret_window is not None else "")
+            + _ground_note(settings.ground_clearance),
             k,
         )
     chosen = cand[np.arange(K), path]
