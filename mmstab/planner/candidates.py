@@ -176,7 +176,7 @@ def scored_rows(
     proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
     tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
     tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
-    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0)
+    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0) & (members > 0)
     take = np.flatnonzero(keep)
     if take.size == 0:  # no clusters (an empty component)
         return np.zeros(0, dtype=np.intp), tau
@@ -286,7 +286,9 @@ def route_candidates(
             v[bad] = -np.inf
             top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
-            rows[k], value[k] = sub[pick], v[pick]
+            n = len(pick)  # < count only when fewer nodes than count are eligible
+            rows[k, n:], value[k, n:] = sub[pick[0]] if n else 0, -np.inf
+            rows[k, :n], value[k, :n] = sub[pick], v[pick]
         chosen = np.unique(rows[np.isfinite(value)])
         if clear(chosen).all():
             break
