@@ -104,3 +104,37 @@ def test_kerb_plan_goes_below_the_plane_only_with_the_check_off(tmp_path, monkey
     assert lowest[0.02].min() >= 0.02
     rm = load_or_build_roadmap(problem.robot, ws)
     assert (rm.node_ground < 0.02).any()
+
+
+def _dense_lowest(robot, moves) -> float:
+    """The arm's lowest point along the moves' straight pieces, 60 samples each [m]."""
+    u = np.linspace(0.0, 1.0, 60)[:, None, None]
+    low = np.inf
+    for m in moves:
+        if len(m) > 1:
+            q = (m[:-1][None] + u * np.diff(m, axis=0)[None]).reshape(-1, m.shape[1])
+            low = min(low, float(arm_ground_clearance(robot, q).min()))
+    return low
+
+
+def test_the_moves_between_chosen_nodes_stay_above_the_plane(robot, small):
+    """The moves follow roadmap paths through nodes above the plane, cuts that stay above."""
+    rng = np.random.default_rng(7)
+    low_on, low_off = np.inf, np.inf
+    for _ in range(6):
+        tilt, az = rng.uniform(0.0, 0.5, 6), rng.uniform(-np.pi, np.pi, 6)
+        g = -9.81 * np.column_stack(
+            [np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)]
+        )
+        poses = np.zeros((6, 3))
+        for ground in (0.02, None):
+            seq = solve_roadmap_sequence(
+                robot, g, small, _settings(ground), mu_max(robot), False, poses
+            )
+            if ground is None:
+                low_off = min(low_off, _dense_lowest(robot, seq.moves))
+            else:
+                low_on = min(low_on, _dense_lowest(robot, seq.moves))
+    # a lattice step between two nodes above 2 cm may dip a few mm below them
+    assert low_on >= 0.02 - 0.005
+    assert low_off < 0.0  # without the check the arm moves through the ground
