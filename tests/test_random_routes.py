@@ -196,6 +196,7 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
         "poses_below_stowed": np.flatnonzero(below).tolist(),
         # the arm's lowest point above the support plane at the planned postures [m]
         "arm_ground_min_m": float(arm_ground_clearance(problem.robot, plan.postures).min()),
+        "arm_ground_moves_min_m": moves_lowest(problem.robot, plan.moves),
         "ground_clearance_m": problem.section("planner")["ground_clearance"],
     }
     t0 = time.perf_counter()
@@ -214,6 +215,19 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     return record
 
 
+def moves_lowest(robot: Any, moves: Any) -> float:
+    """The arm's lowest point above the support plane along the plan's moves [m] (60
+    samples per straight piece; inf without moves)."""
+    from mmstab.model.ground import arm_ground_clearance
+
+    u, low = np.linspace(0.0, 1.0, 60)[:, None, None], np.inf
+    for m in moves or ():
+        if len(m) > 1:
+            q = (m[:-1][None] + u * np.diff(m, axis=0)[None]).reshape(-1, m.shape[1])
+            low = min(low, float(arm_ground_clearance(robot, q).min()))
+    return low
+
+
 def failures(record: dict[str, Any]) -> list[str]:
     """What a pair's record fails of the issue's checks (empty: it passes)."""
     if not record.get("planned"):
@@ -225,6 +239,9 @@ def failures(record: dict[str, Any]) -> list[str]:
         bad.append(f"planned mu below stowed at poses {record['poses_below_stowed']}")
     if record["arm_ground_min_m"] < record["ground_clearance_m"]:
         bad.append(f"arm {record['arm_ground_min_m'] * 100:.1f} cm above the support plane")
+    # between two nodes above the threshold a lattice step may dip a few millimetres
+    if record["arm_ground_moves_min_m"] < record["ground_clearance_m"] - 0.005:
+        bad.append(f"moves {record['arm_ground_moves_min_m'] * 100:.1f} cm above the plane")
     if record["qp_failures"]:
         bad.append(f"{record['qp_failures']} QP failures")
     if record["tipped"]:
@@ -310,7 +327,8 @@ def test_the_full_set_of_random_routes(tmp_path):
         "controller_dt_s": TRACK_DT,
         "checks": (
             "plan found; planned mu >= stowed mu at every pose (rtol 1e-9); the arm "
-            "planner.ground_clearance above the support plane at every pose; whole route "
+            "planner.ground_clearance above the support plane at every pose (its moves: "
+            "5 mm less); whole route "
             "tracked: 0 QP failures, 0 arm-contact samples, min clearance >= "
             f"{MIN_CLEARANCE} m; at least one pivot turn"
         ),
