@@ -172,6 +172,7 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     """Plan and track one pair; the numbers the checks need, and timings [s]."""
     from mmstab import app
     from mmstab.experiments.tracking import self_collisions
+    from mmstab.model.ground import arm_ground_clearance
     from mmstab.planner.roadmap import NoPlanError
 
     record: dict[str, Any] = {"pivots": pivots_of(problem)}
@@ -193,6 +194,10 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
         "mu_planned_min": float(plan.mu_planned.min()),
         "mu_margin_over_stowed_min": float(np.min(plan.mu_planned - plan.mu_stowed)),
         "poses_below_stowed": np.flatnonzero(below).tolist(),
+        # the arm's lowest point above the support plane at the planned postures [m]
+        "arm_ground_min_m": float(arm_ground_clearance(problem.robot, plan.postures).min()),
+        "arm_ground_moves_min_m": moves_lowest(problem.robot, plan.moves),
+        "ground_clearance_m": problem.section("planner")["ground_clearance"],
     }
     t0 = time.perf_counter()
     _, _, run = app.track(problem, plan, progress=False)
@@ -210,6 +215,19 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     return record
 
 
+def moves_lowest(robot: Any, moves: Any) -> float:
+    """The arm's lowest point above the support plane along the plan's moves [m] (60
+    samples per straight piece; inf without moves)."""
+    from mmstab.model.ground import arm_ground_clearance
+
+    u, low = np.linspace(0.0, 1.0, 60)[:, None, None], np.inf
+    for m in moves or ():
+        if len(m) > 1:
+            q = (m[:-1][None] + u * np.diff(m, axis=0)[None]).reshape(-1, m.shape[1])
+            low = min(low, float(arm_ground_clearance(robot, q).min()))
+    return low
+
+
 def failures(record: dict[str, Any]) -> list[str]:
     """What a pair's record fails of the issue's checks (empty: it passes)."""
     if not record.get("planned"):
@@ -219,6 +237,11 @@ def failures(record: dict[str, Any]) -> list[str]:
         bad.append("no pivot turn on the route")
     if record["poses_below_stowed"]:
         bad.append(f"planned mu below stowed at poses {record['poses_below_stowed']}")
+    if record["arm_ground_min_m"] < record["ground_clearance_m"]:
+        bad.append(f"arm {record['arm_ground_min_m'] * 100:.1f} cm above the support plane")
+    # between two nodes above the threshold a lattice step may dip a few millimetres
+    if record["arm_ground_moves_min_m"] < record["ground_clearance_m"] - 0.005:
+        bad.append(f"moves {record['arm_ground_moves_min_m'] * 100:.1f} cm above the plane")
     if record["qp_failures"]:
         bad.append(f"{record['qp_failures']} QP failures")
     if record["tipped"]:
@@ -303,7 +326,9 @@ def test_the_full_set_of_random_routes(tmp_path):
         "planner_method": "roadmap",
         "controller_dt_s": TRACK_DT,
         "checks": (
-            "plan found; planned mu >= stowed mu at every pose (rtol 1e-9); whole route "
+            "plan found; planned mu >= stowed mu at every pose (rtol 1e-9); the arm "
+            "planner.ground_clearance above the support plane at every pose (its moves: "
+            "5 mm less); whole route "
             "tracked: 0 QP failures, 0 arm-contact samples, min clearance >= "
             f"{MIN_CLEARANCE} m; at least one pivot turn"
         ),

@@ -307,13 +307,14 @@ def test_warm_cma_finds_a_known_optimum(target):
 
 
 def test_sequence_along_the_rough_route(rough_small):
-    """rough.yaml's own search (method sequence): collision-free moves, never below stowed."""
+    """method sequence on rough.yaml (its search before method roadmap): collision-free
+    moves, never below stowed."""
     from mmstab.model.collision import CollisionChecker
     from mmstab.planner.sequence import segments_collide
 
     problem, ws = rough_small
     s = PlannerSettings.from_section(yaml.safe_load(ROUGH.read_text())["planner"])
-    assert s.method == "sequence"
+    assert s.method == "roadmap" and s.turret_window is not None
     problem = problem_from_dict(
         {**problem.data, "planner": {**problem.data["planner"], "method": "sequence"}},
         problem.path,

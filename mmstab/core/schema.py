@@ -135,6 +135,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
             motion_cost={"enum": ["com", "joints"]},  # method roadmap's motion term
+            # method roadmap: least height [m] of the arm above the plane the tracks rest on
+            # (z_B = 0); null: not checked (docs/planner.md, "Ground clearance")
+            ground_clearance={"oneOf": [{"type": "null"}, NONNEG]},
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
         # optional: flipper angles searched per pose between the robot's flipper limits,
@@ -216,6 +219,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "turret_window": None,
         "sequence_candidates": 256,
         "motion_cost": "joints",
+        "ground_clearance": 0.02,
     },
     "workspace": {"method": "hull_difference"},
     "physics": {

@@ -125,10 +125,11 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     """Per pose: planned μ, the best μ over V's samples and over the roadmap's reachable ones.
 
     The optima are exhaustive (every sample scored at the pose, :func:`mmstab.planner.best_mu`);
-    the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`)
-    only with ``method: roadmap``. The gap is ``(optimum − planned) / optimum`` [-]: the
-    price of the motion term and of the path's constraints (negative where the plan beats V:
-    roadmap nodes need not lie in V's hull difference).
+    the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`,
+    that clear the ground by ``planner.ground_clearance``) only with ``method: roadmap``.
+    The gap is ``(optimum − planned) / optimum`` [-]: the price of the motion term and of
+    the path's constraints (negative where the plan beats V: roadmap nodes need not lie in
+    V's hull difference).
     """
     from mmstab.planner import best_mu, gravity_body_at, planning_region, region_samples
     from mmstab.workspace import load_or_build_workspace
@@ -146,7 +147,10 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
 
         rm = load_or_build_roadmap(robot, ws)
         start = rm.connect(robot.stowed, robot)
-        reach = node_coms(robot, rm)[rm.component == rm.component[start]]
+        reach = rm.component == rm.component[start]
+        if plan.settings.ground_clearance is not None:  # the nodes the planner may choose
+            reach &= rm.node_ground >= plan.settings.ground_clearance
+        reach = node_coms(robot, rm)[reach]
         opt_r = np.array([best_mu(robot, g, reach)[0] for g in gravity])
         out["mu_optimum_roadmap"] = opt_r.tolist()
         gaps["roadmap"] = (opt_r - plan.mu_planned) / np.abs(opt_r)

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
-from mmstab.model.parts import Box
+from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.payload import Payload, attach_payload
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.physics.verdict_sim import (
@@ -96,26 +96,6 @@ class Case(NamedTuple):
     posture: FloatArray
     mu: float
     verdict: str
-
-
-def arm_ground_clearance(robot: Robot, postures: ArrayLike) -> FloatArray:
-    """Height of the arm's lowest point above the support plane z_B = 0, per posture (N,) [m].
-
-    On a plane the robot rests on, the ground is z_B = 0 at any slope: a posture whose arm
-    dips below it puts the arm into the ground (mmstab's workspace V checks the arm against
-    the robot's own body only).
-    """
-    frames = robot.kinematics.link_frames(np.atleast_2d(np.asarray(postures, dtype=float)))
-    lowest = np.full(frames.shape[0], np.inf)
-    for i, link in enumerate(robot.links):
-        g = link.geometry
-        if isinstance(g, Box):
-            points, radius = g.corners(), 0.0
-        else:
-            points, radius = np.stack([g.p0, g.p1]), float(g.radius)
-        z = points @ frames[:, i, 2, :3].T + frames[:, i, 2, 3]  # (P, N)
-        lowest = np.minimum(lowest, z.min(axis=0) - radius)
-    return lowest
 
 
 class ArmPostures:

@@ -27,12 +27,13 @@ eligible value is ≥ L; every row ranked above R then lies in a cluster whose u
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.model.collision import CollisionChecker
+from mmstab.core.schema import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import LinearFitness
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
@@ -46,6 +47,8 @@ CLUSTER_SIZE = 0.04
 ANGLE_SLACK = 1e-5
 #: Slack on the threshold test (value units): round-off never drops a row from the choice.
 BOUND_SLACK = 1e-9
+#: The arm's least height above the support plane [m] (``planner.ground_clearance``).
+GROUND_CLEARANCE: float | None = SECTION_DEFAULTS["planner"]["ground_clearance"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -173,7 +176,7 @@ def scored_rows(
     proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
     tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
     tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
-    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0)
+    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0) & (members > 0)
     take = np.flatnonzero(keep)
     if take.size == 0:  # no clusters (an empty component)
         return np.zeros(0, dtype=np.intp), tau
@@ -198,42 +201,45 @@ def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArra
     return chosen[np.argsort(-values[chosen], kind="stable")]
 
 
-def _clearances(roadmap: Roadmap) -> FloatArray:
-    """The roadmap's per-node clearance cache [m] (NaN: not measured yet)."""
-    cached = getattr(roadmap, "_node_clearance", None)
-    if cached is None:
-        cached = np.full(len(roadmap.nodes_q), np.nan)
-        object.__setattr__(roadmap, "_node_clearance", cached)
-    return np.asarray(cached)
-
-
 @dataclasses.dataclass(frozen=True)
 class NodeClearance:
-    """The reachable nodes' clearance test: a node must keep :data:`MOVE_CLEARANCE` [m].
+    """The reachable nodes' test: clear of the robot and of the ground plane.
 
-    The tracked arm follows the plan's postures within a few millimetres, and a tracking
-    run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``): on random routes postures
-    1.5 mm from the body were chosen and touched it when tracked. A node's FCL clearance is
-    measured on first use and kept with the roadmap.
+    A node must keep :data:`MOVE_CLEARANCE` [m] from the robot: the tracked arm follows the
+    plan's postures within a few millimetres, and a tracking run must keep 1 mm
+    (``mmstab.runs.verdict.MIN_CLEARANCE``); on random routes postures 1.5 mm from the body
+    were chosen and touched it when tracked. The nodes' FCL clearances are kept with the
+    roadmap (``Roadmap.node_clearance``). Its arm's lowest point must be ``ground`` [m] above
+    the support plane z_B = 0 (``Roadmap.node_ground``, ``planner.ground_clearance``; None:
+    not checked): V and the roadmap know the robot's body only, and a low arm CoM maximises
+    μ, so without it the plans of the shipped routes put the arm 50–61 cm below the plane
+    the tracks rest on. Both tests are pose-independent.
     """
 
     robot: Robot
     roadmap: Roadmap
     reach: NDArray[np.intp]
+    ground: float | None = GROUND_CLEARANCE
+
+    @functools.cached_property
+    def above(self) -> NDArray[np.bool_]:
+        """Per reach row: the arm's lowest point at least ``ground`` above z_B = 0 (N,)."""
+        if self.ground is None:
+            return np.ones(len(self.reach), dtype=bool)
+        return np.asarray(self.roadmap.node_ground[self.reach] >= self.ground)
 
     def __call__(self, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
-        """Whether the nodes ``reach[rows]`` keep the clearance (measured on first use)."""
-        cached = _clearances(self.roadmap)
-        nodes = self.reach[rows]
-        todo = nodes[np.isnan(cached[nodes])]
-        if todo.size:
-            checker = CollisionChecker(self.robot)
-            cached[todo] = checker.clearance(self.roadmap.nodes_q[todo], MOVE_CLEARANCE)
-        return np.asarray(cached[nodes] >= MOVE_CLEARANCE)
+        """Whether the nodes ``reach[rows]`` clear the robot and the ground."""
+        return self.eligible()[rows]
 
     def eligible(self) -> NDArray[np.bool_]:
-        """Per reach row: not measured too close yet (N,)."""
-        return ~(_clearances(self.roadmap)[self.reach] < MOVE_CLEARANCE)
+        """Per reach row: clears the ground and keeps the clearance from the robot (N,)."""
+        return self._eligible
+
+    @functools.cached_property
+    def _eligible(self) -> NDArray[np.bool_]:
+        clear = self.roadmap.node_clearance[self.reach] >= MOVE_CLEARANCE
+        return np.asarray(self.above & clear)
 
 
 class Candidates(NamedTuple):
@@ -280,7 +286,9 @@ def route_candidates(
             v[bad] = -np.inf
             top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
-            rows[k], value[k] = sub[pick], v[pick]
+            n = len(pick)  # < count only when fewer nodes than count are eligible
+            rows[k, n:], value[k, n:] = sub[pick[0]] if n else 0, -np.inf
+            rows[k, :n], value[k, :n] = sub[pick], v[pick]
         chosen = np.unique(rows[np.isfinite(value)])
         if clear(chosen).all():
             break

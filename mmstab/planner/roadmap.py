@@ -28,6 +28,7 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.grounded import ground_graph, shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
@@ -108,13 +109,17 @@ def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int
     return len(value) - 1
 
 
+def _ground_note(ground: float | None) -> str:
+    """The ground test in the no-plan message (``planner.ground_clearance`` [m])."""
+    return "" if ground is None else f" with the arm {ground:g} m above the ground plane"
+
+
 def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
-    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (computed once per roadmap)."""
-    cached = getattr(roadmap, "_node_com", None)
-    if cached is None:
-        cached = robot.arm_com(roadmap.nodes_q)
-        object.__setattr__(roadmap, "_node_com", cached)
-    return np.asarray(cached)
+    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (kept with the roadmap).
+
+    ``robot`` is the roadmap's own (its cache key holds the robot's hash).
+    """
+    return np.asarray(roadmap.node_com)
 
 
 class ComponentView(NamedTuple):
@@ -138,15 +143,22 @@ class ComponentView(NamedTuple):
     joint_span: float
 
 
-def component_view(robot: Robot, roadmap: Roadmap, start: int) -> ComponentView:
-    """The :class:`ComponentView` of node ``start``'s component (kept with the roadmap)."""
+def component_view(
+    robot: Robot, roadmap: Roadmap, start: int, ground: float | None = None
+) -> ComponentView:
+    """The :class:`ComponentView` of node ``start``'s component (kept with the roadmap).
+
+    With ``ground`` [m]: the component among the nodes whose arm stays that far above the
+    support plane (:func:`mmstab.planner.grounded.ground_graph`).
+    """
     views = getattr(roadmap, "_views", None)
     if views is None:
         views = {}
         object.__setattr__(roadmap, "_views", views)
-    comp = int(roadmap.component[start])
+    component = ground_graph(roadmap, ground).component
+    comp = (int(component[start]), ground)
     if comp not in views:
-        reach = np.flatnonzero(roadmap.component == comp)
+        reach = np.flatnonzero(component == comp[0])
         samples = node_coms(robot, roadmap)[reach]
         bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
         views[comp] = ComponentView(
@@ -167,18 +179,22 @@ def _moves(
     start_q: FloatArray,
     nodes: NDArray[np.intp],
     closed: bool,
+    ground: float | None = None,
 ) -> list[FloatArray]:
     """The arm's moves into each chosen node: shortest roadmap paths, shortcut where free.
 
     From the start node (an open path) or the last pose's node (a loop); an open path's
-    first move starts at the start posture ``start_q`` [rad] itself.
+    first move starts at the start posture ``start_q`` [rad] itself. With ``ground`` [m]
+    the paths and shortcuts keep the arm that far above the support plane.
     """
     K = len(nodes)
     before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
     checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
-    tree = start_tree(roadmap, start)
+    tree = start_tree(roadmap, start, ground)
     moves = [
-        roadmap.shortcut(checker, roadmap_move(roadmap, int(a), int(b), tree))
+        shortcut_above(
+            robot, roadmap, checker, roadmap_move(roadmap, int(a), int(b), tree, ground), ground
+        )
         for a, b in zip(before, nodes, strict=True)
     ]
     if not closed or K == 1:  # from the start posture itself onto its node
@@ -187,23 +203,25 @@ def _moves(
     return moves
 
 
-def start_tree(roadmap: Roadmap, start: int) -> tuple[int, NDArray[np.int32]]:
+def start_tree(
+    roadmap: Roadmap, start: int, ground: float | None = None
+) -> tuple[int, NDArray[np.int32]]:
     """Shortest-path tree from node ``start`` (its predecessors), kept with the roadmap.
 
     Every plan's first move leaves the arm's start node (the stowed arm's): one search
-    over the whole component, once.
+    over the whole component, once (on the nodes ``ground`` [m] above the plane, if set).
     """
     trees = getattr(roadmap, "_trees", None)
     if trees is None:
         trees = {}
         object.__setattr__(roadmap, "_trees", trees)
-    if start not in trees:
-        _, pred = dijkstra(roadmap.graph, indices=start, return_predecessors=True)
-        trees[start] = pred
-    return start, trees[start]
+    if (start, ground) not in trees:
+        graph = ground_graph(roadmap, ground).graph
+        trees[start, ground] = dijkstra(graph, indices=start, return_predecessors=True)[1]
+    return start, trees[start, ground]
 
 
-def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
+def astar(roadmap: Roadmap, a: int, b: int, ground: float | None = None) -> NDArray[np.intp] | None:
     """A shortest roadmap path a -> b (nodes), by A* with the lattice (L1) distance to b.
 
     Every edge changes one joint by its length and never wraps the turret, so the L1
@@ -211,17 +229,19 @@ def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
     broken towards the deepest node, a free staircase costs about its length in node
     expansions where Dijkstra's search bounded at 1.5 times the distance (the previous
     query) explored a 4-D ball of nodes (16 ms a move on a random route). None when
-    ``ASTAR_EXPANSIONS`` nodes did not reach b.
+    ``ASTAR_EXPANSIONS`` nodes did not reach b. With ``ground`` [m]: on the nodes whose
+    arm stays that far above the support plane.
     """
-    lists = getattr(roadmap, "_lists", None)  # Python lists: the loop's cheapest reads
-    if lists is None:
-        g = roadmap.graph
-        lists = (g.indptr.tolist(), g.indices.tolist(), g.data.tolist(), roadmap.nodes_q.tolist())
-        object.__setattr__(roadmap, "_lists", lists)
-    ptr, nbr, w, q = lists
-    goal = q[b]
+    # each expanded node's row as Python lists (the loop's cheapest reads), not the whole
+    # graph converted at once (0.5-0.8 s, most of a cold plan's search on kerb.yaml)
+    g, nodes_q = ground_graph(roadmap, ground).graph, roadmap.nodes_q
+    ptr, nbr, w = g.indptr, g.indices, g.data
+    goal = nodes_q[b].tolist()
+    q: dict[int, list[float]] = {}
 
     def h(n: int) -> float:
+        if n not in q:
+            q[n] = nodes_q[n].tolist()
         return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
 
     best, parent = {a: 0.0}, {a: a}
@@ -237,8 +257,9 @@ def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
             return np.array(out[::-1], dtype=np.intp)
         if -neg_g > best[n]:
             continue  # a stale entry
-        for k in range(ptr[n], ptr[n + 1]):
-            m, cost = nbr[k], best[n] + w[k]
+        lo, hi = ptr[n], ptr[n + 1]
+        for m, step in zip(nbr[lo:hi].tolist(), w[lo:hi].tolist(), strict=True):
+            cost = best[n] + step
             if cost < best.get(m, np.inf):
                 best[m], parent[m] = cost, n
                 heapq.heappush(heap, (cost + h(m), -cost, m))
@@ -246,20 +267,29 @@ def astar(roadmap: Roadmap, a: int, b: int) -> NDArray[np.intp] | None:
 
 
 def roadmap_move(
-    roadmap: Roadmap, a: int, b: int, tree: tuple[int, NDArray[np.int32]] | None = None
+    roadmap: Roadmap,
+    a: int,
+    b: int,
+    tree: tuple[int, NDArray[np.int32]] | None = None,
+    ground: float | None = None,
 ) -> FloatArray:
     """The shortest roadmap path a -> b as postures (n, 4) [rad].
 
-    From ``tree``'s root (:func:`start_tree`) along the tree; else A* (:func:`astar`),
-    else the whole component.
+    From ``tree``'s root (:func:`start_tree`, built with the same ``ground``) along the
+    tree; else A* (:func:`astar`), else the whole component; with ``ground`` [m] on the
+    nodes whose arm stays that far above the support plane.
     """
     if a == b:
         return roadmap.nodes_q[[a]].copy()
     if tree is not None and tree[0] == a:
         pred = tree[1]
     else:
-        path = astar(roadmap, a, b)
-        return roadmap.path_postures(a, b) if path is None else roadmap.nodes_q[path]
+        path = astar(roadmap, a, b, ground)
+        if path is None:
+            graph = ground_graph(roadmap, ground).graph
+            pred = dijkstra(graph, indices=a, return_predecessors=True)[1]
+        else:
+            return roadmap.nodes_q[path]
     out = [b]
     while out[-1] != a:
         out.append(int(pred[out[-1]]))
@@ -296,14 +326,14 @@ def solve_roadmap_sequence(
         raise MmstabError("planner: method roadmap does not take payload.wrench yet")
     start_q = robot.stowed if start_q is None else np.asarray(start_q, dtype=float)
     start = roadmap.connect(start_q, robot)
-    view = component_view(robot, roadmap, start)
+    view = component_view(robot, roadmap, start, settings.ground_clearance)
     reach, samples, diameter = view.reach, view.samples, view.diameter
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     K, M = len(g), min(settings.sequence_candidates, len(reach))
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
-    clear = NodeClearance(robot, roadmap, reach)
+    clear = NodeClearance(robot, roadmap, reach, settings.ground_clearance)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
@@ -321,7 +351,8 @@ def solve_roadmap_sequence(
         raise NoPlanError(
             f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
             f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
-            + (" within the turret window" if settings.turret_window is not None else ""),
+            + (" within the turret window" if settings.turret_window is not None else "")
+            + _ground_note(settings.ground_clearance),
             k,
         )
     chosen = cand[np.arange(K), path]
@@ -329,7 +360,7 @@ def solve_roadmap_sequence(
     fitness = value[np.arange(K), path].copy()
     for i, (a, b) in enumerate(pairs):
         fitness[b] -= motion[i][path[a], path[b]]
-    moves = _moves(robot, roadmap, int(start), start_q, nodes, closed)
+    moves = _moves(robot, roadmap, int(start), start_q, nodes, closed, settings.ground_clearance)
     return RoadmapSequence(
         nodes=nodes,
         postures=roadmap.nodes_q[nodes].copy(),

@@ -57,6 +57,9 @@ class PlannerSettings(NamedTuple):
             squared; the roadmap distance where a monotone lattice path is free, a lower
             bound elsewhere) or ``com`` (Eq. 6's: the squared CoM distance over the
             diameter squared).
+        ground_clearance: ``method: roadmap``: least height of the arm's lowest point
+            above the support plane z_B = 0 that a chosen posture keeps [m]; None: not
+            checked (the other methods do not check it).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
     """
@@ -84,6 +87,7 @@ class PlannerSettings(NamedTuple):
     sequence_candidates: int = 256
     flipper_angles: int = 0
     motion_cost: str = "joints"
+    ground_clearance: float | None = 0.02
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -113,6 +117,9 @@ class PlannerSettings(NamedTuple):
             sequence_candidates=int(cfg["sequence_candidates"]),
             flipper_angles=int(cfg.get("flipper_angles", 0)),
             motion_cost=str(cfg["motion_cost"]),
+            ground_clearance=None
+            if cfg["ground_clearance"] is None
+            else float(cfg["ground_clearance"]),
         )
 
     def sigma0_metres(self, diameter: float) -> float:

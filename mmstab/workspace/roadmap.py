@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from mmstab.core.files import MmstabError, write_npz
 from mmstab.model.collision import CollisionChecker
+from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.cache import DEFAULT_CACHE_DIR
 from mmstab.workspace.grid import JointGrid, joint_grid
@@ -66,6 +67,11 @@ class Roadmap:
             axis (4,) [m].
         steps: interior postures checked per edge along each joint (4,).
         resolution: the largest point motion between checked postures [m].
+        node_com: each node's arm CoM, body frame (N, 3) [m].
+        node_ground: each node's arm's lowest point above the support plane z_B = 0 (N,)
+            [m] (:func:`mmstab.model.ground.arm_ground_clearance`).
+        node_clearance: each node's FCL clearance from the robot (N,) [m], exact below
+            :data:`MOVE_CLEARANCE` (a lower bound above it).
         build_seconds: wall time of the build [s].
     """
 
@@ -77,6 +83,9 @@ class Roadmap:
     reach: FloatArray
     steps: NDArray[np.int64]
     resolution: float
+    node_com: FloatArray
+    node_ground: FloatArray
+    node_clearance: FloatArray
     build_seconds: float = 0.0
 
     @functools.cached_property
@@ -315,6 +324,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         reach=reach,
         steps=steps,
         resolution=float(resolution),
+        **node_arrays(robot, nodes_q),
         build_seconds=time.perf_counter() - t0,
     )
 
@@ -328,6 +338,17 @@ def roadmap_key(robot: Robot, grid: tuple[int, ...], resolution: float, version:
         f"{np.round(geo, 9).tobytes().hex()}"
     )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def node_arrays(robot: Robot, nodes_q: FloatArray) -> dict[str, FloatArray]:
+    """The nodes' ``node_com``, ``_ground``, ``_clearance`` [m], kept in the cache file."""
+    checker, step = CollisionChecker(robot), range(0, len(nodes_q), CHECK_CHUNK)
+    clear = [checker.clearance(nodes_q[c : c + CHECK_CHUNK], MOVE_CLEARANCE) for c in step]
+    return {
+        "node_com": np.asarray(robot.arm_com(nodes_q), dtype=float).reshape(-1, 3),
+        "node_ground": arm_ground_clearance(robot, nodes_q),
+        "node_clearance": np.concatenate(clear) if clear else np.zeros(0),
+    }
 
 
 def roadmap_arrays(rm: Roadmap) -> dict[str, object]:
@@ -350,25 +371,28 @@ def load_or_build_roadmap(
     """The roadmap of a robot and its V: from memory, from the cache file, else built.
 
     The file is ``results/workspace/roadmap-<key>.npz`` (:func:`roadmap_key`), written
-    atomically; an unreadable one is rebuilt.
+    atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
+    ground heights and clearances were kept in it gets them added (the graph is the same).
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
     path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR) / f"roadmap-{key}.npz"
-    rm = None
+    rm, missing = None, True
     if path.is_file():
         try:
             with np.load(path) as z:
-                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap)}
+                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
             kw["grid"] = tuple(int(n) for n in kw["grid"])
             kw["resolution"] = float(kw["resolution"])
             kw["build_seconds"] = float(kw["build_seconds"])
-            rm = Roadmap(**kw)
+            missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
+            rm = Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})})
         except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
-            rm = None
+            rm, missing = None, True
     if rm is None:
         rm = build_roadmap(robot, ws, resolution)
+    if missing:
         write_npz(path, **roadmap_arrays(rm))
     _MEMORY[key] = rm
     return rm

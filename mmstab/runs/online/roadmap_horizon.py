@@ -32,6 +32,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import roadmap as rp
 from mmstab.planner.candidates import NodeClearance, route_candidates
 from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPose, HorizonUpdate, Rested, angle_between
@@ -85,11 +86,11 @@ class RoadmapHorizon:
         self.s_grid, self.poses_grid, self.replan_tol = s_grid, poses_grid, replan_tol
         self.mu_max = stowed_flat_mu(robot)
         start = roadmap.connect(robot.stowed, robot)
-        self.view = rp.component_view(robot, roadmap, start)
+        self.view = rp.component_view(robot, roadmap, start, settings.ground_clearance)
         self.reach, self.samples = self.view.reach, self.view.samples
         span = (self.view.diameter, self.view.joint_span)
         self.cost = motion_cost(roadmap.nodes_q[self.reach], self.samples, span, settings)
-        self.clear = NodeClearance(robot, roadmap, self.reach)
+        self.clear = NodeClearance(robot, roadmap, self.reach, settings.ground_clearance)
         self.count = min(settings.sequence_candidates, len(self.reach))
         self.candidates: dict[int, Candidates] = {}
         self.plans: dict[int, HorizonPose] = {}
@@ -230,8 +231,9 @@ class RoadmapHorizon:
             head = np.zeros((0, self.roadmap.nodes_q.shape[1]))
         key = (a, b)
         if key not in self._moves:
-            path = rp.roadmap_move(self.roadmap, a, b)
-            self._moves[key] = self.roadmap.shortcut(self._checker, path)
+            ground = self.settings.ground_clearance
+            path = rp.roadmap_move(self.roadmap, a, b, ground=ground)
+            self._moves[key] = shortcut_above(self.robot, self.roadmap, self._checker, path, ground)
         return np.vstack([head, self._moves[key]])
 
     def reference(
