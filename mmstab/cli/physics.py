@@ -39,8 +39,9 @@ def _simulate(args: argparse.Namespace) -> int | None:
         a = s["arm_ground_contact"]
         print(
             f"mmstab: warning: the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
-            f"({100 * a['fraction_of_checks']:.0f} % of the checks): the plan's postures reach "
-            "below the ground (the workspace knows the robot's body only)",
+            f"({100 * a['fraction_of_checks']:.0f} % of the checks): the plan keeps the arm clear "
+            "of the robot and, with method roadmap, above the plane the tracks rest on "
+            "(planner.ground_clearance), not above the ground under it",
             file=sys.stderr,
         )
     if s["tipped"] is not None:
