@@ -261,6 +261,9 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
         (np.array(q["mu_optimum_roadmap"]) - q["mu_planned"]) / np.abs(q["mu_optimum_roadmap"]),
     )
     assert q["gap_to_V_median"] == pytest.approx(np.median(q["gap_to_V"]))
+    # V's samples whose arm clears the ground as well: at most the optimum over all of V
+    assert np.all(np.array(q["mu_optimum_V_clear"]) <= np.array(q["mu_optimum_V"]) + 1e-9)
+    assert q["gap_to_V_clear_median"] == pytest.approx(np.median(q["gap_to_V_clear"]))
 
 
 def test_shortcuts_keep_the_move_clearance(robot, small):

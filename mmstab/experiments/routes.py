@@ -126,8 +126,11 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
 
     The optima are exhaustive (every sample scored at the pose, :func:`mmstab.planner.best_mu`);
     the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`,
-    that clear the ground by ``planner.ground_clearance``) only with ``method: roadmap``.
-    The gap is ``(optimum − planned) / optimum`` [-]: the price of the motion term and of
+    that clear the ground by ``planner.ground_clearance``) only with ``method: roadmap``, and
+    then also over V's samples that clear it as well (``mu_optimum_V_clear``: the same
+    exhaustive reference among the postures the plan may take; ``mu_optimum_V`` counts
+    postures whose arm reaches below the support plane). The gap is
+    ``(optimum − planned) / optimum`` [-]: the price of the motion term and of
     the path's constraints (negative where the plan beats V: roadmap nodes need not lie in
     V's hull difference).
     """
@@ -135,7 +138,8 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     from mmstab.workspace import load_or_build_workspace
 
     ws = load_or_build_workspace(problem, progress=False)
-    samples = region_samples(planning_region(ws, problem.section("workspace")["method"]))
+    region = planning_region(ws, problem.section("workspace")["method"])
+    samples = region_samples(region)
     gravity = gravity_body_at(problem.terrain, plan.poses)
     robot = problem.robot
     opt_v = np.array([best_mu(robot, g, samples)[0] for g in gravity])
@@ -154,6 +158,14 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
         opt_r = np.array([best_mu(robot, g, reach)[0] for g in gravity])
         out["mu_optimum_roadmap"] = opt_r.tolist()
         gaps["roadmap"] = (opt_r - plan.mu_planned) / np.abs(opt_r)
+        if plan.settings.ground_clearance is not None:
+            from mmstab.model.ground import arm_ground_clearance
+
+            low = arm_ground_clearance(robot, region.postures) < plan.settings.ground_clearance
+            clear = samples[~low]
+            opt_c = np.array([best_mu(robot, g, clear)[0] for g in gravity])
+            out["mu_optimum_V_clear"] = opt_c.tolist()
+            gaps["V_clear"] = (opt_c - plan.mu_planned) / np.abs(opt_c)
     for name, gap in gaps.items():
         out[f"gap_to_{name}"] = gap.tolist()
         out[f"gap_to_{name}_median"] = float(np.median(gap))
