@@ -195,7 +195,13 @@ def test_sections_a_command_does_not_read_are_optional(tmp_path):
     problem = load_problem(path)
     assert problem.route is not None and problem.section("planner")["margin"] == 50.0
     assert problem.section("controller")["dt"] == ramp["controller"]["dt"]
-    assert problem.section("planner")["method"] == "cmaes"  # SECTION_DEFAULTS wins over ramp's
+    assert problem.section("planner")["method"] == "roadmap"  # a route's default (ROUTE_METHOD)
+    circle = {
+        **minimal,
+        "path": yaml.safe_load((ROOT / "problems" / "ramp.yaml").read_text())["path"],
+    }
+    path.write_text(yaml.safe_dump(circle))
+    assert load_problem(path).section("planner")["method"] == "cmaes"  # the first release's
     minimal["planner"]["margn"] = 1.0
     path.write_text(yaml.safe_dump(minimal))
     with pytest.raises(ConfigError, match="margn"):

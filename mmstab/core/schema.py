@@ -254,13 +254,23 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 
+#: ``planner.method`` of a route problem that names none: the posture roadmap (the arm's
+#: moves collision-free and above the ground by construction, no round limit; docs/routes.md).
+#: A circle keeps the first release's ``cmaes`` (:data:`SECTION_DEFAULTS`).
+ROUTE_METHOD = "roadmap"
+
+
 def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
     """A copy of a problem mapping with the omitted sections and keys filled in.
 
-    Precedence: the file's keys, then :data:`SECTION_DEFAULTS`, then the default problem's
-    values (:data:`mmstab.core.defaults.DEFAULT_SECTIONS`) for a section or key left out.
+    Precedence: the file's keys, then :data:`SECTION_DEFAULTS` (:data:`ROUTE_METHOD` for a
+    route's ``planner.method``), then the default problem's values
+    (:data:`mmstab.core.defaults.DEFAULT_SECTIONS`) for a section or key left out.
     """
     out = dict(data)
+    path, planner = data.get("path"), data.get("planner")
+    route = isinstance(path, dict) and ("waypoints" in path or "file" in path)
+    route_method = route and not (isinstance(planner, dict) and "method" in planner)
     for name in {*DEFAULT_SECTIONS, *SECTION_DEFAULTS}:
         given = out.get(name, {})
         if isinstance(given, dict):
@@ -270,6 +280,8 @@ def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
                 if isinstance(value, dict) and isinstance(merged[key], dict):
                     merged[key] = {**value, **merged[key]}
             out[name] = merged
+    if route_method and isinstance(out.get("planner"), dict):
+        out["planner"]["method"] = ROUTE_METHOD
     return out
 
 
