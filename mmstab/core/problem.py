@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.core import schema
+from mmstab.core.defaults import with_defaults
 from mmstab.core.files import ConfigError, MmstabError, read_yaml, validate
 from mmstab.core.settings import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
@@ -117,7 +118,7 @@ def problem_from_dict(
     accepts sizes beyond the time bounds, not beyond the memory).
     """
     p = Path(path)
-    data = schema.with_defaults(data)
+    data = with_defaults(data)
     validate(p, data, schema.problem_schema())
     robot_path = (p.parent / data["robot"]).resolve()
     if not robot_path.is_file():

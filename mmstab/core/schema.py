@@ -9,10 +9,7 @@ ground) live beside the loaders.
 
 from __future__ import annotations
 
-import copy
 from typing import Any
-
-from mmstab.core.defaults import DEFAULT_SECTIONS
 
 #: ``planner.method``: the names of the planner's searches (``mmstab.planner.searches.SEARCHES``
 #: registers one search per name; a test keeps both equal).
@@ -203,86 +200,6 @@ PATH_ROUTE_FILE = with_optional(
     {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "file"]},
     file={"type": "string", "minLength": 1},
 )
-
-#: Keys a problem file may omit, by section, and the value they then take: each is the
-#: behaviour of files written before the key existed (``problem_from_dict`` fills them in).
-SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
-    "planner": {
-        "method": "cmaes",
-        "seeding": "starts",
-        "coarse_samples": 4096,
-        "coarse_basins": 4,
-        "coarse_neighbours": 256,
-        "coarse_seeds": 1,
-        "sigma0_unit": "m",
-        "restarts": 0,
-        "turret_window": None,
-        "sequence_candidates": 256,
-        "motion_cost": "joints",
-        "ground_clearance": 0.02,
-    },
-    "workspace": {"method": "hull_difference"},
-    "physics": {
-        "control_dt": 0.004,
-        "duration": None,
-        "tip_angle": 0.35,
-        "slip_distance": 0.05,
-        "slip_window": 1.0,
-        "check_dt": 0.02,
-        "backend": "interpreted",
-        "wheel": "sphere",
-        "timestep": 0.004,
-        "arm": "planned",
-    },
-    "online": {
-        "map_topic": "/elevation_mapping/elevation_map",
-        "odom_topic": "/odom",
-        "horizon": 2.0,
-        "replan_tol": 0.01,
-        "planner": "roadmap",
-        "joints_topic": None,
-        "record": {
-            "rate": 10.0,
-            "window": 6.0,
-            "range": 3.0,
-            "noise": 0.01,
-            "unknown": 0.005,
-            "odom_rate": 50.0,
-            "seed": 5,
-        },
-    },
-}
-
-
-#: ``planner.method`` of a route problem that names none: the posture roadmap (the arm's
-#: moves collision-free and above the ground by construction, no round limit; docs/routes.md).
-#: A circle keeps the first release's ``cmaes`` (:data:`SECTION_DEFAULTS`).
-ROUTE_METHOD = "roadmap"
-
-
-def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
-    """A copy of a problem mapping with the omitted sections and keys filled in.
-
-    Precedence: the file's keys, then :data:`SECTION_DEFAULTS` (:data:`ROUTE_METHOD` for a
-    route's ``planner.method``), then the default problem's values
-    (:data:`mmstab.core.defaults.DEFAULT_SECTIONS`) for a section or key left out.
-    """
-    out = dict(data)
-    path, planner = data.get("path"), data.get("planner")
-    route = isinstance(path, dict) and ("waypoints" in path or "file" in path)
-    route_method = route and not (isinstance(planner, dict) and "method" in planner)
-    for name in {*DEFAULT_SECTIONS, *SECTION_DEFAULTS}:
-        given = out.get(name, {})
-        if isinstance(given, dict):
-            default = {**DEFAULT_SECTIONS.get(name, {}), **SECTION_DEFAULTS.get(name, {})}
-            merged = {**default, **copy.deepcopy(given)}
-            for key, value in default.items():  # a partly given sub-section (controller.osqp)
-                if isinstance(value, dict) and isinstance(merged[key], dict):
-                    merged[key] = {**value, **merged[key]}
-            out[name] = merged
-    if route_method and isinstance(out.get("planner"), dict):
-        out["planner"]["method"] = ROUTE_METHOD
-    return out
 
 
 # The tip-over envelope atlas (mmstab atlas; docs/atlas.md). An axis is a list of values or

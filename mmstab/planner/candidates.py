@@ -33,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.schema import SECTION_DEFAULTS
+from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import LinearFitness
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap

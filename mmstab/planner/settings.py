@@ -3,7 +3,7 @@
 Keys added after the first release (``method``, ``seeding``, ``coarse_*``,
 ``sigma0_unit``, ``restarts``, ``turret_window``, ``sequence_candidates``) may be omitted
 from a problem file; their defaults
-(``mmstab.core.schema.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
+(``mmstab.core.defaults.SECTION_DEFAULTS``) are the first release's behaviour, so an older file
 plans exactly (bit for bit) as before. ``problems/ramp.yaml`` sets the reliable search
 (``docs/planner.md``).
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
-from mmstab.core.schema import SECTION_DEFAULTS
+from mmstab.core.defaults import SECTION_DEFAULTS
 
 
 class PlannerSettings(NamedTuple):
