@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
 from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.verdicts import report
 
 
 def _problem(args: argparse.Namespace) -> Any:
@@ -72,10 +72,9 @@ def _follow(args: argparse.Namespace) -> int | None:
     if s["tipped"] is not None:
         t = s["tipped"]
         line = f"the robot tips over on its map at {t['time_s']:.2f} s (s = {t['s_m']:.2f} m)"
-        if not args.allow_unstable:
-            print(f"mmstab: unstable: {line}; pass --allow-unstable to accept it", file=sys.stderr)
-            return EXIT_UNSTABLE
-        print(f"mmstab: warning: {line} (--allow-unstable)", file=sys.stderr)
+        status = report("unstable", line, "--allow-unstable", args.allow_unstable, EXIT_UNSTABLE)
+        if status is not None:
+            return status
     if s["slides"] is not None:
         v = s["slides"]
         line = (
@@ -83,10 +82,7 @@ def _follow(args: argparse.Namespace) -> int | None:
             f"{v['s_m']:.2f} m): tilt {math.degrees(v['tilt_rad']):.2f} deg beyond "
             f"{math.degrees(v['critical_tilt_rad']):.2f} deg = atan(friction {s['friction']:g})"
         )
-        if not args.allow_sliding:
-            print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
-            return EXIT_SLIDES
-        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
+        return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
     return None
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.verdicts import report
 
 
 def _simulate(args: argparse.Namespace) -> int | None:
@@ -59,10 +60,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
             f"the robot slides in MuJoCo at {s['slid']['time_s']:.2f} s (more than "
             f"{s['slip_distance_m']:g} m downhill in {s['slip_window_s']:g} s)"
         )
-        if not args.allow_sliding:
-            print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
-            return EXIT_SLIDES
-        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
+        return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
     return None
 
 

@@ -14,6 +14,23 @@ from typing import Any
 from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
 
 
+def report(word: str, line: str, option: str, allowed: bool, status: int) -> int | None:
+    """One verdict on stderr: a warning and None when ``allowed``, else ``status``.
+
+    Args:
+        word: the verdict's word (``unstable``, ``slides``, ``arm collision``).
+        line: what happened, one line.
+        option: the option that accepts it (``--allow-sliding``).
+        allowed: the option was given.
+        status: the exit status otherwise.
+    """
+    if allowed:
+        print(f"mmstab: warning: {line} ({option})", file=sys.stderr)
+        return None
+    print(f"mmstab: {word}: {line}; pass {option} to accept it", file=sys.stderr)
+    return status
+
+
 def tipped_status(summary: dict[str, Any]) -> int | None:
     """Report a run where the robot tipped over; exit status 3 (no option accepts it)."""
     from mmstab.runs.verdict import describe_tipping
@@ -33,11 +50,7 @@ def plan_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
         return None
     total = len(s["poses"]) if isinstance(s.get("poses"), list) else 1
     line = describe_plan_verdict(verdict, total)
-    if args.allow_unstable:
-        print(f"mmstab: warning: {line} (--allow-unstable)", file=sys.stderr)
-        return None
-    print(f"mmstab: unstable: {line}; pass --allow-unstable to accept it", file=sys.stderr)
-    return EXIT_UNSTABLE
+    return report("unstable", line, "--allow-unstable", args.allow_unstable, EXIT_UNSTABLE)
 
 
 def slides_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
@@ -49,23 +62,16 @@ def slides_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
         return None
     total = len(s["poses"]) if isinstance(s.get("poses"), list) else s.get("steps", 1)
     line = describe_sliding(verdict, total)
-    if args.allow_sliding:
-        print(f"mmstab: warning: {line} (--allow-sliding)", file=sys.stderr)
-        return None
-    print(f"mmstab: slides: {line}; pass --allow-sliding to accept it", file=sys.stderr)
-    return EXIT_SLIDES
+    return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
 
 
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
     """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``."""
     from mmstab.runs.verdict import describe_arm_collision
 
-    report = summary["arm_self_collision"]
-    if report["verdict"]["safe"]:
+    collision = summary["arm_self_collision"]
+    if collision["verdict"]["safe"]:
         return None
-    line = describe_arm_collision(report)
-    if args.allow_collision:
-        print(f"mmstab: warning: {line} (--allow-collision)", file=sys.stderr)
-        return None
-    print(f"mmstab: arm collision: {line}; pass --allow-collision to accept it", file=sys.stderr)
-    return EXIT_ARM_COLLISION
+    line = describe_arm_collision(collision)
+    allowed = args.allow_collision
+    return report("arm collision", line, "--allow-collision", allowed, EXIT_ARM_COLLISION)

@@ -115,6 +115,35 @@ def rest_where_covered(terrain: HeightmapTerrain, poses: FloatArray) -> Rested:
     return Rested(covered, gravity, ground)
 
 
+def horizon_window(s_grid: FloatArray, s_now: float, ahead: float) -> list[int]:
+    """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
+    first = max(int(np.searchsorted(s_grid, s_now, side="right")) - 1, 0)
+    last = int(np.searchsorted(s_grid, s_now + ahead, side="right"))
+    return list(range(first, max(last, first + 1)))
+
+
+def sort_poses(
+    ks: list[int], rested: Rested, known: dict[int, FloatArray], tol: float
+) -> HorizonUpdate:
+    """Which horizon poses to plan again, which the map confirms, which it does not cover.
+
+    Args:
+        ks: the horizon's grid indices, in driving order.
+        rested: those poses rested on the map.
+        known: gravity in B [m/s^2] on which each pose was last planned, by grid index.
+        tol: the gravity change that plans a pose again [rad].
+    """
+    replanned, kept, uncovered = [], [], []
+    for i, k in enumerate(ks):
+        if not rested.covered[i]:  # off the window or on unknown cells
+            uncovered.append(k)
+        elif k in known and angle_between(rested.gravity_body[i], known[k]) <= tol:
+            kept.append(k)
+        else:
+            replanned.append(k)
+    return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
+
+
 def angle_between(a: FloatArray, b: FloatArray) -> float:
     """The angle between two vectors [rad]."""
     c = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
@@ -159,9 +188,7 @@ class HorizonPlanner:
 
     def window(self, s_now: float, ahead: float) -> list[int]:
         """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
-        first = max(int(np.searchsorted(self.s_grid, s_now, side="right")) - 1, 0)
-        last = int(np.searchsorted(self.s_grid, s_now + ahead, side="right"))
-        return list(range(first, max(last, first + 1)))
+        return horizon_window(self.s_grid, s_now, ahead)
 
     def update(
         self,
@@ -182,21 +209,14 @@ class HorizonPlanner:
             arm_com: the arm's CoM now, body frame [m] (the first pose's previous answer).
             arm_q: the arm's posture now [rad].
         """
-        replanned, kept, uncovered = [], [], []
-        for i, k in enumerate(ks):
-            if not rested.covered[i]:  # off the window or on unknown cells
-                uncovered.append(k)
-                continue
-            g = rested.gravity_body[i]
-            old = self.plans.get(k)
-            if old is not None and angle_between(g, old.gravity_body) <= self.replan_tol:
-                kept.append(k)
-                continue
+        known = {k: p.gravity_body for k, p in self.plans.items()}
+        changes = sort_poses(ks, rested, known, self.replan_tol)
+        for k in changes.replanned:  # in driving order: each after its predecessor's answer
+            g = rested.gravity_body[ks.index(k)]
             before = self.plans.get(k - 1)
             prev_com, prev_q = (arm_com, arm_q) if before is None else (before.target_com, before.q)
-            self.plans[k] = self._plan(terrain, k, g, prev_com, prev_q, old, now)
-            replanned.append(k)
-        return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
+            self.plans[k] = self._plan(terrain, k, g, prev_com, prev_q, self.plans.get(k), now)
+        return changes
 
     def reference(
         self, s: float, spacing: float

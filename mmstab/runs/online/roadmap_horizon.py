@@ -30,18 +30,24 @@ from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import roadmap as rp
-from mmstab.planner.candidates import NodeClearance, route_candidates
+from mmstab.planner.candidates import Candidates, NodeClearance, route_candidates
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.settings import PlannerSettings
-from mmstab.runs.online.horizon import HorizonPose, HorizonUpdate, Rested, angle_between
+from mmstab.runs.online.horizon import (
+    HorizonPose,
+    HorizonUpdate,
+    Rested,
+    horizon_window,
+    sort_poses,
+)
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.workspace.roadmap import Roadmap
 
 
-class Candidates(NamedTuple):
+class PoseCandidates(NamedTuple):
     """One pose's candidate nodes on the ground it was scored on.
 
     Attributes:
@@ -92,7 +98,7 @@ class RoadmapHorizon:
         self.cost = motion_cost(roadmap.nodes_q[self.reach], self.samples, span, settings)
         self.clear = NodeClearance(robot, roadmap, self.reach, settings.ground_clearance)
         self.count = min(settings.sequence_candidates, len(self.reach))
-        self.candidates: dict[int, Candidates] = {}
+        self.candidates: dict[int, PoseCandidates] = {}
         self.plans: dict[int, HorizonPose] = {}
         self.nodes: dict[int, int] = {}  # the chosen node per planned pose
         self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
@@ -107,22 +113,20 @@ class RoadmapHorizon:
         """
         c, s = np.cos(tilt), np.sin(tilt)
         down = np.array([[0, 0, -1], [s, 0, -c], [-s, 0, -c], [0, s, -c], [0, -s, -c]])
+        self._candidates(9.81 * down)
+
+    def _candidates(self, gravity: FloatArray) -> Candidates:
+        """Each pose's candidates at gravities (n, 3) [m/s^2] in B, in one batch."""
         stab = self.settings._replace(w_motion=0.0)
         stowed = self.robot.arm_com(self.robot.stowed)
-        fits = [
-            pose_fitness(
-                self.robot, 9.81 * g, stowed, stab, self.mu_max, self.view.diameter
-            ).linear()
-            for g in down
-        ]
+        d = self.view.diameter
+        fits = [pose_fitness(self.robot, g, stowed, stab, self.mu_max, d).linear() for g in gravity]
         v = self.view
-        route_candidates(fits, self.samples, v.bins, v.clusters, self.count, self.clear)
+        return route_candidates(fits, self.samples, v.bins, v.clusters, self.count, self.clear)
 
     def window(self, s_now: float, ahead: float) -> list[int]:
         """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
-        first = max(int(np.searchsorted(self.s_grid, s_now, side="right")) - 1, 0)
-        last = int(np.searchsorted(self.s_grid, s_now + ahead, side="right"))
-        return list(range(first, max(last, first + 1)))
+        return horizon_window(self.s_grid, s_now, ahead)
 
     def update(
         self,
@@ -143,39 +147,22 @@ class RoadmapHorizon:
             arm_com: the arm's CoM now, body frame [m].
             arm_q: the arm's posture now [rad].
         """
-        replanned, kept, uncovered = [], [], []
-        for i, k in enumerate(ks):
-            if not rested.covered[i]:
-                uncovered.append(k)
-                continue
-            old = self.candidates.get(k)
-            g = rested.gravity_body[i]
-            if old is not None and angle_between(g, old.gravity_body) <= self.replan_tol:
-                kept.append(k)
-            else:
-                replanned.append(k)
+        known = {k: c.gravity_body for k, c in self.candidates.items()}
+        changes = sort_poses(ks, rested, known, self.replan_tol)
+        replanned = list(changes.replanned)
         if replanned:
             self._score(replanned, rested.gravity_body[[ks.index(k) for k in replanned]], now)
             first = replanned[0]
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
             self._choose(chain, arm_q, now)
-        return HorizonUpdate(tuple(replanned), tuple(kept), tuple(uncovered))
+        return changes
 
     def _score(self, ks: list[int], gravity: FloatArray, now: float) -> None:
         """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch."""
-        stab = self.settings._replace(w_motion=0.0)
-        stowed = self.robot.arm_com(self.robot.stowed)
-        fits = [
-            pose_fitness(self.robot, g, stowed, stab, self.mu_max, self.view.diameter).linear()
-            for g in gravity
-        ]
-        v = self.view
-        rows, value, mu = route_candidates(
-            fits, self.samples, v.bins, v.clusters, self.count, self.clear
-        )
+        rows, value, mu = self._candidates(gravity)
         for i, k in enumerate(ks):
-            self.candidates[k] = Candidates(gravity[i], rows[i], value[i], mu[i], now)
+            self.candidates[k] = PoseCandidates(gravity[i], rows[i], value[i], mu[i], now)
 
     def _choose(self, chain: list[int], arm_q: FloatArray, now: float) -> None:
         """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``."""
