@@ -19,6 +19,7 @@ from mmstab.control.reference import initial_state
 from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
 from mmstab.physics.closed_loop import downhill_drift, run_closed_loop
 from mmstab.physics.loop_checks import TipCheck
+from mmstab.physics.robot_model import ModelSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -119,6 +120,54 @@ def test_cli_simulate(tmp_path: Path) -> None:
     # a 5.7 deg ramp: mmstab's slip check flags no pose, so the bar covers the whole run
     assert s["slip_predicted_fraction"] == 0.0 and s["no_slip_predicted_fraction"] == 1.0
     assert s["base_error_max_where_no_slip_predicted_m"] == s["base_error_max_m"]
+
+
+def _ramp_arm_in_the_ground(tmp_path: Path) -> Path:
+    """The ramp planned on the roadmap with no ground check: the arm dives into the ramp."""
+    from conftest import write_problem
+
+    def edit(prob, rob):
+        prob["planner"].update(method="roadmap", ground_clearance=None)
+
+    return write_problem(tmp_path, edit)
+
+
+def test_cli_simulate_arm_on_the_ground_is_exit_5(tmp_path: Path) -> None:
+    """An arm link touching the ground in MuJoCo is a verdict: exit 5 unless allowed."""
+    env, problem = {**os.environ, "MPLBACKEND": "Agg"}, _ramp_arm_in_the_ground(tmp_path)
+    cmd = [sys.executable, "-m", "mmstab", "simulate", str(problem), "--duration", "0.8"]
+    r = subprocess.run([*cmd, "-o", str(tmp_path / "a")], capture_output=True, text=True,
+                       env=env, cwd=ROOT, timeout=600)  # fmt: skip
+    assert r.returncode == 5, r.stderr
+    assert r.stderr.count("\n") == 1 and "mmstab: arm collision: the arm touches" in r.stderr
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["tipped"] is None and 0.3 < s["arm_ground_contact"]["first_time_s"] < 0.8
+    allowed = subprocess.run([*cmd, "-o", str(tmp_path / "b"), "--allow-collision"],
+                             capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)  # fmt: skip
+    assert allowed.returncode == 0 and "mmstab: warning: the arm touches" in allowed.stderr
+
+
+def test_servo_feed_forward_removes_the_lag_of_a_moving_target() -> None:
+    """The arm's servo with the speed fed forward tracks a ramp in the target, without it lags.
+
+    A position servo damped against rest lags a target moving at q̇ by kv q̇ / kp (0.05 s
+    of motion at the model's gains); the feed-forward ``kv q̇`` removes it.
+    """
+    from mmstab.physics.robot_sim import RobotSim
+
+    robot = mmstab.load_robot(ROOT / "problems" / "robots" / "cameleon.yaml")
+    lags = []
+    for feed in (False, True):
+        sim = RobotSim(robot, arm_q=robot.stowed)
+        sim.step((0.0, 0.0), robot.stowed, 0.3)
+        qdot, target, dt = np.array([0.5, 0.0, 0.0, 0.0]), robot.stowed.copy(), 0.004
+        for _ in range(200):  # 0.8 s: the turret turns 0.4 rad
+            target = target + qdot * dt
+            sim.advance((0.0, 0.0), target, 1, qdot if feed else None)
+        lags.append(float(target[0] - sim.data.qpos[sim.arm_qpos[0]]))
+    s = ModelSettings()
+    assert lags[0] == pytest.approx(s.arm_kv * 0.5 / s.arm_kp, rel=0.1)  # 25 mrad
+    assert abs(lags[1]) < 0.1 * lags[0]
 
 
 def test_tip_check_in_batches_finds_the_first_tilted_record() -> None:

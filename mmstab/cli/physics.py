@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
 from mmstab.cli.verdicts import report
 
 
@@ -36,15 +36,6 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
-    if s["arm_ground_contact"] is not None:
-        a = s["arm_ground_contact"]
-        print(
-            f"mmstab: warning: the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
-            f"({100 * a['fraction_of_checks']:.0f} % of the checks): the plan keeps the arm clear "
-            "of the robot and, with method roadmap, above the plane the tracks rest on "
-            "(planner.ground_clearance), not above the ground under it",
-            file=sys.stderr,
-        )
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)
@@ -60,8 +51,23 @@ def _simulate(args: argparse.Namespace) -> int | None:
             f"the robot slides in MuJoCo at {s['slid']['time_s']:.2f} s (more than "
             f"{s['slip_distance_m']:g} m downhill in {s['slip_window_s']:g} s)"
         )
-        return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
-    return None
+        status = report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
+        if status is not None:
+            return status
+    return _arm_ground_status(s, args)
+
+
+def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """An arm link that touched the ground in MuJoCo: exit 5 unless ``--allow-collision``."""
+    a = s["arm_ground_contact"]
+    if a is None:
+        return None
+    line = (
+        f"the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
+        f"({100 * a['fraction_of_checks']:.1f} % of the checks)"
+    )
+    return report("arm collision", line, "--allow-collision", args.allow_collision,
+                  EXIT_ARM_COLLISION)  # fmt: skip
 
 
 def add_physics_commands(sub: Any) -> None:
@@ -80,4 +86,9 @@ def add_physics_commands(sub: Any) -> None:
         help="the plan's arm postures or the arm held stowed (default: physics.arm)",
     )
     p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the robot slides")
+    p.add_argument(
+        "--allow-collision",
+        action="store_true",
+        help="exit 0 (warning) even if an arm link touches the ground in MuJoCo",
+    )
     p.set_defaults(handler=_simulate)

@@ -289,7 +289,7 @@ def run_closed_loop(
                 break
         qdots[k], status[k] = controller(state, ref[k])
         target = target + qdots[k, 2:] * dt
-        sim.advance(r * qdots[k, :2], target, substeps)
+        sim.advance(r * qdots[k, :2], target, substeps, qdots[k, 2:])
         sprockets = state[3:5] + qdots[k, :2] * dt
         pose, G_T_B, arm_q = read_back(sim, M_T_G)
         state = np.concatenate([pose, sprockets, arm_q])

@@ -131,18 +131,31 @@ class RobotSim:
         self.advance(track_speeds, arm_q_target, n)
         return self.state()
 
-    def advance(self, track_speeds: ArrayLike, arm_q_target: ArrayLike | None, n: int) -> None:
-        """:meth:`step`'s simulation without the read-back: ``n`` MuJoCo steps [-]."""
+    def advance(
+        self,
+        track_speeds: ArrayLike,
+        arm_q_target: ArrayLike | None,
+        n: int,
+        arm_qdot: ArrayLike | None = None,
+    ) -> None:
+        """:meth:`step`'s simulation without the read-back: ``n`` MuJoCo steps [-].
+
+        ``arm_qdot`` [rad/s]: the joints' commanded speeds, fed forward through the servos'
+        damping (``arm_kv · q̇``), so that a servo tracks a moving target without the lag
+        ``kv q̇ / kp`` of a position servo damped against rest; None: no feed-forward.
+        """
         m, d = self.model, self.data
         d.ctrl[self.track_ctrl["left"]] = track_speeds[0]  # type: ignore[index]
         d.ctrl[self.track_ctrl["right"]] = track_speeds[1]  # type: ignore[index]
         if arm_q_target is not None:
             d.ctrl[self.arm_ctrl] = arm_q_target
+        damping = 0.0 if arm_qdot is None else self.settings.arm_kv * np.asarray(arm_qdot)
         if not self.gravity_feedforward:
+            d.qfrc_applied[self.arm_dof] = damping
             mujoco.mj_step(m, d, nstep=n)
             return
         for _ in range(n):
-            d.qfrc_applied[self.arm_dof] = d.qfrc_bias[self.arm_dof]
+            d.qfrc_applied[self.arm_dof] = d.qfrc_bias[self.arm_dof] + damping
             mujoco.mj_step(m, d)
 
     def settle(self, duration: float = 1.0, pieces: int = 20) -> RobotState:
