@@ -150,3 +150,17 @@ def test_tip_slope_within_a_degree(postures, settings, heading):
     found = bisect_tip(postures, sim, THRESHOLDS, config, predicted.tip_slope, 0.02, 4)
     assert found.lo < found.simulated < found.hi
     assert abs(found.simulated - predicted.tip_slope) < np.radians(1.0)
+
+
+def test_bad_settings_file_is_one_line_exit_2(tmp_path):
+    """``make verdicts`` on a bad settings file: one ``mmstab: error:`` line naming it, exit 2."""
+    import subprocess
+    import sys
+
+    bad = tmp_path / "verdicts.yaml"
+    bad.write_text("cases: 3\n")
+    cmd = [sys.executable, "-m", "mmstab.experiments.verdicts", str(bad), "-o", str(tmp_path / "o")]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2
+    assert r.stderr.startswith(f"mmstab: error: {bad}: missing") and r.stderr.count("\n") == 1
+    assert not (tmp_path / "o").exists()

@@ -257,10 +257,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         s = run_verdicts(load_settings(args.settings), args.out)
     except MmstabError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"mmstab: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print("mmstab: interrupted", file=sys.stderr)
         return 130
     for name, m in s["models"].items():
         t = s["tip_slopes"].get(name)

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.core.defaults import SECTION_DEFAULTS
-from mmstab.model.robot import FloatArray, Robot
+from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import LinearFitness
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
@@ -216,7 +216,6 @@ class NodeClearance:
     the tracks rest on. Both tests are pose-independent.
     """
 
-    robot: Robot
     roadmap: Roadmap
     reach: NDArray[np.intp]
     ground: float | None = GROUND_CLEARANCE

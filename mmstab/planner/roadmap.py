@@ -333,7 +333,7 @@ def solve_roadmap_sequence(
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
-    clear = NodeClearance(robot, roadmap, reach, settings.ground_clearance)
+    clear = NodeClearance(roadmap, reach, settings.ground_clearance)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)

@@ -96,7 +96,7 @@ class RoadmapHorizon:
         self.reach, self.samples = self.view.reach, self.view.samples
         span = (self.view.diameter, self.view.joint_span)
         self.cost = motion_cost(roadmap.nodes_q[self.reach], self.samples, span, settings)
-        self.clear = NodeClearance(robot, roadmap, self.reach, settings.ground_clearance)
+        self.clear = NodeClearance(roadmap, self.reach, settings.ground_clearance)
         self.count = min(settings.sequence_candidates, len(self.reach))
         self.candidates: dict[int, PoseCandidates] = {}
         self.plans: dict[int, HorizonPose] = {}
