@@ -71,6 +71,32 @@ class PoseTarget(NamedTuple):
     window: Window | None = None
 
 
+class WindowedRegion(NamedTuple):
+    """A pose's candidates: the region and the turret window that restricts it.
+
+    Attributes:
+        region: the planning region, windowed when a window binds.
+        window: the turret window, or None (no window binds).
+    """
+
+    region: PlanningRegion
+    window: Window | None
+
+
+class Realised(NamedTuple):
+    """A pose's target turned into a posture (step 4).
+
+    Attributes:
+        target: the target, replaced by a nearby sample when no posture realised it.
+        q: the posture (4,) [rad].
+        collision_free: whether the posture is collision-free.
+    """
+
+    target: PoseTarget
+    q: FloatArray
+    collision_free: bool
+
+
 def gravity_body_at(terrain: Terrain, poses: ArrayLike) -> FloatArray:
     """Gravity in the body frame at base poses (N, 3) or (3,) -> (N, 3) [m/s^2].
 
@@ -85,7 +111,7 @@ def pose_candidates(
     settings: PlannerSettings,
     previous_q: ArrayLike | None = None,
     closing_q: ArrayLike | None = None,
-) -> tuple[PlanningRegion, Window | None]:
+) -> WindowedRegion:
     """Step 1, candidates: the region, restricted to the turret window when one binds.
 
     Args:
@@ -96,12 +122,12 @@ def pose_candidates(
             path (the window then also keeps link0 near its link0).
     """
     if settings.turret_window is None or previous_q is None:
-        return region, None
+        return WindowedRegion(region, None)
     first = None if closing_q is None else float(np.asarray(closing_q, dtype=float)[0])
     window = turret_window(
         float(np.asarray(previous_q, dtype=float)[0]), settings.turret_window, first
     )
-    return region.windowed(window), window
+    return WindowedRegion(region.windowed(window), window)
 
 
 def candidate_fitness(
@@ -200,7 +226,7 @@ def fall_back_to_a_sample(
     mu_max: float,
     realise: Realise,
     previous_q: FloatArray,
-) -> tuple[PoseTarget, FloatArray, bool]:
+) -> Realised:
     """Step 4's fallback: no posture realises an off-grid target, take the best nearby sample.
 
     V's samples are CoMs of collision-free grid postures, so each is realisable; the one
@@ -213,7 +239,7 @@ def fall_back_to_a_sample(
         index = region.index
     except MmstabError:
         q, ok = realise(target.target_com, previous_q)
-        return target, q, ok
+        return Realised(target, q, ok)
     k = min(FALLBACK_NEIGHBOURS, len(index.samples))
     _, idx = index.tree.query(target.target_com, k=k)
     rows = np.atleast_1d(idx)
@@ -237,7 +263,7 @@ def fall_back_to_a_sample(
         mu=float(fitness.mu(near[best])[0]),
         fallback=True,
     )
-    return replaced, q, ok
+    return Realised(replaced, q, ok)
 
 
 def realise_target(
@@ -250,14 +276,12 @@ def realise_target(
     mu_max: float,
     realise: Realise,
     previous_q: FloatArray,
-) -> tuple[PoseTarget, FloatArray, bool]:
+) -> Realised:
     """Step 4, posture: IK from the previous posture, or :func:`fall_back_to_a_sample`.
 
     The IK's answer stands when it is collision-free, realises the target within
     ``REALISE_TOL`` and keeps link0 in the target's turret window (if any).
 
-    Returns:
-        (the target, possibly replaced; the posture (4,) [rad]; whether collision-free).
     """
     q, ok = realise(target.target_com, previous_q)
     if (
@@ -265,7 +289,7 @@ def realise_target(
         and np.linalg.norm(robot.arm_com(q) - target.target_com) <= REALISE_TOL
         and (target.window is None or target.window.contains(q[0]))
     ):
-        return target, q, ok
+        return Realised(target, q, ok)
     return fall_back_to_a_sample(
         robot, terrain, region, target, previous_com, settings, mu_max, realise, previous_q
     )
