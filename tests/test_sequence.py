@@ -10,8 +10,10 @@ from test_turret_window import coarse  # noqa: F401  (module fixture: coarse pro
 
 from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
+from mmstab.model.ground import arm_ground_clearance
 from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
 from mmstab.planner.exhaustive import sample_index
+from mmstab.planner.regions import as_region
 from mmstab.planner.sequence import _viterbi, segments_collide, solve_sequence
 from mmstab.planner.turret import sample_postures
 from mmstab.stability.static import mu_max
@@ -78,9 +80,14 @@ def test_sequence_without_constraints_is_the_per_pose_optimum_of_its_sum(coarse)
     s = _settings(problem, w_stability=1.0, w_motion=0.0, turret_window=None)
     pose = problem.circle.poses(10)[3]
     g = gravity_body_at(problem.terrain, pose)
-    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=False)
     f = pose_fitness(robot, g[0], robot.arm_com(robot.stowed), s, mu_max(robot), ws.diameter)
-    assert seq.mu[0] == pytest.approx(f.mu(sample_index(ws).samples).max(), abs=1e-9)
+    mu = f.mu(sample_index(ws).samples)
+    seq = solve_sequence(robot, g, ws, s._replace(ground_clearance=None), mu_max(robot), False)
+    assert seq.mu[0] == pytest.approx(mu.max(), abs=1e-9)
+    # with the ground check: the optimum over the samples whose arm clears the plane
+    above = arm_ground_clearance(robot, as_region(ws).postures) >= s.ground_clearance
+    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=False)
+    assert seq.mu[0] == pytest.approx(mu[above].max(), abs=1e-9)
 
 
 def test_sequence_is_refused_when_nothing_fits(coarse):  # noqa: F811
