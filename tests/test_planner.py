@@ -172,6 +172,7 @@ def test_fig7_fig8_subprocess(tmp_path):
         assert p["mu_planned"] > p["mu_arm_removed"]
         assert p["evaluations"] > 0
         assert p["mu_best_valid"] >= p["mu_best_in_V"] - 1e-9
+        assert p["mu_best_in_V"] >= p["mu_best_above_ground"] - 1e-9  # a subset of V
 
 
 def test_empty_workspace_is_a_clear_error(problem):

@@ -154,7 +154,7 @@ def test_clearance_is_zero_exactly_where_the_checker_finds_contact(robot):
     assert hit.any() and (~hit).any()
     assert np.all(d[hit] == 0.0) and np.all(d[~hit] > 0.0)
     # 1-Lipschitz in point motion: a joint move dq moves no point more than reach . |dq|
-    from mmstab.workspace.roadmap import joint_reach
+    from mmstab.model.reach import joint_reach
 
     reach = joint_reach(robot, q)
     dq = rng.normal(scale=0.01, size=q.shape)

@@ -10,11 +10,22 @@ from test_turret_window import coarse  # noqa: F401  (module fixture: coarse pro
 
 from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
+from mmstab.model.ground import arm_ground_clearance, lowest_along_moves
+from mmstab.model.reach import joint_reach
 from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
 from mmstab.planner.exhaustive import sample_index
-from mmstab.planner.sequence import _viterbi, segments_collide, solve_sequence
+from mmstab.planner.regions import as_region
+from mmstab.planner.sequence import (
+    MoveCheck,
+    _Graph,
+    _search_lazily,
+    _viterbi,
+    segments_collide,
+    solve_sequence,
+)
 from mmstab.planner.turret import sample_postures
 from mmstab.stability.static import mu_max
+from mmstab.workspace.roadmap import CLEARANCE_STEP
 
 WINDOW = 0.8  # [rad]
 
@@ -78,9 +89,14 @@ def test_sequence_without_constraints_is_the_per_pose_optimum_of_its_sum(coarse)
     s = _settings(problem, w_stability=1.0, w_motion=0.0, turret_window=None)
     pose = problem.circle.poses(10)[3]
     g = gravity_body_at(problem.terrain, pose)
-    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=False)
     f = pose_fitness(robot, g[0], robot.arm_com(robot.stowed), s, mu_max(robot), ws.diameter)
-    assert seq.mu[0] == pytest.approx(f.mu(sample_index(ws).samples).max(), abs=1e-9)
+    mu = f.mu(sample_index(ws).samples)
+    seq = solve_sequence(robot, g, ws, s._replace(ground_clearance=None), mu_max(robot), False)
+    assert seq.mu[0] == pytest.approx(mu.max(), abs=1e-9)
+    # with the ground check: the optimum over the samples whose arm clears the plane
+    above = arm_ground_clearance(robot, as_region(ws).postures) >= s.ground_clearance
+    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=False)
+    assert seq.mu[0] == pytest.approx(mu[above].max(), abs=1e-9)
 
 
 def test_sequence_is_refused_when_nothing_fits(coarse):  # noqa: F811
@@ -134,3 +150,57 @@ def test_diverse_top_by_bins_equals_the_full_sort(rng):
     for count in (1, 7, 64, 300):
         fast = _diverse_top(values, bins, count, members)
         np.testing.assert_array_equal(fast, _diverse_top(values, bins, count))
+
+
+def test_the_sequence_plan_keeps_the_arm_above_the_plane(coarse):  # noqa: F811
+    """Every posture and every move (the closing one too) keeps ground_clearance up."""
+    problem, ws = coarse
+    robot = problem.robot
+    s = _settings(problem)
+    assert s.ground_clearance == 0.02  # the default
+    g = gravity_body_at(problem.terrain, problem.circle.poses(s.poses))
+    region = as_region(ws)
+    seq = solve_sequence(robot, g, ws, s, mu_max(robot), closed=True)
+    q = region.postures[seq.rows]
+    assert arm_ground_clearance(robot, q).min() >= s.ground_clearance
+    nxt = np.roll(q, -1, axis=0)  # sampled 4x finer than the check's own rule
+    reach = joint_reach(robot, region.valid_q)
+    low = lowest_along_moves(robot, reach, q, nxt, CLEARANCE_STEP / 4)
+    assert low.min() >= s.ground_clearance - 1e-3  # the 4 mm rule: ~mm between samples
+    # V holds postures in the ground: the check is what keeps them out of the candidates
+    below = arm_ground_clearance(robot, region.postures) < s.ground_clearance
+    assert below.any()
+    assert not below[seq.rows].any()
+
+
+def test_a_move_dipping_below_the_plane_is_refused(coarse):  # noqa: F811
+    """Two postures above the plane whose straight wrist move sweeps through the ground."""
+    problem, _ = coarse
+    robot = problem.robot
+    a = np.array([4.54, 0.65, -1.85, -1.98])  # wrist swung one way ...
+    b = np.array([4.54, 0.65, -1.85, 0.86])  # ... and the other: the move points it down
+    c = np.array([4.54, 0.65, -1.85, 1.3])
+    q = np.array([a, b, c])
+    checker = CollisionChecker(robot)
+    reach = joint_reach(robot, q)
+    assert arm_ground_clearance(robot, q).min() >= 0.02
+    assert not segments_collide(checker, q[[0, 2]], q[[1, 1]]).any()
+    low = lowest_along_moves(robot, reach, q[[0, 2]], q[[1, 1]], CLEARANCE_STEP)
+    assert low[0] < 0.0 < 0.02 <= low[1]
+    check = MoveCheck(checker, robot, reach, 0.02)
+    np.testing.assert_array_equal(check.refused(q[[0, 2]], q[[1, 1]]), [True, False])
+    assert not MoveCheck(checker, robot).refused(q[[0]], q[[1]]).any()  # no ground check
+    # the search: pose 0 prefers a (value 1 against 0.5), pose 1 has b only
+    graph = _Graph(
+        cand=np.array([[0, 2], [1, 1]]),
+        value=np.array([[1.0, 0.5], [0.0, -np.inf]]),
+        fits=[],
+        pairs=[(0, 1)],
+        motion=[np.zeros((2, 2))],
+        allowed=[np.ones((2, 2), dtype=bool)],
+    )
+    path, _, forbidden = _search_lazily(graph, q, MoveCheck(checker, robot), closed=False)
+    assert path.tolist() == [0, 0]  # unchecked: a, through the ground
+    graph.allowed[0][:] = True
+    path, rounds, forbidden = _search_lazily(graph, q, check, closed=False)
+    assert path.tolist() == [1, 0] and forbidden == 1 and rounds == 2  # c, above

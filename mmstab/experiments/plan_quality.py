@@ -4,8 +4,11 @@ Along the lap of a plan (``results/fig8/``): per planned pose the exhaustive Eq.
 over V's samples at the same previous CoM (the planner's fitness gap; within the pose's
 turret window when the plan has one; for ``method: sequence``, whose previous CoM is its own
 choice, the gap is the price of its joint-space constraints), and on a dense set of
-poses the best force-angle measure mu over V's samples, over every collision-free grid CoM
-(inside V or not: what V's hull difference costs) and with the arm stowed.
+poses the best force-angle measure mu over V's samples, over those whose arm keeps
+``planner.ground_clearance`` above the plane the tracks rest on (what the ground check
+costs; V's best posture is in the ground at most poses of the ramp lap), over every
+collision-free grid CoM (inside V or not: what V's hull difference costs) and with the arm
+stowed.
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from mmstab.planner import (
     region_samples,
     solve_exhaustive,
 )
+from mmstab.planner.regions import as_region
+from mmstab.planner.sequence import above_ground
 from mmstab.stability.static import mu_max, robot_force_angle
 from mmstab.viz.plotting import new_figure
 
@@ -50,8 +55,10 @@ def lap_quality(
         dense: poses of the dense curve over one lap.
 
     Returns:
-        ``per_pose`` lists (fitness and mu of plan and reference, gap [%], best mu in V and
-        over all valid CoMs [N rad]), the ``dense`` curve and summary statistics.
+        ``per_pose`` lists (fitness and mu of plan and reference, gap [%], best mu in V,
+        in V above the ground (``mu_best_above_ground``: ``planner.ground_clearance``; None
+        when not checked) and over all valid CoMs [N rad]), the ``dense`` curves and
+        summary statistics.
     """
     robot = problem.robot
     samples, valid = region_samples(region), np.asarray(region.valid_com)
@@ -77,6 +84,12 @@ def lap_quality(
     poses = problem.circle.pose_at(fractions)
     gd = gravity_body_at(problem.terrain, poses)
     dense_V = np.array([best_mu(robot, gk, samples)[0] for gk in gd])
+    ground = plan.settings.ground_clearance
+    best_up = dense_up = None
+    if ground is not None:
+        up = samples[above_ground(robot, as_region(region), ground)]
+        best_up = np.array([best_mu(robot, gk, up)[0] for gk in g])
+        dense_up = np.array([best_mu(robot, gk, up)[0] for gk in gd])
     dense_valid = np.array([best_mu(robot, gk, valid)[0] for gk in gd])
     stowed = np.broadcast_to(robot.arm_com(robot.stowed), (dense, 3))
     dense_stowed = robot_force_angle(robot, gd, stowed).mu
@@ -91,12 +104,14 @@ def lap_quality(
             "mu_planned": mu_plan,
             "mu_exhaustive": np.array(mu_ref),
             "mu_best_in_V": best_V,
+            "mu_best_above_ground": best_up,
             "mu_best_valid": best_valid,
             "exhaustive_seconds": np.array(seconds),
         },
         "dense": {
             "fraction": fractions,
             "mu_best_in_V": dense_V,
+            "mu_best_above_ground": dense_up,
             "mu_best_valid": dense_valid,
             "mu_stowed": dense_stowed,
         },
@@ -113,6 +128,10 @@ def draw_lap_quality(quality: dict[str, Any], path: str | Path, title: str) -> P
     d, p = quality["dense"], quality["per_pose"]
     ax.plot(d["fraction"], d["mu_best_valid"], "k--", lw=1, label="best, all collision-free CoMs")
     ax.plot(d["fraction"], d["mu_best_in_V"], "C0-", label="best in V (grid samples)")
+    if d.get("mu_best_above_ground") is not None:
+        ax.plot(
+            d["fraction"], d["mu_best_above_ground"], "C0-.", label="best in V, arm above ground"
+        )
     ax.plot(d["fraction"], d["mu_stowed"], "C2:", label="arm stowed")
     ax.plot(
         p["fraction"],

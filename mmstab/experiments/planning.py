@@ -174,7 +174,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     )
     for k, p in enumerate(summary["poses"]):
         for key, values in quality["per_pose"].items():
-            if key != "fraction":
+            if key != "fraction" and values is not None:
                 p[key] = values[k]
     summary["lap_quality"] = {k: v for k, v in quality.items() if k != "per_pose"}
     draw_lap_quality(

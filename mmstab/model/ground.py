@@ -4,7 +4,8 @@ The workspace V and the posture roadmap check the arm against the robot's own bo
 nothing there keeps it out of the ground. On a plane the robot rests on, the ground is the
 body frame's z_B = 0 at any slope, so the lowest point of the arm's collision shapes in B
 says whether a posture puts the arm into the ground. Used by the planner (the roadmap's
-eligible nodes, ``planner.ground_clearance``) and by the physics checks. It knows the
+eligible nodes and moves, ``method: sequence``'s candidates and moves,
+``planner.ground_clearance``) and by the physics checks. It knows the
 support plane only, not local bumps under the arm.
 """
 
@@ -43,4 +44,26 @@ def arm_ground_clearance(robot: Robot, postures: ArrayLike) -> FloatArray:
                 points, radius = np.stack([g.p0, g.p1]), float(g.radius)
             z = points @ frames[:, i, 2, :3].T + frames[:, i, 2, 3]  # (P, n) heights in B
             np.minimum(low, z.min(axis=0) - radius, out=low)
+    return lowest
+
+
+def lowest_along_moves(
+    robot: Robot, reach: FloatArray, q_from: ArrayLike, q_to: ArrayLike, step: float
+) -> FloatArray:
+    """The arm's lowest height above z_B = 0 along straight joint-space moves (N,) [m].
+
+    Each move q_from -> q_to (N, n) [rad] is sampled so that no arm point moves more than
+    ``step`` [m] between two samples (the bound Σ_j reach_j |Δq_j|, ``reach`` (n,) [m]:
+    per joint, the largest distance of an arm point from its axis), the ends included.
+    The one sampling rule of the roadmap's moves and the sequence's.
+    """
+    a, b = np.broadcast_arrays(np.atleast_2d(q_from), np.atleast_2d(q_to))
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    n = np.ceil(np.abs(b - a) @ np.asarray(reach, dtype=float) / step).astype(np.intp) + 1
+    move = np.repeat(np.arange(len(a)), n + 1)
+    first = np.repeat(np.r_[0, np.cumsum(n + 1)[:-1]], n + 1)
+    u = ((np.arange(len(move)) - first) / n[move])[:, None]
+    low = arm_ground_clearance(robot, a[move] + u * (b[move] - a[move]))
+    lowest = np.full(len(a), np.inf)
+    np.minimum.at(lowest, move, low)
     return lowest

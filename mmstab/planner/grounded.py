@@ -18,7 +18,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance
+from mmstab.model.ground import lowest_along_moves
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.roadmap import CLEARANCE_STEP, Roadmap
 
@@ -61,15 +61,14 @@ def stays_above(robot: Robot, roadmap: Roadmap, q: FloatArray, ground: float) ->
     """Whether the polyline of postures q (n, 4) [rad] keeps the arm ``ground`` [m] up.
 
     Sampled so that no arm point moves more than ``CLEARANCE_STEP`` between two samples
-    (the bound Σ_j reach_j |Δq_j|), the ends included.
+    (the bound Σ_j reach_j |Δq_j|, :func:`mmstab.model.ground.lowest_along_moves`), the
+    ends included.
     """
     qa = np.atleast_2d(np.asarray(q, dtype=float))
-    for a, b in zip(qa[:-1], qa[1:], strict=True):
-        n = int(np.ceil(float(roadmap.reach @ np.abs(b - a)) / CLEARANCE_STEP)) + 1
-        u = np.linspace(0.0, 1.0, n + 1)[:, None]
-        if arm_ground_clearance(robot, a + u * (b - a)).min() < ground:
-            return False
-    return True
+    if len(qa) < 2:  # no move (a node's own height is checked with the node)
+        return True
+    low = lowest_along_moves(robot, roadmap.reach, qa[:-1], qa[1:], CLEARANCE_STEP)
+    return bool(low.min() >= ground)
 
 
 def shortcut_above(

@@ -16,6 +16,14 @@ move between the two postures being collision-free. It is Eq. 6 with the previou
 being the path's own choice, solved exactly over each pose's ``sequence_candidates`` best
 samples by dynamic programming (Viterbi). Collision checks are lazy: the best sequence's
 moves are checked, colliding ones are forbidden, and the search repeats (as lazy PRM).
+
+**Ground.** V knows the robot's body only, and a low arm CoM maximises μ: without a check
+the ramp's plan put the arm 7.9 cm below the plane the tracks rest on, and in MuJoCo the
+arm touched the ground. With ``planner.ground_clearance`` [m] (None: not checked), a
+candidate's arm keeps that height above the support plane z_B = 0
+(:func:`mmstab.model.ground.arm_ground_clearance`), and a move that dips below it is
+forbidden like a colliding one, sampled by the roadmap's rule
+(:func:`mmstab.model.ground.lowest_along_moves`, ``CLEARANCE_STEP``).
 """
 
 from __future__ import annotations
@@ -28,11 +36,14 @@ from numpy.typing import NDArray
 
 from mmstab.core.files import PlanningError
 from mmstab.model.collision import CollisionChecker
+from mmstab.model.ground import arm_ground_clearance, lowest_along_moves
+from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness, pose_fitness
 from mmstab.planner.regions import CoMRegion, PlanningRegion, as_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.wrench import with_tool_wrench
+from mmstab.workspace.roadmap import CLEARANCE_STEP
 
 #: Postures checked along each straight joint-space move between consecutive poses.
 SEGMENT_STEPS = 24
@@ -79,6 +90,54 @@ def segments_collide(
     q = (a[:, None, :] * (1 - u) + b[:, None, :] * u).reshape(-1, a.shape[1])
     hit = np.asarray(checker.collides(q), dtype=bool).reshape(len(a), SEGMENT_STEPS)
     return np.asarray(hit.any(axis=1), dtype=bool)
+
+
+class MoveCheck(NamedTuple):
+    """What forbids a straight joint-space move between consecutive poses' postures.
+
+    Attributes:
+        checker: the collision checker (a move colliding anywhere is refused).
+        robot: the robot.
+        reach: per joint, the bound on an arm point's distance from its axis (n,) [m]
+            (:func:`mmstab.model.reach.sampled_reach`); None when ``ground`` is None.
+        ground: least height of the arm above z_B = 0 along the move [m]; None: not checked.
+    """
+
+    checker: CollisionChecker
+    robot: Robot
+    reach: FloatArray | None = None
+    ground: float | None = None
+
+    def refused(self, q_from: FloatArray, q_to: FloatArray) -> NDArray[np.bool_]:
+        """Whether the moves q_from -> q_to (N, n) [rad] collide or dip below ``ground``."""
+        hit = segments_collide(self.checker, q_from, q_to)
+        if self.ground is not None and self.reach is not None:
+            low = lowest_along_moves(self.robot, self.reach, q_from, q_to, CLEARANCE_STEP)
+            hit |= low < self.ground
+        return hit
+
+
+def move_check(
+    robot: Robot, region: PlanningRegion, ground: float | None, checker: CollisionChecker
+) -> MoveCheck:
+    """The moves' check on V's postures, with the roadmap's reach of them (kept by V)."""
+    if ground is None:
+        return MoveCheck(checker, robot)
+    reach = region.view(
+        ("reach", robot.source_hash), lambda: sampled_reach(robot, region.root.valid_q)
+    )
+    return MoveCheck(checker, robot, reach, ground)
+
+
+def above_ground(robot: Robot, region: PlanningRegion, ground: float | None) -> NDArray[np.bool_]:
+    """Which of V's samples keep the arm ``ground`` [m] above z_B = 0 (all when None) (M,)."""
+    postures = region.postures
+    if ground is None:
+        return np.ones(len(postures), dtype=bool)
+    low = region.view(
+        ("arm_ground", robot.source_hash), lambda: arm_ground_clearance(robot, postures)
+    )
+    return np.asarray(low >= ground)
 
 
 def _viterbi(
@@ -137,7 +196,8 @@ def solve_sequence(
     region = as_region(region)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     graph = _candidate_graph(robot, g, region, settings, mu_max, closed)
-    path, rounds, forbidden = _search_lazily(graph, region.postures, checker, closed)
+    moves = move_check(robot, region, settings.ground_clearance, checker)
+    path, rounds, forbidden = _search_lazily(graph, region.postures, moves, closed)
     K = len(g)
     rows = graph.cand[np.arange(K), path]
     fitness = graph.value[np.arange(K), path].copy()
@@ -165,7 +225,8 @@ class _Graph(NamedTuple):
         fits: each pose's Eq. 6 (its ``mu`` gives the reported μ).
         pairs: the (from, to) poses of each move (the closing one on a closed path).
         motion: per move, Eq. 6's motion term between the candidates (M, M).
-        allowed: per move, which candidate pairs may follow (turret window, no collision).
+        allowed: per move, which candidate pairs may follow (turret window, no collision,
+            the arm kept above the ground).
     """
 
     cand: NDArray[np.intp]
@@ -184,17 +245,29 @@ def _candidate_graph(
     mu_max: float,
     closed: bool,
 ) -> _Graph:
-    """Each pose's candidates, spread over turret bins, and the moves between them."""
+    """Each pose's candidates, spread over turret bins, and the moves between them.
+
+    Only samples whose arm keeps ``settings.ground_clearance`` above the plane are candidates.
+
+    Raises:
+        PlanningError: no sample of V keeps the arm that far above the plane.
+    """
     samples = region.index.samples
     postures = region.postures
     diameter = float(region.diameter)
-    K, M = len(g), min(settings.sequence_candidates, len(samples))
+    above = above_ground(robot, region, settings.ground_clearance)
+    if not above.any():
+        raise PlanningError(
+            f"planner: no posture of V keeps the arm planner.ground_clearance "
+            f"({settings.ground_clearance} m) above the plane the tracks rest on"
+        )
+    K, M = len(g), min(settings.sequence_candidates, int(above.sum()))
     stowed = robot.arm_com(robot.stowed)
     stab = settings._replace(w_motion=0.0)
     cand = np.empty((K, M), dtype=np.intp)
     value = np.empty((K, M))
     bins = _turret_bins(postures[:, 0], TURRET_BINS)
-    members = [np.flatnonzero(bins == b) for b in range(TURRET_BINS)]
+    members = [np.flatnonzero((bins == b) & above) for b in range(TURRET_BINS)]
     fits = []
     for k in range(K):  # each pose's best samples by Eq. 6's stability term, per turret bin
         fits.append(
@@ -220,9 +293,9 @@ def _candidate_graph(
 
 
 def _search_lazily(
-    graph: _Graph, postures: FloatArray, checker: CollisionChecker, closed: bool
+    graph: _Graph, postures: FloatArray, moves: MoveCheck, closed: bool
 ) -> tuple[NDArray[np.intp], int, int]:
-    """Best sequence, its moves checked and colliding ones forbidden until none collides.
+    """Best sequence, its moves checked and refused ones forbidden until none is refused.
 
     Returns:
         (candidate per pose, rounds, moves forbidden); ``graph.allowed`` is updated.
@@ -239,15 +312,16 @@ def _search_lazily(
         if not np.isfinite(total):
             raise PlanningError(
                 "planner: no sequence of V's postures has collision-free moves within the "
-                "turret window (raise planner.sequence_candidates or turret_window)"
+                "turret window that keep the arm planner.ground_clearance above the plane "
+                "(raise planner.sequence_candidates or turret_window)"
             )
-        moves = [(i, path[a], path[b]) for i, (a, b) in enumerate(pairs)]
-        todo = [m for m in moves if m not in checked]
+        chosen = [(i, path[a], path[b]) for i, (a, b) in enumerate(pairs)]
+        todo = [m for m in chosen if m not in checked]
         if not todo:
             break
         qa = np.array([postures[cand[pairs[i][0], x]] for i, x, _ in todo])
         qb = np.array([postures[cand[pairs[i][1], y]] for i, _, y in todo])
-        hit = segments_collide(checker, qa, qb)
+        hit = moves.refused(qa, qb)
         checked.update(todo)
         for (i, x, y), h in zip(todo, hit, strict=True):
             if h:

@@ -57,9 +57,10 @@ class PlannerSettings(NamedTuple):
             squared; the roadmap distance where a monotone lattice path is free, a lower
             bound elsewhere) or ``com`` (Eq. 6's: the squared CoM distance over the
             diameter squared).
-        ground_clearance: ``method: roadmap``: least height of the arm's lowest point
-            above the support plane z_B = 0 that a chosen posture keeps [m]; None: not
-            checked (the other methods do not check it).
+        ground_clearance: ``method: roadmap`` and ``method: sequence``: least height of
+            the arm's lowest point above the support plane z_B = 0 that a chosen posture
+            and the moves between them keep [m]; None: not checked (``cmaes`` and
+            ``exhaustive`` do not check it).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
     """

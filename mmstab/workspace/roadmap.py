@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 from mmstab.core.files import MmstabError, write_npz
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import arm_ground_clearance
+from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.cache import DEFAULT_CACHE_DIR
 from mmstab.workspace.grid import JointGrid, joint_grid
@@ -49,8 +50,6 @@ CLEARANCE_STEP = 0.004
 COARSE_STRIDE = 8
 #: Postures per batch handed to the collision checker.
 CHECK_CHUNK = 16384
-#: Postures of V sampled to bound each joint's reach (seeded).
-REACH_SAMPLES = 20000
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,24 +227,6 @@ def _coarse_first(n: int, stride: int = COARSE_STRIDE) -> tuple[FloatArray, Floa
     return i[first] / n, i[~first] / n
 
 
-def joint_reach(robot: Robot, q: FloatArray) -> FloatArray:
-    """Per joint j, the largest distance of a point of links j.. from joint j's origin [m].
-
-    Each link shape's centre distance plus its bounding radius, the maximum over postures q
-    (N, 4) [rad]: the distance depends only on the joints after j, which q samples.
-    """
-    checker = CollisionChecker(robot)
-    frames = robot.kinematics.link_frames(q)
-    _, p = checker.shape_poses(q, frames)
-    radius = np.array([link.geometry.bounding_radius for link in robot.links])
-    out = np.zeros(robot.arm_joints)
-    for j in range(robot.arm_joints):
-        o = frames[:, j, :3, 3]
-        d = np.linalg.norm(p[:, j:, :] - o[:, None, :], axis=2) + radius[j:]
-        out[j] = float(d.max())
-    return out
-
-
 def _grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
     """Grid indices (N, 4) of grid postures q [rad]."""
     lo = np.array([a[0] for a in jg.axes])
@@ -292,9 +273,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
     lookup = np.full(jg.size, -1, dtype=np.int64)
     lookup[flat] = np.arange(len(nodes_q))
-    rng = np.random.default_rng(0)
-    sample = nodes_q[rng.choice(len(nodes_q), min(REACH_SAMPLES, len(nodes_q)), replace=False)]
-    reach = joint_reach(robot, sample)
+    reach = sampled_reach(robot, nodes_q)
     steps = np.maximum(np.ceil(reach * jg.step / resolution).astype(np.int64) - 1, 0)
     checker = CollisionChecker(robot)
     edges, lengths = [], []
