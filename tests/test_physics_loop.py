@@ -47,18 +47,15 @@ def test_the_ramp_lap_tracks_in_mujoco(ramp) -> None:
     run = _run(problem, plan, 4.0)
     assert run.tipped is None and run.slid is None
     assert int(np.sum(run.status != 0)) == 0
-    assert run.base_error.max() < 0.10  # the issue's 10 cm
+    assert run.base_error.max() < 0.05  # the issue's 10 cm; 3.1 cm
     assert run.base_error[-1] < 0.03 and run.arm_com_error[-1] < 0.03  # settling onto the lap
-    # after the arm's start-up swing the simulated contacts' μ is mmstab's: within 1 % at the
-    # median; some checks see a track's end wheel off the ground (the hull one wheel shorter:
-    # μ up to 35 % lower), others the arm's wrist on the ground (a planned posture reaches
-    # 7.9 cm below the support plane): its contact widens the hull (μ up to 6.1 % higher)
+    # after the arm's start-up move the simulated contacts' μ is mmstab's: every check within
+    # 1 % (0.03 % at most); the plan keeps the arm above the ramp and the servos' speed
+    # feed-forward keeps the moving arm on its targets, so no link touches the ground
     late = (run.t > 2.5) & np.isfinite(run.mu_simulated)
     diff = (run.mu_simulated[late] - run.mu_predicted[late]) / run.mu_predicted[late]
-    assert late.sum() > 20 and np.median(np.abs(diff)) < 0.01
-    assert np.mean(np.abs(diff) < 0.05) > 0.5 and diff.max() < 0.07 and diff.min() > -0.4
-    wide = diff > 0.05
-    assert np.all(run.arm_ground[late][wide] == 1)  # only with the arm on the ground
+    assert late.sum() > 20 and np.abs(diff).max() < 0.01
+    assert np.nansum(run.arm_ground == 1) == 0
     assert np.nanmax(run.tilt_error) < 0.1 and run.real_time_factor > 0
 
 
