@@ -59,3 +59,72 @@ def test_the_stowed_arm_climbs_with_momentum_the_arm_ahead_does_not(kerb) -> Non
     assert _drive(kerb, kerb.robot.stowed, 0.2, 6.0) > 0.6  # over the kerb
     assert _drive(kerb, BACK, 0.2, 6.0) > 0.6
     assert _drive(kerb, AHEAD, 0.5, 6.0) < 0.1  # stuck, its tracks spinning
+
+
+def _kerb_terrain(robot, height: float, azimuth: float = 0.0):
+    from mmstab.terrain.generators import generate
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+
+    spec = dict(kind="kerb", seed=0, size=[6.0, 6.0], resolution=0.02, height=height,
+                distance=0.5, azimuth=azimuth)  # fmt: skip
+    return HeightmapTerrain(generate(spec)).with_robot(robot)
+
+
+def test_climb_limit_at_a_kerb_by_hand(kerb) -> None:
+    """The level-ground condition x_c − x_r ≤ μ D / ((1 + μ²) cos θ), computed by hand."""
+    from mmstab.stability.climb import climb_limit
+
+    robot, mu = kerb.robot, 0.7
+    r, L, h = robot.base.tracks.height / 2, robot.base.tracks.length, 0.10
+    sin_t = (r - h) / r
+    cos_t = np.sqrt(1 - sin_t**2)
+    D = (L + r * cos_t) * (sin_t + mu * cos_t) + h * (cos_t - mu * sin_t)
+    x_max = mu * D / ((1 + mu**2) * cos_t) - L / 2  # -5.1 mm
+    c = climb_limit(robot, kerb.terrain, np.array([[-0.1, 0.0, 0.0], [-1.5, 0.0, 0.0]]), mu, 0.25)
+    assert list(c.step) == [True, False]
+    assert c.height[0] == pytest.approx(h, abs=1e-9) and c.angle[0] == pytest.approx(
+        np.arcsin(sin_t)
+    )
+    assert c.com_bound[0] / c.com_gain[0, 0] == pytest.approx(x_max, abs=1e-9)
+    assert c.ahead[0] == pytest.approx(0.49 - L / 2 - r * cos_t + 0.1, abs=0.01)
+    assert c.climbs(robot.overall_com(robot.arm_com(BACK)))[0]
+    assert not c.climbs(robot.overall_com(robot.arm_com(robot.stowed)))[0]
+
+
+def test_climb_limit_is_invariant_to_the_kerb_direction(kerb) -> None:
+    """The same kerb turned a quarter turn, met by the robot turned with it: the same limit."""
+    from mmstab.stability.climb import climb_limit
+
+    turned = _kerb_terrain(kerb.robot, 0.10, np.pi / 2)
+    c0 = climb_limit(
+        kerb.robot, _kerb_terrain(kerb.robot, 0.10), np.array([-0.1, 0.0, 0.0]), 0.7, 0.25
+    )
+    pose = np.array([0.0, -0.1, np.pi / 2])
+    c1 = climb_limit(kerb.robot, turned, pose, 0.7, 0.25)
+    assert c1.step[0] and c1.height[0] == pytest.approx(c0.height[0], abs=1e-6)
+    assert c1.com_bound[0] / c1.com_gain[0, 0] == pytest.approx(
+        c0.com_bound[0] / c0.com_gain[0, 0], abs=1e-6
+    )
+
+
+@pytest.mark.parametrize("height", [0.08, 0.10])
+def test_climb_limit_is_conservative_against_mujoco_at_a_crawl(kerb, height) -> None:
+    """Every CoM the limit lets climb climbs in MuJoCo at 5 cm/s, and every stall is refused."""
+    from mmstab.stability.climb import climb_limit
+
+    robot = kerb.robot
+    terrain = _kerb_terrain(robot, height)
+    c = climb_limit(robot, terrain, np.array([-0.1, 0.0, 0.0]), 0.7, 0.25)
+    verdicts = []
+    for turret in (0.0, 1.2, 2.0):  # overall CoM 9.6, 5.1, -0.8 cm ahead of the centre
+        q = AHEAD + np.array([turret, 0.0, 0.0, 0.0])
+        sim = RobotSim(robot, terrain, pose=(-0.1, 0.0, 0.0), arm_q=q)
+        sim.step((0.0, 0.0), q, 0.5)
+        sim.step((0.05, 0.05), q, 16.0)
+        climbed = float(sim.data.xpos[sim.base][0]) > 0.2  # a stall stays at 0.042 m
+        predicted = bool(c.climbs(robot.overall_com(robot.arm_com(q)))[0])
+        verdicts.append((predicted, climbed))
+        assert climbed or not predicted  # never a climb the limit promised that stalls
+    assert verdicts[-1] == (True, True)  # the arm turned back climbs, as predicted
+    if height == 0.10:
+        assert verdicts[0] == (False, False)  # the arm ahead stalls, as predicted

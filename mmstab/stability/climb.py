@@ -1,0 +1,144 @@
+"""The climb limit: whether the tracks can lift their front over a step they run into.
+
+A track's flat run ends at the front in a wheel (sprocket or idler) of radius
+``r = tracks.height / 2``. Driving into a step of height ``h < r`` the wheel meets the
+step's edge E at height h, ``sqrt(r² − (r − h)²)`` ahead of its axle; the edge's normal
+force on the wheel points from E to the axle, ``θ`` above the horizontal with
+``sin θ = (r − h) / r`` (5.2° for the Cameleon's 11 cm wheels at a 10 cm kerb). The front
+lifts only if the edge's traction (the driven belt pulling itself up the edge, at most
+``friction`` times the edge's normal force) and the rear's push (the rear wheels' traction,
+at most ``friction`` times their load) can rotate the robot about its rear contact. In the
+track's plane (x_B forward, z_B up, the rear contact at x_r = −L/2 on the support plane)
+with gravity ``g_B`` and the overall CoM at (x_c, z_c), the balance of forces and moments
+with both tractions at their limit gives the condition (the robot climbs iff)::
+
+    [(x_c − x_r)(−g_z) + z_c g_x] cos θ (1 + μ²) ≤ D (g_x − μ g_z),
+    D = a (sin θ + μ cos θ) + h (cos θ − μ sin θ),   a = x_E − x_r,
+
+linear in the overall CoM, so in the arm's CoM: a half-plane the planner can keep the
+CoM in (``docs/stability.md``, "The climb limit"). On level ground it is
+``x_c − x_r ≤ μ D / ((1 + μ²) cos θ)``: at a 10 cm kerb the Cameleon's CoM must sit
+0.5 cm behind the track's centre (the stowed arm puts it 4.9 cm ahead, the arm stretched
+ahead 9.6 cm).
+
+Assumptions: quasi-static (no momentum: a robot driving at speed may bump over a step this
+condition refuses), a sharp step edge, both tracks meet it together (the track's plane,
+no lateral gravity), rigid wheels, Coulomb friction. Against the whole robot in MuJoCo
+crawling at 5 cm/s (``tests/test_physics_climb.py``) it is conservative: it never lets
+through a CoM that stalls there, and refuses some that climb (by up to 5 cm of CoM).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.terrain.base import Terrain
+
+#: Spacing of the ground samples ahead of the front wheels [m] (the maps' cells are 2-5 cm).
+SAMPLE_STEP = 0.005
+#: A rise of the ground under the front wheel below this is not a step [m].
+MIN_STEP = 0.005
+
+
+class ClimbLimit(NamedTuple):
+    """The climb condition at each pose, as a half-plane of the overall CoM in B.
+
+    Attributes:
+        step: (N,) whether a front wheel meets a step within the look-ahead.
+        height: (N,) the step's edge above the support plane [m] (0 where no step).
+        angle: (N,) θ, the edge normal's angle above the horizontal [rad] (π/2: no step).
+        ahead: (N,) how far the robot drives until the wheel meets the edge [m].
+        com_gain: (N, 2) coefficients (of x_c, z_c) of the condition
+            ``com_gain · (x_c, z_c) <= com_bound`` (zero where no step).
+        com_bound: (N,) its right-hand side (+inf where no step; -inf where no CoM climbs).
+    """
+
+    step: np.ndarray
+    height: FloatArray
+    angle: FloatArray
+    ahead: FloatArray
+    com_gain: FloatArray
+    com_bound: FloatArray
+
+    def climbs(self, com_body: ArrayLike) -> np.ndarray:
+        """Whether the overall CoM (N, 3) or (3,) in B [m] satisfies the condition, per pose."""
+        c = np.atleast_2d(np.asarray(com_body, dtype=float))
+        lhs = self.com_gain[:, 0] * c[:, 0] + self.com_gain[:, 1] * c[:, 2]
+        return np.asarray(lhs <= self.com_bound)
+
+
+def step_profile(
+    robot: Robot, terrain: Terrain, poses: ArrayLike, lookahead: float
+) -> tuple[FloatArray, FloatArray]:
+    """The ground ahead of each front wheel in B: forward offsets and heights (N, 2, S) [m].
+
+    Samples along both tracks' centre lines from the front axle to ``r + lookahead`` ahead
+    of it (``lookahead`` [m]), each the terrain's surface under the point, written in the
+    resting body frame: (x_B − L/2, z_B). NaN off the map.
+    """
+    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    t = robot.base.tracks
+    r = t.height / 2
+    u = np.arange(SAMPLE_STEP, r + lookahead + 1e-12, SAMPLE_STEP)
+    side = np.array([t.separation / 2, -t.separation / 2])
+    pts_B = np.zeros((2, len(u), 4))
+    pts_B[..., 0], pts_B[..., 1], pts_B[..., 3] = t.length / 2 + u, side[:, None], 1.0
+    M_T_B = np.asarray(terrain.M_T_B(p)).reshape(len(p), 4, 4)
+    G_T_B = np.asarray(terrain.G_T_B(p)).reshape(len(p), 4, 4)
+    pts_M = np.einsum("nij,ksj->nksi", M_T_B, pts_B)
+    ground_G = terrain.surface_G(pts_M[..., 0], pts_M[..., 1])  # (N, 2, S, 3)
+    ones = np.ones((*ground_G.shape[:-1], 1))
+    ground_B = np.einsum(
+        "nij,nksj->nksi", np.linalg.inv(G_T_B), np.concatenate([ground_G, ones], -1)
+    )
+    return ground_B[..., 0] - t.length / 2, ground_B[..., 2]
+
+
+def climb_limit(
+    robot: Robot, terrain: Terrain, poses: ArrayLike, friction: float, lookahead: float
+) -> ClimbLimit:
+    """The climb condition (module text) at resting poses (x [m], y [m], yaw [rad]) (N, 3).
+
+    Args:
+        robot: the robot (its tracks' length and height).
+        terrain: the ground.
+        poses: base poses in M.
+        friction: Coulomb friction of the tracks on the ground [-].
+        lookahead: how far ahead of the front wheel a step counts [m] (the distance the
+            robot drives on the posture chosen here: the spacing of planned poses).
+    """
+    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    t, n = robot.base.tracks, len(p)
+    r, L, mu = t.height / 2, t.length, float(friction)
+    du, z = (v.reshape(n, -1) for v in step_profile(robot, terrain, p, lookahead))
+    known = np.isfinite(z)
+    rise = known & (z > MIN_STEP) & (z < r)
+    # where the wheel, rolling forward, first touches each sample: (u - s)^2 + (r - z)^2 = r^2
+    zr = np.where(rise, z, 0.0)
+    s = np.where(rise, du - np.sqrt(np.maximum(r**2 - (r - zr) ** 2, 0.0)), np.inf)
+    first = s.argmin(axis=1)
+    ahead = s[np.arange(n), first]
+    h = zr[np.arange(n), first]
+    # ground at or above the axle within reach: a wall no front wheel climbs
+    wall = (known & (z >= r) & (du - r <= lookahead)).any(axis=1)
+    step = (ahead <= lookahead) | wall
+    sin_t = np.where(step & ~wall, (r - h) / r, 1.0)
+    cos_t = np.sqrt(1.0 - sin_t**2)
+    a = L + r * cos_t  # the edge ahead of the rear contact, x_E - x_r
+    D = a * (sin_t + mu * cos_t) + h * (cos_t - mu * sin_t)
+    g = np.asarray(terrain.gravity_body(p)).reshape(n, 3)
+    k = cos_t * (1 + mu**2)
+    gain = np.stack([-g[:, 2] * k, g[:, 0] * k], axis=1)
+    bound = D * (g[:, 0] - mu * g[:, 2]) - gain[:, 0] * L / 2  # x_c - x_r = x_c + L / 2
+    return ClimbLimit(
+        step=step,
+        height=np.where(wall, np.inf, np.where(step, h, 0.0)),
+        angle=np.where(step & ~wall, np.arcsin(sin_t), np.where(wall, 0.0, np.pi / 2)),
+        ahead=np.where(step, np.maximum(np.where(wall, 0.0, ahead), 0.0), np.inf),
+        com_gain=np.where(step[:, None], gain, 0.0),
+        com_bound=np.where(wall, -np.inf, np.where(step, bound, np.inf)),
+    )
