@@ -124,7 +124,9 @@ def climb_limit(
     ahead = s[np.arange(n), first]
     h = zr[np.arange(n), first]
     # ground at or above the axle within reach: a wall no front wheel climbs
-    wall = (known & (z >= r) & (du - r <= lookahead)).any(axis=1)
+    to_wall = np.where(known & (z >= r), du - r, np.inf).min(axis=1)
+    wall = (to_wall <= lookahead) & (to_wall < ahead)  # met before any climbable edge
+    ahead = np.where(wall, to_wall, ahead)
     step = (ahead <= lookahead) | wall
     sin_t = np.where(step & ~wall, (r - h) / r, 1.0)
     cos_t = np.sqrt(1.0 - sin_t**2)
@@ -138,7 +140,7 @@ def climb_limit(
         step=step,
         height=np.where(wall, np.inf, np.where(step, h, 0.0)),
         angle=np.where(step & ~wall, np.arcsin(sin_t), np.where(wall, 0.0, np.pi / 2)),
-        ahead=np.where(step, np.maximum(np.where(wall, 0.0, ahead), 0.0), np.inf),
+        ahead=np.where(step, np.maximum(ahead, 0.0), np.inf),
         com_gain=np.where(step[:, None], gain, 0.0),
         com_bound=np.where(wall, -np.inf, np.where(step, bound, np.inf)),
     )

@@ -1,0 +1,87 @@
+"""The climb limit in the route planner (``planner.climb``): postures the tracks can climb with.
+
+At a pose whose front wheels run into a step before the next planned pose
+(:func:`mmstab.stability.climb.climb_limit`, the look-ahead the distance to that pose), the
+arm's posture decides whether the tracks can lift their front over it: the overall CoM
+must lie in the limit's half-plane. The arm moves from this pose's posture to the next
+one's while the robot drives on, so both poses keep the CoM there (the next one with this
+pose's half-plane, in its own body frame: the two frames differ by the pose's pitch onto
+the step). A pose whose stable postures all fail it keeps them all and is reported: the
+robot needs momentum there (``ClimbPlan.stalls``).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.stability.climb import ClimbLimit, climb_limit
+from mmstab.stability.slip import terrain_friction
+from mmstab.terrain.base import Terrain
+
+
+class ClimbPlan(NamedTuple):
+    """Which poses keep the CoM where the tracks climb, and the half-plane each keeps.
+
+    Attributes:
+        limit: the climb limit at every pose (its look-ahead the distance to the next).
+        source: (K,) the pose whose half-plane pose k keeps, -1 where none.
+    """
+
+    limit: ClimbLimit
+    source: NDArray[np.intp]
+
+    @property
+    def constrained(self) -> NDArray[np.bool_]:
+        """(K,) whether pose k keeps a half-plane."""
+        return np.asarray(self.source >= 0)
+
+    def climbs(self, com_body: ArrayLike) -> NDArray[np.bool_]:
+        """Per pose, whether the overall CoM (K, 3) in B [m] keeps its half-plane (or none)."""
+        c = np.atleast_2d(np.asarray(com_body, dtype=float))
+        ok = np.ones(len(self.source), dtype=bool)
+        at = np.flatnonzero(self.constrained)
+        src = self.source[at]
+        lhs = self.limit.com_gain[src, 0] * c[at, 0] + self.limit.com_gain[src, 1] * c[at, 2]
+        ok[at] = lhs <= self.limit.com_bound[src]
+        return ok
+
+    def eligible(self, k: int, com_body: FloatArray) -> NDArray[np.bool_]:
+        """Whether each overall CoM (N, 3) in B [m] keeps pose k's half-plane (all: none)."""
+        src = int(self.source[k])
+        if src < 0:
+            return np.ones(len(com_body), dtype=bool)
+        g, b = self.limit.com_gain[src], self.limit.com_bound[src]
+        return np.asarray(g[0] * com_body[:, 0] + g[1] * com_body[:, 2] <= b)
+
+
+def climb_plan(robot: Robot, terrain: Terrain, poses: ArrayLike, closed: bool) -> ClimbPlan:
+    """The climb limit along planned poses (x [m], y [m], yaw [rad]) (K, 3) in M (module text).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: the planned base poses, in driving order.
+        closed: the path is a loop (the last pose drives on to the first).
+    """
+    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    nxt = np.roll(p[:, :2], -1, axis=0)
+    ahead = np.linalg.norm(nxt - p[:, :2], axis=1)
+    if not closed:
+        ahead[-1] = 0.0  # the last pose drives no further
+    limit = climb_limit(robot, terrain, p, terrain_friction(terrain), float(ahead.max()))
+    step = limit.step & (limit.ahead <= ahead)  # met before the next pose
+    limit = limit._replace(step=step)
+    source = np.full(len(p), -1, dtype=np.intp)
+    for k in np.flatnonzero(step)[::-1]:  # the nearer step wins where two overlap
+        source[(k + 1) % len(p) if closed else min(k + 1, len(p) - 1)] = k
+    source[step] = np.flatnonzero(step)
+    return ClimbPlan(limit, source)
+
+
+def overall_coms(robot: Robot, arm_com_body: ArrayLike) -> FloatArray:
+    """The overall CoM in B (N, 3) [m] of arm CoMs (N, 3) in B [m] (Eq. 5)."""
+    return np.atleast_2d(robot.overall_com(np.asarray(arm_com_body, dtype=float)))
