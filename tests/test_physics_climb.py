@@ -71,24 +71,31 @@ def _kerb_terrain(robot, height: float, azimuth: float = 0.0):
 
 
 def test_climb_limit_at_a_kerb_by_hand(kerb) -> None:
-    """The level-ground condition x_c − x_r ≤ μ D / ((1 + μ²) cos θ), computed by hand."""
+    """The level-ground condition x_c − x_r ≤ μ D / ((1 + μ²) cos θ), computed by hand.
+
+    The map's 10 cm kerb rises over one 2 cm cell (a face 78.7° steep, bilinear): the wheel
+    meets the face, not its top corner, so the normal is the face's, θ = atan(2 / 10) =
+    11.3° above the horizontal, touching at r (1 − sin θ) = 8.8 cm.
+    """
     from mmstab.stability.climb import climb_limit
 
     robot, mu = kerb.robot, 0.7
-    r, L, h = robot.base.tracks.height / 2, robot.base.tracks.length, 0.10
-    sin_t = (r - h) / r
-    cos_t = np.sqrt(1 - sin_t**2)
+    r, L = robot.base.tracks.height / 2, robot.base.tracks.length
+    theta = np.arctan2(0.02, 0.10)
+    sin_t, cos_t = np.sin(theta), np.cos(theta)
+    h = r * (1 - sin_t)
     D = (L + r * cos_t) * (sin_t + mu * cos_t) + h * (cos_t - mu * sin_t)
-    x_max = mu * D / ((1 + mu**2) * cos_t) - L / 2  # -5.1 mm
+    x_max = mu * D / ((1 + mu**2) * cos_t) - L / 2  # +2.6 cm
     c = climb_limit(robot, kerb.terrain, np.array([[-0.1, 0.0, 0.0], [-1.5, 0.0, 0.0]]), mu, 0.25)
     assert list(c.step) == [True, False]
-    assert c.height[0] == pytest.approx(h, abs=1e-9) and c.angle[0] == pytest.approx(
-        np.arcsin(sin_t)
-    )
-    assert c.com_bound[0] / c.com_gain[0, 0] == pytest.approx(x_max, abs=1e-9)
-    assert c.ahead[0] == pytest.approx(0.49 - L / 2 - r * cos_t + 0.1, abs=0.01)
+    assert c.angle[0] == pytest.approx(theta, abs=np.radians(0.5))  # sampling: 0.5 mm
+    assert c.height[0] == pytest.approx(h, abs=1e-3)
+    assert c.com_bound[0] / c.com_gain[0, 0] == pytest.approx(x_max, abs=3e-3)
+    # the face runs from x = 0.48 (z 0) to 0.50 m (z 0.1): touched at its height h, r cos θ
+    # ahead of the axle, which starts at -0.1 + L / 2
+    assert c.ahead[0] == pytest.approx(0.48 + 0.2 * h - r * cos_t - (L / 2 - 0.1), abs=2e-3)
     assert c.climbs(robot.overall_com(robot.arm_com(BACK)))[0]
-    assert not c.climbs(robot.overall_com(robot.arm_com(robot.stowed)))[0]
+    assert not c.climbs(robot.overall_com(robot.arm_com(AHEAD)))[0]
 
 
 def test_climb_limit_is_invariant_to_the_kerb_direction(kerb) -> None:

@@ -197,7 +197,24 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"{r['margin']:g}: {spans('below_margin')}; stowed below it, planned not: "
         f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
     )
+    _climb_line(s["climb"], s["s"])
     return plan_status(s, args) or slides_status(s, args)
+
+
+def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
+    """The climb limit's verdict on the route's steps (docs/stability.md, "The climb limit")."""
+    steps = climb["steps"]
+    if not steps:
+        return
+    where = ", ".join(f"{s[x['index']]:.2f} m ({100 * x['height']:.0f} cm)" for x in steps)
+    stalls = [f"{s[x['index']]:.2f} m" for x in steps if not x["planned_climbs"]]
+    verdict = (
+        "the planned arm climbs them all"
+        if not stalls
+        else f"the planned arm may stall at {', '.join(stalls)} (it needs momentum there)"
+    )
+    stowed = "stalls" if climb["stowed_stalls"] else "climbs"
+    print(f"plan: steps at {where}: {verdict}; the stowed arm {stowed} (quasi-static)")
 
 
 def _fig7(args: argparse.Namespace, problem: Any) -> int | None:

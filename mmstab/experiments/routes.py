@@ -36,7 +36,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, route_corners, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
 from mmstab.runs.recording import frames_at, write_run
-from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
+from mmstab.runs.verdict import climb_verdict, plan_verdict, planner_margin, slip_verdict
 from mmstab.stability.static import mu_max
 
 #: Robot snapshots drawn in the 3-D figure.
@@ -105,6 +105,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "poses": poses,
         "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),
         "slip": slip,
+        "climb": climb_verdict(problem.robot, problem.terrain, plan.poses, plan.target_com, False),
     }
 
 

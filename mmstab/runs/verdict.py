@@ -36,6 +36,7 @@ from mmstab.stability.static import stability_along
 
 if TYPE_CHECKING:
     from mmstab.core.problem import Problem
+    from mmstab.model.robot import Robot
     from mmstab.planner import Plan, RoutePlan
     from mmstab.terrain.base import Terrain
 
@@ -168,6 +169,50 @@ def slip_verdict(terrain: Terrain, poses: Any) -> dict[str, Any]:
         "margin_min": float(np.min(slip.margin)),
         "criterion": "tilt of the support <= atan(friction) at every pose",
         "sliding_poses": bad,
+    }
+
+
+def climb_verdict(
+    robot: Robot, terrain: Terrain, poses: Any, arm_com_body: Any, closed: bool
+) -> dict[str, Any]:
+    """Whether the tracks climb every step the planned poses run into (the climb limit).
+
+    With the plan's arm and with the arm stowed (:mod:`mmstab.stability.climb`).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: planned base poses (x [m], y [m], heading [rad]) (K, 3) in M, in driving order.
+        arm_com_body: the plan's arm CoM at each pose, body frame (K, 3) [m].
+        closed: the path is a loop.
+
+    Returns:
+        ``steps`` (each pose that runs into a step before the next: index, the step's
+        height [m] and edge angle [rad], whether the planned and the stowed arm climb it),
+        ``stalls`` (the planned arm cannot climb one), ``stowed_stalls``.
+    """
+    from mmstab.planner.climbing import climb_plan, overall_coms
+
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    plan = climb_plan(robot, terrain, P, closed)
+    planned = plan.climbs(overall_coms(robot, arm_com_body))
+    stowed = plan.climbs(overall_coms(robot, np.tile(robot.arm_com(robot.stowed), (len(P), 1))))
+    lim = plan.limit
+    steps = [
+        {
+            "index": int(k),
+            "height": float(lim.height[plan.source[k]]),
+            "angle": float(lim.angle[plan.source[k]]),
+            "planned_climbs": bool(planned[k]),
+            "stowed_climbs": bool(stowed[k]),
+        }
+        for k in np.flatnonzero(plan.constrained)
+    ]
+    return {
+        "stalls": bool(not planned.all()),
+        "stowed_stalls": bool(not stowed.all()),
+        "criterion": "the overall CoM in the climb limit's half-plane at every step (quasi-static)",
+        "steps": steps,
     }
 
 

@@ -16,16 +16,19 @@ with both tractions at their limit gives the condition (the robot climbs iff)::
     D = a (sin θ + μ cos θ) + h (cos θ − μ sin θ),   a = x_E − x_r,
 
 linear in the overall CoM, so in the arm's CoM: a half-plane the planner can keep the
-CoM in (``docs/stability.md``, "The climb limit"). On level ground it is
-``x_c − x_r ≤ μ D / ((1 + μ²) cos θ)``: at a 10 cm kerb the Cameleon's CoM must sit
-0.5 cm behind the track's centre (the stowed arm puts it 4.9 cm ahead, the arm stretched
-ahead 9.6 cm).
+CoM in (``docs/stability.md``, "The climb limit"). The step and θ come from the map: the
+front wheel is rolled forward over the ground ahead (:func:`step_profile`) and the most
+horizontal normal it meets is the step's. On level ground the condition reads
+``x_c − x_r ≤ μ D / ((1 + μ²) cos θ)``: at the shipped 10 cm kerb (its face 78.7° steep
+across one 2 cm cell, θ = 10.9°) the Cameleon's CoM may be 2.5 cm ahead of the track's
+centre (the stowed arm puts it 4.9 cm ahead, the arm stretched ahead 9.6 cm).
 
 Assumptions: quasi-static (no momentum: a robot driving at speed may bump over a step this
-condition refuses), a sharp step edge, both tracks meet it together (the track's plane,
+condition refuses), both tracks meet the step together (the track's plane,
 no lateral gravity), rigid wheels, Coulomb friction. Against the whole robot in MuJoCo
 crawling at 5 cm/s (``tests/test_physics_climb.py``) it is conservative: it never lets
-through a CoM that stalls there, and refuses some that climb (by up to 5 cm of CoM).
+through a CoM that stalls there, and refuses some that climb (at an 8 cm kerb by 5 cm of
+CoM or more).
 """
 
 from __future__ import annotations
@@ -39,9 +42,13 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain.base import Terrain
 
 #: Spacing of the ground samples ahead of the front wheels [m] (the maps' cells are 2-5 cm).
-SAMPLE_STEP = 0.005
-#: A rise of the ground under the front wheel below this is not a step [m].
-MIN_STEP = 0.005
+SAMPLE_STEP = 0.0005
+#: Step of the wheel rolled forward over them [m]: it sinks at most this far into an edge
+#: between two rolls, which tilts the normal found by ~ROLL_STEP / r (0.3° at 0.5 mm).
+ROLL_STEP = 0.0005
+#: A rise of the ground ahead of the front wheel below this is not a step [m] (the rough
+#: ground's 3 cm bumps meet the wheel at 55° and more: never binding).
+MIN_STEP = 0.02
 
 
 class ClimbLimit(NamedTuple):
@@ -98,6 +105,30 @@ def step_profile(
     return ground_B[..., 0] - t.length / 2, ground_B[..., 2]
 
 
+def _worst_contact(
+    du: FloatArray, z: FloatArray, roll: FloatArray, r: float
+) -> tuple[float, float]:
+    """The most horizontal contact normal met rolling the front wheels ``roll`` [m] ahead.
+
+    The wheel rolled s ahead rests on the highest of the plane (centre at r) and the ground
+    samples (u_j, z_j) [m] within r of it (centre z_j + sqrt(r² − (u_j − s)²)); the normal at
+    the touching sample rises θ above the horizontal, sin θ = (centre − z_j) / r.
+
+    Returns:
+        (the smallest sin θ over both tracks and every roll; the roll where it occurs [m]).
+    """
+    d = du[:, None, :] - roll[:, None]  # (2, R, S)
+    near = np.abs(d) < r
+    centre = np.where(near, z[:, None, :] + np.sqrt(np.maximum(r**2 - d**2, 0.0)), -np.inf)
+    j = centre.argmax(axis=-1)
+    top = np.take_along_axis(centre, j[..., None], -1)[..., 0]
+    touch = np.take_along_axis(np.broadcast_to(z[:, None, :], centre.shape), j[..., None], -1)
+    # a sample at or above the centre pushes the wheel down: a wall (sin θ <= 0, no climb)
+    sin_roll = np.where(top <= r, 1.0, np.clip((top - touch[..., 0]) / r, -1.0, 1.0))
+    k = int(sin_roll.argmin())
+    return float(sin_roll.ravel()[k]), float(roll[k % len(roll)])
+
+
 def climb_limit(
     robot: Robot, terrain: Terrain, poses: ArrayLike, friction: float, lookahead: float
 ) -> ClimbLimit:
@@ -114,21 +145,17 @@ def climb_limit(
     p = np.atleast_2d(np.asarray(poses, dtype=float))
     t, n = robot.base.tracks, len(p)
     r, L, mu = t.height / 2, t.length, float(friction)
-    du, z = (v.reshape(n, -1) for v in step_profile(robot, terrain, p, lookahead))
-    known = np.isfinite(z)
-    rise = known & (z > MIN_STEP) & (z < r)
-    # where the wheel, rolling forward, first touches each sample: (u - s)^2 + (r - z)^2 = r^2
-    zr = np.where(rise, z, 0.0)
-    s = np.where(rise, du - np.sqrt(np.maximum(r**2 - (r - zr) ** 2, 0.0)), np.inf)
-    first = s.argmin(axis=1)
-    ahead = s[np.arange(n), first]
-    h = zr[np.arange(n), first]
-    # ground at or above the axle within reach: a wall no front wheel climbs
-    to_wall = np.where(known & (z >= r), du - r, np.inf).min(axis=1)
-    wall = (to_wall <= lookahead) & (to_wall < ahead)  # met before any climbable edge
-    ahead = np.where(wall, to_wall, ahead)
-    step = (ahead <= lookahead) | wall
-    sin_t = np.where(step & ~wall, (r - h) / r, 1.0)
+    du, z = step_profile(robot, terrain, p, lookahead)  # (N, 2, S)
+    z = np.where(np.isfinite(z), z, -np.inf)  # off the map: no ground to meet
+    roll = np.arange(0.0, lookahead + 1e-12, ROLL_STEP)
+    sin_t, ahead = np.ones(n), np.full(n, np.inf)
+    for i in range(n):  # one pose at a time: (2, rolls, samples) each
+        sin_t[i], ahead[i] = _worst_contact(du[i], z[i], roll, r)
+    h = r * (1.0 - sin_t)  # the edge's height above the wheel's support
+    wall = sin_t <= 0.0  # touched at or above the axle: no front wheel climbs it
+    step = (h > MIN_STEP) | wall
+    sin_t = np.where(step, np.maximum(sin_t, 0.0), 1.0)
+    h = np.minimum(h, r)
     cos_t = np.sqrt(1.0 - sin_t**2)
     a = L + r * cos_t  # the edge ahead of the rear contact, x_E - x_r
     D = a * (sin_t + mu * cos_t) + h * (cos_t - mu * sin_t)
@@ -139,7 +166,7 @@ def climb_limit(
     return ClimbLimit(
         step=step,
         height=np.where(wall, np.inf, np.where(step, h, 0.0)),
-        angle=np.where(step & ~wall, np.arcsin(sin_t), np.where(wall, 0.0, np.pi / 2)),
+        angle=np.where(step, np.arcsin(sin_t), np.pi / 2),
         ahead=np.where(step, np.maximum(ahead, 0.0), np.inf),
         com_gain=np.where(step[:, None], gain, 0.0),
         com_bound=np.where(wall, -np.inf, np.where(step, bound, np.inf)),
