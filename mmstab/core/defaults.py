@@ -81,6 +81,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "sequence_candidates": 256,
         "motion_cost": "joints",
         "ground_clearance": 0.02,
+        "climb": True,
     },
     "workspace": {"method": "hull_difference"},
     "physics": {

@@ -135,6 +135,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             # method roadmap: least height [m] of the arm above the plane the tracks rest on
             # (z_B = 0); null: not checked (docs/planner.md, "Ground clearance")
             ground_clearance={"oneOf": [{"type": "null"}, NONNEG]},
+            climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
         # optional: flipper angles searched per pose between the robot's flipper limits,

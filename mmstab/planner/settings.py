@@ -63,6 +63,10 @@ class PlannerSettings(NamedTuple):
             ``exhaustive`` do not check it).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
+        climb: ``method: roadmap`` on a route: at a pose whose front wheels run into a step
+            before the next pose, and at that next pose, only postures whose overall CoM
+            lets the tracks climb it (``mmstab.planner.climbing``); where no stable posture
+            does, the pose keeps them all and the plan reports the stall.
     """
 
     w_stability: float
@@ -89,6 +93,7 @@ class PlannerSettings(NamedTuple):
     flipper_angles: int = 0
     motion_cost: str = "joints"
     ground_clearance: float | None = 0.02
+    climb: bool = True
 
     @classmethod
     def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
@@ -121,6 +126,7 @@ class PlannerSettings(NamedTuple):
             ground_clearance=None
             if cfg["ground_clearance"] is None
             else float(cfg["ground_clearance"]),
+            climb=bool(cfg["climb"]),
         )
 
     def sigma0_metres(self, diameter: float) -> float:
