@@ -62,6 +62,12 @@ class FakeClearance:
     def eligible(self):
         return ~(self.known & self.bad)
 
+    def low(self, poses):
+        return [np.zeros(0, dtype=np.intp)] * poses
+
+    def measure(self, rows):
+        pass
+
 
 def _reference(fit, coms, bins, count, clear):
     """Every node scored; a chosen too-close node dropped and the choice remade."""
