@@ -220,11 +220,13 @@ class PoseGround:
         self._cover()
         return self.top
 
-    def heights(self, body: PiecesB, above: float = -np.inf) -> FloatArray:
+    def heights(self, body: PiecesB, above: float = -np.inf, plane: bool = False) -> FloatArray:
         """Each posture's least height above the ground under the arm (n,) [m] (module text).
 
-        Pieces at least ``above`` [m] over the highest ground in reach are not looked at
-        closer: where the answer is ``above`` or more it is only a lower bound.
+        A lower bound: a piece is ``z_low / c − max(r, 0)`` up. Pieces at least ``above``
+        [m] over the highest ground in reach are not looked at closer (where the answer is
+        ``above`` or more it is only that). ``plane``: the pieces over ground not above the
+        support plane are left to the plane check (+inf; a move's samples, module text).
         """
         self._cover()
         lowest = body.low / self.cos_tilt
@@ -242,8 +244,8 @@ class PoseGround:
                 )
             )  # fmt: skip
         peak = self.peak[(j - self.box[2] * TILE) // BLOCK, (i - self.box[0] * TILE) // BLOCK]
-        # where the ground is not above the support plane the plane check decides (module text)
-        h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, np.inf)
+        off = np.inf if plane else lowest.ravel()[look]  # where the plane check decides
+        h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, off)
         return np.asarray(h.min(axis=1)) if h.size else np.zeros(len(h))
 
 
@@ -319,7 +321,7 @@ class GroundUnderArm:
             seg.append(np.full(n, i))
         samples, of = np.vstack(parts), np.concatenate(seg)
         body = self.body(samples)
-        ok = np.all([self.clear(k, samples, ground, body) for k in ks], axis=0)
+        ok = np.all([self.poses[k].heights(body, ground, True) >= ground - SLACK for k in ks], axis=0)
         ends = np.r_[0, np.cumsum([len(x) for x in parts])[1:] - 1]  # the postures' samples
         bad = of[~ok]
         seg_ok = np.ones(len(qa) - 1, dtype=bool)
