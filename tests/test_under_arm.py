@@ -44,7 +44,9 @@ def small(robot):
 
 
 def _settings(ground: float | None) -> PlannerSettings:
-    s = PlannerSettings.from_section(yaml.safe_load((PROBLEMS / "kerb.yaml").read_text())["planner"])
+    s = PlannerSettings.from_section(
+        yaml.safe_load((PROBLEMS / "kerb.yaml").read_text())["planner"]
+    )
     return s._replace(method="roadmap", ground_clearance=ground)
 
 

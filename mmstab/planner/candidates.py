@@ -171,7 +171,9 @@ def scored_rows(
         bounds: :func:`cluster_bounds` of ``cl`` and ``fits``, if known.
     """
     lower, upper = cluster_bounds(cl, fits) if bounds is None else bounds
-    members = np.tile(np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius)), (len(fits), 1))
+    members = np.tile(
+        np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius)), (len(fits), 1)
+    )
     for k, rows in enumerate(low or ()):  # the proofs count each pose's eligible rows
         members[k] -= np.bincount(cl.cluster_of[rows], minlength=members.shape[1])
     # per bin, clusters by lower bound (best first): the R-th best eligible value is at
@@ -287,8 +289,8 @@ class NodeClearance:
         if new.size:  # each node's pieces in B once (pose-independent)
             body = self.under.body(self.roadmap.nodes_q[self.reach[new]])
             kept["slot"][new] = len(kept.get("low", ())) + np.arange(len(new))
-            for name, part in zip(("low", "centre"), body, strict=True):
-                kept[name] = part if name not in kept else np.concatenate([kept[name], part])
+            for name, arr in zip(("low", "centre"), body, strict=True):
+                kept[name] = arr if name not in kept else np.concatenate([kept[name], arr])
         for k, x in enumerate(todo):
             if x.size:
                 at = kept["slot"][x]

@@ -114,7 +114,10 @@ def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int
 
 
 def _no_plan(
-    value: FloatArray, allowed: list[NDArray[np.bool_]], poses: FloatArray, settings: PlannerSettings
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    poses: FloatArray,
+    settings: PlannerSettings,
 ) -> NoPlanError:
     """The error naming the first pose no allowed sequence reaches."""
     k = _first_dead_pose(value, allowed)
@@ -148,11 +151,12 @@ class Mover:
         self.kept: dict[tuple[int, int, tuple[int, ...]], FloatArray | None] = {}
 
     def moves(self, nodes: NDArray[np.intp], closed: bool) -> tuple[list[FloatArray], list[int]]:
-        """The moves into ``nodes`` (K,), and the pairs with none (-1: the first, from the start)."""
+        """The moves into ``nodes`` (K,), and the pairs with none (-1: the first, from start)."""
         K = len(nodes)
         loop = closed and K > 1
         before = [nodes[-1] if loop else self.start, *nodes[:-1]]
-        moves, failed = [], []
+        moves: list[FloatArray] = []
+        failed: list[int] = []
         for k, (a, b) in enumerate(zip(before, nodes, strict=True)):
             ks = ((K - 1 if loop else 0), 0) if k == 0 else (k - 1, k)
             key = (int(a), int(b), ks)
@@ -164,7 +168,8 @@ class Mover:
             move = self.kept[key]
             if move is None:
                 failed.append(K - 1 if loop and k == 0 else k - 1)
-            moves.append(move)
+            else:
+                moves.append(move)
         return moves, failed
 
 
@@ -226,6 +231,55 @@ def component_view(
     return views[comp]
 
 
+def _forbid_low_ends(
+    clear: NodeClearance,
+    cand: NDArray[np.intp],
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
+) -> None:
+    """Forbid the moves one of whose ends is too low above the other pose's ground.
+
+    The arm moves while the base drives between the two poses: each end posture must
+    clear both poses' ground (measured for the stable candidates only).
+    """
+    for i, (ka, kb) in enumerate(pairs):
+        fa, fb = np.isfinite(value[ka]), np.isfinite(value[kb])
+        allowed[i][fa] &= clear.at(kb, cand[ka, fa])[:, None]
+        allowed[i][:, fb] &= clear.at(ka, cand[kb, fb])[None, :]
+
+
+def _choose(
+    value: FloatArray,
+    motion: list[FloatArray],
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
+    closed: bool,
+    cand: NDArray[np.intp],
+    reach: NDArray[np.intp],
+    mover: Mover,
+) -> tuple[NDArray[np.intp], NDArray[np.intp] | None, list[FloatArray]]:
+    """The best sequence whose moves all clear the ground: the choice (K,), its nodes, moves.
+
+    A move with no path clear of the ground at the poses it joins is forbidden and the
+    choice made again (``value`` and ``allowed`` updated in place); nodes None: no plan.
+    """
+    K = len(value)
+    while True:
+        path, total = best_sequence(value, motion, allowed, closed)
+        if not np.isfinite(total):
+            return path, None, []
+        nodes = reach[cand[np.arange(K), path]]
+        moves, failed = mover.moves(nodes, closed)
+        if not failed:
+            return path, nodes, moves
+        for i in failed:  # -1: the open path's first move, from the start
+            if i < 0:
+                value[0, path[0]] = -np.inf
+            else:
+                allowed[i][path[pairs[i][0]], path[pairs[i][1]]] = False
+
+
 def solve_roadmap_sequence(
     robot: Robot,
     gravity_body: FloatArray,
@@ -278,24 +332,11 @@ def solve_roadmap_sequence(
         cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
         cost.metric,
     )  # fmt: skip
-    for i, (ka, kb) in enumerate(pairs):  # each end of a move clears the other pose's ground
-        fa, fb = np.isfinite(value[ka]), np.isfinite(value[kb])
-        allowed[i][fa] &= clear.at(kb, cand[ka, fa])[:, None]
-        allowed[i][:, fb] &= clear.at(ka, cand[kb, fb])[None, :]
+    _forbid_low_ends(clear, cand, value, allowed, pairs)
     mover = Mover(robot, roadmap, int(start), ground, under)
-    while True:  # a move too low above the ground at the poses it joins: forbid it, again
-        path, total = best_sequence(value, motion, allowed, closed)
-        if not np.isfinite(total):
-            raise _no_plan(value, allowed, poses, settings)
-        nodes = reach[cand[np.arange(K), path]]
-        moves, failed = mover.moves(nodes, closed)
-        if not failed:
-            break
-        for i in failed:  # -1: the open path's first move, from the start
-            if i < 0:
-                value[0, path[0]] = -np.inf
-            else:
-                allowed[i][path[pairs[i][0]], path[pairs[i][1]]] = False
+    path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
+    if nodes is None:
+        raise _no_plan(value, allowed, poses, settings)
     if not closed or K == 1:  # from the start posture itself onto its node
         first = np.vstack([start_q, moves[0]])
         moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]

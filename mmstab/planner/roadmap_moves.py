@@ -1,4 +1,4 @@
-"""The arm's moves between the roadmap nodes ``method: roadmap`` chose (:mod:`mmstab.planner.roadmap`).
+"""The arm's moves between the nodes ``method: roadmap`` chose (:mod:`mmstab.planner.roadmap`).
 
 A move is a shortest roadmap path (the start node's shortest-path tree, else A*, else the
 whole component), shortcut where the cut is free, on the nodes whose arm stays
@@ -170,7 +170,11 @@ def ground_move(
     """
     nodes = _path_nodes(roadmap, a, b, tree, ground)
     if under is None or ground is None or nodes is None:
-        return None if nodes is None else shortcut_above(robot, roadmap, checker, roadmap.nodes_q[nodes], ground)
+        return (
+            None
+            if nodes is None
+            else shortcut_above(robot, roadmap, checker, roadmap.nodes_q[nodes], ground)
+        )
     masked: set[int] = set()
     for _ in range(REROUTES):
         q = roadmap.nodes_q[nodes]

@@ -30,7 +30,7 @@ import functools
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
 from mmstab.model.parts import Box
@@ -62,7 +62,7 @@ class ArmPieces(NamedTuple):
         ball: radius of a ball about the points' mean holding the piece (P,) [m].
     """
 
-    link: FloatArray
+    link: NDArray[np.intp]
     points: FloatArray
     radius: FloatArray
     ball: FloatArray
@@ -156,7 +156,10 @@ class GroundTiles:
     def z_M(self, box: tuple[int, int, int, int]) -> FloatArray:
         """The ground's z_M [m] on tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), (y, x)."""
         ti0, ti1, tj0, tj1 = box
-        rows = [np.hstack([self._tile(ti, tj) for ti in range(ti0, ti1 + 1)]) for tj in range(tj0, tj1 + 1)]
+        rows = [
+            np.hstack([self._tile(ti, tj) for ti in range(ti0, ti1 + 1)])
+            for tj in range(tj0, tj1 + 1)
+        ]
         return np.vstack(rows)
 
 
@@ -209,7 +212,9 @@ class PoseGround:
             r = self.reach[1] / LATTICE + self.cells + 1
             lo, hi = np.floor((c[:2] / LATTICE - r) / TILE), np.floor((c[:2] / LATTICE + r) / TILE)
             b = (int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]))
-        elif need is None or (need[0] >= b[0] and need[1] <= b[1] and need[2] >= b[2] and need[3] <= b[3]):
+        elif need is None or (
+            need[0] >= b[0] and need[1] <= b[1] and need[2] >= b[2] and need[3] <= b[3]
+        ):
             return
         n = b if need is None else need
         self._build((min(n[0], b[0]), max(n[1], b[1]), min(n[2], b[2]), max(n[3], b[3])))
@@ -289,7 +294,7 @@ class GroundUnderArm:
         b = self.body(postures) if body is None else body
         return self.poses[k].heights(b, np.inf)
 
-    def surely_clear(self, k: int, lowest: FloatArray, ground: float) -> FloatArray:
+    def surely_clear(self, k: int, lowest: FloatArray, ground: float) -> NDArray[np.bool_]:
         """Whether arms whose lowest points are ``lowest`` (n,) [m] above z_B = 0 clear pose k.
 
         Above the ground's highest rise within the arm's reach: no need to look closer.
@@ -299,14 +304,14 @@ class GroundUnderArm:
 
     def clear(
         self, k: int, postures: ArrayLike, ground: float, body: PiecesB | None = None
-    ) -> FloatArray:
+    ) -> NDArray[np.bool_]:
         """Whether each posture (n, 4) [rad] keeps the arm ``ground`` [m] up at pose ``k``."""
         b = self.body(postures) if body is None else body
         return np.asarray(self.poses[k].heights(b, ground) >= ground - SLACK)
 
     def sweep_clear(
         self, ks: tuple[int, ...], q: ArrayLike, reach: FloatArray, ground: float
-    ) -> tuple[FloatArray, FloatArray]:
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Whether the polyline of postures q (n, 4) [rad] keeps the arm ``ground`` [m] up.
 
         At every pose of ``ks``; sampled so that no arm point moves more than :data:`SWEEP`
@@ -321,7 +326,9 @@ class GroundUnderArm:
             seg.append(np.full(n, i))
         samples, of = np.vstack(parts), np.concatenate(seg)
         body = self.body(samples)
-        ok = np.all([self.poses[k].heights(body, ground, True) >= ground - SLACK for k in ks], axis=0)
+        ok = np.all(
+            [self.poses[k].heights(body, ground, True) >= ground - SLACK for k in ks], axis=0
+        )
         ends = np.r_[0, np.cumsum([len(x) for x in parts])[1:] - 1]  # the postures' samples
         bad = of[~ok]
         seg_ok = np.ones(len(qa) - 1, dtype=bool)
