@@ -349,7 +349,7 @@ def route_candidates(
     """
     K, rank = len(fits), rank_bound(cl.bin_rows, count)
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
-    ahead = np.full(K, 8)  # the next best measured too, more where picks were too low
+    ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
     bounds = cluster_bounds(cl, fits)
     while True:
         eligible, low = clear.eligible(), clear.low(K)

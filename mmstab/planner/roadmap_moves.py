@@ -178,12 +178,13 @@ def ground_move(
     masked: set[int] = set()
     for _ in range(REROUTES):
         q = roadmap.nodes_q[nodes]
+        short = shortcut_above(robot, roadmap, checker, q, ground)
+        same = len(short) == len(q) and np.array_equal(short, q)
+        if not same and under.sweep_clear(ks, short, roadmap.reach, ground)[1].all():
+            return short  # the cut clears the ground: the path it cut is not needed
         node_ok, seg_ok = under.sweep_clear(ks, q, roadmap.reach, ground)
         if seg_ok.all() and node_ok.all():
-            short = shortcut_above(robot, roadmap, checker, q, ground)
-            if len(short) == len(q) and np.array_equal(short, q):
-                return short
-            return short if under.sweep_clear(ks, short, roadmap.reach, ground)[1].all() else q
+            return q
         low = {int(n) for n in nodes[~node_ok]}
         if a in low or b in low:
             return None
