@@ -11,16 +11,19 @@ With the support plane in M, ``z = P(x, y)``, and ``c`` the cosine of the body's
 so its height above the ground is ``z_B(p) / c − r(x, y)`` with ``r = s − P`` the ground's
 rise above the support plane (0 on a plane: the slope is not counted twice). The arm's
 collision shapes are cut into pieces (:func:`arm_pieces`: a capsule into segments of at most
-:data:`PIECE` [m], a box whole); a piece is at least ``z_low / c − max r`` above the ground,
-``z_low`` its lowest point in B, the max over a square about its centre's map x, y that
-holds the ball around the piece. ``r`` is sampled on a lattice of :data:`LATTICE` [m]
-aligned to M's origin, and the square's max is that of the lattice samples bracketing it:
-exact for a map whose cells' corners lie on the lattice (bilinear or triangle cells: a
-surface linear or bilinear within each lattice cell peaks at the cell's corners), which
-holds for the shipped maps (2 and 5 cm cells); on another map the ground between samples
-may rise above them by its slope times the lattice step. Beyond a map's edge the edge's
-ground is used. On a plane ``r`` is 0 and the check is the support plane's ``z_B / c``, at
-least ``z_B``: the planner keeps the plane check too, so on a plane nothing changes.
+:data:`PIECE` [m], a box into boxes of edges at most that); a piece is at least
+``z_low / c − max(r, 0)`` above the ground, ``z_low`` its lowest point in B, the max over a
+square about its centre's map x, y that holds the ball around the piece and :data:`SWEEP`
+more (a move's samples). ``r`` is sampled on a lattice of :data:`LATTICE` [m] aligned to M's
+origin, and a square's max is that of the :data:`BLOCK` x :data:`BLOCK` blocks of samples
+that cover it (the square widened by less than a block): exact for a map whose cells'
+corners lie on the lattice (bilinear or triangle cells: a surface linear or bilinear within
+each lattice cell peaks at the cell's corners), which holds for the shipped maps (2 and 5
+cm cells); on another map the ground between samples may rise above them by its slope times
+the lattice step. Beyond a map's edge the edge's ground is used. On a plane ``r`` is 0 and
+the check is ``z_B / c ≥ z_B``: the planner keeps the plane check too, so on a plane nothing
+changes. A move's samples leave the pieces over ground not above the support plane to the
+plane check (its own, denser samples), so on a plane a move is not checked twice either.
 """
 
 from __future__ import annotations
