@@ -21,14 +21,17 @@ stays inside (−π, π]; otherwise the axis is unbounded (±π). The value is
 with Σ_b min(R, n_b) ≥ count, n_b the bin's rows). A cluster with at least R eligible
 members (not known too close) whose lower bound is L proves that the bin's R-th best
 eligible value is ≥ L; every row ranked above R then lies in a cluster whose upper bound is
-≥ L. A bin where no cluster proves a threshold is scored whole.
+≥ L. A bin where no cluster proves a threshold is scored whole. With the ground under the
+arm the eligible rows differ by pose: each pose's proofs count its own (the rows measured
+too low there left out; a row not yet measured counts, and the picks, all measured clear,
+are then also the best of the clear rows).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +39,7 @@ from numpy.typing import NDArray
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import LinearFitness
-from mmstab.planner.under_arm import GroundUnderArm, PiecesB
+from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
 #: Edge of the arm-CoM voxel that groups nodes into clusters [m]: 4 cm, 5,755 clusters on
@@ -239,7 +242,6 @@ class NodeClearance:
     under: GroundUnderArm | None = None
     _low: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
     _known: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
-    _kept: dict[str, NDArray[Any]] = dataclasses.field(default_factory=dict)  # pieces in B
 
     @functools.cached_property
     def above(self) -> NDArray[np.bool_]:
@@ -261,6 +263,11 @@ class NodeClearance:
         clear = self.roadmap.node_clearance[self.reach] >= MOVE_CLEARANCE
         return np.asarray(self.above & clear)
 
+    @functools.cached_property
+    def _pieces(self) -> KeptPieces:
+        assert self.under is not None
+        return KeptPieces(self.under, self.roadmap.nodes_q[self.reach])
+
     def low(self, poses: int) -> list[NDArray[np.intp]]:
         """Per pose, the eligible rows measured too low above the ground there (ascending)."""
         none = np.zeros(0, dtype=np.intp)
@@ -281,21 +288,11 @@ class NodeClearance:
                 sure = self.under.surely_clear(k, lowest[x], self.ground)
                 self._known[k][x[sure]] = True
                 todo[k] = x[~sure]
-        new = np.unique(np.concatenate([np.zeros(0, dtype=np.intp), *todo]))
-        kept = self._kept
-        if "slot" not in kept:
-            kept["slot"] = np.full(n, -1, dtype=np.intp)
-        new = new[kept["slot"][new] < 0]
-        if new.size:  # each node's pieces in B once (pose-independent)
-            body = self.under.body(self.roadmap.nodes_q[self.reach[new]])
-            kept["slot"][new] = len(kept.get("low", ())) + np.arange(len(new))
-            for name, arr in zip(("low", "centre"), body, strict=True):
-                kept[name] = arr if name not in kept else np.concatenate([kept[name], arr])
+        self._pieces.add(np.concatenate([np.zeros(0, dtype=np.intp), *todo]))
         for k, x in enumerate(todo):
             if x.size:
-                at = kept["slot"][x]
-                part = PiecesB(kept["low"][at], kept["centre"][at])
-                clear = self.under.clear(k, self.roadmap.nodes_q[self.reach[x]], self.ground, part)
+                q = self.roadmap.nodes_q[self.reach[x]]
+                clear = self.under.clear(k, q, self.ground, self._pieces(x))
                 self._known[k][x] = True
                 self._low[k][x[~clear]] = True
 

@@ -337,3 +337,34 @@ class GroundUnderArm:
         seg_ok = np.ones(len(qa) - 1, dtype=bool)
         seg_ok[bad[bad >= 0]] = False
         return ok[ends], seg_ok
+
+
+class KeptPieces:
+    """The pieces in B of postures (N, 4) [rad], each computed once (pose-independent).
+
+    Args:
+        under: the ground under the arm (its robot and pieces).
+        postures: the postures rows index (N, 4) [rad].
+    """
+
+    def __init__(self, under: GroundUnderArm, postures: FloatArray) -> None:
+        self.under, self.postures = under, postures
+        self.slot = np.full(len(postures), -1, dtype=np.intp)
+        self.low = np.zeros((0, len(under.pieces.link)))
+        self.centre = np.zeros((0, len(under.pieces.link), 3))
+
+    def add(self, rows: NDArray[np.intp]) -> None:
+        """Compute the pieces of ``rows`` not kept yet, in one batch."""
+        new = np.unique(rows)
+        new = new[self.slot[new] < 0]
+        if new.size:
+            body = self.under.body(self.postures[new])
+            self.slot[new] = len(self.low) + np.arange(len(new))
+            self.low = np.concatenate([self.low, body.low])
+            self.centre = np.concatenate([self.centre, body.centre])
+
+    def __call__(self, rows: NDArray[np.intp]) -> PiecesB:
+        """The pieces of ``rows`` (n,)."""
+        self.add(rows)
+        at = self.slot[rows]
+        return PiecesB(self.low[at], self.centre[at])
