@@ -219,3 +219,31 @@ def test_a_move_whose_end_is_too_low_at_the_other_pose_is_not_taken(robot, small
     move = ground_move(robot, small, checker, start, c, GROUND, under, (0, 1))
     if move is not None:
         assert _move_lowest(robot, terrain, under, (0, 1), move) >= GROUND - SWEEP
+
+
+def test_a_move_through_nodes_too_low_is_searched_again_without_them(robot, small):
+    """The masked re-route: the shortest path between two clear nodes dips into the kerb."""
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.planner.roadmap_moves import _path_nodes, ground_move
+
+    terrain = _map(robot, "kerb")
+    poses = np.array([[0.0, 0.0, 0.0]])  # beside the kerb
+    under = GroundUnderArm(robot, terrain, poses)
+    up = np.flatnonzero(small.node_ground >= GROUND)
+    clear = np.zeros(len(small.nodes_q), dtype=bool)
+    clear[up] = under.clear(0, small.nodes_q[up], GROUND)
+    rng = np.random.default_rng(4)
+    checker = CollisionChecker(robot)
+    found = 0
+    for a, b in rng.choice(np.flatnonzero(clear), (300, 2)):
+        plain = _path_nodes(small, int(a), int(b), None, GROUND)
+        if plain is None or clear[plain].all():
+            continue
+        move = ground_move(robot, small, checker, int(a), int(b), GROUND, under, (0,))
+        if move is None:
+            continue  # no path avoids the low nodes within the re-routes
+        found += 1
+        assert _move_lowest(robot, terrain, under, (0,), move) >= GROUND - SWEEP
+        if found == 3:
+            break
+    assert found == 3  # shortest paths that dipped, searched again without the low nodes
