@@ -212,7 +212,7 @@ class PoseGround:
         b = self.box
         if not self.peak.size:  # first use: the whole arm's reach, one build
             c = self.M_T_B[:3, :3] @ self.reach[0] + self.M_T_B[:3, 3]
-            r = self.reach[1] / LATTICE + self.cells + 1
+            r = self.reach[1] / LATTICE + self.cells + 2 * BLOCK
             lo, hi = np.floor((c[:2] / LATTICE - r) / TILE), np.floor((c[:2] / LATTICE + r) / TILE)
             b = (int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]))
         elif need is None or (
@@ -244,7 +244,7 @@ class PoseGround:
         i = np.floor(c_M[:, 0] / LATTICE).astype(int)
         j = np.floor(c_M[:, 1] / LATTICE).astype(int)
         if look.size:
-            m = self.cells + 1  # every square's samples inside the tiles, not the filter's edge
+            m = self.cells + 2 * BLOCK  # every square's blocks inside, not the filter's edge
             self._cover(
                 (
                     (int(i.min()) - m) // TILE, (int(i.max()) + m) // TILE,
