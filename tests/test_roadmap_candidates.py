@@ -62,6 +62,30 @@ class FakeClearance:
     def eligible(self):
         return ~(self.known & self.bad)
 
+    def low(self, poses):
+        return [np.zeros(0, dtype=np.intp)] * poses
+
+    def measure(self, rows):
+        pass
+
+
+class FakePoseClearance(FakeClearance):
+    """Too-close rows as FakeClearance, and per pose a set of rows too low, learnt as measured."""
+
+    def __init__(self, too_close: np.ndarray, n: int, too_low: list[np.ndarray]):
+        super().__init__(too_close, n)
+        self.deep = np.zeros((len(too_low), n), dtype=bool)
+        for k, rows in enumerate(too_low):
+            self.deep[k, rows] = True
+        self.measured = np.zeros_like(self.deep)
+
+    def low(self, poses):
+        return [np.flatnonzero(self.measured[k] & self.deep[k]) for k in range(poses)]
+
+    def measure(self, rows):
+        for k, r in enumerate(rows):
+            self.measured[k, r] = True
+
 
 def _reference(fit, coms, bins, count, clear):
     """Every node scored; a chosen too-close node dropped and the choice remade."""
@@ -95,6 +119,28 @@ def test_branch_and_bound_candidates_equal_scoring_every_node(robot, nodes, size
         np.testing.assert_array_equal(got.rows[k], rows)
         mu = fit.mu(coms[rows])
         np.testing.assert_array_equal(got.value[k], np.where(mu > 0, value, -np.inf))
+
+
+def test_candidates_with_rows_too_low_at_some_poses_equal_scoring_every_node(robot, nodes):
+    """Per-pose eligibility (the ground under the arm): each pose's proofs count its own rows."""
+    coms, bins, _ = nodes
+    rng = np.random.default_rng(8)
+    fits = _fits(robot, coms, rng, 10)
+    cl = node_clusters(coms, bins, TURRET_BINS, 0.04)
+    count = 96
+    best = [np.argsort(-f(coms))[:2000] for f in fits]  # too low: many of each pose's best
+    too_low = [rng.choice(b, int(rng.integers(0, 1500)), replace=False) for b in best]
+    too_close = rng.choice(len(coms), len(coms) // 40, replace=False)
+    clear = FakePoseClearance(too_close, len(coms), too_low)
+    got = route_candidates(fits, coms, bins, cl, count, clear)
+    for k, fit in enumerate(fits):
+        ref_clear = FakeClearance(np.union1d(too_close, too_low[k]), len(coms))
+        rows, value = _reference(fit, coms, bins, count, ref_clear)
+        np.testing.assert_array_equal(got.rows[k], rows)
+        mu = fit.mu(coms[rows])
+        np.testing.assert_array_equal(got.value[k], np.where(mu > 0, value, -np.inf))
+        assert not np.isin(got.rows[k][np.isfinite(got.value[k])], too_low[k]).any()
+    assert sum(len(x) for x in clear.low(len(fits))) > 0  # some picks were found too low
 
 
 def test_cluster_bounds_hold_for_every_member(robot, nodes):

@@ -166,7 +166,7 @@ def solve_whole_path(
     t0 = time.perf_counter()
     mu_max = stowed_flat_mu(robot)
     gravity = gravity_body_at(terrain, poses)
-    task = PathTask(robot, region, gravity, settings, mu_max, closed, poses)
+    task = PathTask(robot, region, gravity, settings, mu_max, closed, poses, terrain)
     choice = search.choose_path(task)
     seconds = (time.perf_counter() - t0) / max(len(poses), 1)
     targets = tuple(

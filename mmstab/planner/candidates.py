@@ -21,7 +21,10 @@ stays inside (−π, π]; otherwise the axis is unbounded (±π). The value is
 with Σ_b min(R, n_b) ≥ count, n_b the bin's rows). A cluster with at least R eligible
 members (not known too close) whose lower bound is L proves that the bin's R-th best
 eligible value is ≥ L; every row ranked above R then lies in a cluster whose upper bound is
-≥ L. A bin where no cluster proves a threshold is scored whole.
+≥ L. A bin where no cluster proves a threshold is scored whole. With the ground under the
+arm the eligible rows differ by pose: each pose's proofs count its own (the rows measured
+too low there left out; a row not yet measured counts, and the picks, all measured clear,
+are then also the best of the clear rows).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from numpy.typing import NDArray
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import LinearFitness
+from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
 #: Edge of the arm-CoM voxel that groups nodes into clusters [m]: 4 cm, 5,755 clusters on
@@ -149,7 +153,12 @@ def cluster_bounds(cl: NodeClusters, fits: list[LinearFitness]) -> tuple[FloatAr
 
 
 def scored_rows(
-    cl: NodeClusters, fits: list[LinearFitness], eligible: NDArray[np.bool_], rank: int
+    cl: NodeClusters,
+    fits: list[LinearFitness],
+    eligible: NDArray[np.bool_],
+    rank: int,
+    low: list[NDArray[np.intp]] | None = None,
+    bounds: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[NDArray[np.intp], FloatArray]:
     """Reach rows (ascending) that hold every pose's rows ranked below ``rank`` per bin.
 
@@ -161,14 +170,20 @@ def scored_rows(
         fits: Eq. 6 per pose (the motion term is not used).
         eligible: whether each reach row may be chosen (not known too close) (N,).
         rank: R of :func:`rank_bound`.
+        low: per pose, the eligible rows known too low there (not counted at that pose).
+        bounds: :func:`cluster_bounds` of ``cl`` and ``fits``, if known.
     """
-    lower, upper = cluster_bounds(cl, fits)
-    members = np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius))
+    lower, upper = cluster_bounds(cl, fits) if bounds is None else bounds
+    members = np.tile(
+        np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius)), (len(fits), 1)
+    )
+    for k, rows in enumerate(low or ()):  # the proofs count each pose's eligible rows
+        members[k] -= np.bincount(cl.cluster_of[rows], minlength=members.shape[1])
     # per bin, clusters by lower bound (best first): the R-th best eligible value is at
     # least the bound of the first cluster at which the members counted reach R
     span = 2 * float(np.abs(lower).max(initial=0.0)) + 1.0
     order = np.argsort(cl.cluster_bin * span - lower, axis=1)  # bins stay grouped
-    counted = np.cumsum(members[order], axis=1)
+    counted = np.cumsum(np.take_along_axis(members, order, axis=1), axis=1)
     full = np.flatnonzero(np.diff(cl.bin_start) > 0)
     first = cl.bin_start[full]
     before = np.where(first > 0, counted[:, np.maximum(first - 1, 0)], 0)  # (K, bins)
@@ -176,7 +191,7 @@ def scored_rows(
     proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
     tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
     tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
-    keep = (upper >= tau[:, cl.cluster_bin] - BOUND_SLACK).any(axis=0) & (members > 0)
+    keep = ((upper >= tau[:, cl.cluster_bin] - BOUND_SLACK) & (members > 0)).any(axis=0)
     take = np.flatnonzero(keep)
     if take.size == 0:  # no clusters (an empty component)
         return np.zeros(0, dtype=np.intp), tau
@@ -203,7 +218,7 @@ def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArra
 
 @dataclasses.dataclass(frozen=True)
 class NodeClearance:
-    """The reachable nodes' test: clear of the robot and of the ground plane.
+    """The reachable nodes' test: clear of the robot, of the support plane and of the ground.
 
     A node must keep :data:`MOVE_CLEARANCE` [m] from the robot: the tracked arm follows the
     plan's postures within a few millimetres, and a tracking run must keep 1 mm
@@ -213,12 +228,19 @@ class NodeClearance:
     the support plane z_B = 0 (``Roadmap.node_ground``, ``planner.ground_clearance``; None:
     not checked): V and the roadmap know the robot's body only, and a low arm CoM maximises
     μ, so without it the plans of the shipped routes put the arm 50–61 cm below the plane
-    the tracks rest on. Both tests are pose-independent.
+    the tracks rest on. These tests are pose-independent (:meth:`eligible`). With ``under``
+    (the ground under the arm at each of the route's poses,
+    :class:`mmstab.planner.under_arm.GroundUnderArm`) a node must also keep its arm
+    ``ground`` above the terrain under it at the pose it is chosen for: measured lazily for
+    the nodes chosen (:meth:`measure`), those found too low at pose k learnt (:meth:`low`).
     """
 
     roadmap: Roadmap
     reach: NDArray[np.intp]
     ground: float | None = GROUND_CLEARANCE
+    under: GroundUnderArm | None = None
+    _low: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
+    _known: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
 
     @functools.cached_property
     def above(self) -> NDArray[np.bool_]:
@@ -240,6 +262,46 @@ class NodeClearance:
         clear = self.roadmap.node_clearance[self.reach] >= MOVE_CLEARANCE
         return np.asarray(self.above & clear)
 
+    @functools.cached_property
+    def _pieces(self) -> KeptPieces:
+        assert self.under is not None
+        return KeptPieces(self.under, self.roadmap.nodes_q[self.reach])
+
+    def low(self, poses: int) -> list[NDArray[np.intp]]:
+        """Per pose, the eligible rows measured too low above the ground there (ascending)."""
+        none = np.zeros(0, dtype=np.intp)
+        return [np.flatnonzero(self._low[k]) if k in self._low else none for k in range(poses)]
+
+    def measure(self, rows: list[NDArray[np.intp]]) -> None:
+        """Measure each pose's ``rows`` against the ground under the arm there (learnt)."""
+        if self.under is None or self.ground is None:
+            return
+        n = len(self.reach)
+        for k in range(len(rows)):
+            if k not in self._known:
+                self._known[k], self._low[k] = np.zeros(n, bool), np.zeros(n, bool)
+        todo = [np.unique(x[~self._known[k][x]]) for k, x in enumerate(rows)]
+        lowest = self.roadmap.node_ground[self.reach]
+        for k, x in enumerate(todo):  # high above the highest ground in reach: clear
+            if x.size:
+                sure = self.under.surely_clear(k, lowest[x], self.ground)
+                self._known[k][x[sure]] = True
+                todo[k] = x[~sure]
+        self._pieces.add(np.concatenate([np.zeros(0, dtype=np.intp), *todo]))
+        for k, x in enumerate(todo):
+            if x.size:
+                q = self.roadmap.nodes_q[self.reach[x]]
+                clear = self.under.clear(k, q, self.ground, self._pieces(x))
+                self._known[k][x] = True
+                self._low[k][x[~clear]] = True
+
+    def at(self, k: int, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+        """Whether the rows (M,) keep the arm ``ground`` up at pose ``k`` (measured, learnt)."""
+        if self.under is None or self.ground is None:
+            return np.ones(len(rows), dtype=bool)
+        self.measure([np.zeros(0, dtype=np.intp)] * k + [np.asarray(rows)])
+        return np.asarray(~self._low[k][rows])
+
 
 class Candidates(NamedTuple):
     """Each pose's candidate nodes.
@@ -253,6 +315,12 @@ class Candidates(NamedTuple):
     rows: NDArray[np.intp]
     value: FloatArray
     mu: FloatArray
+
+
+def _among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """Whether each of ``rows`` is one of ``sorted_rows`` (ascending)."""
+    at = np.minimum(np.searchsorted(sorted_rows, rows), max(len(sorted_rows) - 1, 0))
+    return np.asarray(sorted_rows[at] == rows) if len(sorted_rows) else np.zeros(len(rows), bool)
 
 
 def route_candidates(
@@ -271,25 +339,39 @@ def route_candidates(
         bins: their turret bins (N,).
         cl: their clusters (:func:`node_clusters`).
         count: candidates per pose (at most N).
-        clear: the clearance test; a chosen node measured too close is dropped and the
-            choice is made again, until every finite choice is clear.
+        clear: the clearance test; a chosen node measured too close (or, at its pose, too
+            low above the ground) is dropped and the choice is made again, until every
+            finite choice is clear.
     """
     K, rank = len(fits), rank_bound(cl.bin_rows, count)
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
+    ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
+    bounds = cluster_bounds(cl, fits)
     while True:
-        eligible = clear.eligible()
-        sub, tau = scored_rows(cl, fits, eligible, rank)
+        eligible, low = clear.eligible(), clear.low(K)
+        sub, tau = scored_rows(cl, fits, eligible, rank, low, bounds)
         bad, sub_bins, sub_com = ~eligible[sub], bins[sub], samples[sub]
+        more = []
         for k, fit in enumerate(fits):
             v = fit(sub_com)
             v[bad] = -np.inf
+            v[_among(sub, low[k])] = -np.inf  # too low above the ground at this pose
             top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
             n = len(pick)  # < count only when fewer nodes than count are eligible
             rows[k, n:], value[k, n:] = sub[pick[0]] if n else 0, -np.inf
             rows[k, :n], value[k, :n] = sub[pick], v[pick]
-        chosen = np.unique(rows[np.isfinite(value)])
-        if clear(chosen).all():
+            best = top[np.isfinite(v[top])]
+            if len(best) > count * ahead[k]:
+                best = best[np.argpartition(-v[best], count * ahead[k])[: count * ahead[k]]]
+            more.append(sub[best])
+        finite = np.isfinite(value)
+        near = clear(np.unique(rows[finite])).all()  # both tests learn what they measure
+        clear.measure(more)
+        low = clear.low(K)
+        deep = np.array([_among(rows[k, finite[k]], low[k]).any() for k in range(K)], bool)
+        if near and not deep.any():
             break
+        ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
     mu = np.stack([fit.mu(samples[r]) for fit, r in zip(fits, rows, strict=True)])
     return Candidates(rows, np.where(mu > 0, value, -np.inf), mu)

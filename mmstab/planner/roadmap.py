@@ -15,29 +15,33 @@ the answer, for the controller.
 
 from __future__ import annotations
 
-import heapq
 import time
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import dijkstra
 
 from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.fitness import pose_fitness
-from mmstab.planner.grounded import ground_graph, shortcut_above
+from mmstab.planner.grounded import ground_graph
 from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.roadmap_moves import (  # noqa: F401 (the moves' names, as before)
+    ASTAR_EXPANSIONS,
+    astar,
+    ground_move,
+    roadmap_move,
+    start_tree,
+)
 from mmstab.planner.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.roadmap import Roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
 TURRET_BINS = 24
-#: Node expansions of an A* query before the whole component is searched instead.
-ASTAR_EXPANSIONS = 20000
 
 
 class NoPlanError(PlanningError):
@@ -109,9 +113,64 @@ def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int
     return len(value) - 1
 
 
-def _ground_note(ground: float | None) -> str:
-    """The ground test in the no-plan message (``planner.ground_clearance`` [m])."""
-    return "" if ground is None else f" with the arm {ground:g} m above the ground plane"
+def _no_plan(
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    poses: FloatArray,
+    settings: PlannerSettings,
+) -> NoPlanError:
+    """The error naming the first pose no allowed sequence reaches."""
+    k = _first_dead_pose(value, allowed)
+    x, y, h = np.asarray(poses, dtype=float)[k]
+    ground = settings.ground_clearance
+    return NoPlanError(
+        f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
+        f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
+        + (" within the turret window" if settings.turret_window is not None else "")
+        + ("" if ground is None else f" with the arm {ground:g} m above the ground"),
+        k,
+    )
+
+
+class Mover:
+    """The arm's moves into each chosen node (:func:`mmstab.planner.roadmap_moves.ground_move`).
+
+    From the start node (an open path) or the last pose's node (a loop); each move kept
+    per pair of nodes and the poses it joins, so a plan chosen again reuses them.
+    """
+
+    def __init__(
+        self, robot: Robot, roadmap: Roadmap, start: int, ground: float | None,
+        under: GroundUnderArm | None,
+    ) -> None:  # fmt: skip
+        self.robot, self.roadmap, self.start, self.ground, self.under = (
+            robot, roadmap, start, ground, under,
+        )  # fmt: skip
+        self.checker = CollisionChecker(robot)  # the staircase's corners cut where free
+        self.tree = start_tree(roadmap, start, ground)
+        self.kept: dict[tuple[int, int, tuple[int, ...]], FloatArray | None] = {}
+
+    def moves(self, nodes: NDArray[np.intp], closed: bool) -> tuple[list[FloatArray], list[int]]:
+        """The moves into ``nodes`` (K,), and the pairs with none (-1: the first, from start)."""
+        K = len(nodes)
+        loop = closed and K > 1
+        before = [nodes[-1] if loop else self.start, *nodes[:-1]]
+        moves: list[FloatArray] = []
+        failed: list[int] = []
+        for k, (a, b) in enumerate(zip(before, nodes, strict=True)):
+            ks = ((K - 1 if loop else 0), 0) if k == 0 else (k - 1, k)
+            key = (int(a), int(b), ks)
+            if key not in self.kept:
+                self.kept[key] = ground_move(
+                    self.robot, self.roadmap, self.checker, int(a), int(b), self.ground,
+                    self.under, tuple(sorted(set(ks))), self.tree,
+                )  # fmt: skip
+            move = self.kept[key]
+            if move is None:
+                failed.append(K - 1 if loop and k == 0 else k - 1)
+            else:
+                moves.append(move)
+        return moves, failed
 
 
 def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
@@ -172,128 +231,53 @@ def component_view(
     return views[comp]
 
 
-def _moves(
-    robot: Robot,
-    roadmap: Roadmap,
-    start: int,
-    start_q: FloatArray,
-    nodes: NDArray[np.intp],
+def _forbid_low_ends(
+    clear: NodeClearance,
+    cand: NDArray[np.intp],
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
+) -> None:
+    """Forbid the moves one of whose ends is too low above the other pose's ground.
+
+    The arm moves while the base drives between the two poses: each end posture must
+    clear both poses' ground (measured for the stable candidates only).
+    """
+    for i, (ka, kb) in enumerate(pairs):
+        fa, fb = np.isfinite(value[ka]), np.isfinite(value[kb])
+        allowed[i][fa] &= clear.at(kb, cand[ka, fa])[:, None]
+        allowed[i][:, fb] &= clear.at(ka, cand[kb, fb])[None, :]
+
+
+def _choose(
+    value: FloatArray,
+    motion: list[FloatArray],
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
     closed: bool,
-    ground: float | None = None,
-) -> list[FloatArray]:
-    """The arm's moves into each chosen node: shortest roadmap paths, shortcut where free.
+    cand: NDArray[np.intp],
+    reach: NDArray[np.intp],
+    mover: Mover,
+) -> tuple[NDArray[np.intp], NDArray[np.intp] | None, list[FloatArray]]:
+    """The best sequence whose moves all clear the ground: the choice (K,), its nodes, moves.
 
-    From the start node (an open path) or the last pose's node (a loop); an open path's
-    first move starts at the start posture ``start_q`` [rad] itself. With ``ground`` [m]
-    the paths and shortcuts keep the arm that far above the support plane.
+    A move with no path clear of the ground at the poses it joins is forbidden and the
+    choice made again (``value`` and ``allowed`` updated in place); nodes None: no plan.
     """
-    K = len(nodes)
-    before = [nodes[-1] if closed and K > 1 else start, *nodes[:-1]]
-    checker = CollisionChecker(robot)  # the staircase's corners cut where the cut is free
-    tree = start_tree(roadmap, start, ground)
-    moves = [
-        shortcut_above(
-            robot, roadmap, checker, roadmap_move(roadmap, int(a), int(b), tree, ground), ground
-        )
-        for a, b in zip(before, nodes, strict=True)
-    ]
-    if not closed or K == 1:  # from the start posture itself onto its node
-        first = np.vstack([start_q, moves[0]])
-        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
-    return moves
-
-
-def start_tree(
-    roadmap: Roadmap, start: int, ground: float | None = None
-) -> tuple[int, NDArray[np.int32]]:
-    """Shortest-path tree from node ``start`` (its predecessors), kept with the roadmap.
-
-    Every plan's first move leaves the arm's start node (the stowed arm's): one search
-    over the whole component, once (on the nodes ``ground`` [m] above the plane, if set).
-    """
-    trees = getattr(roadmap, "_trees", None)
-    if trees is None:
-        trees = {}
-        object.__setattr__(roadmap, "_trees", trees)
-    if (start, ground) not in trees:
-        graph = ground_graph(roadmap, ground).graph
-        trees[start, ground] = dijkstra(graph, indices=start, return_predecessors=True)[1]
-    return start, trees[start, ground]
-
-
-def astar(roadmap: Roadmap, a: int, b: int, ground: float | None = None) -> NDArray[np.intp] | None:
-    """A shortest roadmap path a -> b (nodes), by A* with the lattice (L1) distance to b.
-
-    Every edge changes one joint by its length and never wraps the turret, so the L1
-    distance is a consistent lower bound and the path is a shortest one; with ties
-    broken towards the deepest node, a free staircase costs about its length in node
-    expansions where Dijkstra's search bounded at 1.5 times the distance (the previous
-    query) explored a 4-D ball of nodes (16 ms a move on a random route). None when
-    ``ASTAR_EXPANSIONS`` nodes did not reach b. With ``ground`` [m]: on the nodes whose
-    arm stays that far above the support plane.
-    """
-    # each expanded node's row as Python lists (the loop's cheapest reads), not the whole
-    # graph converted at once (0.5-0.8 s, most of a cold plan's search on kerb.yaml)
-    g, nodes_q = ground_graph(roadmap, ground).graph, roadmap.nodes_q
-    ptr, nbr, w = g.indptr, g.indices, g.data
-    goal = nodes_q[b].tolist()
-    q: dict[int, list[float]] = {}
-
-    def h(n: int) -> float:
-        if n not in q:
-            q[n] = nodes_q[n].tolist()
-        return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
-
-    best, parent = {a: 0.0}, {a: a}
-    heap = [(h(a), 0.0, a)]
-    for _ in range(ASTAR_EXPANSIONS):
-        if not heap:
-            return None
-        _, neg_g, n = heapq.heappop(heap)
-        if n == b:
-            out = [b]
-            while out[-1] != a:
-                out.append(parent[out[-1]])
-            return np.array(out[::-1], dtype=np.intp)
-        if -neg_g > best[n]:
-            continue  # a stale entry
-        lo, hi = ptr[n], ptr[n + 1]
-        for m, step in zip(nbr[lo:hi].tolist(), w[lo:hi].tolist(), strict=True):
-            cost = best[n] + step
-            if cost < best.get(m, np.inf):
-                best[m], parent[m] = cost, n
-                heapq.heappush(heap, (cost + h(m), -cost, m))
-    return None
-
-
-def roadmap_move(
-    roadmap: Roadmap,
-    a: int,
-    b: int,
-    tree: tuple[int, NDArray[np.int32]] | None = None,
-    ground: float | None = None,
-) -> FloatArray:
-    """The shortest roadmap path a -> b as postures (n, 4) [rad].
-
-    From ``tree``'s root (:func:`start_tree`, built with the same ``ground``) along the
-    tree; else A* (:func:`astar`), else the whole component; with ``ground`` [m] on the
-    nodes whose arm stays that far above the support plane.
-    """
-    if a == b:
-        return roadmap.nodes_q[[a]].copy()
-    if tree is not None and tree[0] == a:
-        pred = tree[1]
-    else:
-        path = astar(roadmap, a, b, ground)
-        if path is None:
-            graph = ground_graph(roadmap, ground).graph
-            pred = dijkstra(graph, indices=a, return_predecessors=True)[1]
-        else:
-            return roadmap.nodes_q[path]
-    out = [b]
-    while out[-1] != a:
-        out.append(int(pred[out[-1]]))
-    return roadmap.nodes_q[out[::-1]].copy()
+    K = len(value)
+    while True:
+        path, total = best_sequence(value, motion, allowed, closed)
+        if not np.isfinite(total):
+            return path, None, []
+        nodes = reach[cand[np.arange(K), path]]
+        moves, failed = mover.moves(nodes, closed)
+        if not failed:
+            return path, nodes, moves
+        for i in failed:  # -1: the open path's first move, from the start
+            if i < 0:
+                value[0, path[0]] = -np.inf
+            else:
+                allowed[i][path[pairs[i][0]], path[pairs[i][1]]] = False
 
 
 def solve_roadmap_sequence(
@@ -305,6 +289,7 @@ def solve_roadmap_sequence(
     closed: bool,
     poses: FloatArray,
     start_q: FloatArray | None = None,
+    under: GroundUnderArm | None = None,
 ) -> RoadmapSequence:
     """Choose one reachable roadmap node per pose (module text).
 
@@ -317,6 +302,8 @@ def solve_roadmap_sequence(
         closed: the path is a loop (the last pose's choice is the first's previous).
         poses: base poses (K, 3) [m, m, rad], for the message when no plan exists.
         start_q: the arm's start posture (4,) [rad]; default the stowed arm.
+        under: the ground under the arm at each pose: a node too low above it at pose k is
+            no candidate there, a move too low at the poses it joins is not chosen.
 
     Raises:
         NoPlanError: some pose has no reachable stable posture (the message names it).
@@ -333,7 +320,8 @@ def solve_roadmap_sequence(
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
-    clear = NodeClearance(roadmap, reach, settings.ground_clearance)
+    ground = settings.ground_clearance
+    clear = NodeClearance(roadmap, reach, ground, under)
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
@@ -344,23 +332,18 @@ def solve_roadmap_sequence(
         cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
         cost.metric,
     )  # fmt: skip
-    path, total = best_sequence(value, motion, allowed, closed)
-    if not np.isfinite(total):
-        k = _first_dead_pose(value, allowed)
-        x, y, h = np.asarray(poses, dtype=float)[k]
-        raise NoPlanError(
-            f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
-            f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
-            + (" within the turret window" if settings.turret_window is not None else "")
-            + _ground_note(settings.ground_clearance),
-            k,
-        )
+    _forbid_low_ends(clear, cand, value, allowed, pairs)
+    mover = Mover(robot, roadmap, int(start), ground, under)
+    path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
+    if nodes is None:
+        raise _no_plan(value, allowed, poses, settings)
+    if not closed or K == 1:  # from the start posture itself onto its node
+        first = np.vstack([start_q, moves[0]])
+        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
     chosen = cand[np.arange(K), path]
-    nodes = reach[chosen]
     fitness = value[np.arange(K), path].copy()
     for i, (a, b) in enumerate(pairs):
         fitness[b] -= motion[i][path[a], path[b]]
-    moves = _moves(robot, roadmap, int(start), start_q, nodes, closed, settings.ground_clearance)
     return RoadmapSequence(
         nodes=nodes,
         postures=roadmap.nodes_q[nodes].copy(),

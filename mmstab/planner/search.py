@@ -29,6 +29,7 @@ from mmstab.planner.exhaustive import ExhaustiveResult
 from mmstab.planner.fitness import Fitness
 from mmstab.planner.regions import PlanningRegion
 from mmstab.planner.settings import PlannerSettings
+from mmstab.terrain import Terrain
 
 
 class PoseTask(NamedTuple):
@@ -80,6 +81,8 @@ class PathTask(NamedTuple):
         mu_max: Eq. 6's normaliser [N rad].
         closed: the path is a loop (the last pose moves back to the first).
         poses: the base poses (K, 3) [m, m, rad], for messages naming a pose (or None).
+        terrain: the ground the poses rest on (or None): a search that checks the arm
+            against the ground under it (``roadmap``) reads it through its interface.
     """
 
     robot: Robot
@@ -89,6 +92,7 @@ class PathTask(NamedTuple):
     mu_max: float
     closed: bool
     poses: FloatArray | None = None
+    terrain: Terrain | None = None
 
 
 class PathChoice(NamedTuple):

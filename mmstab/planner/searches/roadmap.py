@@ -13,6 +13,7 @@ from mmstab.core.files import MmstabError
 from mmstab.planner.roadmap import solve_roadmap_sequence
 from mmstab.planner.search import PathChoice, PathTask, PoseChoice, PoseTask
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
+from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.roadmap import load_or_build_roadmap
 
 
@@ -29,6 +30,9 @@ class RoadmapSearch:
             raise MmstabError("planner: method roadmap needs the labelled workspace V")
         roadmap = load_or_build_roadmap(task.robot, task.region.workspace)
         poses = np.zeros((len(task.gravity_body), 3)) if task.poses is None else task.poses
+        under = None
+        if task.terrain is not None and task.poses is not None:  # the ground under the arm
+            under = GroundUnderArm(task.robot, task.terrain, task.poses)
         seq = solve_roadmap_sequence(
             task.robot,
             task.gravity_body,
@@ -37,6 +41,7 @@ class RoadmapSearch:
             task.mu_max,
             task.closed,
             poses,
+            under=under,
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,

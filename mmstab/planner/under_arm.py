@@ -1,0 +1,370 @@
+"""The ground under the arm at each planned pose (``planner.ground_clearance`` on terrain).
+
+:func:`mmstab.model.ground.arm_ground_clearance` measures the arm against the support plane
+z_B = 0; on uneven ground the terrain under the arm rises above that plane (a kerb, a bump).
+Here a pose's check reads the terrain through its interface only (``M_T_B``, ``G_T_M``,
+``surface_G``, ``bounds``): the height of an arm point above the ground is its z in the map
+frame M less the ground's z_M at the point's map x, y (vertical in M).
+
+With the support plane in M, ``z = P(x, y)``, and ``c`` the cosine of the body's tilt
+(``M_T_B``'s z-z entry), a point p of the arm is ``z_B(p) / c`` above the plane, vertically,
+so its height above the ground is ``z_B(p) / c − r(x, y)`` with ``r = s − P`` the ground's
+rise above the support plane (0 on a plane: the slope is not counted twice). The arm's
+collision shapes are cut into pieces (:func:`arm_pieces`: a capsule into segments of at most
+:data:`PIECE` [m], a box into boxes of edges at most that); a piece is at least
+``z_low / c − max(r, 0)`` above the ground, ``z_low`` its lowest point in B, the max over a
+square about its centre's map x, y that holds the ball around the piece and :data:`SWEEP`
+more (a move's samples). ``r`` is sampled on a lattice of :data:`LATTICE` [m] aligned to M's
+origin, and a square's max is that of the :data:`BLOCK` x :data:`BLOCK` blocks of samples
+that cover it (the square widened by less than a block): exact for a map whose cells'
+corners lie on the lattice (bilinear or triangle cells: a surface linear or bilinear within
+each lattice cell peaks at the cell's corners), which holds for the shipped maps (2 and 5
+cm cells); on another map the ground between samples may rise above them by its slope times
+the lattice step. Beyond a map's edge the edge's ground is used. On a plane ``r`` is 0 and
+the check is ``z_B / c ≥ z_B``: the planner keeps the plane check too, so on a plane nothing
+changes. A move's samples leave the pieces over ground not above the support plane to the
+plane check (its own, denser samples), so on a plane a move is not checked twice either.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import maximum_filter
+
+from mmstab.model.parts import Box
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.terrain import Terrain
+
+#: Lattice step of the ground's samples in M [m] (the shipped maps' cells are multiples).
+LATTICE = 0.01
+#: Longest piece of a capsule [m]: a piece's square reaches its radius + half this past it.
+PIECE = 0.05
+#: Largest move of an arm point between the sampled postures of a move [m]: the squares
+#: are widened by it, so the ground under the arm between two samples counts.
+SWEEP = 0.01
+#: Round-off allowance of the height test [m] (the plane case equals the plane check).
+SLACK = 1e-9
+#: Samples along a block's edge: the squares' max is taken over blocks (4x fewer values)
+BLOCK = 2
+#: Lattice samples along a tile's edge (the ground is sampled by tiles, kept for a route).
+TILE = 64
+
+
+class ArmPieces(NamedTuple):
+    """The arm's collision shapes cut into pieces, in their links' frames.
+
+    Attributes:
+        link: the link of each piece (P,).
+        points: each piece's corners (box) or segment ends (capsule, repeated) (P, 8, 3) [m].
+        radius: the capsule's radius, 0 for a box (P,) [m].
+        ball: radius of a ball about the points' mean holding the piece (P,) [m].
+    """
+
+    link: NDArray[np.intp]
+    points: FloatArray
+    radius: FloatArray
+    ball: FloatArray
+
+
+def arm_pieces(robot: Robot, piece: float = PIECE) -> ArmPieces:
+    """The arm's links' collision shapes as pieces (a capsule cut into ``piece`` [m] segments)."""
+    link, points, radius = [], [], []
+    for i, lk in enumerate(robot.links):
+        g = lk.geometry
+        if isinstance(g, Box):  # cut into boxes of edges at most ``piece``
+            cuts = np.maximum(np.ceil(g.size / piece), 1).astype(int)
+            sub = g.size / cuts
+            corner = np.array([[sx, sy, sz] for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)])
+            R = g.frame_T_shape[:3, :3]
+            for ijk in np.ndindex(*cuts):
+                local = (np.array(ijk) + corner) * sub - g.size / 2
+                link.append(i)
+                points.append(local @ R.T + g.center)
+                radius.append(0.0)
+            continue
+        n = max(int(np.ceil(np.linalg.norm(g.p1 - g.p0) / piece)), 1)
+        ends = g.p0 + np.linspace(0.0, 1.0, n + 1)[:, None] * (g.p1 - g.p0)
+        for a, b in zip(ends[:-1], ends[1:], strict=True):
+            link.append(i)
+            points.append(np.repeat(np.stack([a, b]), 4, axis=0))
+            radius.append(float(g.radius))
+    pts, rad = np.array(points), np.array(radius)
+    centre = pts.mean(axis=1, keepdims=True)
+    ball = np.linalg.norm(pts - centre, axis=2).max(axis=1) + rad
+    return ArmPieces(np.array(link), pts, rad, ball)
+
+
+def arm_reach(robot: Robot, pieces: ArmPieces) -> tuple[FloatArray, float]:
+    """A ball in B holding the arm at every posture: the turret's origin [m], a radius [m].
+
+    Every point of link i is within Σ_{j<i} |o_{j+1} − o_j| + |p − o_i| of the turret's
+    origin o_0 (the links' origins at fixed offsets along the chain).
+    """
+    frames = robot.kinematics.link_frames(np.atleast_2d(robot.stowed))[0]
+    o = frames[:, :3, 3]
+    chain = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(o, axis=0), axis=1))]
+    far = np.linalg.norm(pieces.points, axis=2).max(axis=1) + pieces.radius
+    return o[0], float((chain[pieces.link] + far).max())
+
+
+class PiecesB(NamedTuple):
+    """Pieces of many postures in B: lowest z (n, P) [m] and centres (n, P, 3) [m]."""
+
+    low: FloatArray
+    centre: FloatArray
+
+
+def pieces_in_body(robot: Robot, pieces: ArmPieces, postures: ArrayLike) -> PiecesB:
+    """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad]."""
+    q = np.atleast_2d(np.asarray(postures, dtype=float))
+    frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
+    low = np.empty((len(q), len(pieces.link)))
+    centre = np.empty((len(q), len(pieces.link), 3))
+    mid = pieces.points.mean(axis=1)  # (P, 3)
+    for i in np.unique(pieces.link):  # one product per link: (n, 3) @ (3, points)
+        at = np.flatnonzero(pieces.link == i)
+        R, t = frames[:, i, :3, :3], frames[:, i, :3, 3]
+        z = R[:, 2] @ pieces.points[at].reshape(-1, 3).T + t[:, 2, None]
+        low[:, at] = z.reshape(len(q), len(at), -1).min(axis=2) - pieces.radius[at]
+        for r in range(3):
+            centre[:, at, r] = R[:, r] @ mid[at].T + t[:, r, None]
+    return PiecesB(low, centre)
+
+
+class GroundTiles:
+    """The ground's z_M on the lattice, sampled by tiles of :data:`TILE` samples and kept."""
+
+    def __init__(self, terrain: Terrain) -> None:
+        self.terrain = terrain
+        self.M_T_G = np.linalg.inv(terrain.G_T_M())
+        self.tiles: dict[tuple[int, int], FloatArray] = {}
+
+    def _tile(self, ti: int, tj: int) -> FloatArray:
+        if (ti, tj) not in self.tiles:
+            x = (ti * TILE + np.arange(TILE)) * LATTICE
+            y = (tj * TILE + np.arange(TILE)) * LATTICE
+            X, Y = np.meshgrid(x, y)
+            b = self.terrain.bounds
+            if b is not None:  # beyond the map's edge: the edge's ground
+                X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
+            p_G = self.terrain.surface_G(X, Y)
+            self.tiles[ti, tj] = p_G @ self.M_T_G[2, :3] + self.M_T_G[2, 3]
+        return self.tiles[ti, tj]
+
+    def z_M(self, box: tuple[int, int, int, int]) -> FloatArray:
+        """The ground's z_M [m] on tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), (y, x)."""
+        ti0, ti1, tj0, tj1 = box
+        rows = [
+            np.hstack([self._tile(ti, tj) for ti in range(ti0, ti1 + 1)])
+            for tj in range(tj0, tj1 + 1)
+        ]
+        return np.vstack(rows)
+
+
+@dataclasses.dataclass
+class PoseGround:
+    """One pose's ground rise above its support plane, on the lattice in M (module text).
+
+    Args:
+        tiles: the ground's samples (shared by a route's poses).
+        M_T_B: the resting body pose in M (4, 4).
+        cells: half-width of the squares the rise's max is taken over [lattice steps].
+    """
+
+    tiles: GroundTiles
+    M_T_B: FloatArray
+    cells: int
+    reach: tuple[FloatArray, float] = (np.zeros(3), 0.0)  # arm within this ball in B [m]
+    box: tuple[int, int, int, int] = (0, -1, 0, -1)  # tile index range (ti0, ti1, tj0, tj1)
+    peak: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+    top: float = 0.0  # the peak's max [m]
+
+    @functools.cached_property
+    def cos_tilt(self) -> float:
+        """Cosine of the angle between B's z and M's z."""
+        return float(self.M_T_B[2, 2])
+
+    def _build(self, box: tuple[int, int, int, int]) -> None:
+        """The rise's max over squares about every sample of tiles ``box``."""
+        n, o = self.M_T_B[:3, 2], self.M_T_B[:3, 3]
+        x = (box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE
+        y = (box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE
+        # the support plane z_B = 0 in M: z = o_z − (n_x (x − o_x) + n_y (y − o_y)) / n_z
+        plane = o[2] - (n[0] * (x[None, :] - o[0]) + n[1] * (y[:, None] - o[1])) / n[2]
+        rise = self.tiles.z_M(box) - plane
+        self.box = box
+        # the max over blocks of BLOCK x BLOCK samples, then over the squares of blocks that
+        # hold every sample's square (module text): the squares widened by < BLOCK steps
+        blocks = rise[::BLOCK, ::BLOCK].copy()
+        for dj, di in np.ndindex(BLOCK, BLOCK):
+            np.maximum(blocks, rise[dj::BLOCK, di::BLOCK], out=blocks)
+        half = -(-self.cells // BLOCK)
+        self.peak = maximum_filter(blocks, size=2 * half + 1, mode="nearest")
+        self.top = float(blocks.max())
+
+    def _cover(self, need: tuple[int, int, int, int] | None = None) -> None:
+        """Build the tiles ``need`` (default: the arm's reach) with those built before."""
+        b = self.box
+        if not self.peak.size:  # first use: the whole arm's reach, one build
+            c = self.M_T_B[:3, :3] @ self.reach[0] + self.M_T_B[:3, 3]
+            r = self.reach[1] / LATTICE + self.cells + 2 * BLOCK
+            lo, hi = np.floor((c[:2] / LATTICE - r) / TILE), np.floor((c[:2] / LATTICE + r) / TILE)
+            b = (int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]))
+        elif need is None or (
+            need[0] >= b[0] and need[1] <= b[1] and need[2] >= b[2] and need[3] <= b[3]
+        ):
+            return
+        n = b if need is None else need
+        self._build((min(n[0], b[0]), max(n[1], b[1]), min(n[2], b[2]), max(n[3], b[3])))
+
+    @property
+    def highest(self) -> float:
+        """The ground's largest rise above the support plane within the arm's reach [m]."""
+        self._cover()
+        return self.top
+
+    def heights(self, body: PiecesB, above: float = -np.inf, plane: bool = False) -> FloatArray:
+        """Each posture's least height above the ground under the arm (n,) [m] (module text).
+
+        A lower bound: a piece is ``z_low / c − max(r, 0)`` up. Pieces at least ``above``
+        [m] over the highest ground in reach are not looked at closer (where the answer is
+        ``above`` or more it is only that). ``plane``: the pieces over ground not above the
+        support plane are left to the plane check (+inf; a move's samples, module text).
+        """
+        self._cover()
+        lowest = body.low / self.cos_tilt
+        h = lowest - max(self.top, 0.0)
+        look = np.flatnonzero(h.ravel() < above)
+        c_M = body.centre.reshape(-1, 3)[look] @ self.M_T_B[:3, :3].T + self.M_T_B[:3, 3]
+        i = np.floor(c_M[:, 0] / LATTICE).astype(int)
+        j = np.floor(c_M[:, 1] / LATTICE).astype(int)
+        if look.size:
+            m = self.cells + 2 * BLOCK  # every square's blocks inside, not the filter's edge
+            self._cover(
+                (
+                    (int(i.min()) - m) // TILE, (int(i.max()) + m) // TILE,
+                    (int(j.min()) - m) // TILE, (int(j.max()) + m) // TILE,
+                )
+            )  # fmt: skip
+        peak = self.peak[(j - self.box[2] * TILE) // BLOCK, (i - self.box[0] * TILE) // BLOCK]
+        off = np.inf if plane else lowest.ravel()[look]  # where the plane check decides
+        h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, off)
+        return np.asarray(h.min(axis=1)) if h.size else np.zeros(len(h))
+
+
+class GroundUnderArm:
+    """The ground under the arm at each of a route's poses (module text).
+
+    Args:
+        robot: the robot.
+        terrain: the ground (its interface only).
+        poses: base poses (K, 3) in M [m, m, rad].
+        M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        terrain: Terrain,
+        poses: ArrayLike,
+        M_T_B: FloatArray | None = None,
+    ) -> None:
+        self.robot = robot
+        self.pieces = arm_pieces(robot)
+        p = np.atleast_2d(np.asarray(poses, dtype=float))
+        T = terrain.M_T_B(p) if M_T_B is None else np.asarray(M_T_B, dtype=float)
+        T = T.reshape(-1, 4, 4)
+        tiles = GroundTiles(terrain)
+        # one square for every piece: the largest ball and a sweep, one step more (module text)
+        cells = int(np.ceil((float(self.pieces.ball.max()) + SWEEP) / LATTICE)) + 1
+        reach = arm_reach(robot, self.pieces)
+        self.poses = [PoseGround(tiles, T[k], cells, reach) for k in range(len(T))]
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def body(self, postures: ArrayLike) -> PiecesB:
+        """The arm's pieces in B for postures (n, 4) [rad] (pose-independent)."""
+        return pieces_in_body(self.robot, self.pieces, postures)
+
+    def heights(self, k: int, postures: ArrayLike, body: PiecesB | None = None) -> FloatArray:
+        """Least height [m] above the ground under the arm at pose ``k``, per posture (n,)."""
+        b = self.body(postures) if body is None else body
+        return self.poses[k].heights(b, np.inf)
+
+    def surely_clear(self, k: int, lowest: FloatArray, ground: float) -> NDArray[np.bool_]:
+        """Whether arms whose lowest points are ``lowest`` (n,) [m] above z_B = 0 clear pose k.
+
+        Above the ground's highest rise within the arm's reach: no need to look closer.
+        """
+        pose = self.poses[k]
+        return np.asarray(lowest / pose.cos_tilt - max(pose.highest, 0.0) >= ground)
+
+    def clear(
+        self, k: int, postures: ArrayLike, ground: float, body: PiecesB | None = None
+    ) -> NDArray[np.bool_]:
+        """Whether each posture (n, 4) [rad] keeps the arm ``ground`` [m] up at pose ``k``."""
+        b = self.body(postures) if body is None else body
+        return np.asarray(self.poses[k].heights(b, ground) >= ground - SLACK)
+
+    def sweep_clear(
+        self, ks: tuple[int, ...], q: ArrayLike, reach: FloatArray, ground: float
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Whether the polyline of postures q (n, 4) [rad] keeps the arm ``ground`` [m] up.
+
+        At every pose of ``ks``; sampled so that no arm point moves more than :data:`SWEEP`
+        between samples (``reach`` (4,) [m]: the bound Σ_j reach_j |Δq_j|). Returns per
+        posture (n,) and per segment (n − 1,) whether it does.
+        """
+        qa = np.atleast_2d(np.asarray(q, dtype=float))
+        parts, seg = [qa[:1]], [np.array([-1])]
+        for i, (a, b) in enumerate(zip(qa[:-1], qa[1:], strict=True)):
+            n = int(np.ceil(float(reach @ np.abs(b - a)) / SWEEP))
+            parts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+            seg.append(np.full(n, i))
+        samples, of = np.vstack(parts), np.concatenate(seg)
+        body = self.body(samples)
+        ok = np.all(
+            [self.poses[k].heights(body, ground, True) >= ground - SLACK for k in ks], axis=0
+        )
+        ends = np.r_[0, np.cumsum([len(x) for x in parts])[1:] - 1]  # the postures' samples
+        bad = of[~ok]
+        seg_ok = np.ones(len(qa) - 1, dtype=bool)
+        seg_ok[bad[bad >= 0]] = False
+        return ok[ends], seg_ok
+
+
+class KeptPieces:
+    """The pieces in B of postures (N, 4) [rad], each computed once (pose-independent).
+
+    Args:
+        under: the ground under the arm (its robot and pieces).
+        postures: the postures rows index (N, 4) [rad].
+    """
+
+    def __init__(self, under: GroundUnderArm, postures: FloatArray) -> None:
+        self.under, self.postures = under, postures
+        self.slot = np.full(len(postures), -1, dtype=np.intp)
+        self.low = np.zeros((0, len(under.pieces.link)))
+        self.centre = np.zeros((0, len(under.pieces.link), 3))
+
+    def add(self, rows: NDArray[np.intp]) -> None:
+        """Compute the pieces of ``rows`` not kept yet, in one batch."""
+        new = np.unique(rows)
+        new = new[self.slot[new] < 0]
+        if new.size:
+            body = self.under.body(self.postures[new])
+            self.slot[new] = len(self.low) + np.arange(len(new))
+            self.low = np.concatenate([self.low, body.low])
+            self.centre = np.concatenate([self.centre, body.centre])
+
+    def __call__(self, rows: NDArray[np.intp]) -> PiecesB:
+        """The pieces of ``rows`` (n,)."""
+        self.add(rows)
+        at = self.slot[rows]
+        return PiecesB(self.low[at], self.centre[at])
