@@ -233,12 +233,15 @@ class NodeClearance:
     :class:`mmstab.planner.under_arm.GroundUnderArm`) a node must also keep its arm
     ``ground`` above the terrain under it at the pose it is chosen for: measured lazily for
     the nodes chosen (:meth:`measure`), those found too low at pose k learnt (:meth:`low`).
+    ``excluded`` holds other per-pose tests, known for every row at once: pose k's mask of
+    the eligible rows it may not choose (the climb limit, :mod:`mmstab.planner.climbing`).
     """
 
     roadmap: Roadmap
     reach: NDArray[np.intp]
     ground: float | None = GROUND_CLEARANCE
     under: GroundUnderArm | None = None
+    excluded: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
     _low: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
     _known: dict[int, NDArray[np.bool_]] = dataclasses.field(default_factory=dict)
 
@@ -268,9 +271,12 @@ class NodeClearance:
         return KeptPieces(self.under, self.roadmap.nodes_q[self.reach])
 
     def low(self, poses: int) -> list[NDArray[np.intp]]:
-        """Per pose, the eligible rows measured too low above the ground there (ascending)."""
-        none = np.zeros(0, dtype=np.intp)
-        return [np.flatnonzero(self._low[k]) if k in self._low else none for k in range(poses)]
+        """Per pose, the eligible rows it may not choose: too low there, or ``excluded``."""
+        out = []
+        for k in range(poses):
+            masks = [m[k] for m in (self._low, self.excluded) if k in m]
+            out.append(np.flatnonzero(np.logical_or.reduce(masks)) if masks else _NONE)
+        return out
 
     def measure(self, rows: list[NDArray[np.intp]]) -> None:
         """Measure each pose's ``rows`` against the ground under the arm there (learnt)."""
@@ -301,6 +307,9 @@ class NodeClearance:
             return np.ones(len(rows), dtype=bool)
         self.measure([np.zeros(0, dtype=np.intp)] * k + [np.asarray(rows)])
         return np.asarray(~self._low[k][rows])
+
+
+_NONE = np.zeros(0, dtype=np.intp)
 
 
 class Candidates(NamedTuple):

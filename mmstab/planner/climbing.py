@@ -12,7 +12,7 @@ robot needs momentum there (``ClimbPlan.stalls``).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -85,3 +85,32 @@ def climb_plan(robot: Robot, terrain: Terrain, poses: ArrayLike, closed: bool) -
 def overall_coms(robot: Robot, arm_com_body: ArrayLike) -> FloatArray:
     """The overall CoM in B (N, 3) [m] of arm CoMs (N, 3) in B [m] (Eq. 5)."""
     return np.atleast_2d(robot.overall_com(np.asarray(arm_com_body, dtype=float)))
+
+
+def climb_exclusions(
+    robot: Robot,
+    plan: ClimbPlan,
+    arm_com_body: FloatArray,
+    eligible: NDArray[np.bool_],
+    fits: list[Any],
+) -> dict[int, NDArray[np.bool_]]:
+    """Per constrained pose, the eligible rows whose posture cannot climb its step.
+
+    A pose where no eligible stable row (μ > 0) climbs keeps them all (it is left out):
+    the plan may stall there, and the route's report says so.
+
+    Args:
+        robot: the robot.
+        plan: the climb limit along the route.
+        arm_com_body: the rows' arm CoMs, body frame (N, 3) [m].
+        eligible: the rows any pose may choose (N,).
+        fits: Eq. 6 per pose (their ``mu``).
+    """
+    com = overall_coms(robot, arm_com_body)
+    out: dict[int, NDArray[np.bool_]] = {}
+    for k in np.flatnonzero(plan.constrained):
+        climbs = plan.eligible(int(k), com) & eligible
+        rows = np.flatnonzero(climbs)
+        if rows.size and (fits[k].mu(arm_com_body[rows]) > 0).any():
+            out[int(k)] = eligible & ~climbs
+    return out

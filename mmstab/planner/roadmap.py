@@ -25,6 +25,7 @@ from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
+from mmstab.planner.climbing import ClimbPlan, climb_exclusions
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.grounded import ground_graph
 from mmstab.planner.motion import motion_cost, transitions
@@ -290,6 +291,7 @@ def solve_roadmap_sequence(
     poses: FloatArray,
     start_q: FloatArray | None = None,
     under: GroundUnderArm | None = None,
+    climb: ClimbPlan | None = None,
 ) -> RoadmapSequence:
     """Choose one reachable roadmap node per pose (module text).
 
@@ -304,6 +306,8 @@ def solve_roadmap_sequence(
         start_q: the arm's start posture (4,) [rad]; default the stowed arm.
         under: the ground under the arm at each pose: a node too low above it at pose k is
             no candidate there, a move too low at the poses it joins is not chosen.
+        climb: the climb limit along the poses: at a constrained pose only nodes whose
+            overall CoM lets the tracks climb its step (:mod:`mmstab.planner.climbing`).
 
     Raises:
         NoPlanError: some pose has no reachable stable posture (the message names it).
@@ -322,6 +326,8 @@ def solve_roadmap_sequence(
     fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
     ground = settings.ground_clearance
     clear = NodeClearance(roadmap, reach, ground, under)
+    if climb is not None:
+        clear.excluded.update(climb_exclusions(robot, climb, samples, clear.eligible(), fits))
     cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)

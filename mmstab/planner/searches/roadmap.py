@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from mmstab.core.files import MmstabError
+from mmstab.planner.climbing import climb_plan
 from mmstab.planner.roadmap import solve_roadmap_sequence
 from mmstab.planner.search import PathChoice, PathTask, PoseChoice, PoseTask
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
@@ -33,6 +34,9 @@ class RoadmapSearch:
         under = None
         if task.terrain is not None and task.poses is not None:  # the ground under the arm
             under = GroundUnderArm(task.robot, task.terrain, task.poses)
+        climb = None
+        if task.settings.climb and task.terrain is not None and task.poses is not None:
+            climb = climb_plan(task.robot, task.terrain, task.poses, task.closed)
         seq = solve_roadmap_sequence(
             task.robot,
             task.gravity_body,
@@ -42,6 +46,7 @@ class RoadmapSearch:
             task.closed,
             poses,
             under=under,
+            climb=climb,
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
