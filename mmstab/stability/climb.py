@@ -41,11 +41,10 @@ from numpy.typing import ArrayLike
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain.base import Terrain
 
-#: Spacing of the ground samples ahead of the front wheels [m] (the maps' cells are 2-5 cm).
+#: Spacing of the ground samples ahead of the front wheels, and the step of the wheel rolled
+#: over them [m]: it sinks at most this far into an edge between two rolls, which tilts the
+#: normal found by ~SAMPLE_STEP / r (0.3° at 0.5 mm; the maps' cells are 2-5 cm).
 SAMPLE_STEP = 0.0005
-#: Step of the wheel rolled forward over them [m]: it sinks at most this far into an edge
-#: between two rolls, which tilts the normal found by ~ROLL_STEP / r (0.3° at 0.5 mm).
-ROLL_STEP = 0.0005
 #: A rise of the ground ahead of the front wheel below this is not a step [m] (the rough
 #: ground's 3 cm bumps meet the wheel at 55° and more: never binding).
 MIN_STEP = 0.02
@@ -105,28 +104,32 @@ def step_profile(
     return ground_B[..., 0] - t.length / 2, ground_B[..., 2]
 
 
-def _worst_contact(
-    du: FloatArray, z: FloatArray, roll: FloatArray, r: float
-) -> tuple[float, float]:
-    """The most horizontal contact normal met rolling the front wheels ``roll`` [m] ahead.
+def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
+    """The most horizontal contact normal met rolling the front wheels ahead.
 
-    The wheel rolled s ahead rests on the highest of the plane (centre at r) and the ground
-    samples (u_j, z_j) [m] within r of it (centre z_j + sqrt(r² − (u_j − s)²)); the normal at
-    the touching sample rises θ above the horizontal, sin θ = (centre − z_j) / r.
+    The samples z (2, S) [m] lie at u_j = (j + 1) ``SAMPLE_STEP`` ahead of the axle; the
+    wheel rolled s_k = k ``SAMPLE_STEP`` ahead (k < ``rolls``) rests on the highest of the
+    plane (centre at r) and the samples within r of it (centre z_j + sqrt(r² − (u_j − s_k)²),
+    a window of samples about k); the normal at the touching sample rises θ above the
+    horizontal, sin θ = (centre − z_j) / r.
 
     Returns:
         (the smallest sin θ over both tracks and every roll; the roll where it occurs [m]).
     """
-    d = du[:, None, :] - roll[:, None]  # (2, R, S)
-    near = np.abs(d) < r
-    centre = np.where(near, z[:, None, :] + np.sqrt(np.maximum(r**2 - d**2, 0.0)), -np.inf)
+    w = int(np.ceil(r / SAMPLE_STEP))
+    offset = np.arange(-w, w + 1) * SAMPLE_STEP  # u_j - s_k over the window
+    lift = np.where(np.abs(offset) < r, np.sqrt(np.maximum(r**2 - offset**2, 0.0)), -np.inf)
+    pad = np.full((2, w + 1), -np.inf)
+    zpad = np.concatenate([pad, z, pad], axis=1)  # window k holds samples k - w - 1 ...
+    windows = np.lib.stride_tricks.sliding_window_view(zpad, 2 * w + 1, axis=1)[:, :rolls]
+    centre = windows + lift  # (2, R, 2w + 1)
     j = centre.argmax(axis=-1)
     top = np.take_along_axis(centre, j[..., None], -1)[..., 0]
-    touch = np.take_along_axis(np.broadcast_to(z[:, None, :], centre.shape), j[..., None], -1)
+    touch = np.take_along_axis(windows, j[..., None], -1)[..., 0]
     # a sample at or above the centre pushes the wheel down: a wall (sin θ <= 0, no climb)
-    sin_roll = np.where(top <= r, 1.0, np.clip((top - touch[..., 0]) / r, -1.0, 1.0))
+    sin_roll = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
     k = int(sin_roll.argmin())
-    return float(sin_roll.ravel()[k]), float(roll[k % len(roll)])
+    return float(sin_roll.ravel()[k]), float((k % sin_roll.shape[1]) * SAMPLE_STEP)
 
 
 def climb_limit(
@@ -147,10 +150,10 @@ def climb_limit(
     r, L, mu = t.height / 2, t.length, float(friction)
     du, z = step_profile(robot, terrain, p, lookahead)  # (N, 2, S)
     z = np.where(np.isfinite(z), z, -np.inf)  # off the map: no ground to meet
-    roll = np.arange(0.0, lookahead + 1e-12, ROLL_STEP)
+    rolls = int(np.floor(lookahead / SAMPLE_STEP + 1e-9)) + 1
     sin_t, ahead = np.ones(n), np.full(n, np.inf)
     for i in range(n):  # one pose at a time: (2, rolls, samples) each
-        sin_t[i], ahead[i] = _worst_contact(du[i], z[i], roll, r)
+        sin_t[i], ahead[i] = _worst_contact(z[i], rolls, r)
     h = r * (1.0 - sin_t)  # the edge's height above the wheel's support
     wall = sin_t <= 0.0  # touched at or above the axle: no front wheel climbs it
     step = (h > MIN_STEP) | wall
