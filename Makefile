@@ -237,9 +237,9 @@ rough: setup
 
 ## issue 25 (docs/physics.md): the ramp lap and the shipped routes in MuJoCo with the controller
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. The routes' planned
-## arm runs end on a failing verdict (the kerb: the arm touches it while the front-heavy robot
-## stalls at its face, exit 5; rough.yaml: it slides where mmstab says so, then the arm reaching
-## for its reference touches the ground, exit 5) and make goes on ("-"); docs/physics.md.
+## arm runs end on a failing verdict (the kerb: its wrist grazes the kerb's top as the body rocks
+## over the edge, exit 5; rough.yaml: it slides where mmstab says so, then the arm reaching for
+## its reference touches the ground, exit 5) and make goes on ("-"); docs/physics.md.
 .PHONY: physics bench-physics
 physics: setup
 	$(MMSTAB) simulate problems/ramp.yaml -o results/physics
