@@ -148,7 +148,7 @@ def test_the_check_is_a_lower_bound_of_the_dense_heights(robot, small, seed):
     under = GroundUnderArm(robot, terrain, poses)
     rng = np.random.default_rng(seed)
     up = np.flatnonzero(small.node_ground >= GROUND)
-    rows = rng.choice(up, min(1500, len(up)), replace=False)
+    rows = rng.choice(up, min(400, len(up)), replace=False)
     q = small.nodes_q[rows]
     gaps, low = [], 0
     for k in range(len(poses)):
