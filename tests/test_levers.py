@@ -322,7 +322,7 @@ def test_levers_subprocess_small(tmp_path):
         [sys.executable, "-m", "mmstab", "levers", str(path), "-o", str(out)],
         capture_output=True,
         text=True,
-        cwd=tmp_path,
+        cwd=PROBLEMS.parent,  # the repository's workspace and roadmap caches (rough.yaml's)
         env=env,
         timeout=600,
     )
