@@ -9,7 +9,7 @@ import pytest
 
 import mmstab
 from mmstab import app
-from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan, overall_coms
+from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
 from mmstab.runs.verdict import climb_verdict
 from mmstab.stability.climb import ClimbLimit
 
@@ -35,7 +35,7 @@ def test_the_kerb_route_constrains_the_pose_before_the_kerb_and_the_next(kerb) -
     v = climb_verdict(kerb.robot, kerb.terrain, poses, plan.target_com, False)
     assert v["stalls"] is False and v["stowed_stalls"] is True
     assert [s["planned_climbs"] for s in v["steps"]] == [True, True]
-    com = overall_coms(kerb.robot, plan.target_com)
+    com = kerb.robot.overall_com(plan.target_com)
     assert np.all(c.climbs(com)) and np.all(com[c.constrained, 0] < 0.025)
 
 
@@ -56,9 +56,8 @@ def test_without_the_limit_the_plan_keeps_the_arm_ahead_and_stalls(kerb, tmp_pat
 
 def _limit(bounds: list[float]) -> ClimbLimit:
     n = len(bounds)
-    finite = np.isfinite(bounds) | (np.asarray(bounds) < 0)
     return ClimbLimit(
-        step=np.array(finite, bool), height=np.full(n, 0.1), angle=np.full(n, 0.2),
+        step=np.asarray(bounds) < np.inf, height=np.full(n, 0.1), angle=np.full(n, 0.2),
         ahead=np.zeros(n), com_gain=np.tile([1.0, 0.0], (n, 1)), com_bound=np.array(bounds),
     )  # fmt: skip
 
@@ -73,7 +72,7 @@ def test_exclusions_keep_a_pose_no_posture_climbs(kerb) -> None:
     robot = kerb.robot
     rng = np.random.default_rng(5)
     arm_com = rng.uniform([-0.6, -0.6, 0.0], [0.8, 0.6, 0.8], size=(400, 3))
-    x = overall_coms(robot, arm_com)[:, 0]
+    x = robot.overall_com(arm_com)[:, 0]
     plan = ClimbPlan(_limit([np.inf, 0.0, -np.inf]), np.array([-1, 1, 2]))
     eligible = rng.random(400) > 0.1
     out = climb_exclusions(robot, plan, arm_com, eligible, [_Fit()] * 3)

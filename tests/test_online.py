@@ -177,12 +177,18 @@ def test_what_the_map_does_not_cover_is_reported(tmp_path: Path) -> None:
     assert all(run.s_grid[k] <= reached for k in planned)  # nothing planned unseen
 
 
-def test_maps_before_odometry_are_skipped_and_frames_must_match(tmp_path: Path) -> None:
+def _short_recording(tmp_path: Path) -> tuple[mmstab.Problem, Path, list]:
+    """A noiseless 1 s recording of the test route, and its maps' and odometry's messages."""
     problem = mmstab.load_problem(problem_file(tmp_path, noise=0.0, unknown=0.0))
     path = tmp_path / "r.mcap"
     record_route(problem, path, 1.0)
-    store = typestore(False)
     msgs = list(messages(path, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
+    return problem, path, msgs
+
+
+def test_maps_before_odometry_are_skipped_and_frames_must_match(tmp_path: Path) -> None:
+    problem, path, msgs = _short_recording(tmp_path)
+    store = typestore(False)
     late = tmp_path / "late.mcap"
     with BagWriter(late, store) as w:  # maps from 0 s, odometry only from 0.5 s
         for m in msgs:
@@ -203,11 +209,8 @@ def test_a_map_in_another_frame_takes_the_odometry_through_tf(tmp_path: Path) ->
     from mmstab.runs.online.frames import pose_matrix
     from mmstab.runs.recording import transform_stamped
 
-    problem = mmstab.load_problem(problem_file(tmp_path, noise=0.0, unknown=0.0))
-    path = tmp_path / "r.mcap"
-    record_route(problem, path, 1.0)
+    problem, path, msgs = _short_recording(tmp_path)
     store = typestore(False)
-    msgs = list(messages(path, {"/elevation_mapping/elevation_map": GRIDMAP, "/odom": ODOMETRY}))
     truth = [
         u.odometry.pose for u in map_updates(path, "/elevation_mapping/elevation_map", "/odom")
     ]

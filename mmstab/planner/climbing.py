@@ -44,9 +44,7 @@ class ClimbPlan(NamedTuple):
         c = np.atleast_2d(np.asarray(com_body, dtype=float))
         ok = np.ones(len(self.source), dtype=bool)
         at = np.flatnonzero(self.constrained)
-        src = self.source[at]
-        lhs = self.limit.com_gain[src, 0] * c[at, 0] + self.limit.com_gain[src, 1] * c[at, 2]
-        ok[at] = lhs <= self.limit.com_bound[src]
+        ok[at] = self.limit.keeps(self.source[at], c[at])
         return ok
 
     def eligible(self, k: int, com_body: FloatArray) -> NDArray[np.bool_]:
@@ -54,8 +52,7 @@ class ClimbPlan(NamedTuple):
         src = int(self.source[k])
         if src < 0:
             return np.ones(len(com_body), dtype=bool)
-        g, b = self.limit.com_gain[src], self.limit.com_bound[src]
-        return np.asarray(g[0] * com_body[:, 0] + g[1] * com_body[:, 2] <= b)
+        return self.limit.keeps(src, com_body)
 
 
 def climb_plan(robot: Robot, terrain: Terrain, poses: ArrayLike, closed: bool) -> ClimbPlan:
@@ -82,11 +79,6 @@ def climb_plan(robot: Robot, terrain: Terrain, poses: ArrayLike, closed: bool) -
     return ClimbPlan(limit, source)
 
 
-def overall_coms(robot: Robot, arm_com_body: ArrayLike) -> FloatArray:
-    """The overall CoM in B (N, 3) [m] of arm CoMs (N, 3) in B [m] (Eq. 5)."""
-    return np.atleast_2d(robot.overall_com(np.asarray(arm_com_body, dtype=float)))
-
-
 def climb_exclusions(
     robot: Robot,
     plan: ClimbPlan,
@@ -106,7 +98,7 @@ def climb_exclusions(
         eligible: the rows any pose may choose (N,).
         fits: Eq. 6 per pose (their ``mu``).
     """
-    com = overall_coms(robot, arm_com_body)
+    com = robot.overall_com(arm_com_body)
     out: dict[int, NDArray[np.bool_]] = {}
     for k in np.flatnonzero(plan.constrained):
         climbs = plan.eligible(int(k), com) & eligible

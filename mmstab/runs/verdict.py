@@ -191,12 +191,12 @@ def climb_verdict(
         height [m] and edge angle [rad], whether the planned and the stowed arm climb it),
         ``stalls`` (the planned arm cannot climb one), ``stowed_stalls``.
     """
-    from mmstab.planner.climbing import climb_plan, overall_coms
+    from mmstab.planner.climbing import climb_plan
 
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     plan = climb_plan(robot, terrain, P, closed)
-    planned = plan.climbs(overall_coms(robot, arm_com_body))
-    stowed = plan.climbs(overall_coms(robot, np.tile(robot.arm_com(robot.stowed), (len(P), 1))))
+    planned = plan.climbs(robot.overall_com(np.asarray(arm_com_body, dtype=float)))
+    stowed = plan.climbs(np.tile(robot.overall_com(robot.arm_com(robot.stowed)), (len(P), 1)))
     lim = plan.limit
     steps = [
         {

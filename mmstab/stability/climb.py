@@ -36,10 +36,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.terrain.base import Terrain
+from mmstab.terrain.base import GRAVITY_G, Terrain
 
 #: Spacing of the ground samples ahead of the front wheels, and the step of the wheel rolled
 #: over them [m]: it sinks at most this far into an edge between two rolls, which tilts the
@@ -72,29 +72,32 @@ class ClimbLimit(NamedTuple):
 
     def climbs(self, com_body: ArrayLike) -> np.ndarray:
         """Whether the overall CoM (N, 3) or (3,) in B [m] satisfies the condition, per pose."""
+        return self.keeps(np.arange(len(self.step)), com_body)
+
+    def keeps(self, k: int | NDArray[np.intp], com_body: ArrayLike) -> np.ndarray:
+        """Whether overall CoMs (M, 3) in B [m] lie in pose ``k``'s half-plane (k: (M,) or one)."""
         c = np.atleast_2d(np.asarray(com_body, dtype=float))
-        lhs = self.com_gain[:, 0] * c[:, 0] + self.com_gain[:, 1] * c[:, 2]
-        return np.asarray(lhs <= self.com_bound)
+        gain, bound = self.com_gain[k], self.com_bound[k]
+        return np.asarray(gain[..., 0] * c[:, 0] + gain[..., 1] * c[:, 2] <= bound)
 
 
 def step_profile(
-    robot: Robot, terrain: Terrain, poses: ArrayLike, lookahead: float
+    robot: Robot, terrain: Terrain, G_T_B: ArrayLike, lookahead: float
 ) -> tuple[FloatArray, FloatArray]:
     """The ground ahead of each front wheel in B: forward offsets and heights (N, 2, S) [m].
 
     Samples along both tracks' centre lines from the front axle to ``r + lookahead`` ahead
     of it (``lookahead`` [m]), each the terrain's surface under the point, written in the
-    resting body frame: (x_B − L/2, z_B). NaN off the map.
+    resting body frame ``G_T_B`` (N, 4, 4): (x_B − L/2, z_B). NaN off the map.
     """
-    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    G_T_B = np.asarray(G_T_B, dtype=float).reshape(-1, 4, 4)
     t = robot.base.tracks
     r = t.height / 2
     u = np.arange(SAMPLE_STEP, r + lookahead + 1e-12, SAMPLE_STEP)
     side = np.array([t.separation / 2, -t.separation / 2])
     pts_B = np.zeros((2, len(u), 4))
     pts_B[..., 0], pts_B[..., 1], pts_B[..., 3] = t.length / 2 + u, side[:, None], 1.0
-    M_T_B = np.asarray(terrain.M_T_B(p)).reshape(len(p), 4, 4)
-    G_T_B = np.asarray(terrain.G_T_B(p)).reshape(len(p), 4, 4)
+    M_T_B = np.linalg.inv(terrain.G_T_M()) @ G_T_B
     pts_M = np.einsum("nij,ksj->nksi", M_T_B, pts_B)
     ground_G = terrain.surface_G(pts_M[..., 0], pts_M[..., 1])  # (N, 2, S, 3)
     ones = np.ones((*ground_G.shape[:-1], 1))
@@ -148,7 +151,8 @@ def climb_limit(
     p = np.atleast_2d(np.asarray(poses, dtype=float))
     t, n = robot.base.tracks, len(p)
     r, L, mu = t.height / 2, t.length, float(friction)
-    du, z = step_profile(robot, terrain, p, lookahead)  # (N, 2, S)
+    G_T_B = np.asarray(terrain.G_T_B(p)).reshape(n, 4, 4)  # one rest solve for everything
+    du, z = step_profile(robot, terrain, G_T_B, lookahead)  # (N, 2, S)
     z = np.where(np.isfinite(z), z, -np.inf)  # off the map: no ground to meet
     rolls = int(np.floor(lookahead / SAMPLE_STEP + 1e-9)) + 1
     sin_t, ahead = np.ones(n), np.full(n, np.inf)
@@ -162,7 +166,7 @@ def climb_limit(
     cos_t = np.sqrt(1.0 - sin_t**2)
     a = L + r * cos_t  # the edge ahead of the rear contact, x_E - x_r
     D = a * (sin_t + mu * cos_t) + h * (cos_t - mu * sin_t)
-    g = np.asarray(terrain.gravity_body(p)).reshape(n, 3)
+    g = GRAVITY_G @ G_T_B[:, :3, :3]  # gravity in B: R_GB^T g_G per pose
     k = cos_t * (1 + mu**2)
     gain = np.stack([-g[:, 2] * k, g[:, 0] * k], axis=1)
     bound = D * (g[:, 0] - mu * g[:, 2]) - gain[:, 0] * L / 2  # x_c - x_r = x_c + L / 2
