@@ -114,6 +114,13 @@ VERDICTS ?= problems/verdicts.yaml
 verdicts: setup
 	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
 
+## issue 25: mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
+## -> results/skid/summary.json, skid.png (docs/physics.md, "Sliding in turns")
+.PHONY: skid
+SKID ?= problems/skid.yaml
+skid: setup
+	$(PY) -m mmstab.experiments.skid $(SKID)
+
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
 tracking: setup

@@ -18,7 +18,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
-from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict
+from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict, turn_check
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
 from mmstab.terrain import roll_pitch
@@ -156,6 +156,15 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     }
 
 
+def lap_slip(problem: Problem, poses: list[dict[str, Any]]) -> dict[str, Any]:
+    """The slip verdict of a lap plan's poses: the friction cone and the lap's turns."""
+    coms = [p["target_com"] for p in poses]
+    lap = float(problem.section("controller")["lap_time"])  # a circle: one lap
+    times = [lap * p["fraction"] for p in poses]
+    turns = turn_check(problem, coms, times, lap if problem.base_path.closed else None)
+    return slip_verdict(problem.terrain, [p["pose"] for p in poses], turns)
+
+
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
     ws = workspace(problem)
@@ -168,7 +177,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     summary["stability"] = plan_verdict(
         summary["poses"], planner_margin(problem.section("planner"))
     )
-    summary["slip"] = slip_verdict(problem.terrain, [p["pose"] for p in summary["poses"]])
+    summary["slip"] = lap_slip(problem, summary["poses"])
     quality = lap_quality(
         problem, planning_region(ws, problem.section("workspace")["method"]), plan
     )

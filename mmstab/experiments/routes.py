@@ -36,7 +36,13 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, route_corners, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
 from mmstab.runs.recording import frames_at, write_run
-from mmstab.runs.verdict import climb_verdict, plan_verdict, planner_margin, slip_verdict
+from mmstab.runs.verdict import (
+    climb_verdict,
+    plan_verdict,
+    planner_margin,
+    slip_verdict,
+    turn_check,
+)
 from mmstab.stability.static import mu_max
 
 #: Robot snapshots drawn in the 3-D figure.
@@ -53,7 +59,8 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
     from mmstab.stability.static import stability_along
 
     mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
-    slip = slip_verdict(problem.terrain, plan.poses)
+    times = np.asarray(plan.fractions) * route.lap_time
+    slip = slip_verdict(problem.terrain, plan.poses, turn_check(problem, plan.target_com, times))
     poses = [
         {
             "s": float(plan.s[k]),

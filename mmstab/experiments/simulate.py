@@ -150,19 +150,32 @@ def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
     """The base error away from mmstab's predicted slip.
 
     Where none of the simulated poses of the last ``slip_window`` is flagged by mmstab's
-    slip check (the issue's bar: the routes track where mmstab predicts no slide).
+    slip check (the issue's bar: the routes track where mmstab predicts no slide): the
+    friction cone at the simulated pose (:mod:`mmstab.stability.slip`) or the reference
+    path's slide (its turns, :mod:`mmstab.stability.skid`, or its pose beyond the cone); the
+    cone at the simulated pose alone beside it.
     """
-    flags = np.zeros(len(run.t), bool) if run.slip_predicted is None else run.slip_predicted
-    dt = run.t[1] - run.t[0] if len(run.t) > 1 else loop.control_dt
+    n = len(run.t)
+    none = np.zeros(n, bool)
+    braked = none if run.slip_predicted is None else np.asarray(run.slip_predicted, bool)
+    path = none if run.path_slip_predicted is None else np.asarray(run.path_slip_predicted, bool)
+    dt = run.t[1] - run.t[0] if n > 1 else loop.control_dt
     window = max(int(round(loop.slip_window / dt)), 1)
-    recent = np.convolve(flags.astype(float), np.ones(window))[: len(flags)] > 0
-    clear = ~recent
+
+    def clear(flags: np.ndarray) -> np.ndarray:
+        return ~(np.convolve(flags.astype(float), np.ones(window))[:n] > 0)
+
+    def worst(mask: np.ndarray) -> float | None:
+        return float(run.base_error[mask].max()) if mask.any() else None
+
+    both, cone = clear(braked | path), clear(braked)
     return {
-        "slip_predicted_fraction": float(flags.mean()),
-        "base_error_max_where_no_slip_predicted_m": float(run.base_error[clear].max())
-        if clear.any() else None,
-        "no_slip_predicted_fraction": float(clear.mean()),
-    }  # fmt: skip
+        "slip_predicted_fraction": float(braked.mean()),
+        "path_slip_predicted_fraction": float(path.mean()),
+        "base_error_max_where_no_slip_predicted_m": worst(both),
+        "no_slip_predicted_fraction": float(both.mean()),
+        "base_error_max_where_cone_holds_m": worst(cone),
+    }
 
 
 def _figure(path: Path, run: PhysicsRun) -> None:

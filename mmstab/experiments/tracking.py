@@ -29,7 +29,7 @@ from mmstab.runs.tracking import (
     TrackingRun,
     summarize,
 )
-from mmstab.runs.verdict import slip_verdict
+from mmstab.runs.verdict import slip_verdict, turn_check
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.viz.plotting import draw_base_topview, new_figure
 
@@ -95,7 +95,11 @@ def run_tracking(
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
-    summary |= {"slip": slip_verdict(problem.terrain, run.state[keep, :3])} | route_corners(problem)
+    arm_com = problem.robot.arm_com(run.state[keep, 5:])
+    slip = slip_verdict(
+        problem.terrain, run.state[keep, :3], turn_check(problem, arm_com, run.t[keep])
+    )
+    summary |= {"slip": slip} | route_corners(problem)
     save_settings(
         d,
         problem,

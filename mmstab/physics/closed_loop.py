@@ -35,7 +35,12 @@ from mmstab.control.approach import run_reference
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
-from mmstab.physics.loop_checks import TipCheck, contact_records, simulated_mu
+from mmstab.physics.loop_checks import (
+    TipCheck,
+    contact_records,
+    predicted_path_slip,
+    simulated_mu,
+)
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.stability.dynamic import robot_mu
@@ -102,6 +107,9 @@ class PhysicsRun:
             check before), or None.
         slip_predicted: mmstab's slip check at each simulated pose (its resting support
             tilted beyond atan(friction); :mod:`mmstab.stability.slip`) (N + 1,) bool.
+        path_slip_predicted: mmstab's prediction that the path slides there: its turns (the
+            skid-steer model on the reference) or its pose beyond the friction cone
+            (:func:`~mmstab.physics.loop_checks.predicted_path_slip`) (N + 1,) bool.
         cpu_seconds: CPU time of this process in the loop [s]: simulated time / it is the
             real-time factor on a core of one's own (a shared machine slows the wall time).
         arm_ground: 1 where an arm link touches the ground, 0 where none does (every
@@ -127,6 +135,7 @@ class PhysicsRun:
     arm_ground: FloatArray | None = None
     cpu_seconds: float | None = None
     slip_predicted: FloatArray | None = None
+    path_slip_predicted: FloatArray | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -348,5 +357,7 @@ def _finish(
         mu_predicted=np.asarray(mu_pred), mu_simulated=mu_sim, tilt_error=tilt, slip=slip,
         tipped=tipped, slid=float(t[over[0]]) if len(over) else None,
         slip_predicted=slip_limit(gravity, terrain_friction(problem.terrain)).slides,
+        path_slip_predicted=predicted_path_slip(problem, ref, dt, ctrl_settings.base_offset,
+                                                loop.slip_window, loop.slip_distance),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
     )  # fmt: skip

@@ -131,3 +131,54 @@ class TipCheck:
                     self.index = self.index[: j + 1]
                     return True
         return False
+
+
+def predicted_path_slip(
+    problem: Problem,
+    ref: FloatArray,
+    dt: float,
+    base_offset: float,
+    window: float,
+    distance: float,
+    every: int = 25,
+) -> FloatArray:
+    """Whether mmstab predicts the path slides (its turns or its cone), per sample (N,) bool.
+
+    The reference's base pose and rates (the control point ``base_offset`` [m] ahead, its
+    heading) give the path's forward speed and yaw rate; the skid-steer model
+    (:func:`mmstab.stability.skid.turn_slide`) the downhill slide rate at each ``every``-th
+    sample with the reference posture's CoM; a sample is flagged where the slide over the
+    last ``window`` [s] exceeds ``distance`` [m] (the loop's slip threshold). A reference pose
+    beyond the friction cone is flagged too (the path's own prediction; the loop's cone flag,
+    ``PhysicsRun.slip_predicted``, is at the simulated pose).
+
+    Args:
+        problem: the problem (robot, terrain and its friction).
+        ref: the packed step references (N, 15 + 2n) (:class:`StepReference`).
+        dt: their period [s].
+        base_offset: the control point ahead of B's origin [m].
+        window: the slip window [s].
+        distance: the slip distance [m].
+        every: samples between the model's evaluations [-].
+    """
+    from mmstab.control.layout import StepReference
+    from mmstab.stability.skid import track_patch, turn_slide
+    from mmstab.stability.slip import terrain_friction
+
+    robot, r = problem.robot, StepReference.unpack(ref)
+    idx = np.arange(0, len(ref), every)
+    xi, rate = np.asarray(r.xi_des)[idx], np.asarray(r.xi_dot_ref)[idx]
+    c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
+    poses = np.c_[xi[:, 0] - base_offset * c, xi[:, 1] - base_offset * s, xi[:, 2]]
+    speed = rate[:, 0] * c + rate[:, 1] * s  # the point's speed along the heading = B's
+    com = robot.overall_com(np.asarray(robot.kinematics.f_arm_com.map(len(idx))(
+        np.asarray(r.q_ref)[idx].T)).T)  # fmt: skip
+    slide = turn_slide(track_patch(robot), problem.terrain.gravity_body(poses), com, speed,
+                       rate[:, 2], terrain_friction(problem.terrain)).rate  # fmt: skip
+    slide[~np.isfinite(slide)] = 1e3  # beyond the friction cone at the reference pose
+    step = every * dt
+    acc = np.concatenate([[0.0], np.cumsum(slide * step)])
+    lag = max(int(round(window / step)), 1)
+    k = np.arange(1, len(acc))
+    flags = (acc[k] - acc[np.maximum(k - lag, 0)]) > distance
+    return np.repeat(flags, every)[: len(ref)]

@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from mmstab.core.files import UnstableError
 from mmstab.stability.dynamic import robot_mu
-from mmstab.stability.slip import terrain_slip
+from mmstab.stability.slip import terrain_friction, terrain_slip
 from mmstab.stability.static import stability_along
 
 if TYPE_CHECKING:
@@ -142,16 +142,20 @@ def describe_tipping(tipped: Mapping[str, Any]) -> str:
     )
 
 
-def slip_verdict(terrain: Terrain, poses: Any) -> dict[str, Any]:
-    """Whether the tracks hold at every base pose (the friction cone, :mod:`..slip`).
+def slip_verdict(terrain: Terrain, poses: Any, turns: TurnCheck | None = None) -> dict[str, Any]:
+    """Whether the tracks hold at every base pose and in every turn (:mod:`..slip`, ``..skid``).
 
     Args:
         terrain: the ground (its ``friction``).
-        poses: base poses (x [m], y [m], heading [rad]) (N, 3) in the terrain's map frame.
+        poses: base poses (x [m], y [m], heading [rad]) (N, 3) in the terrain's map frame, in
+            driving order.
+        turns: what the turns between the poses need (the robot, the arm's CoM, the slide that
+            counts); None: the friction cone at the poses only.
 
     Returns:
         ``slides``, ``friction``, ``critical_tilt`` [rad], ``tilt_max`` [rad],
-        ``margin_min`` [rad] and ``sliding_poses`` (index, pose, tilt [rad]).
+        ``margin_min`` [rad] and ``sliding_poses`` (index, pose, tilt [rad]); with ``turns``,
+        ``turns`` (:func:`turn_slip`) and ``slides`` also where a turn slides.
     """
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     if P.size == 0:
@@ -161,7 +165,7 @@ def slip_verdict(terrain: Terrain, poses: Any) -> dict[str, Any]:
         {"index": int(k), "pose": [float(v) for v in P[k]], "tilt": float(slip.tilt[k])}
         for k in np.flatnonzero(slip.slides)
     ]
-    return {
+    out: dict[str, Any] = {
         "slides": bool(bad),
         "friction": slip.friction,
         "critical_tilt": slip.critical_tilt,
@@ -169,6 +173,103 @@ def slip_verdict(terrain: Terrain, poses: Any) -> dict[str, Any]:
         "margin_min": float(np.min(slip.margin)),
         "criterion": "tilt of the support <= atan(friction) at every pose",
         "sliding_poses": bad,
+    }
+    if turns is not None and len(P) > 1:
+        turning = turn_slip(terrain, P, turns)
+        out["turns"] = turning
+        out["slides"] = bool(bad) or bool(turning["sliding_turns"])
+    return out
+
+
+class TurnCheck(NamedTuple):
+    """What :func:`turn_slip` needs besides the poses.
+
+    Attributes:
+        robot: the robot.
+        arm_com_body: the arm's CoM at each pose, body frame (N, 3) or (3,) [m].
+        times: when the path reaches each pose (N,) [s].
+        distance: a downhill slide beyond this within ``window`` slides [m]
+            (``physics.slip_distance``).
+        window: [s] (``physics.slip_window``).
+        period: the loop's period when the poses close a loop (the last turns into the
+            first), else None [s].
+    """
+
+    robot: Robot
+    arm_com_body: Any
+    times: Any
+    distance: float
+    window: float
+    period: float | None = None
+
+
+def turn_check(
+    problem: Problem, arm_com_body: Any, times: Any, period: float | None = None
+) -> TurnCheck:
+    """The problem's :class:`TurnCheck`: the slide and window of its ``physics:`` section.
+
+    Args:
+        problem: the problem.
+        arm_com_body: the arm's CoM at each pose, body frame (N, 3) [m].
+        times: when the path reaches each pose (N,) [s].
+        period: the loop's period [s] (closed paths), else None.
+    """
+    s = problem.section("physics")
+    return TurnCheck(problem.robot, arm_com_body, times, float(s["slip_distance"]),
+                     float(s["slip_window"]), period)  # fmt: skip
+
+
+def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
+    """The downhill slide the turns between consecutive poses cost (:mod:`..skid`).
+
+    Each segment's heading change costs the skid-steer model's slide per radian (the worse of
+    its two end poses, the belts at the segment's ratio of forward travel to turn), spread over
+    the segment's time. A segment slides when the slide within any ``check.window`` ending in
+    it exceeds ``check.distance`` (the closed loop's "slid": the controller makes up a slower
+    slide); a run of such segments is a sliding turn. Poses beyond the friction cone are the
+    cone's verdict, not a turn's.
+
+    Returns:
+        ``distance_m``, ``window_s``, ``slide_rate_max_m_s`` and ``sliding_turns`` (first and
+        last pose, the turn [rad], the largest slide within a window [m]).
+    """
+    from mmstab.core.masks import true_runs
+    from mmstab.stability.skid import track_patch, turn_slide
+
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    t = np.asarray(check.times, dtype=float)
+    closed = check.period is not None
+    nxt, t_end = (np.roll(P, -1, 0), np.r_[t[1:], t[0] + (check.period or 0.0)]) if closed else (
+        P[1:], t[1:])  # fmt: skip
+    start = P[: len(nxt)]
+    turn = np.angle(np.exp(1j * (nxt[:, 2] - start[:, 2])))
+    heading = np.c_[np.cos(start[:, 2]), np.sin(start[:, 2])]
+    travel = np.sum((nxt[:, :2] - start[:, :2]) * heading, 1)
+    robot, friction = check.robot, terrain_friction(terrain)
+    com = np.broadcast_to(robot.overall_com(np.asarray(check.arm_com_body, float)), P.shape)
+    per_radian = np.zeros(len(nxt))
+    for ends, c in ((start, com[: len(nxt)]), (nxt, np.roll(com, -1, axis=0)[: len(nxt)])):
+        ts = turn_slide(track_patch(robot), terrain.gravity_body(ends), c, travel, turn, friction)
+        per_radian = np.maximum(per_radian, np.nan_to_num(ts.per_radian, nan=0.0, posinf=0.0))
+    slide = per_radian * np.abs(turn)
+    # cumulative slide against time (piecewise linear); slide within the window ending at each end
+    T = np.r_[t[0], t_end]
+    S = np.r_[0.0, np.cumsum(slide)]
+    if closed:  # a window may reach back over the loop's start
+        T, S = np.r_[T[:-1] - check.period, T], np.r_[S[:-1] - S[-1], S]
+    windowed = S[-len(slide) :] - np.interp(t_end - check.window, T, S)
+    turns = [
+        {"first": int(a), "last": int(b) % len(P), "turn_rad": float(np.sum(turn[a:b])),
+         "slide_in_window_m": float(windowed[a:b].max())}
+        for a, b in true_runs(windowed > check.distance)
+    ]  # fmt: skip
+    dt = np.maximum(t_end - t[: len(nxt)], 1e-9)
+    return {
+        "distance_m": check.distance,
+        "window_s": check.window,
+        "slide_rate_max_m_s": float(np.max(slide / dt, initial=0.0)),
+        "criterion": "downhill slide of the turns (skid-steer model) within the window <= distance",
+        "sliding_turns": turns,
     }
 
 
@@ -217,7 +318,7 @@ def climb_verdict(
 
 
 def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
-    """One line naming the poses where the tracks slide."""
+    """One line naming the poses where the tracks slide, and the turns that slide."""
     bad = verdict["sliding_poses"]
     listed = "; ".join(
         f"pose {b['index']} at ({b['pose'][0]:.3f}, {b['pose'][1]:.3f}) m heading "
@@ -225,11 +326,26 @@ def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
         for b in bad[:LISTED_POSES]
     )
     more = f"; and {len(bad) - LISTED_POSES} more" if len(bad) > LISTED_POSES else ""
-    return (
-        f"the tracks would slide at {len(bad)} of {total} poses: tilt beyond "
-        f"{math.degrees(verdict['critical_tilt']):.2f} deg = atan(friction "
-        f"{verdict['friction']:g}) ({listed}{more})"
-    )
+    parts = []
+    if bad:
+        parts.append(
+            f"the tracks would slide at {len(bad)} of {total} poses: tilt beyond "
+            f"{math.degrees(verdict['critical_tilt']):.2f} deg = atan(friction "
+            f"{verdict['friction']:g}) ({listed}{more})"
+        )
+    turns = verdict.get("turns", {}).get("sliding_turns", [])
+    if turns:
+        named = "; ".join(
+            f"poses {t['first']}-{t['last']}: {math.degrees(t['turn_rad']):.0f} deg, "
+            f"{100 * t['slide_in_window_m']:.1f} cm"
+            for t in turns[:LISTED_POSES]
+        )
+        parts.append(
+            f"{len(turns)} turn(s) would slide downhill by more than "
+            f"{100 * verdict['turns']['distance_m']:.1f} cm within "
+            f"{verdict['turns']['window_s']:g} s ({named})"
+        )
+    return "; ".join(parts)
 
 
 def arm_collision_verdict(colliding_samples: int, min_clearance: float) -> dict[str, Any]:

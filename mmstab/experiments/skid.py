@@ -1,0 +1,187 @@
+"""Sliding in turns (issue 25): mmstab's skid-steer model against the whole robot in MuJoCo.
+
+Settings come from ``problems/skid.yaml``: the robot's problem, the friction, the ramp
+slopes and headings, the track commands (pivots, arcs, straight) and the durations.
+For every slope × heading × command the robot is driven on a MuJoCo ramp
+(:func:`mmstab.physics.skid_sim.measure_twist`) and its mean twist is set beside the
+steady twist of :func:`mmstab.stability.skid.skid_twist` for the same belt speeds, gravity and
+CoM. ``make skid`` (``python -m mmstab.experiments.skid``) writes ``results/skid/summary.json``
+(every case; the medians of the slide per radian of heading change and of the turn rate,
+model over MuJoCo) and ``skid.png``. ``docs/physics.md``, "Sliding in turns", explains them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_figure, write_json
+from mmstab.physics.skid_sim import measure_twist
+from mmstab.stability.skid import skid_twist, track_patch
+
+#: Keys the settings file must have.
+REQUIRED = ("problem", "friction", "slopes_deg", "headings_deg", "commands", "sim")
+#: Turning cases whose MuJoCo yaw rate is below this are reported, not ratioed [rad/s].
+TURNING = 0.05
+
+
+def load_settings(path: str | Path) -> dict[str, Any]:
+    """The settings file, checked for its sections (the problem's path resolved)."""
+    data = read_yaml(path)
+    missing = [k for k in REQUIRED if k not in data]
+    if missing:
+        raise ConfigError(path, "", f"missing {', '.join(missing)}")
+    for key in ("slopes_deg", "headings_deg"):
+        if not isinstance(data[key], list) or not data[key]:
+            raise ConfigError(path, key, "a non-empty list of angles [deg]")
+    for name, c in data["commands"].items():
+        if not (isinstance(c, list) and len(c) == 2):
+            raise ConfigError(path, f"commands.{name}", "[speed m/s, yaw rate rad/s]")
+    if not float(data["friction"]) > 0:
+        raise ConfigError(path, "friction", "must be > 0")
+    data["problem"] = str(Path(path).parent / data["problem"])
+    return data
+
+
+def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every slope × heading × command: MuJoCo's twist and the model's."""
+    from mmstab.core.problem import load_problem
+
+    robot = load_problem(settings["problem"]).robot
+    patch, b = track_patch(robot), robot.base.tracks.separation
+    com = robot.overall_com(robot.arm_com(robot.stowed))
+    mu, sim = float(settings["friction"]), settings["sim"]
+    cases = []
+    for slope in settings["slopes_deg"]:
+        for heading in settings["headings_deg"]:
+            for name, (v, w) in settings["commands"].items():
+                belts = (v - w * b / 2, v + w * b / 2)
+                m = measure_twist(robot, np.radians(slope), np.radians(heading), belts, mu,
+                                  settle=sim["settle"], transient=sim["transient"],
+                                  duration=sim["duration"])  # fmt: skip
+                p = skid_twist(patch, m.gravity_body, com, belts, mu)
+                cases.append(_case(slope, heading, name, (v, w), m, p))
+    return cases
+
+
+def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> dict[str, Any]:
+    g = m.gravity_body
+    down = g[:2] / max(float(np.linalg.norm(g[:2])), 1e-12)
+    v, w = cmd
+
+    def downhill(velocity: Any) -> float:  # beyond the commanded (v, 0)
+        return float((np.asarray(velocity) - [v, 0.0]) @ down)
+
+    mj, model = downhill(m.velocity_body), downhill(p.velocity_body[0])
+    return {
+        "slope_deg": float(slope), "heading_deg": float(heading), "command": name,
+        "speed": float(v), "yaw_rate_commanded": float(w),
+        "mujoco": {"velocity_body": m.velocity_body.tolist(), "yaw_rate": m.yaw_rate,
+                   "downhill": mj},
+        "model": {"velocity_body": p.velocity_body[0].tolist(), "yaw_rate": float(p.yaw_rate[0]),
+                  "downhill": model, "holds": bool(p.holds[0])},
+    }  # fmt: skip
+
+
+def _per_radian(twist: dict[str, Any]) -> float:
+    """Downhill slide per radian turned [m/rad]."""
+    return float(twist["downhill"] / max(abs(twist["yaw_rate"]), 1e-9))
+
+
+def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
+    """Medians over the turning cases: slide per radian and turn rate, model over MuJoCo."""
+    turning = [c for c in cases if abs(c["mujoco"]["yaw_rate"]) >= TURNING]
+    sloped = [c for c in turning if c["slope_deg"] > 0 and abs(c["model"]["yaw_rate"]) > 0]
+    per_rad = [(_per_radian(c["mujoco"]), _per_radian(c["model"])) for c in sloped]
+    slides = [(a, b) for a, b in per_rad if a > 0.02]  # a slide worth a ratio: > 2 cm/rad
+    rates = [c["model"]["yaw_rate"] / c["mujoco"]["yaw_rate"] for c in turning]
+    straight = [c for c in cases if c["yaw_rate_commanded"] == 0 and c["speed"] != 0]
+    stuck = [c for c in cases if c["yaw_rate_commanded"] != 0 and c not in turning]
+    return {
+        "cases": len(cases),
+        "turning_cases": len(turning),
+        "slide_per_radian_ratio_median": float(np.median([b / a for a, b in slides])),
+        "slide_per_radian_ratio_range": [
+            float(min(b / a for a, b in slides)),
+            float(max(b / a for a, b in slides)),
+        ],  # fmt: skip
+        "slide_per_radian_abs_error_median_m": float(np.median([abs(b - a) for a, b in per_rad])),
+        "turn_rate_ratio_median": float(np.median(rates)),
+        "straight_downhill_max_m_s": {
+            "mujoco": float(max(abs(c["mujoco"]["downhill"]) for c in straight)),
+            "model": float(max(abs(c["model"]["downhill"]) for c in straight)),
+        },
+        "cannot_turn": [
+            {k: c[k] for k in ("slope_deg", "heading_deg", "command")}
+            | {
+                "mujoco_downhill": c["mujoco"]["downhill"],
+                "model_downhill": c["model"]["downhill"],
+                "model_yaw_rate": c["model"]["yaw_rate"],
+            }
+            for c in stuck
+        ],  # fmt: skip
+    }
+
+
+def figure(cases: list[dict[str, Any]], path: Path) -> None:
+    """Slide per radian and yaw rate: the model against MuJoCo, coloured by slope."""
+    import matplotlib.pyplot as plt
+
+    turning = [c for c in cases if abs(c["mujoco"]["yaw_rate"]) >= TURNING]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 4))
+    slope = [c["slope_deg"] for c in turning]
+    x = [_per_radian(c["mujoco"]) for c in turning]
+    y = [_per_radian(c["model"]) for c in turning]
+    sc = a.scatter(x, y, c=slope, cmap="viridis", s=18)
+    top = max(max(x), max(y)) * 1.05
+    a.plot([0, top], [0, top], "k--", lw=0.8)
+    a.set(xlabel="MuJoCo [m/rad]", ylabel="model [m/rad]", title="downhill slide per radian")
+    rates = [[abs(c[k]["yaw_rate"]) for c in turning] for k in ("mujoco", "model")]
+    b.scatter(rates[0], rates[1], c=slope, cmap="viridis", s=18)
+    b.plot([0, 0.45], [0, 0.45], "k--", lw=0.8)
+    b.set(xlabel="MuJoCo |yaw rate| [rad/s]", ylabel="model [rad/s]", title="turn rate")
+    fig.colorbar(sc, ax=b, label="slope [deg]")
+    fig.tight_layout()
+    write_figure(path, fig)
+
+
+def run_skid(settings: dict[str, Any], out: str | Path) -> dict[str, Any]:
+    """Run the grid; write ``summary.json`` and ``skid.png`` to ``out``."""
+    t0 = time.perf_counter()
+    cases = run_cases(settings)
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    summary = {"settings": settings, **summarize(cases),
+               "seconds": time.perf_counter() - t0, "all_cases": cases}  # fmt: skip
+    figure(cases, d / "skid.png")
+    write_json(d / "summary.json", summary)
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m mmstab.experiments.skid [SETTINGS] [-o DIR]``; the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("settings", nargs="?", default="problems/skid.yaml")
+    parser.add_argument("-o", "--out", default="results/skid", help="output folder")
+    args = parser.parse_args(argv)
+    try:
+        s = run_skid(load_settings(args.settings), args.out)
+    except MmstabError as exc:
+        print(f"mmstab: error: {exc}", file=sys.stderr)
+        return 2
+    print(
+        f"{s['turning_cases']}/{s['cases']} cases turn; slide per radian, model/MuJoCo: median "
+        f"{s['slide_per_radian_ratio_median']:.2f}; turn rate model/MuJoCo: median "
+        f"{s['turn_rate_ratio_median']:.2f}"
+    )
+    print(f"-> {args.out}/summary.json, skid.png ({s['seconds']:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,302 @@
+"""Skid-steering on a slope: the twist the tracks actually give, and the slide a turn costs.
+
+A tracked base turns by skidding: the belts' contact with the ground slides sideways at the
+ends of the track while the body yaws. With Coulomb friction (coefficient μ, isotropic) every
+sliding contact point pushes on the robot with ``μ n`` against its slip velocity, whatever
+the speed, so a turn mobilises the whole friction budget of the tracks. On a slope that budget
+also has to hold gravity's in-plane part: the centre of rotation shifts along the tracks until
+the sliding contacts' net force balances it, and the body slides downhill while it turns. For
+uniform pressure and gravity across the tracks the slide is ``(L / 2) tan(α) / μ`` per radian
+of heading change (L: the tracks' contact length, α: the side slope); a pivot with the nose up
+the slope does not hold the slope at all (the belts pull in opposite directions).
+
+:func:`skid_twist` solves the steady state of that model: given the belts' surface speeds
+(u_l, u_r) [m/s], gravity in B and the overall CoM in B, the body's twist (v_x, v_y, ω) in B
+for which the sliding contacts' forces and yaw moment balance gravity's in-plane force and
+its yaw moment about B's origin. The normal loads along the two belts are the rigid-plate
+distribution (linear in x and y, the centre of pressure where the gravity line through the
+CoM meets the support plane, negative loads dropped). Coulomb friction is regularised as
+``μ n s / sqrt(|s|² + ε²)`` with ε = 10⁻⁴ of the belt speed, solved by Newton's method with
+a continuation in ε. The model is homogeneous: the twist scales with the belt speeds.
+
+Assumptions: quasi-static (no inertia: a steady turn at low speed), rigid planar support,
+belts as line contacts at ``y = ±separation / 2`` over ``x ∈ [−L/2, L/2]``, isotropic
+Coulomb friction, the arm still. Checked against the whole robot in MuJoCo in
+``tests/test_physics_skid.py`` (docs/physics.md, "Sliding in turns").
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.stability.slip import slip_limit
+
+#: contact samples per belt: 1.75 cm apart on the Cameleon's 0.7 m tracks
+BELT_SAMPLES = 40
+_EPS = (1e-1, 1e-2, 1e-3, 1e-4)  # continuation of the regularisation, relative to the belt speed
+_TOL = 1e-9
+#: the slide per radian divides by the model's yaw rate but at least this share of the path's:
+#: up a grade with the load on the inner belt the rigid Coulomb model stops turning where
+#: MuJoCo's sprung wheels still turn (a 1.5 m arc up 5.7°: 0.05 against 0.17 rad/s), and a
+#: controller raises the belts' differential until the heading turns (flat: 0.52-0.62)
+TURN_FLOOR = 0.5
+
+
+class TrackPatch(NamedTuple):
+    """The belts' contact with the ground, sampled (left belt first, then right).
+
+    Attributes:
+        x: sample positions along x_B (2K,) [m].
+        y: lateral positions, +separation/2 left, −separation/2 right (2K,) [m].
+        side: 0 for the left belt, 1 for the right (2K,).
+        length: contact length L [m].
+        separation: distance between the belts' centre lines b [m].
+    """
+
+    x: FloatArray
+    y: FloatArray
+    side: np.ndarray
+    length: float
+    separation: float
+
+
+class SkidTwist(NamedTuple):
+    """The steady twist of the skid-steered base (N samples).
+
+    Attributes:
+        velocity_body: (N, 2) velocity of B's origin along x_B, y_B [m/s].
+        yaw_rate: (N,) [rad/s].
+        holds: (N,) a steady twist exists (False: gravity's in-plane part exceeds the friction
+            cone, the robot slides whatever the belts do; or the centre of pressure lies
+            outside the belts, the robot tips). The twist is NaN where it does not
+            hold (and where Newton's method did not converge to 10⁻⁶ of the weight).
+        commanded: (N, 3) the kinematic twist the belts command (v, 0, (u_r − u_l)/b) [m/s, rad/s].
+    """
+
+    velocity_body: FloatArray
+    yaw_rate: FloatArray
+    holds: np.ndarray
+    commanded: FloatArray
+
+
+def track_patch(robot: Robot, samples: int = BELT_SAMPLES) -> TrackPatch:
+    """The robot's belts sampled at ``samples`` midpoints each [-]."""
+    t = robot.base.tracks
+    x = (np.arange(samples) + 0.5) / samples * t.length - t.length / 2
+    y = np.repeat([t.separation / 2, -t.separation / 2], samples)
+    return TrackPatch(np.tile(x, 2), y, np.repeat([0, 1], samples), t.length, t.separation)
+
+
+def centre_of_pressure(gravity_body: ArrayLike, com_body: ArrayLike) -> FloatArray:
+    """Where the gravity line through the CoM meets the support plane z_B = 0 (N, 2) [m].
+
+    Args:
+        gravity_body: gravity in B (N, 3) [m/s^2].
+        com_body: the overall CoM in B (N, 3) or (3,) [m].
+    """
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    c = np.broadcast_to(np.asarray(com_body, dtype=float), g.shape)
+    return np.asarray(c[:, :2] - c[:, 2:3] * g[:, :2] / g[:, 2:3])
+
+
+def normal_loads(patch: TrackPatch, gravity_body: ArrayLike, com_body: ArrayLike) -> FloatArray:
+    """Rigid-plate normal loads per unit weight at the samples (N, 2K) [-] (sum = cos tilt).
+
+    Linear in (x, y) with the centre of pressure where the gravity line through the CoM
+    meets z_B = 0; samples with a negative load are dropped and the rest refitted.
+
+    Args:
+        patch: the belts' samples.
+        gravity_body: gravity in B (N, 3) [m/s^2].
+        com_body: the overall CoM in B (N, 3) [m].
+    """
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    g = g / np.linalg.norm(g, axis=1, keepdims=True)
+    cop = centre_of_pressure(g, com_body)
+    total = -g[:, 2]
+    basis = np.stack([np.ones_like(patch.x), patch.x, patch.y])  # (3, 2K)
+    active = np.ones((len(g), len(patch.x)))
+    for _ in range(len(patch.x)):
+        A = np.einsum("ik,nk,jk->nij", basis, active, basis)
+        rhs = total[:, None] * np.c_[np.ones(len(g)), cop]
+        # one belt left (the CoP on or past its line): y is not determined, fit 1 and x only
+        one = (active[:, patch.side == 0].sum(1) == 0) | (active[:, patch.side == 1].sum(1) == 0)
+        A[one, 2, :], A[one, :, 2], A[one, 2, 2], rhs[one, 2] = 0.0, 0.0, 1.0, 0.0
+        coef = (np.linalg.pinv(A) @ rhs[:, :, None])[:, :, 0]  # pinv: a lone sample left
+        loads = active * (coef @ basis)
+        keep = (loads > 0) | (active == 0)
+        if keep.all():
+            break
+        active = active * (loads > 0)
+    return np.maximum(loads, 0.0)
+
+
+def _forces(
+    patch: TrackPatch, loads: FloatArray, belts: FloatArray, z: FloatArray, eps: float
+) -> tuple[FloatArray, FloatArray]:
+    """(friction forces and yaw moment (N, 3), their Jacobian (N, 3, 3)) per unit weight/μ."""
+    u = belts[:, patch.side]
+    sx = z[:, :1] - z[:, 2:3] * patch.y - u
+    sy = z[:, 1:2] + z[:, 2:3] * patch.x
+    sigma = np.sqrt(sx**2 + sy**2 + eps**2)
+    fx, fy = -loads * sx / sigma, -loads * sy / sigma
+    F = np.stack([fx.sum(1), fy.sum(1), (patch.x * fy - patch.y * fx).sum(1) / patch.length], 1)
+    # d f / d s = -n (I / σ - s sᵀ / σ³); d s / d z = [[1, 0, -y], [0, 1, x]]
+    s3 = sigma**3
+    dxx, dyy, dxy = (
+        -loads * (1 / sigma - sx**2 / s3),
+        -loads * (1 / sigma - sy**2 / s3),
+        loads * sx * sy / s3,
+    )
+    ds = (
+        (np.ones_like(patch.x), np.zeros_like(patch.x), -patch.y),
+        (np.zeros_like(patch.x), np.ones_like(patch.x), patch.x),
+    )
+    J = np.zeros((len(z), 3, 3))
+    for j in range(3):
+        dfx = dxx * ds[0][j] + dxy * ds[1][j]
+        dfy = dxy * ds[0][j] + dyy * ds[1][j]
+        J[:, 0, j], J[:, 1, j] = dfx.sum(1), dfy.sum(1)
+        J[:, 2, j] = (patch.x * dfy - patch.y * dfx).sum(1) / patch.length
+    return F, J
+
+
+def skid_twist(
+    patch: TrackPatch,
+    gravity_body: ArrayLike,
+    com_body: ArrayLike,
+    belt_speeds: ArrayLike,
+    friction: float,
+) -> SkidTwist:
+    """The steady twist for belt speeds on a plane (module docstring).
+
+    Args:
+        patch: the belts' samples (:func:`track_patch`).
+        gravity_body: gravity in B (N, 3) or (3,) [m/s^2].
+        com_body: the overall CoM in B (N, 3) or (3,) [m].
+        belt_speeds: (N, 2) or (2,) belt surface speeds (left, right) [m/s], positive driving
+            forward.
+        friction: Coulomb coefficient of belts on ground [-] (> 0).
+    """
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    belts = np.atleast_2d(np.asarray(belt_speeds, dtype=float))
+    n = max(len(g), len(belts))
+    g, belts = np.broadcast_to(g, (n, 3)), np.broadcast_to(belts, (n, 2))
+    com = np.broadcast_to(np.asarray(com_body, dtype=float), (n, 3))
+    b = patch.separation
+    commanded = np.c_[belts.mean(1), np.zeros(n), (belts[:, 1] - belts[:, 0]) / b]
+    cop = centre_of_pressure(g, com)
+    inside = (np.abs(cop[:, 0]) < patch.length / 2) & (np.abs(cop[:, 1]) < patch.separation / 2)
+    holds = ~slip_limit(g, friction).slides & inside  # outside the belts: it tips
+    scale = np.maximum(np.abs(belts).max(1), 1e-9)[:, None]
+    unit = g / np.linalg.norm(g, axis=1, keepdims=True)
+    loads = normal_loads(patch, g, com)
+    # gravity's in-plane force and its yaw moment about B's origin, per unit weight / μ
+    load = np.c_[unit[:, :2], (com[:, 0] * unit[:, 1] - com[:, 1] * unit[:, 0]) / patch.length]
+    load = load / friction
+    z = commanded * np.array([1.0, 1.0, 0.5]) / scale  # turns at about half the command
+    u = belts / scale
+    for eps in _EPS:
+        for _ in range(60):
+            F, J = _forces(patch, loads, u, z, eps)
+            r = F + load
+            if np.all(np.abs(r[holds]) < _TOL):
+                break
+            step = np.linalg.solve(J + 1e-12 * np.eye(3), -r[:, :, None])[:, :, 0]
+            z = z + _backtrack(patch, loads, u, z, step, load, eps)[:, None] * step
+    converged = np.all(np.abs(_forces(patch, loads, u, z, _EPS[-1])[0] + load) < 1e-6, 1)
+    moving = np.abs(belts).max(1) > 1e-9
+    z = np.where(moving[:, None], z * scale, 0.0)
+    z[~(holds & (converged | ~moving))] = np.nan
+    return SkidTwist(z[:, :2], z[:, 2], holds, commanded)
+
+
+def _backtrack(
+    patch: TrackPatch,
+    loads: FloatArray,
+    u: FloatArray,
+    z: FloatArray,
+    step: FloatArray,
+    load: FloatArray,
+    eps: float,
+) -> FloatArray:
+    """Per-sample step lengths that reduce the residual (halving from 1, at most 8 times)."""
+    r0 = np.sum((_forces(patch, loads, u, z, eps)[0] + load) ** 2, 1)
+    alpha = np.ones(len(z))
+    for _ in range(8):
+        r = np.sum((_forces(patch, loads, u, z + alpha[:, None] * step, eps)[0] + load) ** 2, 1)
+        worse = r > r0
+        if not worse.any():
+            break
+        alpha = np.where(worse, alpha / 2, alpha)
+    return alpha
+
+
+class TurnSlide(NamedTuple):
+    """The downhill slide a path's motion costs, from :func:`skid_twist` (N samples).
+
+    Attributes:
+        rate: downhill slide the slope adds to the motion on level ground [m/s] while the
+            path turns at its yaw rate (the model's slide per radian times the path's turn
+            rate; on straight stretches the added downhill velocity, zero where the tracks
+            hold); ``inf`` where the friction cone does not hold.
+        per_radian: downhill slide per radian of heading change [m/rad] (NaN on straight
+            stretches).
+        turn_ratio: the model's yaw rate over the commanded one [-] (NaN on straight stretches).
+    """
+
+    rate: FloatArray
+    per_radian: FloatArray
+    turn_ratio: FloatArray
+
+
+def turn_slide(
+    patch: TrackPatch,
+    gravity_body: ArrayLike,
+    com_body: ArrayLike,
+    speed: ArrayLike,
+    yaw_rate: ArrayLike,
+    friction: float,
+) -> TurnSlide:
+    """The slide a path costs where it turns on a slope (module docstring).
+
+    The belts run at the path's kinematic speeds ``v ∓ ω b / 2``; the model's twist on the
+    slope, less its twist on level ground (same belts and CoM), says how far B slides downhill
+    per radian the heading turns. The
+    path's heading must turn as the path does, so the slide rate is that times |ω|: the
+    tracks' turn deficit (the model turns slower than commanded) does not hide the slide
+    (the model's yaw rate is taken at least :data:`TURN_FLOOR` times the path's).
+
+    Args:
+        patch: the belts' samples.
+        gravity_body: gravity in B (N, 3) [m/s^2].
+        com_body: the overall CoM in B (N, 3) or (3,) [m].
+        speed: the path's forward speed (N,) [m/s].
+        yaw_rate: the path's yaw rate (N,) [rad/s].
+        friction: Coulomb coefficient [-].
+    """
+    v = np.asarray(speed, dtype=float)
+    w = np.asarray(yaw_rate, dtype=float)
+    half = w * patch.separation / 2
+    twist = skid_twist(patch, gravity_body, com_body, np.c_[v - half, v + half], friction)
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    norm = np.linalg.norm(g[:, :2], axis=1, keepdims=True)
+    down = np.divide(g[:, :2], norm, out=np.zeros_like(g[:, :2]), where=norm > 1e-12)
+    # the slope's part: on level ground too B's origin circles a point off it when the CoM
+    # is off the belts' centre (a tracking offset, not a slide)
+    level = np.c_[np.zeros((len(g), 2)), -np.linalg.norm(g, axis=1)]
+    flat = skid_twist(patch, level, com_body, np.c_[v - half, v + half], friction)
+    extra = twist.velocity_body - flat.velocity_body
+    downhill = np.maximum(np.sum(extra * down, 1), 0.0)
+    turning = np.abs(w) > 1e-6
+    got = np.abs(twist.yaw_rate)
+    with np.errstate(invalid="ignore"):  # NaN twist where the cone does not hold
+        per_radian = np.where(turning, downhill / np.maximum(got, TURN_FLOOR * np.abs(w)), np.nan)
+    rate = np.where(turning, per_radian * np.abs(w), downhill)
+    rate = np.where(np.isnan(rate), np.inf, rate)
+    ratio = np.where(turning, twist.yaw_rate / np.where(turning, w, 1.0), np.nan)
+    return TurnSlide(rate, np.where(twist.holds, per_radian, np.inf), ratio)

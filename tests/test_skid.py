@@ -1,0 +1,121 @@
+"""The skid-steer model (mmstab.stability.skid): invariants, an analytic case, a second solver."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from mmstab.stability.skid import normal_loads, skid_twist, track_patch, turn_slide
+
+MU = 0.7
+
+
+def side_slope(alpha: float, heading: float = 0.0) -> np.ndarray:
+    """Gravity in B on a plane of slope ``alpha`` [rad] rising along +y, body yawed by heading."""
+    g = 9.81 * np.array([0.0, -np.sin(alpha), -np.cos(alpha)])
+    c, s = np.cos(heading), np.sin(heading)
+    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ g
+
+
+@pytest.fixture(scope="module")
+def patch(robot):
+    return track_patch(robot)
+
+
+def test_loads_balance_weight_and_moments(patch, rng):
+    for _ in range(20):
+        g = side_slope(rng.uniform(0, 0.6), rng.uniform(-np.pi, np.pi))
+        com = np.r_[rng.uniform(-0.3, 0.3), rng.uniform(-0.18, 0.18), rng.uniform(0, 0.3)]
+        n = normal_loads(patch, g, com)[0]
+        unit = g / np.linalg.norm(g)
+        cop = com[:2] - com[2] * unit[:2] / unit[2]
+        assert np.all(n >= 0)
+        assert n.sum() == pytest.approx(-unit[2], rel=1e-9)
+        # the loads' centre is the centre of pressure wherever that lies inside the belts
+        if abs(cop[0]) < 0.3 and abs(cop[1]) < 0.18:
+            assert np.array([n @ patch.x, n @ patch.y]) / n.sum() == pytest.approx(cop, abs=1e-9)
+
+
+def test_side_slope_slide_per_radian_is_the_uniform_track_formula(patch):
+    # CoM on the ground at the belts' centre: uniform pressure, the centre of rotation
+    # shifts along the tracks by (L/2) tan(alpha)/mu per radian (docs/physics.md)
+    for deg in (10.0, 20.0, 30.0):
+        alpha = np.radians(deg)
+        tw = skid_twist(patch, side_slope(alpha), [0, 0, 0], (-0.1, 0.1), MU)
+        per_radian = -tw.velocity_body[0, 1] / tw.yaw_rate[0]
+        assert per_radian == pytest.approx(patch.length / 2 * np.tan(alpha) / MU, rel=0.08)
+
+
+def test_flat_pivot_turns_in_place_slower_than_commanded(patch):
+    tw = skid_twist(patch, [0, 0, -9.81], [0, 0, 0.1], (-0.1, 0.1), MU)
+    assert np.abs(tw.velocity_body[0]) == pytest.approx([0, 0], abs=1e-9)
+    ratio = tw.yaw_rate[0] / tw.commanded[0, 2]
+    assert 0.5 < ratio < 0.7  # skid: the belts' ends drag sideways
+
+
+def test_homogeneous_and_mirror_symmetric(patch, rng):
+    for _ in range(10):
+        g = side_slope(rng.uniform(0, 0.5), rng.uniform(-np.pi, np.pi))
+        com = np.r_[rng.uniform(-0.1, 0.1), rng.uniform(-0.05, 0.05), 0.15]
+        u = rng.uniform(-0.3, 0.3, 2)
+        a = skid_twist(patch, g, com, u, MU)
+        b = skid_twist(patch, g, com, 2 * u, MU)
+        assert np.r_[b.velocity_body[0], b.yaw_rate] == pytest.approx(
+            2 * np.r_[a.velocity_body[0], a.yaw_rate], abs=2e-4
+        )
+        m = skid_twist(patch, g * [1, -1, 1], com * [1, -1, 1], u[::-1], MU)  # y -> -y
+        assert np.r_[m.velocity_body[0], m.yaw_rate] == pytest.approx(
+            np.r_[a.velocity_body[0] * [1, -1], -a.yaw_rate], abs=2e-4
+        )
+
+
+def test_straight_on_a_side_slope_holds_and_beyond_the_cone_slides(patch):
+    tw = skid_twist(patch, side_slope(0.5), [0.05, 0, 0.16], (0.25, 0.25), MU)
+    assert tw.velocity_body[0] == pytest.approx([0.25, 0.0], abs=1e-4)
+    assert tw.yaw_rate[0] == pytest.approx(0.0, abs=1e-4)
+    steep = skid_twist(patch, side_slope(np.arctan(MU) + 0.01), [0, 0, 0.16], (0.25, 0.25), MU)
+    assert not steep.holds[0] and np.isnan(steep.yaw_rate[0])
+
+
+def test_newton_agrees_with_scipy_on_the_same_balance(patch, rng):
+    """A second solver (scipy's trust region) on the force and moment balance."""
+    X, Y = patch.x, patch.y
+    for _ in range(8):
+        g = side_slope(rng.uniform(0, 0.5), rng.uniform(-np.pi, np.pi))
+        com = np.r_[rng.uniform(-0.1, 0.1), rng.uniform(-0.05, 0.05), 0.16]
+        u = rng.uniform(-0.3, 0.3, 2)
+        n = normal_loads(patch, g, com)[0]
+        unit = g / np.linalg.norm(g)
+        U = u[patch.side]
+
+        def balance(z, n=n, unit=unit, U=U, com=com):
+            sx, sy = z[0] - z[2] * Y - U, z[1] + z[2] * X
+            s = np.sqrt(sx**2 + sy**2 + 1e-10)
+            fx, fy = -MU * n * sx / s, -MU * n * sy / s
+            moment = np.sum(X * fy - Y * fx) + com[0] * unit[1] - com[1] * unit[0]
+            return [fx.sum() + unit[0], fy.sum() + unit[1], moment]
+
+        ref = least_squares(balance, [u.mean(), 0, 0], xtol=1e-14, ftol=1e-14, gtol=1e-14).x
+        tw = skid_twist(patch, g, com, u, MU)
+        assert np.r_[tw.velocity_body[0], tw.yaw_rate] == pytest.approx(ref, abs=2e-3)
+
+
+def test_turn_slide_rate_is_the_slide_per_radian_times_the_turn(patch):
+    g = np.array([side_slope(0.45)] * 3)
+    ts = turn_slide(patch, g, [0.05, 0, 0.16], [0.25, 0.25, 0.0], [0.0, 0.3, 0.4], MU)
+    assert ts.rate[0] == pytest.approx(0.0, abs=1e-4)  # straight: the tracks hold
+    assert ts.per_radian[1] > 0.1
+    assert ts.rate[1:] == pytest.approx(ts.per_radian[1:] * [0.3, 0.4])
+    beyond = turn_slide(patch, [side_slope(0.7)], [0, 0, 0.16], [0.25], [0.3], MU)
+    assert np.isinf(beyond.rate[0])
+
+
+def test_a_centre_of_pressure_outside_the_belts_tips_not_skids(patch):
+    # 0.5 rad side slope, CoM 0.5 m up: the gravity line meets the plane 0.27 m downhill,
+    # past the right belt (0.21 m): no steady twist; the loads still balance the weight
+    g, com = side_slope(0.5), [0.0, 0.0, 0.5]
+    tw = skid_twist(patch, g, com, (0.2, 0.3), 10.0)
+    assert not tw.holds[0] and np.isnan(tw.yaw_rate[0])
+    n = normal_loads(patch, g, com)[0]
+    assert n.sum() == pytest.approx(np.cos(0.5)) and n[patch.side == 0].sum() == 0.0
