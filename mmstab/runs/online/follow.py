@@ -238,7 +238,9 @@ class Follower:
         placed = place_local(
             np.repeat(ref_pose, 2, axis=0), np.repeat(self.ground, 2, axis=0), points
         )
-        xi_des = np.concatenate([placed.points[0, :2], ref_pose[0, 2:], placed.points[1]])
+        body = self.controller.settings.arm_com_frame == "body"  # the arm-CoM task's frame
+        com = com_body if body else placed.points[1]
+        xi_des = np.concatenate([placed.points[0, :2], ref_pose[0, 2:], com])
         state = np.concatenate([pose, [0.0, 0.0], q])
         result = self.controller.solve(state, xi_des, None, q_ref, None, self.ground[0])
         self.q = q + result.qdot[-ARM_JOINTS:] * dt  # qdot: tracks, then the arm
