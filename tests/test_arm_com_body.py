@@ -26,7 +26,9 @@ from mmstab.control.tasks import (
     controller_task_names,
     task_map,
 )
+from mmstab.runs.online.follow import step_target
 from mmstab.runs.tracking.simulation import simulate
+from mmstab.terrain import place_local
 
 
 @pytest.fixture(scope="module")
@@ -88,6 +90,16 @@ def test_the_body_reference_is_the_map_reference_seen_from_the_reference_pose(pr
         robot, problem.circle, problem.terrain, posture_plan(robot), q0, settings["map"], t
     )
     assert plain.control is plain.step  # the default: the M reference, as before
+
+
+def test_the_online_step_target_is_in_the_frame_of_the_setting(settings):
+    pose, ground, com = np.array([[1.0, -0.5, 0.7]]), np.array([[0.1, 0.2, -0.1]]), [0.3, 0.1, 0.4]
+    body, plain = (step_target(settings[f], pose, ground, np.array(com)) for f in ("body", "map"))
+    placed = place_local(pose, ground, np.array([com])).points[0]
+    np.testing.assert_array_equal(body[3:], com)
+    np.testing.assert_allclose(plain[3:], placed, atol=1e-15)
+    assert np.linalg.norm(placed - com) > 0.5  # the two frames differ here
+    np.testing.assert_array_equal(body[:3], plain[:3])
 
 
 def test_a_kinematic_run_in_b_tracks_as_the_run_in_m(problem, settings):
