@@ -66,6 +66,12 @@ CASES = [
         "base.flippers.angle",
     ),
     (
+        "unknown arm-CoM frame",
+        lambda p, r: p["controller"].__setitem__("arm_com_frame", "world"),
+        "problem.yaml",
+        "controller.arm_com_frame",
+    ),
+    (
         "missing robot",
         lambda p, r: p.__setitem__("robot", "robots/none.yaml"),
         "problem.yaml",

@@ -21,6 +21,7 @@ from mmstab.control.posture import (
     PosturePlan,
     PostureReference,
     ViaPosture,
+    body_frame_reference,
     build_posture_reference,
     posture_com,
     posture_samples,
@@ -326,11 +327,15 @@ class RunReference(NamedTuple):
 
     Attributes:
         arm: the lap's posture reference and the start-up approach.
-        step: the controller's reference at each time (ξ_des, ξ̇_ref, q_ref, q̇_ref).
+        step: the reference at each time (ξ_des, ξ̇_ref, q_ref, q̇_ref), arm CoM in M: what
+            the run's errors are reported against.
+        control: what the controller's step takes: ``step``, with the arm-CoM rows in B for
+            ``arm_com_frame: body`` (:func:`mmstab.control.posture.body_frame_reference`).
     """
 
     arm: ArmReferences
     step: StepReference
+    control: StepReference
 
 
 def run_reference(
@@ -352,7 +357,7 @@ def run_reference(
         plan: the plan (``fractions``, ``target_com``, ``postures``).
         q0: the initial arm posture (4,) [rad].
         settings: the controller settings (``lap_time``, ``dt``, ``approach_time``,
-            ``base_offset``).
+            ``base_offset``, ``arm_com_frame``).
         t: the times (T,) [s].
         posture: the lap's posture reference if already built.
     """
@@ -367,4 +372,5 @@ def run_reference(
         np.asarray(t, dtype=float),
         arm.approach,
     )
-    return RunReference(arm, step)
+    body = settings.arm_com_frame == "body"
+    return RunReference(arm, step, body_frame_reference(robot, step) if body else step)

@@ -46,6 +46,7 @@ from mmstab.control.reference import (
     BasePath,
     PathSample,
     PlanLike,
+    StepReference,
     periodic_spline,
     place_on_path,
     posture_reference,
@@ -91,6 +92,23 @@ def posture_com(robot: Robot, posture: PathSample) -> PathSample:
     q, dq = np.atleast_2d(posture.value), np.atleast_2d(posture.rate)
     rate = np.einsum("nij,nj->ni", arm_com_jacobians(robot, q), dq)
     return PathSample(robot.arm_com(q), rate)
+
+
+def body_frame_reference(robot: Robot, reference: StepReference) -> StepReference:
+    """The reference with its arm-CoM rows in the body frame (``arm_com_frame: body``).
+
+    ξ_des[3:6] = g_a^B(q_ref) [m] and ξ̇_ref[3:6] = J_a(q_ref) q̇_ref [m/s]: the CoM of the
+    posture reference, which the map-frame rows place with the reference pose (lap and
+    approach alike), so both frames ask for the same arm when the base is on its reference.
+
+    Args:
+        robot: the robot.
+        reference: the run's references (N rows), arm-CoM rows in M.
+    """
+    com = posture_com(robot, PathSample(reference.q_ref, reference.q_dot_ref))
+    xi_des, xi_dot_ref = np.array(reference.xi_des), np.array(reference.xi_dot_ref)
+    xi_des[:, 3:6], xi_dot_ref[:, 3:6] = com.value, com.rate
+    return reference._replace(xi_des=xi_des, xi_dot_ref=xi_dot_ref)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -83,6 +83,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "ground_clearance": 0.02,
         "climb": True,
     },
+    "controller": {"arm_com_frame": "map"},
     "workspace": {"method": "hull_difference"},
     "physics": {
         "control_dt": 0.004,

@@ -158,6 +158,8 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         approach_time=NONNEG,
         kkt_tol=POS,
         osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
+        # the arm-CoM task's frame: map (paper Eq. 7) or body (docs/controller.md)
+        arm_com_frame={"enum": ["map", "body"]},
     ),
     "workspace": with_optional(
         obj(

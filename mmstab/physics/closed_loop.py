@@ -5,7 +5,8 @@ kinematic one: every control period ``physics.control_dt`` the controller's step
 interpreted CasADi Function, or the generated C through ``casadi.external``) reads the
 state MuJoCo produced, the base pose (x, y, heading) in the terrain's map frame M from the
 simulated chassis and the arm's joint angles from its joints, against the same references
-as the kinematic run (:func:`mmstab.control.approach.run_reference`). Its joint speeds drive
+as the kinematic run (:func:`mmstab.control.approach.run_reference`; the arm CoM in the frame
+of ``controller.arm_com_frame``, the errors reported in M). Its joint speeds drive
 the model (:mod:`mmstab.physics.robot_sim`):
 
 - tracks: each side's wheels at the sprocket's surface speed, r·θ̇ [m/s];
@@ -93,7 +94,8 @@ class PhysicsRun:
         qdot: commanded joint speeds (N, 2+n) [rad/s].
         status: the controller's QP status per period (N,).
         base_error: base control point's distance from its reference [m].
-        arm_com_error: arm CoM's distance from its reference [m].
+        arm_com_error: arm CoM's distance from its reference in M [m] (whichever frame the
+            controller tracks it in, ``controller.arm_com_frame``).
         mu_predicted: mmstab's μ at the simulated pose and posture [N rad].
         mu_simulated: μ of MuJoCo's loaded contacts [N rad] (every ``check_dt``; NaN between
             and where no contact is loaded).
@@ -276,8 +278,9 @@ def run_closed_loop(
     duration = ctrl_settings.duration if loop.duration is None else loop.duration
     steps = max(int(round(duration / dt)), 1)
     t = np.arange(steps + 1) * dt
-    ref = run_reference(robot, problem.base_path, problem.terrain, plan, state0[-n:],
-                        ctrl_settings, t).step.pack()  # fmt: skip
+    refs = run_reference(robot, problem.base_path, problem.terrain, plan, state0[-n:],
+                         ctrl_settings, t)  # fmt: skip
+    ref, ref_map = refs.control.pack(), refs.step.pack()  # the step's; the errors' (M)
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
     r = robot.base.tracks.sprocket_radius
@@ -311,7 +314,7 @@ def run_closed_loop(
     ):
         tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
-                  status[: m - 1], ref[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
+                  status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
     end = checks.end
     return dataclasses.replace(
         run,

@@ -100,8 +100,9 @@ class RunInputs(NamedTuple):
         params: the controller's packed parameters (42,).
         state0: initial state (9,) [m, m, rad, rad...].
         reference: packed :class:`~mmstab.control.layout.StepReference` ``[ξ_des, ξ̇_ref, q_ref,
-            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 23); the last row is only used
-            to measure the final tracking error.
+            q̇_ref]`` at t_k = k dt, k = 0..steps (steps + 1, 23), the arm CoM in the frame of
+            ``controller.arm_com_frame``; the last row is only used to measure the final
+            tracking error.
     """
 
     dt: float
@@ -165,7 +166,7 @@ def run_inputs(
         raise ValueError(f"state0 must have shape ({n_state},), got {x0.shape}")
     reference = run_reference(
         problem.robot, problem.circle, problem.terrain, plan, x0[ARM], settings, t, posture
-    ).step
+    ).control
     return RunInputs(
         dt=settings.dt,
         params=ControllerParams.from_settings(problem.robot, settings).pack(),
@@ -183,7 +184,8 @@ class Rollout(NamedTuple):
         states: states at t_k (steps + 1, 5 + n), n the arm's joints.
         qdot: joint speeds applied over [t_k, t_k+1) (steps, 2 + n) [rad/s].
         status: :class:`QPStatus` of each step (steps,).
-        errors: tracking error ξ_des − ξ at t_k (steps + 1, 6), heading wrapped to (−π, π].
+        errors: tracking error ξ_des − ξ at t_k (steps + 1, 6), heading wrapped to (−π, π]; the
+            arm-CoM rows in the controller's frame (``controller.arm_com_frame``).
         backend: the backend that ran it.
     """
 

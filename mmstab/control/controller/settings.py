@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.core.settings import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
 from mmstab.core.settings import PLUGINS as PLUGINS
 from mmstab.core.settings import check_controller
@@ -44,6 +45,9 @@ class ControllerSettings:
             0: the lap's references from t = 0).
         kkt_tol: tolerance of the in-graph solution certificate [rad/s].
         osqp: OSQP options.
+        arm_com_frame: the frame of the arm-CoM task, ``map`` (M, paper Eq. 7: task
+            ``arm_com``) or ``body`` (B: task ``arm_com_body``, its references g_a^B(q_ref))
+            (:func:`mmstab.control.tasks.controller_task_names`).
     """
 
     dt: float
@@ -60,6 +64,7 @@ class ControllerSettings:
     approach_time: float
     kkt_tol: float
     osqp: OsqpSettings
+    arm_com_frame: str = SECTION_DEFAULTS["controller"]["arm_com_frame"]
 
     @classmethod
     def from_section(cls, section: Mapping[str, Any]) -> ControllerSettings:
@@ -75,6 +80,7 @@ class ControllerSettings:
             base_offset=float(section["base_offset"]),
             approach_time=float(section["approach_time"]),
             kkt_tol=float(section["kkt_tol"]),
+            arm_com_frame=str(section.get("arm_com_frame", cls.arm_com_frame)),
             osqp=OsqpSettings(
                 float(o["eps_abs"]), float(o["eps_rel"]), int(o["max_iter"]), bool(o["polish"])
             ),

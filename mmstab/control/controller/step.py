@@ -215,7 +215,8 @@ class Controller:
 
         Args:
             state: [x, y, γ, θ_l, θ_r, θ_0..θ_{n-1}] (5 + n,) [m, m, rad, rad...].
-            xi_des: desired task ξ_des (6,) in M [m, m, rad, m, m, m].
+            xi_des: desired task ξ_des (6,) [m, m, rad, m, m, m]: the base point in M, the arm CoM
+                in M or, with ``arm_com_frame: body``, in B.
             xi_dot_ref: task feed-forward ξ̇_ref (6,) [m/s, rad/s] (used if ``feedforward``);
                 default zero.
             q_ref: arm posture reference (n,) [rad]; default the current arm posture (the

@@ -10,6 +10,8 @@ the paper's Eq. 7 plus the posture task:
 - :class:`BasePointTask`: the base control point (x, y) and the heading (3 rows, heading
   error wrapped);
 - :class:`ArmCoMTask`: the arm CoM in the map frame (3 rows);
+- :class:`ArmCoMBodyTask`: the arm CoM in the body frame (3 rows, the same slots), in its
+  place with ``controller.arm_com_frame: body`` (:func:`controller_task_names`);
 - :class:`PostureTask`: the arm joints toward a posture (one row per arm joint; the redundant
   arm directions).
 
@@ -19,7 +21,8 @@ QP is assembled by looping over the tasks and the limits (:mod:`mmstab.control.l
 :func:`mmstab.control.controller.qp.build_qp`.
 
 **The registry.** :data:`TASKS` names every task; :data:`DEFAULT_TASKS` is the controller's
-list, in the order their objectives are summed. Adding a task is one module of this package
+list, in the order their objectives are summed (:func:`controller_task_names`: the list a
+problem's ``controller:`` settings select). Adding a task is one module of this package
 (a :class:`Task` subclass with its ``name``, rows, value, Jacobian and slots) and its class in
 :data:`TASKS` (``docs/controller.md``, "Adding a controller task").
 """
@@ -30,6 +33,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from mmstab.control.tasks.arm_com import ArmCoMTask
+from mmstab.control.tasks.arm_com_body import ArmCoMBodyTask
 from mmstab.control.tasks.base import Slot, Task, TaskObjective, TaskSlots, TaskTarget, task_map
 from mmstab.control.tasks.base_point import BasePointTask
 from mmstab.control.tasks.model import TaskModel
@@ -42,19 +46,40 @@ TASKS: dict[str, type[Task]] = {
     for cls in (
         BasePointTask,
         ArmCoMTask,
+        ArmCoMBodyTask,
         PostureTask,
     )
 }
 #: The controller's tasks, in the order their objectives are summed (the numbers depend on it).
 DEFAULT_TASKS: tuple[str, ...] = ("base_point", "arm_com", "posture")
+#: The arm-CoM task of each ``controller.arm_com_frame``: map M (paper Eq. 7) or body B.
+ARM_COM_TASKS: dict[str, str] = {"map": ArmCoMTask.name, "body": ArmCoMBodyTask.name}
 
 
-def build_tasks(settings: Any, names: Sequence[str] = DEFAULT_TASKS) -> list[Task]:
+def controller_task_names(settings: Any) -> tuple[str, ...]:
+    """:data:`DEFAULT_TASKS` with the arm-CoM task of ``settings.arm_com_frame``.
+
+    Raises:
+        ValueError: a frame not in :data:`ARM_COM_TASKS`.
+    """
+    frame = settings.arm_com_frame
+    if frame not in ARM_COM_TASKS:
+        raise ValueError(f"unknown arm_com_frame {frame!r}; choose one of {list(ARM_COM_TASKS)}")
+    swap = {ArmCoMTask.name: ARM_COM_TASKS[frame]}
+    return tuple(swap.get(name, name) for name in DEFAULT_TASKS)
+
+
+def build_tasks(settings: Any, names: Sequence[str] | None = None) -> list[Task]:
     """The named tasks (:data:`TASKS`) built from the ``controller:`` settings.
+
+    Args:
+        settings: the ``controller:`` settings.
+        names: the tasks, in order (default :func:`controller_task_names` of ``settings``).
 
     Raises:
         ValueError: a name not in :data:`TASKS`.
     """
+    names = controller_task_names(settings) if names is None else names
     unknown = [n for n in names if n not in TASKS]
     if unknown:
         raise ValueError(f"unknown controller tasks {unknown}; registered: {', '.join(TASKS)}")
@@ -67,8 +92,10 @@ def build_task_model(robot: Robot, base_offset: float) -> TaskModel:
 
 
 __all__ = [
+    "ARM_COM_TASKS",
     "DEFAULT_TASKS",
     "TASKS",
+    "ArmCoMBodyTask",
     "ArmCoMTask",
     "BasePointTask",
     "PostureTask",
@@ -80,5 +107,6 @@ __all__ = [
     "TaskTarget",
     "build_task_model",
     "build_tasks",
+    "controller_task_names",
     "task_map",
 ]

@@ -232,13 +232,8 @@ class Follower:
         self.last_time = now
         if abs(dt - self.controller.params.dt) > 1e-9:
             self.controller.set_params(self.controller.params._replace(dt=dt))
-        offset = self.controller.settings.base_offset
         com_body = self.robot.arm_com(q) if target is None else target
-        points = np.array([[offset, 0.0, 0.0], com_body])
-        placed = place_local(
-            np.repeat(ref_pose, 2, axis=0), np.repeat(self.ground, 2, axis=0), points
-        )
-        xi_des = np.concatenate([placed.points[0, :2], ref_pose[0, 2:], placed.points[1]])
+        xi_des = step_target(self.controller.settings, ref_pose, self.ground, com_body)
         state = np.concatenate([pose, [0.0, 0.0], q])
         result = self.controller.solve(state, xi_des, None, q_ref, None, self.ground[0])
         self.q = q + result.qdot[-ARM_JOINTS:] * dt  # qdot: tracks, then the arm
@@ -249,6 +244,24 @@ class Follower:
         missing = [self.horizon.s_grid[k] for k in changes.uncovered if self.horizon.s_grid[k] > s]
         end = float(self.horizon.s_grid[ks[-1]]) if ks else s
         return max(min(missing, default=end) - s, 0.0)
+
+
+def step_target(
+    settings: ControllerSettings, ref_pose: FloatArray, ground: FloatArray, com_body: FloatArray
+) -> FloatArray:
+    """ξ_des (6,) of one online step: the base point and heading, and the arm CoM.
+
+    Args:
+        settings: the controller settings (``base_offset`` [m], ``arm_com_frame``).
+        ref_pose: the route's pose (1, 3) [m, m, rad] in M.
+        ground: its local ground (1, 3) [m, rad, rad].
+        com_body: the arm-CoM target in B (3,) [m]; placed with ``ref_pose`` in M unless the
+            controller tracks it in B (``arm_com_frame: body``).
+    """
+    points = np.array([[settings.base_offset, 0.0, 0.0], com_body])
+    placed = place_local(np.repeat(ref_pose, 2, axis=0), np.repeat(ground, 2, axis=0), points)
+    com = com_body if settings.arm_com_frame == "body" else placed.points[1]
+    return np.concatenate([placed.points[0, :2], ref_pose[0, 2:], com])
 
 
 def build_follower(problem: Problem, workspace: Workspace | None = None) -> Follower:

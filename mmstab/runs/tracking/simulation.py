@@ -184,12 +184,13 @@ class Setup(NamedTuple):
     Attributes:
         settings: the controller settings.
         backend: the controller step and its name.
-        model: the task model (the task ξ of a state).
+        model: the task model (the task ξ of a state in M: the reported errors').
         params: packed controller parameters (18 + 6n,).
         steps: control periods to run.
         t: (steps + 1,) sample times [s].
         reference: the arm's references and the per-step references at ``t``.
-        packed: ``reference.step`` packed, (steps + 1, 15 + 2n).
+        packed: ``reference.control`` packed (the step's input, the arm CoM in the frame of
+            ``controller.arm_com_frame``), (steps + 1, 15 + 2n).
         advance: one control period (:func:`build_advance`).
         build_seconds: wall time of the set-up [s].
     """
@@ -218,20 +219,19 @@ def set_up(
     """The controller step, its parameters, the references and ``advance`` (:func:`simulate`)."""
     robot = problem.robot
     t_build = time.perf_counter()
-    if step is None:
-        controller = build_controller(robot, settings)
-        backend = StepBackend(controller.step, "interpreted")
-        model = controller.model
-    else:
-        backend = as_backend(step)
-        model = build_task_model(robot, settings.base_offset)
+    backend = (
+        StepBackend(build_controller(robot, settings).step, "interpreted")
+        if step is None
+        else as_backend(step)
+    )
+    model = build_task_model(robot, settings.base_offset)  # ξ in M, whatever the step tracks
     params = ControllerParams.from_settings(robot, settings).pack()
     steps = max(int(round(duration / settings.dt)), 1)
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
     reference = run_reference(
         robot, problem.base_path, problem.terrain, plan, s0[ARM], settings, t, posture
     )
-    packed = reference.step.pack()
+    packed = reference.control.pack()
     if not np.all(np.isfinite(packed)):
         raise MmstabError("the task reference is not finite")
     advance = build_advance(model, backend.function)
