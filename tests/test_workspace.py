@@ -336,3 +336,19 @@ def test_fig3_and_workspace_commands(tmp_path):
     assert f"{s['postures']} postures, {s['valid']} valid, {s['invalid']} invalid" in out
     assert "loaded" in out and len(list((tmp_path / "results/workspace").glob("*.npz"))) == 1
     assert "built" in run("workspace", str(problem), "--force")
+
+
+def test_mmstab_cache_moves_the_cache_for_every_working_folder(tmp_path):
+    problem = write_problem(tmp_path, _set_grid([6, 5, 5, 5]))
+    cache, one, two = tmp_path / "shared cache", tmp_path / "one", tmp_path / "two"
+    one.mkdir(), two.mkdir()
+    env = {**os.environ, "MPLBACKEND": "Agg", "MMSTAB_CACHE": str(cache)}
+
+    def run(cwd):
+        cmd = [sys.executable, "-m", "mmstab", "workspace", str(problem)]
+        return subprocess.run(cmd, check=True, env=env, cwd=cwd, capture_output=True, text=True)
+
+    assert "built" in run(one).stdout
+    assert "loaded" in run(two).stdout  # another folder, the same cache
+    assert len(list(cache.glob("*.npz"))) == 1
+    assert not (one / "results" / "workspace").exists() and not (two / "results").exists()

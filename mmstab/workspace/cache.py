@@ -1,4 +1,4 @@
-"""The workspace cache under ``results/workspace/<key>.npz``."""
+"""The workspace cache under ``results/workspace/<key>.npz`` (or ``$MMSTAB_CACHE``)."""
 
 from __future__ import annotations
 
@@ -21,8 +21,11 @@ from mmstab.workspace.region import Workspace
 
 #: Bump when labelling or the cache format changes: old cache files are then ignored.
 WORKSPACE_VERSION = 1
-#: Where ``load_or_build_workspace`` keeps built workspaces (relative to the working folder).
-DEFAULT_CACHE_DIR = Path("results") / "workspace"
+#: The environment variable that moves the cache (the same cache from any working folder).
+CACHE_ENV = "MMSTAB_CACHE"
+#: Where ``load_or_build_workspace`` keeps built workspaces and roadmaps: ``$MMSTAB_CACHE``,
+#: else ``results/workspace`` relative to the working folder.
+DEFAULT_CACHE_DIR = Path(os.environ.get(CACHE_ENV) or Path("results") / "workspace")
 
 
 # ---------------------------------------------------------------------------------- cache
