@@ -7,6 +7,7 @@ Their options are :mod:`mmstab.cli.options`'s, their exit-status verdicts
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -176,7 +177,19 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
+    _high_centred_line(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args)
+
+
+def _high_centred_line(verdict: dict[str, Any]) -> None:
+    """Where the path high-centres the robot (:mod:`mmstab.runs.high_centred`), if anywhere."""
+    if verdict["high_centred"]:
+        where = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f} m" for x in verdict["stretches"])
+        print(
+            f"mmstab: warning: the chassis rests on the ground at s = {where} of the path "
+            "(high-centred): the tracks carry little of the weight and may not drive it on",
+            file=sys.stderr,
+        )
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
@@ -198,6 +211,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
     )
     _climb_line(s["climb"], s["s"])
+    _high_centred_line(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args)
 
 

@@ -18,6 +18,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
+from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict, turn_check
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
@@ -178,6 +179,8 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         summary["poses"], planner_margin(problem.section("planner"))
     )
     summary["slip"] = lap_slip(problem, summary["poses"])
+    lap = path_samples(problem.base_path)
+    summary["high_centred"] = high_centred_verdict(problem.terrain, *lap)
     quality = lap_quality(
         problem, planning_region(ws, problem.section("workspace")["method"]), plan
     )

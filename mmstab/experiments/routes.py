@@ -35,6 +35,7 @@ from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, route_corners, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
+from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.verdict import (
     climb_verdict,
@@ -113,6 +114,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),
         "slip": slip,
         "climb": climb_verdict(problem.robot, problem.terrain, plan.poses, plan.target_com, False),
+        "high_centred": high_centred_verdict(problem.terrain, *path_samples(route)),
     }
 
 
