@@ -244,9 +244,9 @@ rough: setup
 
 ## issue 25 (docs/physics.md): the ramp lap and the shipped routes in MuJoCo with the controller
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. The routes' planned
-## arm runs end on a failing verdict (the kerb: its wrist grazes the kerb's top as the body rocks
-## over the edge, exit 5; rough.yaml: it slides where mmstab says so, then the arm reaching for
-## its reference touches the ground, exit 5) and make goes on ("-"); docs/physics.md.
+## arm runs may end on a failing verdict (rough.yaml: it slides where mmstab says so, then the arm
+## reaching for its reference touches the ground, exit 5; the kerb's wrist graze is gone with
+## its planner.attitude_margin) and make goes on ("-"); docs/physics.md.
 .PHONY: physics bench-physics
 physics: setup
 	$(MMSTAB) simulate problems/ramp.yaml -o results/physics
