@@ -244,8 +244,9 @@ rough: setup
 
 ## issue 25 (docs/physics.md): the ramp lap and the shipped routes in MuJoCo with the controller
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. rough.yaml slides
-## where mmstab says so (--allow-sliding); the kerb's planned run ends on a failing verdict (its
-## wrist grazes the kerb's top as the body rocks over the edge, exit 5) and make goes on ("-").
+## where mmstab says so (--allow-sliding); the kerb's planned arm keeps off the ground through the
+## body's rocking (planner.attitude_margin; without it the wrist grazed the kerb's top, exit 5),
+## make still goes on ("-") if it does not; docs/physics.md.
 .PHONY: physics bench-physics
 physics: setup
 	$(MMSTAB) simulate problems/ramp.yaml -o results/physics

@@ -81,6 +81,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "sequence_candidates": 256,
         "motion_cost": "joints",
         "ground_clearance": 0.02,
+        "attitude_margin": None,
         "climb": True,
     },
     "controller": {"arm_com_frame": "map"},

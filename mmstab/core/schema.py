@@ -135,6 +135,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             # method roadmap: least height [m] of the arm above the plane the tracks rest on
             # (z_B = 0); null: not checked (docs/planner.md, "Ground clearance")
             ground_clearance={"oneOf": [{"type": "null"}, NONNEG]},
+            # method roadmap on terrain: the arm clears the ground through the body's tilts
+            # up to this [rad] about its origin; null: off (docs/planner.md)
+            attitude_margin={"oneOf": [{"type": "null"}, {**NONNEG, "maximum": 0.5}]},
             climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0

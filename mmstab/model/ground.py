@@ -21,6 +21,24 @@ from mmstab.model.robot import FloatArray, Robot
 CHUNK = 65536
 
 
+def tilted_height(points_B: FloatArray, margin: float) -> FloatArray:
+    """Least height [m] above z_B = 0 of points (..., 3) in B [m] over the body's tilts.
+
+    The tilts are rotations by up to ``margin`` [rad] about any horizontal axis through
+    B's origin (``planner.attitude_margin``: the body pitching or rolling in motion away
+    from its resting attitude). A point at height z and horizontal distance ρ from the
+    origin comes down most when the axis is normal to ρ: to ``z cos θ − ρ sin θ`` at
+    θ = ``margin`` for z ≥ 0 (the height falls monotonically in θ up to π/2). A point
+    below the plane (z < 0) fails any clearance ≥ 0 already: the min with z keeps it
+    there. ``margin`` 0: z itself.
+    """
+    z = points_B[..., 2]
+    if margin == 0.0:
+        return np.asarray(z)
+    rho = np.hypot(points_B[..., 0], points_B[..., 1])
+    return np.minimum(z, z * np.cos(margin) - rho * np.sin(margin))
+
+
 def arm_ground_clearance(robot: Robot, postures: ArrayLike) -> FloatArray:
     """Height of the arm's lowest point above the support plane z_B = 0, per posture (N,) [m].
 

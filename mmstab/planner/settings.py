@@ -61,6 +61,10 @@ class PlannerSettings(NamedTuple):
             the arm's lowest point above the support plane z_B = 0 that a chosen posture
             and the moves between them keep [m]; None: not checked (``cmaes`` and
             ``exhaustive`` do not check it).
+        attitude_margin: ``method: roadmap`` on a route over terrain: the arm keeps
+            ``ground_clearance`` through the body's tilts (pitch, roll) of up to this
+            [rad] about its origin, at the planned poses and the moves' ends
+            (:func:`mmstab.model.ground.tilted_height`); None: off.
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
         climb: ``method: roadmap`` on a route: at a pose whose front wheels run into a step
@@ -93,6 +97,7 @@ class PlannerSettings(NamedTuple):
     flipper_angles: int = 0
     motion_cost: str = "joints"
     ground_clearance: float | None = 0.02
+    attitude_margin: float | None = None
     climb: bool = True
 
     @classmethod
@@ -126,6 +131,9 @@ class PlannerSettings(NamedTuple):
             ground_clearance=None
             if cfg["ground_clearance"] is None
             else float(cfg["ground_clearance"]),
+            attitude_margin=None
+            if cfg["attitude_margin"] is None
+            else float(cfg["attitude_margin"]),
             climb=bool(cfg["climb"]),
         )
 

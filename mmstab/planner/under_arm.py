@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
+from mmstab.model.ground import tilted_height
 from mmstab.model.parts import Box
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain import Terrain
@@ -119,8 +120,13 @@ class PiecesB(NamedTuple):
     centre: FloatArray
 
 
-def pieces_in_body(robot: Robot, pieces: ArmPieces, postures: ArrayLike) -> PiecesB:
-    """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad]."""
+def pieces_in_body(
+    robot: Robot, pieces: ArmPieces, postures: ArrayLike, margin: float = 0.0
+) -> PiecesB:
+    """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad].
+
+    ``margin`` [rad]: the lowest over the body's tilts up to it (:func:`tilted_height`).
+    """
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
     low = np.empty((len(q), len(pieces.link)))
@@ -129,7 +135,11 @@ def pieces_in_body(robot: Robot, pieces: ArmPieces, postures: ArrayLike) -> Piec
     for i in np.unique(pieces.link):  # one product per link: (n, 3) @ (3, points)
         at = np.flatnonzero(pieces.link == i)
         R, t = frames[:, i, :3, :3], frames[:, i, :3, 3]
-        z = R[:, 2] @ pieces.points[at].reshape(-1, 3).T + t[:, 2, None]
+        pts = pieces.points[at].reshape(-1, 3)
+        if margin == 0.0:
+            z = R[:, 2] @ pts.T + t[:, 2, None]
+        else:  # every point in B, then its least height over the tilts
+            z = tilted_height(np.einsum("nij,mj->nmi", R, pts) + t[:, None, :], margin)
         low[:, at] = z.reshape(len(q), len(at), -1).min(axis=2) - pieces.radius[at]
         for r in range(3):
             centre[:, at, r] = R[:, r] @ mid[at].T + t[:, r, None]
@@ -265,6 +275,8 @@ class GroundUnderArm:
         terrain: the ground (its interface only).
         poses: base poses (K, 3) in M [m, m, rad].
         M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
+        margin: the body's tilt in motion the arm must clear the ground through [rad]
+            (``planner.attitude_margin``, :func:`mmstab.model.ground.tilted_height`); 0: none.
     """
 
     def __init__(
@@ -273,8 +285,9 @@ class GroundUnderArm:
         terrain: Terrain,
         poses: ArrayLike,
         M_T_B: FloatArray | None = None,
+        margin: float = 0.0,
     ) -> None:
-        self.robot = robot
+        self.robot, self.margin = robot, float(margin)
         self.pieces = arm_pieces(robot)
         p = np.atleast_2d(np.asarray(poses, dtype=float))
         T = terrain.M_T_B(p) if M_T_B is None else np.asarray(M_T_B, dtype=float)
@@ -283,6 +296,10 @@ class GroundUnderArm:
         # one square for every piece: the largest ball and a sweep, one step more (module text)
         cells = int(np.ceil((float(self.pieces.ball.max()) + SWEEP) / LATTICE)) + 1
         reach = arm_reach(robot, self.pieces)
+        # the most a tilt lowers an arm point: z (1 − cos θ) + ρ sin θ ≤ its distance D times
+        # (1 − cos θ + sin θ), D ≤ the turret's distance + the arm's reach
+        far = float(np.linalg.norm(reach[0])) + reach[1]
+        self.drop = far * (1.0 - np.cos(self.margin) + np.sin(self.margin))
         self.poses = [PoseGround(tiles, T[k], cells, reach) for k in range(len(T))]
 
     def __len__(self) -> int:
@@ -290,7 +307,7 @@ class GroundUnderArm:
 
     def body(self, postures: ArrayLike) -> PiecesB:
         """The arm's pieces in B for postures (n, 4) [rad] (pose-independent)."""
-        return pieces_in_body(self.robot, self.pieces, postures)
+        return pieces_in_body(self.robot, self.pieces, postures, self.margin)
 
     def heights(self, k: int, postures: ArrayLike, body: PiecesB | None = None) -> FloatArray:
         """Least height [m] above the ground under the arm at pose ``k``, per posture (n,)."""
@@ -300,10 +317,11 @@ class GroundUnderArm:
     def surely_clear(self, k: int, lowest: FloatArray, ground: float) -> NDArray[np.bool_]:
         """Whether arms whose lowest points are ``lowest`` (n,) [m] above z_B = 0 clear pose k.
 
-        Above the ground's highest rise within the arm's reach: no need to look closer.
+        Above the ground's highest rise within the arm's reach (less the most a tilt of
+        ``margin`` lowers an arm point): no need to look closer.
         """
         pose = self.poses[k]
-        return np.asarray(lowest / pose.cos_tilt - max(pose.highest, 0.0) >= ground)
+        return np.asarray((lowest - self.drop) / pose.cos_tilt - max(pose.highest, 0.0) >= ground)
 
     def clear(
         self, k: int, postures: ArrayLike, ground: float, body: PiecesB | None = None
@@ -319,7 +337,8 @@ class GroundUnderArm:
 
         At every pose of ``ks``; sampled so that no arm point moves more than :data:`SWEEP`
         between samples (``reach`` (4,) [m]: the bound Σ_j reach_j |Δq_j|). Returns per
-        posture (n,) and per segment (n − 1,) whether it does.
+        posture (n,) and per segment (n − 1,) whether it does. With a ``margin`` the
+        pieces over the plane are checked here too (the plane check does not know it).
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         parts, seg = [qa[:1]], [np.array([-1])]
@@ -329,8 +348,9 @@ class GroundUnderArm:
             seg.append(np.full(n, i))
         samples, of = np.vstack(parts), np.concatenate(seg)
         body = self.body(samples)
+        plane = self.margin == 0.0
         ok = np.all(
-            [self.poses[k].heights(body, ground, True) >= ground - SLACK for k in ks], axis=0
+            [self.poses[k].heights(body, ground, plane) >= ground - SLACK for k in ks], axis=0
         )
         ends = np.r_[0, np.cumsum([len(x) for x in parts])[1:] - 1]  # the postures' samples
         bad = of[~ok]

@@ -33,7 +33,10 @@ class RoadmapSearch:
         poses = np.zeros((len(task.gravity_body), 3)) if task.poses is None else task.poses
         under = None
         if task.terrain is not None and task.poses is not None:  # the ground under the arm
-            under = GroundUnderArm(task.robot, task.terrain, task.poses)
+            margin = task.settings.attitude_margin or 0.0
+            under = GroundUnderArm(task.robot, task.terrain, task.poses, margin=margin)
+        elif task.settings.attitude_margin:
+            raise MmstabError("planner.attitude_margin: needs a terrain and a route")
         climb = None
         if task.settings.climb and task.terrain is not None and task.poses is not None:
             climb = climb_plan(task.robot, task.terrain, task.poses, task.closed)
