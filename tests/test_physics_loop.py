@@ -117,6 +117,10 @@ def test_cli_simulate(tmp_path: Path) -> None:
     # a 5.7 deg ramp: mmstab's slip check flags no pose, so the bar covers the whole run
     assert s["slip_predicted_fraction"] == 0.0 and s["no_slip_predicted_fraction"] == 1.0
     assert s["base_error_max_where_no_slip_predicted_m"] == s["base_error_max_m"]
+    # nor does its turns' slide (1.7 cm/s at most) or a chassis on the ground (a plane)
+    assert s["path_slip_predicted_fraction"] == 0.0
+    assert s["high_centred"]["high_centred"] is False and s["high_centred"]["samples"] > 100
+    assert "high-centred" not in r.stderr
 
 
 def _ramp_arm_in_the_ground(tmp_path: Path) -> Path:

@@ -7,13 +7,18 @@ Their options are :mod:`mmstab.cli.options`'s, their exit-status verdicts
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from mmstab.cli.options import EXTRA_OPTIONS
-from mmstab.cli.verdicts import arm_collision_status, plan_status, slides_status, tipped_status
+from mmstab.cli.verdicts import (
+    arm_collision_status,
+    high_centred_warning,
+    plan_status,
+    slides_status,
+    tipped_status,
+)
 
 #: Default output folder of each command (``-o`` overrides it).
 DEFAULT_OUT = {
@@ -177,19 +182,8 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
-    _high_centred_line(s["high_centred"])
+    high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args)
-
-
-def _high_centred_line(verdict: dict[str, Any]) -> None:
-    """Where the path high-centres the robot (:mod:`mmstab.runs.high_centred`), if anywhere."""
-    if verdict["high_centred"]:
-        where = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f} m" for x in verdict["stretches"])
-        print(
-            f"mmstab: warning: the chassis rests on the ground at s = {where} of the path "
-            "(high-centred): the tracks carry little of the weight and may not drive it on",
-            file=sys.stderr,
-        )
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
@@ -211,7 +205,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
     )
     _climb_line(s["climb"], s["s"])
-    _high_centred_line(s["high_centred"])
+    high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args)
 
 

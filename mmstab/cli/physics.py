@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
-from mmstab.cli.verdicts import report
+from mmstab.cli.verdicts import high_centred_warning, report
 
 
 def _simulate(args: argparse.Namespace) -> int | None:
@@ -36,6 +36,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
+    high_centred_warning(s["high_centred"])
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)

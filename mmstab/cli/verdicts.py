@@ -75,3 +75,14 @@ def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> i
     line = describe_arm_collision(collision)
     allowed = args.allow_collision
     return report("arm collision", line, "--allow-collision", allowed, EXIT_ARM_COLLISION)
+
+
+def high_centred_warning(verdict: dict[str, Any]) -> None:
+    """Where the path high-centres the robot (:mod:`mmstab.runs.high_centred`), if anywhere."""
+    if verdict["high_centred"]:
+        where = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f} m" for x in verdict["stretches"])
+        print(
+            f"mmstab: warning: the chassis rests on the ground at s = {where} of the path "
+            "(high-centred): the tracks carry little of the weight and may not drive it on",
+            file=sys.stderr,
+        )

@@ -23,6 +23,7 @@ from mmstab.core.files import write_figure, write_json
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
+from mmstab.runs.high_centred import high_centred_verdict, path_samples
 
 
 def loop_settings(problem: Problem) -> LoopSettings:
@@ -97,6 +98,9 @@ def run_simulate(
     summary = summarize(run, loop)
     summary["backend"], summary["arm"] = loop.backend, loop.arm
     summary["model"] = {"wheel": loop.wheel, "timestep_s": loop.timestep}
+    summary["high_centred"] = high_centred_verdict(
+        problem.terrain, *path_samples(problem.base_path)
+    )
     _figure(d / "physics.png", run)
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)
