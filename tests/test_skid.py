@@ -119,3 +119,18 @@ def test_a_centre_of_pressure_outside_the_belts_tips_not_skids(patch):
     assert not tw.holds[0] and np.isnan(tw.yaw_rate[0])
     n = normal_loads(patch, g, com)[0]
     assert n.sum() == pytest.approx(np.cos(0.5)) and n[patch.side == 0].sum() == 0.0
+
+
+def test_the_newton_jacobian_is_the_balance_s_derivative(patch, rng):
+    from mmstab.stability.skid import _forces
+
+    loads = normal_loads(patch, [side_slope(0.3, 0.7)], [0.05, 0.02, 0.16])
+    for _ in range(10):
+        z = rng.uniform(-1, 1, (1, 3))
+        u = rng.uniform(-1, 1, (1, 2))
+        _, J = _forces(patch, loads, u, z, 1e-2)
+        h = 1e-6
+        fd = np.stack(
+            [(_forces(patch, loads, u, z + h * e, 1e-2)[0] - _forces(patch, loads, u, z - h * e,
+              1e-2)[0])[0] / (2 * h) for e in np.eye(3)], axis=1)  # fmt: skip
+        assert J[0] == pytest.approx(fd, abs=1e-5)
