@@ -166,3 +166,23 @@ def test_tracking_run_stops(tmp_path):
         out = tmp_path / f"run{k}" / "track"
         assert not (out / "summary.json").exists()
         _no_partial_files(out)
+
+
+def test_an_open_progress_bar_is_closed_before_the_verdict(monkeypatch, capsys):
+    """A bar the interrupt leaves open is drawn again when it is freed: before the last line."""
+    import gc
+
+    from tqdm import tqdm
+
+    import mmstab.cli as cli
+
+    def interrupted(args):
+        bar = tqdm(total=10, desc="workspace", file=sys.stderr)
+        bar.update(3)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_run", interrupted)
+    assert cli.main(["workspace", "problems/ramp.yaml"]) == 130
+    gc.collect()  # the unwound frames are freed: an open bar would close (and draw) now
+    err = capsys.readouterr().err
+    assert "workspace" in err and err.rstrip().endswith("mmstab: interrupted")

@@ -101,11 +101,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = note_interrupts()  # remembered even where C code swallows it
         return _main(argv)
     except KeyboardInterrupt:  # at any moment, imports included
+        _close_progress_bars()
         print("mmstab: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
+
+
+def _close_progress_bars() -> None:
+    """Close the progress bars the interrupt left open, so the last line is the verdict.
+
+    A bar left open is closed (and drawn once more) whenever the unwound frames holding it
+    are freed, which may come after ``mmstab: interrupted``.
+    """
+    tqdm = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", ())):
+        bar.close()
 
 
 def _main(argv: Sequence[str] | None) -> int:
