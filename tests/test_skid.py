@@ -134,3 +134,24 @@ def test_the_newton_jacobian_is_the_balance_s_derivative(patch, rng):
             [(_forces(patch, loads, u, z + h * e, 1e-2)[0] - _forces(patch, loads, u, z - h * e,
               1e-2)[0])[0] / (2 * h) for e in np.eye(3)], axis=1)  # fmt: skip
         assert J[0] == pytest.approx(fd, abs=1e-5)
+
+
+def test_a_dense_run_is_thinned_to_the_same_turn_verdict(robot):
+    """A run's 100 Hz samples and its 10 Hz ones give one verdict (the check thins to 10/s)."""
+    from mmstab.runs.verdict import TurnCheck, thinned, turn_slip
+    from mmstab.terrain import Ramp
+
+    t = np.arange(0.0, 4.0 + 1e-9, 0.01)
+    heading = 0.3 * t  # an arc across a 25 deg slope at 0.25 m/s, 0.3 rad/s
+    xy = np.c_[np.sin(heading), 1 - np.cos(heading)] * 0.25 / 0.3
+    poses = np.c_[xy, heading]
+    com = robot.arm_com(robot.stowed)
+    verdicts = [
+        turn_slip(Ramp(np.radians(25.0)), poses[k], TurnCheck(robot, com, t[k], 0.05, 1.0))
+        for k in (slice(None), slice(None, None, 10))
+    ]
+    dense, coarse = verdicts
+    assert len(thinned(t, 0.1)) == 41
+    assert dense["slide_rate_max_m_s"] == pytest.approx(coarse["slide_rate_max_m_s"], rel=1e-9)
+    assert dense["slide_rate_max_m_s"] > 0.05 and len(dense["sliding_turns"]) == 1
+    assert dense["sliding_turns"][0]["last"] == len(t) - 1  # indices of the run's own samples

@@ -203,6 +203,20 @@ class TurnCheck(NamedTuple):
     period: float | None = None
 
 
+#: The turn check's samples per slip window at most: a tracking run's are thinned to this
+#: (its 8,744 poses of rough.yaml cost 42 s in the skid model; 10 per window, 3 s).
+TURN_SAMPLES_PER_WINDOW = 10
+
+
+def thinned(times: Any, step: float) -> Any:
+    """Indices of ``times`` [s]: the first in each ``step`` [s] of time, and the last."""
+    t = np.asarray(times, dtype=float)
+    if len(t) == 0:
+        return np.zeros(0, dtype=int)
+    _, first = np.unique(np.floor((t - t[0]) / step), return_index=True)
+    return np.union1d(first, [len(t) - 1])
+
+
 def turn_check(
     problem: Problem, arm_com_body: Any, times: Any, period: float | None = None
 ) -> TurnCheck:
@@ -224,7 +238,8 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
 
     Each segment's heading change costs the skid-steer model's slide per radian (the worse of
     its two end poses, the belts at the segment's ratio of forward travel to turn), spread over
-    the segment's time. A segment slides when the slide within any ``check.window`` ending in
+    the segment's time (poses denser than :data:`TURN_SAMPLES_PER_WINDOW` per window are
+    thinned first). A segment slides when the slide within any ``check.window`` ending in
     it exceeds ``check.distance`` (the closed loop's "slid": the controller makes up a slower
     slide); a run of such segments is a sliding turn. Poses beyond the friction cone are the
     cone's verdict, not a turn's.
@@ -236,20 +251,23 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
     from mmstab.core.masks import true_runs
     from mmstab.stability.skid import track_patch, turn_slide
 
-    P = np.atleast_2d(np.asarray(poses, dtype=float))
-    t = np.asarray(check.times, dtype=float)
-    closed = check.period is not None
-    nxt, t_end = (np.roll(P, -1, 0), np.r_[t[1:], t[0] + (check.period or 0.0)]) if closed else (
-        P[1:], t[1:])  # fmt: skip
-    start = P[: len(nxt)]
-    turn = np.angle(np.exp(1j * (nxt[:, 2] - start[:, 2])))
-    heading = np.c_[np.cos(start[:, 2]), np.sin(start[:, 2])]
-    travel = np.sum((nxt[:, :2] - start[:, :2]) * heading, 1)
+    t_all = np.asarray(check.times, dtype=float)
+    keep = thinned(t_all, check.window / TURN_SAMPLES_PER_WINDOW)  # a run's dense samples
+    P = np.atleast_2d(np.asarray(poses, dtype=float))[keep]
+    t = t_all[keep]
     robot, friction = check.robot, terrain_friction(terrain)
-    com = np.broadcast_to(robot.overall_com(np.asarray(check.arm_com_body, float)), P.shape)
-    per_radian = np.zeros(len(nxt))
-    for ends, c in ((start, com[: len(nxt)]), (nxt, np.roll(com, -1, axis=0)[: len(nxt)])):
-        ts = turn_slide(track_patch(robot), terrain.gravity_body(ends), c, travel, turn, friction)
+    arm_com = np.broadcast_to(np.asarray(check.arm_com_body, float), (len(t_all), 3))[keep]
+    com, gravity = robot.overall_com(arm_com), terrain.gravity_body(P)  # once per pose
+    closed = check.period is not None
+    n = len(P) if closed else len(P) - 1  # segments: the last pose turns into the first
+    after = np.roll(np.arange(len(P)), -1)[:n]
+    t_end = np.r_[t[1:], t[0] + (check.period or 0.0)][:n]
+    turn = np.angle(np.exp(1j * (P[after, 2] - P[:n, 2])))
+    heading = np.c_[np.cos(P[:n, 2]), np.sin(P[:n, 2])]
+    travel = np.sum((P[after, :2] - P[:n, :2]) * heading, 1)
+    patch, per_radian = track_patch(robot), np.zeros(n)
+    for end in (np.arange(n), after):  # the worse of each segment's two end poses
+        ts = turn_slide(patch, gravity[end], com[end], travel, turn, friction)
         per_radian = np.maximum(per_radian, np.nan_to_num(ts.per_radian, nan=0.0, posinf=0.0))
     slide = per_radian * np.abs(turn)
     # cumulative slide against time (piecewise linear); slide within the window ending at each end
@@ -259,11 +277,11 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
         T, S = np.r_[T[:-1] - check.period, T], np.r_[S[:-1] - S[-1], S]
     windowed = S[-len(slide) :] - np.interp(t_end - check.window, T, S)
     turns = [
-        {"first": int(a), "last": int(b) % len(P), "turn_rad": float(np.sum(turn[a:b])),
+        {"first": int(keep[a]), "last": int(keep[b % len(P)]), "turn_rad": float(np.sum(turn[a:b])),
          "slide_in_window_m": float(windowed[a:b].max())}
         for a, b in true_runs(windowed > check.distance)
     ]  # fmt: skip
-    dt = np.maximum(t_end - t[: len(nxt)], 1e-9)
+    dt = np.maximum(t_end - t[:n], 1e-9)
     return {
         "distance_m": check.distance,
         "window_s": check.window,
