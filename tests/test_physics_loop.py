@@ -57,6 +57,17 @@ def test_the_ramp_lap_tracks_in_mujoco(ramp) -> None:
     assert late.sum() > 20 and np.abs(diff).max() < 0.01
     assert np.nansum(run.arm_ground == 1) == 0
     assert np.nanmax(run.tilt_error) < 0.1 and run.real_time_factor > 0
+    # the body origin against the path's pose at the same time (the lap's fraction t / T)
+    cs = controller_settings(problem)
+    ref = problem.base_path.pose_at(run.t / cs.lap_time)
+    origin = np.linalg.norm(run.state[:, :2] - ref[:, :2], axis=1)
+    assert run.base_origin_error == pytest.approx(origin, abs=1e-12)
+    # the control point 0.2 m ahead turns with the heading: the two errors differ, by at
+    # most the offset times the heading error (and the ramp's tilt of that offset)
+    heading = np.abs(np.angle(np.exp(1j * (run.state[:, 2] - ref[:, 2]))))
+    gap = np.abs(run.base_error - run.base_origin_error)
+    assert gap.max() > 1e-3 and np.all(gap <= cs.base_offset * heading + 1e-3)
+    assert run.base_origin_error.max() < 0.05
 
 
 def test_the_generated_c_step_drives_the_same_run(ramp) -> None:
@@ -114,6 +125,8 @@ def test_cli_simulate(tmp_path: Path) -> None:
     assert "x real time" in r.stdout and (tmp_path / "physics.png").is_file()
     assert s["arm"] == "planned" and s["model"] == {"wheel": "sphere", "timestep_s": 0.004}
     assert s["real_time_factor_cpu"] > 0
+    assert "body origin" in r.stdout and 0 < s["base_origin_error_max_m"] < 0.05
+    assert s["base_origin_error_max_where_no_slip_predicted_m"] == s["base_origin_error_max_m"]
     # a 5.7 deg ramp: mmstab's slip check flags no pose, so the bar covers the whole run
     assert s["slip_predicted_fraction"] == 0.0 and s["no_slip_predicted_fraction"] == 1.0
     assert s["base_error_max_where_no_slip_predicted_m"] == s["base_error_max_m"]

@@ -26,7 +26,8 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller, "
         f"{s['arm']} arm, {s['model']['wheel']} wheels) at "
         f"{s['real_time_factor']:.1f}x real time ({s['real_time_factor_cpu']:.1f}x in CPU time); "
-        f"base error max {s['base_error_max_m']:.3f} m, "
+        f"base error max {s['base_error_max_m']:.3f} m "
+        f"(body origin {s['base_origin_error_max_m']:.3f} m), "
         f"arm CoM {s['arm_com_error_max_m']:.3f} m; QP failures {s['qp_failures']}"
     )
     d = s["mu_difference"]

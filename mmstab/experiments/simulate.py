@@ -126,6 +126,9 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "downhill_drift_max_m": float(np.max(run.slip)),
         "base_error_max_m": float(run.base_error.max()),
         "base_error_final_m": float(run.base_error[-1]),
+        "base_origin_error_max_m": None
+        if run.base_origin_error is None
+        else float(run.base_origin_error.max()),
         "arm_com_error_max_m": float(run.arm_com_error.max()),
         "arm_com_error_final_m": float(run.arm_com_error[-1]),
         "qp_failures": int(np.sum(run.status != 0)),
@@ -169,14 +172,19 @@ def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
     def clear(flags: np.ndarray) -> np.ndarray:
         return ~(np.convolve(flags.astype(float), np.ones(window))[:n] > 0)
 
-    def worst(mask: np.ndarray) -> float | None:
-        return float(run.base_error[mask].max()) if mask.any() else None
+    def worst(mask: np.ndarray, error: np.ndarray | None = None) -> float | None:
+        error = run.base_error if error is None else error
+        return float(error[mask].max()) if mask.any() else None
 
     both, cone = clear(braked | path), clear(braked)
+    origin = run.base_origin_error
     return {
         "slip_predicted_fraction": float(braked.mean()),
         "path_slip_predicted_fraction": float(path.mean()),
         "base_error_max_where_no_slip_predicted_m": worst(both),
+        "base_origin_error_max_where_no_slip_predicted_m": None
+        if origin is None
+        else worst(both, origin),
         "no_slip_predicted_fraction": float(both.mean()),
         "base_error_max_where_cone_holds_m": worst(cone),
     }
@@ -192,6 +200,8 @@ def _figure(path: Path, run: PhysicsRun) -> None:
     a.set(xlabel="t [s]", ylabel="mu [N rad]", title="stability in the closed loop")
     a.legend(fontsize=7)
     b.plot(run.t, run.base_error, lw=1, label="base control point")
+    if run.base_origin_error is not None:
+        b.plot(run.t, run.base_origin_error, lw=1, label="body origin")
     b.plot(run.t, run.arm_com_error, lw=1, label="arm CoM")
     b.plot(run.t, run.slip, lw=1, label="uncommanded drift downhill over 1 s (< 0: uphill)")
     b.set(xlabel="t [s]", ylabel="[m]", title="tracking errors in MuJoCo")

@@ -117,6 +117,10 @@ class PhysicsRun:
         arm_ground: 1 where an arm link touches the ground, 0 where none does (every
             ``check_dt``; NaN between): mmstab's workspace checks the arm against the
             robot's body only, so a planned posture may reach into the ground.
+        base_origin_error: the body origin's distance from the reference pose's in M's x-y
+            plane [m]: the controller tracks the control point ``base_offset`` ahead, so a
+            base that drives crabbed (its heading turned off the path's to hold a side
+            slope) has its origin off the path by about offset · sin(crab) more.
     """
 
     t: FloatArray
@@ -138,6 +142,7 @@ class PhysicsRun:
     cpu_seconds: float | None = None
     slip_predicted: FloatArray | None = None
     path_slip_predicted: FloatArray | None = None
+    base_origin_error: FloatArray | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -341,6 +346,7 @@ def _finish(
     dt: float,
 ) -> PhysicsRun:
     """Errors, predicted μ and the slip verdict of a finished loop."""
+    from mmstab.control.reference import circle_pose
     from mmstab.control.tasks import build_task_model
     from mmstab.runs.tracking.run import task_batch
 
@@ -353,6 +359,7 @@ def _finish(
     window = int(round(loop.slip_window / dt))
     slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
     over = np.flatnonzero(slip > loop.slip_distance)
+    origin_ref = circle_pose(problem.base_path, t / ctrl_settings.lap_time).value[:, :2]
     return PhysicsRun(
         t=t, state=states, qdot=qdots, status=status,
         base_error=np.linalg.norm(xi_des[:, :2] - xi[:, :2], axis=1),
@@ -363,4 +370,5 @@ def _finish(
         path_slip_predicted=predicted_path_slip(problem, ref, dt, ctrl_settings.base_offset,
                                                 loop.slip_window, loop.slip_distance),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
+        base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
     )  # fmt: skip
