@@ -27,6 +27,7 @@ from mmstab.control.posture import (
     posture_samples,
 )
 from mmstab.control.reference import PathSample, StepReference, task_reference
+from mmstab.control.timing import TimeLaw, build_time_law
 from mmstab.core.masks import true_runs
 from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
@@ -283,10 +284,18 @@ class ArmReferences(NamedTuple):
     Attributes:
         posture: the lap's posture reference (checked and repaired).
         approach: the start-up reference (None when ``approach_time`` is 0).
+        timing: the time law that keeps the reference dynamically stable
+            (:mod:`mmstab.control.timing`; None: ``controller.dynamic_fraction`` null, or
+            no ground given).
     """
 
     posture: PostureReference
     approach: Approach | None
+    timing: TimeLaw | None = None
+
+    def real_time(self, nominal: float) -> float:
+        """The real time [s] a run needs to reach the nominal time [s] of its references."""
+        return nominal if self.timing is None else self.timing.real_time(nominal)
 
 
 def arm_references(
@@ -295,6 +304,7 @@ def arm_references(
     q0: ArrayLike,
     settings: Any,
     posture: PostureReference | None = None,
+    ground: tuple[BasePath, Terrain] | None = None,
 ) -> ArmReferences:
     """The arm's references of a run starting with the arm at ``q0``.
 
@@ -305,6 +315,9 @@ def arm_references(
         settings: the controller settings (``lap_time``, ``dt``, ``approach_time``) [s].
         posture: the lap's posture reference if already built (else built here, checked at
             every control period of a lap, :func:`posture_samples`).
+        ground: the base path and the terrain: with them (and ``dynamic_fraction`` not
+            None) the time law (:func:`mmstab.control.timing.build_time_law`) over the
+            run's nominal ``duration`` [s].
     """
     if posture is None:
         samples = posture_samples(settings.lap_time, settings.dt)
@@ -319,7 +332,15 @@ def arm_references(
         approach = build_approach(
             robot, q0, posture, duration, settings.lap_time, settings.dt, move=move
         )
-    return ArmReferences(posture, approach)
+    fraction = getattr(settings, "dynamic_fraction", None)
+    if ground is None or fraction is None:
+        return ArmReferences(posture, approach)
+    start = 0.0 if approach is None else approach.duration
+    law = build_time_law(
+        robot, *ground, posture, settings.lap_time, plan.fractions, fraction,
+        (start, settings.duration),
+    )  # fmt: skip
+    return ArmReferences(posture, approach, law)
 
 
 class RunReference(NamedTuple):
@@ -347,6 +368,7 @@ def run_reference(
     settings: Any,
     t: ArrayLike,
     posture: PostureReference | None = None,
+    arm: ArmReferences | None = None,
 ) -> RunReference:
     """The references of a run from the arm at ``q0``, at times ``t`` (simulation and rollout).
 
@@ -360,8 +382,11 @@ def run_reference(
             ``base_offset``, ``arm_com_frame``).
         t: the times (T,) [s].
         posture: the lap's posture reference if already built.
+        arm: the arm's references if already built (:func:`arm_references`, with the
+            ground: its time law then times the references; ``t`` are real times).
     """
-    arm = arm_references(robot, plan, q0, settings, posture)
+    if arm is None:
+        arm = arm_references(robot, plan, q0, settings, posture, (circle, terrain))
     step = task_reference(
         circle,
         terrain,
@@ -371,6 +396,7 @@ def run_reference(
         arm.posture,
         np.asarray(t, dtype=float),
         arm.approach,
+        None if arm.timing is None else arm.timing.nominal,
     )
     body = settings.arm_com_frame == "body"
     return RunReference(arm, step, body_frame_reference(robot, step) if body else step)

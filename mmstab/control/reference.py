@@ -333,6 +333,7 @@ def task_reference(
     posture: Callable[[ArrayLike], PathSample],
     t: ArrayLike,
     approach: ApproachLike | None = None,
+    timing: Callable[[ArrayLike], PathSample] | None = None,
 ) -> StepReference:
     """The controller's reference at times t for a constant-speed lap (rates per second).
 
@@ -347,19 +348,23 @@ def task_reference(
         approach: the arm's start-up reference; for t < ``approach.duration`` it replaces the
             arm-CoM rows (its body-frame CoM placed with the reference base pose) and the
             posture reference.
+        timing: the time law (:class:`mmstab.control.timing.TimeLaw` ``.nominal``): real
+            times t -> nominal times τ [s] and dτ/dt [-]; the references are taken at τ and
+            their rates scaled by dτ/dt. None: τ = t.
 
     Returns:
         ξ_des (N, 6), ξ̇_ref (N, 6) [m/s, rad/s], q_ref (N, 4) [rad], q̇_ref (N, 4) [rad/s],
         the local ground (N, 3); ``.pack()`` gives the (N, 23) rows the ``step`` Function takes.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    s = t / lap_time
+    tau, speed = (t, np.ones_like(t)) if timing is None else timing(t)
+    s, ds_dt = tau / lap_time, speed / lap_time
     base, arm_s, q = base_reference(circle, terrain, s, base_offset), arm(s), posture(s)
     ref = StepReference(
         xi_des=np.hstack([base.value, arm_s.value]),
-        xi_dot_ref=np.hstack([base.rate, arm_s.rate]) / lap_time,
+        xi_dot_ref=np.hstack([base.rate, arm_s.rate]) * ds_dt[:, None],
         q_ref=np.array(q.value),
-        q_dot_ref=q.rate / lap_time,
+        q_dot_ref=q.rate * ds_dt[:, None],
         ground=terrain.local_ground(circle_pose(circle, s).value),
     )
     if approach is not None and np.any(early := t < approach.duration):

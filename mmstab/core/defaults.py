@@ -84,7 +84,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "attitude_margin": None,
         "climb": True,
     },
-    "controller": {"arm_com_frame": "map"},
+    "controller": {"arm_com_frame": "map", "dynamic_fraction": 0.5},
     "workspace": {"method": "hull_difference"},
     "physics": {
         "control_dt": 0.004,

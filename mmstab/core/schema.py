@@ -163,6 +163,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         osqp=obj(eps_abs=POS, eps_rel=NONNEG, max_iter=INT_POS, polish={"type": "boolean"}),
         # the arm-CoM task's frame: map (paper Eq. 7) or body (docs/controller.md)
         arm_com_frame={"enum": ["map", "body"]},
+        # the arm's time law: along the reference the dynamic mu keeps this share of the
+        # static mu (mmstab/control/timing.py); null: off
+        dynamic_fraction={"oneOf": [{"type": "null"}, {**NONNEG, "maximum": 1}]},
     ),
     "workspace": with_optional(
         obj(

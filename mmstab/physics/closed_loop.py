@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.control.approach import run_reference
+from mmstab.control.approach import arm_references, run_reference
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
@@ -281,10 +281,12 @@ def run_closed_loop(
     substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
     dt = substeps * sim.model.opt.timestep
     duration = ctrl_settings.duration if loop.duration is None else loop.duration
-    steps = max(int(round(duration / dt)), 1)
+    ground = (problem.base_path, problem.terrain)
+    nominal = dataclasses.replace(ctrl_settings, duration=duration)  # the time law's window
+    arm = arm_references(robot, plan, state0[-n:], nominal, None, ground)
+    steps = max(int(round(arm.real_time(duration) / dt)), 1)  # with the time law's added
     t = np.arange(steps + 1) * dt
-    refs = run_reference(robot, problem.base_path, problem.terrain, plan, state0[-n:],
-                         ctrl_settings, t)  # fmt: skip
+    refs = run_reference(robot, *ground, plan, state0[-n:], ctrl_settings, t, arm=arm)
     ref, ref_map = refs.control.pack(), refs.step.pack()  # the step's; the errors' (M)
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)

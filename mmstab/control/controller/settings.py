@@ -22,6 +22,10 @@ class OsqpSettings:
     polish: bool
 
 
+def _optional(value: Any) -> float | None:
+    return None if value is None else float(value)
+
+
 _VECTORS = ("kp", "w_a", "w_b", "posture_gain", "posture_weight")
 
 
@@ -48,6 +52,8 @@ class ControllerSettings:
         arm_com_frame: the frame of the arm-CoM task, ``map`` (M, paper Eq. 7: task
             ``arm_com``) or ``body`` (B: task ``arm_com_body``, its references g_a^B(q_ref))
             (:func:`mmstab.control.tasks.controller_task_names`).
+        dynamic_fraction: the arm's time law: along the reference the dynamic μ keeps this
+            share of the static μ (:mod:`mmstab.control.timing`); None: off.
     """
 
     dt: float
@@ -65,6 +71,7 @@ class ControllerSettings:
     kkt_tol: float
     osqp: OsqpSettings
     arm_com_frame: str = SECTION_DEFAULTS["controller"]["arm_com_frame"]
+    dynamic_fraction: float | None = SECTION_DEFAULTS["controller"]["dynamic_fraction"]
 
     @classmethod
     def from_section(cls, section: Mapping[str, Any]) -> ControllerSettings:
@@ -81,6 +88,7 @@ class ControllerSettings:
             approach_time=float(section["approach_time"]),
             kkt_tol=float(section["kkt_tol"]),
             arm_com_frame=str(section.get("arm_com_frame", cls.arm_com_frame)),
+            dynamic_fraction=_optional(section.get("dynamic_fraction", cls.dynamic_fraction)),
             osqp=OsqpSettings(
                 float(o["eps_abs"]), float(o["eps_rel"]), int(o["max_iter"]), bool(o["polish"])
             ),

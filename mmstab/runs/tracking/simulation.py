@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.control.approach import RunReference, run_reference
+from mmstab.control.approach import RunReference, arm_references, run_reference
 from mmstab.control.controller import (
     ARM,
     PLUGINS,
@@ -226,11 +226,12 @@ def set_up(
     )
     model = build_task_model(robot, settings.base_offset)  # ξ in M, whatever the step tracks
     params = ControllerParams.from_settings(robot, settings).pack()
-    steps = max(int(round(duration / settings.dt)), 1)
+    ground = (problem.base_path, problem.terrain)
+    nominal = dataclasses.replace(settings, duration=duration)  # the time law's window
+    arm = arm_references(robot, plan, s0[ARM], nominal, posture, ground)
+    steps = max(int(round(arm.real_time(duration) / settings.dt)), 1)  # the time law's added
     t = np.asarray(np.arange(steps + 1) * settings.dt, dtype=np.float64)
-    reference = run_reference(
-        robot, problem.base_path, problem.terrain, plan, s0[ARM], settings, t, posture
-    )
+    reference = run_reference(robot, *ground, plan, s0[ARM], settings, t, posture, arm)
     packed = reference.control.pack()
     if not np.all(np.isfinite(packed)):
         raise MmstabError("the task reference is not finite")

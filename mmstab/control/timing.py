@@ -1,0 +1,330 @@
+"""The arm's time law: slow the reference where its inertial forces would tip the robot.
+
+The plan is quasi-static: each pose is stable with the arm at rest. Between poses the arm
+moves (a roadmap move fills the time between two poses, a spline joins the postures), and a
+long move in a short interval is fast: on the tests' random route pair 5 a turret swing of
+1.2 rad in 0.25 s with the arm out tipped the robot in MuJoCo, the plan's μ at its poses
+602 N rad (``docs/physics.md``).
+
+**The measure.** Along the reference (base pose and arm posture at nominal time τ = s ·
+lap_time) every body's CoM (base, arm links) is placed in the map frame M with the base's
+planar motion (x, y, heading) and the ground's attitude at that instant held (the ground's
+own undulation is left out: on a heightmap the resting attitude jumps where the contacts
+switch); accelerations are central differences over ``STEP`` [s]. The dynamic force-angle
+measure of those accelerations (:mod:`mmstab.stability.dynamic`, with the tool wrench of a
+payload) is μ_dyn; with the bodies at rest it is the static μ exactly.
+
+**The law.** ``controller.dynamic_fraction`` f (default 0.5; null: off): along the reference
+μ_dyn ≥ f · μ_static wherever μ_static > 0 (the inertial forces may take at most 1 − f of the
+static margin). Time is stretched by a speed factor λ(τ) = dτ/dt ∈ (0, 1], base and arm
+together, so that the arm is at each planned posture when the base is at its pose (the plan's
+pairs stay as planned). Between consecutive planned poses λ is a constant k: every
+acceleration of that stretch scales by k², so the largest k meeting the bound is found by
+bisection; λ returns to 1 outside the stretch linearly over ``v_max (1 − k) / DECELERATION``
+[s] (the base slows down and speeds up at most ``DECELERATION``). The timed reference is
+measured again (the ramps' own accelerations included) and a stretch still below the bound
+is slowed further, ``ROUNDS`` times at most. The run lasts longer by the time added.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.control.reference import PathSample
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.paths.base import BasePath
+from mmstab.stability.dynamic import dynamic_force_angle
+from mmstab.stability.static import base_polygon
+from mmstab.terrain import Terrain
+
+#: Step of the central differences and of the law's grid, nominal time [s].
+STEP = 0.01
+#: The base's largest change of speed from the law [m/s^2] (the routes' default acceleration).
+DECELERATION = 0.3
+#: Least ramp of λ back to 1 [s nominal], so that a slow base still eases in and out.
+MIN_RAMP = 0.5
+#: Smallest speed factor: a stretch that needs less is reported, not slowed further.
+MIN_FACTOR = 0.05
+#: Rounds of measuring the timed reference and slowing the stretches still below the bound.
+ROUNDS = 6
+#: Bisection steps on a stretch's factor k (k within 2^-12 of the largest that meets the bound).
+BISECTION = 12
+
+
+class ReferenceMotion(NamedTuple):
+    """The bodies along a reference at nominal times ``tau`` (N,), in the body frame B.
+
+    Attributes:
+        tau: nominal times (N,) [s].
+        gravity: gravity in B (N, 3) [m/s^2].
+        positions: body CoMs in B (N, k, 3) [m]: the base, then the arm links.
+        velocity: d/dτ of the bodies' CoMs in M, expressed in B (N, k, 3) [m/s].
+        acceleration: d²/dτ² of the same (N, k, 3) [m/s^2].
+        tool: the tool point in B (N, 3) [m] (where a payload's wrench acts).
+    """
+
+    tau: FloatArray
+    gravity: FloatArray
+    positions: FloatArray
+    velocity: FloatArray
+    acceleration: FloatArray
+    tool: FloatArray
+
+
+def _bodies(robot: Robot, q: FloatArray) -> FloatArray:
+    """Body CoMs in B (N, 1 + n, 3) [m] at postures q (N, n): the base, the arm links."""
+    base = np.broadcast_to(robot.base.com, (len(q), 1, 3))
+    return np.concatenate([base, robot.kinematics.link_coms(q)], axis=1)
+
+
+def _yaw(gamma: FloatArray) -> FloatArray:
+    c, s = np.cos(gamma), np.sin(gamma)
+    R = np.zeros((len(gamma), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+def reference_motion(
+    robot: Robot,
+    path: BasePath,
+    terrain: Terrain,
+    posture: Any,
+    lap_time: float,
+    tau: ArrayLike,
+) -> ReferenceMotion:
+    """The bodies' CoMs, velocities and accelerations along a reference (module text).
+
+    Args:
+        robot: the robot.
+        path: the base path (its pose at fraction s = τ / lap_time).
+        terrain: the ground (gravity in B, the attitude held at each instant).
+        posture: the arm's posture reference ``s -> PathSample`` (q [rad]).
+        lap_time: the references' period [s].
+        tau: nominal times (N,) [s].
+    """
+    tau = np.atleast_1d(np.asarray(tau, dtype=float))
+    pose = path.pose_at(tau / lap_time)
+    M_R_B = np.asarray(terrain.M_T_B(pose)).reshape(-1, 4, 4)[:, :3, :3]
+    tilt = np.einsum("nji,njk->nik", _yaw(pose[:, 2]), M_R_B)  # Rz(γ)ᵀ M_R_B, held
+    placed = []
+    for d in (-STEP, 0.0, STEP):
+        p = pose if d == 0.0 else path.pose_at((tau + d) / lap_time)
+        q = np.asarray(posture((tau + d) / lap_time).value)
+        R = np.einsum("nij,njk->nik", _yaw(p[:, 2]), tilt)
+        world = np.einsum("nij,nkj->nki", R, _bodies(robot, q))
+        world[:, :, :2] += p[:, None, :2]
+        placed.append(world)
+    vel = (placed[2] - placed[0]) / (2 * STEP)
+    acc = (placed[2] - 2 * placed[1] + placed[0]) / STEP**2
+    q0 = np.asarray(posture(tau / lap_time).value)
+    return ReferenceMotion(
+        tau=tau,
+        gravity=np.asarray(terrain.gravity_body(pose)),
+        positions=_bodies(robot, q0),
+        velocity=np.einsum("nji,nkj->nki", M_R_B, vel),
+        acceleration=np.einsum("nji,nkj->nki", M_R_B, acc),
+        tool=robot.kinematics.link_frames(q0)[:, -1, :3, 3],
+    )
+
+
+def dynamic_mu(robot: Robot, motion: ReferenceMotion, acceleration: ArrayLike) -> FloatArray:
+    """μ_dyn [N rad] (N,) of the bodies of ``motion`` with CoM accelerations (N, k, 3) in B.
+
+    Point masses (the links' rotational inertia about their own CoMs is left out); a
+    payload's tool wrench (``Robot.tool_wrench``) acts at ``motion.tool``. Zero
+    accelerations give the static measure (``robot_mu``).
+    """
+    m = np.array([robot.base.mass, *(link.mass for link in robot.links)])
+    r = motion.positions
+    forces = m[None, :, None] * (motion.gravity[:, None, :] - np.asarray(acceleration))
+    com = np.einsum("k,nki->ni", m, r) / m.sum()
+    force = forces.sum(axis=1)
+    moment = np.cross(r - com[:, None, :], forces).sum(axis=1)
+    if robot.tool_wrench is not None:
+        w = np.asarray(robot.tool_wrench, dtype=float)
+        force = force + w[:3]
+        moment = moment + np.cross(motion.tool - com, w[:3]) + w[3:]
+    return dynamic_force_angle(base_polygon(robot).vertices, com, force, moment).mu
+
+
+class TimeLaw(NamedTuple):
+    """The nominal time τ of the references at real time t, periodic with the lap.
+
+    Attributes:
+        tau: the law's grid over one lap, nominal times (G,) [s], 0 to ``lap_time``.
+        t: the real times at them (G,) [s].
+        speed: λ = dτ/dt at them (G,) [-], in (0, 1].
+        stretches: the stretches between planned poses, nominal [start, end] (S, 2) [s].
+        factors: each stretch's speed factor k (S,) [-] (1: not slowed).
+        fraction: ``controller.dynamic_fraction`` f [-].
+        mu_dynamic_min_before: least μ_dyn of the reference at its own speed [N rad].
+        mu_dynamic_min: least μ_dyn of the timed reference [N rad].
+        mu_static_min: least static μ of the reference [N rad] (over the same samples).
+        below_bound: samples of the timed reference still below f · μ_static (0: met).
+    """
+
+    tau: FloatArray
+    t: FloatArray
+    speed: FloatArray
+    stretches: FloatArray
+    factors: FloatArray
+    fraction: float
+    mu_dynamic_min_before: float
+    mu_dynamic_min: float
+    mu_static_min: float
+    below_bound: int
+
+    @property
+    def lap_time(self) -> float:
+        """The nominal period [s]."""
+        return float(self.tau[-1])
+
+    def nominal(self, t: ArrayLike) -> PathSample:
+        """Nominal times τ (N,) [s] at real times t (N,) [s], and λ = dτ/dt (N,) [-]."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        laps = np.floor(t / self.t[-1])
+        rest = t - laps * self.t[-1]
+        tau = laps * self.lap_time + np.interp(rest, self.t, self.tau)
+        return PathSample(tau, np.interp(rest, self.t, self.speed))
+
+    def real_time(self, tau: float) -> float:
+        """The real time [s] at which the timed reference reaches nominal time τ [s]."""
+        laps = np.floor(tau / self.lap_time)
+        rest = tau - laps * self.lap_time
+        return float(laps * self.t[-1] + np.interp(rest, self.tau, self.t))
+
+    def summary(self) -> dict[str, Any]:
+        """The report for ``summary.json``: the bound, the slowed moves, μ before and after."""
+        slowed = np.flatnonzero(self.factors < 1.0)
+        return {
+            "dynamic_fraction": self.fraction,
+            "mu_dynamic_min_before": self.mu_dynamic_min_before,
+            "mu_dynamic_min": self.mu_dynamic_min,
+            "mu_static_min": self.mu_static_min,
+            "samples_below_bound": self.below_bound,
+            "lap_time_added_s": float(self.t[-1] - self.tau[-1]),
+            "slowed_moves": [
+                {"nominal_s": self.stretches[i].tolist(), "factor": float(self.factors[i])}
+                for i in slowed
+            ],
+        }
+
+
+def law_speed(tau: FloatArray, stretches: FloatArray, factors: FloatArray, v_max: float) -> FloatArray:
+    """λ(τ) (N,): each slowed stretch's k, ramped linearly back to 1 outside it (module text)."""
+    speed = np.ones_like(tau)
+    for (a, b), k in zip(stretches, factors, strict=True):
+        if k >= 1.0:
+            continue
+        ramp = max(MIN_RAMP, v_max * (1.0 - k) / DECELERATION)
+        away = np.maximum(0.0, np.maximum(a - tau, tau - b))
+        speed = np.minimum(speed, k + (1.0 - k) * np.clip(away / ramp, 0.0, 1.0))
+    return speed
+
+
+def real_times(tau: FloatArray, speed: FloatArray) -> FloatArray:
+    """Real times (G,) [s] at the grid τ (G,) [s] of a piecewise-linear λ: ∫ dτ / λ, exactly."""
+    l0, l1, h = speed[:-1], speed[1:], np.diff(tau)
+    same = np.isclose(l0, l1)
+    dt = np.where(same, h / l0, h * np.log(l1 / l0) / np.where(same, 1.0, l1 - l0))
+    return np.r_[0.0, np.cumsum(dt)]
+
+
+def _largest_factor(
+    robot: Robot, motion: ReferenceMotion, rows: FloatArray, bound: FloatArray, k: float
+) -> float:
+    """The largest factor ≤ k whose k² accelerations keep μ_dyn ≥ bound on ``rows``."""
+    part = motion._replace(
+        gravity=motion.gravity[rows], positions=motion.positions[rows], tool=motion.tool[rows]
+    )
+    acc = motion.acceleration[rows]
+
+    def meets(x: float) -> bool:
+        return bool(np.all(dynamic_mu(robot, part, x * x * acc) >= bound[rows]))
+
+    lo, hi = MIN_FACTOR, k
+    if meets(hi):
+        return hi
+    for _ in range(BISECTION):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if meets(mid) else (lo, mid)
+    return lo
+
+
+def timed_mu(
+    robot: Robot, motion: ReferenceMotion, speed: FloatArray
+) -> FloatArray:
+    """μ_dyn (N,) [N rad] of the reference timed by λ (N,) on the motion's grid.
+
+    d²p/dt² = λ² d²p/dτ² + λ λ' dp/dτ, with λ' = dλ/dτ (the ramps' own accelerations).
+    """
+    dspeed = np.gradient(speed, motion.tau)
+    acc = (speed**2)[:, None, None] * motion.acceleration
+    acc += (speed * dspeed)[:, None, None] * motion.velocity
+    return dynamic_mu(robot, motion, acc)
+
+
+def build_time_law(
+    robot: Robot,
+    path: BasePath,
+    terrain: Terrain,
+    posture: Any,
+    lap_time: float,
+    fractions: ArrayLike,
+    fraction: float,
+    window: tuple[float, float],
+) -> TimeLaw:
+    """The time law of a reference: μ_dyn ≥ ``fraction`` · μ_static along it (module text).
+
+    Args:
+        robot: the robot.
+        path: the base path.
+        terrain: the ground.
+        posture: the arm's posture reference ``s -> PathSample`` (q [rad]).
+        lap_time: the references' period [s].
+        fractions: the planned poses' path fractions (K,) [-]: the stretches' ends.
+        fraction: f [-], the share of the static μ the dynamic μ keeps.
+        window: nominal times [start, end] [s] that are checked: after the arm's start-up
+            approach (its own reference), until the run's end (at most one lap).
+    """
+    tau = np.linspace(0.0, lap_time, max(int(np.ceil(lap_time / STEP)), 2) + 1)
+    motion = reference_motion(robot, path, terrain, posture, lap_time, tau)
+    static = dynamic_mu(robot, motion, np.zeros_like(motion.acceleration))
+    checked = (tau >= window[0]) & (tau <= min(window[1], lap_time))
+    bound = np.where(checked & (static > 0), fraction * static, -np.inf)
+    ends = np.unique(np.r_[0.0, np.asarray(fractions, dtype=float) * lap_time, lap_time])
+    stretches = np.column_stack([ends[:-1], ends[1:]])
+    which = np.clip(np.searchsorted(ends, tau, side="right") - 1, 0, len(stretches) - 1)
+    factors = np.ones(len(stretches))
+    v_max = float(np.linalg.norm(motion.velocity[:, 0, :2], axis=1).max())
+    before = mu = timed_mu(robot, motion, np.ones_like(tau))
+    speed = np.ones_like(tau)
+    for rnd in range(ROUNDS):
+        low = np.unique(which[mu < bound])
+        if not low.size:
+            break
+        for i in low:
+            if rnd == 0:
+                rows = np.flatnonzero(which == i)
+                factors[i] = _largest_factor(robot, motion, rows, bound, factors[i])
+            else:  # the ramps' accelerations or a neighbour's: a little slower
+                factors[i] = max(MIN_FACTOR, 0.8 * factors[i])
+        speed = law_speed(tau, stretches, factors, v_max)
+        speed[tau < window[0]] = 1.0  # the approach keeps its own time
+        mu = timed_mu(robot, motion, speed)
+    keep = checked & np.isfinite(bound)
+    return TimeLaw(
+        tau=tau,
+        t=real_times(tau, speed),
+        speed=speed,
+        stretches=stretches,
+        factors=factors,
+        fraction=float(fraction),
+        mu_dynamic_min_before=float(before[checked].min()),
+        mu_dynamic_min=float(mu[checked].min()),
+        mu_static_min=float(static[checked].min()),
+        below_bound=int(np.count_nonzero(keep & (mu < bound))),
+    )
