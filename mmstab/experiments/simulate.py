@@ -150,6 +150,7 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "real_time_factor": run.real_time_factor,
         "wall_seconds": run.wall_seconds,
         "real_time_factor_cpu": float(run.t[-1] / run.cpu_seconds) if run.cpu_seconds else None,
+        "arm_timing": run.timing,
     }
 
 

@@ -121,6 +121,8 @@ class PhysicsRun:
             plane [m]: the controller tracks the control point ``base_offset`` ahead, so a
             base that drives crabbed (its heading turned off the path's to hold a side
             slope) has its origin off the path by about offset · sin(crab) more.
+        timing: the arm's time law's report (:meth:`mmstab.control.timing.TimeLaw.summary`),
+            None when ``controller.dynamic_fraction`` is null.
     """
 
     t: FloatArray
@@ -143,6 +145,7 @@ class PhysicsRun:
     slip_predicted: FloatArray | None = None
     path_slip_predicted: FloatArray | None = None
     base_origin_error: FloatArray | None = None
+    timing: dict[str, Any] | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -329,6 +332,7 @@ def run_closed_loop(
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
         arm_ground=arm,
         cpu_seconds=cpu,
+        timing=None if refs.arm.timing is None else refs.arm.timing.summary(),
     )
 
 

@@ -12,6 +12,7 @@ from mmstab.control.approach import Approach
 from mmstab.control.controller import ARM, QPStatus, TaskModel
 from mmstab.control.posture import PostureReference
 from mmstab.control.reference import PlanLike
+from mmstab.control.timing import TimeLaw
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.static import StabilityCases
@@ -109,6 +110,7 @@ class TrackingRun:
         wall_seconds: wall time of the control loop [s].
         build_seconds: wall time to build the controller and the reference [s].
         tipped: where the robot would tip over (μ < 0), the run's last sample; None if not.
+        timing: the arm's time law (:mod:`mmstab.control.timing`), None when off.
     """
 
     t: FloatArray
@@ -139,6 +141,7 @@ class TrackingRun:
     wall_seconds: float
     build_seconds: float
     tipped: Tipping | None = None
+    timing: TimeLaw | None = None
 
     @property
     def steps(self) -> int:

@@ -286,6 +286,7 @@ def record(
         failures=tuple(Failure(int(k), float(t[k]), QPStatus(int(statuses[k]))) for k in failed),
         posture=setup.reference.arm.posture,
         approach=setup.reference.arm.approach,
+        timing=setup.reference.arm.timing,
         dt=settings.dt,
         lap_time=settings.lap_time,
         qdot_limit=ControllerParams.from_settings(robot, settings).qdot_max,
