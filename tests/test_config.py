@@ -72,6 +72,18 @@ CASES = [
         "controller.arm_com_frame",
     ),
     (
+        "dynamic fraction above 1",
+        lambda p, r: p["controller"].__setitem__("dynamic_fraction", 1.5),
+        "problem.yaml",
+        "controller.dynamic_fraction",
+    ),
+    (
+        "dynamic fraction not a number",
+        lambda p, r: p["controller"].__setitem__("dynamic_fraction", "half"),
+        "problem.yaml",
+        "controller.dynamic_fraction",
+    ),
+    (
         "missing robot",
         lambda p, r: p.__setitem__("robot", "robots/none.yaml"),
         "problem.yaml",

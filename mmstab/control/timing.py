@@ -254,6 +254,43 @@ def _largest_factor(
     return lo
 
 
+class Stretches:
+    """The stretches between planned poses on the law's grid, and which one a sample blames.
+
+    A sample within ``1.5 STEP`` of a stretch's end has central differences reaching into
+    the next stretch (a roadmap move stops there at its smoothstep's end deceleration): its
+    low μ_dyn is blamed on the neighbour whose arm moves fastest, not on a long, slow
+    stretch that happens to begin there.
+    """
+
+    def __init__(self, ends: FloatArray, tau: FloatArray, motion: ReferenceMotion):
+        self.ends, self.tau = ends, tau
+        self.spans = np.column_stack([ends[:-1], ends[1:]])
+        self.which = np.clip(np.searchsorted(ends, tau, side="right") - 1, 0, len(ends) - 2)
+        arm = np.linalg.norm(motion.acceleration[:, 1:], axis=2).max(axis=1)  # (N,) [m/s^2]
+        self.intensity = np.zeros(len(self.spans))
+        np.maximum.at(self.intensity, self.which, arm)
+
+    def rows(self, i: int) -> FloatArray:
+        """The samples of stretch i and those within 1.5 STEP of its ends (indices)."""
+        a, b = self.spans[i]
+        return np.flatnonzero((self.tau >= a - 1.5 * STEP) & (self.tau <= b + 1.5 * STEP))
+
+    def blamed(self, bad: FloatArray) -> FloatArray:
+        """The stretches to slow for the samples ``bad`` (indices), each blamed once."""
+        out = set()
+        last = len(self.spans) - 1
+        for j in bad:
+            i, t = int(self.which[j]), self.tau[j]
+            near = [i]
+            if i > 0 and t - self.spans[i, 0] < 1.5 * STEP:
+                near.append(i - 1)
+            if i < last and self.spans[i, 1] - t < 1.5 * STEP:
+                near.append(i + 1)
+            out.add(max(near, key=lambda k: self.intensity[k]))
+        return np.array(sorted(out), dtype=int)
+
+
 def timed_mu(
     robot: Robot, motion: ReferenceMotion, speed: FloatArray
 ) -> FloatArray:
@@ -296,23 +333,22 @@ def build_time_law(
     checked = (tau >= window[0]) & (tau <= min(window[1], lap_time))
     bound = np.where(checked & (static > 0), fraction * static, -np.inf)
     ends = np.unique(np.r_[0.0, np.asarray(fractions, dtype=float) * lap_time, lap_time])
-    stretches = np.column_stack([ends[:-1], ends[1:]])
-    which = np.clip(np.searchsorted(ends, tau, side="right") - 1, 0, len(stretches) - 1)
-    factors = np.ones(len(stretches))
+    stretches = Stretches(ends, tau, motion)
+    factors = np.ones(len(ends) - 1)
     v_max = float(np.linalg.norm(motion.velocity[:, 0, :2], axis=1).max())
     before = mu = timed_mu(robot, motion, np.ones_like(tau))
     speed = np.ones_like(tau)
     for rnd in range(ROUNDS):
-        low = np.unique(which[mu < bound])
+        low = stretches.blamed(np.flatnonzero(mu < bound))
         if not low.size:
             break
         for i in low:
             if rnd == 0:
-                rows = np.flatnonzero(which == i)
+                rows = stretches.rows(i)
                 factors[i] = _largest_factor(robot, motion, rows, bound, factors[i])
             else:  # the ramps' accelerations or a neighbour's: a little slower
                 factors[i] = max(MIN_FACTOR, 0.8 * factors[i])
-        speed = law_speed(tau, stretches, factors, v_max)
+        speed = law_speed(tau, stretches.spans, factors, v_max)
         speed[tau < window[0]] = 1.0  # the approach keeps its own time
         mu = timed_mu(robot, motion, speed)
     keep = checked & np.isfinite(bound)
@@ -320,7 +356,7 @@ def build_time_law(
         tau=tau,
         t=real_times(tau, speed),
         speed=speed,
-        stretches=stretches,
+        stretches=stretches.spans,
         factors=factors,
         fraction=float(fraction),
         mu_dynamic_min_before=float(before[checked].min()),
