@@ -182,19 +182,35 @@ class TimeLaw(NamedTuple):
         """The nominal period [s]."""
         return float(self.tau[-1])
 
+    def _cells(self, grid: FloatArray, x: FloatArray) -> tuple[FloatArray, ...]:
+        """Each x's grid cell: its start τ0, t0, λ0 and slope κ = dλ/dτ there."""
+        i = np.clip(np.searchsorted(grid, x, side="right") - 1, 0, len(grid) - 2)
+        kappa = np.diff(self.speed)[i] / np.diff(self.tau)[i]
+        return self.tau[i], self.t[i], self.speed[i], kappa
+
     def nominal(self, t: ArrayLike) -> PathSample:
-        """Nominal times τ (N,) [s] at real times t (N,) [s], and λ = dτ/dt (N,) [-]."""
+        """Nominal times τ (N,) [s] at real times t (N,) [s], and λ = dτ/dt (N,) [-].
+
+        Exact for λ linear in τ within a grid cell: λ = λ0 exp(κ (t − t0)).
+        """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         laps = np.floor(t / self.t[-1])
         rest = t - laps * self.t[-1]
-        tau = laps * self.lap_time + np.interp(rest, self.t, self.tau)
-        return PathSample(tau, np.interp(rest, self.t, self.speed))
+        tau0, t0, l0, kappa = self._cells(self.t, rest)
+        speed = l0 * np.exp(kappa * (rest - t0))
+        flat = np.abs(kappa) < 1e-12
+        step = np.where(flat, l0 * (rest - t0), (speed - l0) / np.where(flat, 1.0, kappa))
+        return PathSample(laps * self.lap_time + tau0 + step, speed)
 
     def real_time(self, tau: float) -> float:
         """The real time [s] at which the timed reference reaches nominal time τ [s]."""
         laps = np.floor(tau / self.lap_time)
-        rest = tau - laps * self.lap_time
-        return float(laps * self.t[-1] + np.interp(rest, self.tau, self.t))
+        rest = np.atleast_1d(tau - laps * self.lap_time)
+        tau0, t0, l0, kappa = self._cells(self.tau, rest)
+        speed = l0 + kappa * (rest - tau0)
+        flat = np.abs(kappa) < 1e-12
+        dt = np.where(flat, (rest - tau0) / l0, np.log(speed / l0) / np.where(flat, 1.0, kappa))
+        return float(laps * self.t[-1] + t0[0] + dt[0])
 
     def summary(self) -> dict[str, Any]:
         """The report for ``summary.json``: the bound, the slowed moves, μ before and after."""
