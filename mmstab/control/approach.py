@@ -284,9 +284,8 @@ class ArmReferences(NamedTuple):
     Attributes:
         posture: the lap's posture reference (checked and repaired).
         approach: the start-up reference (None when ``approach_time`` is 0).
-        timing: the time law that keeps the reference dynamically stable
-            (:mod:`mmstab.control.timing`; None: ``controller.dynamic_fraction`` null, or
-            no ground given).
+        timing: the time law keeping the reference dynamically stable
+            (:mod:`mmstab.control.timing`); None: ``dynamic_fraction`` null, or no ground.
     """
 
     posture: PostureReference
@@ -335,11 +334,10 @@ def arm_references(
     fraction = getattr(settings, "dynamic_fraction", None)
     if ground is None or fraction is None:
         return ArmReferences(posture, approach)
-    start = 0.0 if approach is None else approach.duration
+    window = (0.0 if approach is None else approach.duration, settings.duration)
     law = build_time_law(
-        robot, *ground, posture, settings.lap_time, plan.fractions, fraction,
-        (start, settings.duration),
-    )  # fmt: skip
+        robot, *ground, posture, settings.lap_time, plan.fractions, fraction, window
+    )
     return ArmReferences(posture, approach, law)
 
 

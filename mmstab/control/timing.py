@@ -31,7 +31,7 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from mmstab.control.reference import PathSample
 from mmstab.model.robot import FloatArray, Robot
@@ -229,7 +229,9 @@ class TimeLaw(NamedTuple):
         }
 
 
-def law_speed(tau: FloatArray, stretches: FloatArray, factors: FloatArray, v_max: float) -> FloatArray:
+def law_speed(
+    tau: FloatArray, stretches: FloatArray, factors: FloatArray, v_max: float
+) -> FloatArray:
     """λ(τ) (N,): each slowed stretch's k, ramped linearly back to 1 outside it (module text)."""
     speed = np.ones_like(tau)
     for (a, b), k in zip(stretches, factors, strict=True):
@@ -250,7 +252,7 @@ def real_times(tau: FloatArray, speed: FloatArray) -> FloatArray:
 
 
 def _largest_factor(
-    robot: Robot, motion: ReferenceMotion, rows: FloatArray, bound: FloatArray, k: float
+    robot: Robot, motion: ReferenceMotion, rows: NDArray[np.intp], bound: FloatArray, k: float
 ) -> float:
     """The largest factor ≤ k whose k² accelerations keep μ_dyn ≥ bound on ``rows``."""
     part = motion._replace(
@@ -287,12 +289,12 @@ class Stretches:
         self.intensity = np.zeros(len(self.spans))
         np.maximum.at(self.intensity, self.which, arm)
 
-    def rows(self, i: int) -> FloatArray:
+    def rows(self, i: int) -> NDArray[np.intp]:
         """The samples of stretch i and those within 1.5 STEP of its ends (indices)."""
         a, b = self.spans[i]
         return np.flatnonzero((self.tau >= a - 1.5 * STEP) & (self.tau <= b + 1.5 * STEP))
 
-    def blamed(self, bad: FloatArray) -> FloatArray:
+    def blamed(self, bad: NDArray[np.intp]) -> NDArray[np.intp]:
         """The stretches to slow for the samples ``bad`` (indices), each blamed once."""
         out = set()
         last = len(self.spans) - 1
@@ -304,12 +306,10 @@ class Stretches:
             if i < last and self.spans[i, 1] - t < 1.5 * STEP:
                 near.append(i + 1)
             out.add(max(near, key=lambda k: self.intensity[k]))
-        return np.array(sorted(out), dtype=int)
+        return np.array(sorted(out), dtype=np.intp)
 
 
-def timed_mu(
-    robot: Robot, motion: ReferenceMotion, speed: FloatArray
-) -> FloatArray:
+def timed_mu(robot: Robot, motion: ReferenceMotion, speed: FloatArray) -> FloatArray:
     """μ_dyn (N,) [N rad] of the reference timed by λ (N,) on the motion's grid.
 
     d²p/dt² = λ² d²p/dτ² + λ λ' dp/dτ, with λ' = dλ/dτ (the ramps' own accelerations).

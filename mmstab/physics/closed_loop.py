@@ -286,10 +286,10 @@ def run_closed_loop(
     duration = ctrl_settings.duration if loop.duration is None else loop.duration
     ground = (problem.base_path, problem.terrain)
     nominal = dataclasses.replace(ctrl_settings, duration=duration)  # the time law's window
-    arm = arm_references(robot, plan, state0[-n:], nominal, None, ground)
-    steps = max(int(round(arm.real_time(duration) / dt)), 1)  # with the time law's added
+    arm_refs = arm_references(robot, plan, state0[-n:], nominal, None, ground)
+    steps = max(int(round(arm_refs.real_time(duration) / dt)), 1)  # with the time law's added
     t = np.arange(steps + 1) * dt
-    refs = run_reference(robot, *ground, plan, state0[-n:], ctrl_settings, t, arm=arm)
+    refs = run_reference(robot, *ground, plan, state0[-n:], ctrl_settings, t, arm=arm_refs)
     ref, ref_map = refs.control.pack(), refs.step.pack()  # the step's; the errors' (M)
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
