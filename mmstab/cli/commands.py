@@ -17,6 +17,7 @@ from mmstab.cli.verdicts import (
     high_centred_warning,
     plan_status,
     slides_status,
+    timing_line,
     tipped_status,
 )
 
@@ -153,6 +154,7 @@ def _track(args: argparse.Namespace, problem: Any) -> int | None:
         f"reference: {len(s['posture_reference']['via_postures'])} via postures, colliding "
         f"samples {s['posture_reference']['reference']['colliding_samples']}"
     )
+    timing_line("track", s.get("arm_timing"))
     return tipped_status(s) or slides_status(s, args) or arm_collision_status(s, args)
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
-from mmstab.cli.verdicts import high_centred_warning, report
+from mmstab.cli.verdicts import high_centred_warning, report, timing_line
 
 
 def _simulate(args: argparse.Namespace) -> int | None:
@@ -37,7 +37,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
         f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
-    _timing_line(s["arm_timing"])
+    timing_line("simulate", s["arm_timing"])
     high_centred_warning(s["high_centred"])
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
@@ -58,19 +58,6 @@ def _simulate(args: argparse.Namespace) -> int | None:
         if status is not None:
             return status
     return _arm_ground_status(s, args)
-
-
-def _timing_line(timing: dict[str, Any] | None) -> None:
-    """The arm's time law: μ_dyn along the reference before and after, the moves slowed."""
-    if timing is None:
-        return
-    moves = timing["slowed_moves"]
-    print(
-        f"simulate: arm time law (dynamic_fraction {timing['dynamic_fraction']:g}): "
-        f"mu_dynamic min along the reference {timing['mu_dynamic_min_before']:.1f} -> "
-        f"{timing['mu_dynamic_min']:.1f} N rad (static {timing['mu_static_min']:.1f}); "
-        f"{len(moves)} move(s) slowed, +{timing['lap_time_added_s']:.2f} s"
-    )
 
 
 def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:

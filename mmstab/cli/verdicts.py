@@ -86,3 +86,15 @@ def high_centred_warning(verdict: dict[str, Any]) -> None:
             "(high-centred): the tracks carry little of the weight and may not drive it on",
             file=sys.stderr,
         )
+
+
+def timing_line(command: str, timing: dict[str, Any] | None) -> None:
+    """The arm's time law: μ_dyn along the reference before and after, the moves slowed."""
+    if timing is None:
+        return
+    print(
+        f"{command}: arm time law (dynamic_fraction {timing['dynamic_fraction']:g}): "
+        f"mu_dynamic min along the reference {timing['mu_dynamic_min_before']:.1f} -> "
+        f"{timing['mu_dynamic_min']:.1f} N rad (static {timing['mu_static_min']:.1f}); "
+        f"{len(timing['slowed_moves'])} move(s) slowed, +{timing['lap_time_added_s']:.2f} s"
+    )
