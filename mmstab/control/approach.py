@@ -294,7 +294,7 @@ class ArmReferences(NamedTuple):
 
     def real_time(self, nominal: float) -> float:
         """The real time [s] a run needs to reach the nominal time [s] of its references."""
-        return nominal if self.timing is None else self.timing.real_time(nominal)
+        return self.timing.real_time(nominal) if self.timing and self.timing.slows else nominal
 
 
 def arm_references(
@@ -394,7 +394,7 @@ def run_reference(
         arm.posture,
         np.asarray(t, dtype=float),
         arm.approach,
-        None if arm.timing is None else arm.timing.nominal,
+        arm.timing.nominal if arm.timing is not None and arm.timing.slows else None,
     )
     body = settings.arm_com_frame == "body"
     return RunReference(arm, step, body_frame_reference(robot, step) if body else step)

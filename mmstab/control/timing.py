@@ -178,6 +178,11 @@ class TimeLaw(NamedTuple):
     below_bound: int
 
     @property
+    def slows(self) -> bool:
+        """Whether any stretch is slowed (else the reference keeps its own time exactly)."""
+        return bool(np.any(self.factors < 1.0))
+
+    @property
     def lap_time(self) -> float:
         """The nominal period [s]."""
         return float(self.tau[-1])
