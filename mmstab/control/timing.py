@@ -349,15 +349,16 @@ def build_time_law(
             approach (its own reference), until the run's end (at most one lap).
     """
     tau = np.linspace(0.0, lap_time, max(int(np.ceil(lap_time / STEP)), 2) + 1)
-    motion = reference_motion(robot, path, terrain, posture, lap_time, tau)
+    on = np.flatnonzero((tau >= window[0]) & (tau <= min(window[1], lap_time)))
+    on = on if on.size > 1 else np.arange(len(tau) - 2, len(tau))  # ends in its approach
+    motion = reference_motion(robot, path, terrain, posture, lap_time, tau[on])  # checked
     static = dynamic_mu(robot, motion, np.zeros_like(motion.acceleration))
-    checked = (tau >= window[0]) & (tau <= min(window[1], lap_time))
-    bound = np.where(checked & (static > 0), fraction * static, -np.inf)
+    bound = np.where(static > 0, fraction * static, -np.inf)
     ends = np.unique(np.r_[0.0, np.asarray(fractions, dtype=float) * lap_time, lap_time])
-    stretches = Stretches(ends, tau, motion)
+    stretches = Stretches(ends, motion.tau, motion)
     factors = np.ones(len(ends) - 1)
     v_max = float(np.linalg.norm(motion.velocity[:, 0, :2], axis=1).max())
-    before = mu = timed_mu(robot, motion, np.ones_like(tau))
+    before = mu = timed_mu(robot, motion, np.ones(on.size))
     speed = np.ones_like(tau)
     for rnd in range(ROUNDS):
         low = stretches.blamed(np.flatnonzero(mu < bound))
@@ -371,8 +372,7 @@ def build_time_law(
                 factors[i] = max(MIN_FACTOR, 0.8 * factors[i])
         speed = law_speed(tau, stretches.spans, factors, v_max)
         speed[tau < window[0]] = 1.0  # the approach keeps its own time
-        mu = timed_mu(robot, motion, speed)
-    keep = checked & np.isfinite(bound)
+        mu = timed_mu(robot, motion, speed[on])
     return TimeLaw(
         tau=tau,
         t=real_times(tau, speed),
@@ -380,8 +380,8 @@ def build_time_law(
         stretches=stretches.spans,
         factors=factors,
         fraction=float(fraction),
-        mu_dynamic_min_before=float(before[checked].min()),
-        mu_dynamic_min=float(mu[checked].min()),
-        mu_static_min=float(static[checked].min()),
-        below_bound=int(np.count_nonzero(keep & (mu < bound))),
+        mu_dynamic_min_before=float(before.min()),
+        mu_dynamic_min=float(mu.min()),
+        mu_static_min=float(static.min()),
+        below_bound=int(np.count_nonzero(mu < bound)),
     )
