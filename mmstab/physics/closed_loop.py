@@ -323,8 +323,10 @@ def run_closed_loop(
         zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
     ):
         tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
+    tau = t if law is None else law.nominal(t).value  # the references' nominal times [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
-                  status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt)  # fmt: skip
+                  status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
     end = checks.end
     return dataclasses.replace(
         run,
@@ -350,8 +352,12 @@ def _finish(
     tipped: float | None,
     wall: float,
     dt: float,
+    tau: FloatArray | None = None,
 ) -> PhysicsRun:
-    """Errors, predicted μ and the slip verdict of a finished loop."""
+    """Errors, predicted μ and the slip verdict of a finished loop.
+
+    ``tau``: the references' nominal times at ``t`` [s] (the arm's time law); None: ``t``.
+    """
     from mmstab.control.reference import circle_pose
     from mmstab.control.tasks import build_task_model
     from mmstab.runs.tracking.run import task_batch
@@ -365,7 +371,8 @@ def _finish(
     window = int(round(loop.slip_window / dt))
     slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
     over = np.flatnonzero(slip > loop.slip_distance)
-    origin_ref = circle_pose(problem.base_path, t / ctrl_settings.lap_time).value[:, :2]
+    tau = t if tau is None else tau
+    origin_ref = circle_pose(problem.base_path, tau / ctrl_settings.lap_time).value[:, :2]
     return PhysicsRun(
         t=t, state=states, qdot=qdots, status=status,
         base_error=np.linalg.norm(xi_des[:, :2] - xi[:, :2], axis=1),
