@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from test_random_routes import COARSE, pair_problem
 
 from mmstab import app
 from mmstab.control.controller import build_controller
@@ -24,7 +25,6 @@ from mmstab.core.defaults import HEIGHTMAP_ROUTE_PLANNER, with_defaults
 from mmstab.core.problem import load_problem
 from mmstab.experiments.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
-from test_random_routes import COARSE, pair_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUTE = {"waypoints": [[0.0, 0.0], [3.0, 0.0]], "speed": 0.2}
@@ -85,9 +85,7 @@ def test_a_random_route_in_mujoco_does_not_tip_nor_touch_the_ground(k, tmp_path,
     plan = app.plan(problem, ws=app.workspace(problem, progress=False, cache_dir=cache))
     cs, loop = controller_settings(problem), loop_settings(problem)
     state0 = initial_state(problem.base_path, problem.robot.stowed)
-    run = run_closed_loop(
-        problem, plan, build_controller(problem.robot, cs).step, cs, loop, state0
-    )
+    run = run_closed_loop(problem, plan, build_controller(problem.robot, cs).step, cs, loop, state0)
     assert problem.route is not None  # the whole route: no tip stopped the run
     assert run.t[-1] == pytest.approx(problem.route.duration, abs=2 * loop.control_dt)
     assert run.tipped is None and np.nanmax(run.tilt_error) < loop.tip_angle
