@@ -60,11 +60,13 @@ class PlannerSettings(NamedTuple):
         ground_clearance: ``method: roadmap`` and ``method: sequence``: least height of
             the arm's lowest point above the support plane z_B = 0 that a chosen posture
             and the moves between them keep [m]; None: not checked (``cmaes`` and
-            ``exhaustive`` do not check it).
+            ``exhaustive`` do not check it). A file that names none: 0.02, on a route over
+            a heightmap 0.05 (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`).
         attitude_margin: ``method: roadmap`` on a route over terrain: the arm keeps
             ``ground_clearance`` through the body's tilts (pitch, roll) of up to this
             [rad] about its origin, at the planned poses and the moves' ends
-            (:func:`mmstab.model.ground.tilted_height`); None: off.
+            (:func:`mmstab.model.ground.tilted_height`); None: off (a file that names
+            none: off, on a route over a heightmap 0.0524).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
         climb: ``method: roadmap`` on a route: at a pose whose front wheels run into a step

@@ -51,7 +51,7 @@ class ControllerSettings:
         osqp: OSQP options.
         arm_com_frame: the frame of the arm-CoM task, ``map`` (M, paper Eq. 7: task
             ``arm_com``) or ``body`` (B: task ``arm_com_body``, its references g_a^B(q_ref))
-            (:func:`mmstab.control.tasks.controller_task_names`).
+            (:func:`mmstab.control.tasks.controller_task_names`); default ``body``.
         dynamic_fraction: the arm's time law: along the reference the dynamic μ keeps this
             share of the static μ (:mod:`mmstab.control.timing`); None: off.
     """
