@@ -205,7 +205,9 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     collisions = self_collisions(problem, run.t, run.state[:, 5:])
     record |= {
         "duration_s": float(run.t[-1]),
-        "route_duration_s": problem.route.duration,
+        # the route's driving time and what the arm's time law added to it
+        "route_duration_s": problem.route.duration
+        + (0.0 if run.timing is None else run.timing.summary()["lap_time_added_s"]),
         "qp_failures": len(run.failures),
         "tipped": run.tipped is not None,
         "colliding_samples": collisions["colliding_samples"],
