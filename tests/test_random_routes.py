@@ -205,9 +205,10 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     collisions = self_collisions(problem, run.t, run.state[:, 5:])
     record |= {
         "duration_s": float(run.t[-1]),
-        # the route's driving time and what the arm's time law added to it
+        # the route's driving time, and the real time the arm's time law takes for it
         "route_duration_s": problem.route.duration
-        + (0.0 if run.timing is None else run.timing.summary()["lap_time_added_s"]),
+        if run.timing is None or not run.timing.slows
+        else run.timing.real_time(problem.route.duration),
         "qp_failures": len(run.failures),
         "tipped": run.tipped is not None,
         "colliding_samples": collisions["colliding_samples"],

@@ -217,10 +217,21 @@ class TimeLaw(NamedTuple):
         dt = np.where(flat, (rest - tau0) / l0, np.log(speed / l0) / np.where(flat, 1.0, kappa))
         return float(laps * self.t[-1] + t0[0] + dt[0])
 
-    def summary(self) -> dict[str, Any]:
-        """The report for ``summary.json``: the bound, the slowed moves, μ before and after."""
+    def summary(self, run_end: float | None = None) -> dict[str, Any]:
+        """The report for ``summary.json``: the bound, the slowed moves, μ before and after.
+
+        Args:
+            run_end: the run's last real time [s]; with it, ``run_time_added_s``: what the
+                law added to that run, its end less the reference's nominal time there (less
+                than the lap's ``lap_time_added_s`` when a run ends before the lap does).
+        """
         slowed = np.flatnonzero(self.factors < 1.0)
+        added = None
+        if run_end is not None:
+            nominal = self.nominal(np.array([run_end])).value[0] if self.slows else run_end
+            added = float(run_end - nominal)
         return {
+            "run_time_added_s": added,
             "dynamic_fraction": self.fraction,
             "mu_dynamic_min_before": self.mu_dynamic_min_before,
             "mu_dynamic_min": self.mu_dynamic_min,

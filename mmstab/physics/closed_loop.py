@@ -334,7 +334,7 @@ def run_closed_loop(
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
         arm_ground=arm,
         cpu_seconds=cpu,
-        timing=None if refs.arm.timing is None else refs.arm.timing.summary(),
+        timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(t[m - 1])),
     )
 
 

@@ -87,6 +87,6 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "initial_arm": run.initial_arm,
         "posture_reference": run.posture.summary(run.lap_time),
         "approach": None if run.approach is None else run.approach.summary(),
-        "arm_timing": None if run.timing is None else run.timing.summary(),
+        "arm_timing": None if run.timing is None else run.timing.summary(float(run.t[-1])),
         "tipped": None if run.tipped is None else run.tipped.summary(),
     }
