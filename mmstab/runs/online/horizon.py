@@ -88,17 +88,20 @@ class Rested(NamedTuple):
         covered: the map covers the pose's contacts (N,).
         gravity_body: gravity in B (N, 3) [m/s^2] (NaN where not covered).
         ground: the local ground (z [m], roll [rad], pitch [rad]) (N, 3) (NaN where not).
+        G_T_B: the resting body poses in G (N, 4, 4) [m] (NaN where not covered).
     """
 
     covered: NDArray[np.bool_]
     gravity_body: FloatArray
     ground: FloatArray
+    G_T_B: FloatArray
 
 
 def rest_where_covered(terrain: HeightmapTerrain, poses: FloatArray) -> Rested:
     """Rest poses (N, 3) on a map: all at once, or one by one when some are not covered."""
     n = len(poses)
     covered, gravity, ground = np.zeros(n, bool), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    G_T_B = np.full((n, 4, 4), np.nan)
     try:
         groups = [(np.arange(n), terrain.rest(poses))]
     except MmstabError:  # some pose off the window or on unknown cells: find which
@@ -112,7 +115,8 @@ def rest_where_covered(terrain: HeightmapTerrain, poses: FloatArray) -> Rested:
         covered[idx] = True
         gravity[idx] = np.einsum("nji,j->ni", r.G_T_B[:, :3, :3], GRAVITY_G)
         ground[idx] = np.stack([r.z, r.roll, r.pitch], axis=1)
-    return Rested(covered, gravity, ground)
+        G_T_B[idx] = r.G_T_B
+    return Rested(covered, gravity, ground, G_T_B)
 
 
 def horizon_window(s_grid: FloatArray, s_now: float, ahead: float) -> list[int]:

@@ -16,7 +16,11 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
   the previous pose's choice (or, at the start, the arm's posture);
 - the posture reference between two planned poses runs along the roadmap path between
   their nodes (shortcut where free), so the arm's commanded moves are collision-free by
-  construction, as offline.
+  construction, as offline;
+- the arm keeps ``planner.ground_clearance`` above the ground under it on the map
+  (:mod:`mmstab.runs.online.arm_ground`, through tilts of ``planner.attitude_margin``): a
+  pose is scored with that map's ground at it, and every map measures each planned pose's
+  chosen node again; a node now too low re-scores its pose though its gravity stands.
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.under_arm import KeptPieces
+from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on
 from mmstab.runs.online.horizon import (
     HorizonPose,
     HorizonUpdate,
@@ -44,6 +50,7 @@ from mmstab.runs.online.horizon import (
 )
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace.roadmap import Roadmap
 
 
@@ -104,6 +111,11 @@ class RoadmapHorizon:
         self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
         self._moves: dict[tuple[int, int], FloatArray] = {}
         self._checker = CollisionChecker(robot)
+        self._arm: tuple[ArmGround, KeptPieces] | None = None  # built on the first map
+        self.unknown: set[int] = set()  # poses scored with unknown cells in the arm's reach
+        #: poses re-scored for the ground under the arm (gravity unchanged); scorings with
+        #: unknown cells in the arm's reach; of those, re-scored once the reach was mapped
+        self.arm_ground = {"ground_rescored": 0, "reach_unknown": 0, "unknown_rescored": 0}
 
     def warm_up(self, tilt: float = 0.3) -> None:
         """Score flat ground and ground tilted by ``tilt`` [rad] four ways, before the first map.
@@ -115,14 +127,15 @@ class RoadmapHorizon:
         down = np.array([[0, 0, -1], [s, 0, -c], [-s, 0, -c], [0, s, -c], [0, -s, -c]])
         self._candidates(9.81 * down)
 
-    def _candidates(self, gravity: FloatArray) -> Candidates:
+    def _candidates(self, gravity: FloatArray, clear: NodeClearance | None = None) -> Candidates:
         """Each pose's candidates at gravities (n, 3) [m/s^2] in B, in one batch."""
+        clear = self.clear if clear is None else clear
         stab = self.settings._replace(w_motion=0.0)
         stowed = self.robot.arm_com(self.robot.stowed)
         d = self.view.diameter
         fits = [pose_fitness(self.robot, g, stowed, stab, self.mu_max, d).linear() for g in gravity]
         v = self.view
-        return route_candidates(fits, self.samples, v.bins, v.clusters, self.count, self.clear)
+        return route_candidates(fits, self.samples, v.bins, v.clusters, self.count, clear)
 
     def window(self, s_now: float, ahead: float) -> list[int]:
         """Grid indices from the pose at or behind ``s_now`` [m] to ``ahead`` [m] past it."""
@@ -140,7 +153,7 @@ class RoadmapHorizon:
         """Re-score the poses whose ground changed, then choose again from the first of them.
 
         Args:
-            terrain: the latest map (not read: the rests in ``rested`` are its answer).
+            terrain: the latest map (the ground under the arm; the rests are ``rested``).
             ks: the horizon's grid indices, in driving order.
             rested: those poses rested on the map.
             now: the update's time [s].
@@ -149,18 +162,66 @@ class RoadmapHorizon:
         """
         known = {k: c.gravity_body for k, c in self.candidates.items()}
         changes = sort_poses(ks, rested, known, self.replan_tol)
+        ground = self._map_ground(terrain, ks, rested)
+        if ground is not None:
+            again = self._recheck(ground, changes.kept)
+            kept = tuple(k for k in changes.kept if k not in again)
+            changes = HorizonUpdate(
+                tuple(k for k in ks if k not in kept and k not in changes.uncovered),
+                kept,
+                changes.uncovered,
+            )
         replanned = list(changes.replanned)
         if replanned:
-            self._score(replanned, rested.gravity_body[[ks.index(k) for k in replanned]], now)
+            g = rested.gravity_body[[ks.index(k) for k in replanned]]
+            self._score(replanned, g, now, ground)
             first = replanned[0]
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
             self._choose(chain, arm_q, now)
         return changes
 
-    def _score(self, ks: list[int], gravity: FloatArray, now: float) -> None:
-        """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch."""
-        rows, value, mu = self._candidates(gravity)
+    def _map_ground(self, terrain: Terrain, ks: list[int], rested: Rested) -> MapGround | None:
+        """The ground under the arm at the covered horizon poses on this map (None: off)."""
+        if self.settings.ground_clearance is None or not isinstance(terrain, HeightmapTerrain):
+            return None
+        if self._arm is None:
+            arm = ArmGround.of(self.robot, terrain, self.settings.attitude_margin or 0.0)
+            self._arm = arm, KeptPieces(arm.base, self.roadmap.nodes_q[self.reach])
+        M_T_B = {k: rested.G_T_B[i] for i, k in enumerate(ks) if rested.covered[i]}
+        return MapGround(self._arm[0], terrain, M_T_B)  # a map: M = G
+
+    def _recheck(self, ground: MapGround, kept: tuple[int, ...]) -> set[int]:
+        """The kept poses to score again: their node now too low, or their reach now mapped."""
+        assert self._arm is not None
+        ks = [k for k in kept if k in self.nodes]
+        again: set[int] = set()
+        if ks:
+            rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
+            clear = ground.node_clear(ks, self._arm[1](rows), float(self.settings.ground_clearance))
+            again = {k for k, ok in zip(ks, clear, strict=True) if not ok}
+            self.arm_ground["ground_rescored"] += len(again)
+        mapped = {k for k in kept if k in self.unknown and not ground.reach_unknown(k)} - again
+        self.arm_ground["unknown_rescored"] += len(mapped)
+        return again | mapped
+
+    def _score(
+        self, ks: list[int], gravity: FloatArray, now: float, ground: MapGround | None = None
+    ) -> None:
+        """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch.
+
+        With ``ground``: each node also ``ground_clearance`` above the map under the arm.
+        """
+        clear = None
+        if ground is not None and self._arm is not None:
+            clear = clearance_on(self.clear, ground.under(ks), self._arm[1])
+            for k in ks:  # candidates cut to the mapped side: scored again once it is mapped
+                if ground.reach_unknown(k):
+                    self.unknown.add(k)
+                    self.arm_ground["reach_unknown"] += 1
+                else:
+                    self.unknown.discard(k)
+        rows, value, mu = self._candidates(gravity, clear)
         for i, k in enumerate(ks):
             self.candidates[k] = PoseCandidates(gravity[i], rows[i], value[i], mu[i], now)
 

@@ -33,6 +33,8 @@ class FollowRun:
         skipped: maps received before any odometry (not followed).
         s_grid: arc lengths of the route's planned poses (K,) [m].
         friction: the tracks' friction on the ground [-] (the problem's terrain).
+        arm_ground: the roadmap horizon's counts of the ground under the arm
+            (:class:`~mmstab.runs.online.roadmap_horizon.RoadmapHorizon`); None: not checked.
     """
 
     steps: list[FollowStep]
@@ -40,6 +42,7 @@ class FollowRun:
     skipped: int
     s_grid: np.ndarray
     friction: float
+    arm_ground: dict[str, int] | None = None
 
 
 def follow_recording(
@@ -68,9 +71,12 @@ def follow_recording(
         steps.append(follower.update(u))
         if limit is not None and len(steps) >= limit:
             break
+    h = follower.horizon
+    counts = getattr(h, "arm_ground", None)
     return FollowRun(
-        steps, dict(follower.horizon.plans), skipped[0], follower.horizon.s_grid, follower.friction
-    )
+        steps, dict(h.plans), skipped[0], h.s_grid, follower.friction,
+        None if counts is None else dict(counts),
+    )  # fmt: skip
 
 
 def _stats(values: np.ndarray, scale: float = 1.0) -> dict[str, float]:
@@ -120,6 +126,7 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "planned_poses": len(run.plans),
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
         "qp_failures": int((status != 0).sum()),
+        "arm_ground": run.arm_ground,
         "tipped": None if not tipped else {"time_s": tipped[0].time, "s_m": tipped[0].s},
         "tilt_max_rad": float(np.nanmax(tilt)) if covered.any() else float("nan"),
         "friction": run.friction,
