@@ -339,6 +339,7 @@ def route_candidates(
     cl: NodeClusters,
     count: int,
     clear: NodeClearance,
+    ahead: int = 4,
 ) -> Candidates:
     """Every pose's ``count`` best clear nodes spread over the turret bins (module text).
 
@@ -351,10 +352,12 @@ def route_candidates(
         clear: the clearance test; a chosen node measured too close (or, at its pose, too
             low above the ground) is dropped and the choice is made again, until every
             finite choice is clear.
+        ahead: the next ``ahead x count`` best are measured with the picks (doubled, up to
+            32, at a pose whose picks were too low; more at first: fewer rounds).
     """
     K, rank = len(fits), rank_bound(cl.bin_rows, count)
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
-    ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
+    ahead = np.full(K, ahead)  # the next best measured too, more where picks were too low
     bounds = cluster_bounds(cl, fits)
     while True:
         eligible, low = clear.eligible(), clear.low(K)

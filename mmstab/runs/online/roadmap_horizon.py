@@ -115,7 +115,10 @@ class RoadmapHorizon:
         self.unknown: set[int] = set()  # poses scored with unknown cells in the arm's reach
         #: poses re-scored for the ground under the arm (gravity unchanged); scorings with
         #: unknown cells in the arm's reach; of those, re-scored once the reach was mapped
-        self.arm_ground = {"ground_rescored": 0, "reach_unknown": 0, "unknown_rescored": 0}
+        #: and the planned poses whose chosen arm passed over unknown cells, summed over maps
+        self.arm_ground = {
+            "ground_rescored": 0, "reach_unknown": 0, "unknown_rescored": 0, "over_unknown": 0,
+        }  # fmt: skip
 
     def warm_up(self, tilt: float = 0.3) -> None:
         """Score flat ground and ground tilted by ``tilt`` [rad] four ways, before the first map.
@@ -201,7 +204,8 @@ class RoadmapHorizon:
             clear = ground.node_clear(ks, self._arm[1](rows), float(self.settings.ground_clearance))
             again = {k for k, ok in zip(ks, clear, strict=True) if not ok}
             self.arm_ground["ground_rescored"] += len(again)
-        mapped = {k for k in kept if k in self.unknown and not ground.reach_unknown(k)} - again
+            self.arm_ground["over_unknown"] += len(set(ground.over_unknown) - again)
+        mapped = {k for k in kept if k in self.unknown and not ground.reach(k)[0]} - again
         self.arm_ground["unknown_rescored"] += len(mapped)
         return again | mapped
 
@@ -216,7 +220,7 @@ class RoadmapHorizon:
         if ground is not None and self._arm is not None:
             clear = clearance_on(self.clear, ground.under(ks), self._arm[1])
             for k in ks:  # candidates cut to the mapped side: scored again once it is mapped
-                if ground.reach_unknown(k):
+                if ground.reach(k)[0]:
                     self.unknown.add(k)
                     self.arm_ground["reach_unknown"] += 1
                 else:
