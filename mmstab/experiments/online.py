@@ -7,8 +7,10 @@ TF, μ, the support polygon coloured by μ; :mod:`mmstab.runs.recording`) and ``
 tracking run (``run.npz`` and ``problem.yaml``, :mod:`mmstab.runs.store`), so that the
 browser viewer replays it: ``mmstab view PROBLEM --run OUT``.
 
-The offline plan is the same warm-started planner over the same route poses on the
-problem's own terrain, all poses at once (:func:`mmstab.planner.warm_start.solve_route`).
+The offline plan is the same planner over the same route poses on the problem's own
+terrain, all poses at once: ``method: roadmap`` with the ground under the arm (as ``mmstab
+plan`` runs it) for ``online.planner: roadmap``, the warm-started CMA-ES
+(:func:`mmstab.planner.warm_start.solve_route`) for ``warm``.
 A pose's online answer is compared with it where the map **agrees** with that terrain
 (the resting gravity in B on the map within ``online.replan_tol`` of the offline one).
 """
@@ -49,6 +51,7 @@ class OfflinePlan(NamedTuple):
         mu_planned: μ of the planned posture (K,) [N rad].
         mu_stowed: μ with the arm stowed (K,) [N rad].
         search_seconds: wall time of the search per pose [s] (K,).
+        postures: the planned postures (K, 4) [rad] (None: not kept).
     """
 
     s: np.ndarray
@@ -56,6 +59,7 @@ class OfflinePlan(NamedTuple):
     mu_planned: np.ndarray
     mu_stowed: np.ndarray
     search_seconds: np.ndarray
+    postures: np.ndarray | None = None
 
 
 def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) -> OfflinePlan:
@@ -77,14 +81,20 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
         from mmstab.planner.roadmap import solve_roadmap_sequence
         from mmstab.workspace.roadmap import load_or_build_roadmap
 
+        from mmstab.planner.under_arm import GroundUnderArm
+
         gravity = problem.terrain.gravity_body(poses)
         roadmap = load_or_build_roadmap(robot, ws)
+        margin = settings.attitude_margin or 0.0
+        under = None  # the ground under the arm, as method roadmap checks it on a route
+        if settings.ground_clearance is not None:
+            under = GroundUnderArm(robot, problem.terrain, poses, margin=margin)
         seq = solve_roadmap_sequence(
-            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses
+            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses, under=under
         )
         stowed = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu
         per_pose = np.full(len(s), seq.seconds / len(s))
-        return OfflinePlan(s, poses, seq.mu, stowed, per_pose)
+        return OfflinePlan(s, poses, seq.mu, stowed, per_pose, seq.postures)
     settings = settings._replace(method="cmaes", seeding="coarse")
     realise = PostureSolver(robot, ws).realise
     plan = solve_route(robot, problem.terrain, region, s, poses, settings, realise)
