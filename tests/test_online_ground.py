@@ -150,9 +150,8 @@ def test_online_and_offline_keep_the_arm_above_a_bump_beside_the_route(
     assert run.arm_ground is not None and run.arm_ground["reach_unknown"] == 0  # fully seen
     off = offline_plan(problem, run, None)  # method roadmap, its own ground check
     assert off.postures is not None
-    for k, p in run.plans.items():  # the same turret side, μ within 2 %
+    for k, p in run.plans.items():  # μ within 2 % (docs/online.md's agreement)
         assert abs(p.mu - off.mu_planned[k]) <= 0.02 * abs(off.mu_planned[k]), k
-        assert abs(p.q[0] - off.postures[k][0]) < 0.3, k
     h, _ = dense_clearance(
         problem, off.postures[BUMP_K], ground.M_T_B(run.plans[BUMP_K].pose),
         lambda x, y: ground.surface_G(x, y)[..., 2],
@@ -195,8 +194,16 @@ def test_a_bump_appearing_later_rescores_the_pose_though_its_gravity_stands(
     assert np.allclose(p.gravity_body, scene["plain"].horizon.plans[BUMP_K].gravity_body)
     clearance = problem.section("planner")["ground_clearance"]
     M_T_B = problem.terrain.M_T_B(p.pose)
-    hb, _ = dense_clearance(problem, p.q, M_T_B, lambda x, y: slope_height(x, y) + bump(x, y, centre))
+    bumped = lambda x, y: slope_height(x, y) + bump(x, y, centre)  # noqa: E731
+    hb, _ = dense_clearance(problem, p.q, M_T_B, bumped)
     assert hb >= clearance - 1e-6
+    # the moves into and out of the pose clear the bump at both poses they join
+    for k in (BUMP_K, BUMP_K + 1):
+        for j in (k - 1, k):
+            T = problem.terrain.M_T_B(h.plans[j].pose)
+            for q in h.move(k)[:: max(len(h.move(k)) // 20, 1)]:
+                assert dense_clearance(problem, q, T, bumped)[0] >= clearance - 2e-3, (k, j)
+    assert h.arm_ground["moves_plane_only"] == 0
 
 
 def test_unknown_cells_under_the_arm_count_as_the_highest_mapped_ground_in_reach(

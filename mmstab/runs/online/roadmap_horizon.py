@@ -38,6 +38,7 @@ from mmstab.planner.candidates import Candidates, NodeClearance, route_candidate
 from mmstab.planner.fitness import pose_fitness
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.roadmap_moves import ground_move
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.under_arm import KeptPieces
 from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on
@@ -118,7 +119,9 @@ class RoadmapHorizon:
         #: and the planned poses whose chosen arm passed over unknown cells, summed over maps
         self.arm_ground = {
             "ground_rescored": 0, "reach_unknown": 0, "unknown_rescored": 0, "over_unknown": 0,
+            "moves_plane_only": 0,
         }  # fmt: skip
+        self._ground: MapGround | None = None  # the latest map's
 
     def warm_up(self, tilt: float = 0.3) -> None:
         """Score flat ground and ground tilted by ``tilt`` [rad] four ways, before the first map.
@@ -165,7 +168,7 @@ class RoadmapHorizon:
         """
         known = {k: c.gravity_body for k, c in self.candidates.items()}
         changes = sort_poses(ks, rested, known, self.replan_tol)
-        ground = self._map_ground(terrain, ks, rested)
+        ground = self._ground = self._map_ground(terrain, ks, rested)
         if ground is not None:
             again = self._recheck(ground, changes.kept)
             kept = tuple(k for k in changes.kept if k not in again)
@@ -179,9 +182,11 @@ class RoadmapHorizon:
             g = rested.gravity_body[[ks.index(k) for k in replanned]]
             self._score(replanned, g, now, ground)
             first = replanned[0]
+            if ground is not None and ks[0] < first - 1 and first - 1 in self.candidates:
+                first -= 1  # ahead of the robot: the move into ``first`` must clear both grounds
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
-            self._choose(chain, arm_q, now)
+            self._choose(chain, arm_q, now, ground)
         return changes
 
     def _map_ground(self, terrain: Terrain, ks: list[int], rested: Rested) -> MapGround | None:
@@ -229,8 +234,13 @@ class RoadmapHorizon:
         for i, k in enumerate(ks):
             self.candidates[k] = PoseCandidates(gravity[i], rows[i], value[i], mu[i], now)
 
-    def _choose(self, chain: list[int], arm_q: FloatArray, now: float) -> None:
-        """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``."""
+    def _choose(
+        self, chain: list[int], arm_q: FloatArray, now: float, ground: MapGround | None = None
+    ) -> None:
+        """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``.
+
+        With ``ground``: a move's ends must clear the ground at both poses it joins.
+        """
         cands = [self.candidates[k] for k in chain]
         cand = np.array([c.rows for c in cands])
         value = np.array([c.value for c in cands])
@@ -250,6 +260,8 @@ class RoadmapHorizon:
         motion, allowed = transitions(
             cost.points, turret, cand, pairs, cost.weight, window, cost.metric
         )
+        if ground is not None:
+            self._forbid_low(ground, chain, cand, value, allowed)
         path, total = rp.best_sequence(value, motion, allowed, False)
         if not np.isfinite(total):  # keep the last plans; the loop reports the pose
             return
@@ -266,11 +278,49 @@ class RoadmapHorizon:
                 self.samples[row].copy(), q, mu, True, now,
             )  # fmt: skip
 
+    def _forbid_low(
+        self,
+        ground: MapGround,
+        chain: list[int],
+        cand: NDArray[np.intp],
+        value: FloatArray,
+        allowed: list[NDArray[np.bool_]],
+    ) -> None:
+        """Drop the candidates too low on this map; forbid moves with an end too low.
+
+        A pose's kept candidates were measured on the map that scored it: measured again
+        here (the chosen node is verified on the next map anyway; measured now, a stale
+        choice is not made). As offline (:func:`mmstab.planner.roadmap._forbid_low_ends`):
+        the arm moves while the base drives between two poses, so each end must clear both
+        poses' ground.
+        """
+        behind = chain[0] - 1  # its node fixed: chain[0]'s candidates must clear its ground
+        mapped = [k for k in [behind, *chain] if k in ground.M_T_B]
+        if self._arm is None or not mapped:
+            return
+        clear = clearance_on(self.clear, ground.under(mapped), self._arm[1])
+        at = {k: i for i, k in enumerate(mapped)}
+        for i, k in enumerate(chain):
+            if k in at:
+                f = np.flatnonzero(np.isfinite(value[i]))
+                value[i, f[~clear.at(at[k], cand[i, f])]] = -np.inf
+        if behind in at and behind in self.nodes:
+            f = np.flatnonzero(np.isfinite(value[0]))
+            value[0, f[~clear.at(at[behind], cand[0, f])]] = -np.inf
+        for i, (ka, kb) in enumerate(zip(chain[:-1], chain[1:], strict=True)):
+            if ka in at and kb in at:
+                fa, fb = np.isfinite(value[i]), np.isfinite(value[i + 1])
+                allowed[i][fa] &= clear.at(at[kb], cand[i, fa])[:, None]
+                allowed[i][:, fb] &= clear.at(at[ka], cand[i + 1, fb])[None, :]
+
     def move(self, k: int) -> FloatArray:
         """The arm's move into pose ``k``'s posture (n, 4) [rad], along the roadmap.
 
         From pose ``k - 1``'s node, or from the arm's posture when ``k - 1`` was not planned
-        (then joined to its nearest clear node). Computed once per pair of nodes.
+        (then joined to its nearest clear node). Computed once per pair of nodes, on the map
+        of the update that first needs it: above the ground under the arm at both poses it
+        joins (:func:`~mmstab.planner.roadmap_moves.ground_move`, as offline) where one is
+        found, else above the support plane only (counted: ``moves_plane_only``).
         """
         b = self.nodes[k]
         a = self.nodes.get(k - 1)
@@ -282,10 +332,23 @@ class RoadmapHorizon:
             head = np.zeros((0, self.roadmap.nodes_q.shape[1]))
         key = (a, b)
         if key not in self._moves:
-            ground = self.settings.ground_clearance
-            path = rp.roadmap_move(self.roadmap, a, b, ground=ground)
-            self._moves[key] = shortcut_above(self.robot, self.roadmap, self._checker, path, ground)
+            self._moves[key] = self._move(a, b, [j for j in (k - 1, k) if j in self.nodes])
         return np.vstack([head, self._moves[key]])
+
+    def _move(self, a: int, b: int, ks: list[int]) -> FloatArray:
+        """The roadmap move a -> b (n, 4) [rad], above the ground at poses ``ks`` if it can."""
+        ground, g = self.settings.ground_clearance, self._ground
+        ks = [k for k in ks if g is not None and k in g.M_T_B]
+        if g is not None and ks and ground is not None:
+            under = g.under(ks)
+            move = ground_move(
+                self.robot, self.roadmap, self._checker, a, b, ground, under, tuple(range(len(ks)))
+            )
+            if move is not None:
+                return move
+            self.arm_ground["moves_plane_only"] += 1
+        path = rp.roadmap_move(self.roadmap, a, b, ground=ground)
+        return shortcut_above(self.robot, self.roadmap, self._checker, path, ground)
 
     def reference(
         self, s: float, spacing: float
