@@ -52,6 +52,9 @@ from mmstab.planner.under_arm import (
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
+#: Largest change of a pose's rest ``M_T_B`` between maps [m, -] that keeps its state.
+SAME_REST = 1e-6
+
 
 class MapTiles(GroundTiles):
     """A live map's ground on the lattice; unknown or off the window: +inf (module text)."""
@@ -149,6 +152,32 @@ class ArmGround(NamedTuple):
         return cls(base, proto.cells, proto.reach)
 
 
+class PoseState(NamedTuple):
+    """A pose's ground on a map, and what was measured on it.
+
+    Kept for the next map while the pose rests the same (``M_T_B`` within :data:`SAME_REST`:
+    the batched rests differ by round-off) and the map's cells within the arm's
+    reach are the same (NaN for NaN): the measures stand (made with the kept rest).
+
+    Attributes:
+        key: the reach box's cells in the map's global lattice of cells, and the window's edge.
+        cells: the heights of the reach box's cells [m] (NaN: unknown).
+        reach: unknown within the reach, and the fill [m] (:meth:`MapGround.reach`).
+        ground: the pose's lattice (built where pieces were looked at).
+        known: per reach row: measured at this pose (N,).
+        low: per reach row: measured too low (N,).
+        checked: per reach row checked by :meth:`MapGround.node_clear`: (clear, over unknown).
+    """
+
+    key: tuple[tuple[int, ...], bool]
+    cells: FloatArray
+    reach: tuple[bool, float]
+    ground: PoseGround
+    known: NDArray[np.bool_]
+    low: NDArray[np.bool_]
+    checked: dict[int, tuple[bool, bool]]
+
+
 class MapGround:
     """The ground under the arm at the horizon's poses on one map (module text).
 
@@ -156,25 +185,65 @@ class MapGround:
         arm: the arm's pieces (:class:`ArmGround`).
         terrain: the map.
         M_T_B: resting body poses of the horizon's poses, by grid index (4, 4).
+        rows: the reachable nodes (N, the measures' length).
+        previous: the last map's, whose poses' states are kept where nothing changed.
     """
 
-    def __init__(self, arm: ArmGround, terrain: HeightmapTerrain, M_T_B: dict[int, FloatArray]):
-        self.arm, self.hm, self.M_T_B = arm, terrain.heightmap, M_T_B
+    def __init__(
+        self,
+        arm: ArmGround,
+        terrain: HeightmapTerrain,
+        M_T_B: dict[int, FloatArray],
+        rows: int,
+        previous: MapGround | None = None,
+    ) -> None:
+        self.arm, self.hm, self.M_T_B, self.rows = arm, terrain.heightmap, M_T_B, rows
         self.tiles = MapTiles(terrain)
-        self.poses: dict[int, PoseGround] = {}
+        self.states: dict[int, PoseState] = {}
+        self.previous = {} if previous is None else previous.states
         self.over_unknown: list[int] = []  # the poses node_clear found over unknown cells
-        self._reach: dict[int, tuple[bool, float]] = {}
+
+    def state(self, k: int) -> PoseState:
+        """Pose ``k``'s state on this map: the last map's if nothing changed under the arm."""
+        if k in self.states:
+            return self.states[k]
+        T, (c, r) = self.M_T_B[k], self.arm.reach
+        centre = T[:3, :3] @ c + T[:3, 3]
+        r = r + (self.arm.cells + 2 * BLOCK) * LATTICE
+        lo, hi = self._cells(centre[:2] - r, centre[:2] + r)
+        ny, nx = self.hm.shape
+        edge = bool(lo[0] < 0 or lo[1] < 0 or hi[0] >= nx or hi[1] >= ny)
+        lo, hi = np.maximum(lo, 0), np.minimum(hi, [nx - 1, ny - 1])
+        z = self.hm.elevation[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
+        at = np.rint(self.hm.origin / self.hm.resolution).astype(int)  # the map's global cells
+        key = ((*(lo + at), *(hi + at)), edge)
+        old = self.previous.get(k)
+        if (
+            old is not None
+            and old.key == key
+            and np.abs(old.ground.M_T_B - T).max() <= SAME_REST
+            and np.array_equal(old.cells, z, equal_nan=True)
+        ):
+            self.states[k] = old
+            return old
+        o, res = self.hm.origin, self.hm.resolution
+        x = o[0] + res * np.arange(lo[0], hi[0] + 1)
+        y = o[1] + res * np.arange(lo[1], hi[1] + 1)
+        rise = z - _plane(T, x[None, :], y[:, None])
+        known = np.isfinite(rise)
+        top = max(float(rise[known].max()) if known.any() else 0.0, 0.0)
+        ground = MapPoseGround(FilledTiles(self.tiles, T, top), T, self.arm.cells, self.arm.reach)  # type: ignore[arg-type]
+        ground.top = top
+        n = self.rows
+        st = PoseState(
+            key, z, (edge or not known.all(), top), ground, np.zeros(n, bool), np.zeros(n, bool), {}
+        )
+        self.states[k] = st
+        return st
 
     def pose(self, k: int) -> PoseGround:
-        """Pose ``k``'s ground (built lazily, kept for this map)."""
-        if k not in self.poses:
-            a, T = self.arm, self.M_T_B[k]
-            top = self.reach(k)[1]
-            tiles = FilledTiles(self.tiles, T, top)
-            pose = MapPoseGround(tiles, T, a.cells, a.reach)  # type: ignore[arg-type]
-            pose.top = top
-            self.poses[k] = pose
-        return self.poses[k]
+        """Pose ``k``'s ground (built lazily, kept while its map is unchanged)."""
+        return self.state(k).ground
 
     def under(self, ks: list[int]) -> GroundUnderArm:
         """A :class:`GroundUnderArm` of poses ``ks`` (its pose i is ``ks[i]``)."""
@@ -188,23 +257,7 @@ class MapGround:
         The fill: the largest rise [m] of the mapped ground there above the support plane
         (over the map's cells; 0 at least).
         """
-        if k not in self._reach:
-            T, (c, r) = self.M_T_B[k], self.arm.reach
-            centre = T[:3, :3] @ c + T[:3, 3]
-            r = r + (self.arm.cells + 2 * BLOCK) * LATTICE
-            lo, hi = self._cells(centre[:2] - r, centre[:2] + r)
-            ny, nx = self.hm.shape
-            edge = lo[0] < 0 or lo[1] < 0 or hi[0] >= nx or hi[1] >= ny
-            lo, hi = np.maximum(lo, 0), np.minimum(hi, [nx - 1, ny - 1])
-            z = self.hm.elevation[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-            o, res = self.hm.origin, self.hm.resolution
-            x = o[0] + res * np.arange(lo[0], hi[0] + 1)
-            y = o[1] + res * np.arange(lo[1], hi[1] + 1)
-            rise = z - _plane(T, x[None, :], y[:, None])
-            known = np.isfinite(rise)
-            top = float(rise[known].max()) if known.any() else 0.0
-            self._reach[k] = (edge or not known.all(), max(top, 0.0))
-        return self._reach[k]
+        return self.state(k).reach
 
     def _cells(self, xy0: FloatArray, xy1: FloatArray) -> tuple[NDArray[np.intp], ...]:
         """Grid nodes (ix, iy) bounding the cells that meet the rectangle xy0..xy1 [m]."""
@@ -213,22 +266,36 @@ class MapGround:
         hi = np.ceil((np.asarray(xy1) - o) / res).astype(np.intp)
         return lo, hi
 
-    def node_clear(self, ks: list[int], body: PiecesB, ground: float) -> NDArray[np.bool_]:
-        """Whether each pose ``ks[i]``'s posture (pieces ``body`` row i) is ``ground`` [m] up.
+    def node_clear(
+        self, ks: list[int], rows: NDArray[np.intp], kept: KeptPieces, ground: float
+    ) -> NDArray[np.bool_]:
+        """Whether each pose ``ks[i]``'s node (reach row ``rows[i]``) is ``ground`` [m] up.
 
         The cells' bound for every piece, the scoring's value for the pieces it leaves
-        (module text). Unknown under a piece: not clear.
+        (module text); an answer kept with the pose's state. Sets :attr:`over_unknown`.
         """
-        T = np.stack([self.M_T_B[k] for k in ks])  # (n, 4, 4)
+        st = [self.state(k) for k in ks]
+        todo = [i for i, (x, r) in enumerate(zip(st, rows, strict=True)) if int(r) not in x.checked]
+        if todo:
+            sub = [ks[i] for i in todo]
+            clear, over = self._node_clear(sub, kept(rows[todo]), ground)
+            for j, i in enumerate(todo):
+                st[i].checked[int(rows[i])] = (bool(clear[j]), bool(over[j]))
+        answer = [x.checked[int(r)] for x, r in zip(st, rows, strict=True)]
+        self.over_unknown = [k for k, a in zip(ks, answer, strict=True) if a[1]]
+        return np.array([a[0] for a in answer], dtype=bool)
+
+    def _node_clear(
+        self, ks: list[int], body: PiecesB, ground: float
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Per pose ``ks[i]`` and posture (pieces row i): clear, and over unknown cells."""
+        T = np.stack([self.state(k).ground.M_T_B for k in ks])  # (n, 4, 4): the state's rest
         lowest = body.low / T[:, 2, 2, None]  # (n, P)
         c_M = np.einsum("nij,npj->npi", T[:, :3, :3], body.centre) + T[:, None, :3, 3]
         n, P = lowest.shape
         pose = np.repeat(np.arange(n), P)
         fill = np.array([self.reach(k)[1] for k in ks])[pose]
         rise, unknown = self._cell_bound(T[pose], c_M.reshape(-1, 3), fill)
-        self.over_unknown = [
-            k for k, u in zip(ks, unknown.reshape(n, P).any(axis=1), strict=True) if u
-        ]
         doubt = np.flatnonzero(lowest.ravel() - np.maximum(rise, 0.0) < ground - SLACK)
         ok = np.ones(n * P, dtype=bool)
         if doubt.size:
@@ -239,7 +306,7 @@ class MapGround:
                 fill[doubt],
                 ground,
             )
-        return np.asarray(ok.reshape(n, P).all(axis=1))
+        return ok.reshape(n, P).all(axis=1), unknown.reshape(n, P).any(axis=1)
 
     def _cell_bound(
         self, T: FloatArray, c_M: FloatArray, fill: FloatArray
@@ -302,12 +369,17 @@ def _plane(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
     )
 
 
-def clearance_on(base: NodeClearance, under: GroundUnderArm, kept: KeptPieces) -> NodeClearance:
-    """``base``'s test with the ground ``under`` the arm; its pose-independent parts shared.
+def clearance_on(
+    base: NodeClearance, ground: MapGround, ks: list[int], kept: KeptPieces
+) -> NodeClearance:
+    """``base``'s test with the ground under the arm at poses ``ks`` (its pose i: ks[i]).
 
-    The eligibility of the reachable nodes and their pieces in B (``kept``) are computed
-    once for the run, not per map.
+    The reachable nodes' eligibility and their pieces in B (``kept``) are computed once for
+    the run; each pose's measures are its state's (learnt here, kept while it stands).
     """
-    clear = dataclasses.replace(base, under=under, excluded={}, _low={}, _known={})
+    st = [ground.state(k) for k in ks]
+    known = {i: x.known for i, x in enumerate(st)}
+    low = {i: x.low for i, x in enumerate(st)}
+    clear = dataclasses.replace(base, under=ground.under(ks), excluded={}, _low=low, _known=known)
     clear.__dict__.update(above=base.above, _eligible=base.eligible(), _pieces=kept)
     return clear

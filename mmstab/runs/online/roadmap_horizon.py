@@ -197,7 +197,7 @@ class RoadmapHorizon:
             arm = ArmGround.of(self.robot, terrain, self.settings.attitude_margin or 0.0)
             self._arm = arm, KeptPieces(arm.base, self.roadmap.nodes_q[self.reach])
         M_T_B = {k: rested.G_T_B[i] for i, k in enumerate(ks) if rested.covered[i]}
-        return MapGround(self._arm[0], terrain, M_T_B)  # a map: M = G
+        return MapGround(self._arm[0], terrain, M_T_B, len(self.reach), self._ground)  # M = G
 
     def _recheck(self, ground: MapGround, kept: tuple[int, ...]) -> set[int]:
         """The kept poses to score again: their node now too low, or their reach now mapped."""
@@ -206,7 +206,7 @@ class RoadmapHorizon:
         again: set[int] = set()
         if ks:
             rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
-            clear = ground.node_clear(ks, self._arm[1](rows), float(self.settings.ground_clearance))
+            clear = ground.node_clear(ks, rows, self._arm[1], float(self.settings.ground_clearance))
             again = {k for k, ok in zip(ks, clear, strict=True) if not ok}
             self.arm_ground["ground_rescored"] += len(again)
             self.arm_ground["over_unknown"] += len(set(ground.over_unknown) - again)
@@ -223,7 +223,7 @@ class RoadmapHorizon:
         """
         clear = None
         if ground is not None and self._arm is not None:
-            clear = clearance_on(self.clear, ground.under(ks), self._arm[1])
+            clear = clearance_on(self.clear, ground, ks, self._arm[1])
             for k in ks:  # candidates cut to the mapped side: scored again once it is mapped
                 if ground.reach(k)[0]:
                     self.unknown.add(k)
@@ -298,7 +298,7 @@ class RoadmapHorizon:
         mapped = [k for k in [behind, *chain] if k in ground.M_T_B]
         if self._arm is None or not mapped:
             return
-        clear = clearance_on(self.clear, ground.under(mapped), self._arm[1])
+        clear = clearance_on(self.clear, ground, mapped, self._arm[1])
         at = {k: i for i, k in enumerate(mapped)}
         for i, k in enumerate(chain):
             if k in at:
