@@ -287,10 +287,10 @@ class NodeClearance:
             if k not in self._known:
                 self._known[k], self._low[k] = np.zeros(n, bool), np.zeros(n, bool)
         todo = [np.unique(x[~self._known[k][x]]) for k, x in enumerate(rows)]
-        lowest = self.roadmap.node_ground[self.reach]
         for k, x in enumerate(todo):  # high above the highest ground in reach: clear
             if x.size:
-                sure = self.under.surely_clear(k, lowest[x], self.ground)
+                lowest = self.roadmap.node_ground[self.reach[x]]
+                sure = self.under.surely_clear(k, lowest, self.ground)
                 self._known[k][x[sure]] = True
                 todo[k] = x[~sure]
         self._pieces.add(np.concatenate([np.zeros(0, dtype=np.intp), *todo]))
@@ -339,7 +339,6 @@ def route_candidates(
     cl: NodeClusters,
     count: int,
     clear: NodeClearance,
-    ahead: int = 4,
 ) -> Candidates:
     """Every pose's ``count`` best clear nodes spread over the turret bins (module text).
 
@@ -352,12 +351,10 @@ def route_candidates(
         clear: the clearance test; a chosen node measured too close (or, at its pose, too
             low above the ground) is dropped and the choice is made again, until every
             finite choice is clear.
-        ahead: the next ``ahead x count`` best are measured with the picks (doubled, up to
-            32, at a pose whose picks were too low; more at first: fewer rounds).
     """
     K, rank = len(fits), rank_bound(cl.bin_rows, count)
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
-    ahead = np.full(K, ahead)  # the next best measured too, more where picks were too low
+    ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
     bounds = cluster_bounds(cl, fits)
     while True:
         eligible, low = clear.eligible(), clear.low(K)

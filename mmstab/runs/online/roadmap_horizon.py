@@ -54,6 +54,8 @@ from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace.roadmap import Roadmap
 
+_NO_ROWS = np.zeros(0, dtype=np.intp)
+
 
 class PoseCandidates(NamedTuple):
     """One pose's candidate nodes on the ground it was scored on.
@@ -300,6 +302,12 @@ class RoadmapHorizon:
             return
         clear = clearance_on(self.clear, ground, mapped, self._arm[1])
         at = {k: i for i, k in enumerate(mapped)}
+        rows: list[list[NDArray[np.intp]]] = [[] for _ in mapped]  # measured in one batch
+        for i, k in enumerate(chain):
+            for j in (k - 1, k, k + 1):
+                if j in at:
+                    rows[at[j]].append(cand[i, np.isfinite(value[i])])
+        clear.measure([np.concatenate([_NO_ROWS, *r]) for r in rows])
         for i, k in enumerate(chain):
             if k in at:
                 f = np.flatnonzero(np.isfinite(value[i]))
