@@ -57,14 +57,51 @@ SAME_REST = 1e-6
 
 
 class MapTiles(GroundTiles):
-    """A live map's ground on the lattice; unknown or off the window: +inf (module text)."""
+    """A live map's ground on the lattice; unknown or off the window: +inf (module text).
+
+    A tile whose map cells are those of the last map's tile (NaN for NaN) is taken from
+    it: a fused map changes where the robot sees new ground, not everywhere.
+    """
+
+    def __init__(self, terrain: HeightmapTerrain, previous: MapTiles | None = None) -> None:
+        super().__init__(terrain)
+        self.cells: dict[tuple[int, int], FloatArray] = {}
+        self.previous = previous
+        if previous is not None:
+            previous.previous = None  # one map back only: no chain of maps kept
 
     def _tile(self, ti: int, tj: int) -> FloatArray:
         if (ti, tj) not in self.tiles:
             x = (ti * TILE + np.arange(TILE)) * LATTICE
             y = (tj * TILE + np.arange(TILE)) * LATTICE
-            self.tiles[ti, tj] = lattice_z(self.terrain.heightmap, x, y)  # type: ignore[attr-defined]
+            hm = self.terrain.heightmap  # type: ignore[attr-defined]
+            cells = _cells_under(hm, x, y)
+            old = self.previous
+            if (
+                old is not None
+                and (ti, tj) in old.cells
+                and np.array_equal(old.cells[ti, tj], cells, equal_nan=True)
+            ):
+                self.tiles[ti, tj] = old.tiles[ti, tj]
+            else:
+                self.tiles[ti, tj] = lattice_z(hm, x, y)
+            self.cells[ti, tj] = cells
         return self.tiles[ti, tj]
+
+
+def _cells_under(hm: Heightmap, x: FloatArray, y: FloatArray) -> FloatArray:
+    """The map's cells [m] that the bilinear heights at x, y [m] read (NaN beyond the map)."""
+    ny, nx = hm.shape
+    i0 = int(np.floor((x[0] - hm.origin[0]) / hm.resolution)) - 1
+    i1 = int(np.floor((x[-1] - hm.origin[0]) / hm.resolution)) + 2
+    j0 = int(np.floor((y[0] - hm.origin[1]) / hm.resolution)) - 1
+    j1 = int(np.floor((y[-1] - hm.origin[1]) / hm.resolution)) + 2
+    out = np.full((j1 - j0 + 1, i1 - i0 + 1), np.nan)
+    a, b = max(i0, 0), min(i1, nx - 1)
+    c, d = max(j0, 0), min(j1, ny - 1)
+    if a <= b and c <= d:
+        out[c - j0 : d - j0 + 1, a - i0 : b - i0 + 1] = hm.elevation[c : d + 1, a : b + 1]
+    return out
 
 
 def lattice_z(hm: Heightmap, x: FloatArray, y: FloatArray) -> FloatArray:
@@ -198,7 +235,7 @@ class MapGround:
         previous: MapGround | None = None,
     ) -> None:
         self.arm, self.hm, self.M_T_B, self.rows = arm, terrain.heightmap, M_T_B, rows
-        self.tiles = MapTiles(terrain)
+        self.tiles = MapTiles(terrain, None if previous is None else previous.tiles)
         self.states: dict[int, PoseState] = {}
         self.previous = {} if previous is None else previous.states
         self.over_unknown: list[int] = []  # the poses node_clear found over unknown cells
