@@ -79,9 +79,8 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
     robot = problem.robot
     if FollowSettings.of(problem).planner == "roadmap":
         from mmstab.planner.roadmap import solve_roadmap_sequence
-        from mmstab.workspace.roadmap import load_or_build_roadmap
-
         from mmstab.planner.under_arm import GroundUnderArm
+        from mmstab.workspace.roadmap import load_or_build_roadmap
 
         gravity = problem.terrain.gravity_body(poses)
         roadmap = load_or_build_roadmap(robot, ws)

@@ -42,130 +42,23 @@ from mmstab.planner.under_arm import (
     BLOCK,
     LATTICE,
     SLACK,
-    TILE,
-    GroundTiles,
     GroundUnderArm,
     KeptPieces,
     PiecesB,
     PoseGround,
 )
-from mmstab.terrain.heightmap import Heightmap
+from mmstab.runs.online.map_lattice import (
+    FilledTiles,
+    MapPoseGround,
+    MapTiles,
+    filled,
+    lattice_z,
+    plane_z,
+)
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Largest change of a pose's rest ``M_T_B`` between maps [m, -] that keeps its state.
 SAME_REST = 1e-6
-
-
-class MapTiles(GroundTiles):
-    """A live map's ground on the lattice; unknown or off the window: +inf (module text).
-
-    A tile whose map cells are those of the last map's tile (NaN for NaN) is taken from
-    it: a fused map changes where the robot sees new ground, not everywhere.
-    """
-
-    def __init__(self, terrain: HeightmapTerrain, previous: MapTiles | None = None) -> None:
-        super().__init__(terrain)
-        self.cells: dict[tuple[int, int], FloatArray] = {}
-        self.previous = previous
-        if previous is not None:
-            previous.previous = None  # one map back only: no chain of maps kept
-
-    def _tile(self, ti: int, tj: int) -> FloatArray:
-        if (ti, tj) not in self.tiles:
-            x = (ti * TILE + np.arange(TILE)) * LATTICE
-            y = (tj * TILE + np.arange(TILE)) * LATTICE
-            hm = self.terrain.heightmap  # type: ignore[attr-defined]
-            cells = _cells_under(hm, x, y)
-            old = self.previous
-            if (
-                old is not None
-                and (ti, tj) in old.cells
-                and np.array_equal(old.cells[ti, tj], cells, equal_nan=True)
-            ):
-                self.tiles[ti, tj] = old.tiles[ti, tj]
-            else:
-                self.tiles[ti, tj] = lattice_z(hm, x, y)
-            self.cells[ti, tj] = cells
-        return self.tiles[ti, tj]
-
-
-def _cells_under(hm: Heightmap, x: FloatArray, y: FloatArray) -> FloatArray:
-    """The map's cells [m] that the bilinear heights at x, y [m] read (NaN beyond the map)."""
-    ny, nx = hm.shape
-    i0 = int(np.floor((x[0] - hm.origin[0]) / hm.resolution)) - 1
-    i1 = int(np.floor((x[-1] - hm.origin[0]) / hm.resolution)) + 2
-    j0 = int(np.floor((y[0] - hm.origin[1]) / hm.resolution)) - 1
-    j1 = int(np.floor((y[-1] - hm.origin[1]) / hm.resolution)) + 2
-    out = np.full((j1 - j0 + 1, i1 - i0 + 1), np.nan)
-    a, b = max(i0, 0), min(i1, nx - 1)
-    c, d = max(j0, 0), min(j1, ny - 1)
-    if a <= b and c <= d:
-        out[c - j0 : d - j0 + 1, a - i0 : b - i0 + 1] = hm.elevation[c : d + 1, a : b + 1]
-    return out
-
-
-def lattice_z(hm: Heightmap, x: FloatArray, y: FloatArray) -> FloatArray:
-    """The map's bilinear heights (ny, nx) [m] at x (nx,), y (ny,) [m]; unknown or off: +inf.
-
-    Separable (each map row along x, then between two rows along y): the same arithmetic
-    as :meth:`Heightmap.sample` at each point, for a fraction of its cost on a lattice.
-    """
-    ny, nx = hm.shape
-    u, v = (x - hm.origin[0]) / hm.resolution, (y - hm.origin[1]) / hm.resolution
-    eps = 1e-9
-    ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
-    iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
-    fx, fy = u - ix, v - iy
-    rows = np.unique(np.concatenate([iy, iy + 1]))
-    e = hm.elevation[rows]
-    along = e[:, ix] + fx * (e[:, ix + 1] - e[:, ix])  # (rows, nx): each row at x
-    a, b = along[np.searchsorted(rows, iy)], along[np.searchsorted(rows, iy + 1)]
-    z = a + fy[:, None] * (b - a)
-    inside = ((v >= -eps) & (v <= ny - 1 + eps))[:, None] & ((u >= -eps) & (u <= nx - 1 + eps))
-    return np.where(inside & np.isfinite(z), z, np.inf)
-
-
-class FilledTiles:
-    """A map's lattice at one pose, its unknown samples ``fill`` [m] above the support plane."""
-
-    def __init__(self, tiles: MapTiles, M_T_B: FloatArray, fill: float) -> None:
-        self.tiles, self.M_T_B, self.fill = tiles, M_T_B, fill
-
-    def z_M(self, box: tuple[int, int, int, int]) -> FloatArray:
-        """The ground's z_M [m] on tiles ``box`` (:meth:`GroundTiles.z_M`), filled."""
-        z = self.tiles.z_M(box)
-        x = (box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE
-        y = (box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE
-        return filled(z, _plane(self.M_T_B, x[None, :], y[:, None]), self.fill)
-
-
-def filled(z: FloatArray, plane: FloatArray, fill: float) -> FloatArray:
-    """Heights ``z`` [m] with the unknown (+inf) ``fill`` [m] above the plane's heights [m]."""
-    unknown = np.isinf(z)
-    return np.where(unknown, plane + fill, z) if unknown.any() else z
-
-
-class MapPoseGround(PoseGround):
-    """A pose's ground on a map, built only where the measured pieces reach.
-
-    :class:`PoseGround` samples the whole arm's reach on first use, for its highest ground
-    (``top``, the bound that clears high arms unlooked): 127,000 lattice samples, 7 ms. Here
-    ``top`` is the map cells' bound over the reach (:meth:`MapGround.reach`, at least the
-    samples' max), and the lattice is built around the pieces looked at.
-    """
-
-    def _cover(self, need: tuple[int, int, int, int] | None = None) -> None:
-        if need is None:  # the reach's top: the cells' bound, set at construction
-            return
-        if not self.peak.size:
-            self._build(need)
-        else:
-            super()._cover(need)
-
-    def _build(self, box: tuple[int, int, int, int]) -> None:
-        bound = self.top
-        super()._build(box)
-        self.top = bound  # the bound over the whole reach, not this box's max
 
 
 class ArmGround(NamedTuple):
@@ -235,7 +128,7 @@ class MapGround:
         previous: MapGround | None = None,
     ) -> None:
         self.arm, self.hm, self.M_T_B, self.rows = arm, terrain.heightmap, M_T_B, rows
-        self.tiles = MapTiles(terrain, None if previous is None else previous.tiles)
+        self.tiles: MapTiles = MapTiles(terrain, None if previous is None else previous.tiles)
         self.states: dict[int, PoseState] = {}
         self.previous = {} if previous is None else previous.states
         self.over_unknown: list[int] = []  # the poses node_clear found over unknown cells
@@ -266,7 +159,7 @@ class MapGround:
         o, res = self.hm.origin, self.hm.resolution
         x = o[0] + res * np.arange(lo[0], hi[0] + 1)
         y = o[1] + res * np.arange(lo[1], hi[1] + 1)
-        rise = z - _plane(T, x[None, :], y[:, None])
+        rise = z - plane_z(T, x[None, :], y[:, None])
         known = np.isfinite(rise)
         top = max(float(rise[known].max()) if known.any() else 0.0, 0.0)
         ground = MapPoseGround(FilledTiles(self.tiles, T, top), T, self.arm.cells, self.arm.reach)  # type: ignore[arg-type]
@@ -343,7 +236,8 @@ class MapGround:
                 fill[doubt],
                 ground,
             )
-        return ok.reshape(n, P).all(axis=1), unknown.reshape(n, P).any(axis=1)
+        clear = np.asarray(ok.reshape(n, P).all(axis=1))
+        return clear, np.asarray(unknown.reshape(n, P).any(axis=1))
 
     def _cell_bound(
         self, T: FloatArray, c_M: FloatArray, fill: FloatArray
@@ -366,7 +260,9 @@ class MapGround:
         o, res = self.hm.origin, self.hm.resolution
         x, y = o[0] + res * ix, o[1] + res * iy
         rise = np.where(
-            unknown, fill[:, None, None], z - _plane(T[:, None, None], x[:, None, :], y[:, :, None])
+            unknown,
+            fill[:, None, None],
+            z - plane_z(T[:, None, None], x[:, None, :], y[:, :, None]),
         )
         flat = len(c_M), -1
         return np.asarray(rise.reshape(flat).max(axis=1)), unknown.reshape(flat).any(axis=1)
@@ -388,22 +284,11 @@ class MapGround:
         for p in range(len(c_M)):
             x = (i[p] * BLOCK + np.arange(n)) * LATTICE
             y = (j[p] * BLOCK + np.arange(n)) * LATTICE
-            plane = _plane(T[p], x[None, :], y[:, None])
+            plane = plane_z(T[p], x[None, :], y[:, None])
             peak = float((filled(lattice_z(self.hm, x, y), plane, fill[p]) - plane).max())
             h = lowest[p] - peak if peak > SLACK else lowest[p]
             out[p] = h >= ground - SLACK
         return out
-
-
-def _plane(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
-    """The support plane z_B = 0 of body pose(s) ``T`` (..., 4, 4) in M: z_M [m] at x, y [m].
-
-    The arithmetic of :class:`PoseGround`'s (the same values on the same samples).
-    """
-    n, o = T[..., :3, 2], T[..., :3, 3]
-    return np.asarray(
-        o[..., 2] - (n[..., 0] * (x - o[..., 0]) + n[..., 1] * (y - o[..., 1])) / n[..., 2]
-    )
 
 
 def clearance_on(
@@ -420,3 +305,56 @@ def clearance_on(
     clear = dataclasses.replace(base, under=ground.under(ks), excluded={}, _low=low, _known=known)
     clear.__dict__.update(above=base.above, _eligible=base.eligible(), _pieces=kept)
     return clear
+
+
+def forbid_low(
+    base: NodeClearance,
+    ground: MapGround,
+    kept: KeptPieces,
+    chain: list[int],
+    cand: NDArray[np.intp],
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    behind: bool,
+) -> None:
+    """Drop a re-choice's candidates too low on this map; forbid moves with an end too low.
+
+    A pose's kept candidates were measured on the map that scored it: measured again here
+    (free where its state stands). As offline (:func:`mmstab.planner.roadmap._forbid_low_ends`):
+    the arm moves while the base drives between two poses, so each end must clear both
+    poses' ground; with ``behind``, ``chain[0]``'s candidates must also clear the ground of
+    the pose before it (its node fixed).
+
+    Args:
+        base: the reachable nodes' test.
+        ground: this map's ground under the arm.
+        kept: the nodes' pieces in B.
+        chain: the consecutive poses chosen again.
+        cand: their candidates' reach rows (n, M).
+        value: their values (n, M), -inf where dropped (changed here).
+        allowed: per consecutive pair, the allowed moves (M, M) (changed here).
+        behind: pose ``chain[0] - 1`` has a node.
+    """
+    mapped = [k for k in [chain[0] - 1, *chain] if k in ground.M_T_B]
+    if not mapped:
+        return
+    clear = clearance_on(base, ground, mapped, kept)
+    at = {k: i for i, k in enumerate(mapped)}
+    rows: list[list[NDArray[np.intp]]] = [[] for _ in mapped]  # measured in one batch
+    for i, k in enumerate(chain):
+        for j in (k - 1, k, k + 1):
+            if j in at:
+                rows[at[j]].append(cand[i, np.isfinite(value[i])])
+    clear.measure([np.concatenate([np.zeros(0, dtype=np.intp), *r]) for r in rows])
+    for i, k in enumerate(chain):
+        if k in at:
+            f = np.flatnonzero(np.isfinite(value[i]))
+            value[i, f[~clear.at(at[k], cand[i, f])]] = -np.inf
+    if behind and chain[0] - 1 in at:
+        f = np.flatnonzero(np.isfinite(value[0]))
+        value[0, f[~clear.at(at[chain[0] - 1], cand[0, f])]] = -np.inf
+    for i, (ka, kb) in enumerate(zip(chain[:-1], chain[1:], strict=True)):
+        if ka in at and kb in at:
+            fa, fb = np.isfinite(value[i]), np.isfinite(value[i + 1])
+            allowed[i][fa] &= clear.at(at[kb], cand[i, fa])[:, None]
+            allowed[i][:, fb] &= clear.at(at[ka], cand[i + 1, fb])[None, :]

@@ -182,7 +182,9 @@ class Follower:
             terrain, np.vstack([pose[None], ref_pose, self.horizon.poses_grid[ks]])
         )
         arm_com = np.asarray(self.robot.arm_com(q), dtype=float)
-        horizon = Rested(*(x[2:] for x in rested))
+        horizon = Rested(
+            rested.covered[2:], rested.gravity_body[2:], rested.ground[2:], rested.G_T_B[2:]
+        )
         changes = self.horizon.update(terrain, ks, horizon, u.time, arm_com, q)
         covered = bool(rested.covered[0])
         g_now = rested.gravity_body[0]

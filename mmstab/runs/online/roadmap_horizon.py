@@ -41,7 +41,7 @@ from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.roadmap_moves import ground_move
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.under_arm import KeptPieces
-from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on
+from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on, forbid_low
 from mmstab.runs.online.horizon import (
     HorizonPose,
     HorizonUpdate,
@@ -54,8 +54,6 @@ from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace.roadmap import Roadmap
-
-_NO_ROWS = np.zeros(0, dtype=np.intp)
 
 
 class PoseCandidates(NamedTuple):
@@ -141,14 +139,10 @@ class RoadmapHorizon:
             return
         flat = Heightmap.build(np.zeros((81, 81)), 0.05, np.array([-2.0, -2.0]), "warm-up")
         terrain = HeightmapTerrain(flat)
-        self._arm_on(terrain)
+        arm = self._arm_on(terrain)
         ks = list(range(-len(down), 0))  # no route pose's index
-        self._score(
-            ks,
-            9.81 * down,
-            0.0,
-            MapGround(self._arm[0], terrain, dict.fromkeys(ks, np.eye(4)), len(self.reach)),
-        )
+        flat_ground = MapGround(arm[0], terrain, dict.fromkeys(ks, np.eye(4)), len(self.reach))
+        self._score(ks, 9.81 * down, 0.0, flat_ground)
         for k in ks:
             del self.candidates[k]
         self.unknown.clear()
@@ -232,7 +226,9 @@ class RoadmapHorizon:
         again: set[int] = set()
         if ks:
             rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
-            clear = ground.node_clear(ks, rows, self._arm[1], float(self.settings.ground_clearance))
+            clearance = self.settings.ground_clearance
+            assert clearance is not None  # (no MapGround without it)
+            clear = ground.node_clear(ks, rows, self._arm[1], clearance)
             again = {k for k, ok in zip(ks, clear, strict=True) if not ok}
             self.arm_ground["ground_rescored"] += len(again)
             self.arm_ground["over_unknown"] += len(set(ground.over_unknown) - again)
@@ -287,7 +283,9 @@ class RoadmapHorizon:
             cost.points, turret, cand, pairs, cost.weight, window, cost.metric
         )
         if ground is not None:
-            self._forbid_low(ground, chain, cand, value, allowed)
+            behind = chain[0] - 1 in self.nodes  # its node fixed: chain[0] must clear its ground
+            assert self._arm is not None
+            forbid_low(self.clear, ground, self._arm[1], chain, cand, value, allowed, behind)
         path, total = rp.best_sequence(value, motion, allowed, False)
         if not np.isfinite(total):  # keep the last plans; the loop reports the pose
             return
@@ -303,47 +301,6 @@ class RoadmapHorizon:
                 k, float(self.s_grid[k]), self.poses_grid[k], cands[i].gravity_body,
                 self.samples[row].copy(), q, mu, True, now,
             )  # fmt: skip
-
-    def _forbid_low(
-        self,
-        ground: MapGround,
-        chain: list[int],
-        cand: NDArray[np.intp],
-        value: FloatArray,
-        allowed: list[NDArray[np.bool_]],
-    ) -> None:
-        """Drop the candidates too low on this map; forbid moves with an end too low.
-
-        A pose's kept candidates were measured on the map that scored it: measured again
-        here (the chosen node is verified on the next map anyway; measured now, a stale
-        choice is not made). As offline (:func:`mmstab.planner.roadmap._forbid_low_ends`):
-        the arm moves while the base drives between two poses, so each end must clear both
-        poses' ground.
-        """
-        behind = chain[0] - 1  # its node fixed: chain[0]'s candidates must clear its ground
-        mapped = [k for k in [behind, *chain] if k in ground.M_T_B]
-        if self._arm is None or not mapped:
-            return
-        clear = clearance_on(self.clear, ground, mapped, self._arm[1])
-        at = {k: i for i, k in enumerate(mapped)}
-        rows: list[list[NDArray[np.intp]]] = [[] for _ in mapped]  # measured in one batch
-        for i, k in enumerate(chain):
-            for j in (k - 1, k, k + 1):
-                if j in at:
-                    rows[at[j]].append(cand[i, np.isfinite(value[i])])
-        clear.measure([np.concatenate([_NO_ROWS, *r]) for r in rows])
-        for i, k in enumerate(chain):
-            if k in at:
-                f = np.flatnonzero(np.isfinite(value[i]))
-                value[i, f[~clear.at(at[k], cand[i, f])]] = -np.inf
-        if behind in at and behind in self.nodes:
-            f = np.flatnonzero(np.isfinite(value[0]))
-            value[0, f[~clear.at(at[behind], cand[0, f])]] = -np.inf
-        for i, (ka, kb) in enumerate(zip(chain[:-1], chain[1:], strict=True)):
-            if ka in at and kb in at:
-                fa, fb = np.isfinite(value[i]), np.isfinite(value[i + 1])
-                allowed[i][fa] &= clear.at(at[kb], cand[i, fa])[:, None]
-                allowed[i][:, fb] &= clear.at(at[ka], cand[i + 1, fb])[None, :]
 
     def move(self, k: int) -> FloatArray:
         """The arm's move into pose ``k``'s posture (n, 4) [rad], along the roadmap.
