@@ -162,3 +162,21 @@ def base_polygon_vertices(robot):
     from mmstab.stability.static import base_polygon
 
     return base_polygon(robot).vertices
+
+
+def test_batched_net_wrench_equals_one_instant_at_a_time() -> None:
+    rng = np.random.default_rng(17)
+    masses = rng.uniform(0.5, 20.0, 5)
+    positions = rng.normal(size=(7, 5, 3))
+    accelerations = rng.normal(scale=3.0, size=(7, 5, 3))
+    gravity = rng.normal(size=(7, 3)) + [0.0, 0.0, -9.81]
+    inertial = rng.normal(size=(7, 5, 3))
+    f_ext, point, n_ext = rng.normal(size=3), rng.normal(size=(7, 3)), rng.normal(size=3)
+    batch = net_wrench(masses, positions, accelerations, gravity, inertial, f_ext, point, n_ext)
+    for i in range(7):
+        one = net_wrench(masses, positions[i], accelerations[i], gravity[i], inertial[i],
+                         f_ext, point[i], n_ext)  # fmt: skip
+        for a, b in zip(batch, one, strict=True):
+            assert a[i] == pytest.approx(b, abs=1e-12)
+    with pytest.raises(ValueError, match="differ"):
+        net_wrench(masses, positions, accelerations[:, :4], gravity)

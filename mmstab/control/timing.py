@@ -36,9 +36,9 @@ from numpy.typing import ArrayLike, NDArray
 from mmstab.control.reference import PathSample
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.paths.base import BasePath
-from mmstab.stability.dynamic import dynamic_force_angle
+from mmstab.stability.dynamic import dynamic_force_angle, net_wrench
 from mmstab.stability.static import base_polygon
-from mmstab.terrain import Terrain
+from mmstab.terrain import Terrain, rot_z
 
 #: Step of the central differences and of the law's grid, nominal time [s].
 STEP = 0.01
@@ -80,13 +80,6 @@ def _bodies(robot: Robot, q: FloatArray) -> FloatArray:
     return np.concatenate([base, robot.kinematics.link_coms(q)], axis=1)
 
 
-def _yaw(gamma: FloatArray) -> FloatArray:
-    c, s = np.cos(gamma), np.sin(gamma)
-    R = np.zeros((len(gamma), 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
-    return R
-
-
 def reference_motion(
     robot: Robot,
     path: BasePath,
@@ -108,12 +101,12 @@ def reference_motion(
     tau = np.atleast_1d(np.asarray(tau, dtype=float))
     pose = path.pose_at(tau / lap_time)
     M_R_B = np.asarray(terrain.M_T_B(pose)).reshape(-1, 4, 4)[:, :3, :3]
-    tilt = np.einsum("nji,njk->nik", _yaw(pose[:, 2]), M_R_B)  # Rz(γ)ᵀ M_R_B, held
+    tilt = np.einsum("nji,njk->nik", rot_z(pose[:, 2]), M_R_B)  # Rz(γ)ᵀ M_R_B, held
     placed = []
     for d in (-STEP, 0.0, STEP):
         p = pose if d == 0.0 else path.pose_at((tau + d) / lap_time)
         q = np.asarray(posture((tau + d) / lap_time).value)
-        R = np.einsum("nij,njk->nik", _yaw(p[:, 2]), tilt)
+        R = np.einsum("nij,njk->nik", rot_z(p[:, 2]), tilt)
         world = np.einsum("nij,nkj->nki", R, _bodies(robot, q))
         world[:, :, :2] += p[:, None, :2]
         placed.append(world)
@@ -138,16 +131,13 @@ def dynamic_mu(robot: Robot, motion: ReferenceMotion, acceleration: ArrayLike) -
     accelerations give the static measure (``robot_mu``).
     """
     m = np.array([robot.base.mass, *(link.mass for link in robot.links)])
-    r = motion.positions
-    forces = m[None, :, None] * (motion.gravity[:, None, :] - np.asarray(acceleration))
-    com = np.einsum("k,nki->ni", m, r) / m.sum()
-    force = forces.sum(axis=1)
-    moment = np.cross(r - com[:, None, :], forces).sum(axis=1)
-    if robot.tool_wrench is not None:
-        w = np.asarray(robot.tool_wrench, dtype=float)
-        force = force + w[:3]
-        moment = moment + np.cross(motion.tool - com, w[:3]) + w[3:]
-    return dynamic_force_angle(base_polygon(robot).vertices, com, force, moment).mu
+    w = None if robot.tool_wrench is None else np.asarray(robot.tool_wrench, dtype=float)
+    net = net_wrench(
+        m, motion.positions, acceleration, motion.gravity,
+        force_ext=None if w is None else w[:3], point_ext=motion.tool,
+        moment_ext=None if w is None else w[3:],
+    )  # fmt: skip
+    return dynamic_force_angle(base_polygon(robot).vertices, net.com, net.force, net.moment).mu
 
 
 class TimeLaw(NamedTuple):

@@ -50,47 +50,52 @@ def net_wrench(
     point_ext: ArrayLike | None = None,
     moment_ext: ArrayLike | None = None,
 ) -> Wrench:
-    """Net force and moment about the overall CoM of a set of bodies (d'Alembert).
+    """Net force and moment about the overall CoM of a set of bodies (d'Alembert), batched.
 
     Args:
         masses: body masses (k,) [kg].
-        positions: body CoMs (k, 3) [m], in the frame of ``gravity``.
-        accelerations: body CoM accelerations (k, 3) [m/s^2], same frame.
-        gravity: gravity acceleration (3,) [m/s^2], same frame.
+        positions: body CoMs (k, 3) [m], in the frame of ``gravity``; or (B, k, 3) for B
+            instants at once.
+        accelerations: body CoM accelerations, the shape of ``positions`` [m/s^2], same frame.
+        gravity: gravity acceleration (3,) or (B, 3) [m/s^2], same frame.
         inertial_moments: the bodies' rate of angular momentum about their own CoMs,
-            ``I alpha + w x I w`` (k, 3) [N m]; ``None`` = point masses.
-        force_ext: external force (3,) [N] (e.g. a pull on the tool), or ``None``.
-        point_ext: where ``force_ext`` acts (3,) [m]; required with ``force_ext``.
-        moment_ext: external pure moment (3,) [N m], or ``None``.
+            ``I alpha + w x I w``, the shape of ``positions`` [N m]; ``None`` = point masses.
+        force_ext: external force (3,) or (B, 3) [N] (e.g. a pull on the tool), or ``None``.
+        point_ext: where ``force_ext`` acts (3,) or (B, 3) [m]; required with ``force_ext``.
+        moment_ext: external pure moment (3,) or (B, 3) [N m], or ``None``.
 
     Returns:
-        :class:`Wrench` of ``f_r``, ``n_r`` about ``g_o``, and ``g_o``.
+        :class:`Wrench` of ``f_r``, ``n_r`` about ``g_o``, and ``g_o``: (3,) each, or (B, 3).
 
     Raises:
         ValueError: shapes that do not match, a non-positive total mass.
     """
     m = np.asarray(masses, dtype=float).reshape(-1)
-    r = np.asarray(positions, dtype=float).reshape(-1, 3)
-    a = np.asarray(accelerations, dtype=float).reshape(-1, 3)
-    g = np.asarray(gravity, dtype=float).reshape(3)
-    if not (len(m) == len(r) == len(a)):
-        raise ValueError(f"masses {m.shape}, positions {r.shape}, accelerations {a.shape} differ")
+    r = np.asarray(positions, dtype=float)
+    a = np.asarray(accelerations, dtype=float)
+    r, a = (x.reshape(-1, 3) if x.ndim <= 2 else x for x in (r, a))  # one instant: (k, 3)
+    g = np.asarray(gravity, dtype=float)
+    if not (len(m) == r.shape[-2] == a.shape[-2]) or r.shape != a.shape or g.shape[-1] != 3:
+        raise ValueError(
+            f"masses {m.shape}, positions {r.shape}, accelerations {a.shape}, "
+            f"gravity {g.shape} differ"
+        )
     if m.sum() <= 0:
         raise ValueError("total mass must be positive")
-    com = (m[:, None] * r).sum(axis=0) / m.sum()
-    forces = m[:, None] * (g - a)  # gravity + d'Alembert inertial force of each body
-    force = forces.sum(axis=0)
-    moment = np.cross(r - com, forces).sum(axis=0)
+    com = (m[:, None] * r).sum(axis=-2) / m.sum()
+    forces = m[:, None] * (g[..., None, :] - a)  # gravity + d'Alembert inertial force of each
+    force = forces.sum(axis=-2)
+    moment = np.cross(r - com[..., None, :], forces).sum(axis=-2)
     if inertial_moments is not None:
-        moment = moment - np.asarray(inertial_moments, dtype=float).reshape(-1, 3).sum(axis=0)
+        moment = moment - np.asarray(inertial_moments, dtype=float).reshape(a.shape).sum(axis=-2)
     if force_ext is not None:
         if point_ext is None:
             raise ValueError("force_ext needs point_ext, the point it acts at")
-        f_ext = np.asarray(force_ext, dtype=float).reshape(3)
+        f_ext = np.asarray(force_ext, dtype=float)
         force = force + f_ext
-        moment = moment + np.cross(np.asarray(point_ext, dtype=float).reshape(3) - com, f_ext)
+        moment = moment + np.cross(np.asarray(point_ext, dtype=float) - com, f_ext)
     if moment_ext is not None:
-        moment = moment + np.asarray(moment_ext, dtype=float).reshape(3)
+        moment = moment + np.asarray(moment_ext, dtype=float)
     return Wrench(force=force, moment=moment, com=com)
 
 

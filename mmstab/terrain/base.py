@@ -158,10 +158,11 @@ def rot_x(angle: float) -> FloatArray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def rot_z(angle: float) -> FloatArray:
-    """Rotation about z by ``angle`` [rad]."""
+def rot_z(angle: ArrayLike) -> FloatArray:
+    """Rotation about z by ``angle`` [rad]: (3, 3), or (N, 3, 3) for angles (N,)."""
     c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    z, o = np.zeros_like(c), np.ones_like(c)
+    return np.stack([np.stack(r, axis=-1) for r in ((c, -s, z), (s, c, z), (z, z, o))], axis=-2)
 
 
 def wrap_angle(angle: ArrayLike) -> FloatArray:

@@ -115,12 +115,10 @@ def measure_motion(
     n = len(keep)
     g_M = terrain.G_T_M()[:3, :3].T @ GRAVITY_G
     polygon = base_polygon(robot).vertices
-    com_b, f_b, n_b, f_s = (np.empty((n, 3)) for _ in range(4))
-    for j, i in enumerate(keep):
-        R, t = motion.M_T_B[i, :3, :3], motion.M_T_B[i, :3, 3]
-        w = net_wrench(motion.masses, p[i], acc[j], g_M)
-        com_b[j], f_b[j], n_b[j] = R.T @ (w.com - t), R.T @ w.force, R.T @ w.moment
-        f_s[j] = R.T @ (motion.masses.sum() * g_M)
+    R, t = motion.M_T_B[keep, :3, :3], motion.M_T_B[keep, :3, 3]
+    w = net_wrench(motion.masses, p[keep], acc, np.broadcast_to(g_M, (n, 3)))  # all at once
+    com_b, f_b, n_b = (np.einsum("nji,nj->ni", R, v) for v in (w.com - t, w.force, w.moment))
+    f_s = np.einsum("nji,j->ni", R, motion.masses.sum() * g_M)
     return LapMeasure(
         static=dynamic_force_angle(polygon, com_b, f_s, np.zeros((n, 3))).mu,
         dynamic=dynamic_force_angle(polygon, com_b, f_b, n_b).mu,
