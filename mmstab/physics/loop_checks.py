@@ -171,8 +171,7 @@ def predicted_path_slip(
     c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
     poses = np.c_[xi[:, 0] - base_offset * c, xi[:, 1] - base_offset * s, xi[:, 2]]
     speed = rate[:, 0] * c + rate[:, 1] * s  # the point's speed along the heading = B's
-    com = robot.overall_com(np.asarray(robot.kinematics.f_arm_com.map(len(idx))(
-        np.asarray(r.q_ref)[idx].T)).T)  # fmt: skip
+    com = robot.overall_com(np.atleast_2d(robot.arm_com(np.asarray(r.q_ref)[idx])))
     slide = turn_slide(track_patch(robot), problem.terrain.gravity_body(poses), com, speed,
                        rate[:, 2], terrain_friction(problem.terrain)).rate  # fmt: skip
     slide[~np.isfinite(slide)] = 1e3  # beyond the friction cone at the reference pose
