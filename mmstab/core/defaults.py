@@ -101,6 +101,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "wheel": "sphere",
         "timestep": 0.004,
         "arm": "planned",
+        "turn_ratio": 1.0,
     },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",

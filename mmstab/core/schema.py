@@ -298,8 +298,9 @@ ONLINE = obj(
 # control period [s], simulated time [s] (null: the controller's / the route's), the chassis
 # tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
 # slide, the period of those checks [s], the controller step's backend, the road wheels'
-# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices") and the
-# arm: the plan's postures or held stowed.
+# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices"), the
+# arm: the plan's postures or held stowed, and the drive layer's turn ratio (level-ground
+# achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot).
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -311,6 +312,7 @@ PHYSICS = obj(
     wheel={"enum": ["sphere", "cylinder", "sphere_pair"]},
     timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
     arm={"enum": ["planned", "stowed"]},
+    turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
 )
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.

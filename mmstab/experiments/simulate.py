@@ -24,6 +24,7 @@ from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.stability.drive import resolve_turn_ratio
 
 
 def loop_settings(problem: Problem) -> LoopSettings:
@@ -40,6 +41,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
         wheel=str(s["wheel"]),
         timestep=float(s["timestep"]),
         arm=str(s["arm"]),
+        turn_ratio=s["turn_ratio"] if s["turn_ratio"] == "auto" else float(s["turn_ratio"]),
     )
 
 
@@ -98,6 +100,8 @@ def run_simulate(
     summary = summarize(run, loop)
     summary["backend"], summary["arm"] = loop.backend, loop.arm
     summary["model"] = {"wheel": loop.wheel, "timestep_s": loop.timestep}
+    summary["drive"] = {"turn_ratio": resolve_turn_ratio(problem.robot, loop.turn_ratio),
+                        "setting": loop.turn_ratio}  # fmt: skip
     summary["high_centred"] = high_centred_verdict(
         problem.terrain, *path_samples(problem.base_path)
     )

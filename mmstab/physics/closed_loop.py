@@ -9,7 +9,10 @@ as the kinematic run (:func:`mmstab.control.approach.run_reference`; the arm CoM
 of ``controller.arm_com_frame``, the errors reported in M). Its joint speeds drive
 the model (:mod:`mmstab.physics.robot_sim`):
 
-- tracks: each side's wheels at the sprocket's surface speed, r·θ̇ [m/s];
+- tracks: each side's wheels at the drive layer's belt speed (:mod:`mmstab.stability.drive`):
+  the twist the sprocket rates θ̇ mean, its yaw rate raised by 1 / ``physics.turn_ratio``
+  (η = 1: the sprocket's surface speed r·θ̇ [m/s]); the slip verdict's commanded motion
+  stays the controller's θ̇ through the kinematic plant (what it intended);
 - arm: the position servos' targets advance by q̇·dt from where they were (a velocity
   command through a position loop, as joint controllers run it).
 
@@ -44,6 +47,7 @@ from mmstab.physics.loop_checks import (
 )
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
+from mmstab.stability.drive import DriveLayer, resolve_turn_ratio
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import slip_limit, terrain_friction
 
@@ -64,6 +68,8 @@ class LoopSettings:
         timestep: MuJoCo's integration step [s] (the contacts' time constant is kept at
             2.5 steps at least: MuJoCo needs 2).
         arm: ``planned`` (the plan's postures) or ``stowed`` (the arm held stowed).
+        turn_ratio: the drive layer's η [-] in (0, 1], or ``auto``: the skid model's level
+            pivot (:mod:`mmstab.stability.drive`); 1: the belts at r θ̇.
     """
 
     control_dt: float = 0.004
@@ -76,6 +82,7 @@ class LoopSettings:
     wheel: str = "sphere"
     timestep: float = 0.004
     arm: str = "planned"
+    turn_ratio: float | str = 1.0
 
     def model_settings(self) -> ModelSettings:
         """The MuJoCo model's numbers with this section's wheel shape and step."""
@@ -293,7 +300,7 @@ def run_closed_loop(
     ref, ref_map = refs.control.pack(), refs.step.pack()  # the step's; the errors' (M)
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
-    r = robot.base.tracks.sprocket_radius
+    drive = DriveLayer.of(robot, resolve_turn_ratio(robot, loop.turn_ratio))
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states = np.zeros((steps + 1, 5 + n))
     qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
@@ -311,7 +318,7 @@ def run_closed_loop(
                 break
         qdots[k], status[k] = controller(state, ref[k])
         target = target + qdots[k, 2:] * dt
-        sim.advance(r * qdots[k, :2], target, substeps, qdots[k, 2:])
+        sim.advance(drive.belts(qdots[k, :2]), target, substeps, qdots[k, 2:])
         sprockets = state[3:5] + qdots[k, :2] * dt
         pose, G_T_B, arm_q = read_back(sim, M_T_G)
         state = np.concatenate([pose, sprockets, arm_q])
@@ -380,8 +387,9 @@ def _finish(
         mu_predicted=np.asarray(mu_pred), mu_simulated=mu_sim, tilt_error=tilt, slip=slip,
         tipped=tipped, slid=float(t[over[0]]) if len(over) else None,
         slip_predicted=slip_limit(gravity, terrain_friction(problem.terrain)).slides,
-        path_slip_predicted=predicted_path_slip(problem, ref, dt, ctrl_settings.base_offset,
-                                                loop.slip_window, loop.slip_distance),
+        path_slip_predicted=predicted_path_slip(
+            problem, ref, dt, ctrl_settings.base_offset, loop.slip_window, loop.slip_distance,
+            turn_ratio=resolve_turn_ratio(robot, loop.turn_ratio)),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
         base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
     )  # fmt: skip

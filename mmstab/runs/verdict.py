@@ -193,6 +193,7 @@ class TurnCheck(NamedTuple):
         window: [s] (``physics.slip_window``).
         period: the loop's period when the poses close a loop (the last turns into the
             first), else None [s].
+        turn_ratio: the drive layer's η [-] (``physics.turn_ratio``; its belts turn the path).
     """
 
     robot: Robot
@@ -201,6 +202,7 @@ class TurnCheck(NamedTuple):
     distance: float
     window: float
     period: float | None = None
+    turn_ratio: float = 1.0
 
 
 #: The turn check's samples per slip window at most: a tracking run's are thinned to this
@@ -228,9 +230,11 @@ def turn_check(
         times: when the path reaches each pose (N,) [s].
         period: the loop's period [s] (closed paths), else None.
     """
-    s = problem.section("physics")
-    return TurnCheck(problem.robot, arm_com_body, times, float(s["slip_distance"]),
-                     float(s["slip_window"]), period)  # fmt: skip
+    from mmstab.stability.drive import resolve_turn_ratio
+
+    s, robot = problem.section("physics"), problem.robot
+    return TurnCheck(robot, arm_com_body, times, float(s["slip_distance"]), float(s["slip_window"]),
+                     period, resolve_turn_ratio(robot, s["turn_ratio"]))  # fmt: skip
 
 
 def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
@@ -267,7 +271,7 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
     travel = np.sum((P[after, :2] - P[:n, :2]) * heading, 1)
     patch, per_radian = track_patch(robot), np.zeros(n)
     for end in (np.arange(n), after):  # the worse of each segment's two end poses
-        ts = turn_slide(patch, gravity[end], com[end], travel, turn, friction)
+        ts = turn_slide(patch, gravity[end], com[end], travel, turn, friction, check.turn_ratio)
         per_radian = np.maximum(per_radian, np.nan_to_num(ts.per_radian, nan=0.0, posinf=0.0))
     slide = per_radian * np.abs(turn)
     # cumulative slide against time (piecewise linear); slide within the window ending at each end

@@ -246,12 +246,28 @@ class TurnSlide(NamedTuple):
             hold); ``inf`` where the friction cone does not hold.
         per_radian: downhill slide per radian of heading change [m/rad] (NaN on straight
             stretches).
-        turn_ratio: the model's yaw rate over the commanded one [-] (NaN on straight stretches).
+        turn_ratio: the model's yaw rate over the path's [-] (NaN on straight stretches).
     """
 
     rate: FloatArray
     per_radian: FloatArray
     turn_ratio: FloatArray
+
+
+def belts_for_twist(
+    speed: ArrayLike, yaw_rate: ArrayLike, separation: float, turn_ratio: float = 1.0
+) -> FloatArray:
+    """Belts (left, right) ``v ∓ ω b / (2 η)`` [m/s] (:mod:`mmstab.stability.drive`).
+
+    Args:
+        speed: forward speed v [m/s].
+        yaw_rate: yaw rate ω [rad/s].
+        separation: the belts' centre-line distance b [m].
+        turn_ratio: the drive's turn ratio η [-] (1: the kinematic belts).
+    """
+    v, w = np.asarray(speed, dtype=float), np.asarray(yaw_rate, dtype=float)
+    half = w * separation / (2 * turn_ratio)
+    return np.stack([v - half, v + half], axis=-1)
 
 
 def turn_slide(
@@ -261,12 +277,14 @@ def turn_slide(
     speed: ArrayLike,
     yaw_rate: ArrayLike,
     friction: float,
+    turn_ratio: float = 1.0,
 ) -> TurnSlide:
     """The slide a path costs where it turns on a slope (module docstring).
 
-    The belts run at the path's kinematic speeds ``v ∓ ω b / 2``; the model's twist on the
-    slope, less its twist on level ground (same belts and CoM), says how far B slides downhill
-    per radian the heading turns. The
+    The belts run at the drive layer's speeds for the path's twist, ``v ∓ ω b / (2 η)``
+    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's twist on the slope, less
+    its twist on level ground (same belts and CoM), says how far B slides downhill per radian
+    the heading turns. The
     path's heading must turn as the path does, so the slide rate is that times |ω|: the
     tracks' turn deficit (the model turns slower than commanded) does not hide the slide
     (the model's yaw rate is taken at least :data:`TURN_FLOOR` times the path's).
@@ -278,18 +296,18 @@ def turn_slide(
         speed: the path's forward speed (N,) [m/s].
         yaw_rate: the path's yaw rate (N,) [rad/s].
         friction: Coulomb coefficient [-].
+        turn_ratio: the drive layer's η [-] (:class:`mmstab.stability.drive.DriveLayer`).
     """
-    v = np.asarray(speed, dtype=float)
     w = np.asarray(yaw_rate, dtype=float)
-    half = w * patch.separation / 2
-    twist = skid_twist(patch, gravity_body, com_body, np.c_[v - half, v + half], friction)
+    belts = belts_for_twist(speed, w, patch.separation, turn_ratio)
+    twist = skid_twist(patch, gravity_body, com_body, belts, friction)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     norm = np.linalg.norm(g[:, :2], axis=1, keepdims=True)
     down = np.divide(g[:, :2], norm, out=np.zeros_like(g[:, :2]), where=norm > 1e-12)
     # the slope's part: on level ground too B's origin circles a point off it when the CoM
     # is off the belts' centre (a tracking offset, not a slide)
     level = np.c_[np.zeros((len(g), 2)), -np.linalg.norm(g, axis=1)]
-    flat = skid_twist(patch, level, com_body, np.c_[v - half, v + half], friction)
+    flat = skid_twist(patch, level, com_body, belts, friction)
     extra = twist.velocity_body - flat.velocity_body
     downhill = np.maximum(np.sum(extra * down, 1), 0.0)
     turning = np.abs(w) > 1e-6
