@@ -74,9 +74,12 @@ class DriveLayer(NamedTuple):
     def belts(self, sprocket_rates: ArrayLike) -> FloatArray:
         """Belt surface speeds (left, right) [m/s] for sprocket rates (left, right) [rad/s].
 
-        Batched: rates (..., 2) give belts (..., 2).
+        Batched: rates (..., 2) give belts (..., 2). η = 1 passes r θ̇ through unchanged (the
+        controller's QP holds θ̇ within the limit itself).
         """
         rates = np.asarray(sprocket_rates, dtype=float)
+        if self.turn_ratio == 1.0:
+            return np.asarray(self.radius * rates)
         v = self.radius * (rates[..., 0] + rates[..., 1]) / 2
         w = self.radius * (rates[..., 1] - rates[..., 0]) / self.separation
         u = belts_for_twist(v, w, self.separation, self.turn_ratio)
