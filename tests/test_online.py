@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import subprocess
@@ -167,6 +168,27 @@ def test_the_same_recording_gives_the_same_answers(clean: tuple[mmstab.Problem, 
         va = np.array([getattr(x, name) for x in a.steps])
         vb = np.array([getattr(x, name) for x in b.steps])
         assert np.array_equal(va, vb, equal_nan=True), name
+
+
+def test_the_loop_runs_with_the_set_up_frozen_for_the_collector_and_thaws_it(
+    clean: tuple[mmstab.Problem, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The set-up's objects are out of the collector's passes during the loop, back after."""
+    from mmstab.runs.online.follow import Follower
+
+    problem, path = clean
+    frozen: list[int] = []
+    update = Follower.update
+
+    def counted(self: Follower, u: object) -> object:
+        frozen.append(gc.get_freeze_count())
+        return update(self, u)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Follower, "update", counted)
+    assert gc.get_freeze_count() == 0
+    follow_recording(problem, path, limit=3)
+    assert len(frozen) == 3 and min(frozen) > 10_000  # V, the roadmap, CasADi's objects
+    assert gc.get_freeze_count() == 0
 
 
 def test_what_the_map_does_not_cover_is_reported(tmp_path: Path) -> None:

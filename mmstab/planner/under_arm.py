@@ -253,7 +253,14 @@ class PoseGround:
         c_M = body.centre.reshape(-1, 3)[look] @ self.M_T_B[:3, :3].T + self.M_T_B[:3, 3]
         i = np.floor(c_M[:, 0] / LATTICE).astype(int)
         j = np.floor(c_M[:, 1] / LATTICE).astype(int)
-        if look.size:
+        peak = self._peak_at(i, j)
+        off = np.inf if plane else lowest.ravel()[look]  # where the plane check decides
+        h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, off)
+        return np.asarray(h.min(axis=1)) if h.size else np.zeros(len(h))
+
+    def _peak_at(self, i: NDArray[np.intp], j: NDArray[np.intp]) -> FloatArray:
+        """The rise's max over the squares about lattice samples (i, j) (m,) [m]."""
+        if i.size:
             m = self.cells + 2 * BLOCK  # every square's blocks inside, not the filter's edge
             self._cover(
                 (
@@ -261,10 +268,7 @@ class PoseGround:
                     (int(j.min()) - m) // TILE, (int(j.max()) + m) // TILE,
                 )
             )  # fmt: skip
-        peak = self.peak[(j - self.box[2] * TILE) // BLOCK, (i - self.box[0] * TILE) // BLOCK]
-        off = np.inf if plane else lowest.ravel()[look]  # where the plane check decides
-        h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, off)
-        return np.asarray(h.min(axis=1)) if h.size else np.zeros(len(h))
+        return self.peak[(j - self.box[2] * TILE) // BLOCK, (i - self.box[0] * TILE) // BLOCK]
 
 
 class GroundUnderArm:

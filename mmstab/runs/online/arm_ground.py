@@ -47,6 +47,7 @@ from mmstab.planner.under_arm import (
     PiecesB,
     PoseGround,
 )
+from mmstab.runs.online.lattice_c import LatticePeaks, kernel_available
 from mmstab.runs.online.map_lattice import (
     FilledTiles,
     MapPoseGround,
@@ -68,18 +69,23 @@ class ArmGround(NamedTuple):
         base: a :class:`GroundUnderArm` whose poses each map replaces (robot, pieces, margin).
         cells: half-width of a piece's square [lattice steps].
         reach: the ball in B holding the arm: centre [m], radius [m].
+        kernel: the lattice's peaks by the C kernel (else the NumPy path's tiles).
     """
 
     base: GroundUnderArm
     cells: int
     reach: tuple[FloatArray, float]
+    kernel: bool = False
 
     @classmethod
     def of(cls, robot: Robot, terrain: HeightmapTerrain, margin: float) -> ArmGround:
-        """The robot's pieces, with ``margin`` [rad] (``planner.attitude_margin``)."""
+        """The robot's pieces, with ``margin`` [rad] (``planner.attitude_margin``).
+
+        The lattice's peaks by the C kernel where it compiles (the same values, tested).
+        """
         base = GroundUnderArm(robot, terrain, np.zeros((1, 3)), np.eye(4)[None], margin)
         proto = base.poses[0]
-        return cls(base, proto.cells, proto.reach)
+        return cls(base, proto.cells, proto.reach, kernel_available())
 
 
 class PoseState(NamedTuple):
@@ -164,6 +170,9 @@ class MapGround:
         top = max(float(rise[known].max()) if known.any() else 0.0, 0.0)
         ground = MapPoseGround(FilledTiles(self.tiles, T, top), T, self.arm.cells, self.arm.reach)  # type: ignore[arg-type]
         ground.top = top
+        if self.arm.kernel:
+            half = -(-self.arm.cells // BLOCK)
+            ground.peaks = LatticePeaks(self.hm, T, top, half, centre, self.arm.reach[1])
         n = self.rows
         st = PoseState(
             key, z, (edge or not known.all(), top), ground, np.zeros(n, bool), np.zeros(n, bool), {}

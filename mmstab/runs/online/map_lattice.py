@@ -11,9 +11,11 @@ verification of one node (:meth:`MapGround.node_clear`) reads the values the sco
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
 from mmstab.planner.under_arm import LATTICE, TILE, GroundTiles, PoseGround
+from mmstab.runs.online.lattice_c import LatticePeaks
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -113,8 +115,20 @@ class MapPoseGround(PoseGround):
     :class:`PoseGround` samples the whole arm's reach on first use, for its highest ground
     (``top``, the bound that clears high arms unlooked): 127,000 lattice samples, 7 ms. Here
     ``top`` is the map cells' bound over the reach (:meth:`MapGround.reach`, at least the
-    samples' max), and the lattice is built around the pieces looked at.
+    samples' max), and the lattice is built around the pieces looked at; or, with
+    ``peaks`` (:mod:`mmstab.runs.online.lattice_c`), only its blocks the pieces need.
     """
+
+    #: the C kernel's peaks at this pose (None: the NumPy path, the tiles)
+    peaks: LatticePeaks | None = None
+
+    def _peak_at(self, i: NDArray[np.intp], j: NDArray[np.intp]) -> FloatArray:
+        """The rise's max over the squares about lattice samples (i, j) [m]: the kernel's."""
+        if self.peaks is not None and i.size:
+            peak = self.peaks(i, j)
+            if peak is not None:
+                return peak
+        return super()._peak_at(i, j)
 
     def _cover(self, need: tuple[int, int, int, int] | None = None) -> None:
         if need is None:  # the reach's top: the cells' bound, set at construction
