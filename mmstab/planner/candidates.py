@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
+from mmstab.planner.candidate_picks import among, rank_bound, scored_values, spread_top
 from mmstab.planner.fitness import LinearFitness
 from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
@@ -113,15 +114,6 @@ def node_clusters(
     )
 
 
-def rank_bound(bin_rows: NDArray[np.intp], count: int) -> int:
-    """The smallest R with Σ_b min(R, n_b) ≥ count: chosen rows rank below R in their bin."""
-    n = np.sort(np.asarray(bin_rows))
-    for r in range(1, int(n.max(initial=0)) + 1):
-        if int(np.minimum(n, r).sum()) >= count:
-            return r
-    return int(n.max(initial=0))
-
-
 def cluster_bounds(cl: NodeClusters, fits: list[LinearFitness]) -> tuple[FloatArray, FloatArray]:
     """Lower and upper bounds (K, C) of each cluster's members' values at K poses.
 
@@ -159,6 +151,7 @@ def scored_rows(
     rank: int,
     low: list[NDArray[np.intp]] | None = None,
     bounds: tuple[FloatArray, FloatArray] | None = None,
+    kept: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
 ) -> tuple[NDArray[np.intp], FloatArray]:
     """Reach rows (ascending) that hold every pose's rows ranked below ``rank`` per bin.
 
@@ -172,17 +165,13 @@ def scored_rows(
         rank: R of :func:`rank_bound`.
         low: per pose, the eligible rows known too low there (not counted at that pose).
         bounds: :func:`cluster_bounds` of ``cl`` and ``fits``, if known.
+        kept: :func:`proof_order` of them, if known (a search's rounds share it).
     """
     lower, upper = cluster_bounds(cl, fits) if bounds is None else bounds
-    members = np.tile(
-        np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius)), (len(fits), 1)
-    )
+    eligible_members, order = proof_order(cl, eligible, lower) if kept is None else kept
+    members = np.tile(eligible_members, (len(fits), 1))
     for k, rows in enumerate(low or ()):  # the proofs count each pose's eligible rows
         members[k] -= np.bincount(cl.cluster_of[rows], minlength=members.shape[1])
-    # per bin, clusters by lower bound (best first): the R-th best eligible value is at
-    # least the bound of the first cluster at which the members counted reach R
-    span = 2 * float(np.abs(lower).max(initial=0.0)) + 1.0
-    order = np.argsort(cl.cluster_bin * span - lower, axis=1)  # bins stay grouped
     counted = np.cumsum(np.take_along_axis(members, order, axis=1), axis=1)
     full = np.flatnonzero(np.diff(cl.bin_start) > 0)
     first = cl.bin_start[full]
@@ -200,20 +189,17 @@ def scored_rows(
     return np.sort(cl.rows[np.arange(int(sizes.sum())) + offset]), tau
 
 
-def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
-    """``count`` rows: the best of every turret bin in turn (round robin), best first.
+def proof_order(
+    cl: NodeClusters, eligible: NDArray[np.bool_], lower: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Each cluster's eligible members (C,); per pose, the clusters by bin, then best first.
 
-    The same answer as :func:`mmstab.planner.sequence._diverse_top` (ties by row order),
-    without a Python loop over the bins.
+    The R-th best eligible value of a bin is at least the lower bound of the first cluster
+    at which its members counted reach R (``lower`` (K, C): :func:`cluster_bounds`).
     """
-    order = np.argsort(-values, kind="stable")
-    b = bins[order]
-    by_bin = np.argsort(b, kind="stable")  # value order kept within each bin
-    sb = b[by_bin]
-    rank = np.empty(len(order), dtype=np.intp)
-    rank[by_bin] = np.arange(len(order)) - np.searchsorted(sb, sb, side="left")
-    chosen = order[np.lexsort((-values[order], rank))][:count]
-    return chosen[np.argsort(-values[chosen], kind="stable")]
+    span = 2 * float(np.abs(lower).max(initial=0.0)) + 1.0
+    order = np.argsort(cl.cluster_bin * span - lower, axis=1)  # bins stay grouped
+    return np.bincount(cl.cluster_of[eligible], minlength=len(cl.radius)), order
 
 
 @dataclasses.dataclass(frozen=True)
@@ -309,7 +295,7 @@ class NodeClearance:
         return np.asarray(~self._low[k][rows])
 
 
-_NONE = np.zeros(0, dtype=np.intp)
+_NONE, _NO_V = np.zeros(0, dtype=np.intp), np.zeros(0)
 
 
 class Candidates(NamedTuple):
@@ -324,12 +310,6 @@ class Candidates(NamedTuple):
     rows: NDArray[np.intp]
     value: FloatArray
     mu: FloatArray
-
-
-def _among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.bool_]:
-    """Whether each of ``rows`` is one of ``sorted_rows`` (ascending)."""
-    at = np.minimum(np.searchsorted(sorted_rows, rows), max(len(sorted_rows) - 1, 0))
-    return np.asarray(sorted_rows[at] == rows) if len(sorted_rows) else np.zeros(len(rows), bool)
 
 
 def route_candidates(
@@ -356,15 +336,19 @@ def route_candidates(
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
     ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
     bounds = cluster_bounds(cl, fits)
+    scored, kept_v, kept_for = [_NONE] * K, [_NO_V] * K, np.zeros(0, dtype=bool)
     while True:
         eligible, low = clear.eligible(), clear.low(K)
-        sub, tau = scored_rows(cl, fits, eligible, rank, low, bounds)
-        bad, sub_bins, sub_com = ~eligible[sub], bins[sub], samples[sub]
+        if not np.array_equal(eligible, kept_for):  # the proofs' order kept while it stands
+            kept, kept_for = proof_order(cl, eligible, bounds[0]), eligible.copy()
+        sub, tau = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
+        bad, sub_bins = ~eligible[sub], bins[sub]
         more = []
         for k, fit in enumerate(fits):
-            v = fit(sub_com)
+            v = scored_values(fit, samples, sub, scored[k], kept_v[k])
+            scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf
-            v[_among(sub, low[k])] = -np.inf  # too low above the ground at this pose
+            v[among(sub, low[k])] = -np.inf  # too low above the ground at this pose
             top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
             n = len(pick)  # < count only when fewer nodes than count are eligible
@@ -378,7 +362,7 @@ def route_candidates(
         near = clear(np.unique(rows[finite])).all()  # both tests learn what they measure
         clear.measure(more)
         low = clear.low(K)
-        deep = np.array([_among(rows[k, finite[k]], low[k]).any() for k in range(K)], bool)
+        deep = np.array([among(rows[k, finite[k]], low[k]).any() for k in range(K)], bool)
         if near and not deep.any():
             break
         ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
