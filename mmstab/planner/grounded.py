@@ -11,6 +11,7 @@ under the arm at the poses a move joins is :mod:`mmstab.planner.roadmap_moves`' 
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from typing import NamedTuple
 
 import numpy as np
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import lowest_along_moves
 from mmstab.model.robot import FloatArray, Robot
@@ -80,7 +82,14 @@ def shortcut_above(
     Else the lattice path itself (its nodes are all above; a one-joint step between two
     of them may dip by millimetres).
     """
-    short = roadmap.shortcut(checker, q)
+    return drain(shortcut_above_steps(robot, roadmap, checker, q, ground))
+
+
+def shortcut_above_steps(
+    robot: Robot, roadmap: Roadmap, checker: CollisionChecker, q: FloatArray, ground: float | None
+) -> Generator[None, None, FloatArray]:
+    """:func:`shortcut_above`, a cut tested at a time (:meth:`Roadmap.shortcut_steps`)."""
+    short = yield from roadmap.shortcut_steps(checker, q)
     if ground is None or stays_above(robot, roadmap, short, ground):
         return short
     return np.atleast_2d(np.asarray(q, dtype=float)).copy()

@@ -17,14 +17,17 @@ shortcut that is too low is not taken. When no path clears both grounds,
 from __future__ import annotations
 
 import heapq
+from collections.abc import Generator
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import dijkstra
 
+from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.grounded import ground_graph, shortcut_above
+from mmstab.planner.grounded import ground_graph, shortcut_above_steps
 from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.roadmap import Roadmap
 
@@ -162,23 +165,61 @@ def ground_move(
     under: GroundUnderArm | None = None,
     ks: tuple[int, ...] = (),
     tree: tuple[int, NDArray[np.int32]] | None = None,
+    tries: Tries | None = None,
 ) -> FloatArray | None:
     """The move a -> b (n, 4) [rad] that keeps the arm ``ground`` [m] up (module text).
 
     Above the support plane always; with ``under``, above the ground under the arm at
-    every pose of ``ks`` too. None: no roadmap path a -> b found that does.
+    every pose of ``ks`` too. None: no roadmap path a -> b found that does. ``tries``: the
+    paths and cuts of a, b computed before (:func:`ground_move_steps`), if any.
     """
-    nodes = _path_nodes(roadmap, a, b, tree, ground)
+    steps = ground_move_steps(robot, roadmap, checker, a, b, ground, under, ks, tree, tries)
+    return drain(steps)
+
+
+#: A move's tries by the set of nodes masked: the shortest path's nodes (None: no path),
+#: then its cut above the support plane. Neither depends on the ground under the arm.
+Tries = dict[frozenset[int], list[Any]]
+
+
+def ground_move_steps(
+    robot: Robot,
+    roadmap: Roadmap,
+    checker: CollisionChecker,
+    a: int,
+    b: int,
+    ground: float | None,
+    under: GroundUnderArm | None = None,
+    ks: tuple[int, ...] = (),
+    tree: tuple[int, NDArray[np.int32]] | None = None,
+    tries: Tries | None = None,
+) -> Generator[None, None, FloatArray | None]:
+    """:func:`ground_move`, a step at a time (a path, a cut test); its tries kept in ``tries``.
+
+    With the tries of an earlier run (the same a, b, ``ground``, ``tree``), only the checks
+    against the ground under the arm run again where the same nodes are masked.
+    """
+    tries = {} if tries is None else tries
+
+    def path(m: frozenset[int]) -> Generator[None, None, NDArray[np.intp] | None]:
+        if m not in tries:
+            tries[m] = [_path_nodes(roadmap, a, b, tree, ground, m)]
+            yield
+        return tries[m][0]
+
+    def cut(m: frozenset[int]) -> Generator[None, None, FloatArray]:
+        if len(tries[m]) < 2:
+            q = roadmap.nodes_q[tries[m][0]]
+            tries[m].append((yield from shortcut_above_steps(robot, roadmap, checker, q, ground)))
+        return tries[m][1]
+
+    masked: frozenset[int] = frozenset()
+    nodes = yield from path(masked)
     if under is None or ground is None or nodes is None:
-        return (
-            None
-            if nodes is None
-            else shortcut_above(robot, roadmap, checker, roadmap.nodes_q[nodes], ground)
-        )
-    masked: set[int] = set()
+        return None if nodes is None else (yield from cut(masked))
     for _ in range(REROUTES):
         q = roadmap.nodes_q[nodes]
-        short = shortcut_above(robot, roadmap, checker, q, ground)
+        short = yield from cut(masked)
         same = len(short) == len(q) and np.array_equal(short, q)
         if not same and under.sweep_clear(ks, short, roadmap.reach, ground)[1].all():
             return short  # the cut clears the ground: the path it cut is not needed
@@ -193,8 +234,8 @@ def ground_move(
             if not ends:
                 return None
             low |= ends
-        masked |= low
-        nodes = _path_nodes(roadmap, a, b, None, ground, frozenset(masked))
+        masked = masked | low
+        nodes = yield from path(masked)
         if nodes is None:
             return None
     return None

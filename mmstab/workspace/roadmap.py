@@ -20,6 +20,7 @@ import functools
 import hashlib
 import os
 import time
+from collections.abc import Generator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from mmstab.core.files import MmstabError, write_npz
+from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.reach import sampled_reach
@@ -174,6 +176,15 @@ class Roadmap:
         passes closer to the robot than ``clearance``, so it never takes the arm nearer
         than the lattice path it replaces when that path keeps ``clearance`` itself.
         """
+        return drain(self.shortcut_steps(checker, q, clearance))
+
+    def shortcut_steps(
+        self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE
+    ) -> Generator[None, None, FloatArray]:
+        """:meth:`shortcut`, a step at a time: it yields after each cut it tests.
+
+        Returns the same path; a caller may spread the tests over time (:func:`drain`).
+        """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
 
         def ok(a: FloatArray, b: FloatArray) -> bool:
@@ -185,7 +196,9 @@ class Roadmap:
         while i < len(qa) - 1:
             j = len(qa) - 1
             while j > i + 1 and not ok(qa[i], qa[j]):
+                yield
                 j = (i + 1 + j) // 2 if j - i > 8 else j - 1
+            yield
             keep.append(j)
             i = j
         return qa[keep].copy()

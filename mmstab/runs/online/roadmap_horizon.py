@@ -49,6 +49,7 @@ from mmstab.runs.online.horizon import (
     horizon_window,
     sort_poses,
 )
+from mmstab.runs.online.moves_ahead import MOVE_BUDGET, MovesAhead
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap import Heightmap
@@ -113,6 +114,7 @@ class RoadmapHorizon:
         self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
         self._moves: dict[tuple[int, int], FloatArray] = {}
         self._checker = CollisionChecker(robot)
+        self.ahead = MovesAhead(robot, roadmap, self._checker, settings.ground_clearance)
         self._arm: tuple[ArmGround, KeptPieces] | None = None  # built on the first map
         self.unknown: set[int] = set()  # poses scored with unknown cells in the arm's reach
         #: poses re-scored for the ground under the arm (gravity unchanged); scorings with
@@ -209,6 +211,14 @@ class RoadmapHorizon:
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
             self._choose(chain, arm_q, now, ground)
+        else:  # time to spare: the next moves' map-independent part (moves_ahead)
+            n, mg = self.nodes, self._ground
+            at = {(n[k - 1], n[k]): [k - 1, k] for k in ks if k - 1 in n and k in n}
+            self.ahead.want([p for p in at if p not in self._moves])
+            self.ahead.advance(
+                MOVE_BUDGET,
+                lambda p: mg.under(at[p]) if mg and set(at[p]) <= set(mg.M_T_B) else None,
+            )
         return changes
 
     def _map_ground(self, terrain: Terrain, ks: list[int], rested: Rested) -> MapGround | None:
@@ -329,10 +339,10 @@ class RoadmapHorizon:
         ground, g = self.settings.ground_clearance, self._ground
         ks = [k for k in ks if g is not None and k in g.M_T_B]
         if g is not None and ks and ground is not None:
-            under = g.under(ks)
             move = ground_move(
-                self.robot, self.roadmap, self._checker, a, b, ground, under, tuple(range(len(ks)))
-            )
+                self.robot, self.roadmap, self._checker, a, b, ground, g.under(ks),
+                tuple(range(len(ks))), tries=self.ahead.take(a, b),
+            )  # fmt: skip
             if move is not None:
                 return move
             self.arm_ground["moves_plane_only"] += 1
