@@ -247,3 +247,36 @@ def test_a_move_through_nodes_too_low_is_searched_again_without_them(robot, smal
         if found == 3:
             break
     assert found == 3  # shortest paths that dipped, searched again without the low nodes
+
+
+def test_kept_pieces_added_in_batches_equal_the_pieces_computed_at_once(robot, small):
+    """KeptPieces grows its arrays by doubling: every row's pieces stay those of its batch.
+
+    (A batch's products may differ from another's in the last bit: the reference is built
+    from the same batches, each row's new ones.)
+    """
+    from mmstab.planner.under_arm import KeptPieces
+
+    under = GroundUnderArm(robot, _map(robot, "flat"), _poses(1))
+    kept = KeptPieces(under, small.nodes_q)
+    rng = np.random.default_rng(2)
+    n = len(small.nodes_q)
+    low, centre, seen = (
+        np.zeros((n, len(under.pieces.link))),
+        np.zeros((n, len(under.pieces.link), 3)),
+        np.zeros(n, bool),
+    )
+    for size in (1, 7, 300, 3, 50, 900, 2):
+        rows = rng.integers(0, n, size)
+        kept.add(rows)
+        new = np.unique(rows)
+        new = new[~seen[new]]
+        if not new.size:
+            continue
+        body = under.body(small.nodes_q[new])
+        low[new], centre[new], seen[new] = body.low, body.centre, True
+    rows = np.flatnonzero(seen)[::-1]
+    assert kept.size == len(rows) <= len(kept.low) < 2 * len(rows)
+    got = kept(rows)
+    np.testing.assert_array_equal(got.low, low[rows])
+    np.testing.assert_array_equal(got.centre, centre[rows])

@@ -251,9 +251,7 @@ class PoseGround:
         h = lowest - max(self.top, 0.0)
         look = np.flatnonzero(h.ravel() < above)
         c_M = body.centre.reshape(-1, 3)[look] @ self.M_T_B[:3, :3].T + self.M_T_B[:3, 3]
-        i = np.floor(c_M[:, 0] / LATTICE).astype(int)
-        j = np.floor(c_M[:, 1] / LATTICE).astype(int)
-        peak = self._peak_at(i, j)
+        peak = self._peak_at(*np.floor(c_M[:, :2].T / LATTICE).astype(int))
         off = np.inf if plane else lowest.ravel()[look]  # where the plane check decides
         h.ravel()[look] = np.where(peak > SLACK, lowest.ravel()[look] - peak, off)
         return np.asarray(h.min(axis=1)) if h.size else np.zeros(len(h))
@@ -262,12 +260,8 @@ class PoseGround:
         """The rise's max over the squares about lattice samples (i, j) (m,) [m]."""
         if i.size:
             m = self.cells + 2 * BLOCK  # every square's blocks inside, not the filter's edge
-            self._cover(
-                (
-                    (int(i.min()) - m) // TILE, (int(i.max()) + m) // TILE,
-                    (int(j.min()) - m) // TILE, (int(j.max()) + m) // TILE,
-                )
-            )  # fmt: skip
+            lo, hi = (int(i.min()) - m) // TILE, (int(i.max()) + m) // TILE
+            self._cover((lo, hi, (int(j.min()) - m) // TILE, (int(j.max()) + m) // TILE))
         return self.peak[(j - self.box[2] * TILE) // BLOCK, (i - self.box[0] * TILE) // BLOCK]
 
 
@@ -374,8 +368,8 @@ class KeptPieces:
     def __init__(self, under: GroundUnderArm, postures: FloatArray) -> None:
         self.under, self.postures = under, postures
         self.slot = np.full(len(postures), -1, dtype=np.intp)
-        self.low = np.zeros((0, len(under.pieces.link)))
-        self.centre = np.zeros((0, len(under.pieces.link), 3))
+        self.size, P = 0, len(under.pieces.link)  # rows kept; the arrays grow by doubling
+        self.low, self.centre = np.zeros((0, P)), np.zeros((0, P, 3))
 
     def add(self, rows: NDArray[np.intp]) -> None:
         """Compute the pieces of ``rows`` not kept yet, in one batch."""
@@ -383,9 +377,17 @@ class KeptPieces:
         new = new[self.slot[new] < 0]
         if new.size:
             body = self.under.body(self.postures[new])
-            self.slot[new] = len(self.low) + np.arange(len(new))
-            self.low = np.concatenate([self.low, body.low])
-            self.centre = np.concatenate([self.centre, body.centre])
+            end = self.size + len(new)
+            if end > len(self.low):
+                more = max(end, 2 * len(self.low)) - len(self.low)
+                grown = [
+                    np.concatenate([a, np.empty((more, *a.shape[1:]))])
+                    for a in (self.low, self.centre)
+                ]
+                self.low, self.centre = grown
+            self.slot[new] = self.size + np.arange(len(new))  # (a copy per doubling only)
+            self.low[self.size : end], self.centre[self.size : end] = body.low, body.centre
+            self.size = end
 
     def __call__(self, rows: NDArray[np.intp]) -> PiecesB:
         """The pieces of ``rows`` (n,)."""
