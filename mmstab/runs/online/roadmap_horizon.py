@@ -211,13 +211,13 @@ class RoadmapHorizon:
             chain = [k for k in ks if k >= first and k in self.candidates]
             chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
             self._choose(chain, arm_q, now, ground)
-        else:  # time to spare: the next moves' map-independent part (moves_ahead)
-            n, mg = self.nodes, self._ground
+        elif ground is not None:  # time to spare: the next moves' paths and cuts (moves_ahead)
+            n = self.nodes
             at = {(n[k - 1], n[k]): [k - 1, k] for k in ks if k - 1 in n and k in n}
             self.ahead.want([p for p in at if p not in self._moves])
             self.ahead.advance(
                 MOVE_BUDGET,
-                lambda p: mg.under(at[p]) if mg and set(at[p]) <= set(mg.M_T_B) else None,
+                lambda p: ground.under(at[p]) if set(at[p]) <= set(ground.M_T_B) else None,
             )
         return changes
 
