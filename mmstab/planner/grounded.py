@@ -88,7 +88,7 @@ def shortcut_above(
 def shortcut_above_steps(
     robot: Robot, roadmap: Roadmap, checker: CollisionChecker, q: FloatArray, ground: float | None
 ) -> Generator[None, None, FloatArray]:
-    """:func:`shortcut_above`, a cut tested at a time (:meth:`Roadmap.shortcut_steps`)."""
+    """:func:`shortcut_above` of postures q (n, 4) [rad], ``ground`` [m], a cut at a time."""
     short = yield from roadmap.shortcut_steps(checker, q)
     if ground is None or stays_above(robot, roadmap, short, ground):
         return short
