@@ -348,7 +348,7 @@ def test_the_full_set_of_random_routes(tmp_path):
 
 # ------------------------------------------------------------------------- the fixes
 def test_a_polyline_reference_stays_on_its_moves_and_rests_at_each_knot(rng):
-    from mmstab.control.approach import eased_polyline
+    from mmstab.control.approach_path import eased_polyline
     from mmstab.control.reference import periodic_polyline
 
     f = np.array([0.1, 0.3, 0.35, 0.8])

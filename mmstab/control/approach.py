@@ -16,6 +16,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.control.approach_path import (
+    approach_duration,
+    eased_polyline,
+    roadmap_approach_knots,
+    time_scaling,
+)
 from mmstab.control.posture import (
     MAX_REPAIR_ROUNDS,
     PosturePlan,
@@ -33,23 +39,6 @@ from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequenc
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.paths.base import BasePath
 from mmstab.terrain import Terrain
-
-#: Largest share of the joint-speed limits a roadmap plan's start-up move runs at (its
-#: smoothstep peak); the approach is lengthened beyond ``approach_time`` when needed. The
-#: tracked arm lags a fast posture reference where the arm-CoM task leaves it free (the
-#: posture task's weight is 10x the joints' regularisation there), in proportion to the
-#: speed: at 0.5 random route pair 10's arm still came within 1.1 mm of the track, at 0.3
-#: it keeps 3 mm.
-APPROACH_PEAK_SPEED = 0.3
-
-
-def time_scaling(tau: ArrayLike) -> PathSample:
-    """Quintic rest-to-rest time scaling σ(τ) = 10τ³ − 15τ⁴ + 6τ⁵ on τ ∈ [0, 1], and dσ/dτ.
-
-    σ' and σ'' vanish at both ends, so a path followed at σ starts and stops at rest.
-    """
-    u = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
-    return PathSample(u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2)
 
 
 def nearest_free(
@@ -80,60 +69,6 @@ def nearest_free(
         return None
     free = ~np.asarray(checker.collides(np.array(cand)), dtype=bool)
     return np.array(cand)[np.flatnonzero(free)[0]] if free.any() else None
-
-
-def eased_polyline(knots: FloatArray, postures: FloatArray) -> Any:
-    """Straight moves between ``postures`` (M, 4) [rad] at ``knots`` (M,) in [0, 1].
-
-    At rest at each knot: each piece is followed at the cubic smoothstep 3τ² − 2τ³ (τ the
-    piece's fraction), so the path stays on the checked straight moves and its rate is
-    continuous (0 at the knots). Returns ``path(u, nu=0)``: postures (nu 0) or d/du (nu 1) at u.
-    """
-    h, step = np.diff(knots), np.diff(postures, axis=0)
-
-    def path(u: ArrayLike, nu: int = 0) -> FloatArray:
-        ua = np.atleast_1d(np.asarray(u, dtype=float))
-        k = np.clip(np.searchsorted(knots, ua, side="right") - 1, 0, len(h) - 1)
-        tau = np.clip((ua - knots[k]) / h[k], 0.0, 1.0)
-        if nu:
-            out = (6 * tau * (1 - tau) / h[k])[:, None] * step[k]
-        else:
-            out = postures[k] + (tau * tau * (3 - 2 * tau))[:, None] * step[k]
-        return out[0] if np.ndim(u) == 0 else out
-
-    return path
-
-
-def move_duration(robot: Robot, move: FloatArray) -> float:
-    """Shortest time [s] of a roadmap move (n, 4) [rad] at :data:`APPROACH_PEAK_SPEED`.
-
-    Its straight pieces run rest to rest (smoothstep, peak 1.5 times the mean speed), so at
-    most ``APPROACH_PEAK_SPEED`` of the joint-speed limits takes 1.5 / APPROACH_PEAK_SPEED
-    times the time at the limits. On random route pair 10 the start-up move (4 rad on the
-    elbow and the turret) in 1 s ran the elbow at 9 of its 12.6 rad/s; the arm lagged by
-    0.1 rad and touched the right track.
-    """
-    q = np.asarray(move, dtype=float)
-    at_limit = float((np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1).sum())
-    return 1.5 * at_limit / APPROACH_PEAK_SPEED
-
-
-def roadmap_approach_knots(
-    robot: Robot, move: FloatArray, posture: PostureReference, s_end: float
-) -> tuple[FloatArray, FloatArray]:
-    """The approach of a roadmap plan: its first move, then the lap's knots up to ``s_end``.
-
-    The plan's move from the start posture onto its first posture (checked), then the lap
-    reference's knots in (0, ``s_end``) and its posture at ``s_end`` (the lap's checked
-    moves): knots (M,) in [0, 1] in proportion to each piece's time at the joint-speed
-    limits, and the postures (M, 4) [rad].
-    """
-    inside = (posture.fractions > 0) & (posture.fractions < s_end)
-    q = np.vstack([move, posture.postures[inside], posture(s_end).value])
-    keep = np.r_[True, np.abs(np.diff(q, axis=0)).max(axis=1) > 1e-12]
-    q = q[keep]
-    tau = np.r_[0.0, np.cumsum((np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1))]
-    return tau / tau[-1], q
 
 
 @dataclasses.dataclass(frozen=True)
@@ -327,7 +262,7 @@ def arm_references(
     if settings.approach_time > 0:
         duration = settings.approach_time
         if move is not None:  # lengthened when the plan's first move needs it
-            duration = max(duration, move_duration(robot, move))
+            duration = approach_duration(robot, move, posture, duration, settings.lap_time)
         approach = build_approach(
             robot, q0, posture, duration, settings.lap_time, settings.dt, move=move
         )

@@ -1,0 +1,129 @@
+"""The approach's path and its timing: straight checked moves at rest at each knot.
+
+A roadmap plan's start-up move and the lap's checked moves it joins are followed as straight
+pieces (:func:`eased_polyline`), each rest to rest and given time by the square root of its
+time at the joint-speed limits (the same peak acceleration for all), the whole lengthened
+until no piece passes :data:`APPROACH_PEAK_SPEED` of the limits (:func:`approach_duration`).
+Other plans' approaches follow a spline at the quintic rest-to-rest scaling
+(:func:`time_scaling`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.control.posture import PostureReference, piece_times
+from mmstab.control.reference import PathSample
+from mmstab.model.robot import FloatArray, Robot
+
+#: Largest share of the joint-speed limits a roadmap plan's start-up move runs at (its
+#: smoothstep peak); the approach is lengthened beyond ``approach_time`` when needed. The
+#: tracked arm lags a fast posture reference where the arm-CoM task leaves it free (the
+#: posture task's weight is 10x the joints' regularisation there), in proportion to the
+#: speed: at 0.5 random route pair 10's arm still came within 1.1 mm of the track, at 0.3
+#: it keeps 3 mm.
+APPROACH_PEAK_SPEED = 0.3
+#: Rounds of :func:`approach_duration`'s lengthening.
+APPROACH_ROUNDS = 8
+
+
+def time_scaling(tau: ArrayLike) -> PathSample:
+    """Quintic rest-to-rest time scaling σ(τ) = 10τ³ − 15τ⁴ + 6τ⁵ on τ ∈ [0, 1], and dσ/dτ.
+
+    σ' and σ'' vanish at both ends, so a path followed at σ starts and stops at rest.
+    """
+    u = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    return PathSample(u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2)
+
+
+def eased_polyline(knots: FloatArray, postures: FloatArray) -> Any:
+    """Straight moves between ``postures`` (M, 4) [rad] at ``knots`` (M,) in [0, 1].
+
+    At rest at each knot: each piece is followed at the cubic smoothstep 3τ² − 2τ³ (τ the
+    piece's fraction), so the path stays on the checked straight moves and its rate is
+    continuous (0 at the knots). Returns ``path(u, nu=0)``: postures (nu 0) or d/du (nu 1) at u.
+    """
+    h, step = np.diff(knots), np.diff(postures, axis=0)
+
+    def path(u: ArrayLike, nu: int = 0) -> FloatArray:
+        ua = np.atleast_1d(np.asarray(u, dtype=float))
+        k = np.clip(np.searchsorted(knots, ua, side="right") - 1, 0, len(h) - 1)
+        tau = np.clip((ua - knots[k]) / h[k], 0.0, 1.0)
+        if nu:
+            out = (6 * tau * (1 - tau) / h[k])[:, None] * step[k]
+        else:
+            out = postures[k] + (tau * tau * (3 - 2 * tau))[:, None] * step[k]
+        return out[0] if np.ndim(u) == 0 else out
+
+    return path
+
+
+def move_duration(robot: Robot, move: FloatArray) -> float:
+    """Shortest time [s] of a roadmap move (n, 4) [rad] at :data:`APPROACH_PEAK_SPEED`.
+
+    Its straight pieces run rest to rest (smoothstep, peak 1.5 times the mean speed), each
+    given time in proportion to the square root of its time at the joint-speed limits a_i
+    (:func:`~mmstab.control.posture.piece_times`: the same peak acceleration for all). Over
+    T, piece i then lasts T √a_i / Σ√a and peaks at 1.5 √a_i Σ√a / T of the limits, so the
+    longest piece keeps ``APPROACH_PEAK_SPEED`` with T = 1.5 √a_max Σ√a / APPROACH_PEAK_SPEED.
+    On random route pair 10 the start-up move (4 rad on the elbow and the turret) in 1 s ran
+    the elbow at 9 of its 12.6 rad/s; the arm lagged by 0.1 rad and touched the right track.
+    """
+    q = np.asarray(move, dtype=float)
+    at_limit = (np.abs(np.diff(q, axis=0)) / robot.joint_velocity).max(axis=1)
+    if at_limit.size == 0:
+        return 0.0
+    root = np.sqrt(at_limit)
+    return float(1.5 * root.max() * root.sum() / APPROACH_PEAK_SPEED)
+
+
+def roadmap_approach_knots(
+    robot: Robot, move: FloatArray, posture: PostureReference, s_end: float
+) -> tuple[FloatArray, FloatArray]:
+    """The approach of a roadmap plan: its first move, then the lap's knots up to ``s_end``.
+
+    The plan's move from the start posture onto its first posture (checked), then the lap
+    reference's knots in (0, ``s_end``) and its posture at ``s_end`` (the lap's checked
+    moves): knots (M,) in [0, 1], each piece's share the square root of its time at the
+    joint-speed limits (:func:`~mmstab.control.posture.piece_times`: the same peak
+    acceleration for all; in proportion to the time itself a 0.23 rad piece of random route
+    pair 27's approach took 0.09 s, 170 rad/s², and the tracked turret overshot its end by
+    0.024 rad into the body), and the postures (M, 4) [rad].
+    """
+    inside = (posture.fractions > 0) & (posture.fractions < s_end)
+    q = np.vstack([move, posture.postures[inside], posture(s_end).value])
+    keep = np.r_[True, np.abs(np.diff(q, axis=0)).max(axis=1) > 1e-12]
+    q = q[keep]
+    tau = piece_times(robot, q)
+    return tau / tau[-1], q
+
+
+def approach_duration(
+    robot: Robot, move: FloatArray, posture: PostureReference, least: float, lap_time: float
+) -> float:
+    """A roadmap plan's approach time [s]: at least ``least`` [s], long enough for its pieces.
+
+    The approach runs the plan's first move and the lap's checked moves up to where it meets
+    the lap (:func:`roadmap_approach_knots`), so the pieces to time depend on the time: it is
+    lengthened until every piece, the lap's too, keeps :data:`APPROACH_PEAK_SPEED`
+    (:func:`move_duration`), at most :data:`APPROACH_ROUNDS` times (a lap that moves its arm
+    faster than that all along would lengthen it without end).
+
+    Args:
+        robot: the robot (joint-speed limits [rad/s]).
+        move: the plan's move from the start posture (n, 4) [rad].
+        posture: the lap's posture reference.
+        least: ``controller.approach_time`` [s].
+        lap_time: the lap's time [s].
+    """
+    duration = max(least, move_duration(robot, move))
+    for _ in range(APPROACH_ROUNDS):
+        _, q = roadmap_approach_knots(robot, move, posture, duration / lap_time)
+        needed = move_duration(robot, q)
+        if needed <= duration * (1 + 1e-9):
+            break
+        duration = needed
+    return duration
