@@ -10,6 +10,7 @@ build, and the library is written atomically (compiled next to it, renamed).
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import subprocess
@@ -17,8 +18,17 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from mmstab.core.files import MmstabError
+
+#: ctypes argument types of the kernels: C-contiguous float64, int64 and uint8 arrays, scalars
+DOUBLES = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+LONGS = np.ctypeslib.ndpointer(dtype=np.int64, flags="C_CONTIGUOUS")
+BYTES = np.ctypeslib.ndpointer(dtype=np.uint8, flags="C_CONTIGUOUS")
+LONG, DOUBLE = ctypes.c_long, ctypes.c_double
 
 #: Flags of mmstab's own C libraries (warnings are errors).
 LIB_CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
@@ -70,3 +80,15 @@ def compiled_library(source: Path, name: str, cflags: Sequence[str] = LIB_CFLAGS
     finally:
         Path(tmp).unlink(missing_ok=True)
     return out
+
+
+def kernel_function(source: Path, name: str, argtypes: Sequence[Any]) -> Any:
+    """The C function ``name`` (returning int) of ``source`` compiled, with its ``argtypes``.
+
+    Raises:
+        MmstabError: no C compiler, or the source does not compile.
+    """
+    fn = getattr(ctypes.CDLL(str(compiled_library(source, name))), name)
+    fn.restype = ctypes.c_int
+    fn.argtypes = list(argtypes)
+    return fn

@@ -10,7 +10,6 @@ independent twin.
 
 from __future__ import annotations
 
-import ctypes
 from functools import lru_cache
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -18,27 +17,21 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.clib import compiled_library
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
 
 REST_NAME = "mmstab_rest"  #: the kernel's C symbol
 REST_SOURCE = Path(__file__).with_name("rest.c")  #: its C source
 
-_D = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
-_L = np.ctypeslib.ndpointer(dtype=np.int64, flags="C_CONTIGUOUS")
-_U8 = np.ctypeslib.ndpointer(dtype=np.uint8, flags="C_CONTIGUOUS")
-_long, _double = ctypes.c_long, ctypes.c_double
+_D, _L, _U8, _long, _double = DOUBLES, LONGS, BYTES, LONG, DOUBLE
 
 
 @lru_cache(maxsize=1)
 def _kernel() -> Any:
-    lib = ctypes.CDLL(str(compiled_library(REST_SOURCE, REST_NAME)))
-    fn = getattr(lib, REST_NAME)
-    fn.restype = ctypes.c_int
     # elev ny nx origin res | c K coarse Kc corners_coarse corners_full | com poses n settings
     # | att f flags iterations
-    fn.argtypes = [_D, _long, _long, _D, _double, _D, _long, _L, _long, _L, _L, _D, _D, _long]
-    fn.argtypes += [_D, _D, _D, _U8, _L]
-    return fn
+    argtypes = [_D, _long, _long, _D, _double, _D, _long, _L, _long, _L, _L, _D, _D, _long]
+    argtypes += [_D, _D, _D, _U8, _L]
+    return kernel_function(REST_SOURCE, REST_NAME, argtypes)
 
 
 class KernelRests(NamedTuple):

@@ -12,7 +12,6 @@ Compiled on first use (:mod:`mmstab.core.clib`); without a C compiler the NumPy 
 
 from __future__ import annotations
 
-import ctypes
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.clib import compiled_library
+from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, kernel_function
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray
 from mmstab.planner.under_arm import BLOCK, LATTICE
@@ -29,19 +28,14 @@ from mmstab.terrain.heightmap import Heightmap
 PEAK_NAME = "mmstab_lattice_peak"  #: the kernel's C symbol
 PEAK_SOURCE = Path(__file__).with_name("lattice_peak.c")  #: its C source
 
-_D = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
-_L = np.ctypeslib.ndpointer(dtype=np.int64, flags="C_CONTIGUOUS")
-_long, _double = ctypes.c_long, ctypes.c_double
+_D, _L, _long, _double = DOUBLES, LONGS, LONG, DOUBLE
 
 
 @lru_cache(maxsize=1)
 def _kernel() -> Any:
-    lib = ctypes.CDLL(str(compiled_library(PEAK_SOURCE, PEAK_NAME)))
-    fn = getattr(lib, PEAK_NAME)
-    fn.restype = ctypes.c_int
     # elev ny nx origin res | plane steps sizes | blocks rows peaks | i j m out
-    fn.argtypes = [_D, _long, _long, _D, _double, _D, _D, _L, _D, _D, _D, _L, _L, _long, _D]
-    return fn
+    argtypes = [_D, _long, _long, _D, _double, _D, _D, _L, _D, _D, _D, _L, _L, _long, _D]
+    return kernel_function(PEAK_SOURCE, PEAK_NAME, argtypes)
 
 
 def kernel_available() -> bool:
