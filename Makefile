@@ -278,5 +278,7 @@ kerb: setup
 ## issue 24: 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json
 .PHONY: random-routes
+## (PAIRS=60: pairs 0-59, the 40 beyond the issue's drawn by the same generator)
+PAIRS ?= 20
 random-routes: setup
-	MMSTAB_RANDOM_ROUTES=1 $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set
+	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set
