@@ -17,8 +17,8 @@ from mmstab import app
 from mmstab.control.plant import build_plant
 from mmstab.control.reference import initial_state
 from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
-from mmstab.physics.closed_loop import downhill_drift, run_closed_loop
-from mmstab.physics.loop_checks import TipCheck
+from mmstab.physics.closed_loop import run_closed_loop
+from mmstab.physics.loop_checks import TipCheck, downhill_drift
 from mmstab.physics.robot_model import ModelSettings
 
 ROOT = Path(__file__).resolve().parents[1]

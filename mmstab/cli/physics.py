@@ -39,6 +39,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
     )
     timing_line("simulate", s["arm_timing"])
     high_centred_warning(s["high_centred"])
+    _governor_lines(s)
     if s["tipped"] is not None:
         line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
         print(f"mmstab: unstable: {line}", file=sys.stderr)
@@ -58,6 +59,17 @@ def _simulate(args: argparse.Namespace) -> int | None:
         if status is not None:
             return status
     return _arm_ground_status(s, args)
+
+
+def _governor_lines(s: dict[str, Any]) -> None:
+    """How long the reference waited for the base; a warning if the run ended stalled."""
+    if s["reference_wait_s"] > 0:
+        print(f"simulate: the reference waited {s['reference_wait_s']:.2f} s for the base "
+              "(physics.governor)")  # fmt: skip
+    if s["stalled"] is not None:
+        print(f"mmstab: warning: stalled: the base did not catch up with its reference, and "
+              f"the run ends at {s['stalled']['time_s']:.2f} s with the path unfinished",
+              file=sys.stderr)  # fmt: skip
 
 
 def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:

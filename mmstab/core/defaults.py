@@ -102,6 +102,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "timestep": 0.004,
         "arm": "planned",
         "turn_ratio": 1.0,
+        "governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 10.0},
     },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",

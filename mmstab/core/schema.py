@@ -299,8 +299,10 @@ ONLINE = obj(
 # tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
 # slide, the period of those checks [s], the controller step's backend, the road wheels'
 # collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices"), the
-# arm: the plan's postures or held stowed, and the drive layer's turn ratio (level-ground
-# achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot).
+# arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
+# achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
+# governor (the base error [m] from which the reference slows, at which it stops, and the
+# wait [s] after which the run ends stalled; null: the reference runs on time).
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -313,6 +315,7 @@ PHYSICS = obj(
     timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
+    governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
 )
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.

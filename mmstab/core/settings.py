@@ -111,11 +111,25 @@ def check_codegen(path: Path, section: Mapping[str, Any]) -> None:
 
 
 #: Every semantic check, by section. Explicit: nothing registers itself on import.
+def check_physics(path: Path, section: Mapping[str, Any]) -> None:
+    """``physics:``: the reference governor stops beyond the error it slows from.
+
+    Raises:
+        ConfigError: naming ``physics.governor.stop``.
+    """
+    g = section["governor"]
+    if g is not None and not g["stop"] > g["slow"]:
+        raise ConfigError(
+            path, "physics.governor.stop", f"must exceed governor.slow = {g['slow']} m"
+        )
+
+
 SECTION_CHECKS: Mapping[str, SectionCheck] = MappingProxyType(
     {
         "planner": check_planner,
         "controller": check_controller,
         "codegen": check_codegen,
+        "physics": check_physics,
     }
 )
 

@@ -23,6 +23,7 @@ from mmstab.core.files import write_figure, write_json
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
+from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.stability.drive import resolve_turn_ratio
 
@@ -42,6 +43,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
         timestep=float(s["timestep"]),
         arm=str(s["arm"]),
         turn_ratio=s["turn_ratio"] if s["turn_ratio"] == "auto" else float(s["turn_ratio"]),
+        governor=None if s["governor"] is None else GovernorSettings(**s["governor"]),
     )
 
 
@@ -155,6 +157,8 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "wall_seconds": run.wall_seconds,
         "real_time_factor_cpu": float(run.t[-1] / run.cpu_seconds) if run.cpu_seconds else None,
         "arm_timing": run.timing,
+        "reference_wait_s": run.reference_wait_s,
+        "stalled": None if run.stalled is None else {"time_s": run.stalled},
     }
 
 

@@ -36,12 +36,15 @@ from typing import Any
 import numpy as np
 
 from mmstab.control.approach import arm_references, run_reference
+from mmstab.control.layout import ControllerParams
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
+from mmstab.physics.governor import GovernorSettings, ReferenceClock
 from mmstab.physics.loop_checks import (
     TipCheck,
     contact_records,
+    downhill_drift,
     predicted_path_slip,
     simulated_mu,
 )
@@ -70,6 +73,8 @@ class LoopSettings:
         arm: ``planned`` (the plan's postures) or ``stowed`` (the arm held stowed).
         turn_ratio: the drive layer's η [-] in (0, 1], or ``auto``: the skid model's level
             pivot (:mod:`mmstab.stability.drive`); 1: the belts at r θ̇.
+        governor: the reference waits for a base that falls behind
+            (:mod:`mmstab.physics.governor`); None: the reference runs on time.
     """
 
     control_dt: float = 0.004
@@ -83,6 +88,7 @@ class LoopSettings:
     timestep: float = 0.004
     arm: str = "planned"
     turn_ratio: float | str = 1.0
+    governor: GovernorSettings | None = GovernorSettings()
 
     def model_settings(self) -> ModelSettings:
         """The MuJoCo model's numbers with this section's wheel shape and step."""
@@ -130,6 +136,10 @@ class PhysicsRun:
             slope) has its origin off the path by about offset · sin(crab) more.
         timing: the arm's time law's report (:meth:`mmstab.control.timing.TimeLaw.summary`),
             None when ``controller.dynamic_fraction`` is null.
+        reference_wait_s: how long the reference waited for the base in all [s]
+            (:mod:`mmstab.physics.governor`; 0 when it never fell behind that far).
+        stalled: time the run ended with its reference unfinished, having waited
+            ``governor.wait_limit`` [s], or None.
     """
 
     t: FloatArray
@@ -153,6 +163,8 @@ class PhysicsRun:
     path_slip_predicted: FloatArray | None = None
     base_origin_error: FloatArray | None = None
     timing: dict[str, Any] | None = None
+    reference_wait_s: float = 0.0
+    stalled: float | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -208,51 +220,6 @@ class BufferedStep:
         return self.qdot.copy(), float(self.status[0])
 
 
-def downhill_drift(
-    plant: Any,
-    gravity_body: FloatArray,
-    states: FloatArray,
-    qdots: FloatArray,
-    dt: float,
-    window: int,
-) -> FloatArray:
-    """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
-
-    Each period's simulated motion and the kinematic plant's from the same simulated state
-    (what the tracks commanded), projected on the downhill direction at the pose (gravity in
-    B, turned by the heading into M's plane), each summed over the last ``window`` periods:
-    the drift is the simulated sum minus the commanded one, but never more than the simulated
-    sum itself (``min(A - C, A)``). A sliding robot moves downhill (A > 0) beyond the command;
-    the tracks' servo lag and skid in turns move it either way; tracks that slip while they
-    climb (a kerb) fall short of an uphill command (A - C > 0) while the base still moves
-    uphill (A < 0): no slide.
-
-    Args:
-        plant: :func:`mmstab.control.plant.build_plant` of the robot.
-        gravity_body: gravity in B at each period's start (N, 3) [m/s^2].
-        states: simulated states (N + 1, 5 + n).
-        qdots: commanded joint speeds (N, 2 + n) [rad/s].
-        dt: control period [s].
-        window: periods summed.
-    """
-    n = len(qdots)
-    pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
-    c, s = np.cos(states[:n, 2]), np.sin(states[:n, 2])
-    g = gravity_body[:n]
-    down = np.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1]], axis=1)
-    norm = np.linalg.norm(down, axis=1, keepdims=True)
-    down = np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9)
-    lag = np.maximum(np.arange(n + 1) - window, 0)
-
-    def windowed(motion: FloatArray) -> FloatArray:
-        acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
-        return np.asarray(acc - acc[lag])
-
-    simulated = windowed(states[1 : n + 1, :2] - states[:n, :2])
-    commanded = windowed(pred[:, :2] - states[:n, :2])
-    return np.minimum(simulated - commanded, simulated)
-
-
 def build_sim(problem: Problem, state0: FloatArray, settings: ModelSettings | None) -> RobotSim:
     """The robot at the run's start pose on the problem's terrain, settled."""
     n = problem.robot.arm_joints
@@ -283,10 +250,7 @@ def run_closed_loop(
         state0: the start state (x, y, heading in M, sprockets, arm) [m, rad].
         model_settings: the MuJoCo model's numbers (default: ``loop.model_settings()``).
     """
-    from mmstab.control.layout import ControllerParams
-
-    robot = problem.robot
-    n = robot.arm_joints
+    robot, n = problem.robot, problem.robot.arm_joints
     sim = build_sim(problem, state0, model_settings or loop.model_settings())
     substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
     dt = substeps * sim.model.opt.timestep
@@ -295,28 +259,33 @@ def run_closed_loop(
     nominal = dataclasses.replace(ctrl_settings, duration=duration)  # the time law's window
     arm_refs = arm_references(robot, plan, state0[-n:], nominal, None, ground)
     steps = max(int(round(arm_refs.real_time(duration) / dt)), 1)  # with the time law's added
-    t = np.arange(steps + 1) * dt
-    refs = run_reference(robot, *ground, plan, state0[-n:], ctrl_settings, t, arm=arm_refs)
-    ref, ref_map = refs.control.pack(), refs.step.pack()  # the step's; the errors' (M)
+    refs = run_reference(robot, *ground, plan, state0[-n:], ctrl_settings,
+                         np.arange(steps + 1) * dt, arm=arm_refs)  # fmt: skip
+    clock = ReferenceClock(refs.control.pack(), refs.step.pack(), ctrl_settings.base_offset,
+                           loop.governor, dt)  # fmt: skip
+    steps, t = clock.max_steps, np.arange(clock.max_steps + 1) * dt  # waits included
     params = np.asarray(ControllerParams.from_settings(robot, ctrl_settings)._replace(dt=dt).pack())
     M_T_G = np.asarray(np.linalg.inv(problem.terrain.G_T_M()), dtype=np.float64)
     drive = DriveLayer.of(robot, resolve_turn_ratio(robot, loop.turn_ratio))
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
-    states = np.zeros((steps + 1, 5 + n))
-    qdots, status = np.zeros((steps, 2 + n)), np.zeros(steps)
+    states, ref_map = np.zeros((steps + 1, 5 + n)), np.zeros((steps + 1, clock.tables[1].shape[1]))
+    qdots, status, clock_t = np.zeros((steps, 2 + n)), np.zeros(steps), np.zeros(steps + 1)
     checks, positions = TipCheck(problem, loop.tip_angle), []
-    controller = BufferedStep(step, 5 + n, ref.shape[1], params)
+    controller = BufferedStep(step, 5 + n, ref_map.shape[1], params)
     pose, G_T_B, arm_q = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
     target = state[-n:].copy()
     t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(steps + 1):
-        states[k] = state
-        if k % every == 0 or k == steps:
+        states[k], clock_t[k] = state, clock.row * dt
+        ref, ref_map[k] = clock.rows(pose)
+        last = clock.done or clock.stalled(k) or k == steps
+        if k % every == 0 or last:
             positions.append(sim.data.qpos.copy())  # contacts and μ after the run
-            if checks.record(k, state[:3], G_T_B, k == steps) or k == steps:
+            if checks.record(k, state[:3], G_T_B, last) or last:
                 break
-        qdots[k], status[k] = controller(state, ref[k])
+        qdots[k], status[k] = controller(state, ref)
+        clock.advance()
         target = target + qdots[k, 2:] * dt
         sim.advance(drive.belts(qdots[k, :2]), target, substeps, qdots[k, 2:])
         sprockets = state[3:5] + qdots[k, :2] * dt
@@ -324,25 +293,36 @@ def run_closed_loop(
         state = np.concatenate([pose, sprockets, arm_q])
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
-    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
-    mass = float(sim.model.body_subtreemass[0])
-    for (i, value), (points, com, touches) in zip(
-        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
-    ):
-        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    mu_sim, tilt, arm = _check_records(sim, checks, positions, m)
     law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
-    tau = t if law is None else law.nominal(t).value  # the references' nominal times [s]
+    tau = clock_t if law is None else law.nominal(clock_t).value  # the references' nominal [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
     end = checks.end
+    cut = end is not None and end[2] in ("tipped", "left_map")
     return dataclasses.replace(
         run,
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
         arm_ground=arm,
         cpu_seconds=cpu,
-        timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(t[m - 1])),
+        timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
+        reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
+        stalled=None if clock.done or cut else float(t[m - 1]),
     )
+
+
+def _check_records(
+    sim: RobotSim, checks: TipCheck, positions: list[FloatArray], m: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
+    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
+    mass = float(sim.model.body_subtreemass[0])
+    for (i, value), (points, com, touches) in zip(
+        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
+    ):
+        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    return mu_sim, tilt, arm
 
 
 def _finish(

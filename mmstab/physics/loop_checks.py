@@ -7,6 +7,7 @@ measured on and the μ itself; whether the arm touches the ground.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -183,3 +184,48 @@ def predicted_path_slip(
     k = np.arange(1, len(acc))
     flags = (acc[k] - acc[np.maximum(k - lag, 0)]) > distance
     return np.repeat(flags, every)[: len(ref)]
+
+
+def downhill_drift(
+    plant: Any,
+    gravity_body: FloatArray,
+    states: FloatArray,
+    qdots: FloatArray,
+    dt: float,
+    window: int,
+) -> FloatArray:
+    """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
+
+    Each period's simulated motion and the kinematic plant's from the same simulated state
+    (what the tracks commanded), projected on the downhill direction at the pose (gravity in
+    B, turned by the heading into M's plane), each summed over the last ``window`` periods:
+    the drift is the simulated sum minus the commanded one, but never more than the simulated
+    sum itself (``min(A - C, A)``). A sliding robot moves downhill (A > 0) beyond the command;
+    the tracks' servo lag and skid in turns move it either way; tracks that slip while they
+    climb (a kerb) fall short of an uphill command (A - C > 0) while the base still moves
+    uphill (A < 0): no slide.
+
+    Args:
+        plant: :func:`mmstab.control.plant.build_plant` of the robot.
+        gravity_body: gravity in B at each period's start (N, 3) [m/s^2].
+        states: simulated states (N + 1, 5 + n).
+        qdots: commanded joint speeds (N, 2 + n) [rad/s].
+        dt: control period [s].
+        window: periods summed.
+    """
+    n = len(qdots)
+    pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
+    c, s = np.cos(states[:n, 2]), np.sin(states[:n, 2])
+    g = gravity_body[:n]
+    down = np.stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1]], axis=1)
+    norm = np.linalg.norm(down, axis=1, keepdims=True)
+    down = np.divide(down, norm, out=np.zeros_like(down), where=norm > 1e-9)
+    lag = np.maximum(np.arange(n + 1) - window, 0)
+
+    def windowed(motion: FloatArray) -> FloatArray:
+        acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
+        return np.asarray(acc - acc[lag])
+
+    simulated = windowed(states[1 : n + 1, :2] - states[:n, :2])
+    commanded = windowed(pred[:, :2] - states[:n, :2])
+    return np.minimum(simulated - commanded, simulated)
