@@ -37,11 +37,19 @@ def _table(rng: np.random.Generator, rows: int) -> np.ndarray:
     return rng.normal(size=(rows, StepReference.size(4)))
 
 
-def _on_its_point(row: np.ndarray, off: float = 0.0) -> np.ndarray:
-    """A base pose whose control point is ``off`` [m] from the row's base reference."""
+def _on_its_point(row: np.ndarray, off: float = 0.0, pitch: float = 0.0) -> np.ndarray:
+    """A body (M_T_B) whose control point is ``off`` [m] to the left of the row's base
+    reference, pitched by ``pitch`` [rad] (its point then sits offset * cos(pitch) ahead)."""
     heading = 0.3
-    point = row[SLICES["xi_des"]][:2] + [0.0, off]
-    return np.r_[point - OFFSET * np.array([np.cos(heading), np.sin(heading)]), heading]
+    c, s = np.cos(heading), np.sin(heading)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array(
+        [[np.cos(pitch), 0.0, np.sin(pitch)], [0.0, 1.0, 0.0], [-np.sin(pitch), 0.0, np.cos(pitch)]]
+    )
+    M_T_B = np.eye(4)
+    M_T_B[:3, :3] = R
+    point = np.r_[row[SLICES["xi_des"]][:2] + [0.0, off], 0.0]
+    M_T_B[:3, 3] = point - OFFSET * R[:, 0]
+    return M_T_B
 
 
 def test_a_base_that_keeps_up_gets_the_table_row_for_row(rng) -> None:
@@ -49,7 +57,8 @@ def test_a_base_that_keeps_up_gets_the_table_row_for_row(rng) -> None:
     clock = ReferenceClock(control, errors, OFFSET, GovernorSettings(), dt=0.01)
     assert clock.max_steps == 29 + 1000
     for k in range(30):
-        c, e = clock.rows(_on_its_point(errors[k], off=0.249))
+        # 0.249 m off, the body pitched 0.5 rad: its point 0.18 m ahead in plan, not 0.2 m
+        c, e = clock.rows(_on_its_point(errors[k], off=0.249, pitch=0.5))
         assert np.array_equal(c, control[k]) and np.array_equal(e, errors[k])
         assert clock.done == (k == 29) and not clock.stalled(k)
         clock.advance()

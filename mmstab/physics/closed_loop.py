@@ -278,7 +278,7 @@ def run_closed_loop(
     t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(steps + 1):
         states[k], clock_t[k] = state, clock.row * dt
-        ref, ref_map[k] = clock.rows(pose)
+        ref, ref_map[k] = clock.rows(M_T_G @ G_T_B)
         last = clock.done or clock.stalled(k) or k == steps
         if k % every == 0 or last:
             positions.append(sim.data.qpos.copy())  # contacts and μ after the run

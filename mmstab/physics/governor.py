@@ -101,14 +101,15 @@ class ReferenceClock:
         row[self.heading] = a[self.heading] + f * turn
         return row
 
-    def rows(self, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """(control row, error row) for the base at ``pose`` (x, y, heading in M) [m, rad].
+    def rows(self, M_T_B: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(control row, error row) for the body at ``M_T_B`` (4, 4) in the map frame M.
 
-        Sets the clock's rate for this period from the planar distance of the base control
-        point to its reference; the rows' feed-forward rates are scaled by it.
+        Sets the clock's rate for this period from the distance in M's x-y plane of the body's
+        control point (``offset`` ahead along x_B, as the body is tilted) to its reference; the
+        rows' feed-forward rates are scaled by it.
         """
         control, errors = (self._at(t) for t in self.tables)
-        point = pose[:2] + self.offset * np.array([np.cos(pose[2]), np.sin(pose[2])])
+        point = M_T_B[:2, 3] + self.offset * M_T_B[:2, 0]
         self.rate = clock_rate(float(np.hypot(*(errors[:2] - point))), self.settings)
         if self.rate != 1.0:
             control[self.rates] *= self.rate
