@@ -173,3 +173,19 @@ def test_shipped_terrain_problems_load(robot):
         g = p.terrain.gravity_body([0.0, 0.0, 0.3])[0]
         np.testing.assert_allclose(g, r.G_T_B[0][:3, :3].T @ [0, 0, -9.81], atol=1e-12)
     assert (root / "terrains" / "bumps_ditch.tif").stat().st_size <= 1_000_000
+
+
+def test_rest_takes_one_angle_per_joint_and_the_flipper_limits(capsys):
+    """``--arm`` wants the robot's joint count (6 on ramp_6dof.yaml), ``--flipper`` its limits."""
+    six = RAMP_YAML.parent / "ramp_6dof.yaml"
+    q = ["0", "0.5", "-0.5", "0", "0.2", "0"]
+    assert main(["rest", str(six), "--pose", "0.2", "0", "0", "--json", "--arm", *q]) == 0
+    stowed = json.loads(capsys.readouterr().out)
+    assert stowed["mu"] > 0 and abs(stowed["roll"] - 0.1) < 1e-9  # the 0.1 rad ramp
+    for problem, extra, message in [
+        (six, ["--arm", "0", "0.5", "-0.5", "0"], "--arm: expected 'stowed' or 6 finite angles"),
+        (RAMP_YAML, ["--flipper", "5"], "--flipper: 5.0 rad is outside base.flippers.limits"),
+    ]:
+        out = run("rest", problem, "--pose", 0.2, 0, 0, *extra)
+        assert out.returncode == 2, out.stderr
+        assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr

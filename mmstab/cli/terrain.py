@@ -12,19 +12,20 @@ from mmstab.cli.commands import _problem
 
 # ------------------------------------------------- terrain (issue 14): rest, maps, export
 def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
-    """``--arm``: ``stowed`` (or absent) -> None; four angles [rad] within the joint limits."""
+    """``--arm``: ``stowed`` (or absent) -> None; one angle [rad] per joint, within its limits."""
     import numpy as np
 
     from mmstab.core.files import MmstabError
 
     if arm is None or arm == ["stowed"]:
         return None
+    n = robot.arm_joints
     try:
         q = np.array([float(a) for a in arm])
     except ValueError:
-        raise MmstabError(f"--arm: expected 'stowed' or 4 angles [rad], got {arm}") from None
-    if q.shape != (4,) or not np.isfinite(q).all():
-        raise MmstabError(f"--arm: expected 'stowed' or 4 finite angles [rad], got {arm}")
+        raise MmstabError(f"--arm: expected 'stowed' or {n} angles [rad], got {arm}") from None
+    if q.shape != (n,) or not np.isfinite(q).all():
+        raise MmstabError(f"--arm: expected 'stowed' or {n} finite angles [rad], got {arm}")
     bad = np.flatnonzero((q < robot.joint_lower) | (q > robot.joint_upper))
     if bad.size:
         i = int(bad[0])
@@ -49,12 +50,19 @@ def _rest(args: argparse.Namespace) -> None:
 
     import numpy as np
 
+    from mmstab.core.files import MmstabError
     from mmstab.stability.stance import stance
 
     _finite("--pose", args.pose)
     if args.flipper is not None:
         _finite("--flipper", [args.flipper])
     problem = _problem(args)
+    limits = problem.robot.base.flippers.limits
+    if args.flipper is not None and limits and not limits.lower <= args.flipper <= limits.upper:
+        raise MmstabError(
+            f"--flipper: {args.flipper} rad is outside base.flippers.limits "
+            f"[{limits.lower}, {limits.upper}]"
+        )
     q = _arm_posture(problem.robot, args.arm)
     st = stance(problem.terrain, problem.robot, args.pose, args.flipper, q)
     if args.json:
@@ -124,9 +132,11 @@ def _add_terrain_commands(sub: Any) -> None:
         metavar=("X", "Y", "YAW"),
         help="base pose [m, m, rad]: in G on a heightmap, (x, y, heading) in S on the ramp",
     )
-    p.add_argument("--flipper", type=float, default=None, help="flipper angle [rad]")
     p.add_argument(
-        "--arm", nargs="+", default=None, metavar="Q", help="'stowed' or 4 joint angles [rad]"
+        "--flipper", type=float, default=None, help="flipper angle [rad], within its limits"
+    )
+    p.add_argument(
+        "--arm", nargs="+", default=None, metavar="Q", help="'stowed' or one angle per joint [rad]"
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(handler=_rest)
