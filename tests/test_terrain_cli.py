@@ -127,6 +127,11 @@ def test_stability_map_agrees_with_rest(tmp_path, capsys):
         ({"generate": {**KERB["generate"], "kind": "crater"}}, "terrain.generate.kind"),
         ({"generate": {**KERB["generate"], "height": "high"}}, "terrain.generate.height"),
         ({"slope": 0.1, "file": "x.npz"}, "terrain.slope"),
+        # the size bounds read size and resolution before the terrain's schema (a KeyError)
+        ({"generate": {"kind": "bumps", "seed": 3}}, "terrain.generate.size"),
+        ({"generate": {**KERB["generate"], "resolution": "fine"}}, "terrain.generate.resolution"),
+        ({"generate": {**KERB["generate"], "resolution": 0}}, "terrain.generate.resolution"),
+        ({"generate": {**KERB["generate"], "size": [3.0]}}, "terrain.generate.size"),
         ({}, "terrain.slope"),
     ],
 )
