@@ -33,3 +33,31 @@ def test_docs_and_readme_point_inside_the_repository():
             if "://" in target:
                 continue
             assert (path.parent / target).exists(), f"{path.name}: dead link {target}"
+
+
+def anchors(path):
+    """The ``#anchors`` GitHub gives a Markdown file's headings (its slug rules, repeats -1, -2)."""
+    text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+    seen: dict[str, int] = {}
+    for heading in re.findall(r"^#{1,6}\s+(.+?)\s*#*\s*$", text, re.M):
+        slug = re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        seen[slug] = seen.get(slug, -1) + 1
+        yield slug if seen[slug] == 0 else f"{slug}-{seen[slug]}"
+
+
+def test_every_anchor_a_link_names_exists():
+    checked = 0
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", path.read_text()):
+            if "://" in target:
+                continue
+            to = (path.parent / target) if target else path
+            assert anchor in set(anchors(to)), f"{path.name}: no heading for {target}#{anchor}"
+            checked += 1
+    assert checked >= 20  # README and docs link into each other's sections
+
+
+def test_anchor_slugs_follow_github():
+    doc = ROOT / "docs" / "terrain.md"
+    assert "the-resting-pose-mmstabterrainrestpy" in set(anchors(doc))
+    assert "speed-make-bench-terrain" in set(anchors(doc))
