@@ -61,3 +61,13 @@ def test_anchor_slugs_follow_github():
     doc = ROOT / "docs" / "terrain.md"
     assert "the-resting-pose-mmstabterrainrestpy" in set(anchors(doc))
     assert "speed-make-bench-terrain" in set(anchors(doc))
+
+
+def test_help_names_every_exit_status_of_the_cli_doc():
+    from mmstab.cli import build_parser
+
+    table = (ROOT / "docs" / "cli.md").read_text().split("## Exit statuses", 1)[1]
+    statuses = re.findall(r"^\| (\d+) \|", table.split("\n## ", 1)[0], re.M)
+    assert statuses == ["0", "2", "3", "4", "5", "6", "130"]
+    epilog = build_parser().epilog or ""
+    assert all(re.search(rf"\b{s} [a-z]", epilog) for s in statuses), epilog

@@ -7,8 +7,9 @@ size bounds of :mod:`mmstab.core.sizes`), its options and that its output folder
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
 the tracked robot tips over; ``--allow-unstable`` accepts an unstable plan); 4 the tracks
-would slide (tilt beyond atan(terrain.friction) at a pose; ``--allow-sliding``); 130
-interrupted (Ctrl-C: workers stopped, no file half-written).
+would slide (tilt beyond atan(terrain.friction) at a pose; ``--allow-sliding``); 5 arm
+collision (``--allow-collision``); 6 no plan; 130 interrupted (Ctrl-C: workers stopped, no
+file half-written).
 """
 
 from __future__ import annotations
@@ -41,7 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mmstab",
         description="Stability-aware planning and control of a tracked mobile manipulator.",
-        epilog="exit status: 0 done, 2 bad input, 3 unstable, 130 interrupted (docs/cli.md)",
+        epilog=(
+            "exit status: 0 done, 2 bad input, 3 unstable, 4 slides, 5 arm collision, 6 no plan,"
+            " 130 interrupted (docs/cli.md)"
+        ),
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, help_text, handler in COMMANDS:
@@ -93,7 +97,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (0, 2, 3 or 130; module docstring)."""
+    """Entry point; returns the exit status (0, 2-6 or 130; module docstring)."""
     previous = None
     try:
         from mmstab.core.pool import note_interrupts
