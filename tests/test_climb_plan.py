@@ -78,3 +78,20 @@ def test_exclusions_keep_a_pose_no_posture_climbs(kerb) -> None:
     out = climb_exclusions(robot, plan, arm_com, eligible, [_Fit()] * 3)
     assert set(out) == {1}  # pose 0: no step; pose 2: a wall, kept whole (it stalls there)
     assert np.array_equal(out[1], eligible & (x > 0.0))
+
+
+def test_the_ground_ahead_may_end_at_the_map_edge(kerb) -> None:
+    """A pose whose look-ahead leaves the map (a route ending near the edge) has no step
+    there, as off-map samples mean "no ground to meet"; it used to raise OffMapError."""
+    from mmstab.stability.climb import climb_limit
+    from mmstab.terrain.generators import generate
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+
+    spec = {"kind": "kerb", "seed": 0, "size": [3.0, 3.0], "resolution": 0.02}
+    spec |= {"height": 0.1, "distance": 0.5, "azimuth": 0.0}  # the map ends at x = 1.5 m
+    terrain = HeightmapTerrain(generate(spec)).with_robot(kerb.robot)
+    poses = np.array([[-0.3, 0.0, 0.0], [0.85, 0.0, 0.0]])  # the second looks 0.4 m past it
+    both = climb_limit(kerb.robot, terrain, poses, 0.7, 0.5)
+    alone = climb_limit(kerb.robot, terrain, poses[:1], 0.7, 0.5)
+    assert list(both.step) == [True, False] and both.com_bound[1] == np.inf
+    assert both.com_bound[0] == alone.com_bound[0] and 0.05 < both.height[0] <= 0.11

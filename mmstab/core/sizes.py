@@ -187,7 +187,7 @@ def workspace_estimate(grid: Sequence[int], samples: int | None = None) -> Estim
 
 def terrain_estimate(section: Mapping[str, Any]) -> Estimate | None:
     """A generated heightmap's cells (``terrain.generate``), or None for other terrains."""
-    gen = section.get("generate")
+    gen: Any = section.get("generate")
     try:  # a malformed section is the terrain schema's to name (mmstab.terrain.factory)
         res = float(gen["resolution"])
         nx, ny = (math.ceil(float(s) / res - 1e-9) + 1 for s in gen["size"])  # as Grid.of_size

@@ -88,7 +88,8 @@ def step_profile(
 
     Samples along both tracks' centre lines from the front axle to ``r + lookahead`` ahead
     of it (``lookahead`` [m]), each the terrain's surface under the point, written in the
-    resting body frame ``G_T_B`` (N, 4, 4): (x_B − L/2, z_B). NaN off the map.
+    resting body frame ``G_T_B`` (N, 4, 4): (x_B − L/2, z_B). NaN off the map (outside
+    ``terrain.bounds``).
     """
     G_T_B = np.asarray(G_T_B, dtype=float).reshape(-1, 4, 4)
     t = robot.base.tracks
@@ -99,7 +100,13 @@ def step_profile(
     pts_B[..., 0], pts_B[..., 1], pts_B[..., 3] = t.length / 2 + u, side[:, None], 1.0
     M_T_B = np.linalg.inv(terrain.G_T_M()) @ G_T_B
     pts_M = np.einsum("nij,ksj->nksi", M_T_B, pts_B)
-    ground_G = terrain.surface_G(pts_M[..., 0], pts_M[..., 1])  # (N, 2, S, 3)
+    x, y, box = pts_M[..., 0], pts_M[..., 1], terrain.bounds
+    off = np.zeros(x.shape, bool)
+    if box is not None:  # past the map's edge (a route ending near it): NaN, not an error
+        off = (x < box[0]) | (x > box[1]) | (y < box[2]) | (y > box[3])
+        x, y = np.clip(x, box[0], box[1]), np.clip(y, box[2], box[3])
+    ground_G = terrain.surface_G(x, y)  # (N, 2, S, 3)
+    ground_G[off] = np.nan
     ones = np.ones((*ground_G.shape[:-1], 1))
     ground_B = np.einsum(
         "nij,nksj->nksi", np.linalg.inv(G_T_B), np.concatenate([ground_G, ones], -1)
