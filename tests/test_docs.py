@@ -68,6 +68,6 @@ def test_help_names_every_exit_status_of_the_cli_doc():
 
     table = (ROOT / "docs" / "cli.md").read_text().split("## Exit statuses", 1)[1]
     statuses = re.findall(r"^\| (\d+) \|", table.split("\n## ", 1)[0], re.M)
-    assert statuses == ["0", "2", "3", "4", "5", "6", "130"]
+    assert statuses == ["0", "2", "3", "4", "5", "6", "130", "141"]
     epilog = build_parser().epilog or ""
     assert all(re.search(rf"\b{s} [a-z]", epilog) for s in statuses), epilog

@@ -194,3 +194,12 @@ def test_rest_takes_one_angle_per_joint_and_the_flipper_limits(capsys):
         out = run("rest", problem, "--pose", 0.2, 0, 0, *extra)
         assert out.returncode == 2, out.stderr
         assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
+
+
+def test_a_reader_that_leaves_early_stops_it_quietly():
+    """``mmstab rest ... | head -1``: stdout closed before it writes -> exit 141, no traceback."""
+    cmd = [sys.executable, "-m", "mmstab", "rest", str(RAMP_YAML), "--pose", "0.2", "0", "0"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # the child needs a second to import: it writes into a closed pipe
+    err = proc.stderr.read()
+    assert proc.wait() == 141 and err == "", err

@@ -9,7 +9,7 @@ nothing written); 3 unstable (the best plan has a pose at or below the stability
 the tracked robot tips over; ``--allow-unstable`` accepts an unstable plan); 4 the tracks
 would slide (tilt beyond atan(terrain.friction) at a pose; ``--allow-sliding``); 5 arm
 collision (``--allow-collision``); 6 no plan; 130 interrupted (Ctrl-C: workers stopped, no
-file half-written).
+file half-written); 141 stdout's reader left (``| head``).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from mmstab.cli.online import add_online_commands
 from mmstab.cli.physics import add_physics_commands
 from mmstab.cli.status import (
     EXIT_BAD_INPUT,
+    EXIT_BROKEN_PIPE,
     EXIT_INTERRUPTED,
     EXIT_NO_PLAN,
     EXIT_OK,
@@ -44,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Stability-aware planning and control of a tracked mobile manipulator.",
         epilog=(
             "exit status: 0 done, 2 bad input, 3 unstable, 4 slides, 5 arm collision, 6 no plan,"
-            " 130 interrupted (docs/cli.md)"
+            " 130 interrupted, 141 output pipe closed (docs/cli.md)"
         ),
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -155,6 +156,9 @@ def entry() -> None:
         status = main()
     except KeyboardInterrupt:
         status = EXIT_INTERRUPTED
+    except BrokenPipeError:  # stdout's reader left (| head): stop quietly, as a C program
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error
+        status = EXIT_BROKEN_PIPE
     if status == EXIT_INTERRUPTED:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         for stream in (sys.stdout, sys.stderr):

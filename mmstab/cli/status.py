@@ -8,3 +8,5 @@ EXIT_SLIDES = 4
 EXIT_ARM_COLLISION = 5
 #: The planner gave up or no plan exists (``PlanningError``): not bad input.
 EXIT_NO_PLAN = 6
+#: Its stdout's reader left (``mmstab rest ... | head``): 128 + SIGPIPE, as a C program's.
+EXIT_BROKEN_PIPE = 141
