@@ -429,3 +429,19 @@ def test_controller_com_task_carries_the_payload(robot):
     assert np.linalg.norm(heavy.task(state)[3:] - plain.task(state)[3:]) > 0.01
     J_arm = heavy.jacobian(state)[3:, 2:]  # the CoM rows, arm columns
     np.testing.assert_allclose(J_arm, R @ loaded.kinematics.arm_com_jacobian(state[5:]), atol=1e-12)
+
+
+def test_the_route_measure_starts_after_the_approach_as_it_ran():
+    """rough.yaml's approach ran 1.75 s (its time law), not the 1.0 s ``approach_time``.
+
+    The dynamic μ along the route starts after it (its minimum had sat in the approach, 1.2 s).
+    """
+    from types import SimpleNamespace
+
+    from mmstab.experiments.levers.dynamic import after_approach
+
+    t = np.arange(0, 3.0, 0.004)
+    run = SimpleNamespace(t=t, dt=0.004, approach=SimpleNamespace(duration=1.754))
+    after = after_approach(run)
+    assert t[after][0] == pytest.approx(1.752) and after[t > 1.75].all()  # within dt / 2
+    assert not after[t < 1.75].any()
