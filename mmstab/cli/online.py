@@ -50,6 +50,7 @@ def _follow(args: argparse.Namespace) -> int | None:
     if not s["updates"]:
         raise ConfigError(args.bag, "odometry", "no map arrived after any odometry")
     lat = s["latency_ms"]
+    mu = f"{s['mu_min']:.1f} N rad" if s["mu_min"] is not None else "none (robot on no map)"
     print(
         f"follow: {s['updates']} maps ({s['skipped_maps']} before odometry) over "
         f"{s['progress_m'][1] - s['progress_m'][0]:.2f} m of the route; latency p50 "
@@ -59,7 +60,7 @@ def _follow(args: argparse.Namespace) -> int | None:
         f"follow: {s['replanned_poses']} pose plans on {s['updates_with_replan']} maps; robot "
         f"not on its map at {s['robot_not_covered_updates']} maps; route ahead covered "
         f"{s['covered_ahead_m']['median']:.2f} m (median), {s['covered_ahead_m']['min']:.2f} m "
-        f"(least); mu min {s['mu_min']:.1f} N rad; QP failures {s['qp_failures']}"
+        f"(least); mu min {mu}; QP failures {s['qp_failures']}"
     )
     off = s.get("offline")
     if off is not None and off["agreeing_poses"]:

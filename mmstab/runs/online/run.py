@@ -129,14 +129,14 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "robot_not_covered_updates": int((~covered).sum()),
         "horizon_uncovered_updates": int(sum(x.uncovered > 0 for x in st)),
         "covered_ahead_m": {"min": float(ahead.min()), "median": float(np.median(ahead))},
-        "mu_min": float(np.nanmin(mu)) if covered.any() else float("nan"),
+        "mu_min": float(np.nanmin(mu)) if covered.any() else None,  # None: on no map
         "mu_planned_min": float(min(p.mu for p in run.plans.values())) if run.plans else None,
         "planned_poses": len(run.plans),
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
         "qp_failures": int((status != 0).sum()),
         "arm_ground": run.arm_ground,
         "tipped": None if not tipped else {"time_s": tipped[0].time, "s_m": tipped[0].s},
-        "tilt_max_rad": float(np.nanmax(tilt)) if covered.any() else float("nan"),
+        "tilt_max_rad": float(np.nanmax(tilt)) if covered.any() else None,
         "friction": run.friction,
         "slides": None
         if not sliding
