@@ -48,7 +48,7 @@ def test_importing_a_stage_registers_nothing():
     import mmstab.planner  # noqa: F401
 
     assert dict(SECTION_CHECKS) == before
-    assert set(SECTION_CHECKS) == {"planner", "controller", "codegen", "physics"}
+    assert set(SECTION_CHECKS) == {"planner", "controller", "codegen", "physics", "workspace"}
     with pytest.raises(TypeError):
         SECTION_CHECKS["extra"] = lambda p, s: None  # type: ignore[index]
 

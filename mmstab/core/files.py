@@ -102,13 +102,19 @@ def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a YAML mapping from ``path``, or raise :class:`ConfigError`."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(p, "", f"cannot read file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:  # binary bytes, or another encoding: YAML is UTF-8 here
+        raise ConfigError(p, "", f"not UTF-8 text (byte {exc.start}): not a YAML file") from None
     try:
         data = _safe_load_bounded(text)
     except ValueError as exc:
         raise ConfigError(p, "", str(exc)) from None
+    except yaml.reader.ReaderError as exc:  # a control character (NUL, ...) in the text
+        c = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        msg = f"character {exc.position}: U+{c:04X} is not allowed in YAML"
+        raise ConfigError(p, "", msg) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else "YAML"
@@ -118,15 +124,37 @@ def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     return data
 
 
+#: Largest integer a file may hold: NumPy's 64-bit integers hold it (seeds, counts), and a
+#: float too (a YAML integer of 400 digits would overflow both).
+MAX_INTEGER = 2**63 - 1
+
+
 def _check_finite(path: Path, node: Any, trail: list[Any]) -> None:
     if isinstance(node, float) and not math.isfinite(node):
         raise ConfigError(path, _field_path(trail), f"must be a finite number, got {node}")
+    if isinstance(node, int) and abs(node) > MAX_INTEGER:
+        msg = f"integer of {len(str(abs(node)))} digits; at most 2**63 - 1"
+        raise ConfigError(path, _field_path(trail), msg)
     if isinstance(node, dict):
         for k, v in node.items():
             _check_finite(path, v, [*trail, k])
     elif isinstance(node, list):
         for i, v in enumerate(node):
             _check_finite(path, v, [*trail, i])
+
+
+def _branch_errors(err: Any) -> list[Any]:
+    """A ``oneOf`` error of a mapping whose ``type`` names one branch: that branch's errors.
+
+    Without it jsonschema may report another branch's complaint (a capsule with a typo
+    read as "'box' was expected").
+    """
+    kinds = _kinds(err)
+    chosen = [i for i, k in enumerate(kinds) if k == err.instance.get("type")]
+    if len(chosen) != 1:
+        return [err]
+    sub = [e for e in err.context if e.relative_schema_path[0] == chosen[0]]
+    return [b for e in sub for b in _branch_errors(e)] or [err]
 
 
 def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[str, Any]) -> None:
@@ -138,7 +166,8 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
     p = Path(path)
     _check_finite(p, data, [])
     validator = jsonschema.Draft202012Validator(schema)
-    errors = sorted(validator.iter_errors(data), key=lambda e: (-len(e.path), str(e.path)))
+    found = [b for e in validator.iter_errors(data) for b in _branch_errors(e)]
+    errors = sorted(found, key=lambda e: (-len(e.absolute_path), str(e.absolute_path)))
     if not errors:
         return
     err = jsonschema.exceptions.best_match(errors) or errors[0]
@@ -151,9 +180,23 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         missing = [r for r in err.validator_value if r not in err.instance]
         field = _field_path([*err.absolute_path, missing[0]])
         msg = "missing required key"
+    elif _kinds(err):  # a mapping of no known ``type``: name the kinds, not the mapping
+        field = _field_path([*err.absolute_path, "type"])
+        msg = f"must be one of {', '.join(_kinds(err))}"
     else:
         msg = err.message
     raise ConfigError(p, field, msg)
+
+
+def _kinds(err: Any) -> list[str]:
+    """The ``type`` names of a ``oneOf`` over mappings told apart by ``type`` (else [])."""
+    if err.validator not in ("oneOf", "anyOf") or not isinstance(err.instance, dict):
+        return []
+    kinds = [
+        b.get("properties", {}).get("type", {}).get("const") if isinstance(b, dict) else None
+        for b in err.validator_value
+    ]
+    return [str(k) for k in kinds] if all(isinstance(k, str) for k in kinds) else []
 
 
 def check_order(path: Path, field: str, lower: float, upper: float) -> None:

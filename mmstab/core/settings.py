@@ -66,6 +66,24 @@ def check_controller(path: Path, section: Mapping[str, Any]) -> None:
             )
 
 
+#: Most postures a joint grid may have: they are numbered by 64-bit integers
+#: (``numpy.random.Generator.choice`` draws the sampled ones among them).
+MAX_GRID_POSTURES = 2**62
+
+
+def check_workspace(path: Path, section: Mapping[str, Any]) -> None:
+    """``workspace:``: a joint grid whose postures 64-bit integers can number.
+
+    Raises:
+        ConfigError: naming ``workspace.grid``.
+    """
+    full = math.prod(int(k) for k in section["grid"])
+    if full > MAX_GRID_POSTURES:
+        raise ConfigError(
+            path, "workspace.grid", f"has {float(full):.3g} postures; at most 2**62 can be numbered"
+        )
+
+
 def check_arm_joints(path: Path, data: Mapping[str, Any], n: int) -> None:
     """Per-joint settings sized for the robot's arm of ``n`` joints.
 
@@ -130,6 +148,7 @@ SECTION_CHECKS: Mapping[str, SectionCheck] = MappingProxyType(
         "controller": check_controller,
         "codegen": check_codegen,
         "physics": check_physics,
+        "workspace": check_workspace,
     }
 )
 

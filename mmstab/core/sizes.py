@@ -181,7 +181,10 @@ def workspace_estimate(grid: Sequence[int], samples: int | None = None) -> Estim
         if sampled
         else f"{n} postures ({shape}{hint if n > WS_FULL_GRID_MAX else ''})",
         n * WS_SECONDS_PER_POSTURE / workspace_workers(),
-        n * WS_BYTES_PER_POSTURE + (workspace_workers() + 1) * WS_CHUNK_BYTES,
+        # + each joint's samples (8 B each): a sampled grid still holds its axes
+        n * WS_BYTES_PER_POSTURE
+        + (workspace_workers() + 1) * WS_CHUNK_BYTES
+        + 8.0 * sum(float(k) for k in grid),
     )
 
 

@@ -78,6 +78,25 @@ def check_yaw(waypoints: Waypoints) -> int | None:
     return int(against[0]) if len(against) else None
 
 
+#: Longest route through the waypoints [m]: its speed profile samples every centimetre
+#: (1e6 stations here); a longer one (a mistyped coordinate, 1e300) would exhaust the memory
+#: before the size bounds of the tracking run see it.
+MAX_ROUTE_LENGTH = 10_000.0
+
+
+def check_length(source: Path, field: str, xy: FloatArray) -> None:
+    """Refuse waypoints (n, 2) [m] whose polyline is longer than :data:`MAX_ROUTE_LENGTH`.
+
+    Raises:
+        ConfigError: naming ``source`` and ``field`` (the route file: its waypoints).
+    """
+    with np.errstate(over="ignore", invalid="ignore"):  # hypot of 1e308s: inf, refused
+        length = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+    if not length <= MAX_ROUTE_LENGTH:
+        msg = f"the line through the waypoints is {length:.3g} m long; at most {MAX_ROUTE_LENGTH:g} m"
+        raise ConfigError(source, field or "waypoints", msg)
+
+
 class PlannedRoute(NamedTuple):
     """A route and its speed profile."""
 
@@ -112,6 +131,7 @@ def route_from_section(
     else:
         waypoints = Waypoints(np.asarray(section["waypoints"], dtype=float), None)
         source, prefix = p, "path."
+    check_length(source, "path.waypoints" if prefix == "path." else "", waypoints.xy)
     bad = check_yaw(waypoints)
     if bad is not None:
         raise ConfigError(source, f"waypoint {bad}", "its yaw points against the route there")

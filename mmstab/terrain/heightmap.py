@@ -43,6 +43,11 @@ class HeightSample(NamedTuple):
     valid: BoolArray
 
 
+def _real(a: np.ndarray) -> bool:
+    """Integer or floating point: not complex (its imaginary part would be dropped), not bool."""
+    return bool(np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating))
+
+
 def check_layout(
     source: str | os.PathLike[str], elevation: ArrayLike, resolution: ArrayLike, origin: ArrayLike
 ) -> tuple[FloatArray, float, FloatArray]:
@@ -68,14 +73,16 @@ def check_layout(
     if not np.isfinite(e).any():
         raise ConfigError(source, "elevation", "all cells are unknown (NaN)")
     r = np.asarray(resolution)
-    if r.size != 1 or not np.issubdtype(r.dtype, np.number):
-        raise ConfigError(source, "resolution", f"must be one number [m/cell], got {r!r}")
+    if r.size != 1 or not _real(r):  # shape and dtype only: an array's repr spans lines
+        msg = f"must be one real number [m/cell], got shape {r.shape}, dtype {r.dtype}"
+        raise ConfigError(source, "resolution", msg)
     res = float(r.reshape(()))
     if not np.isfinite(res) or res <= 0:
         raise ConfigError(source, "resolution", f"must be positive and finite, got {res}")
     o = np.asarray(origin)
-    if o.shape != (2,) or not np.issubdtype(o.dtype, np.number):
-        raise ConfigError(source, "origin", f"must be 2 numbers (x, y) [m], got shape {o.shape}")
+    if o.shape != (2,) or not _real(o):
+        msg = f"must be 2 real numbers (x, y) [m], got shape {o.shape}, dtype {o.dtype}"
+        raise ConfigError(source, "origin", msg)
     o = o.astype(np.float64)
     if not np.isfinite(o).all():
         raise ConfigError(source, "origin", f"must be finite, got {o.tolist()}")
