@@ -80,6 +80,33 @@ def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:
     return memo[key]
 
 
+class _DuplicateKey(ValueError):
+    """A key given twice in one mapping (PyYAML would keep the last silently)."""
+
+    def __init__(self, key: str, first: int, again: int):
+        self.key = key
+        super().__init__(f"given twice in one mapping (lines {first} and {again})")
+
+
+def _check_unique_keys(node: yaml.Node, seen: set[int]) -> None:
+    """Raise :class:`_DuplicateKey` at the first mapping of ``node`` that repeats a key."""
+    if id(node) in seen:  # an alias: checked where it was anchored
+        return
+    seen.add(id(node))
+    if isinstance(node, yaml.MappingNode):
+        lines: dict[str, int] = {}
+        for k, _ in node.value:
+            if isinstance(k, yaml.ScalarNode) and k.value != "<<":  # merge keys may repeat
+                line = k.start_mark.line + 1
+                if k.value in lines:
+                    raise _DuplicateKey(k.value, lines[k.value], line)
+                lines[k.value] = line
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        for child in node.value:
+            for n in child if isinstance(child, tuple) else (child,):
+                _check_unique_keys(n, seen)
+
+
 def _safe_load_bounded(text: str) -> Any:
     """``yaml.safe_load`` that refuses documents expanding past :data:`MAX_YAML_NODES`."""
     loader = yaml.SafeLoader(text)
@@ -93,6 +120,7 @@ def _safe_load_bounded(text: str) -> Any:
                 f"expands to more than {MAX_YAML_NODES:,} YAML nodes through its aliases "
                 f"({size:.3g})"
             )
+        _check_unique_keys(node, set())
         return loader.construct_document(node)
     finally:
         loader.dispose()
@@ -109,6 +137,8 @@ def read_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise ConfigError(p, "", f"not UTF-8 text (byte {exc.start}): not a YAML file") from None
     try:
         data = _safe_load_bounded(text)
+    except _DuplicateKey as exc:
+        raise ConfigError(p, exc.key, str(exc)) from None
     except ValueError as exc:
         raise ConfigError(p, "", str(exc)) from None
     except yaml.reader.ReaderError as exc:  # a control character (NUL, ...) in the text
