@@ -72,13 +72,15 @@ MAX_GRID_POSTURES = 2**62
 
 
 def check_workspace(path: Path, section: Mapping[str, Any]) -> None:
-    """``workspace:``: a joint grid whose postures 64-bit integers can number.
+    """``workspace:``: a sampled joint grid whose postures 64-bit integers can number.
+
+    (A grid labelled whole is bounded by the memory it needs: :mod:`mmstab.core.sizes`.)
 
     Raises:
         ConfigError: naming ``workspace.grid``.
     """
     full = math.prod(int(k) for k in section["grid"])
-    if full > MAX_GRID_POSTURES:
+    if section.get("samples") is not None and full > MAX_GRID_POSTURES:
         raise ConfigError(
             path, "workspace.grid", f"has {float(full):.3g} postures; at most 2**62 can be numbered"
         )

@@ -15,14 +15,18 @@ Every failure is a :class:`~mmstab.core.files.ConfigError` naming the file and t
 
 from __future__ import annotations
 
+import logging
 import os
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mmstab.core.files import ConfigError, write_npz
+from mmstab.core.sizes import TERRAIN_BYTES_PER_CELL, Estimate, refusal
 from mmstab.terrain.heightmap import FloatArray, Heightmap, check_layout
 
 NPZ_KEYS = ("elevation", "resolution", "origin")
@@ -64,6 +68,36 @@ def load_heightmap(path: str | os.PathLike[str], resolution: float | None = None
     return load_mesh(p, resolution)
 
 
+def check_cells(path: Path, field: str, shape: Any) -> None:
+    """Refuse a map of ``shape`` (rows, columns) cells that would not fit in memory.
+
+    Bounded as a generated map (:data:`mmstab.core.sizes.TERRAIN_BYTES_PER_CELL`), before
+    the file's cells are read or rasterised.
+
+    Raises:
+        ConfigError: naming ``path`` and ``field``.
+    """
+    cells = float(np.prod([float(n) for n in shape]))
+    if not np.isfinite(cells):
+        raise ConfigError(path, field, "the map would have infinitely many cells")
+    work = f"{cells:.3g} map cells ({' x '.join(f'{float(n):.0f}' for n in shape)})"
+    why = refusal(Estimate(field, work, 0.0, cells * TERRAIN_BYTES_PER_CELL), force=True)
+    if why is not None:
+        raise ConfigError(path, field, why)
+
+
+@contextmanager
+def _quiet(logger: str) -> Iterator[None]:
+    """Silence a library's log lines (a bad file's complaints come back as one ConfigError)."""
+    log = logging.getLogger(logger)
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
+
+
 # ------------------------------------------------------------------------------------- npz
 def load_npz(path: Path) -> Heightmap:
     """Read an ``.npz`` holding exactly ``elevation``, ``resolution`` and ``origin``."""
@@ -72,6 +106,8 @@ def load_npz(path: Path) -> Heightmap:
             arrays = {k: data[k] for k in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise ConfigError(path, "", f"cannot read as .npz ({exc})") from None
+    except MemoryError:  # an array header claiming more than this machine holds
+        raise ConfigError(path, "", "its arrays do not fit in memory") from None
     missing = [k for k in NPZ_KEYS if k not in arrays]
     if missing:
         raise ConfigError(path, missing[0], "missing array (need elevation, resolution, origin)")
@@ -104,15 +140,16 @@ def load_geotiff(path: Path) -> Heightmap:
     import tifffile
 
     try:
-        with tifffile.TiffFile(path) as tif:
+        with _quiet("tifffile"), tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
+            check_cells(path, "band", page.shape[:2])  # before reading: the tags may lie
             raster = page.asarray()
             tags = page.tags  # type: ignore[union-attr]
             scale = tags[TAG_PIXEL_SCALE].value if TAG_PIXEL_SCALE in tags else None
             tie = tags[TAG_TIEPOINT].value if TAG_TIEPOINT in tags else None
             nodata = tags[TAG_NODATA].value if TAG_NODATA in tags else None
             keys = _geokeys(tags)
-    except (OSError, ValueError, tifffile.TiffFileError, IndexError) as exc:
+    except (OSError, ValueError, tifffile.TiffFileError, IndexError, MemoryError) as exc:
         raise ConfigError(path, "", f"cannot read as GeoTIFF ({exc})") from None
     if raster.ndim == 3 and raster.shape[-1] == 1:
         raster = raster[..., 0]
@@ -231,6 +268,9 @@ def load_mesh(path: Path, resolution: float) -> Heightmap:
         raise ConfigError(path, "faces", "the mesh has no faces")
     if not np.isfinite(vertices).all():
         raise ConfigError(path, "vertices", "the mesh has non-finite vertices")
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 vertices: inf cells, refused
+        extent = np.ptp(vertices[:, :2], axis=0) / res + 1.0
+    check_cells(path, "resolution", tuple(extent))
     hm = rasterise(vertices, faces, res)
     e, r, o = check_layout(path, hm.elevation, hm.resolution, hm.origin)
     return Heightmap.build(e, r, o, str(path))
