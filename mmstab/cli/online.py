@@ -17,6 +17,11 @@ def _problem(args: argparse.Namespace) -> Any:
     return load_problem(args.problem)
 
 
+def _number(value: float | None, spec: str, unit: str) -> str:
+    """``value`` formatted with its unit, or ``n/a`` (no map covered the robot: no mu)."""
+    return "n/a" if value is None else format(value, spec) + unit
+
+
 def _record(args: argparse.Namespace) -> int | None:
     from mmstab.core.files import MmstabError, check_output_dir
     from mmstab.experiments.recording import record_route
@@ -46,11 +51,8 @@ def _follow(args: argparse.Namespace) -> int | None:
     check_output_dir(out)
     if args.limit is not None and args.limit < 1:
         raise MmstabError(f"--limit: must be at least 1, got {args.limit}")
-    s = run_follow(problem, args.bag, out, args.limit)
-    if not s["updates"]:
-        raise ConfigError(args.bag, "odometry", "no map arrived after any odometry")
+    s = run_follow(problem, args.bag, out, args.limit)  # refuses a recording without updates
     lat = s["latency_ms"]
-    mu = f"{s['mu_min']:.1f} N rad" if s["mu_min"] is not None else "none (robot on no map)"
     print(
         f"follow: {s['updates']} maps ({s['skipped_maps']} before odometry) over "
         f"{s['progress_m'][1] - s['progress_m'][0]:.2f} m of the route; latency p50 "
@@ -60,7 +62,7 @@ def _follow(args: argparse.Namespace) -> int | None:
         f"follow: {s['replanned_poses']} pose plans on {s['updates_with_replan']} maps; robot "
         f"not on its map at {s['robot_not_covered_updates']} maps; route ahead covered "
         f"{s['covered_ahead_m']['median']:.2f} m (median), {s['covered_ahead_m']['min']:.2f} m "
-        f"(least); mu min {mu}; QP failures {s['qp_failures']}"
+        f"(least); mu min {_number(s['mu_min'], '.1f', ' N rad')}; QP failures {s['qp_failures']}"
     )
     off = s.get("offline")
     if off is not None and off["agreeing_poses"]:

@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
+from mmstab.core.files import ConfigError, MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import save_settings
 from mmstab.planner.plan import problem_region
@@ -144,6 +144,8 @@ def run_follow(
     t0 = time.perf_counter()
     run = follow_recording(problem, recording, workspace, limit)
     wall = time.perf_counter() - t0
+    if not run.steps:  # bad input, refused before anything is written
+        raise ConfigError(recording, "odometry", "no map arrived after any odometry")
     summary = summarize(run)
     settings = FollowSettings.of(problem)
     summary["wall_seconds"] = wall

@@ -129,7 +129,8 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "robot_not_covered_updates": int((~covered).sum()),
         "horizon_uncovered_updates": int(sum(x.uncovered > 0 for x in st)),
         "covered_ahead_m": {"min": float(ahead.min()), "median": float(np.median(ahead))},
-        "mu_min": float(np.nanmin(mu)) if covered.any() else None,  # None: on no map
+        # null (JSON has no NaN) when no map covered the robot
+        "mu_min": float(np.nanmin(mu)) if covered.any() else None,
         "mu_planned_min": float(min(p.mu for p in run.plans.values())) if run.plans else None,
         "planned_poses": len(run.plans),
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
