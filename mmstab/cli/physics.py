@@ -21,6 +21,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
     check_output_dir(out)
     if args.duration is not None and not args.duration > 0:
         raise MmstabError(f"--duration: must be positive, got {args.duration}")
+    _check_duration(args, problem)
     s = run_simulate(problem, out, args.duration, args.arm)
     print(
         f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller, "
@@ -85,6 +86,29 @@ def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | Non
                   EXIT_ARM_COLLISION)  # fmt: skip
 
 
+def _check_duration(args: argparse.Namespace, problem: Any) -> None:
+    """The simulated time (``--duration``, else ``physics.duration``) within the size bounds.
+
+    (A route's own driving time was bounded when the problem loaded.) Estimated as a
+    tracking run at ``physics.control_dt``: 1e300 s crashed NumPy, 1e6 s ran for days.
+
+    Raises:
+        MmstabError: naming ``--duration``; ConfigError naming ``physics.duration``.
+    """
+    from mmstab.core.files import ConfigError
+    from mmstab.core.sizes import check_steps, refusal, steps_estimate
+
+    phys = problem.section("physics")
+    dt = float(phys["control_dt"])
+    if args.duration is not None:
+        check_steps("--duration", float(args.duration), dt, force=args.force_size)
+    elif phys["duration"] is not None:
+        est = steps_estimate("physics.duration", float(phys["duration"]), dt)
+        why = refusal(est, args.force_size)
+        if why is not None:
+            raise ConfigError(problem.path, "physics.duration", why)
+
+
 def add_physics_commands(sub: Any) -> None:
     """``simulate`` (docs/physics.md)."""
     h = "track the problem's path on the whole robot in MuJoCo, the controller in the loop"
@@ -94,6 +118,11 @@ def add_physics_commands(sub: Any) -> None:
     )
     p.add_argument("-o", "--out", default=None, help="output folder (default results/physics)")
     p.add_argument("--duration", type=float, default=None, help="simulated time [s]")
+    p.add_argument(
+        "--force-size",
+        action="store_true",
+        help="run a simulated time whose time estimate exceeds the bound (not beyond the memory)",
+    )
     p.add_argument(
         "--arm",
         choices=["planned", "stowed"],
