@@ -88,11 +88,11 @@ def _stability_map(args: argparse.Namespace) -> None:
     from mmstab.core.files import MmstabError, check_output_dir
     from mmstab.experiments.terrain import run_stability_map
 
-    if not args.spacing > 0 or args.headings < 1:
-        raise MmstabError("--spacing must be > 0 [m] and --headings >= 1")
+    if not 0 < args.spacing < float("inf") or args.headings < 1:
+        raise MmstabError("--spacing must be finite and > 0 [m] and --headings >= 1")
     problem = _problem(args)
     check_output_dir(args.out or f"results/terrain/{problem.name}")
-    s = run_stability_map(problem, args.out, args.spacing, args.headings)
+    s = run_stability_map(problem, args.out, args.spacing, args.headings, args.force_size)
     print(
         f"stability-map: {s['poses']} poses ({s['rest_ms_per_pose']:.3f} ms/pose at rest), "
         f"stable share {s['share_stable']:.3f}; cells stable at every heading "
@@ -102,15 +102,24 @@ def _stability_map(args: argparse.Namespace) -> None:
 
 def _terrain_export(args: argparse.Namespace) -> None:
 
+    import numpy as np
+
     from mmstab.core.files import MmstabError, check_output_dir
+    from mmstab.core.sizes import TERRAIN_BYTES_PER_CELL, Estimate, refusal
     from mmstab.terrain.factory import as_heightmap
     from mmstab.terrain.io import save_npz
 
     if Path(args.out).suffix.lower() != ".npz":
         raise MmstabError(f"-o {args.out}: the export is an .npz file")
     _finite("--size", args.size)
+    _finite("--resolution", [args.resolution])
     if min(args.size) <= 0 or not args.resolution > 0:
         raise MmstabError("--size and --resolution must be positive [m]")
+    cells = float(np.prod([s / args.resolution + 1.0 for s in args.size]))
+    est = Estimate("--resolution", f"{cells:.3g} map cells", 0.0, cells * TERRAIN_BYTES_PER_CELL)
+    why = refusal(est, force=True)  # a ramp sampled at 1e-6 m: "out of memory", naming nothing
+    if why is not None:
+        raise MmstabError(f"--size / --resolution: {why}")
     problem = _problem(args)
     check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
     hm = as_heightmap(problem.terrain, tuple(args.size), args.resolution)
@@ -147,6 +156,11 @@ def _add_terrain_commands(sub: Any) -> None:
     p.add_argument("-o", "--out", default=None, help="output folder (default results/terrain/NAME)")
     p.add_argument("--spacing", type=float, default=0.25, help="grid spacing [m] (0.25)")
     p.add_argument("--headings", type=int, default=8, help="headings per cell (8)")
+    p.add_argument(
+        "--force-size",
+        action="store_true",
+        help="run a map whose time estimate exceeds the bound (not beyond the memory)",
+    )
     p.set_defaults(handler=_stability_map)
 
     h = "terrain files"

@@ -15,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core.files import write_figure, write_json, write_npz
+from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
+from mmstab.core.sizes import Estimate, refusal
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.stability.stance import StabilityMap, stability_map, stance
 from mmstab.terrain.factory import as_heightmap
@@ -24,6 +25,21 @@ from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Extent and cells of a ramp sampled for its map [m], [m/cell].
 RAMP_SIZE, RAMP_RESOLUTION = (6.0, 6.0), 0.1
+#: One resting pose of the map and its mu: time [s] and peak memory [B] (measured on
+#: problems/rough.yaml at 0.25 m and 0.1 m spacing: 1.2-1.7 ms, 10.7 kB).
+MAP_SECONDS_PER_POSE, MAP_BYTES_PER_POSE = 1.7e-3, 11e3
+
+
+def map_estimate(terrain: HeightmapTerrain, spacing: float, headings: int) -> Estimate:
+    """The poses of a stability map (at most: the robot's reach from the edge not taken off)."""
+    x0, x1, y0, y1 = terrain.heightmap.bounds
+    poses = ((x1 - x0) / spacing + 1.0) * ((y1 - y0) / spacing + 1.0) * float(headings)
+    return Estimate(
+        "--spacing",
+        f"{poses:.3g} resting poses (every {spacing:g} m, {headings} headings)",
+        poses * MAP_SECONDS_PER_POSE,
+        poses * MAP_BYTES_PER_POSE,
+    )
 
 
 def problem_heightmap_terrain(problem: Problem) -> HeightmapTerrain:
@@ -148,10 +164,22 @@ def _crop(hm: Any, xy: Any, half: float) -> Any:
 
 
 def run_stability_map(
-    problem: Problem, out: str | Path | None, spacing: float, headings: int
+    problem: Problem,
+    out: str | Path | None,
+    spacing: float,
+    headings: int,
+    force_size: bool = False,
 ) -> dict[str, Any]:
-    """Stability map and 3-D view of the problem's terrain (see the module docstring)."""
+    """Stability map and 3-D view of the problem's terrain (see the module docstring).
+
+    Raises:
+        MmstabError: ``spacing`` [m] and ``headings`` beyond the size bounds
+            (:func:`map_estimate`; ``force_size`` accepts the time, not the memory).
+    """
     terrain = problem_heightmap_terrain(problem)
+    why = refusal(map_estimate(terrain, spacing, headings), force_size)
+    if why is not None:
+        raise MmstabError(f"--spacing / --headings: {why}")
     sm = stability_map(terrain, spacing, headings)
     d = output_dir(out, f"terrain/{problem.name}")
     save_settings(d, problem, stability_map={"spacing": spacing, "headings": headings})
