@@ -70,7 +70,13 @@ def _load(rel: str) -> dict[str, Any]:
 def _leaves(node: Any, trail: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
     """Paths (keys and indices) to every node below ``node``."""
     out: list[tuple[Any, ...]] = []
-    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    items = (
+        node.items()
+        if isinstance(node, dict)
+        else enumerate(node)
+        if isinstance(node, list)
+        else ()
+    )
     for k, v in items:
         out.append((*trail, k))
         out += _leaves(v, (*trail, k))
@@ -236,6 +242,69 @@ def broken_yaml(rng: np.random.Generator) -> Case:
     return case
 
 
+def duplicate_key(rng: np.random.Generator) -> Case:
+    """A key given twice in one mapping (YAML parsers keep the last one silently)."""
+    case = _problem_case(rng, "text", lambda prob, rob: ("", (), True, ""))
+    culprit = "robot.yaml" if rng.random() < 0.4 else "problem.yaml"
+    doc = case.files[culprit]
+    key = list(doc)[rng.integers(len(doc))]
+    again = yaml.safe_dump({key: doc[key]}, sort_keys=False)
+    case.files[culprit] = yaml.safe_dump(doc, sort_keys=False) + again
+    case.culprit, case.fields, case.must_refuse = culprit, (key,), True
+    case.name = f"{key} twice in {culprit}"
+    return case
+
+
+def _npz_claiming(shape: tuple[int, ...]) -> bytes:
+    """An .npz whose elevation header claims ``shape`` over a few bytes of data."""
+    import zipfile
+
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        head, {"descr": "<f8", "fortran_order": False, "shape": shape}
+    )
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        z.writestr("elevation.npy", head.getvalue() + b"\0" * 64)
+        for key, value in (("resolution", np.float64(0.05)), ("origin", np.zeros(2))):
+            one = io.BytesIO()
+            np.save(one, value)
+            z.writestr(f"{key}.npy", one.getvalue())
+    return out.getvalue()
+
+
+#: A 10 m square of two triangles (ASCII STL).
+STL = (
+    "solid s\n"
+    + "".join(
+        f"facet normal 0 0 1\nouter loop\n{a}{b}{c}endloop\nendfacet\n"
+        for a, b, c in (
+            ("vertex -5 -5 0\n", "vertex 5 -5 0\n", "vertex 5 5 0\n"),
+            ("vertex -5 -5 0\n", "vertex 5 5 0\n", "vertex -5 5 0\n"),
+        )
+    )
+    + "endsolid s\n"
+)
+
+
+def oversized_heightmap(rng: np.random.Generator) -> Case:
+    """A heightmap whose cells would not fit in memory: a lying .npz header, a fine mesh."""
+    kind = int(rng.integers(2))
+    name, field = ("ground.npz", "") if kind == 0 else ("ground.stl", "resolution")
+
+    def edit(prob: dict, rob: dict) -> tuple:
+        prob["terrain"] = {"file": name}
+        if kind == 1:
+            prob["terrain"]["resolution"] = float(10.0 ** -rng.integers(6, 12))
+        return name, (field,) if field else (), True, f"{name} too large"
+
+    case = _problem_case(rng, "oversized", edit)
+    side = int(10 ** rng.integers(6, 9))
+    case.files[name] = _npz_claiming((side, side)) if kind == 0 else STL
+    case.argv[-3:] = ["0", "0", "0"]
+    return case
+
+
 SUFFIXES = (".npz", ".tif", ".stl", ".mcap", ".bag")
 
 
@@ -384,6 +453,8 @@ SAMPLERS = (
     bad_route_file,
     garbage_recording,
     robot_command,
+    duplicate_key,
+    oversized_heightmap,
 )
 
 
@@ -422,7 +493,11 @@ def run_case(case: Case, folder: Path) -> Outcome:
     argv = [a.replace("{d}", str(folder)) for a in case.argv]
     err, out = io.StringIO(), io.StringIO()
     status: int | None
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out), warnings.catch_warnings():
+    with (
+        contextlib.redirect_stderr(err),
+        contextlib.redirect_stdout(out),
+        warnings.catch_warnings(),
+    ):
         warnings.simplefilter("always")  # a warning printed on stderr is a second line
         warnings.showwarning = lambda m, c, f, n, file=None, line=None: print(  # noqa: ARG005
             f"{c.__name__}: {m}", file=err

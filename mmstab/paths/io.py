@@ -93,7 +93,9 @@ def check_length(source: Path, field: str, xy: FloatArray) -> None:
     with np.errstate(over="ignore", invalid="ignore"):  # hypot of 1e308s: inf, refused
         length = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
     if not length <= MAX_ROUTE_LENGTH:
-        msg = f"the line through the waypoints is {length:.3g} m long; at most {MAX_ROUTE_LENGTH:g} m"
+        msg = (
+            f"the line through the waypoints is {length:.3g} m long; at most {MAX_ROUTE_LENGTH:g} m"
+        )
         raise ConfigError(source, field or "waypoints", msg)
 
 
