@@ -266,3 +266,35 @@ def test_follow_without_a_covered_map_writes_null_not_nan(recording, tmp_path, c
     assert s["updates"] == 11 and s["robot_not_covered_updates"] == 11
     assert s["mu_min"] is None and s["tilt_max_rad"] is None
     assert "mu min n/a; QP failures 0" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------------- levers
+@pytest.mark.parametrize(
+    "robots, field, message",
+    [
+        (["robots/cameleon.yaml", "robots/none.yaml"], "levers.robots[1]", "no robot description"),
+        (["robots/six.yaml"], "levers.robots[0]", "robots/six.yaml: controller.w_b: has 6"),
+    ],
+)
+def test_levers_checks_its_robot_files_before_any_work(
+    tmp_path, capsys, monkeypatch, robots, field, message
+):
+    import mmstab.app
+
+    def work(*args, **kwargs):
+        raise AssertionError("the workspace was built before the robot files were checked")
+
+    monkeypatch.setattr(mmstab.app, "workspace", work)
+    six = yaml.safe_load((PROBLEMS / "robots" / "cameleon_6dof.yaml").read_text())
+    levers = yaml.safe_load((PROBLEMS / "levers.yaml").read_text())["levers"]
+
+    def edit(p, r):
+        p["levers"] = {**levers, "robots": robots}
+        p["levers"].pop("rough_problem")
+
+    path = write_problem(tmp_path, edit)
+    (tmp_path / "robots" / "six.yaml").write_text(yaml.safe_dump(six))
+    out = tmp_path / "out"
+    line = _refused(capsys, ["levers", str(path), "-o", str(out)])
+    assert f"problem.yaml: {field}: " in line and message in line
+    assert not out.exists()

@@ -54,7 +54,12 @@ from mmstab.experiments.levers.dynamic import (
 )
 from mmstab.experiments.levers.flippers import draw_flippers, run_flippers
 from mmstab.experiments.levers.payload import draw_payload, run_payload, stowed_holding
-from mmstab.experiments.levers.variants import draw_variants, run_variants, variants_table
+from mmstab.experiments.levers.variants import (
+    check_variant_files,
+    draw_variants,
+    run_variants,
+    variants_table,
+)
 
 __all__ = [
     "bisect_largest",
@@ -85,6 +90,7 @@ def run_levers(problem: Problem, out: str | Path | None = None) -> dict[str, Any
     from mmstab.app import workspace
 
     settings = levers_settings(problem)
+    check_variant_files(problem, settings)  # before any work or output
     d = output_dir(out, "levers")
     t0 = time.perf_counter()
     ws = workspace(problem)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.core.files import write_figure
+from mmstab.core.files import ConfigError, write_figure
 from mmstab.core.problem import Problem, load_problem, problem_from_dict
 from mmstab.experiments.levers.common import LeversSettings, bisect_largest, planar_slope
 from mmstab.model.robot import FloatArray, Robot
@@ -29,6 +29,32 @@ def variant_problem(problem: Problem, robot_file: str, grid: tuple[int, ...]) ->
     data["robot"] = robot_file
     data["workspace"]["grid"] = list(grid)
     return problem_from_dict(data, problem.path, force_size=problem.force_size)
+
+
+def check_variant_files(problem: Problem, settings: LeversSettings) -> None:
+    """Load ``levers.robots`` and ``levers.rough_problem`` before any work (bad input: exit 2).
+
+    Without it a missing robot file was found after the workspace, the plan and two figures.
+
+    Raises:
+        ConfigError: naming the robot (or rough problem) file and its field, or the
+            ``levers.robots[i]`` entry whose robot does not fit the problem.
+    """
+    for i, robot_file in enumerate(settings.robots):
+        where = (problem.path.parent / robot_file).resolve()
+        if not where.is_file():
+            raise ConfigError(
+                problem.path, f"levers.robots[{i}]", f"no robot description at {where}"
+            )
+        try:
+            variant_problem(problem, robot_file, settings.variant_grid)
+        except ConfigError as exc:
+            if Path(exc.path) != problem.path:
+                raise  # the robot file's own field
+            msg = f"{robot_file}: {exc.field}: {exc.message}"
+            raise ConfigError(problem.path, f"levers.robots[{i}]", msg) from None
+    if settings.rough_problem is not None:
+        load_problem(problem.path.parent / settings.rough_problem)
 
 
 def steepest_side_slope(
