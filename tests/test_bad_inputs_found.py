@@ -298,3 +298,22 @@ def test_levers_checks_its_robot_files_before_any_work(
     line = _refused(capsys, ["levers", str(path), "-o", str(out)])
     assert f"problem.yaml: {field}: " in line and message in line
     assert not out.exists()
+
+
+# ------------------------------------------------------------------------- terrain section
+@pytest.mark.parametrize(
+    "key, value, field, message",
+    [
+        ("size", [20.0, 8.0, 1.0], "size", "[20.0, 8.0, 1.0] is too long"),
+        ("resolution", "fine", "resolution", "'fine' is not of type 'number'"),
+        ("resolution", 0, "resolution", "0 is less than or equal to the minimum of 0"),
+        ("size", [20, "a"], "size[1]", "'a' is not of type 'number'"),
+    ],
+)
+def test_a_generated_terrain_is_checked_before_its_size_bound(tmp_path, key, value, field, message):
+    rough = yaml.safe_load((PROBLEMS / "rough.yaml").read_text())["terrain"]
+    rough["generate"][key] = value  # the size bound read them first: ValueError, ZeroDivision
+    path = write_problem(tmp_path, lambda p, r: p.__setitem__("terrain", rough))
+    with pytest.raises(ConfigError) as info:
+        load_problem(path)
+    assert (info.value.field, info.value.message) == (f"terrain.generate.{field}", message)

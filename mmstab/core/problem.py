@@ -23,6 +23,7 @@ from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath, is_route, route_path_from_section
 from mmstab.terrain import Terrain, from_section
+from mmstab.terrain.factory import check_section
 
 
 @dataclass(frozen=True)
@@ -123,6 +124,7 @@ def problem_from_dict(
     robot_path = (p.parent / data["robot"]).resolve()
     if not robot_path.is_file():
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
+    check_section(p, data["terrain"])  # before the size bounds read terrain.generate
     check_problem(p, data, force_size=force_size)
     c = data["path"]
     if is_route(c):
