@@ -308,6 +308,7 @@ def test_levers_checks_its_robot_files_before_any_work(
         ("resolution", "fine", "resolution", "'fine' is not of type 'number'"),
         ("resolution", 0, "resolution", "0 is less than or equal to the minimum of 0"),
         ("size", [20, "a"], "size[1]", "'a' is not of type 'number'"),
+        ("kind", {"a": 1}, "kind", "must be one of plane, kerb, ditch, bumps, rough"),
     ],
 )
 def test_a_generated_terrain_is_checked_before_its_size_bound(tmp_path, key, value, field, message):
