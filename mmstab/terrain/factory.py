@@ -50,9 +50,8 @@ def check_section(problem_path: Path, section: Any) -> str:
         if not isinstance(gen, dict):
             raise ConfigError(problem_path, "terrain.generate", "must be a mapping")
         kind = gen.get("kind")
-        if (
-            not isinstance(kind, str) or kind not in schema_terrain.TERRAIN_KINDS
-        ):  # a list or mapping cannot be looked up
+        # (a list or mapping given as the kind cannot be looked up: refused as unknown)
+        if not isinstance(kind, str) or kind not in schema_terrain.TERRAIN_KINDS:
             kinds = ", ".join(schema_terrain.TERRAIN_KINDS)
             raise ConfigError(problem_path, "terrain.generate.kind", f"must be one of {kinds}")
         sub = schema_terrain.terrain_generate_schema(kind)
