@@ -318,3 +318,19 @@ def test_a_generated_terrain_is_checked_before_its_size_bound(tmp_path, key, val
     with pytest.raises(ConfigError) as info:
         load_problem(path)
     assert (info.value.field, info.value.message) == (f"terrain.generate.{field}", message)
+
+
+def test_a_robot_beyond_100_m_or_1e6_kg_is_refused(tmp_path, capsys):
+    def edit(p, r):
+        r["base"]["body"]["center"][1] = 1e300  # ValueError in the route's footprint sampling
+
+    rough = yaml.safe_load((PROBLEMS / "rough.yaml").read_text())
+    path = write_problem(tmp_path, lambda p, r: (p.update(rough, robot=p["robot"]), edit(p, r)))
+    line = _refused(capsys, ["rest", str(path), "--pose", "0", "0", "0"])
+    assert line.endswith(
+        "cameleon.yaml: base.body.center[1]: 1e+300 is greater than the maximum of 100.0"
+    )
+    robot = yaml.safe_load((PROBLEMS / "robots" / "cameleon.yaml").read_text())
+    robot["arm"]["links"][0]["mass"] = 2e6
+    with pytest.raises(ConfigError, match=r"arm.links\[0\].mass: 2000000.0 is greater than"):
+        robot_from_dict(robot, "r.yaml")

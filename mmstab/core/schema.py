@@ -56,14 +56,23 @@ def vec_min(n: int, item: dict[str, Any] = NUM) -> dict[str, Any]:
     return {"type": "array", "items": item, "minItems": n}
 
 
-BOX = obj(type={"const": "box"}, size=VEC3_POS, center=VEC3, rpy=VEC3)
-CAPSULE = obj(type={"const": "capsule"}, radius=POS, p0=VEC3, p1=VEC3)
+#: Largest length or coordinate [m] and mass [kg] of a robot file. Generous for a tracked
+#: mobile manipulator (the Cameleon: 0.7 m, 58 kg); beyond them a mistyped value (a body
+#: centre at 1e300 m) broke the route's footprint sampling with a NumPy error.
+MAX_ROBOT_SIZE, MAX_ROBOT_MASS = 100.0, 1e6
+M: dict[str, Any] = {"type": "number", "minimum": -MAX_ROBOT_SIZE, "maximum": MAX_ROBOT_SIZE}
+M_POS: dict[str, Any] = {**POS, "maximum": MAX_ROBOT_SIZE}
+KG: dict[str, Any] = {**POS, "maximum": MAX_ROBOT_MASS}
+VEC3_M, VEC3_M_POS = vec(3, M), vec(3, M_POS)
+
+BOX = obj(type={"const": "box"}, size=VEC3_M_POS, center=VEC3_M, rpy=VEC3)
+CAPSULE = obj(type={"const": "capsule"}, radius=M_POS, p0=VEC3_M, p1=VEC3_M)
 
 LINK = obj(
     name={"type": "string", "minLength": 1},
-    dh=obj(a=NUM, alpha=NUM, d=NUM, theta_offset=NUM),
-    mass=POS,
-    com=VEC3,
+    dh=obj(a=M, alpha=NUM, d=M, theta_offset=NUM),
+    mass=KG,
+    com=VEC3_M,
     geometry={"oneOf": [BOX, CAPSULE]},
     limits=obj(lower=NUM, upper=NUM, velocity=POS),
 )
@@ -72,26 +81,26 @@ ROBOT = obj(
     name={"type": "string", "minLength": 1},
     note={"type": "string"},
     base=obj(
-        mass=POS,
-        com=VEC3,
-        body=obj(size=VEC3_POS, center=VEC3),
+        mass=KG,
+        com=VEC3_M,
+        body=obj(size=VEC3_M_POS, center=VEC3_M),
         tracks=obj(
-            length=POS,
-            width=POS,
-            height=POS,
-            separation=POS,
-            sprocket_radius=POS,
+            length=M_POS,
+            width=M_POS,
+            height=M_POS,
+            separation=M_POS,
+            sprocket_radius=M_POS,
             velocity_limit=POS,
         ),
         flippers=with_optional(
-            obj(length=POS, width=POS, thickness=POS, pivot=VEC3, angle=NUM),
+            obj(length=M_POS, width=M_POS, thickness=M_POS, pivot=VEC3_M, angle=NUM),
             # optional: the range [rad] and rate [rad/s] the planner may move them in
             # (planner.flipper_angles); not part of the description's hash (no cache uses it)
             limits=obj(lower=NUM, upper=NUM, rate=POS),
         ),
     ),
     arm=obj(
-        mount=obj(xyz=VEC3, rpy=VEC3),
+        mount=obj(xyz=VEC3_M, rpy=VEC3),
         # any number of joints (the 4-DoF Cameleon, a 6-DoF variant: robots/cameleon_6dof.yaml)
         links={"type": "array", "items": LINK, "minItems": 1, "maxItems": MAX_ARM_JOINTS},
         stowed=vec_min(1),  # one angle per link
