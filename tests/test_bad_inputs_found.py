@@ -6,9 +6,11 @@ before the refusal, or an invalid input run; now one line, exit status 2, nothin
 
 from __future__ import annotations
 
+import copy
 import io
 import shutil
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -334,3 +336,45 @@ def test_a_robot_beyond_100_m_or_1e6_kg_is_refused(tmp_path, capsys):
     robot["arm"]["links"][0]["mass"] = 2e6
     with pytest.raises(ConfigError, match=r"arm.links\[0\].mass: 2000000.0 is greater than"):
         robot_from_dict(robot, "r.yaml")
+
+
+def _shipped(name: str, edit: Callable[[dict], None]) -> Callable[[dict, dict], None]:
+    """An edit of write_problem that takes problems/NAME.yaml (robot kept), then ``edit``."""
+    data = yaml.safe_load((PROBLEMS / name).read_text())
+
+    def e(p, r):
+        p.update(copy.deepcopy(data), robot=p["robot"])
+        edit(p)
+
+    return e
+
+
+@pytest.mark.parametrize(
+    "name, edit, field, message",
+    [  # ValueError: Maximum allowed size exceeded; OverflowError (34, 'Numerical result ...')
+        (
+            "kerb.yaml",
+            lambda p: p["planner"].__setitem__("spacing", 1e-300),
+            "planner.spacing",
+            "1e-300 is less than the minimum of 0.001",
+        ),
+        (
+            "rough.yaml",
+            lambda p: p["terrain"]["generate"].__setitem__("correlation_length", 1e300),
+            "terrain.generate.correlation_length",
+            "1e+300 is greater than the maximum of 1000000.0",
+        ),
+    ],
+)
+def test_planner_spacing_and_correlation_length_are_bounded(tmp_path, name, edit, field, message):
+    with pytest.raises(ConfigError) as info:
+        load_problem(write_problem(tmp_path, _shipped(name, edit)))
+    assert (info.value.field, info.value.message) == (field, message)
+
+
+def test_planned_poses_are_counted_as_sampled(tmp_path):
+    from mmstab.paths.route import route_samples
+
+    route = load_problem(write_problem(tmp_path, _shipped("kerb.yaml", lambda p: None))).route
+    for spacing in (0.25, 0.3, 1e-3, 100.0):
+        assert route.planned_poses(spacing) == len(route_samples(route.length, spacing))

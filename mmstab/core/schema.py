@@ -153,7 +153,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
         # optional: flipper angles searched per pose between the robot's flipper limits,
         # rate-limited along the path (docs/levers.md); 0 = flippers fixed (the default)
         flipper_angles={"type": "integer", "minimum": 0, "maximum": 64},
-        spacing=POS,  # optional, routes: planned poses this far apart [m]; 0.5
+        # optional, routes: planned poses this far apart [m]; 0.5; at least 1 mm (a 10 km
+        # route then plans 1e7 poses, refused by the size bounds without --force-size)
+        spacing={"type": "number", "minimum": 1e-3},
     ),
     "controller": obj(  # tracking controller, paper Eq. 7-8 (mmstab/control/controller.py)
         dt=POS,

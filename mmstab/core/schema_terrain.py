@@ -46,7 +46,8 @@ TERRAIN_KINDS: dict[str, dict[str, Any]] = {
     "bumps": {"amplitude": NONNEG, "wavelength": POS},
     "rough": {
         "amplitude": NONNEG,
-        "correlation_length": POS,
+        # at most 1000 km: its square scales the spectrum (1e300 m overflowed)
+        "correlation_length": {**POS, "maximum": 1e6},
         "hill_height": NUM,
         "hill_radius": POS,
         "slope": SLOPE,

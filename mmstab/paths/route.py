@@ -25,6 +25,7 @@ to the first posture) then falls after the run's end (a run lasts ``duration``).
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -99,7 +100,12 @@ class RoutePath:
 
         ``None``: :data:`DEFAULT_SPACING`.
         """
-        return len(route_samples(self.length, DEFAULT_SPACING if spacing is None else spacing))
+        # counted, not sampled: a spacing of 1e-300 m asks for more poses than an array holds
+        # (the planner's size bound then refuses them, naming planner.spacing's poses)
+        n = self.length / (DEFAULT_SPACING if spacing is None else spacing)
+        if not n < 2**62:
+            return 2**62
+        return max(math.ceil(n - 1e-9), 1) + 1  # = len(route_samples(...))
 
     def s_at(self, u: ArrayLike) -> FloatArray:
         """Arc length [m] reached at time fractions ``u`` (clipped to [0, 1])."""
