@@ -364,9 +364,15 @@ def _shipped(name: str, edit: Callable[[dict], None]) -> Callable[[dict, dict], 
             "terrain.generate.correlation_length",
             "1e+300 is greater than the maximum of 1000000.0",
         ),
+        (  # a map of one cell, refused naming the generator ("rough(0.03 m, 0.4 m)")
+            "rough.yaml",
+            lambda p: p["terrain"]["generate"].__setitem__("resolution", 1e300),
+            "terrain.generate.resolution",
+            "1e+300 m is coarser than the map's size [20.0, 8.0] m",
+        ),
     ],
 )
-def test_planner_spacing_and_correlation_length_are_bounded(tmp_path, name, edit, field, message):
+def test_planner_spacing_and_generator_sizes_are_bounded(tmp_path, name, edit, field, message):
     with pytest.raises(ConfigError) as info:
         load_problem(write_problem(tmp_path, _shipped(name, edit)))
     assert (info.value.field, info.value.message) == (field, message)

@@ -112,7 +112,8 @@ def _problem_case(
     prob["robot"] = "robot.yaml"
     culprit, fields, must, label = edit(prob, rob)
     files = {"problem.yaml": prob, "robot.yaml": rob, **files}
-    pose = ["0.5", "0", "0.3"] if "slope" in prob.get("terrain", {}) else ["0", "0", "0"]
+    ramp = isinstance(prob.get("terrain"), dict) and "slope" in prob["terrain"]
+    pose = ["0.5", "0", "0.3"] if ramp else ["0", "0", "0"]
     argv = ["rest", "{d}/problem.yaml", "--pose", *pose]
     return Case(f"{name}: {what}: {label}", files, argv, culprit, fields, must)
 

@@ -56,6 +56,9 @@ def check_section(problem_path: Path, section: Any) -> str:
             raise ConfigError(problem_path, "terrain.generate.kind", f"must be one of {kinds}")
         sub = schema_terrain.terrain_generate_schema(kind)
         validate(problem_path, {"terrain": {"generate": gen}}, _wrap(_wrap(sub, "generate")))
+        if gen["resolution"] > min(gen["size"]):  # 1e300: a map of one cell
+            msg = f"{gen['resolution']} m is coarser than the map's size {gen['size']} m"
+            raise ConfigError(problem_path, "terrain.generate.resolution", msg)
         return "generate"
     if "file" in section:
         validate(problem_path, {"terrain": section}, _wrap(schema_terrain.TERRAIN_FILE))
