@@ -384,3 +384,11 @@ def test_planned_poses_are_counted_as_sampled(tmp_path):
     route = load_problem(write_problem(tmp_path, _shipped("kerb.yaml", lambda p: None))).route
     for spacing in (0.25, 0.3, 1e-3, 100.0):
         assert route.planned_poses(spacing) == len(route_samples(route.length, spacing))
+
+
+def test_a_plain_npy_array_named_npz_is_one_line(tmp_path, capsys):
+    with open(tmp_path / "g.npz", "wb") as fh:
+        np.save(fh, np.zeros((40, 40)))  # TypeError: ndarray is no context manager
+    path = _terrain_problem(tmp_path, {"file": "g.npz"})
+    line = _refused(capsys, ["rest", str(path), "--pose", "0", "0", "0"])
+    assert line.endswith("g.npz: a single .npy array, not an .npz archive")

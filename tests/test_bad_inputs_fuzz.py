@@ -29,8 +29,18 @@ from mmstab.cli import main
 ROOT = Path(__file__).resolve().parents[1]
 PROBLEMS = ("ramp.yaml", "rough.yaml", "kerb.yaml", "dem.yaml", "ramp_6dof.yaml")
 ROBOTS = ("cameleon.yaml", "cameleon_6dof.yaml")
-#: Bytes that are no format at all (NUL, high bytes, a stray zip/TIFF/MCAP magic).
+
+
+def _npy() -> bytes:
+    out = io.BytesIO()
+    np.save(out, np.zeros((8, 8)))
+    return out.getvalue()
+
+
+#: Bytes that are no format at all (NUL, high bytes, a stray zip/TIFF/MCAP magic), or
+#: another one (a single .npy array).
 GARBAGE = (
+    _npy(),
     b"",
     b"\x00" * 64,
     bytes(range(256)),

@@ -102,8 +102,13 @@ def _quiet(logger: str) -> Iterator[None]:
 def load_npz(path: Path) -> Heightmap:
     """Read an ``.npz`` holding exactly ``elevation``, ``resolution`` and ``origin``."""
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
+        # opened here: np.load leaves its own handle open when the zip is garbage
+        with open(path, "rb") as fh:
+            data = np.load(fh, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # one .npy array, renamed
+                raise ConfigError(path, "", "a single .npy array, not an .npz archive")
+            with data:
+                arrays: dict[str, Any] = {k: data[k] for k in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise ConfigError(path, "", f"cannot read as .npz ({exc})") from None
     except MemoryError:  # an array header claiming more than this machine holds
