@@ -392,3 +392,16 @@ def test_a_plain_npy_array_named_npz_is_one_line(tmp_path, capsys):
     path = _terrain_problem(tmp_path, {"file": "g.npz"})
     line = _refused(capsys, ["rest", str(path), "--pose", "0", "0", "0"])
     assert line.endswith("g.npz: a single .npy array, not an .npz archive")
+
+
+def test_geotiff_tags_written_as_text_are_one_line(tmp_path, capsys):
+    import tifffile
+
+    tie = (33922, "d", 6, (0.0, 0.0, 0.0, -1.0, 1.0, 0.0), True)
+    scale_text = (33550, "s", 0, "abc", True)  # ValueError: could not convert 'a'
+    tifffile.imwrite(
+        tmp_path / "g.tif", np.zeros((20, 20), np.float32), extratags=[scale_text, tie]
+    )
+    path = _terrain_problem(tmp_path, {"file": "g.tif"})
+    line = _refused(capsys, ["rest", str(path), "--pose", "0", "0", "0"])
+    assert line.endswith("g.tif: ModelPixelScaleTag: must hold numbers, got str")

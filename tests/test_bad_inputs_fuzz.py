@@ -393,6 +393,48 @@ def bad_heightmap(rng: np.random.Generator) -> Case:
     return case
 
 
+def _geotiff(raster: np.ndarray, tags: list[tuple]) -> bytes:
+    import tifffile
+
+    out = io.BytesIO()
+    tifffile.imwrite(out, raster, extratags=tags)
+    return out.getvalue()
+
+
+def bad_geotiff(rng: np.random.Generator) -> Case:
+    """A GeoTIFF DEM with tags missing, of the wrong type or value, or the wrong raster."""
+    e = rng.normal(0.0, 0.01, (40, 40)).astype(np.float32)
+    scale = (33550, "d", 3, (0.05, 0.05, 0.0), True)
+    tie = (33922, "d", 6, (0.0, 0.0, 0.0, -1.0, 1.0, 0.0), True)
+    variants = [
+        ("no pixel scale", e, [tie], "ModelPixelScaleTag"),
+        ("no tie point", e, [scale], "ModelTiepointTag"),
+        ("scale as text", e, [(33550, "s", 0, "abc", True), tie], "ModelPixelScaleTag"),
+        ("tie as text", e, [scale, (33922, "s", 0, "abcdefgh", True)], "ModelTiepointTag"),
+        ("scale 0", e, [(33550, "d", 3, (0.0, 0.05, 0.0), True), tie], "ModelPixelScaleTag"),
+        ("integer band", e.astype(np.int16), [scale, tie], "band"),
+        ("three bands", np.stack([e] * 3, -1), [scale, tie], "band"),
+        (
+            "all nodata",
+            np.full((40, 40), -9999, np.float32),
+            [scale, tie, (42113, "s", 0, "-9999", True)],
+            "elevation",
+        ),
+        ("nodata text", e, [scale, tie, (42113, "s", 0, "xx", True)], "GDAL_NODATA"),
+        ("one pixel", e[:1, :1], [scale, tie], "elevation"),
+    ]
+    label, raster, tags, field = variants[rng.integers(len(variants))]
+
+    def edit(prob: dict, rob: dict) -> tuple:
+        prob["terrain"] = {"file": "ground.tif"}
+        return "ground.tif", (field,), True, label
+
+    case = _problem_case(rng, "geotiff", edit)
+    case.files["ground.tif"] = _geotiff(raster, tags)
+    case.argv[-3:] = ["0", "0", "0"]
+    return case
+
+
 def bad_route_file(rng: np.random.Generator) -> Case:
     """``path: {file: route.csv}``: garbage, one waypoint, NaN, ragged, a folder."""
     rows = ["x,y", "-3.0,0.0", "0.0,0.5", "3.0,0.0"]
@@ -461,6 +503,7 @@ SAMPLERS = (
     broken_yaml,
     bad_terrain_file,
     bad_heightmap,
+    bad_geotiff,
     bad_route_file,
     garbage_recording,
     robot_command,

@@ -166,7 +166,7 @@ def load_geotiff(path: Path) -> Heightmap:
         raise ConfigError(path, "ModelPixelScaleTag", "missing: the pixel size is unknown")
     if tie is None or len(tie) < 6:
         raise ConfigError(path, "ModelTiepointTag", "missing: the origin is unknown")
-    sx, sy = float(scale[0]), float(scale[1])
+    sx, sy = _numbers(path, "ModelPixelScaleTag", scale, 2)
     if not (np.isfinite(sx) and np.isfinite(sy) and sx > 0 and sy > 0):
         raise ConfigError(path, "ModelPixelScaleTag", f"pixel size must be > 0, got {sx}, {sy}")
     if abs(sx - sy) > 1e-9 * max(sx, sy):
@@ -178,11 +178,19 @@ def load_geotiff(path: Path) -> Heightmap:
         except ValueError:
             raise ConfigError(path, "GDAL_NODATA", f"not a number: {nodata!r}") from None
         elevation[elevation == nd] = np.nan
-    i, j, x_tie, y_tie = float(tie[0]), float(tie[1]), float(tie[3]), float(tie[4])
+    i, j, _, x_tie, y_tie = _numbers(path, "ModelTiepointTag", tie, 5)
     half = 0.5 if keys.get(KEY_RASTER_TYPE, PIXEL_IS_AREA) == PIXEL_IS_AREA else 0.0
     rows = elevation.shape[0]
     origin = np.array([x_tie + (half - i) * sx, y_tie - (rows - 1 + half - j) * sy])
     return Heightmap.build(elevation[::-1], sx, origin, str(path))
+
+
+def _numbers(path: Path, tag: str, value: Any, n: int) -> list[float]:
+    """The first ``n`` numbers of a tag's value (a tag written as text is refused by name)."""
+    try:
+        return [float(v) for v in value[:n]]
+    except (TypeError, ValueError):
+        raise ConfigError(path, tag, f"must hold numbers, got {type(value).__name__}") from None
 
 
 def write_geotiff(path: str | os.PathLike[str], heightmap: Heightmap) -> Path:
