@@ -405,3 +405,19 @@ def test_geotiff_tags_written_as_text_are_one_line(tmp_path, capsys):
     path = _terrain_problem(tmp_path, {"file": "g.tif"})
     line = _refused(capsys, ["rest", str(path), "--pose", "0", "0", "0"])
     assert line.endswith("g.tif: ModelPixelScaleTag: must hold numbers, got str")
+
+
+def test_follow_refuses_a_garbage_recording_before_building_anything(tmp_path, capsys, monkeypatch):
+    import mmstab.runs.online.run as run
+
+    def build(*args, **kwargs):
+        raise AssertionError("V and the roadmap were built before the recording was read")
+
+    monkeypatch.setattr(run, "build_follower", build)
+    bag = tmp_path / "run.bag"
+    bag.write_bytes(b"\x89MCAP0\r\n" + b"\x01" * 40)  # 20 s of workspace build, then refused
+    out = tmp_path / "out"
+    line = _refused(
+        capsys, ["follow", str(PROBLEMS / "rough.yaml"), "--bag", str(bag), "-o", str(out)]
+    )
+    assert "run.bag: not a readable recording" in line and not out.exists()

@@ -10,6 +10,7 @@ and the tip-over verdict; :func:`run_frames` the run as a recording's frames
 from __future__ import annotations
 
 import gc
+import itertools
 import os
 from dataclasses import dataclass
 from typing import Any
@@ -17,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.problem import Problem
-from mmstab.runs.online.follow import FollowStep, build_follower
+from mmstab.runs.online.follow import FollowSettings, FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
 from mmstab.runs.online.stream import map_updates
 from mmstab.runs.recording import RunFrames, joint_names
@@ -63,17 +64,21 @@ def follow_recording(
     Raises:
         ConfigError: an unreadable recording, missing topics, bad maps (one line each).
     """
-    follower = build_follower(problem, workspace)
     skipped = [0]
     steps = []
-    s = follower.settings
+    s = FollowSettings.of(problem)
     joints = None if s.joints_topic is None else (s.joints_topic, joint_names(problem.robot))
+    updates = map_updates(path, s.map_topic, s.odom_topic, skipped, joints)
+    # the first map read before V and the roadmap are built: a garbage recording or a missing
+    # topic is refused at once (it took a workspace build, 20 s without a cache, before)
+    first = list(itertools.islice(updates, 1))
+    follower = build_follower(problem, workspace)
     # the set-up's objects (V, the roadmap, CasADi's) out of the collector's full passes: one
     # such pass over them took 63 ms on a map of the rough route, now each scans the loop's own
     gc.collect()
     gc.freeze()
     try:
-        for u in map_updates(path, s.map_topic, s.odom_topic, skipped, joints):
+        for u in itertools.chain(first, updates):
             steps.append(follower.update(u))
             if limit is not None and len(steps) >= limit:
                 break
