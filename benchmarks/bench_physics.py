@@ -59,12 +59,21 @@ def model_alone(
 
 
 def closed_loop(
-    problem_path: str, seconds: float, backend: str, settings: ModelSettings | None
+    problem_path: str,
+    seconds: float,
+    backend: str,
+    settings: ModelSettings | None,
+    on_time: bool = False,
 ) -> tuple[float, float]:
-    """Real-time factors (wall, CPU) of the problem's closed loop (controller included)."""
+    """Real-time factors (wall, CPU) of the problem's closed loop (controller included).
+
+    ``on_time``: without the reference governor (``physics.governor: null``), its peer.
+    """
     problem = load_problem(problem_path)
     cs = controller_settings(problem)
     loop = dataclasses.replace(loop_settings(problem), duration=seconds)
+    if on_time:
+        loop = dataclasses.replace(loop, governor=None)
     if backend == "generated":
         cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
         step = app.generated_step(problem).function
@@ -78,7 +87,8 @@ def closed_loop(
 def cases(seconds: float) -> dict[str, Callable[[], tuple[float, float]]]:
     """Every case, by name: ``<what>_<ground>[_<backend>]`` on the default model.
 
-    Then the same with ``_cylinder_2ms``: the peer, the model before.
+    Then the same with ``_cylinder_2ms``: the peer, the model before; and the closed loops
+    with ``_no_governor``: the reference on time, the reference governor's peer.
     """
     out: dict[str, Callable[[], tuple[float, float]]] = {}
     for suffix, model in (("", None), ("_cylinder_2ms", CYLINDER_2MS)):
@@ -96,6 +106,11 @@ def cases(seconds: float) -> dict[str, Callable[[], tuple[float, float]]]:
                     ROUGH, seconds, b, m
                 ),
             }
+    for ground, path in (("plane", PLANE), ("rough", ROUGH)):  # the governor's peer: on time
+        for backend in ("interpreted", "generated"):
+            out[f"closed_loop_{ground}_{backend}_no_governor"] = lambda p=path, b=backend: (
+                closed_loop(p, seconds, b, None, on_time=True)
+            )
     return out
 
 

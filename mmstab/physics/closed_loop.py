@@ -173,8 +173,10 @@ def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
     return np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
 
 
-def read_back(sim: RobotSim, M_T_G: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(pose (x, y, heading) in M, G_T_B (4, 4), arm angles) now.
+def read_back(
+    sim: RobotSim, M_T_G: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(pose (x, y, heading) in M, G_T_B (4, 4), arm angles, M_T_B (4, 4)) now.
 
     :meth:`RobotSim.state`'s part the loop needs, without its attitude and velocities (it
     runs every control period).
@@ -184,7 +186,7 @@ def read_back(sim: RobotSim, M_T_G: FloatArray) -> tuple[FloatArray, FloatArray,
     G_T_B[:3, :3], G_T_B[:3, 3] = d.xmat[b].reshape(3, 3), d.xpos[b]
     M_T_B = M_T_G @ G_T_B
     pose = np.array([M_T_B[0, 3], M_T_B[1, 3], np.arctan2(M_T_B[1, 0], M_T_B[0, 0])])
-    return pose, G_T_B, d.qpos[sim.arm_qpos]
+    return pose, G_T_B, d.qpos[sim.arm_qpos], M_T_B
 
 
 class BufferedStep:
@@ -272,13 +274,13 @@ def run_closed_loop(
     qdots, status, clock_t = np.zeros((steps, 2 + n)), np.zeros(steps), np.zeros(steps + 1)
     checks, positions = TipCheck(problem, loop.tip_angle), []
     controller = BufferedStep(step, 5 + n, ref_map.shape[1], params)
-    pose, G_T_B, arm_q = read_back(sim, M_T_G)
+    pose, G_T_B, arm_q, M_T_B = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
     target = state[-n:].copy()
     t0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(steps + 1):
         states[k], clock_t[k] = state, clock.row * dt
-        ref, ref_map[k] = clock.rows(M_T_G @ G_T_B)
+        ref, ref_map[k] = clock.rows(M_T_B)
         last = clock.done or clock.stalled(k) or k == steps
         if k % every == 0 or last:
             positions.append(sim.data.qpos.copy())  # contacts and μ after the run
@@ -289,7 +291,7 @@ def run_closed_loop(
         target = target + qdots[k, 2:] * dt
         sim.advance(drive.belts(qdots[k, :2]), target, substeps, qdots[k, 2:])
         sprockets = state[3:5] + qdots[k, :2] * dt
-        pose, G_T_B, arm_q = read_back(sim, M_T_G)
+        pose, G_T_B, arm_q, M_T_B = read_back(sim, M_T_G)
         state = np.concatenate([pose, sprockets, arm_q])
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
