@@ -80,6 +80,7 @@ def test_exclusions_keep_a_pose_no_posture_climbs(kerb) -> None:
     assert np.array_equal(out[1], eligible & (x > 0.0))
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # no NumPy noise on stderr either
 def test_the_ground_ahead_may_end_at_the_map_edge(kerb) -> None:
     """A pose whose look-ahead leaves the map (a route ending near the edge) has no step
     there, as off-map samples mean "no ground to meet"; it used to raise OffMapError."""

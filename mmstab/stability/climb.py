@@ -136,8 +136,10 @@ def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
     j = centre.argmax(axis=-1)
     top = np.take_along_axis(centre, j[..., None], -1)[..., 0]
     touch = np.take_along_axis(windows, j[..., None], -1)[..., 0]
-    # a sample at or above the centre pushes the wheel down: a wall (sin θ <= 0, no climb)
-    sin_roll = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
+    # a sample at or above the centre pushes the wheel down: a wall (sin θ <= 0, no climb);
+    # with no ground in the window (off the map: -inf) top - touch is NaN but unused
+    with np.errstate(invalid="ignore"):
+        sin_roll = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
     k = int(sin_roll.argmin())
     return float(sin_roll.ravel()[k]), float((k % sin_roll.shape[1]) * SAMPLE_STEP)
 
