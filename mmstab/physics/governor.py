@@ -75,11 +75,9 @@ class ReferenceClock:
         self.wait = 0 if settings is None else int(round(settings.wait_limit / dt))
         self.max_steps = self.last + self.wait
         self.row = 0.0  # the governed time in rows of the table
-        arm = (control.shape[1] - 15) // 2
-        o = StepReference.offsets(arm)
-        self.rates = np.r_[np.arange(o["xi_dot_ref"].start, o["xi_dot_ref"].stop),
-                           np.arange(o["q_dot_ref"].start, o["q_dot_ref"].stop)]  # fmt: skip
-        self.heading = o["xi_des"].start + 2
+        column = StepReference.unpack(np.arange(control.shape[1]))  # each field's columns
+        self.rates = np.r_[column.xi_dot_ref, column.q_dot_ref]
+        self.x, self.y, self.heading = (int(c) for c in column.xi_des[:3])
         self.rate = 1.0
 
     @property
@@ -110,8 +108,8 @@ class ReferenceClock:
         i = int(self.row)  # scalar work: ~10 µs a period would cost the loop 2-6 % of its speed
         f = self.row - i
         control, errors = self._at(self.tables[0], i, f), self._at(self.tables[1], i, f)
-        dx = errors[0] - M_T_B[0, 3] - self.offset * M_T_B[0, 0]
-        dy = errors[1] - M_T_B[1, 3] - self.offset * M_T_B[1, 0]
+        dx = errors[self.x] - M_T_B[0, 3] - self.offset * M_T_B[0, 0]
+        dy = errors[self.y] - M_T_B[1, 3] - self.offset * M_T_B[1, 0]
         self.rate = clock_rate(math.hypot(dx, dy), self.settings)
         if self.rate != 1.0:
             control[self.rates] *= self.rate
