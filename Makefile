@@ -115,7 +115,8 @@ verdicts: setup
 	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
 
 ## issue 25: mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
-## -> results/skid/summary.json, skid.png (docs/physics.md, "Sliding in turns")
+## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
+## (docs/physics.md, "Sliding in turns")
 .PHONY: skid
 SKID ?= problems/skid.yaml
 skid: setup

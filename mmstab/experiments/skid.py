@@ -7,7 +7,9 @@ For every slope × heading × command the robot is driven on a MuJoCo ramp
 steady twist of :func:`mmstab.stability.skid.skid_twist` for the same belt speeds, gravity and
 CoM. ``make skid`` (``python -m mmstab.experiments.skid``) writes ``results/skid/summary.json``
 (every case; the medians of the slide per radian of heading change and of the turn rate,
-model over MuJoCo) and ``skid.png``. ``docs/physics.md``, "Sliding in turns", explains them.
+model over MuJoCo) and ``skid.png``; with a ``rough_ground`` section, the same along a
+route over a heightmap (:mod:`mmstab.experiments.skid_rough`, ``rough.png``).
+``docs/physics.md``, "Sliding in turns", explains them.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_figure, write_json
+from mmstab.experiments import skid_rough
+from mmstab.experiments.skid_rough import check_section
 from mmstab.physics.skid_sim import measure_twist
 from mmstab.stability.skid import skid_twist, track_patch
 
@@ -45,6 +49,8 @@ def load_settings(path: str | Path) -> dict[str, Any]:
     if not float(data["friction"]) > 0:
         raise ConfigError(path, "friction", "must be > 0")
     data["problem"] = str(Path(path).parent / data["problem"])
+    if "rough_ground" in data:
+        data["rough_ground"] = check_section(path, data["rough_ground"])
     return data
 
 
@@ -88,6 +94,10 @@ def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> 
     }  # fmt: skip
 
 
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
 def _per_radian(twist: dict[str, Any]) -> float:
     """Downhill slide per radian turned [m/rad]."""
     return float(twist["downhill"] / max(abs(twist["yaw_rate"]), 1e-9))
@@ -102,19 +112,17 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
     rates = [c["model"]["yaw_rate"] / c["mujoco"]["yaw_rate"] for c in turning]
     straight = [c for c in cases if c["yaw_rate_commanded"] == 0 and c["speed"] != 0]
     stuck = [c for c in cases if c["yaw_rate_commanded"] != 0 and c not in turning]
+    ratios = [b / a for a, b in slides]
     return {
         "cases": len(cases),
         "turning_cases": len(turning),
-        "slide_per_radian_ratio_median": float(np.median([b / a for a, b in slides])),
-        "slide_per_radian_ratio_range": [
-            float(min(b / a for a, b in slides)),
-            float(max(b / a for a, b in slides)),
-        ],  # fmt: skip
-        "slide_per_radian_abs_error_median_m": float(np.median([abs(b - a) for a, b in per_rad])),
-        "turn_rate_ratio_median": float(np.median(rates)),
+        "slide_per_radian_ratio_median": _median(ratios),
+        "slide_per_radian_ratio_range": [min(ratios), max(ratios)] if ratios else None,
+        "slide_per_radian_abs_error_median_m": _median([abs(b - a) for a, b in per_rad]),
+        "turn_rate_ratio_median": _median(rates),
         "straight_downhill_max_m_s": {
-            "mujoco": float(max(abs(c["mujoco"]["downhill"]) for c in straight)),
-            "model": float(max(abs(c["model"]["downhill"]) for c in straight)),
+            k: max((abs(c[k]["downhill"]) for c in straight), default=None)
+            for k in ("mujoco", "model")
         },
         "cannot_turn": [
             {k: c[k] for k in ("slope_deg", "heading_deg", "command")}
@@ -156,11 +164,26 @@ def run_skid(settings: dict[str, Any], out: str | Path) -> dict[str, Any]:
     cases = run_cases(settings)
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
-    summary = {"settings": settings, **summarize(cases),
-               "seconds": time.perf_counter() - t0, "all_cases": cases}  # fmt: skip
+    summary = {"settings": settings, **summarize(cases), "all_cases": cases}
     figure(cases, d / "skid.png")
+    if "rough_ground" in settings:
+        from mmstab.core.problem import load_problem
+
+        robot = load_problem(settings["problem"]).robot
+        rough = skid_rough.run_cases(robot, settings["rough_ground"], settings["sim"])
+        summary["rough_ground"] = {**skid_rough.summarize(rough), "all_cases": rough}
+        skid_rough.figure(rough, d / "rough.png")
+    summary["seconds"] = time.perf_counter() - t0
     write_json(d / "summary.json", summary)
     return summary
+
+
+def _cm(speed: float | None) -> str:
+    return "n/a" if speed is None else f"{100 * speed:.1f} cm/s"
+
+
+def _ratio(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.2f}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -176,10 +199,23 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(
         f"{s['turning_cases']}/{s['cases']} cases turn; slide per radian, model/MuJoCo: median "
-        f"{s['slide_per_radian_ratio_median']:.2f}; turn rate model/MuJoCo: median "
-        f"{s['turn_rate_ratio_median']:.2f}"
+        f"{_ratio(s['slide_per_radian_ratio_median'])}; turn rate model/MuJoCo: median "
+        f"{_ratio(s['turn_rate_ratio_median'])}"
     )
-    print(f"-> {args.out}/summary.json, skid.png ({s['seconds']:.0f} s)")
+    if "rough_ground" in s:
+        r = s["rough_ground"]
+        up, down = r["turns_uphill"], r["turns_downhill"]
+        print(
+            f"rough ground: {r['cases']} cases; straight, downhill creep max MuJoCo "
+            f"{_cm(r['straight']['mujoco_downhill_max_m_s'])} / model "
+            f"{_cm(r['straight']['model_downhill_max_m_s'])}; yaw over commanded toward uphill "
+            f"{_ratio(up['mujoco_yaw_over_commanded_median'])} / "
+            f"{_ratio(up['model_yaw_over_commanded_median'])}, toward downhill "
+            f"{_ratio(down['mujoco_yaw_over_commanded_median'])} / "
+            f"{_ratio(down['model_yaw_over_commanded_median'])} (MuJoCo / model)"
+        )
+    figures = "skid.png, rough.png" if "rough_ground" in s else "skid.png"
+    print(f"-> {args.out}/summary.json, {figures} ({s['seconds']:.0f} s)")
     return 0
 
 

@@ -1,7 +1,8 @@
 """The whole robot skid-steering on a MuJoCo ramp: the twist its tracks actually give.
 
 :func:`measure_twist` sets the robot (its arm held at a posture) on a planar ramp at a
-heading, drives its two tracks at constant surface speeds and averages the twist of the body
+heading (:func:`measure_twist_at`: at a pose on any ground, a heightmap's included), drives
+its two tracks at constant surface speeds and averages the twist of the body
 frame B over a window after a start-up transient: the velocity of B's origin in B and the
 yaw rate about the ramp's normal. It is the physics side of
 :mod:`mmstab.stability.skid` (``make skid``, ``tests/test_physics_skid.py``).
@@ -17,6 +18,7 @@ from numpy.typing import ArrayLike
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim
+from mmstab.terrain.base import Terrain
 from mmstab.terrain.factory import planar_terrain
 
 
@@ -65,6 +67,45 @@ def measure_twist(
     """
     plane = planar_terrain(slope, friction)
     sim = RobotSim(robot, plane, pose=(0.0, 0.0, heading), arm_q=arm_q, settings=settings)
+    return _drive(sim, belt_speeds, settle, transient, duration, samples)
+
+
+def measure_twist_at(
+    robot: Robot,
+    ground: Terrain,
+    pose: ArrayLike,
+    belt_speeds: ArrayLike,
+    arm_q: ArrayLike | None = None,
+    *,
+    settle: float = 0.5,
+    transient: float = 0.5,
+    duration: float = 2.0,
+    samples: int = 40,
+    settings: ModelSettings | None = None,
+) -> MeasuredTwist:
+    """:func:`measure_twist` at a pose on any ground (a heightmap's heightfield, its friction).
+
+    Args:
+        robot: the robot.
+        ground: the terrain (its friction is the contacts').
+        pose: the base's start (x [m], y [m], heading [rad]) in the terrain's map frame.
+        belt_speeds: (left, right) track surface speeds [m/s].
+        arm_q: the arm's posture [rad]; None: stowed.
+        settle: braked time to set the robot down [s].
+        transient: driven time before the window [s].
+        duration: the measuring window [s].
+        samples: states read in the window [-].
+        settings: the MuJoCo model's numbers (default: the closed loop's model).
+    """
+    sim = RobotSim(robot, ground, pose=pose, arm_q=arm_q, settings=settings)
+    return _drive(sim, belt_speeds, settle, transient, duration, samples)
+
+
+def _drive(
+    sim: RobotSim, belt_speeds: ArrayLike, settle: float, transient: float, duration: float,
+    samples: int,
+) -> MeasuredTwist:  # fmt: skip
+    """Brake ``settle`` [s], drive ``transient`` [s], then average B's twist over ``duration``."""
     belts = tuple(float(v) for v in np.asarray(belt_speeds, dtype=float))
     sim.step((0.0, 0.0), None, settle)
     state = sim.step(belts, None, transient)
