@@ -46,11 +46,11 @@ def test_a_plane_heightmap_gives_the_ramps_twist(robot, v, w):
     assert abs(on_map.velocity_body[1]) > 0.03  # it does slide downhill while it turns
 
 
-def test_turns_are_named_by_the_side_they_swing_the_nose_to():
+def test_turns_are_named_by_the_side_they_swing_the_nose_to(robot):
     """Left side uphill (gravity in B toward -y): a left turn swings the nose uphill."""
     g = 9.81 * np.array([0.0, -np.sin(0.4), -np.cos(0.4)])
     twist = MeasuredTwist(np.array([0.25, -0.01]), 0.1, g)
-    model = skid_twist(track_patch_for_test(), g, [0.0, 0.0, 0.1], (0.2, 0.3), 0.7)
+    model = skid_twist(track_patch(robot), g, [0.0, 0.0, 0.1], (0.2, 0.3), 0.7)
     left = _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), twist, model)
     right = _case(1.0, (0, 0, 0), "arc_right", (0.25, -0.2), twist, model)
     straight = _case(1.0, (0, 0, 0), "straight", (0.25, 0.0), twist, model)
@@ -59,12 +59,6 @@ def test_turns_are_named_by_the_side_they_swing_the_nose_to():
     assert left["mujoco"]["downhill"] == pytest.approx(0.01)  # (0.25, -0.01) less (0.25, 0)
     level = MeasuredTwist(np.array([0.25, 0.0]), 0.1, np.array([0.0, 0.0, -9.81]))
     assert _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), level, model)["toward"] is None
-
-
-def track_patch_for_test():
-    from mmstab.model.robot import load_robot
-
-    return track_patch(load_robot(ROOT / "problems" / "robots" / "cameleon.yaml"))
 
 
 def test_route_poses_are_spaced_along_the_path():

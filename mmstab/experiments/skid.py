@@ -23,8 +23,6 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_figure, write_json
-from mmstab.experiments import skid_rough
-from mmstab.experiments.skid_rough import check_section
 from mmstab.physics.skid_sim import measure_twist
 from mmstab.stability.skid import skid_twist, track_patch
 
@@ -50,6 +48,8 @@ def load_settings(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "friction", "must be > 0")
     data["problem"] = str(Path(path).parent / data["problem"])
     if "rough_ground" in data:
+        from mmstab.experiments.skid_rough import check_section  # it builds on this module
+
         data["rough_ground"] = check_section(path, data["rough_ground"])
     return data
 
@@ -94,11 +94,12 @@ def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> 
     }  # fmt: skip
 
 
-def _median(values: list[float]) -> float | None:
+def median(values: list[float]) -> float | None:
+    """The median of ``values``; None for none."""
     return float(np.median(values)) if values else None
 
 
-def _per_radian(twist: dict[str, Any]) -> float:
+def per_radian(twist: dict[str, Any]) -> float:
     """Downhill slide per radian turned [m/rad]."""
     return float(twist["downhill"] / max(abs(twist["yaw_rate"]), 1e-9))
 
@@ -107,7 +108,7 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
     """Medians over the turning cases: slide per radian and turn rate, model over MuJoCo."""
     turning = [c for c in cases if abs(c["mujoco"]["yaw_rate"]) >= TURNING]
     sloped = [c for c in turning if c["slope_deg"] > 0 and abs(c["model"]["yaw_rate"]) > 0]
-    per_rad = [(_per_radian(c["mujoco"]), _per_radian(c["model"])) for c in sloped]
+    per_rad = [(per_radian(c["mujoco"]), per_radian(c["model"])) for c in sloped]
     slides = [(a, b) for a, b in per_rad if a > 0.02]  # a slide worth a ratio: > 2 cm/rad
     rates = [c["model"]["yaw_rate"] / c["mujoco"]["yaw_rate"] for c in turning]
     straight = [c for c in cases if c["yaw_rate_commanded"] == 0 and c["speed"] != 0]
@@ -116,10 +117,10 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "cases": len(cases),
         "turning_cases": len(turning),
-        "slide_per_radian_ratio_median": _median(ratios),
+        "slide_per_radian_ratio_median": median(ratios),
         "slide_per_radian_ratio_range": [min(ratios), max(ratios)] if ratios else None,
-        "slide_per_radian_abs_error_median_m": _median([abs(b - a) for a, b in per_rad]),
-        "turn_rate_ratio_median": _median(rates),
+        "slide_per_radian_abs_error_median_m": median([abs(b - a) for a, b in per_rad]),
+        "turn_rate_ratio_median": median(rates),
         "straight_downhill_max_m_s": {
             k: max((abs(c[k]["downhill"]) for c in straight), default=None)
             for k in ("mujoco", "model")
@@ -143,8 +144,8 @@ def figure(cases: list[dict[str, Any]], path: Path) -> None:
     turning = [c for c in cases if abs(c["mujoco"]["yaw_rate"]) >= TURNING]
     fig, (a, b) = plt.subplots(1, 2, figsize=(9, 4))
     slope = [c["slope_deg"] for c in turning]
-    x = [_per_radian(c["mujoco"]) for c in turning]
-    y = [_per_radian(c["model"]) for c in turning]
+    x = [per_radian(c["mujoco"]) for c in turning]
+    y = [per_radian(c["model"]) for c in turning]
     sc = a.scatter(x, y, c=slope, cmap="viridis", s=18)
     top = max(max(x), max(y)) * 1.05
     a.plot([0, top], [0, top], "k--", lw=0.8)
@@ -168,6 +169,7 @@ def run_skid(settings: dict[str, Any], out: str | Path) -> dict[str, Any]:
     figure(cases, d / "skid.png")
     if "rough_ground" in settings:
         from mmstab.core.problem import load_problem
+        from mmstab.experiments import skid_rough
 
         robot = load_problem(settings["problem"]).robot
         rough = skid_rough.run_cases(robot, settings["rough_ground"], settings["sim"])

@@ -21,10 +21,8 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError, write_figure
+from mmstab.experiments.skid import TURNING, median, per_radian
 
-#: Turns whose MuJoCo yaw rate is below this are left out of the slide per radian [rad/s]
-#: (as on the ramp grid).
-TURNING = 0.05
 #: A turn counts toward uphill or downhill when the slope's in-plane gravity is at least
 #: this share of g (about 3 degrees of tilt) [-].
 SLOPED = 0.05
@@ -119,17 +117,8 @@ def _finite(x: Any) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def _per_radian(twist: dict[str, Any]) -> float:
-    """Downhill slide per radian turned [m/rad]."""
-    return float(twist["downhill"] / max(abs(twist["yaw_rate"]), 1e-9))
-
-
 def _nan(x: float | None) -> float:
     return float("nan") if x is None else x
-
-
-def _median(values: list[float]) -> float | None:
-    return float(np.median(values)) if values else None
 
 
 def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
@@ -139,7 +128,8 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
     and the median downhill creep driving straight, the poses where MuJoCo creeps more than
     1 cm/s; the median yaw rate over the commanded one for turns toward uphill and downhill,
     and the downhill slide per radian of the turns that turn (MuJoCo at least
-    :data:`TURNING`): each side's median, and the model's over MuJoCo's.
+    :data:`~mmstab.experiments.skid.TURNING`, as on the ramp grid): each side's median, and
+    the model's over MuJoCo's.
     """
     held = [c for c in cases if c["model"]["holds"]]
     straight = [c for c in held if c["yaw_rate_commanded"] == 0 and c["speed"] != 0]
@@ -150,7 +140,7 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
         "straight": {
             "poses": len(straight),
             "mujoco_downhill_max_m_s": max(creep["mujoco"], default=None),
-            "mujoco_downhill_median_m_s": _median(creep["mujoco"]),
+            "mujoco_downhill_median_m_s": median(creep["mujoco"]),
             "model_downhill_max_m_s": max(creep["model"], default=None),
             "mujoco_creeps_over_1cm_s": [
                 {
@@ -168,17 +158,17 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
         turns = [c for c in held if c["toward"] == toward]
         out[f"turns_{toward}"] = {
             "cases": len(turns),
-            **{f"{k}_yaw_over_commanded_median": _median(
+            **{f"{k}_yaw_over_commanded_median": median(
                 [c[k]["yaw_rate"] / c["yaw_rate_commanded"] for c in turns])
                for k in ("mujoco", "model")},
-            **{f"{k}_slide_per_radian_median_m": _median(
-                [_per_radian(c[k]) for c in turning if c["toward"] == toward])
+            **{f"{k}_slide_per_radian_median_m": median(
+                [per_radian(c[k]) for c in turning if c["toward"] == toward])
                for k in ("mujoco", "model")},
         }  # fmt: skip
-    ratio = [_per_radian(c["model"]) / _per_radian(c["mujoco"]) for c in turning]
+    ratio = [per_radian(c["model"]) / per_radian(c["mujoco"]) for c in turning]
     out["slide_per_radian_model_over_mujoco"] = {
         "cases": len(ratio),
-        "median": _median(ratio),
+        "median": median(ratio),
         "p5_p95": [float(np.percentile(ratio, q)) for q in (5, 95)] if ratio else None,
     }
     return out

@@ -66,8 +66,9 @@ def measure_twist(
         settings: the MuJoCo model's numbers (default: the closed loop's model).
     """
     plane = planar_terrain(slope, friction)
-    sim = RobotSim(robot, plane, pose=(0.0, 0.0, heading), arm_q=arm_q, settings=settings)
-    return _drive(sim, belt_speeds, settle, transient, duration, samples)
+    return measure_twist_at(robot, plane, (0.0, 0.0, heading), belt_speeds, arm_q,
+                            settle=settle, transient=transient, duration=duration,
+                            samples=samples, settings=settings)  # fmt: skip
 
 
 def measure_twist_at(
@@ -98,14 +99,6 @@ def measure_twist_at(
         settings: the MuJoCo model's numbers (default: the closed loop's model).
     """
     sim = RobotSim(robot, ground, pose=pose, arm_q=arm_q, settings=settings)
-    return _drive(sim, belt_speeds, settle, transient, duration, samples)
-
-
-def _drive(
-    sim: RobotSim, belt_speeds: ArrayLike, settle: float, transient: float, duration: float,
-    samples: int,
-) -> MeasuredTwist:  # fmt: skip
-    """Brake ``settle`` [s], drive ``transient`` [s], then average B's twist over ``duration``."""
     belts = tuple(float(v) for v in np.asarray(belt_speeds, dtype=float))
     sim.step((0.0, 0.0), None, settle)
     state = sim.step(belts, None, transient)
