@@ -23,13 +23,13 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_figure, write_json
+from mmstab.experiments import skid_rough
+from mmstab.experiments.skid_measures import TURNING, median, per_radian
 from mmstab.physics.skid_sim import measure_twist
 from mmstab.stability.skid import skid_twist, track_patch
 
 #: Keys the settings file must have.
 REQUIRED = ("problem", "friction", "slopes_deg", "headings_deg", "commands", "sim")
-#: Turning cases whose MuJoCo yaw rate is below this are reported, not ratioed [rad/s].
-TURNING = 0.05
 
 
 def load_settings(path: str | Path) -> dict[str, Any]:
@@ -48,9 +48,7 @@ def load_settings(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "friction", "must be > 0")
     data["problem"] = str(Path(path).parent / data["problem"])
     if "rough_ground" in data:
-        from mmstab.experiments.skid_rough import check_section  # it builds on this module
-
-        data["rough_ground"] = check_section(path, data["rough_ground"])
+        data["rough_ground"] = skid_rough.check_section(path, data["rough_ground"])
     return data
 
 
@@ -92,16 +90,6 @@ def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> 
         "model": {"velocity_body": p.velocity_body[0].tolist(), "yaw_rate": float(p.yaw_rate[0]),
                   "downhill": model, "holds": bool(p.holds[0])},
     }  # fmt: skip
-
-
-def median(values: list[float]) -> float | None:
-    """The median of ``values``; None for none."""
-    return float(np.median(values)) if values else None
-
-
-def per_radian(twist: dict[str, Any]) -> float:
-    """Downhill slide per radian turned [m/rad]."""
-    return float(twist["downhill"] / max(abs(twist["yaw_rate"]), 1e-9))
 
 
 def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
@@ -169,7 +157,6 @@ def run_skid(settings: dict[str, Any], out: str | Path) -> dict[str, Any]:
     figure(cases, d / "skid.png")
     if "rough_ground" in settings:
         from mmstab.core.problem import load_problem
-        from mmstab.experiments import skid_rough
 
         robot = load_problem(settings["problem"]).robot
         rough = skid_rough.run_cases(robot, settings["rough_ground"], settings["sim"])

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError, write_figure
-from mmstab.experiments.skid import TURNING, median, per_radian
+from mmstab.experiments.skid_measures import TURNING, median, per_radian
 
 #: A turn counts toward uphill or downhill when the slope's in-plane gravity is at least
 #: this share of g (about 3 degrees of tilt) [-].
@@ -128,7 +128,7 @@ def summarize(cases: list[dict[str, Any]]) -> dict[str, Any]:
     and the median downhill creep driving straight, the poses where MuJoCo creeps more than
     1 cm/s; the median yaw rate over the commanded one for turns toward uphill and downhill,
     and the downhill slide per radian of the turns that turn (MuJoCo at least
-    :data:`~mmstab.experiments.skid.TURNING`, as on the ramp grid): each side's median, and
+    :data:`~mmstab.experiments.skid_measures.TURNING`, as on the ramp grid): each side's median, and
     the model's over MuJoCo's.
     """
     held = [c for c in cases if c["model"]["holds"]]
