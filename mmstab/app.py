@@ -24,8 +24,8 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem, problem_from_dict
-from mmstab.stability.static import StabilityCases
-from mmstab.stability.static import stability_along as _stability_along
+from mmstab.stability.support import StabilityCases
+from mmstab.stability.support import stability_along as _stability_along
 
 if TYPE_CHECKING:
     from mmstab.planner import Plan, RoutePlan

@@ -198,7 +198,9 @@ def test_plan_and_track_a_route_on_the_roadmap_from_the_cli(tmp_path):
 
     data = rough_data(waypoints=[[-3.0, -0.6], [-1.0, -0.2]], speed=0.25)
     data["terrain"]["friction"] = 1.0  # a 36 deg pose would slide at 0.7 (exit 4)
-    data["planner"].update(method="roadmap", spacing=0.5)
+    # rough.yaml's margin 250 is passed between its poses on the loaded support (a few road
+    # wheels carry the downhill side: ~65 N rad; test_route_plan checks that refusal)
+    data["planner"].update(method="roadmap", spacing=0.5, margin=0.0)
     data["controller"]["dt"] = 0.005
     problem = write(tmp_path, data, "route.yaml")
     out = _cli(["plan", str(problem), "-o", "plan"], tmp_path)
@@ -218,8 +220,10 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
     from mmstab.core.problem import load_problem
     from mmstab.experiments.routes import run_route_plan
     from mmstab.planner import gravity_body_at
+    from mmstab.planner.fitness import support_polygons_at
     from mmstab.planner.roadmap import node_coms
-    from mmstab.stability.static import stability_along
+    from mmstab.stability.static import force_angle_batch
+    from mmstab.stability.support import stability_along
 
     data = rough_data(waypoints=[[-3.0, -0.6], [-1.0, 0.2]])
     data["planner"].update(method="roadmap", spacing=1.0)
@@ -249,17 +253,28 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
     coms = node_coms(problem.robot, rm)[
         (rm.component == rm.component[rm.nearest(problem.robot.stowed)[0]]) & above
     ]
-    # independent: μ of every reachable node at every pose through stability_along
+    # independent: μ of every reachable node at every pose on the search's basis (the
+    # contacts that carry the stowed robot's load at its rest: its stowed μ is the plan's)
     g = gravity_body_at(problem.terrain, poses)
-    assert len(g) == len(q["mu_planned"])
-    for k, pose in enumerate(poses):
-        mu = stability_along(problem.robot, problem.terrain, np.tile(pose, (len(coms), 1)), coms)
-        assert q["mu_optimum_roadmap"][k] == pytest.approx(mu.reconfigured.max(), rel=1e-9)
-        assert q["mu_planned"][k] <= q["mu_optimum_roadmap"][k] + 1e-9
+    assert len(g) == len(q["mu_searched"])
+    polygons = support_polygons_at(problem.robot, problem.terrain, poses)
+    stowed_com = problem.robot.overall_com(problem.robot.arm_com(problem.robot.stowed))
+    for k in range(len(poses)):
+        m = problem.robot.total_mass
+        stowed = force_angle_batch(polygons[k], stowed_com[None], m * g[k][None]).mu[0]
+        assert stowed == pytest.approx(s["poses"][k]["mu_stowed"], rel=1e-9)
+        overall = problem.robot.overall_com(coms)
+        mu = force_angle_batch(polygons[k], overall, m * np.tile(g[k], (len(coms), 1))).mu
+        assert q["mu_optimum_roadmap"][k] == pytest.approx(mu.max(), rel=1e-9)
+        assert q["mu_searched"][k] <= q["mu_optimum_roadmap"][k] + 1e-9
     np.testing.assert_allclose(
         q["gap_to_roadmap"],
-        (np.array(q["mu_optimum_roadmap"]) - q["mu_planned"]) / np.abs(q["mu_optimum_roadmap"]),
+        (np.array(q["mu_optimum_roadmap"]) - q["mu_searched"]) / np.abs(q["mu_optimum_roadmap"]),
     )
+    # what the plan reports is the one μ: the planned postures on their loaded support
+    realised = problem.robot.arm_com(np.array([p["posture"] for p in s["poses"]]))
+    reported = stability_along(problem.robot, problem.terrain, poses, realised).reconfigured
+    np.testing.assert_allclose([p["mu_planned"] for p in s["poses"]], reported, rtol=0, atol=1e-9)
     assert q["gap_to_V_median"] == pytest.approx(np.median(q["gap_to_V"]))
     # V's samples whose arm clears the ground as well: at most the optimum over all of V
     assert np.all(np.array(q["mu_optimum_V_clear"]) <= np.array(q["mu_optimum_V"]) + 1e-9)

@@ -1,42 +1,46 @@
-"""Small rooms: no module over 400 lines, no function over 80 (issue 27).
+"""Room sizes: a review prompt at 400 lines a module and 80 a function, a limit at 1.5 times.
 
-The offenders still left are listed with their current length; the test fails on any new
-one and on a listed one that grows (a listed one that shrinks under the bar must leave the
-list, so the list only ever gets shorter).
+Modules split by concept, not by a line count: a module or function past the prompt is
+listed as a warning (a reviewer's question: is this still one concept?), and only one past
+the hard limit fails.
 """
 
 from __future__ import annotations
 
 import ast
+import warnings
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "mmstab"
-MAX_MODULE_LINES, MAX_FUNCTION_LINES = 400, 80
-
-#: Modules still over the bar: path -> lines.
-LONG_MODULES: dict[str, int] = {}
-#: Functions still over the bar: "path:function" -> lines.
-LONG_FUNCTIONS: dict[str, int] = {}
+#: Past these, a warning; past 1.5 times these, a failure.
+PROMPT_MODULE_LINES, PROMPT_FUNCTION_LINES = 400, 80
+LIMIT = 1.5
 
 
-def measure() -> tuple[dict[str, int], dict[str, int]]:
+def measure(module_bar: int, function_bar: int) -> tuple[dict[str, int], dict[str, int]]:
+    """Modules over ``module_bar`` lines and functions over ``function_bar`` lines."""
     modules, functions = {}, {}
     for path in sorted(PACKAGE.rglob("*.py")):
         name = path.relative_to(PACKAGE).as_posix()
         text = path.read_text()
-        if len(text.splitlines()) > MAX_MODULE_LINES:
+        if len(text.splitlines()) > module_bar:
             modules[name] = len(text.splitlines())
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 lines = (node.end_lineno or node.lineno) - node.lineno + 1
-                if lines > MAX_FUNCTION_LINES:
+                if lines > function_bar:
                     functions[f"{name}:{node.name}"] = lines
     return modules, functions
 
 
-def test_no_new_long_module_or_function_and_none_grows():
-    modules, functions = measure()
-    assert set(modules) == set(LONG_MODULES), "update LONG_MODULES: only ever remove entries"
-    assert set(functions) == set(LONG_FUNCTIONS), "update LONG_FUNCTIONS: only ever remove"
-    assert all(modules[m] <= LONG_MODULES[m] for m in modules)
-    assert all(functions[f] <= LONG_FUNCTIONS[f] for f in functions)
+def test_no_module_or_function_past_the_limit():
+    modules, functions = measure(PROMPT_MODULE_LINES, PROMPT_FUNCTION_LINES)
+    for name, lines in {**modules, **functions}.items():
+        warnings.warn(f"{name}: {lines} lines (review: one concept?)", stacklevel=1)
+    hard = int(LIMIT * PROMPT_MODULE_LINES), int(LIMIT * PROMPT_FUNCTION_LINES)
+    assert measure(*hard) == ({}, {})
+
+
+def test_the_measure_counts_lines():
+    modules, _ = measure(0, 10**9)
+    assert modules["__init__.py"] == len((PACKAGE / "__init__.py").read_text().splitlines())

@@ -133,7 +133,7 @@ def test_touching_flippers_extend_the_polygon():
 
 def test_stability_along_gives_the_three_cases(robot, rng):
     """The trio against robot_force_angle case by case, and the arm-removed case by hand."""
-    from mmstab.stability.static import stability_along
+    from mmstab.stability.support import stability_along
 
     ramp = Ramp(0.2)
     poses = np.column_stack([rng.uniform(-2, 2, (6, 2)), rng.uniform(-np.pi, np.pi, 6)])

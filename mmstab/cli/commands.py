@@ -15,6 +15,7 @@ from mmstab.cli.options import EXTRA_OPTIONS
 from mmstab.cli.verdicts import (
     arm_collision_status,
     high_centred_warning,
+    limits_line,
     plan_status,
     slides_status,
     timing_line,
@@ -201,11 +202,12 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     print(
         f"plan: route {s['route']['length_m']:.2f} m, {len(s['s'])} poses, "
         f"{s['ms_per_pose']:.1f} ms per warm pose (median; first {s['ms_first_pose']:.1f} ms); "
-        f"mu planned min {min(s['mu_planned']):.1f}, stowed min {min(s['mu_stowed']):.1f}, "
-        f"arm removed min {min(s['mu_removed']):.1f} N rad; below the margin "
-        f"{r['margin']:g}: {spans('below_margin')}; stowed below it, planned not: "
-        f"{spans('saved_by_planning')}; tracks slide: {spans('slides')}"
+        f"at the planned poses mu planned min {min(s['mu_planned']):.1f}, stowed min "
+        f"{min(s['mu_stowed']):.1f}, arm removed min {min(s['mu_removed']):.1f} N rad; "
+        f"stowed below the margin {r['margin']:g} where the planned arm is not: "
+        f"{spans('saved_by_planning')}"
     )
+    limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
     _climb_line(s["climb"], s["s"])
     high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args)

@@ -95,8 +95,10 @@ def _stability_map(args: argparse.Namespace) -> None:
     s = run_stability_map(problem, args.out, args.spacing, args.headings, args.force_size)
     print(
         f"stability-map: {s['poses']} poses ({s['rest_ms_per_pose']:.3f} ms/pose at rest), "
-        f"stable share {s['share_stable']:.3f}; cells stable at every heading "
-        f"{s['cells_stable_at_every_heading']}, at none {s['cells_unstable_at_every_heading']}"
+        f"stable share {s['share_stable']:.3f} (no tip {s['share_no_tip']:.3f}, "
+        f"no slide {s['share_no_slide']:.3f}); cells stable at every heading "
+        f"{s['cells_stable_at_every_heading']}, tipping at every heading "
+        f"{s['cells_unstable_at_every_heading']}"
     )
 
 

@@ -98,3 +98,23 @@ def timing_line(command: str, timing: dict[str, Any] | None) -> None:
         f"{timing['mu_dynamic_min']:.1f} N rad (static {timing['mu_static_min']:.1f}); "
         f"{len(timing['slowed_moves'])} move(s) slowed, +{timing['lap_time_added_s']:.2f} s"
     )
+
+
+def limits_line(command: str, verdicts: dict[str, Any], spacing: float) -> None:
+    """One verdict per limit (tip, slide, step, high-centred, arm contact), one line.
+
+    Args:
+        command: the command's name (``plan``).
+        verdicts: :func:`mmstab.runs.along.limit_verdicts`.
+        spacing: the path's checked samples' spacing [m].
+    """
+
+    def where(v: dict[str, Any]) -> str:
+        spans = [f"{a:.2f}" if a == b else f"{a:.2f}-{b:.2f}" for a, b in v["where"][:4]]
+        more = f" +{len(v['where']) - 4}" if len(v["where"]) > 4 else ""
+        return f" at s = {', '.join(spans)}{more} m" if spans else ""
+
+    names = {"tip": "tip", "slide": "slide", "step": "step", "high_centred": "high-centred",
+             "arm_contact": "arm contact"}  # fmt: skip
+    parts = [f"{names[k]}: {v['verdict'].replace('_', '-')}{where(v)}" for k, v in verdicts.items()]
+    print(f"{command}: verdicts along the path (every {100 * spacing:.0f} cm): " + "; ".join(parts))

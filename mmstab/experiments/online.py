@@ -27,6 +27,7 @@ import numpy as np
 from mmstab.core.files import ConfigError, MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import save_settings
+from mmstab.planner.fitness import support_polygons_at
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm_start import solve_route
@@ -36,6 +37,7 @@ from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summ
 from mmstab.runs.recording import write_run
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.stability.static import robot_force_angle
+from mmstab.stability.support import loaded_mu
 from mmstab.workspace import Workspace
 
 #: Relative μ difference the issue allows where the map agrees [-].
@@ -66,7 +68,9 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
     """The offline plan on the problem's terrain at the route poses the run planned.
 
     With the same planner as the online loop (``online.planner``): all poses at once on
-    the posture roadmap (``method: roadmap``), or warm-started CMA-ES pose after pose.
+    the posture roadmap (``method: roadmap``), or warm-started CMA-ES pose after pose. Its
+    μ is the search's own (each pose's support polygon at the stowed arm's rest), the basis
+    the online horizon plans on, so the two plans compare like with like.
     """
     from mmstab.workspace.ik import PostureSolver
 
@@ -88,16 +92,18 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
         under = None  # the ground under the arm, as method roadmap checks it on a route
         if settings.ground_clearance is not None:
             under = GroundUnderArm(robot, problem.terrain, poses, margin=margin)
+        polygons = support_polygons_at(robot, problem.terrain, poses)
         seq = solve_roadmap_sequence(
-            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses, under=under
-        )
-        stowed = robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu
+            robot, gravity, roadmap, settings, stowed_flat_mu(robot), False, poses, under=under,
+            polygons=polygons,
+        )  # fmt: skip
+        stowed = loaded_mu(robot, problem.terrain, poses, robot.arm_com(robot.stowed))
         per_pose = np.full(len(s), seq.seconds / len(s))
         return OfflinePlan(s, poses, seq.mu, stowed, per_pose, seq.postures)
     settings = settings._replace(method="cmaes", seeding="coarse")
     realise = PostureSolver(robot, ws).realise
     plan = solve_route(robot, problem.terrain, region, s, poses, settings, realise)
-    return OfflinePlan(s, poses, plan.mu_planned, plan.mu_stowed, plan.search_seconds)
+    return OfflinePlan(s, poses, plan.mu_search, plan.mu_stowed, plan.search_seconds)
 
 
 def compare(
@@ -175,8 +181,9 @@ def write_replay(out: Path, problem: Problem, run: FollowRun) -> None:
     """The covered updates as a stored run that the viewer replays (module text).
 
     Per covered map: the odometry pose, the track angles the commands integrate to (the loop
-    knows no measured ones), the arm's posture, and μ with the arm as it was, stowed and
-    removed, each at the map's resting attitude (what the loop saw, not the true ground);
+    knows no measured ones), the arm's posture, and μ with the arm as it was (the loop's
+    one μ: that state's loaded contacts on that map), stowed and removed (the tracks'
+    rectangle at the map's stowed rest; what the loop saw, not the true ground);
     the planned poses' arm CoMs at their share of the route.
     """
     st = [x for x in run.steps if x.covered]
@@ -194,7 +201,7 @@ def write_replay(out: Path, problem: Problem, run: FollowRun) -> None:
         out / "run.npz",
         t=t,
         state=state,
-        mu_reconfigured=robot_force_angle(robot, gravity, robot.arm_com(q)).mu,
+        mu_reconfigured=np.array([x.mu for x in st]),
         mu_stowed=robot_force_angle(robot, gravity, robot.arm_com(robot.stowed)).mu,
         mu_arm_removed=robot_force_angle(robot, gravity, None).mu,
         plan_fractions=route.fraction_of_s([run.plans[k].s for k in ks]),

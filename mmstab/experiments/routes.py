@@ -34,8 +34,18 @@ from mmstab.core.files import MmstabError, write_figure, write_json
 from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, route_corners, save_settings
+from mmstab.paths.route import speed_limits
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
-from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.planner.warm_start import planned_com
+from mmstab.runs.along import (
+    Along,
+    acceleration_margin,
+    along_path,
+    dense_verdicts,
+    limit_verdicts,
+    sample_spacing,
+)
+from mmstab.runs.high_centred import path_samples
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.verdict import (
     climb_verdict,
@@ -45,23 +55,43 @@ from mmstab.runs.verdict import (
     turn_check,
 )
 from mmstab.stability.static import mu_max
+from mmstab.stability.support import stability_along
 
 #: Robot snapshots drawn in the 3-D figure.
 SNAPSHOTS = 6
 
 
-def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[str, Any]:
-    """The numbers of a route plan (``summary.json``)."""
+def plan_along(problem: Problem, plan: RoutePlan) -> Along:
+    """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
+    route = problem.route
+    if route is None:
+        raise MmstabError(f"{problem.path}: path: not a route")
+    poses, s = path_samples(route, sample_spacing(problem.terrain))
+    planned = planned_com(problem.robot, plan.postures, plan.target_com)
+    return along_path(problem.robot, problem.terrain, poses, s, plan.s, planned)
+
+
+def route_summary(
+    problem: Problem, plan: RoutePlan, risk: RouteRisk, along: Along | None = None
+) -> dict[str, Any]:
+    """The numbers of a route plan (``summary.json``); ``along``: :func:`plan_along`'s."""
     robot = problem.robot
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
-    from mmstab.stability.static import stability_along
-
     mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
     times = np.asarray(plan.fractions) * route.lap_time
     slip = slip_verdict(problem.terrain, plan.poses, turn_check(problem, plan.target_com, times))
+    margin = planner_margin(problem.section("planner"))
+    # between the planned poses: every few cm, the arm in the postures it moves between
+    along = plan_along(problem, plan) if along is None else along
+    limits = speed_limits(robot, problem.section("path"))
+    accelerating = acceleration_margin(
+        robot.total_mass, max(limits.acceleration, limits.lateral_acceleration)
+    )
+    dense = dense_verdicts(problem.terrain, along, margin, accelerating)
+    slip = with_stretches(slip, dense, "slide", "slides")
     poses = [
         {
             "s": float(plan.s[k]),
@@ -85,7 +115,7 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
     ]
     warm = plan.search_seconds[plan.warm] if plan.warm.any() else plan.search_seconds
     warm_cpu = plan.search_cpu_seconds[plan.warm] if plan.warm.any() else plan.search_cpu_seconds
-    return {
+    out: dict[str, Any] = {
         "route": {
             "length_m": route.length,
             "duration_s": route.duration,
@@ -111,28 +141,80 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "cpu_ms_per_pose": float(1e3 * np.median(warm_cpu)),
         "settings": plan.settings._asdict(),
         "poses": poses,
-        "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),
+        "stability": with_stretches(plan_verdict(poses, margin), dense, "tip", "stable"),
         "slip": slip,
         "climb": climb_verdict(problem.robot, problem.terrain, plan.poses, plan.target_com, False),
-        "high_centred": high_centred_verdict(problem.terrain, *path_samples(route)),
+        "high_centred": {
+            "high_centred": dense["high_centred"]["binds"],
+            "samples": dense["samples"],
+            "spacing_m": dense["spacing_m"],
+            "criterion": "the chassis does not rest on the ground along the path (planned arm)",
+            "stretches": dense["high_centred"]["stretches"],
+        },
+        "along_path": dense,
     }
+    out["verdicts"] = limit_verdicts(out)
+    return out
+
+
+def with_stretches(
+    verdict: dict[str, Any], dense: dict[str, Any], limit: str, key: str
+) -> dict[str, Any]:
+    """A per-pose verdict with the path's stretches between the poses that pass ``limit``.
+
+    Args:
+        verdict: the planned poses' verdict (``stability`` or ``slip``).
+        dense: :func:`mmstab.runs.along.dense_verdicts`.
+        limit: ``tip`` or ``slide``.
+        key: the verdict's flag: ``stable`` (False where a stretch tips) or ``slides``.
+    """
+    out = dict(verdict)
+    found = dense[limit]
+    out["stretches"] = found["stretches"]
+    out["spacing_m"] = dense["spacing_m"]
+    if limit == "tip":  # the margin along the path, with the route's accelerations
+        out["along_threshold"] = found["threshold"]
+        out["acceleration_margin"] = found["acceleration_margin"]
+    if limit == "slide":
+        out.setdefault("critical_tilt", found["critical_tilt"])
+        out.setdefault("friction", found["friction"])
+    if found["binds"]:
+        out[key] = key != "stable"
+    return out
 
 
 def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
-    """Runs of poses where the tracks slide: arc lengths [m] and the worst tilt [rad]."""
+    """Where the tracks slide, in arc lengths [m]: at the planned poses, between them, in turns.
+
+    Each with the worst tilt [rad] where the support's tilt is the reason (``tilt_max``) or
+    the turn's slide within the window [m] (``slide_m``).
+    """
     s_m = np.asarray(s, dtype=float)
     mask = np.zeros(s_m.size, dtype=bool)
     tilt = np.zeros(s_m.size)
     for b in slip["sliding_poses"]:
         mask[b["index"]], tilt[b["index"]] = True, b["tilt"]
-    return [
+    out: list[dict[str, Any]] = [
         {"start_s": float(s_m[k]), "end_s": float(s_m[j - 1]), "tilt_max": float(tilt[k:j].max())}
         for k, j in true_runs(mask)
     ]
+    out += [
+        {"start_s": x["start_s"], "end_s": x["end_s"], "tilt_max": x["worst"]}
+        for x in slip.get("stretches", [])
+    ]
+    out += [
+        {"start_s": float(s_m[t["first"]]), "end_s": float(s_m[t["last"]]),
+         "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
+        for t in slip.get("turns", {}).get("sliding_turns", [])
+    ]  # fmt: skip
+    return sorted(out, key=lambda x: x["start_s"])
 
 
 def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
-    """Per pose: planned μ, the best μ over V's samples and over the roadmap's reachable ones.
+    """Per pose: the searched μ, the best μ over V's samples and the roadmap's reachable ones.
+
+    All on the basis the search ranks arm CoMs on (``RoutePlan.mu_search``: each pose's
+    support polygon at the stowed arm's rest), so the gap is the search's own.
 
     The optima are exhaustive (every sample scored at the pose, :func:`mmstab.planner.best_mu`);
     the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`,
@@ -145,6 +227,7 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     V's hull difference).
     """
     from mmstab.planner import best_mu, gravity_body_at, planning_region, region_samples
+    from mmstab.planner.fitness import support_polygons_at
     from mmstab.workspace import load_or_build_workspace
 
     ws = load_or_build_workspace(problem, progress=False)
@@ -152,9 +235,19 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     samples = region_samples(region)
     gravity = gravity_body_at(problem.terrain, plan.poses)
     robot = problem.robot
-    opt_v = np.array([best_mu(robot, g, samples)[0] for g in gravity])
-    out: dict[str, Any] = {"mu_planned": plan.mu_planned.tolist(), "mu_optimum_V": opt_v.tolist()}
-    gaps = {"V": (opt_v - plan.mu_planned) / np.abs(opt_v)}
+    polygons = support_polygons_at(robot, problem.terrain, plan.poses)
+    polys: list[Any] = [None] * len(gravity) if polygons is None else polygons
+
+    def optima(coms: Any) -> Any:
+        return np.array(
+            [best_mu(robot, g, coms, p)[0] for g, p in zip(gravity, polys, strict=True)]
+        )
+
+    opt_v = optima(samples)
+    # the search's gap is measured on the basis it ranks on (``RoutePlan.mu_search``)
+    searched = plan.mu_search
+    out: dict[str, Any] = {"mu_searched": searched.tolist(), "mu_optimum_V": opt_v.tolist()}
+    gaps = {"V": (opt_v - searched) / np.abs(opt_v)}
     if plan.settings.method == "roadmap":
         from mmstab.planner.roadmap import node_coms
         from mmstab.workspace.roadmap import load_or_build_roadmap
@@ -165,17 +258,17 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
         if plan.settings.ground_clearance is not None:  # the nodes the planner may choose
             reach &= rm.node_ground >= plan.settings.ground_clearance
         reach = node_coms(robot, rm)[reach]
-        opt_r = np.array([best_mu(robot, g, reach)[0] for g in gravity])
+        opt_r = optima(reach)
         out["mu_optimum_roadmap"] = opt_r.tolist()
-        gaps["roadmap"] = (opt_r - plan.mu_planned) / np.abs(opt_r)
+        gaps["roadmap"] = (opt_r - searched) / np.abs(opt_r)
         if plan.settings.ground_clearance is not None:
             from mmstab.model.ground import arm_ground_clearance
 
             low = arm_ground_clearance(robot, region.postures) < plan.settings.ground_clearance
             clear = samples[~low]
-            opt_c = np.array([best_mu(robot, g, clear)[0] for g in gravity])
+            opt_c = optima(clear)
             out["mu_optimum_V_clear"] = opt_c.tolist()
-            gaps["V_clear"] = (opt_c - plan.mu_planned) / np.abs(opt_c)
+            gaps["V_clear"] = (opt_c - searched) / np.abs(opt_c)
     for name, gap in gaps.items():
         out[f"gap_to_{name}"] = gap.tolist()
         out[f"gap_to_{name}_median"] = float(np.median(gap))
@@ -190,9 +283,10 @@ def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str,
         raise MmstabError(f"{problem.path}: path: not a route")
     risk = route_risk(plan, planner_margin(problem.section("planner")))
     d = output_dir(out, "plan")
-    summary = route_summary(problem, plan, risk)
+    along = plan_along(problem, plan)
+    summary = route_summary(problem, plan, risk, along)
     summary["quality"] = route_quality(problem, plan)
-    write_figure(d / "route_mu.png", draw_route_mu(problem, plan, risk))
+    write_figure(d / "route_mu.png", draw_route_mu(problem, plan, risk, along, summary))
     write_figure(d / "route_3d.png", draw_route_3d(problem, plan))
     t = plan.fractions * problem.route.lap_time if problem.route is not None else plan.s
     frames = frames_at(
@@ -215,13 +309,28 @@ def shade_stretches(ax: Any, risk: RouteRisk, spacing: float) -> None:
         ax.axvspan(r.start_s - half, r.end_s + half, color="C1", alpha=0.18, lw=0, label=label)
 
 
-def draw_route_mu(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> Any:
-    """μ along the route: planned, stowed, arm removed, the margin, the risk stretches."""
+def draw_route_mu(
+    problem: Problem,
+    plan: RoutePlan,
+    risk: RouteRisk,
+    along: Along | None = None,
+    summary: dict[str, Any] | None = None,
+) -> Any:
+    """μ along the route: planned, stowed, arm removed, the margin, the risk stretches.
+
+    With ``along`` and ``summary``: μ every few cm between the poses (the worse planned
+    posture) and, marked over the plot, where each limit binds (``summary["verdicts"]``).
+    """
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(9, 4.2), constrained_layout=True)
     spacing = float(np.median(np.diff(plan.s))) if len(plan.s) > 1 else 0.0
     shade_stretches(ax, risk, spacing)
+    if along is not None:
+        ax.plot(along.s, along.mu, "-", lw=0.8, color="C0", alpha=0.5,
+                label="arm planned, every few cm")  # fmt: skip
+    if summary is not None:
+        mark_verdicts(ax, summary["verdicts"])
     ax.plot(plan.s, plan.mu_planned, "o-", ms=3, color="C0", label="arm planned")
     ax.plot(plan.s, plan.mu_stowed, "s:", ms=3, color="C2", label="arm stowed")
     ax.plot(plan.s, plan.mu_removed, "--", color="0.4", label="arm removed")
@@ -234,6 +343,30 @@ def draw_route_mu(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> Any:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
     return fig
+
+
+#: Colour of each limit's marks in the route figures.
+LIMIT_COLOURS = {"tip": "red", "slide": "darkorange", "step": "purple",
+                 "high_centred": "saddlebrown", "arm_contact": "magenta"}  # fmt: skip
+
+
+def mark_verdicts(ax: Any, verdicts: dict[str, dict[str, Any]]) -> None:
+    """Bars along the top of ``ax`` where each limit binds (arc lengths [m])."""
+    lo, hi = ax.get_ylim()
+    for row, (name, v) in enumerate(verdicts.items()):
+        y = hi - (row + 1) * 0.04 * (hi - lo)
+        for a, b in v["where"]:
+            ax.plot(
+                [a, max(b, a + 0.02)],
+                [y, y],
+                lw=4,
+                color=LIMIT_COLOURS[name],
+                solid_capstyle="butt",
+            )
+        if v["where"]:
+            label = f" {name}: {v['verdict']}".replace("_", "-")
+            ax.text(v["where"][0][0], y, label, fontsize=7, va="bottom", color=LIMIT_COLOURS[name])
+    ax.set_ylim(lo, hi)
 
 
 def draw_route_3d(problem: Problem, plan: RoutePlan) -> Any:

@@ -15,7 +15,8 @@ from mmstab.core.files import write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import circular_extrema, output_dir, save_settings
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.stability.static import robot_force_angle, stability_along
+from mmstab.stability.static import robot_force_angle
+from mmstab.stability.support import stability_along
 from mmstab.terrain import Terrain, roll_pitch
 from mmstab.viz.plotting import draw_base_topview, draw_circle, new_figure
 

@@ -70,11 +70,15 @@ def snapshot_poses(sm: StabilityMap) -> dict[str, list[float]]:
 
 
 def draw_stability_map(sm: StabilityMap, title: str) -> Any:
-    """Two panels: mu at the worst and at the best heading per cell (red: < 0)."""
+    """Three panels: mu at the worst and the best heading per cell (red: < 0), slip margin.
+
+    The third panel is the smallest slip margin over the headings (``atan(friction)`` minus
+    the support's tilt, red: the tracks slide), the second limit beside the tip limit.
+    """
     import matplotlib.pyplot as plt
     from matplotlib.colors import TwoSlopeNorm
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6), constrained_layout=True)
     finite = np.concatenate([sm.worst[np.isfinite(sm.worst)], sm.best[np.isfinite(sm.best)]])
     vmax = float(np.max(finite)) if finite.size and np.max(finite) > 0 else 1.0
     lo = float(np.min(finite)) if finite.size else -1.0
@@ -100,6 +104,16 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
         ax.set_xlabel("x_G [m]")
         ax.set_ylabel("y_G [m]")
         fig.colorbar(im, ax=ax, label="mu [N rad]")
+    slip = np.degrees(sm.worst_slip_margin)
+    span = float(np.nanmax(np.abs(slip))) if np.isfinite(slip).any() else 1.0
+    norm = TwoSlopeNorm(vcenter=0.0, vmin=-max(span, 1e-3), vmax=max(span, 1e-3))
+    im = axes[2].imshow(slip, origin="lower", extent=extent, cmap="RdYlGn", norm=norm)
+    if np.nanmin(slip) < 0 < np.nanmax(slip) and slip.shape[0] > 1 and slip.shape[1] > 1:
+        axes[2].contour(sm.x, sm.y, slip, levels=[0.0], colors="k", linewidths=1.0)
+    axes[2].set_title(f"slip margin at the worst heading (friction {sm.friction:g})")
+    axes[2].set_xlabel("x_G [m]")
+    axes[2].set_ylabel("y_G [m]")
+    fig.colorbar(im, ax=axes[2], label="atan(friction) - tilt [deg]")
     fig.suptitle(title)
     return fig
 
@@ -195,6 +209,8 @@ def run_stability_map(
         best=sm.best,
         worst_heading=sm.worst_heading,
         best_heading=sm.best_heading,
+        slip_margin=sm.slip_margin,
+        worst_slip_margin=sm.worst_slip_margin,
     )
     write_figure(d / "stability_map.png", draw_stability_map(sm, f"{problem.name}: stability map"))
     write_figure(d / "terrain_3d.png", draw_terrain_3d(problem, terrain, poses))
@@ -209,15 +225,22 @@ def run_stability_map(
         "poses_on_map": n,
         "rest_seconds": sm.seconds_rest,
         "rest_ms_per_pose": 1e3 * sm.seconds_rest / max(sm.mu.size, 1),
-        "share_stable": float((sm.mu[finite] > 0).mean()) if n else None,
+        # stable: neither tips nor slides; the two limits apart beside it
+        "share_stable": float(sm.holds()[finite].mean()) if n else None,
+        "share_no_tip": float((sm.mu[finite] > 0).mean()) if n else None,
+        "share_no_slide": float((sm.slip_margin[finite] >= 0).mean()) if n else None,
+        "friction": sm.friction,
+        "slip_margin_worst_min_rad": float(np.nanmin(sm.worst_slip_margin)) if n else None,
         "cells_unstable_at_every_heading": int(np.sum(sm.best <= 0)),
-        "cells_stable_at_every_heading": int(np.sum(sm.worst > 0)),
+        "cells_stable_at_every_heading": int(np.sum(sm.holds().all(axis=2))),
+        "cells_no_tip_at_every_heading": int(np.sum(sm.worst > 0)),
         "mu_worst_min": float(np.nanmin(sm.worst)),
         "mu_best_max": float(np.nanmax(sm.best)),
         "high_centred_poses": int(np.sum((sm.flags & 1) > 0)),
         "line_contact_poses": int(np.sum((sm.flags & 2) > 0)),
         "tips_over_poses": int(np.sum((sm.flags & 4) > 0)),
         "not_converged_poses": int(np.sum((sm.flags & 8) > 0)),
+        "sliding_poses": int(np.sum((sm.flags & 16) > 0)),
         "snapshots": poses,
     }
     write_json(d / "summary.json", summary)

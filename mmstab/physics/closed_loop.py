@@ -51,8 +51,8 @@ from mmstab.physics.loop_checks import (
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
 from mmstab.stability.drive import DriveLayer, resolve_turn_ratio
-from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import slip_limit, terrain_friction
+from mmstab.stability.support import loaded_mu
 
 
 @dataclass(frozen=True)
@@ -356,7 +356,9 @@ def _finish(
     xi, _ = task_batch(model, problem.terrain, states)
     xi_des = ref[:, :6]
     gravity = problem.terrain.gravity_body(states[:, :3])
-    mu_pred = robot_mu(robot, gravity, states[:, -n:])
+    # mmstab's one μ at the simulated pose and posture (the loaded support of that state)
+    q = states[:, -n:]
+    mu_pred = loaded_mu(robot, problem.terrain, states[:, :3], robot.arm_com(q), q, strict=False)
     window = int(round(loop.slip_window / dt))
     slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
     over = np.flatnonzero(slip > loop.slip_distance)

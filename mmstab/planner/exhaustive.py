@@ -62,18 +62,24 @@ def solve_exhaustive(fitness: Fitness, samples: ArrayLike) -> ExhaustiveResult:
     )
 
 
-def best_mu(robot: Robot, gravity_body: ArrayLike, samples: ArrayLike) -> tuple[float, int]:
+def best_mu(
+    robot: Robot,
+    gravity_body: ArrayLike,
+    samples: ArrayLike,
+    polygon_body: ArrayLike | None = None,
+) -> tuple[float, int]:
     """The largest force-angle measure over arm-CoM samples (N, 3) [m] at a pose.
 
     Args:
         robot: the robot.
         gravity_body: gravity in B at the pose (3,) [m/s^2].
         samples: arm CoMs, body frame (N, 3) [m].
+        polygon_body: the support polygon in B (n, 3) [m] (``None``: the tracks' rectangle).
 
     Returns:
         (mu [N rad], row of the sample reaching it).
     """
-    polygon = base_polygon(robot).vertices
+    polygon = base_polygon(robot).vertices if polygon_body is None else polygon_body
     mu = linear_fitness(robot, polygon, gravity_body, np.zeros(3), 1.0, 0.0).mu(samples)
     k = int(np.argmax(mu))
     return float(mu[k]), k

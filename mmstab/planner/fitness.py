@@ -30,6 +30,9 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.regions import CoMRegion, as_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.static import base_polygon, force_angle_batch
+from mmstab.terrain import Terrain
+from mmstab.terrain.base import GRAVITY_G
+from mmstab.terrain.polygon import support_vertices
 
 #: Rows per block of the batched evaluation (keeps temporaries in cache).
 BLOCK = 32768
@@ -176,6 +179,7 @@ def pose_fitness(
     settings: PlannerSettings,
     mu_max: float,
     diameter: float,
+    polygon_body: ArrayLike | None = None,
 ) -> Fitness:
     """Eq. 6 at a pose where gravity in the body frame is ``gravity_body`` (3,) [m/s^2].
 
@@ -186,13 +190,75 @@ def pose_fitness(
         settings: planner settings (the weights).
         mu_max: normaliser [N rad].
         diameter: d_workspace [m].
+        polygon_body: the ordered support polygon in B (n, 3) [m] the pose stands on
+            (:func:`mmstab.planner.pose.support_polygons_at`); ``None``: the tracks'
+            rectangle (a plane).
     """
+    polygon = base_polygon(robot).vertices if polygon_body is None else polygon_body
     return Fitness(
         robot=robot,
-        polygon=base_polygon(robot).vertices,
+        polygon=np.asarray(polygon, dtype=float),
         gravity_body=np.asarray(gravity_body, dtype=float).reshape(3),
         previous_com=np.asarray(previous_com, dtype=float),
         mu_max=float(mu_max),
         diameter=float(diameter),
         settings=settings,
     )
+
+
+def support_polygons_at(
+    robot: Robot, terrain: Terrain, poses: ArrayLike
+) -> list[FloatArray] | None:
+    """The support polygon in B at each pose's rest with the arm stowed, (n, 3) each [m].
+
+    What the planner ranks arm CoMs on: the hull (seen along gravity, ordered
+    counter-clockwise about the body's up) of the contacts that carry the stowed robot's
+    load (:mod:`mmstab.stability.support`), so that the stowed arm scores exactly the μ the
+    plan reports for it. Fewer than three such contacts (a line): the tracks' rectangle.
+    ``None`` on a plane, where the support is the tracks' rectangle whatever the load.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: base poses (N, 3) in M [m, m, rad].
+    """
+    if terrain.kind != "heightmap":
+        return None
+    ground = terrain
+    if getattr(terrain, "robot", None) is not robot:
+        ground = terrain.with_robot(robot, getattr(terrain, "flipper_angle", None))
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    com = robot.overall_com(robot.arm_com(robot.stowed))
+    rest = ground.rest(P, strict=False, com_body=com)  # type: ignore[attr-defined]
+    points = ground.candidates.points  # type: ignore[attr-defined]
+    rectangle = base_polygon(robot).vertices
+    out = []
+    for i in range(len(P)):
+        R = rest.G_T_B[i, :3, :3]
+        if not np.isfinite(R).all():
+            out.append(rectangle)
+            continue
+        poly, line = support_vertices(points[rest.bearing[i]], R.T @ GRAVITY_G)
+        out.append(rectangle if line or len(poly) < 3 else poly)
+    return out
+
+
+def same_axes(fits: list[LinearFitness]) -> list[LinearFitness]:
+    """The fits with as many tip-over axes each, for the batched bounds over poses.
+
+    Poses whose support polygons differ in vertex count get their first axis repeated: a
+    repeated axis leaves μ (the minimum over the axes) unchanged.
+    """
+    n = max(f.sin_offset.shape[0] for f in fits)
+
+    def pad(f: LinearFitness) -> LinearFitness:
+        k = n - f.sin_offset.shape[0]
+        if k == 0:
+            return f
+        cols = np.r_[np.arange(f.sin_offset.shape[0]), np.zeros(k, dtype=int)]
+        return f._replace(
+            sin_gain=f.sin_gain[:, cols], sin_offset=f.sin_offset[cols],
+            cos_gain=f.cos_gain[:, cols], cos_offset=f.cos_offset[cols],
+        )  # fmt: skip
+
+    return [pad(f) for f in fits]

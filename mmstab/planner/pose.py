@@ -23,7 +23,7 @@ from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.cmaes import SearchResult
 from mmstab.planner.exhaustive import ExhaustiveResult
-from mmstab.planner.fitness import Fitness, pose_fitness
+from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.regions import CoMRegion, PlanningRegion, as_region
 from mmstab.planner.search import PoseTask
 from mmstab.planner.searches import search_for
@@ -137,10 +137,14 @@ def candidate_fitness(
     settings: PlannerSettings,
     mu_max: float,
     region: PlanningRegion,
+    polygon_body: ArrayLike | None = None,
 ) -> Fitness:
-    """Step 2, fitness: Eq. 6 at a pose (gravity in B [m/s^2]), with the tool wrench if set."""
+    """Step 2, fitness: Eq. 6 at a pose (gravity in B [m/s^2]), with the tool wrench if set.
+
+    ``polygon_body``: the pose's support polygon in B (n, 3) [m] (None: the rectangle).
+    """
     fitness = pose_fitness(
-        robot, gravity_body, previous_com, settings, mu_max, float(region.diameter)
+        robot, gravity_body, previous_com, settings, mu_max, float(region.diameter), polygon_body
     )
     return with_tool_wrench(fitness, region)  # itself unless payload.wrench is set
 
@@ -204,6 +208,7 @@ def solve_pose(
     t0 = time.perf_counter()
     pose = np.asarray(pose, dtype=float)
     candidates, window = pose_candidates(as_region(region), settings, previous_q, closing_q)
+    polygons = support_polygons_at(robot, terrain, pose)
     fitness = candidate_fitness(
         robot,
         gravity_body_at(terrain, pose)[0],
@@ -211,6 +216,7 @@ def solve_pose(
         settings,
         stowed_flat_mu(robot) if mu_max is None else mu_max,
         candidates,
+        None if polygons is None else polygons[0],
     )
     task = PoseTask(robot, candidates, fitness, settings, rng, starts)
     return choose_at_pose(task, pose, window, t0)
@@ -249,9 +255,11 @@ def fall_back_to_a_sample(
         if len(rows) == 0:  # no neighbour in the window: the window's samples
             rows = np.flatnonzero(target.window.contains(turret))
     near = index.samples[rows]
+    polygons = support_polygons_at(robot, terrain, target.pose)
     fitness = candidate_fitness(
-        robot, gravity_body_at(terrain, target.pose)[0], previous_com, settings, mu_max, region
-    )
+        robot, gravity_body_at(terrain, target.pose)[0], previous_com, settings, mu_max, region,
+        None if polygons is None else polygons[0],
+    )  # fmt: skip
     values = fitness(near)
     best = int(np.argmax(values))
     q, ok = realise(near[best], previous_q)

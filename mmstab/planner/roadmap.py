@@ -16,7 +16,7 @@ the answer, for the controller.
 from __future__ import annotations
 
 import time
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,7 +26,7 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.climbing import ClimbPlan, climb_exclusions
-from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.fitness import pose_fitness, same_axes
 from mmstab.planner.grounded import ground_graph
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.roadmap_moves import (  # noqa: F401 (the moves' names, as before)
@@ -292,6 +292,7 @@ def solve_roadmap_sequence(
     start_q: FloatArray | None = None,
     under: GroundUnderArm | None = None,
     climb: ClimbPlan | None = None,
+    polygons: list[FloatArray] | None = None,
 ) -> RoadmapSequence:
     """Choose one reachable roadmap node per pose (module text).
 
@@ -306,6 +307,8 @@ def solve_roadmap_sequence(
         start_q: the arm's start posture (4,) [rad]; default the stowed arm.
         under: the ground under the arm at each pose: a node too low above it at pose k is
             no candidate there, a move too low at the poses it joins is not chosen.
+        polygons: each pose's support polygon in B (n, 3) [m]
+            (:func:`mmstab.planner.pose.support_polygons_at`); None: the tracks' rectangle.
         climb: the climb limit along the poses: at a constrained pose only nodes whose
             overall CoM lets the tracks climb its step (:mod:`mmstab.planner.climbing`).
 
@@ -323,7 +326,11 @@ def solve_roadmap_sequence(
     K, M = len(g), min(settings.sequence_candidates, len(reach))
     stowed = robot.arm_com(start_q)
     stab = settings._replace(w_motion=0.0)
-    fits = [pose_fitness(robot, gk, stowed, stab, mu_max, diameter).linear() for gk in g]
+    polys: list[Any] = [None] * K if polygons is None else list(polygons)
+    fits = same_axes([
+        pose_fitness(robot, gk, stowed, stab, mu_max, diameter, pk).linear()
+        for gk, pk in zip(g, polys, strict=True)
+    ])  # fmt: skip
     ground = settings.ground_clearance
     clear = NodeClearance(roadmap, reach, ground, under)
     if climb is not None:

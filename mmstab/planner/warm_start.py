@@ -38,7 +38,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.along_path import solve_path
 from mmstab.planner.cmaes import start_coms
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds
-from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.fitness import pose_fitness, support_polygons_at
 from mmstab.planner.pose import (
     KnownGravity,
     PoseTarget,
@@ -53,7 +53,7 @@ from mmstab.planner.searches import search_for
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm import WARM_ITERATIONS, warm_pose
 from mmstab.stability.static import mu_max as stowed_flat_mu
-from mmstab.stability.static import stability_along
+from mmstab.stability.support import stability_along
 from mmstab.terrain import Terrain
 
 #: Smallest warm step size [m]: about the spacing of V's grid samples.
@@ -71,9 +71,11 @@ class RoutePlan(NamedTuple):
         postures: arm postures realising them (K, 4) [rad] (NaN without IK).
         realised_com_error: |g_a(posture) - target| (K,) [m] (NaN without IK).
         collision_free: whether each posture is collision-free (K,).
-        mu_planned: μ with the planned CoM (K,) [N rad].
-        mu_stowed: μ with the arm stowed (K,) [N rad].
-        mu_removed: μ with the arm removed (K,) [N rad].
+        mu_planned: μ with the planned arm (K,) [N rad]: the posture realising the target
+            (its target CoM where none was found), on the contacts that carry that load
+            (:func:`mmstab.stability.support.stability_along`): the μ every command reports.
+        mu_stowed: μ with the arm stowed (K,) [N rad], likewise.
+        mu_removed: μ with the arm removed (K,) [N rad], likewise.
         targets: the per-pose planner results.
         warm: whether each pose was warm-started (K,).
         guarded: whether the coarse guard added a second start (K,).
@@ -84,6 +86,9 @@ class RoutePlan(NamedTuple):
         settings: the planner settings.
         moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) with
             ``method: roadmap``, else empty.
+        mu_search: μ of the target CoM on the basis the search ranks on (K,) [N rad]: the
+            support polygon of the stowed arm's rest (one affine form per pose; the
+            search's quality is measured on it). Empty when not known.
     """
 
     s: FloatArray
@@ -103,6 +108,19 @@ class RoutePlan(NamedTuple):
     search_cpu_seconds: FloatArray
     settings: PlannerSettings
     moves: tuple[FloatArray, ...] = ()
+    mu_search: FloatArray = np.zeros(0)
+
+
+def planned_com(robot: Robot, postures: ArrayLike, target_com: ArrayLike) -> FloatArray:
+    """The arm CoM in B (K, 3) [m] of the planned postures (K, n) [rad].
+
+    The target CoM (K, 3) [m] where no posture realises it (a NaN row).
+    """
+    q = np.asarray(postures, dtype=float)
+    target = np.asarray(target_com, dtype=float)
+    known = np.isfinite(q).all(axis=1)
+    realised = np.atleast_2d(robot.arm_com(np.nan_to_num(q)))
+    return np.where(known[:, None], realised, target)
 
 
 def warm_settings(settings: PlannerSettings, sigma: float) -> PlannerSettings:
@@ -135,6 +153,8 @@ class RouteSearch(NamedTuple):
         sample_index: the region's samples and k-d tree (the guard), None without samples.
         gravity_body: gravity in B at every pose (K, 3) [m/s^2].
         search: ``warm`` or ``solve_pose`` (:func:`solve_route`).
+        polygons: each pose's support polygon in B (:func:`support_polygons_at`), or None
+            on a plane.
     """
 
     robot: Robot
@@ -146,6 +166,11 @@ class RouteSearch(NamedTuple):
     sample_index: SampleIndex | None
     gravity_body: FloatArray
     search: str
+    polygons: list[FloatArray] | None = None
+
+    def polygon(self, k: int) -> FloatArray | None:
+        """Pose ``k``'s support polygon in B (n, 3) [m], None on a plane."""
+        return None if self.polygons is None else self.polygons[k]
 
 
 def solve_route(
@@ -188,12 +213,13 @@ def solve_route(
     # every resting pose in one batch (a heightmap's rest solve is far cheaper batched)
     t_gravity, c_gravity = time.perf_counter(), time.process_time()
     gravity_all = gravity_body_at(terrain, poses)
+    polygons = support_polygons_at(robot, terrain, poses)
     gravity_share = (time.perf_counter() - t_gravity) / len(poses)  # counted in every pose
     gravity_cpu = (time.process_time() - c_gravity) / len(poses)
     ground = cast(Terrain, KnownGravity(terrain, poses, gravity_all))
     ctx = RouteSearch(
         robot, ground, region, settings, np.random.default_rng(settings.seed),
-        stowed_flat_mu(robot), index, gravity_all, search,
+        stowed_flat_mu(robot), index, gravity_all, search, polygons,
     )  # fmt: skip
     previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
     moved = settings.sigma0_metres(region.diameter)
@@ -269,8 +295,9 @@ def _route_pose(
         )
     else:
         fit = pose_fitness(
-            robot, ctx.gravity_body[k], previous_com, settings, ctx.mu_max, ctx.region.diameter
-        )
+            robot, ctx.gravity_body[k], previous_com, settings, ctx.mu_max, ctx.region.diameter,
+            ctx.polygon(k),
+        )  # fmt: skip
         target = warm_pose(fit, ctx.region, pose, starts_list, sigma, settings, ctx.rng, t0)
     return target, guard is not None
 
@@ -284,7 +311,9 @@ def _guard_start(ctx: RouteSearch, k: int, previous_com: FloatArray) -> FloatArr
     if ctx.sample_index is None:
         return None
     s, diameter = ctx.settings, ctx.region.diameter
-    fit = pose_fitness(ctx.robot, ctx.gravity_body[k], previous_com, s, ctx.mu_max, diameter)
+    fit = pose_fitness(
+        ctx.robot, ctx.gravity_body[k], previous_com, s, ctx.mu_max, diameter, ctx.polygon(k)
+    )
     seed = coarse_seeds(
         fit, ctx.sample_index, s.coarse_samples, s.coarse_basins, s.coarse_neighbours, 1
     )
@@ -316,7 +345,8 @@ def _route_plan(
         np.nan,
         np.linalg.norm(robot.arm_com(np.nan_to_num(q_arr)) - target_com, axis=1),
     )
-    cases = stability_along(robot, ground, poses, target_com)
+    cases = stability_along(robot, ground, poses, planned_com(robot, q_arr, target_com))
+    search = np.array([t.mu for t in targets])  # the search's own basis
     s_m = np.asarray(s, dtype=float)
     return RoutePlan(
         s=s_m,
@@ -335,6 +365,7 @@ def _route_plan(
         search_seconds=np.array(seconds),
         search_cpu_seconds=np.array(cpu),
         settings=settings,
+        mu_search=search,
     )
 
 
@@ -358,7 +389,9 @@ def _solve_route_whole(
     plan = solve_path(robot, ground, region, poses, settings, closed=False)
     per_pose = (time.perf_counter() - t0) / len(poses)
     per_pose_cpu = (time.process_time() - c0) / len(poses)
-    cases = stability_along(robot, ground, poses, plan.target_com)
+    planned = planned_com(robot, plan.postures, plan.target_com)
+    cases = stability_along(robot, ground, poses, planned)
+    search = np.array([t.mu for t in plan.targets])  # the search's own basis
     s_m = np.asarray(s, dtype=float)
     K = len(poses)
     return RoutePlan(
@@ -379,4 +412,5 @@ def _solve_route_whole(
         search_cpu_seconds=np.full(K, per_pose_cpu),
         settings=settings,
         moves=plan.moves,
+        mu_search=search,
     )

@@ -30,9 +30,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from mmstab.core.files import UnstableError
-from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import terrain_friction, terrain_slip
-from mmstab.stability.static import stability_along
+from mmstab.stability.support import posture_mu
 
 if TYPE_CHECKING:
     from mmstab.core.problem import Problem
@@ -98,12 +97,8 @@ def plan_stability(problem: Problem, plan: Plan | RoutePlan) -> dict[str, Any]:
     Returns:
         :func:`plan_verdict` of its poses.
     """
-    robot = problem.robot
-    arm = np.atleast_2d(robot.arm_com(np.asarray(plan.postures)))
-    realised = stability_along(robot, problem.terrain, plan.poses, arm).reconfigured
-    if robot.tool_wrench is not None:  # payload.wrench: at the postures' tool points
-        gravity = problem.terrain.gravity_body(plan.poses)
-        realised = robot_mu(robot, gravity, np.asarray(plan.postures))
+    # the one μ of each planned state (its loaded support, the tool wrench when given)
+    realised = posture_mu(problem.robot, problem.terrain, plan.poses, np.asarray(plan.postures))
     poses = [
         {"pose": t.pose, "mu_planned": float(t.mu), "mu_realised": float(m)}
         for t, m in zip(plan.targets, realised, strict=True)
@@ -120,10 +115,26 @@ def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
         for b in bad[:LISTED_POSES]
     )
     more = f"; and {len(bad) - LISTED_POSES} more" if len(bad) > LISTED_POSES else ""
-    return (
-        f"{len(bad)} of {total} planned poses have mu <= {verdict['margin']:g} N rad "
-        f"even at the best posture found ({listed}{more})"
-    )
+    parts: list[str] = []
+    if bad:
+        parts.append(
+            f"{len(bad)} of {total} planned poses have mu <= {verdict['margin']:g} N rad "
+            f"even at the best posture found ({listed}{more})"
+        )
+    between = verdict.get("stretches", [])
+    if between:
+        named = "; ".join(
+            f"s = {x['start_s']:.2f}-{x['end_s']:.2f} m: mu {x['worst']:.4g} N rad"
+            for x in between[:LISTED_POSES]
+        )
+        threshold = verdict.get("along_threshold", verdict["margin"])
+        parts.append(
+            f"along the path (every {100 * verdict['spacing_m']:.0f} cm, the arm in its planned "
+            f"postures) mu <= {threshold:.3g} N rad (the margin {verdict['margin']:g} plus "
+            f"{verdict.get('acceleration_margin', 0.0):.3g} for the route's accelerations) "
+            f"at {named}"
+        )
+    return "; ".join(parts)
 
 
 def check_plan(verdict: Mapping[str, Any], total: int, allow_unstable: bool) -> None:
@@ -348,18 +359,28 @@ def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
         for b in bad[:LISTED_POSES]
     )
     more = f"; and {len(bad) - LISTED_POSES} more" if len(bad) > LISTED_POSES else ""
-    parts = []
+    parts: list[str] = []
     if bad:
         parts.append(
             f"the tracks would slide at {len(bad)} of {total} poses: tilt beyond "
             f"{math.degrees(verdict['critical_tilt']):.2f} deg = atan(friction "
             f"{verdict['friction']:g}) ({listed}{more})"
         )
+    between = verdict.get("stretches", [])
+    if between:
+        named = "; ".join(
+            f"s = {x['start_s']:.2f}-{x['end_s']:.2f} m: tilt {math.degrees(x['worst']):.1f} deg"
+            for x in between[:LISTED_POSES]
+        )
+        parts.append(
+            f"along the path (every {100 * verdict['spacing_m']:.0f} cm) the support tilts "
+            f"beyond {math.degrees(verdict['critical_tilt']):.2f} deg at {named}"
+        )
     turns = verdict.get("turns", {}).get("sliding_turns", [])
     if turns:
         named = "; ".join(
-            f"poses {t['first']}-{t['last']}: {math.degrees(t['turn_rad']):.0f} deg, "
-            f"{100 * t['slide_in_window_m']:.1f} cm"
+            f"poses {t['first']}-{t['last']}: turning {math.degrees(t['turn_rad']):.0f} deg "
+            f"there, {100 * t['slide_in_window_m']:.1f} cm"
             for t in turns[:LISTED_POSES]
         )
         parts.append(

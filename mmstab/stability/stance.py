@@ -22,6 +22,7 @@ from mmstab.core.files import MmstabError
 from mmstab.model.robot import Robot
 from mmstab.stability.slip import slip_limit, terrain_friction
 from mmstab.stability.static import contact_force_angle
+from mmstab.stability.support import loaded_support
 from mmstab.terrain.base import GRAVITY_G, Terrain, roll_pitch
 from mmstab.terrain.heightmap import FloatArray
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain, with_flipper_angle
@@ -103,7 +104,10 @@ def stance(
     stand = ground.support(r, pose)
     T = stand.G_T_B
     com_G = T[:3, :3] @ np.asarray(r.overall_com(r.arm_com(q)), dtype=float) + T[:3, 3]
-    poly, mu, line = contact_force_angle(stand.bearing(), com_G, r.total_mass * GRAVITY_G)
+    poly, _, line = contact_force_angle(stand.bearing(), com_G, r.total_mass * GRAVITY_G)
+    # the one μ (plan, track, map, online loop): the loaded support of this state
+    loaded = loaded_support(r, ground, np.asarray(pose, dtype=float), r.arm_com(q), q[None])
+    mu = float(loaded.mu[0])
     roll, pitch = roll_pitch(ground, np.asarray(pose, dtype=float))
     flags = stand.flags
     if line and "line_contact" not in flags:
@@ -124,7 +128,7 @@ def stance(
 
 # ------------------------------------------------------------------------ stability maps
 class StabilityMap(NamedTuple):
-    """mu of the robot over a grid of positions x headings.
+    """mu and the slip margin of the robot over a grid of positions x headings.
 
     Attributes:
         x: (nx,) G x of the grid columns [m].
@@ -133,10 +137,15 @@ class StabilityMap(NamedTuple):
         mu: (ny, nx, nh) [N rad]; NaN off the map / on unknown cells, or where the rest
             did not converge (flag 8).
         flags: (ny, nx, nh) bit set: 1 high-centred, 2 line contact, 4 tips over,
-            8 not converged (mu left NaN).
+            8 not converged (mu left NaN), 16 slides (the support's tilt is beyond
+            ``atan(friction)``).
         worst: (ny, nx) min over headings [N rad]; best: (ny, nx) max over headings.
         worst_heading: (ny, nx) [rad]; best_heading: (ny, nx) [rad].
         seconds_rest: wall time of the batched resting poses [s].
+        slip_margin: (ny, nx, nh) ``atan(friction) - tilt`` [rad] (> 0: the tracks hold);
+            NaN where mu is.
+        worst_slip_margin: (ny, nx) min over headings [rad].
+        friction: the terrain's friction coefficient [-].
     """
 
     x: FloatArray
@@ -149,12 +158,24 @@ class StabilityMap(NamedTuple):
     worst_heading: FloatArray
     best_heading: FloatArray
     seconds_rest: float
+    slip_margin: FloatArray
+    worst_slip_margin: FloatArray
+    friction: float
+
+    def holds(self) -> np.ndarray:
+        """(ny, nx, nh) neither tips (mu > 0) nor slides; False where unknown."""
+        with np.errstate(invalid="ignore"):
+            return (self.mu > 0) & (self.slip_margin >= 0)
 
 
 def stability_map(
     terrain: HeightmapTerrain, spacing: float, n_headings: int, margin: float | None = None
 ) -> StabilityMap:
-    """Force-angle mu of the bound robot at rest, every ``spacing`` [m] x ``n_headings`` yaws.
+    """Force-angle mu and the slip margin of the bound robot at rest on a grid.
+
+    Every ``spacing`` [m] x ``n_headings`` yaws, mmstab's one μ of each state (the arm at
+    the terrain's bound posture; :func:`mmstab.stability.support.loaded_support`) and the
+    friction cone of its support (:func:`mmstab.stability.slip.slip_limit`).
 
     Args:
         terrain: a heightmap terrain bound to a robot (arm posture as bound).
@@ -176,31 +197,38 @@ def stability_map(
     hs = 2 * np.pi * np.arange(n_headings) / n_headings
     X, Y, H = np.meshgrid(xs, ys, hs, indexing="ij")
     poses = np.stack([X.ravel(), Y.ravel(), H.ravel()], axis=1)
+    robot = terrain._robot()
+    q = robot.stowed if terrain.arm_q is None else terrain.arm_q
     t0 = time.perf_counter()
-    r = terrain.rest(poses, strict=False)
+    r = loaded_support(robot, terrain, poses, robot.arm_com(q), q[None], strict=False)
     seconds = time.perf_counter() - t0
-    mu = np.full(len(poses), np.nan)
-    flags = np.zeros(len(poses), dtype=np.int_)
-    com = terrain.com_body
-    mass = terrain._robot().total_mass
-    unsettled = ~r.converged & ~r.tips_over & np.isfinite(r.z)
+    rested = np.isfinite(r.gravity_body).all(axis=1)
+    unsettled = ~r.converged & ~r.tips_over & rested
+    mu = np.where(unsettled, np.nan, r.mu)
+    slip = slip_limit(np.nan_to_num(r.gravity_body), terrain_friction(terrain))
+    known = rested & ~unsettled
+    slip_margin = np.where(known, slip.margin, np.nan)
+    flags = (1 * r.high_centred + 2 * r.line + 4 * r.tips_over + 16 * (known & slip.slides)).astype(
+        np.int_
+    )
+    flags = np.where(known, flags, 0)
     flags[unsettled] = 8
-    for i in np.flatnonzero(np.isfinite(r.z) & ~unsettled):
-        T = r.G_T_B[i]
-        bearing = r.bearing_G(c, int(i))
-        _, mu[i], line = contact_force_angle(bearing, T[:3, :3] @ com + T[:3, 3], mass * GRAVITY_G)
-        flags[i] = (
-            1 * bool(r.high_centred[i])
-            + 2 * (line or bool(r.line_contact[i]))
-            + 4 * bool(r.tips_over[i])
-        )
     shape = (xs.size, ys.size, n_headings)
-    mu3 = np.transpose(mu.reshape(shape), (1, 0, 2))
-    fl3 = np.transpose(flags.reshape(shape), (1, 0, 2))
-    known = np.isfinite(mu3).all(axis=2)
+
+    def grid(values: np.ndarray) -> np.ndarray:
+        return np.transpose(values.reshape(shape), (1, 0, 2))
+
+    mu3, fl3, slip3 = grid(mu), grid(flags), grid(slip_margin)
+    known3 = np.isfinite(mu3).all(axis=2)
     filled = np.where(np.isfinite(mu3), mu3, 0.0)
-    worst = np.where(known, mu3.min(axis=2, initial=np.inf, where=np.isfinite(mu3)), np.nan)
-    best = np.where(known, mu3.max(axis=2, initial=-np.inf, where=np.isfinite(mu3)), np.nan)
-    worst_h = np.where(known, hs[np.argmin(np.where(np.isfinite(mu3), filled, np.inf), 2)], np.nan)
-    best_h = np.where(known, hs[np.argmax(np.where(np.isfinite(mu3), filled, -np.inf), 2)], np.nan)
-    return StabilityMap(xs, ys, hs, mu3, fl3, worst, best, worst_h, best_h, seconds)
+    worst = np.where(known3, mu3.min(axis=2, initial=np.inf, where=np.isfinite(mu3)), np.nan)
+    best = np.where(known3, mu3.max(axis=2, initial=-np.inf, where=np.isfinite(mu3)), np.nan)
+    worst_h = np.where(known3, hs[np.argmin(np.where(np.isfinite(mu3), filled, np.inf), 2)], np.nan)
+    best_h = np.where(known3, hs[np.argmax(np.where(np.isfinite(mu3), filled, -np.inf), 2)], np.nan)
+    worst_slip = np.where(
+        known3, slip3.min(axis=2, initial=np.inf, where=np.isfinite(slip3)), np.nan
+    )
+    return StabilityMap(
+        xs, ys, hs, mu3, fl3, worst, best, worst_h, best_h, seconds, slip3, worst_slip,
+        slip.friction,
+    )  # fmt: skip

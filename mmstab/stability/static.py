@@ -14,8 +14,9 @@ f_j/|f_j| and l_j/|l_j| (the paper's Eq. 4 forgets to normalise; see the errata)
 smooth where ``sigma_j acos(.)`` is not. theta_j > 0 when the force line passes inside
 axis j, so mu > 0 exactly when the robot is statically stable.
 
-:func:`stability_along` gives μ along base poses on a terrain in the three cases the
-experiments compare (arm as it is, stowed, removed).
+The μ mmstab reports for a state is this measure on the contacts that carry its load
+(:mod:`mmstab.stability.support`); on a plane they are the tracks' rectangle
+(:func:`robot_force_angle`).
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.terrain import Terrain
 from mmstab.terrain.polygon import hull_along, support_vertices
 
 
@@ -250,42 +250,3 @@ def mu_max(robot: Robot) -> float:
     """The measure on flat ground with the arm stowed: the normaliser of Eq. 6 [N rad]."""
     flat = np.array([0.0, 0.0, -9.81])
     return float(robot_force_angle(robot, flat, robot.arm_com(robot.stowed)).mu[0])
-
-
-# ------------------------------------------------------------- the three cases along a run
-class StabilityCases(NamedTuple):
-    """Force-angle μ [N rad] along a sequence of base poses, per sample (N,).
-
-    Attributes:
-        reconfigured: with the arm as it is (moved, planned or swept).
-        arm_removed: the base alone.
-        stowed: with the arm held stowed on the same base poses.
-    """
-
-    reconfigured: FloatArray
-    arm_removed: FloatArray
-    stowed: FloatArray
-
-
-def stability_along(
-    robot: Robot, terrain: Terrain, poses: ArrayLike, arm_com_body: ArrayLike
-) -> StabilityCases:
-    """μ along base poses: with the given arm CoMs, with the arm removed, with it stowed.
-
-    The one place the planned/reconfigured, stowed and arm-removed cases are computed (the
-    tracking run, the plan's summary and the sweeps use it).
-
-    Args:
-        robot: the robot.
-        terrain: the ground (gravity in the body at each pose).
-        poses: base poses (N, 3) in the map frame M [m, m, rad].
-        arm_com_body: arm CoM in the body frame per pose (N, 3) or (3,) [m].
-    """
-    gravity = terrain.gravity_body(poses)
-    arm = np.broadcast_to(np.asarray(arm_com_body, dtype=float), gravity.shape)
-    stowed = np.broadcast_to(robot.arm_com(robot.stowed), gravity.shape)
-    return StabilityCases(
-        reconfigured=robot_force_angle(robot, gravity, arm).mu,
-        arm_removed=robot_force_angle(robot, gravity, None).mu,
-        stowed=robot_force_angle(robot, gravity, stowed).mu,
-    )

@@ -130,12 +130,21 @@ class HeightmapTerrain:
         z = self.heightmap.height(np.stack([xb.ravel(), yb.ravel()], axis=1)).reshape(xb.shape)
         return np.stack([xb, yb, z], axis=-1)
 
-    def rest(self, poses: ArrayLike, strict: bool = True) -> RestPoses:
-        """Resting poses, batched (see :func:`mmstab.terrain.rest.rest_poses`)."""
+    def rest(
+        self, poses: ArrayLike, strict: bool = True, com_body: ArrayLike | None = None
+    ) -> RestPoses:
+        """Resting poses, batched (see :func:`mmstab.terrain.rest.rest_poses`).
+
+        Args:
+            poses: (3,) or (N, 3) of (x, y, yaw) in G [m, m, rad].
+            strict: raise for ground off the map or unknown (else NaN rows).
+            com_body: the overall CoM in B, (3,) or (N, 3) [m] (``None``: the bound
+                robot's, :attr:`com_body`): each state rests under its own load.
+        """
         c = self.candidates
+        com = self.com_body if com_body is None else com_body
         return rest_poses(
-            self.heightmap, c.points, self.com_body, poses, c.part, self.settings, strict,
-            c.compliant,
+            self.heightmap, c.points, com, poses, c.part, self.settings, strict, c.compliant,
         )  # fmt: skip
 
     def G_T_M(self) -> FloatArray:

@@ -60,6 +60,9 @@ def rest_result(
     codes = np.full(K, -1) if part is None else np.asarray(part)
     high = (touching & (codes == CHASSIS)[None, :]).any(axis=1)
     bearing = touching.copy()
+    # a damped limit cycle between triangles: the contacts it rocks between carry the load
+    cycling = valid & ~converged & ~tips
+    bearing |= cycling[:, None] & (gap <= settings.cycle_tol)
     if compliant is not None:
         bearing |= np.asarray(compliant, dtype=bool)[None, :] & (gap <= settings.compliance)
     # line contact: the bearing points' footprint has no width. Its covariance is the

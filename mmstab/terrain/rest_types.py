@@ -27,6 +27,11 @@ class RestSettings(NamedTuple):
             robot up. Other candidates (arcs, flippers, chassis) carry load only when they
             touch. On a plane the bottom runs all touch, so the support is the ramp's.
         line_width: touching contacts within this of one line are a line contact [m].
+        cycle_tol: a rest that did not settle (its Newton steps cycle between two supporting
+            triangles: a contact on a ditch's rim or a kerb's edge, where the ground's slope
+            jumps under it, with the damped steps frozen within a fraction of a degree) is
+            carried by every candidate within this of the highest lift [m]: the triangles it
+            rocks between.
         approach: Newton steps longer than this [rad] are shortened ...
         approach_factor: ... by this factor (approach the rest without overshooting it).
         coarse_spacing: the first rounds use candidates this far apart [m] ...
@@ -50,6 +55,7 @@ class RestSettings(NamedTuple):
     contact_tol: float = 2e-4
     compliance: float = 0.02
     line_width: float = 1e-3
+    cycle_tol: float = 2e-3
     approach: float = 0.02
     approach_factor: float = 0.8
     coarse_spacing: float = 0.09

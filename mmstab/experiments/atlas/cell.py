@@ -4,9 +4,11 @@ A cell is one base pose (heading [rad]) on a planar ramp (slope [rad]), or at re
 centre of a generated heightmap (its seed and ``slope``), for one robot variant (robot,
 flippers, payload). It computes the planner's best arm CoM and its force-angle measure mu,
 the measure with the arm stowed and with the arm removed (base mass only), and the
-planner's wall time. On a heightmap the three measures use gravity at the resting pose
-with the arm stowed and the robot's footprint polygon, as the planner does; a pose that
-tips over, does not settle or leaves the map is NaN. Every cell draws from its own
+planner's wall time. On a heightmap the planner ranks arm CoMs on the tracks' rectangle
+under the stowed arm's rest, and the three measures it reports are mmstab's one μ: each
+state rested under its own load, on the contacts that carry it
+(:mod:`mmstab.stability.support`); a pose that tips over, does not settle or leaves the map
+(with the arm stowed) is NaN. Every cell draws from its own
 generator, seeded by the planner seed and the cell's indices, so a cell's numbers do not
 depend on chunking, workers or resumption.
 
@@ -29,9 +31,9 @@ import numpy as np
 from mmstab.experiments.atlas.spec import Block, TerrainCell
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import PlannerSettings, PlanningRegion, as_region, solve_pose, start_coms
-from mmstab.stability.static import mu_max, robot_force_angle
+from mmstab.stability.static import mu_max
+from mmstab.stability.support import loaded_mu
 from mmstab.terrain import Ramp, Terrain
-from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.generators import generate
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace import Workspace
@@ -225,7 +227,6 @@ def compute_chunk(payload: VariantPayload, task: ChunkTask) -> ChunkResult:
         if task.terrain.generate is None:
             terrain = Ramp(float(slope))
             poses = np.c_[np.zeros((nh, 2)), headings]
-            gravity = terrain.gravity_body(poses)
             ok = np.ones(nh, dtype=bool)
         else:
             # at rest at the map's centre with the arm stowed (the planner's gravity too)
@@ -233,14 +234,18 @@ def compute_chunk(payload: VariantPayload, task: ChunkTask) -> ChunkResult:
             poses = np.c_[np.zeros((nh, 2)), heightmap_yaw(task.terrain, slope, headings)]
             rest = terrain.rest(poses, strict=False)
             ok = rest.converged & ~rest.tips_over
-            gravity = np.einsum("nji,j->ni", np.nan_to_num(rest.G_T_B[:, :3, :3]), GRAVITY_G)
-        mu_s[i] = np.where(ok, robot_force_angle(ctx.robot, gravity, stowed).mu, np.nan)
-        mu_r[i] = np.where(ok, robot_force_angle(ctx.robot, gravity, None).mu, np.nan)
+        # the one μ: each state on its own loaded support (on the ramp, the tracks' rectangle)
+        mu_s[i] = np.where(ok, loaded_mu(ctx.robot, terrain, poses, stowed, strict=False), np.nan)
+        mu_r[i] = np.where(ok, loaded_mu(ctx.robot, terrain, poses, None, strict=False), np.nan)
         for j in range(nh):
             if ok[j]:
                 rng = cell_rng(ctx.settings.seed, b.variant, b.slope.start + i, b.heading.start + j)
                 best = plan_best_pose(ctx, terrain, poses[j], rng)
-                mu_p[i, j], com[i, j], secs[i, j] = best.mu, best.arm_com, best.seconds
+                mu = best.mu
+                if task.terrain.generate is not None:  # reported on the loaded support
+                    at = loaded_mu(ctx.robot, terrain, poses[j], best.arm_com, strict=False)
+                    mu = float(at[0])
+                mu_p[i, j], com[i, j], secs[i, j] = mu, best.arm_com, best.seconds
             with _LOCK:
                 _COUNTS["cells"] += 1
     with _LOCK:

@@ -11,6 +11,7 @@ import numpy as np
 
 from mmstab.core.files import MmstabError
 from mmstab.planner.climbing import climb_plan
+from mmstab.planner.fitness import support_polygons_at
 from mmstab.planner.roadmap import solve_roadmap_sequence
 from mmstab.planner.search import PathChoice, PathTask, PoseChoice, PoseTask
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
@@ -40,6 +41,9 @@ class RoadmapSearch:
         climb = None
         if task.settings.climb and task.terrain is not None and task.poses is not None:
             climb = climb_plan(task.robot, task.terrain, task.poses, task.closed)
+        polygons = None
+        if task.terrain is not None and task.poses is not None:  # the loaded support
+            polygons = support_polygons_at(task.robot, task.terrain, task.poses)
         seq = solve_roadmap_sequence(
             task.robot,
             task.gravity_body,
@@ -50,6 +54,7 @@ class RoadmapSearch:
             poses,
             under=under,
             climb=climb,
+            polygons=polygons,
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,

@@ -40,8 +40,8 @@ from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import MapUpdate
-from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.slip import support_tilt, terrain_friction
+from mmstab.stability.support import loaded_mu
 from mmstab.terrain import place_local
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace import Workspace
@@ -188,7 +188,10 @@ class Follower:
         changes = self.horizon.update(terrain, ks, horizon, u.time, arm_com, q)
         covered = bool(rested.covered[0])
         g_now = rested.gravity_body[0]
-        mu = float(robot_mu(self.robot, g_now, q)[0]) if covered else float("nan")
+        mu = float("nan")
+        if covered:  # the one μ: this state's loaded support on this map
+            com = self.robot.arm_com(q)
+            mu = float(loaded_mu(self.robot, terrain, pose, com, q[None], strict=False)[0])
         tilt = float(support_tilt(g_now)[0]) if covered else float("nan")
         for i in (1, 0):  # the reference pose's ground, else the robot's, else the last
             if rested.covered[i]:

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds
-from mmstab.planner.fitness import Fitness, pose_fitness
+from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.pose import Realise, realise_target, solve_pose
 from mmstab.planner.regions import PlanningRegion, SampleIndex
 from mmstab.planner.settings import PlannerSettings
@@ -256,7 +256,11 @@ class HorizonPlanner:
                 self.robot, terrain, self.region, pose, prev_com, s, self.rng, self.mu_max
             )
         else:
-            fit = pose_fitness(self.robot, g, prev_com, s, self.mu_max, self.region.diameter)
+            polygons = support_polygons_at(self.robot, terrain, pose)  # the loaded support
+            fit = pose_fitness(
+                self.robot, g, prev_com, s, self.mu_max, self.region.diameter,
+                None if polygons is None else polygons[0],
+            )  # fmt: skip
             starts = [prev_com] if old is None else [prev_com, old.target_com]
             guard = self._guard(fit, prev_com)
             if guard is not None:

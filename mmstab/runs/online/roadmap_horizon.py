@@ -25,7 +25,7 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +35,7 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner import roadmap as rp
 from mmstab.planner.candidates import Candidates, NodeClearance, route_candidates
-from mmstab.planner.fitness import pose_fitness
+from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.roadmap_moves import ground_move
@@ -157,13 +157,25 @@ class RoadmapHorizon:
             self._arm = arm, KeptPieces(arm.base, self.roadmap.nodes_q[self.reach])
         return self._arm
 
-    def _candidates(self, gravity: FloatArray, clear: NodeClearance | None = None) -> Candidates:
-        """Each pose's candidates at gravities (n, 3) [m/s^2] in B, in one batch."""
+    def _candidates(
+        self,
+        gravity: FloatArray,
+        clear: NodeClearance | None = None,
+        polygons: list[FloatArray] | None = None,
+    ) -> Candidates:
+        """Each pose's candidates at gravities (n, 3) [m/s^2] in B, in one batch.
+
+        ``polygons``: each pose's support polygon in B (None: the tracks' rectangle).
+        """
         clear = self.clear if clear is None else clear
         stab = self.settings._replace(w_motion=0.0)
         stowed = self.robot.arm_com(self.robot.stowed)
         d = self.view.diameter
-        fits = [pose_fitness(self.robot, g, stowed, stab, self.mu_max, d).linear() for g in gravity]
+        polys: list[Any] = [None] * len(gravity) if polygons is None else list(polygons)
+        fits = same_axes([
+            pose_fitness(self.robot, g, stowed, stab, self.mu_max, d, p).linear()
+            for g, p in zip(gravity, polys, strict=True)
+        ])  # fmt: skip
         v = self.view
         return route_candidates(fits, self.samples, v.bins, v.clusters, self.count, clear)
 
@@ -204,7 +216,9 @@ class RoadmapHorizon:
         replanned = list(changes.replanned)
         if replanned:
             g = rested.gravity_body[[ks.index(k) for k in replanned]]
-            self._score(replanned, g, now, ground)
+            # ranked on each pose's loaded support on this map (the offline planner's basis)
+            polygons = support_polygons_at(self.robot, terrain, self.poses_grid[replanned])
+            self._score(replanned, g, now, ground, polygons)
             first = replanned[0]
             if ground is not None and ks[0] < first - 1 and first - 1 in self.candidates:
                 first -= 1  # ahead of the robot: the move into ``first`` must clear both grounds
@@ -247,11 +261,17 @@ class RoadmapHorizon:
         return again | mapped
 
     def _score(
-        self, ks: list[int], gravity: FloatArray, now: float, ground: MapGround | None = None
+        self,
+        ks: list[int],
+        gravity: FloatArray,
+        now: float,
+        ground: MapGround | None = None,
+        polygons: list[FloatArray] | None = None,
     ) -> None:
         """Score the candidates of poses ``ks`` at gravities (n, 3) [m/s^2], in one batch.
 
-        With ``ground``: each node also ``ground_clearance`` above the map under the arm.
+        With ``ground``: each node also ``ground_clearance`` above the map under the arm;
+        ``polygons``: the poses' support polygons in B (None: the tracks' rectangle).
         """
         clear = None
         if ground is not None and self._arm is not None:
@@ -262,7 +282,7 @@ class RoadmapHorizon:
                     self.arm_ground["reach_unknown"] += 1
                 else:
                     self.unknown.discard(k)
-        rows, value, mu = self._candidates(gravity, clear)
+        rows, value, mu = self._candidates(gravity, clear, polygons)
         for i, k in enumerate(ks):
             self.candidates[k] = PoseCandidates(gravity[i], rows[i], value[i], mu[i], now)
 

@@ -38,7 +38,7 @@ body on the default problem.
 **Stability.** After the loop, vectorised over every recorded sample: μ with the arm as it
 moved (``reconfigured``), with the arm held stowed on the same base trajectory (``stowed``)
 and with the arm removed (``arm_removed``, the base alone), gravity from each recorded pose
-(:func:`mmstab.stability.static.stability_along`).
+(:func:`mmstab.stability.support.stability_along`).
 
 Modules: :mod:`~mmstab.runs.tracking.backend` (the step and one control period),
 :mod:`~mmstab.runs.tracking.run` (what a run records), :mod:`~mmstab.runs.tracking.simulation`

@@ -15,7 +15,7 @@ from mmstab.control.reference import PlanLike
 from mmstab.control.timing import TimeLaw
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.stability.static import StabilityCases
+from mmstab.stability.support import StabilityCases
 from mmstab.terrain import Terrain
 from mmstab.workspace.ik import COM_TOLERANCE
 

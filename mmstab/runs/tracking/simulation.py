@@ -42,8 +42,7 @@ from mmstab.runs.tracking.run import (
     check_plan,
     task_batch,
 )
-from mmstab.stability.dynamic import robot_mu
-from mmstab.stability.static import robot_force_angle, stability_along
+from mmstab.stability.support import posture_mu, stability_along
 from mmstab.terrain import wrap_angle
 
 
@@ -163,13 +162,11 @@ def start_state(
 
 
 def mu_with_arm(problem: Problem, states: FloatArray) -> FloatArray:
-    """μ with the arm as it is at each state (m, 5 + n) [N rad] (m,)."""
-    robot = problem.robot
-    gravity = problem.terrain.gravity_body(states[:, :3])
-    if robot.tool_wrench is not None:  # payload.wrench: at the tool points
-        return robot_mu(robot, gravity, states[:, ARM])
-    com = np.atleast_2d(robot.arm_com(states[:, ARM]))
-    return robot_force_angle(robot, gravity, com).mu
+    """μ with the arm as it is at each state (m, 5 + n) [N rad] (m,).
+
+    The one μ: on the contacts that carry the state's load, with the tool wrench if any.
+    """
+    return posture_mu(problem.robot, problem.terrain, states[:, :3], states[:, ARM])
 
 
 def first_tip(problem: Problem, chunk: FloatArray) -> int | None:

@@ -1,0 +1,220 @@
+"""The route's verdicts between its planned poses: every few centimetres, not every half metre.
+
+The planner places poses ``planner.spacing`` apart (0.5 m by default); a ditch's edge or a
+kerb lies between two of them. :func:`dense_verdicts` rests the robot along the path every
+``spacing`` of arc length (the map's cell, at most :data:`SPACING`, below the tracks'
+contact spacing) with the arm in each of the two planned postures it moves between (the
+worse of the two counts), and checks there what the tracking run and the robot meet:
+
+- **tip**: mmstab's one μ (:mod:`mmstab.stability.support`) at or below the plan's margin
+  plus what the route's own accelerations take off it (:func:`acceleration_margin`);
+- **slide**: the support's tilt beyond ``atan(friction)`` (the friction cone,
+  :mod:`mmstab.stability.slip`);
+- **high-centred**: the chassis among the loaded contacts (a warning: stuck, not unsafe).
+
+Each failing stretch says where (arc lengths [m]), which limit and by how much.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.core.masks import true_runs
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.stability.slip import slip_limit, terrain_friction
+from mmstab.stability.support import loaded_support
+from mmstab.terrain.base import GRAVITY_G, Terrain
+
+#: Largest arc length between two checked samples [m] (the maps' cells are 2-5 cm; the
+#: tracks' road wheels about 10 cm apart).
+SPACING = 0.05
+
+
+class Along(NamedTuple):
+    """The samples of a path and what the robot meets there (N samples).
+
+    Attributes:
+        s: arc length of each sample (N,) [m].
+        poses: (N, 3) of (x, y, yaw) in M [m, m, rad].
+        mu: the worse μ of the two postures (N,) [N rad] (NaN: off the map).
+        tilt: the larger support tilt of the two (N,) [rad].
+        high_centred: (N,) the chassis carries load in either posture.
+    """
+
+    s: FloatArray
+    poses: FloatArray
+    mu: FloatArray
+    tilt: FloatArray
+    high_centred: np.ndarray
+
+
+def acceleration_margin(mass: float, acceleration: float) -> float:
+    """What the route's accelerations can take off a quasi-static μ [N rad].
+
+    An acceleration ``a`` of the base (along or across the path) tilts the net force
+    ``m (g - a)`` by ``atan(a / g)`` from gravity, so each axis angle theta_j moves by at
+    most that much, and μ = min theta_j |f| by at most ``|f| atan(a / g)``.
+
+    Args:
+        mass: the robot's mass [kg].
+        acceleration: the largest acceleration of the base along the route [m/s^2]
+            (``path.acceleration``, ``path.lateral_acceleration``).
+    """
+    g = float(np.linalg.norm(GRAVITY_G))
+    return float(mass * np.hypot(g, acceleration) * np.arctan2(acceleration, g))
+
+
+def sample_spacing(terrain: Terrain) -> float:
+    """The samples' spacing [m]: the map's cell, at most :data:`SPACING`."""
+    hm = getattr(terrain, "heightmap", None)
+    return SPACING if hm is None else float(min(SPACING, hm.resolution))
+
+
+def bracket(s_plan: ArrayLike, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the planned poses before and after each arc length ``s`` [m]."""
+    sp = np.asarray(s_plan, dtype=float)
+    before = np.clip(np.searchsorted(sp, np.asarray(s, float), side="right") - 1, 0, len(sp) - 1)
+    return before, np.minimum(before + 1, len(sp) - 1)
+
+
+def along_path(
+    robot: Robot,
+    terrain: Terrain,
+    poses: ArrayLike,
+    s: ArrayLike,
+    s_plan: ArrayLike,
+    arm_com_plan: ArrayLike,
+) -> Along:
+    """Rest the robot at path samples with the planned arm before and after each.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: the path's samples (N, 3) in M [m, m, rad], in driving order.
+        s: their arc lengths (N,) [m].
+        s_plan: the planned poses' arc lengths (K,) [m], increasing.
+        arm_com_plan: the planned arm CoM at each planned pose, body frame (K, 3) [m].
+    """
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    arm = np.asarray(arm_com_plan, dtype=float)
+    before, after = bracket(s_plan, s)
+    both = loaded_support(
+        robot, terrain, np.vstack([P, P]), np.vstack([arm[before], arm[after]]), strict=False
+    )
+    n = len(P)
+    tilt = slip_limit(np.nan_to_num(both.gravity_body), 1.0).tilt
+    tilt = np.where(np.isfinite(both.gravity_body).all(axis=1), tilt, np.nan)
+    return Along(
+        s=np.asarray(s, dtype=float),
+        poses=P,
+        mu=np.fmin(both.mu[:n], both.mu[n:]),
+        tilt=np.fmax(tilt[:n], tilt[n:]),
+        high_centred=both.high_centred[:n] | both.high_centred[n:],
+    )
+
+
+def _stretches(mask: np.ndarray, s: FloatArray, values: FloatArray, worst: Any, by: Any) -> list:
+    return [
+        {
+            "start_s": float(s[a]),
+            "end_s": float(s[b - 1]),
+            "worst": float(worst(values[a:b])),
+            "by": float(by(worst(values[a:b]))),
+        }
+        for a, b in true_runs(mask)
+    ]
+
+
+def dense_verdicts(
+    terrain: Terrain, along: Along, margin: float, accelerating: float = 0.0
+) -> dict[str, Any]:
+    """Tip, slide and high-centred stretches of the samples (``summary.json``'s ``along_path``).
+
+    Args:
+        terrain: the ground (its ``friction``).
+        along: the samples (:func:`along_path`).
+        margin: μ must exceed this [N rad] (``planner.margin``) ...
+        accelerating: ... plus this [N rad] (:func:`acceleration_margin`).
+
+    Returns:
+        ``spacing_m``, ``samples``, ``mu_min`` [N rad], ``tilt_max`` [rad], and per limit
+        (``tip``, ``slide``, ``high_centred``) whether it binds and its ``stretches``: arc
+        lengths [m], the worst value there (μ [N rad], tilt [rad]) and by how much it
+        passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]).
+    """
+    s, mu, tilt = along.s, along.mu, along.tilt
+    friction = terrain_friction(terrain)
+    critical = float(np.arctan(friction))
+    known = np.isfinite(mu)
+    threshold = margin + accelerating
+    tips = known & ~(mu > threshold)
+    slides = np.isfinite(tilt) & (tilt > critical)
+    return {
+        "spacing_m": float(np.median(np.diff(s))) if len(s) > 1 else 0.0,
+        "samples": int(len(s)),
+        "off_map_samples": int((~known).sum()),
+        "mu_min": float(np.min(mu[known])) if known.any() else None,
+        "tilt_max": float(np.max(tilt[np.isfinite(tilt)])) if np.isfinite(tilt).any() else None,
+        "tip": {
+            "binds": bool(tips.any()),
+            "margin": float(margin),
+            "acceleration_margin": float(accelerating),
+            "threshold": float(threshold),
+            "stretches": _stretches(tips, s, mu, np.min, lambda w: threshold - w),
+        },
+        "slide": {
+            "binds": bool(slides.any()),
+            "critical_tilt": critical,
+            "friction": friction,
+            "stretches": _stretches(slides, s, tilt, np.max, lambda w: w - critical),
+        },
+        "high_centred": {
+            "binds": bool(along.high_centred.any()),
+            "stretches": [
+                {"start_s": float(s[a]), "end_s": float(s[b - 1])}
+                for a, b in true_runs(along.high_centred)
+            ],
+        },
+    }
+
+
+def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """One verdict per limit of a route plan's summary: what text, JSON and figures show.
+
+    Args:
+        summary: the route plan's ``summary.json`` (``stability``, ``slip``, ``climb``,
+            ``high_centred``, ``poses``, ``risk``).
+
+    Returns:
+        For ``tip``, ``slide``, ``step``, ``high_centred`` and ``arm_contact``: ``verdict``
+        (``holds`` or what happens: ``tips``, ``slides``, ``stalls``, ``high_centred``,
+        ``collides``), ``unsafe`` (it sets the exit status unless allowed) and ``where``
+        (arc lengths [m] of the stretches, ``[start, end]``).
+    """
+    s = summary["s"]
+    stab, slip = summary["stability"], summary["slip"]
+    tip_where = [[s[b["index"]], s[b["index"]]] for b in stab["unstable_poses"]]
+    tip_where += [[x["start_s"], x["end_s"]] for x in stab.get("stretches", [])]
+    slide_where = [[x["start_s"], x["end_s"]] for x in summary["risk"]["slides"]]
+    climb = summary["climb"]
+    stall_where = [
+        [s[x["index"]], s[x["index"]]] for x in climb["steps"] if not x["planned_climbs"]
+    ]
+    hc = summary["high_centred"]
+    hc_where = [[x["start_s"], x["end_s"]] for x in hc["stretches"]]
+    contact = [[s[k], s[k]] for k, p in enumerate(summary["poses"]) if not p["collision_free"]]
+    return {
+        "tip": {"verdict": "holds" if stab["stable"] else "tips", "unsafe": not stab["stable"],
+                "where": sorted(tip_where), "mu_min": stab.get("mu_min")},
+        "slide": {"verdict": "slides" if slip["slides"] else "holds",
+                  "unsafe": bool(slip["slides"]), "where": sorted(slide_where)},
+        "step": {"verdict": "stalls" if climb["stalls"] else "holds", "unsafe": False,
+                 "where": stall_where},
+        "high_centred": {"verdict": "high_centred" if hc["high_centred"] else "holds",
+                         "unsafe": False, "where": hc_where},
+        "arm_contact": {"verdict": "collides" if contact else "holds", "unsafe": bool(contact),
+                        "where": contact},
+    }  # fmt: skip
