@@ -79,19 +79,21 @@ def test_help_names_every_exit_status_of_the_cli_doc():
 
 
 #: A quoted number's source: ``<!-- results/X.json: key.path[0].key -->1.23`` (optionally
-#: ``* 100`` after the key path, for a percentage or a unit change). The number right after
-#: the marker is the quote; it must equal the JSON's value to the quote's decimals.
+#: ``@min`` / ``@max`` of a list, and ``* 100`` after the key path, for a percentage or a
+#: unit change). The number right after the marker is the quote; it must equal the JSON's
+#: value to the quote's decimals.
 QUOTE = re.compile(
-    r"<!-- (results/[\w./-]+\.json): ([\w.\[\]]+)(?:\s*\*\s*([0-9.e+-]+))? -->"
+    r"<!-- (results/[\w./-]+\.json): ([\w.\[\]@]+)(?:\s*\*\s*([0-9.e+-]+))? -->"
     r"\s*(?:\*\*)?(-?\d[\d,]*(?:\.\d+)?)"
 )
 
 
 def json_value(data, path: str):
-    """``a.b[0].c`` in nested dicts and lists."""
+    """``a.b[0].c`` in nested dicts and lists; ``a.b@min`` the least of a list."""
+    path, _, reduce = path.partition("@")
     for key, index in re.findall(r"([^.\[\]]+)|\[(\d+)\]", path):
         data = data[int(index)] if index else data[key]
-    return data
+    return {"": lambda v: v, "min": min, "max": max}[reduce](data)
 
 
 def quoted_numbers(path):
