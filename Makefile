@@ -108,7 +108,7 @@ fidelity: setup
 	$(MMSTAB) fidelity $(PROBLEM)
 
 ## issue 25: mmstab's tips / holds / slides against MuJoCo's on a grid of edge cases
-## -> results/verdicts/summary.json, verdicts.png (docs/physics.md, "Verdicts against MuJoCo")
+## -> results/verdicts/summary.json, verdicts.png (docs/verdicts.md)
 .PHONY: verdicts
 VERDICTS ?= problems/verdicts.yaml
 verdicts: setup
@@ -116,7 +116,7 @@ verdicts: setup
 
 ## issue 25: mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
-## (docs/physics.md, "Sliding in turns")
+## (docs/skid.md)
 .PHONY: skid
 SKID ?= problems/skid.yaml
 skid: setup

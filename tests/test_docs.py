@@ -89,10 +89,14 @@ QUOTE = re.compile(
 
 
 def json_value(data, path: str):
-    """``a.b[0].c`` in nested dicts and lists; ``a.b@min`` the least of a list."""
+    """``a.b[0].c`` in nested dicts and lists (``a[1.0]``: a key with a dot); ``a.b@min``
+    the least of a list."""
     path, _, reduce = path.partition("@")
-    for key, index in re.findall(r"([^.\[\]]+)|\[(\d+)\]", path):
-        data = data[int(index)] if index else data[key]
+    for key, bracket in re.findall(r"([^.\[\]]+)|\[([^\]]+)\]", path):
+        if bracket:
+            data = data[int(bracket)] if isinstance(data, list) else data[bracket]
+        else:
+            data = data[key]
     return {"": lambda v: v, "min": min, "max": max}[reduce](data)
 
 
