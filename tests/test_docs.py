@@ -131,3 +131,13 @@ def test_the_number_check_catches_a_stale_quote(tmp_path, monkeypatch):
     page.write_text(f"agrees in {marker}571 cases")  # the summary says 572
     [(_, quote, value)] = list(quoted_numbers(page))
     assert quote == "571" and value == 572.0
+
+
+def test_pages_are_short_and_name_no_tracker_issue():
+    """The README reads in minutes, a docs page is one topic; history is CHANGELOG.md's."""
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 200
+    for path in sorted((ROOT / "docs").glob("*.md")):
+        assert len(path.read_text().splitlines()) <= 400, f"{path.name}: split it by topic"
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        hits = re.findall(r"\bissues? \d+", path.read_text(), re.I)
+        assert not hits, f"{path.name}: tracker issue numbers {hits}"
