@@ -115,6 +115,8 @@ def quoted_numbers(path):
 def test_every_marked_number_is_its_source():
     checked: dict[str, int] = {}
     for path in pages():
+        if path.name == "CHANGELOG.md":
+            continue  # its numbers are those of their day
         for marker, quote, value in quoted_numbers(path):
             decimals = len(quote.split(".")[1]) if "." in quote else 0
             tolerance = 0.5 * 10.0**-decimals + 1e-9
