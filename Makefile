@@ -169,7 +169,7 @@ view: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(MMSTAB) view $(PROBLEM) --run $(VIEW_RUN) $(VIEW_ARGS)
 
-## the viewer as headless chromium shows it -> results/view/viewer.png (the README's picture)
+## the viewer as headless chromium shows it -> results/view/viewer.png (the picture of docs/viewer.md)
 view-screenshot: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) -m mmstab.viz.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
