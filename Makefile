@@ -88,7 +88,7 @@ fig8: setup
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
 ## (and other CMA-ES set-ups on the same poses -> results/bench/plan_alternatives.json)
 ## (and along the rough route, warm-started: its "route" entry, benchmarks/plan_route.py)
-## issue 12: the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
+## the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
 	$(MMSTAB) fig8 problems/ramp_reliable.yaml -o results/fig8_reliable
@@ -107,16 +107,16 @@ bench-plan: setup
 fidelity: setup
 	$(MMSTAB) fidelity $(PROBLEM)
 
-## issue 25: mmstab's tips / holds / slides against MuJoCo's on a grid of edge cases
-## -> results/verdicts/summary.json, verdicts.png (docs/physics.md, "Verdicts against MuJoCo")
+## mmstab's tips / holds / slides against MuJoCo's on a grid of edge cases
+## -> results/verdicts/summary.json, verdicts.png (docs/verdicts.md)
 .PHONY: verdicts
 VERDICTS ?= problems/verdicts.yaml
 verdicts: setup
 	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
 
-## issue 25: mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
+## mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
-## (docs/physics.md, "Sliding in turns")
+## (docs/skid.md)
 .PHONY: skid
 SKID ?= problems/skid.yaml
 skid: setup
@@ -132,7 +132,7 @@ fig9 fig10 fig11 fig12: tracking
 bench-track: setup
 	$(PY) benchmarks/bench_tracking.py $(PROBLEM)
 
-## embedded controller (issue 6): the step as generated C, the standalone C closed loop, benchmarks
+## embedded controller: the step as generated C, the standalone C closed loop, benchmarks
 .PHONY: codegen embedded bench
 codegen: setup
 	$(MMSTAB) codegen $(PROBLEM)
@@ -156,12 +156,12 @@ bench: $(BENCHES)
 bench-codegen: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_codegen.py $(PROBLEM)
 
-## issue 7: the tracking run animated -> results/tracking/animation.gif
+## the tracking run animated -> results/tracking/animation.gif
 .PHONY: animation
 animation: setup
 	$(MMSTAB) animation $(PROBLEM)
 
-## issue 18: the interactive 3-D viewer of the default run (prints its URL; Ctrl-C stops).
+## the interactive 3-D viewer of the default run (prints its URL; Ctrl-C stops).
 ## VIEW_ARGS passes options, e.g. make view VIEW_ARGS="--host 0.0.0.0 --port 8090 --no-browser"
 .PHONY: view view-screenshot bench-view
 VIEW_RUN ?= results/tracking
@@ -169,7 +169,7 @@ view: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(MMSTAB) view $(PROBLEM) --run $(VIEW_RUN) $(VIEW_ARGS)
 
-## the viewer as headless chromium shows it -> results/view/viewer.png (the README's picture)
+## the viewer as headless chromium shows it -> results/view/viewer.png (the picture of docs/viewer.md)
 view-screenshot: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) -m mmstab.viz.viewer.snapshot $(PROBLEM) $(VIEW_RUN) results/view/viewer.png
@@ -180,7 +180,7 @@ bench-view: setup
 	@test -f $(VIEW_RUN)/run.npz || $(MAKE) tracking
 	$(PY) benchmarks/bench_view.py $(PROBLEM) --run $(VIEW_RUN) $(if $(MESHCAT_PY),--meshcat-python $(MESHCAT_PY))
 
-## issue 14 item 5: resting pose vs MuJoCo heightfield drops -> results/terrain/summary.json, validation.png
+## resting pose vs MuJoCo heightfield drops -> results/terrain/summary.json, validation.png
 .PHONY: validate-terrain
 VALIDATION ?= problems/validate_terrain_rest.yaml
 validate-terrain: setup
@@ -196,7 +196,7 @@ bench-drop: setup
 bench-step-terrain: setup
 	$(PY) benchmarks/step_terrain.py $(PROBLEM)
 
-## issue 14: uneven terrain: stability maps + 3-D views of the shipped terrains, benchmark
+## uneven terrain: stability maps + 3-D views of the shipped terrains, benchmark
 TERRAINS ?= problems/rough.yaml problems/kerb.yaml problems/dem.yaml
 .PHONY: terrain bench-terrain
 terrain: setup
@@ -206,16 +206,16 @@ terrain: setup
 bench-terrain: setup
 	$(PY) benchmarks/bench_terrain.py $(TERRAINS)
 
-## posture roadmap (issue 24): lattice roadmap vs OMPL PRM* / RRT-Connect -> results/bench/roadmap.json
+## posture roadmap: lattice roadmap vs OMPL PRM* / RRT-Connect -> results/bench/roadmap.json
 .PHONY: bench-roadmap
 bench-roadmap: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_roadmap.py problems/rough.yaml --rebuild
 
-## edges (issue 13): are the size estimates of mmstab/core/sizes.py bounds here? -> results/bench/sizes.json
+## edges: are the size estimates of mmstab/core/sizes.py bounds here? -> results/bench/sizes.json
 .PHONY: bench-sizes
 bench-sizes: setup
 	$(PY) benchmarks/sizes.py $(PROBLEM)
-## issue 17: tip-over envelope atlas on Dask (docs/atlas.md) -> results/atlas/; benchmark
+## tip-over envelope atlas on Dask (docs/atlas.md) -> results/atlas/; benchmark
 .PHONY: atlas bench-atlas
 # the atlas wants each cell's best posture: the reliable planner search (docs/planner.md)
 ATLAS_PROBLEM ?= problems/ramp_reliable.yaml
@@ -225,7 +225,7 @@ atlas: setup
 bench-atlas: setup
 	$(PY) benchmarks/atlas.py $(ATLAS_PROBLEM)
 
-## issue 16: payload, flippers, lap speed, robot variants (docs/levers.md) -> results/levers/
+## payload, flippers, lap speed, robot variants (docs/levers.md) -> results/levers/
 .PHONY: levers
 levers: setup
 	$(MMSTAB) levers problems/levers.yaml
@@ -235,7 +235,7 @@ levers: setup
 atlas-rough: setup
 	$(MMSTAB) atlas problems/rough_atlas.yaml -o results/atlas_rough
 
-## issue 15: plan and track along a route over rough ground (docs/routes.md) -> results/rough/,
+## plan and track along a route over rough ground (docs/routes.md) -> results/rough/,
 ## results/kerb/: the plan (plan/), the tracking run, its figures and the animation
 .PHONY: rough kerb
 rough: setup
@@ -243,7 +243,7 @@ rough: setup
 	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/rough.yaml -o results/rough
 
-## issue 25 (docs/physics.md): the ramp lap and the shipped routes in MuJoCo with the controller
+## the ramp lap and the shipped routes in MuJoCo with the controller
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. rough.yaml slides
 ## where mmstab says so (--allow-sliding); the kerb's planned arm keeps off the ground through the
 ## body's rocking (planner.attitude_margin; without it the wrist grazed the kerb's top, exit 5),
@@ -261,7 +261,7 @@ physics: setup
 bench-physics: setup
 	$(PY) benchmarks/bench_physics.py
 
-## issue 26 (docs/online.md): a generated robot recording of the rough route, followed online
+## a generated robot recording of the rough route, followed online
 .PHONY: online bench-online
 online: setup
 	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
@@ -277,10 +277,10 @@ kerb: setup
 	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/kerb.yaml -o results/kerb
 
-## issue 24: 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
+## 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json
 .PHONY: random-routes
-## (PAIRS=60: pairs 0-59, the 40 beyond the issue's drawn by the same generator)
+## (PAIRS=60: pairs 0-59, the 40 beyond the 20 by the same generator)
 PAIRS ?= 20
 random-routes: setup
 	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set

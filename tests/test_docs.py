@@ -25,8 +25,13 @@ def test_api_examples_run():
         assert out.returncode == 0, f"{code}\n{out.stderr}"
 
 
+def pages():
+    """Every Markdown page: README, CHANGELOG and docs/."""
+    return [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
 def test_docs_and_readme_point_inside_the_repository():
-    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+    for path in pages():
         text = path.read_text()
         assert "../shared" not in text and "DESIGN.md" not in text, path
         for target in re.findall(r"\]\(([^)#]+)\)", text):
@@ -47,7 +52,7 @@ def anchors(path):
 
 def test_every_anchor_a_link_names_exists():
     checked = 0
-    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+    for path in pages():
         for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", path.read_text()):
             if "://" in target:
                 continue
@@ -71,3 +76,70 @@ def test_help_names_every_exit_status_of_the_cli_doc():
     assert statuses == ["0", "2", "3", "4", "5", "6", "130", "141"]
     epilog = build_parser().epilog or ""
     assert all(re.search(rf"\b{s} [a-z]", epilog) for s in statuses), epilog
+
+
+#: A quoted number's source: ``<!-- results/X.json: key.path[0].key -->1.23`` (optionally
+#: ``@min`` / ``@max`` of a list, and ``* 100`` after the key path, for a percentage or a
+#: unit change). The number right after the marker is the quote; it must equal the JSON's
+#: value to the quote's decimals.
+QUOTE = re.compile(
+    r"<!-- (results/[\w./-]+\.json): ([\w.\[\]@]+)(?:\s*\*\s*([0-9.e+-]+))? -->"
+    r"\s*(?:\*\*)?(-?\d[\d,]*(?:\.\d+)?)"
+)
+
+
+def json_value(data, path: str):
+    """``a.b[0].c`` in nested dicts and lists (``a[1.0]``: a key with a dot); ``a.b@min``
+    the least of a list."""
+    path, _, reduce = path.partition("@")
+    for key, bracket in re.findall(r"([^.\[\]]+)|\[([^\]]+)\]", path):
+        if bracket:
+            data = data[int(bracket)] if isinstance(data, list) else data[bracket]
+        else:
+            data = data[key]
+    return {"": lambda v: v, "min": min, "max": max}[reduce](data)
+
+
+def quoted_numbers(path):
+    """(marker, quoted text, value from the JSON) of every marked number of a page."""
+    import json
+
+    text = path.read_text()
+    assert text.count("<!-- results/") == len(QUOTE.findall(text)), f"{path.name}: a bad marker"
+    for m in QUOTE.finditer(text):
+        source, key, scale, quote = m.groups()
+        value = json_value(json.loads((ROOT / source).read_text()), key)
+        yield m.group(0), quote, float(value) * (float(scale) if scale else 1.0)
+
+
+def test_every_marked_number_is_its_source():
+    checked: dict[str, int] = {}
+    for path in pages():
+        if path.name == "CHANGELOG.md":
+            continue  # its numbers are those of their day
+        for marker, quote, value in quoted_numbers(path):
+            decimals = len(quote.split(".")[1]) if "." in quote else 0
+            tolerance = 0.5 * 10.0**-decimals + 1e-9
+            assert abs(float(quote.replace(",", "")) - value) <= tolerance, (
+                f"{path.name}: {marker!r} quotes {quote}, the source says {value:.6g}"
+            )
+            checked[path.name] = checked.get(path.name, 0) + 1
+    assert checked.get("README.md", 0) >= 12, checked  # every feature's number
+
+
+def test_the_number_check_catches_a_stale_quote(tmp_path, monkeypatch):
+    page = tmp_path / "page.md"
+    marker = "<!-- results/verdicts/summary.json: models.rigid.agree -->"
+    page.write_text(f"agrees in {marker}571 cases")  # the summary says 572
+    [(_, quote, value)] = list(quoted_numbers(page))
+    assert quote == "571" and value == 572.0
+
+
+def test_pages_are_short_and_name_no_tracker_issue():
+    """The README reads in minutes, a docs page is one topic; history is CHANGELOG.md's."""
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 200
+    for path in sorted((ROOT / "docs").glob("*.md")):
+        assert len(path.read_text().splitlines()) <= 400, f"{path.name}: split it by topic"
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        hits = re.findall(r"\bissues? \d+", path.read_text(), re.I)
+        assert not hits, f"{path.name}: tracker issue numbers {hits}"

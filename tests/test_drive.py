@@ -24,7 +24,7 @@ def test_auto_is_the_skid_models_level_pivot_ratio(robot):
     tw = skid_twist(track_patch(robot), [0.0, 0.0, -9.81], com, (-0.45, 0.45), 0.6)
     expected = float(tw.yaw_rate[0]) / (0.9 / t.separation)
     assert resolve_turn_ratio(robot, "auto") == pytest.approx(expected, abs=1e-6)
-    assert pivot_turn_ratio(robot) == pytest.approx(0.617, abs=0.005)  # docs/physics.md
+    assert pivot_turn_ratio(robot) == pytest.approx(0.617, abs=0.005)  # docs/skid.md
     assert resolve_turn_ratio(robot, 0.8) == 0.8
 
 
@@ -91,7 +91,7 @@ def test_mujoco_turns_at_the_commanded_rate_through_the_drive(robot):
         return t.sprocket_radius * (rates[1] - rates[0]) / t.separation
 
     eta = _yaw_rate(robot, kinematic.belts(pivot)) / commanded(pivot)  # MuJoCo's own ratio
-    assert 0.45 < eta < 0.6  # docs/physics.md: 0.534
+    assert 0.45 < eta < 0.6  # docs/skid.md: 0.534
     assert 0.45 < _yaw_rate(robot, kinematic.belts(arc)) / commanded(arc) < 0.6
     drive = DriveLayer.of(robot, eta)
     for rates in (pivot, arc):

@@ -5,7 +5,7 @@ only their velocity servos hold. With the ``implicitfast`` integrator MuJoCo sol
 contacts without the servos' damping (it acts in the velocity update after the solve): the
 rigid row of wheels hops, the total normal force swinging between 0 and several times the
 weight's normal part, and the robot slides below atan(mu). The ``discrete`` integrator
-solves the contacts with that damping (``ModelSettings.integrator``; docs/physics.md,
+solves the contacts with that damping (``ModelSettings.integrator``; docs/verdicts.md,
 "Verdicts against MuJoCo"). ``pytest -s`` prints the numbers.
 """
 

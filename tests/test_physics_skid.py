@@ -1,4 +1,4 @@
-"""The skid-steer model against the whole robot in MuJoCo (docs/physics.md, "Sliding in turns").
+"""The skid-steer model against the whole robot in MuJoCo (docs/skid.md).
 
 The robot, arm stowed, driven at constant track speeds on a MuJoCo ramp (friction 0.7): its
 mean twist against mmstab's steady twist for the same belt speeds, gravity and CoM. The model

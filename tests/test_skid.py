@@ -39,7 +39,7 @@ def test_loads_balance_weight_and_moments(patch, rng):
 
 def test_side_slope_slide_per_radian_is_the_uniform_track_formula(patch):
     # CoM on the ground at the belts' centre: uniform pressure, the centre of rotation
-    # shifts along the tracks by (L/2) tan(alpha)/mu per radian (docs/physics.md)
+    # shifts along the tracks by (L/2) tan(alpha)/mu per radian (docs/skid.md)
     for deg in (10.0, 20.0, 30.0):
         alpha = np.radians(deg)
         tw = skid_twist(patch, side_slope(alpha), [0, 0, 0], (-0.1, 0.1), MU)

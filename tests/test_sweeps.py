@@ -64,7 +64,7 @@ def test_fig6_one_curve_per_pose(tmp_path, problem):
 
 
 def test_two_maxima_need_a_mild_roll(robot):
-    """README claim: 0.1 rad of roll gives the paper's two maxima; from 0.15 rad, one."""
+    """docs/stability.md: 0.1 rad of roll gives the paper's two maxima; from 0.15 rad, one."""
     from mmstab.experiments.sweeps import link0_sweep
     from mmstab.terrain import Ramp
 

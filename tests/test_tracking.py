@@ -617,7 +617,7 @@ def test_plan_whose_postures_miss_their_com_is_refused(problem):
 
 @pytest.mark.slow
 def test_look_ahead_point_corrects_a_lateral_offset(problem):
-    """README claim: at the body origin (d = 0) a lateral offset decays only slowly, through
+    """docs/controller.md: at the body origin (d = 0) a lateral offset decays only slowly, through
     the path's curvature; the look-ahead point (d = 0.2 m) removes it within seconds."""
     import dataclasses
 

@@ -1,6 +1,6 @@
 """Verdicts against MuJoCo (issue 25): the classifier, mmstab's side, a coarse grid.
 
-The full grid (``make verdicts``, ``problems/verdicts.yaml``) is in ``docs/physics.md``,
+The full grid (``make verdicts``, ``problems/verdicts.yaml``) is in ``docs/verdicts.md``,
 "Verdicts against MuJoCo"; here a coarse grid of it on the rigid-wheel model, in < 60 s.
 """
 
@@ -120,7 +120,7 @@ def test_coarse_grid_agrees_with_mujoco(postures, settings):
 
     The -0.5 deg cases facing uphill hold the brakes' fix (``integrator: discrete``): on
     ``implicitfast`` the load along the tracks made the rigid wheels hop and slide there
-    (65 of these 72 cases agreed; docs/physics.md, "Verdicts against MuJoCo").
+    (65 of these 72 cases agreed; docs/verdicts.md).
     """
     arms = ["stowed", "planned", "reach"]
     grid = configs(np.radians([0.0, 90.0]), [3.0], arms, [0.7, 4.0], [0.0, 0.05])

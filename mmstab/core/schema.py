@@ -142,10 +142,10 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
             motion_cost={"enum": ["com", "joints"]},  # method roadmap's motion term
             # method roadmap: least height [m] of the arm above the plane the tracks rest on
-            # (z_B = 0); null: not checked (docs/planner.md, "Ground clearance")
+            # (z_B = 0); null: not checked (docs/roadmap.md, "Ground clearance")
             ground_clearance={"oneOf": [{"type": "null"}, NONNEG]},
             # method roadmap on terrain: the arm clears the ground through the body's tilts
-            # up to this [rad] about its origin; null: off (docs/planner.md)
+            # up to this [rad] about its origin; null: off (docs/roadmap.md)
             attitude_margin={"oneOf": [{"type": "null"}, {**NONNEG, "maximum": 0.5}]},
             climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),

@@ -9,7 +9,7 @@ CoM. ``make skid`` (``python -m mmstab.experiments.skid``) writes ``results/skid
 (every case; the medians of the slide per radian of heading change and of the turn rate,
 model over MuJoCo) and ``skid.png``; with a ``rough_ground`` section, the same along a
 route over a heightmap (:mod:`mmstab.experiments.skid_rough`, ``rough.png``).
-``docs/physics.md``, "Sliding in turns", explains them.
+``docs/skid.md``, explains them.
 """
 
 from __future__ import annotations

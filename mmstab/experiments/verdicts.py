@@ -6,7 +6,7 @@ thresholds of MuJoCo's verdict, the durations, the MuJoCo models the grid runs o
 bisection of the tip slope. ``make verdicts`` (``python -m mmstab.experiments.verdicts``)
 writes ``results/verdicts/summary.json`` (per model: the confusion matrix, the agreement,
 every case, every disagreement; the tip slopes predicted vs bisected) and ``verdicts.png``.
-``docs/physics.md``, "Verdicts against MuJoCo", explains the numbers.
+``docs/verdicts.md``, explains the numbers.
 """
 
 from __future__ import annotations

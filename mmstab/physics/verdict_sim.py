@@ -17,7 +17,7 @@ tracks braked (speed 0) or driven slowly straight ahead (the speed ramped up ove
 :func:`classify` turns that into the verdict: ``tips`` if the tilt passes
 ``Thresholds.tip_deg``, ``slides`` if the slip passes ``Thresholds.slide_m``, whichever
 comes first; else ``holds``. The thresholds and why they are where they are:
-``docs/physics.md``, "Verdicts against MuJoCo".
+``docs/verdicts.md``.
 """
 
 from __future__ import annotations

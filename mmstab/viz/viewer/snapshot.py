@@ -1,6 +1,6 @@
 """A screenshot of the viewer as a browser shows it: headless Chromium driven by Playwright.
 
-Used by ``make view-screenshot`` (the README's picture) and by the browser test. The
+Used by ``make view-screenshot`` (the picture of docs/viewer.md) and by the browser test. The
 browser is the system's Chromium (Debian package ``chromium``, found on ``PATH`` or in
 ``$MMSTAB_CHROMIUM``); Playwright only drives it (nothing is downloaded). WebGL runs on
 the CPU (SwiftShader), so the first frame takes a few seconds on a small machine: the
@@ -172,7 +172,7 @@ def write_screenshot(
     at: float = 0.9,
     close: float | None = None,
 ) -> Snapshot:
-    """The README's picture: the viewer of a problem (and run) at a share of the run, as PNG.
+    """The docs' picture: the viewer of a problem (and run) at a share of the run, as PNG.
 
     Args:
         problem_path: the problem YAML file.

@@ -1,0 +1,35 @@
+"""Each script in examples/ runs as a user would run it, and prints what it says it prints."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT
+
+#: script -> text its output must contain
+EXPECTED = {
+    "rest_on_heightmap.py": "pitch [deg]",
+    "plan_route.py": "below it with the arm stowed only",
+    "track_route.py": "tipped at: None",
+    "stability_map.py": "worst mu",
+}
+
+
+def test_every_example_is_listed():
+    assert sorted(p.name for p in (ROOT / "examples").glob("*.py")) == sorted(EXPECTED)
+
+
+@pytest.mark.parametrize("script", sorted(EXPECTED))
+def test_example_runs(script, tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
+    args = [sys.executable, str(ROOT / "examples" / script)]
+    if script == "stability_map.py":
+        args.append(str(tmp_path / "map.png"))
+    out = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr  # each script ends in an assert of its own
+    assert EXPECTED[script] in out.stdout, out.stdout
+    if script == "stability_map.py":
+        assert (tmp_path / "map.png").stat().st_size > 10_000

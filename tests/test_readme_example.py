@@ -1,0 +1,40 @@
+"""The README's Python example runs as written, and its numbers are mmstab's own."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+from conftest import ROOT
+
+
+def readme_block() -> str:
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert len(blocks) == 1, "the README has one Python example"
+    return blocks[0]
+
+
+def test_readme_example_runs_and_its_mu_is_the_stance(monkeypatch, capsys):
+    import mmstab
+
+    monkeypatch.chdir(ROOT)  # the example's paths are the repository's
+    namespace: dict = {}
+    exec(compile(readme_block(), "README.md", "exec"), namespace)
+    problem, plan, run, rest = (namespace[k] for k in ("problem", "plan", "run", "rest"))
+    printed = capsys.readouterr().out
+    assert "mu planned" in printed and "tipped: None" in printed
+
+    # at rest on the 0.2 rad ramp, heading along its contour: the roll is the slope (analytic)
+    assert abs(rest.roll - 0.2) < 1e-9 and abs(rest.pitch) < 1e-9 and rest.mu > 0
+    # every planned pose's mu is mmstab.stance's at that pose and posture, recomputed here
+    again = [
+        mmstab.stance(problem.terrain, problem.robot, pose, arm_q=q).mu
+        for pose, q in zip(plan.poses, plan.postures, strict=True)
+    ]
+    np.testing.assert_allclose(again, plan.mu_planned, rtol=1e-12)
+    stowed = [mmstab.stance(problem.terrain, problem.robot, p).mu for p in plan.poses]
+    np.testing.assert_allclose(stowed, plan.mu_stowed, rtol=1e-12)
+    assert np.all(plan.mu_planned > plan.mu_stowed)  # the planned arm is the more stable
+    # the tracked run: no tip, no failed QP, mu positive along it
+    assert run.tipped is None and not run.failures and run.mu.reconfigured.min() > 0
+    assert run.t[-1] > 5.0  # the whole route (2.9 m at 0.3 m/s at most), not a stub
