@@ -109,6 +109,9 @@ class FollowStep(NamedTuple):
         gravity_body: gravity in B at rest on the map, as ``mu`` used it [m/s^2] (NaN when
             not covered).
         measured: ``q`` is the recording's joint state (else the loop's own integration).
+        q_ref: the planned posture the step steered toward [rad] (None: none planned yet).
+        flags: the resting pose's flags on the map (``high_centred``, ``line_contact``, ...);
+            computed after the timed part (empty when not covered).
     """
 
     time: float
@@ -129,6 +132,8 @@ class FollowStep(NamedTuple):
     tilt: float
     gravity_body: FloatArray
     measured: bool
+    q_ref: FloatArray | None = None
+    flags: tuple[str, ...] = ()
 
 
 class Follower:
@@ -197,14 +202,14 @@ class Follower:
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         latency = time.perf_counter() - t0
-        G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
+        G_T_B, polygon, flags = np.full((4, 4), np.nan), np.zeros((0, 3)), ()
         if covered:  # for the run's recording, outside the timed update
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
-            G_T_B, polygon = support.G_T_B, support.polygon_G
+            G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
-            tilt, g_now, u.joints is not None,
+            tilt, g_now, u.joints is not None, None if q_ref is None else np.array(q_ref), flags,
         )  # fmt: skip
 
     def _spacing(self) -> float:
