@@ -152,6 +152,8 @@ class LiveFollower:
             stamp = stamp_of(msg)
         except (AttributeError, TypeError) as e:
             return [*out, self._stale(0.0, "", f"malformed map: no header stamp ({e})")]
+        if now - stamp > self.guard.max_map_age:  # old: stale, whatever came before it
+            return [*out, self._answer(msg, stamp, now)]
         if self.last_stamp is not None and stamp <= self.last_stamp:
             self._restart()
             self.last_stamp = stamp
@@ -161,7 +163,7 @@ class LiveFollower:
             ]
         self.last_stamp = stamp
         newest = self.odom[-1][0] if self.odom else None
-        if (newest is None or newest < stamp) and now - stamp <= self.guard.max_map_age:
+        if newest is None or newest < stamp:
             self.pending = (msg, stamp, now + self.guard.odom_wait)  # its odometry may follow
             return out
         return [*out, self._answer(msg, stamp, now)]
