@@ -27,7 +27,8 @@ from mmstab.runs.online.guard import (
     map_fault,
     verdicts,
 )
-from mmstab.runs.online.live import LiveAnswer, LiveFollower, stamp_of
+from mmstab.runs.online.live import LiveAnswer, LiveFollower
+from mmstab.runs.online.rosenv import stamp_of
 from mmstab.runs.online.run import follow_recording
 from mmstab.runs.recording import joint_names
 from mmstab.terrain.gridmap import GRIDMAP, ros_time, typestore

@@ -47,17 +47,16 @@ def _play(args: argparse.Namespace) -> int | None:
     status = _ready()
     if status is not None:
         return status
-    from mmstab.runs.online.follow import FollowSettings
-    from mmstab.runs.online.node import NodeTopics
+    from mmstab.core.defaults import SECTION_DEFAULTS
     from mmstab.runs.online.player import parse_faults, play
+    from mmstab.runs.online.rosenv import NodeTopics
 
     faults = parse_faults(args.fault)
-    topics = NodeTopics("/elevation_mapping/elevation_map", "/odom", "")
+    topics = NodeTopics.of(SECTION_DEFAULTS["online"])
     if args.problem is not None:
         from mmstab.core.problem import load_problem
 
-        s = FollowSettings.of(load_problem(args.problem))
-        topics = NodeTopics(s.map_topic, s.odom_topic, s.joints_topic or "")
+        topics = NodeTopics.of(load_problem(args.problem).section("online"))
     n = play(args.recording, topics, args.rate, faults, args.answers, args.limit)
     print(
         f"play: {n['maps']} maps, {n['messages']} messages"

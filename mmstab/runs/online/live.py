@@ -40,6 +40,7 @@ from mmstab.runs.online.guard import (
     stale_verdicts,
     verdicts,
 )
+from mmstab.runs.online.rosenv import stamp_of
 from mmstab.runs.online.stream import JointReading, MapUpdate, Odometry, joints_of, odometry_of
 from mmstab.stability.climb import climb_limit
 from mmstab.stability.static import base_polygon, robot_force_angle
@@ -48,12 +49,6 @@ from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Odometry and joint states kept to pick the one of a map's stamp [messages].
 BUFFER = 200
-
-
-def stamp_of(msg: Any) -> float:
-    """A message's header stamp [s] (ROS 2's ``sec`` / ``nanosec``)."""
-    st = msg.header.stamp
-    return float(st.sec) + 1e-9 * float(st.nanosec)
 
 
 class Scene(NamedTuple):
@@ -102,12 +97,20 @@ class LiveFollower:
         guard: the freshness limits.
         joint_names: the arm's joint names, in its order (those of ``mmstab urdf``).
         margin: μ below it tips [N rad].
+        wants_joints: a map also waits (``odom_wait`` at most) for the joint state of its
+            stamp (a joint state topic is subscribed).
     """
 
     def __init__(
-        self, follower: Follower, guard: GuardSettings, joint_names: list[str], margin: float
+        self,
+        follower: Follower,
+        guard: GuardSettings,
+        joint_names: list[str],
+        margin: float,
+        wants_joints: bool = False,
     ) -> None:
         self.follower, self.guard, self.names, self.margin = follower, guard, joint_names, margin
+        self.wants_joints = wants_joints
         self.robot = follower.robot
         self.odom: deque[tuple[float, Odometry]] = deque(maxlen=BUFFER)
         self.joints: deque[tuple[float, JointReading]] = deque(maxlen=BUFFER)
@@ -162,18 +165,23 @@ class LiveFollower:
                 self._stale(stamp, _frame(msg), "map stamp went back: publisher restarted"),
             ]
         self.last_stamp = stamp
-        newest = self.odom[-1][0] if self.odom else None
-        if newest is None or newest < stamp:
+        if not self._ready(stamp):
             self.pending = (msg, stamp, now + self.guard.odom_wait)  # its odometry may follow
             return out
         return [*out, self._answer(msg, stamp, now)]
+
+    def _ready(self, stamp: float) -> bool:
+        """The odometry (and joint state) of the map's stamp have arrived."""
+        if not self.odom or self.odom[-1][0] < stamp:
+            return False
+        return not self.wants_joints or (bool(self.joints) and self.joints[-1][0] >= stamp)
 
     def poll(self, now: float) -> list[LiveAnswer]:
         """Answer a waiting map whose odometry arrived or whose wait is over."""
         if self.pending is None:
             return []
         msg, stamp, deadline = self.pending
-        if (self.odom and self.odom[-1][0] >= stamp) or now >= deadline:
+        if self._ready(stamp) or now >= deadline:
             self.pending = None
             return [self._answer(msg, stamp, now)]
         return []

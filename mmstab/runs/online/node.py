@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import re
 import time
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from mmstab.core.problem import Problem
 from mmstab.runs.online.follow import FollowSettings, build_follower
 from mmstab.runs.online.guard import VERDICTS, GuardSettings
 from mmstab.runs.online.live import LiveAnswer, LiveFollower
+from mmstab.runs.online.rosenv import NodeTopics, time_msg
 from mmstab.runs.recording import joint_names, mu_colour
 from mmstab.runs.verdict import planner_margin
 from mmstab.stability.static import mu_max
@@ -46,26 +47,6 @@ TRACKS = ("track_left", "track_right")
 def reason_key(reason: str) -> str:
     """A reason without its numbers: the same fault logged once, whatever its age."""
     return re.sub(r"-?[0-9][0-9.e+-]*", "#", reason)
-
-
-class NodeTopics(NamedTuple):
-    """The node's topics (ROS parameters of the same names)."""
-
-    map_topic: str
-    odom_topic: str
-    joints_topic: str
-    arm_target_topic: str = "/mmstab/arm_target"
-    command_topic: str = "/mmstab/joint_velocity"
-    diagnostics_topic: str = "/diagnostics"
-    markers_topic: str = "/mmstab/markers"
-
-
-def time_msg(t: float) -> Any:
-    """``builtin_interfaces/Time`` of ``t`` [s]."""
-    from builtin_interfaces.msg import Time
-
-    sec = int(np.floor(t))
-    return Time(sec=sec, nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
 class MmstabNode:
@@ -103,9 +84,9 @@ class MmstabNode:
         self.names = joint_names(problem.robot)
         node.get_logger().info("building the online loop (V, roadmap, controller) ...")
         follower = build_follower(problem)
-        self.live = LiveFollower(
-            follower, guard, self.names, planner_margin(problem.section("planner"))
-        )
+        margin = planner_margin(problem.section("planner"))
+        wants = bool(self.topics.joints_topic)
+        self.live = LiveFollower(follower, guard, self.names, margin, wants)
         self.mu_max = float(mu_max(problem.robot))
         self.view = view
         self.command = np.zeros(len(TRACKS) + len(self.names))

@@ -30,8 +30,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.files import ConfigError
-from mmstab.runs.online.live import stamp_of
-from mmstab.runs.online.node import NodeTopics, time_msg
+from mmstab.runs.online.rosenv import NodeTopics, stamp_of, time_msg
 from mmstab.terrain.recording import open_recording
 
 FAULTS = ("odom-stops", "no-transform", "old-map", "malformed", "restart")
@@ -147,7 +146,11 @@ def play(
             rclpy.spin_once(node, timeout_sec=0.05)
         if map_pub.get_subscription_count() == 0:
             raise ConfigError(topics.map_topic, "", f"no node subscribed within {WAIT_NODE:g} s")
-        time.sleep(0.5)  # discovery of the other topics
+        t_end = time.time() + 2.0  # the node's other subscriptions (some may not be there)
+        while time.time() < t_end and any(
+            p.get_subscription_count() == 0 for p, _ in pubs.values()
+        ):
+            rclpy.spin_once(node, timeout_sec=0.01)
         start_rec = reader.start_time * 1e-9
         t0 = time.time()
         maps = sent = 0

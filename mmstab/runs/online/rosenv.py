@@ -15,6 +15,7 @@ import os
 import sys
 import sysconfig
 from pathlib import Path
+from typing import Any, NamedTuple
 
 #: The middleware of the wheels.
 RMW = "rmw_fastrtps_cpp"
@@ -55,3 +56,34 @@ def ensure_ros_env() -> None:
     if os.environ.get(GUARD) == "1":
         return
     os.execve(sys.executable, [sys.executable, *sys.orig_argv[1:]], ros_env())
+
+
+class NodeTopics(NamedTuple):
+    """The node's topics (ROS parameters of the same names)."""
+
+    map_topic: str
+    odom_topic: str
+    joints_topic: str
+    arm_target_topic: str = "/mmstab/arm_target"
+    command_topic: str = "/mmstab/joint_velocity"
+    diagnostics_topic: str = "/diagnostics"
+    markers_topic: str = "/mmstab/markers"
+
+    @classmethod
+    def of(cls, online: dict[str, Any]) -> NodeTopics:
+        """The topics of a problem's ``online`` section (the outputs' defaults)."""
+        return cls(online["map_topic"], online["odom_topic"], online["joints_topic"] or "")
+
+
+def stamp_of(msg: Any) -> float:
+    """A message's header stamp [s] (ROS 2's ``sec`` / ``nanosec``)."""
+    st = msg.header.stamp
+    return float(st.sec) + 1e-9 * float(st.nanosec)
+
+
+def time_msg(t: float) -> Any:
+    """``builtin_interfaces/Time`` of ``t`` [s] (rclpy's)."""
+    from builtin_interfaces.msg import Time
+
+    sec = int(t // 1)
+    return Time(sec=sec, nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
