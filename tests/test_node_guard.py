@@ -8,6 +8,9 @@ faults a robot has (docs/online.md, "Never a stale safe").
 from __future__ import annotations
 
 import dataclasses
+import json
+import struct
+import time
 from pathlib import Path
 
 import numpy as np
@@ -173,3 +176,45 @@ def test_reason_log_says_once_per_period() -> None:
     assert log.say("odometry stopped", 10.5) and log.say("no transform", 10.5)
     assert sorted(log.clear()) == ["no transform", "odometry stopped"]
     assert log.say("odometry stopped", 11.0)
+
+
+def test_the_foxglove_view_serves_the_answers(recorded: tuple[mmstab.Problem, Path]) -> None:
+    """A WebSocket client (Foxglove's protocol) subscribes and reads μ and the verdicts."""
+    pytest.importorskip("foxglove")
+    websockets = pytest.importorskip("websockets.sync.client")
+    from mmstab.runs.online.foxglove_view import FoxgloveView
+
+    problem, path = recorded
+    answers = feed(problem, path, {"no-transform": 1.5})  # fresh, then stale
+    view = FoxgloveView(problem, port=0)
+    try:
+        with websockets.connect(
+            f"ws://127.0.0.1:{view.port}", subprotocols=["foxglove.sdk.v1"]
+        ) as ws:
+            channels: dict[str, int] = {}
+            while not {"/mu", "/verdicts", "/support_polygon", "/map", "/tf"} <= set(channels):
+                msg = json.loads(ws.recv(timeout=5))
+                if msg["op"] == "advertise":
+                    channels.update({c["topic"]: c["id"] for c in msg["channels"]})
+            subs = {1: "/mu", 2: "/verdicts", 3: "/support_polygon"}
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                {"id": k, "channelId": channels[t]} for k, t in subs.items()]}))  # fmt: skip
+            time.sleep(0.3)
+            for a in answers:
+                view.answer(a)
+            got: dict[str, list[bytes]] = {t: [] for t in subs.values()}
+            while min(len(x) for x in got.values()) < len(answers):
+                data = ws.recv(timeout=5)
+                if isinstance(data, bytes) and data[0] == 1:  # a message on a subscription
+                    sub = struct.unpack_from("<I", data, 1)[0]
+                    got[subs[sub]].append(data[13:])
+    finally:
+        view.stop()
+    mu = [json.loads(p)["data"] for p in got["/mu"]]
+    for a, m in zip(answers, mu, strict=True):
+        assert (m is None) if a.step is None else m == pytest.approx(a.step.mu, rel=1e-12)
+    v = [json.loads(p) for p in got["/verdicts"]]
+    assert v[-1]["reason"] is not None and "no transform" in v[-1]["reason"]
+    assert all(x["level"] == STALE for x in v[-1]["verdicts"].values())
+    assert v[0]["reason"] is None and set(v[0]["verdicts"]) == set(VERDICTS)
+    assert len(got["/support_polygon"]) == len(answers)  # an entity or its deletion each

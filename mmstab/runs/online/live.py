@@ -45,6 +45,7 @@ from mmstab.runs.online.stream import JointReading, MapUpdate, Odometry, joints_
 from mmstab.stability.climb import climb_limit
 from mmstab.stability.static import base_polygon, robot_force_angle
 from mmstab.terrain.gridmap import from_message
+from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Odometry and joint states kept to pick the one of a map's stamp [messages].
@@ -78,6 +79,7 @@ class LiveAnswer(NamedTuple):
         reason: why it is stale (None: fresh).
         scene: the support and CoM (None: stale or not covered).
         watchdog: the watchdog's answer (no map for a while), not a map's.
+        heightmap: the map as the loop read it (None: stale).
     """
 
     stamp: float
@@ -87,6 +89,7 @@ class LiveAnswer(NamedTuple):
     reason: str | None
     scene: Scene | None
     watchdog: bool = False
+    heightmap: Heightmap | None = None
 
 
 class LiveFollower:
@@ -268,7 +271,7 @@ class LiveFollower:
             step.covered, step.mu, self.margin, step.tilt, self.follower.friction, stalls,
             "high_centred" in step.flags,
         )  # fmt: skip
-        return LiveAnswer(stamp, frame, step, v, None, scene)
+        return LiveAnswer(stamp, frame, step, v, None, scene, heightmap=grid.heightmap)
 
     def _stalls(self, terrain: HeightmapTerrain, step: FollowStep) -> bool | None:
         """The step ahead within the route's planned spacing: can the tracks climb it?"""
