@@ -24,7 +24,9 @@ from mmstab.runs.online.guard import (
     ERROR,
     OK,
     STALE,
+    UNMAPPED,
     VERDICTS,
+    WARN,
     GuardSettings,
     ReasonLog,
     map_fault,
@@ -218,3 +220,8 @@ def test_the_foxglove_view_serves_the_answers(recorded: tuple[mmstab.Problem, Pa
     assert all(x["level"] == STALE for x in v[-1]["verdicts"].values())
     assert v[0]["reason"] is None and set(v[0]["verdicts"]) == set(VERDICTS)
     assert len(got["/support_polygon"]) == len(answers)  # an entity or its deletion each
+
+
+def test_unmapped_ground_ahead_is_a_warning() -> None:
+    v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, UNMAPPED, False)}
+    assert v["step"].level == WARN and "not mapped" in v["step"].message

@@ -22,9 +22,10 @@ answer ends it (:class:`ReasonLog`).
 
 The verdicts of a fresh answer (:func:`verdicts`): ``tip`` (μ below the margin: ERROR),
 ``slide`` (the support tilts beyond atan(friction): ERROR), ``step`` (the tracks cannot
-climb the step ahead with this arm: ERROR), ``high-centred`` (the chassis touches the
-ground: ERROR) and ``coverage`` (the map does not cover the robot's footprint: ERROR, and
-then the four measures are STALE: the map cannot say).
+climb the step ahead with this arm: ERROR; the ground ahead not on the map: WARN),
+``high-centred`` (the chassis touches the ground: ERROR) and ``coverage`` (the map does not
+cover the robot's footprint: ERROR, and then the four measures are STALE: the map cannot
+say).
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ from typing import NamedTuple
 
 #: diagnostic_msgs/DiagnosticStatus levels.
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
+#: ``stalls`` of :func:`verdicts` when the ground ahead is not on the map.
+UNMAPPED = "unmapped"
 #: The verdicts every answer carries, in order.
 VERDICTS = ("tip", "slide", "step", "high-centred", "coverage")
 
@@ -81,7 +84,7 @@ def verdicts(
     margin: float,
     tilt: float,
     friction: float,
-    stalls: bool | None,
+    stalls: bool | str | None,
     high_centred: bool,
 ) -> list[Verdict]:
     """The verdicts of a fresh answer (module text).
@@ -92,7 +95,8 @@ def verdicts(
         margin: μ below it tips (``planner.margin``) [N rad].
         tilt: the support's tilt on the map [rad].
         friction: the tracks' friction [-]; they slide beyond atan(friction).
-        stalls: the tracks cannot climb the step ahead with this arm (None: no step ahead).
+        stalls: the tracks cannot climb the step ahead with this arm (None: no step ahead;
+            :data:`UNMAPPED`: the ground ahead is not on the map, a WARN).
         high_centred: the rested chassis touches the ground.
     """
     if not covered or not math.isfinite(mu):
@@ -114,6 +118,8 @@ def verdicts(
     ]
     if stalls is None:
         out.append(Verdict("step", OK, "no step ahead"))
+    elif stalls == UNMAPPED:
+        out.append(Verdict("step", WARN, "the ground ahead is not mapped"))
     else:
         out.append(
             Verdict(

@@ -33,6 +33,7 @@ from mmstab.model.robot import FloatArray
 from mmstab.runs.online.follow import Follower, FollowStep
 from mmstab.runs.online.frames import TransformBuffer, planar, pose_matrix
 from mmstab.runs.online.guard import (
+    UNMAPPED,
     GuardSettings,
     ReasonLog,
     Verdict,
@@ -45,7 +46,7 @@ from mmstab.runs.online.stream import JointReading, MapUpdate, Odometry, joints_
 from mmstab.stability.climb import climb_limit
 from mmstab.stability.static import base_polygon, robot_force_angle
 from mmstab.terrain.gridmap import from_message
-from mmstab.terrain.heightmap import Heightmap
+from mmstab.terrain.heightmap import Heightmap, OffMapError
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
 #: Odometry and joint states kept to pick the one of a map's stamp [messages].
@@ -261,7 +262,7 @@ class LiveFollower:
         if joints is not None:
             joints = joints._replace(time=joints.time - base)
         step = self.follower.update(MapUpdate(stamp - base, grid, odom, joints))
-        stalls: bool | None = None
+        stalls: bool | str | None = None
         scene = None
         if step.covered:
             terrain = HeightmapTerrain(grid.heightmap, friction=self.follower.friction)
@@ -273,10 +274,18 @@ class LiveFollower:
         )  # fmt: skip
         return LiveAnswer(stamp, frame, step, v, None, scene, heightmap=grid.heightmap)
 
-    def _stalls(self, terrain: HeightmapTerrain, step: FollowStep) -> bool | None:
-        """The step ahead within the route's planned spacing: can the tracks climb it?"""
+    def _stalls(self, terrain: HeightmapTerrain, step: FollowStep) -> bool | str | None:
+        """The step ahead within the route's planned spacing: can the tracks climb it?
+
+        :data:`~mmstab.runs.online.guard.UNMAPPED` when the ground ahead is not on the map.
+        """
         lookahead = self.follower._spacing()
-        lim = climb_limit(self.robot, terrain, step.pose[None], self.follower.friction, lookahead)
+        try:
+            lim = climb_limit(
+                self.robot, terrain, step.pose[None], self.follower.friction, lookahead
+            )
+        except OffMapError:
+            return UNMAPPED
         if not bool(lim.step[0]):
             return None
         com = self.robot.overall_com(np.asarray(self.robot.arm_com(step.q), dtype=float))

@@ -92,6 +92,7 @@ class MmstabNode:
         self.command = np.zeros(len(TRACKS) + len(self.names))
         self.fresh = False
         self.answers = 0
+        self.maps_received = 0
         self._publishers()
         self._subscriptions()
         node.create_timer(1.0 / float(values["control_rate"]), self._tick)
@@ -134,14 +135,26 @@ class MmstabNode:
 
     def _on_odom(self, msg: Any) -> None:
         self.live.on_odometry(msg)
-        self._emit(self.live.poll(time.time()))
+        self._guarded(lambda: self.live.poll(time.time()))
 
     def _on_map(self, msg: Any) -> None:
-        self._emit(self.live.on_map(msg, time.time()))
+        self.maps_received += 1
+        self._guarded(lambda: self.live.on_map(msg, time.time()))
+
+    def _guarded(self, answer: Any) -> None:
+        """Emit ``answer()``'s answers; an error in the loop is a stale answer, not a crash."""
+        try:
+            answers = answer()
+        except Exception as e:  # the node keeps running, whatever one map did
+            self.live.pending = None
+            why = f"error in the update: {type(e).__name__}: {e}"
+            self.node.get_logger().error(why)
+            answers = [self.live._stale(time.time(), "", why)]
+        self._emit(answers)
 
     def _tick(self) -> None:
         now = time.time()
-        self._emit(self.live.poll(now))
+        self._guarded(lambda: self.live.poll(now))
         stale = self.live.watchdog(now)
         if stale is not None:
             self._emit([stale])
@@ -211,6 +224,7 @@ class MmstabNode:
             kv("map_stamp", f"{a.stamp:.9f}"),
             kv("answered", f"{time.time():.9f}"),
             kv("source", "watchdog" if a.watchdog else "map"),
+            kv("maps_received", self.maps_received),
         ]
         if a.step is not None:
             st = a.step
