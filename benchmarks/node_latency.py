@@ -8,7 +8,10 @@ another (Fast DDS on this machine, a domain of its own). Per map, from its stamp
 recording's time moved to the wall clock; the map is published 1 ms after it, the
 recording's receive delay):
 
-* ``published``: the node's answer published (the ``answered`` time in its diagnostics);
+* ``command``: the controller's command and the arm's target published (right after the
+  loop's step, before the verdicts);
+* ``published``: the whole answer published (verdicts, markers: the ``answered`` time in
+  its diagnostics);
 * ``received``: the answer received back by the player;
 * ``update``: the loop's own update (``Follower.update``, as ``mmstab follow`` times it).
 """
@@ -82,6 +85,7 @@ def main() -> None:
     fresh = [a for a in maps if "latency_ms" in a["values"]]
     stamp = np.array([a["abs_stamp"] for a in maps])
     published = np.array([float(a["values"]["answered"]) for a in maps]) - stamp
+    command = np.array([float(a["values"]["command_published"]) - a["abs_stamp"] for a in fresh])
     received = np.array([a["received"] for a in maps]) - stamp
     update = np.array([float(a["values"]["latency_ms"]) * 1e-3 for a in fresh])
     published_maps = int(played.split("play: ")[1].split(" maps")[0])
@@ -94,6 +98,7 @@ def main() -> None:
         "maps_answered": len(maps),
         "stale_answers": len(maps) - len(fresh),
         "latency_ms": {
+            "stamp_to_command": stats(command),
             "stamp_to_published": stats(published),
             "stamp_to_received": stats(received),
             "update": stats(update),
@@ -103,10 +108,12 @@ def main() -> None:
     }
     write_json(args.out, result)
     lat = result["latency_ms"]["stamp_to_published"]
+    cmd = result["latency_ms"]["stamp_to_command"]
     print(
         f"node: {len(maps)} of {published_maps} maps answered ({result['stale_answers']} stale, "
-        f"{result['maps_received_by_node']} received); map stamp -> "
-        f"answer published p50 {lat['p50']:.1f} ms, p99 {lat['p99']:.1f} ms (update alone p50 "
+        f"{result['maps_received_by_node']} received); map stamp -> command p50 "
+        f"{cmd['p50']:.1f} ms, p99 {cmd['p99']:.1f} ms; -> whole answer p50 {lat['p50']:.1f} ms, "
+        f"p99 {lat['p99']:.1f} ms (update alone p50 "
         f"{result['latency_ms']['update']['p50']:.1f} ms, p99 "
         f"{result['latency_ms']['update']['p99']:.1f} ms)"
     )

@@ -89,6 +89,7 @@ def play(setup: dict[str, Any], name: str, *faults: str, rate: float = 1.0) -> l
     r = subprocess.run(cmd, env=setup["env"], capture_output=True, text=True, timeout=150)
     assert r.returncode == 0, r.stderr[-2000:] + Path(setup["log"]).read_text()[-2000:]
     got = [json.loads(line) for line in out.read_text().splitlines()]
+    setup["targets"] = [a for a in got if a["kind"] == "arm_target"]
     return [a for a in got if a["kind"] == "diagnostics" and a["source"] == "map"]
 
 
@@ -110,6 +111,11 @@ def test_the_node_answers_every_map_as_follow_does(setup: dict[str, Any]) -> Non
         assert a["stamp"] == pytest.approx(st.time - ref[0].time, abs=2e-3)
         assert set(a["levels"]) == {"stability", *VERDICTS}
         assert a["levels"]["coverage"] == 0
+    # the arm's target posture (JointTrajectory), stamped with its map: follow's planned one
+    targets = setup["targets"]
+    assert len(targets) == MAPS
+    for t, st in zip(targets, ref, strict=True):
+        assert st.q_ref is not None and np.allclose(t["positions"], st.q_ref, atol=1e-9)
 
 
 @pytest.mark.parametrize(

@@ -24,6 +24,7 @@ publishes.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -126,6 +127,9 @@ class LiveFollower:
         self.pending: tuple[Any, float, float] | None = None  # map, stamp, deadline
         self.fault: str | None = None  # an input's fault since the last map
         self.log = ReasonLog(guard.log_period)
+        #: called with (stamp [s], frame, step) right after the loop's step, before the
+        #: verdicts are computed: the node publishes the command there
+        self.on_step: Callable[[float, str, FollowStep], None] | None = None
 
     # ------------------------------------------------------------------ inputs
     def on_odometry(self, msg: Any) -> None:
@@ -262,6 +266,8 @@ class LiveFollower:
         if joints is not None:
             joints = joints._replace(time=joints.time - base)
         step = self.follower.update(MapUpdate(stamp - base, grid, odom, joints))
+        if self.on_step is not None:
+            self.on_step(stamp, frame, step)
         stalls: bool | str | None = None
         scene = None
         if step.covered:

@@ -87,6 +87,8 @@ class MmstabNode:
         margin = planner_margin(problem.section("planner"))
         wants = bool(self.topics.joints_topic)
         self.live = LiveFollower(follower, guard, self.names, margin, wants)
+        self.live.on_step = self._on_step
+        self.step_published = float("nan")
         self.mu_max = float(mu_max(problem.robot))
         self.view = view
         self.command = np.zeros(len(TRACKS) + len(self.names))
@@ -165,19 +167,16 @@ class MmstabNode:
         for a in answers:
             self.answers += 1
             log = self.node.get_logger()
-            if a.reason is not None:
-                if self.live.log.say(reason_key(a.reason), time.time()):
+            if a.reason is not None or a.step is None:
+                if a.reason is not None and self.live.log.say(reason_key(a.reason), time.time()):
                     log.warning(f"stale answer: {a.reason}")
                 self.fresh = False
                 self.command = np.zeros_like(self.command)
             else:
                 for gone in self.live.log.clear():
                     log.info(f"fresh again (was: {gone})")
-                self.fresh = a.step is not None
-                if a.step is not None:
-                    self.command = np.asarray(a.step.qdot, dtype=float)
-                    self._publish_target(a)
-            self._publish_command(a.stamp)
+            if a.step is None:  # stale: the arm stops (a fresh one was sent by _on_step)
+                self._publish_command(a.stamp)
             self._publish_diagnostics(a)
             self._publish_markers(a)
             if self.view is not None:
@@ -194,20 +193,26 @@ class MmstabNode:
             Float64MultiArray(layout=MultiArrayLayout(dim=[dim]), data=cmd.tolist())
         )
 
-    def _publish_target(self, a: LiveAnswer) -> None:
+    def _on_step(self, stamp: float, frame: str, step: Any) -> None:
+        """The loop's step: the command and the arm's target out at once, verdicts after."""
+        self.fresh = True
+        self.command = np.asarray(step.qdot, dtype=float)
+        self._publish_command(stamp)
+        self._publish_target(stamp, frame, step)
+        self.step_published = time.time()
+
+    def _publish_target(self, stamp: float, frame: str, step: Any) -> None:
         from builtin_interfaces.msg import Duration
         from std_msgs.msg import Header
         from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-        step = a.step
-        assert step is not None
         q = step.q if step.q_ref is None else step.q_ref
         point = JointTrajectoryPoint(
             positions=[float(x) for x in q], time_from_start=Duration(sec=0, nanosec=100_000_000)
         )
         self.pub_target.publish(
             JointTrajectory(
-                header=Header(stamp=time_msg(a.stamp), frame_id=a.frame_id),
+                header=Header(stamp=time_msg(stamp), frame_id=frame),
                 joint_names=self.names,
                 points=[point],
             )
@@ -239,6 +244,7 @@ class MmstabNode:
                 kv("q", " ".join(repr(float(x)) for x in st.q)),
                 kv("qdot", " ".join(repr(float(x)) for x in st.qdot)),
                 kv("latency_ms", f"{st.latency * 1e3:.3f}"),
+                kv("command_published", f"{self.step_published:.9f}"),
             ]
         worst = max(v.level for v in a.verdicts)
         head = DiagnosticStatus(
