@@ -8,6 +8,8 @@ another (Fast DDS on this machine, a domain of its own). Per map, from its stamp
 recording's time moved to the wall clock; the map is published 1 ms after it, the
 recording's receive delay):
 
+* ``node``: the map in the node's callback (transport, deserialisation; the last map
+  received before an answer, the map itself unless one came while the node was busy);
 * ``command``: the controller's command and the arm's target published (right after the
   loop's step, before the verdicts);
 * ``published``: the whole answer published (verdicts, markers: the ``answered`` time in
@@ -86,6 +88,7 @@ def main() -> None:
     stamp = np.array([a["abs_stamp"] for a in maps])
     published = np.array([float(a["values"]["answered"]) for a in maps]) - stamp
     command = np.array([float(a["values"]["command_published"]) - a["abs_stamp"] for a in fresh])
+    received_node = np.array([float(a["values"]["map_received"]) - a["abs_stamp"] for a in fresh])
     received = np.array([a["received"] for a in maps]) - stamp
     update = np.array([float(a["values"]["latency_ms"]) * 1e-3 for a in fresh])
     published_maps = int(played.split("play: ")[1].split(" maps")[0])
@@ -98,6 +101,7 @@ def main() -> None:
         "maps_answered": len(maps),
         "stale_answers": len(maps) - len(fresh),
         "latency_ms": {
+            "stamp_to_node": stats(received_node),
             "stamp_to_command": stats(command),
             "stamp_to_published": stats(published),
             "stamp_to_received": stats(received),

@@ -24,6 +24,7 @@ on the clock, so the same recording gives the same commands and μ; only ``laten
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -158,6 +159,10 @@ class Follower:
         self.last_time: float | None = None
         self.period = float(controller.params.dt)
         self.ground = np.zeros((1, 3))  # local ground (z, roll, pitch) last used [m, rad, rad]
+        #: called with the command (tracks, arm) [rad/s] and the planned posture [rad] (None:
+        #: none yet) as soon as the step has them, before the answer's untimed extras (the
+        #: live node publishes the command there: mmstab.runs.online.node)
+        self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
@@ -202,6 +207,8 @@ class Follower:
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         latency = time.perf_counter() - t0
+        if self.on_command is not None:
+            self.on_command(qdot, None if q_ref is None else np.array(q_ref))
         G_T_B, polygon, flags = np.full((4, 4), np.nan), np.zeros((0, 3)), ()
         if covered:  # for the run's recording, outside the timed update
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)

@@ -127,9 +127,9 @@ class LiveFollower:
         self.pending: tuple[Any, float, float] | None = None  # map, stamp, deadline
         self.fault: str | None = None  # an input's fault since the last map
         self.log = ReasonLog(guard.log_period)
-        #: called with (stamp [s], frame, step) right after the loop's step, before the
-        #: verdicts are computed: the node publishes the command there
-        self.on_step: Callable[[float, str, FollowStep], None] | None = None
+        #: called with (stamp [s], frame, command [rad/s], planned posture [rad] or None) as
+        #: soon as the loop's step has them, before the verdicts: the node publishes there
+        self.on_step: Callable[[float, str, FloatArray, FloatArray | None], None] | None = None
 
     # ------------------------------------------------------------------ inputs
     def on_odometry(self, msg: Any) -> None:
@@ -265,9 +265,11 @@ class LiveFollower:
         joints = _at(self.joints, stamp)
         if joints is not None:
             joints = joints._replace(time=joints.time - base)
-        step = self.follower.update(MapUpdate(stamp - base, grid, odom, joints))
         if self.on_step is not None:
-            self.on_step(stamp, frame, step)
+            hook = self.on_step
+            self.follower.on_command = lambda qdot, q_ref: hook(stamp, frame, qdot, q_ref)
+        step = self.follower.update(MapUpdate(stamp - base, grid, odom, joints))
+        self.follower.on_command = None
         stalls: bool | str | None = None
         scene = None
         if step.covered:

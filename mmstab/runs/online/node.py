@@ -89,6 +89,7 @@ class MmstabNode:
         self.live = LiveFollower(follower, guard, self.names, margin, wants)
         self.live.on_step = self._on_step
         self.step_published = float("nan")
+        self.map_received = float("nan")
         self.mu_max = float(mu_max(problem.robot))
         self.view = view
         self.command = np.zeros(len(TRACKS) + len(self.names))
@@ -141,6 +142,7 @@ class MmstabNode:
 
     def _on_map(self, msg: Any) -> None:
         self.maps_received += 1
+        self.map_received = time.time()
         self._guarded(lambda: self.live.on_map(msg, time.time()))
 
     def _guarded(self, answer: Any) -> None:
@@ -193,20 +195,20 @@ class MmstabNode:
             Float64MultiArray(layout=MultiArrayLayout(dim=[dim]), data=cmd.tolist())
         )
 
-    def _on_step(self, stamp: float, frame: str, step: Any) -> None:
+    def _on_step(self, stamp: float, frame: str, qdot: Any, q_ref: Any) -> None:
         """The loop's step: the command and the arm's target out at once, verdicts after."""
         self.fresh = True
-        self.command = np.asarray(step.qdot, dtype=float)
+        self.command = np.asarray(qdot, dtype=float)
         self._publish_command(stamp)
-        self._publish_target(stamp, frame, step)
+        if q_ref is not None:
+            self._publish_target(stamp, frame, q_ref)
         self.step_published = time.time()
 
-    def _publish_target(self, stamp: float, frame: str, step: Any) -> None:
+    def _publish_target(self, stamp: float, frame: str, q: Any) -> None:
         from builtin_interfaces.msg import Duration
         from std_msgs.msg import Header
         from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-        q = step.q if step.q_ref is None else step.q_ref
         point = JointTrajectoryPoint(
             positions=[float(x) for x in q], time_from_start=Duration(sec=0, nanosec=100_000_000)
         )
@@ -245,6 +247,7 @@ class MmstabNode:
                 kv("qdot", " ".join(repr(float(x)) for x in st.qdot)),
                 kv("latency_ms", f"{st.latency * 1e3:.3f}"),
                 kv("command_published", f"{self.step_published:.9f}"),
+                kv("map_received", f"{self.map_received:.9f}"),
             ]
         worst = max(v.level for v in a.verdicts)
         head = DiagnosticStatus(
