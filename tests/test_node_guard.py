@@ -225,3 +225,35 @@ def test_the_foxglove_view_serves_the_answers(recorded: tuple[mmstab.Problem, Pa
 def test_unmapped_ground_ahead_is_a_warning() -> None:
     v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, UNMAPPED, False)}
     assert v["step"].level == WARN and "not mapped" in v["step"].message
+
+
+def test_maps_that_come_before_their_odometry_wait_in_order(
+    recorded: tuple[mmstab.Problem, Path],
+) -> None:
+    """A busy node: each odometry arrives 0.12 s late, after the next map (the map 0.1 s on)."""
+    problem, path = recorded
+    ref = follow_recording(problem, path).steps
+    s = FollowSettings.of(problem)
+    guard = GuardSettings(odom_wait=0.2)
+    live = LiveFollower(build_follower(problem), guard, joint_names(problem.robot), 0.0)
+    topics = {s.map_topic: GRIDMAP, s.odom_topic: "nav_msgs/msg/Odometry"}
+    events = sorted(
+        ((m.time + (0.12 if m.topic == s.odom_topic else 0.0), i, m)
+         for i, m in enumerate(messages(path, topics))),
+        key=lambda e: (e[0], e[1]),
+    )  # fmt: skip
+    got: list[LiveAnswer] = []
+    waited = 0
+    for now, _, m in events:
+        if m.topic == s.odom_topic:
+            live.on_odometry(m.message)
+            got += live.poll(now)
+        else:
+            got += live.on_map(m.message, now)
+            waited = max(waited, len(live.pending))
+    got += live.flush(events[-1][0])
+    assert waited == 2  # two maps waiting at once: the old node answered the first too early
+    assert len(got) == len(ref) and all(a.reason is None for a in got)
+    for a, st in zip(got, ref, strict=True):
+        assert a.step is not None and np.allclose(a.step.pose, st.pose, atol=1e-12)
+        assert np.allclose(a.step.qdot, st.qdot) and a.step.mu == pytest.approx(st.mu, rel=1e-9)

@@ -81,21 +81,11 @@ class FoxgloveView:
     def answer(self, a: LiveAnswer) -> None:
         """Send one answer (module text)."""
         from foxglove.messages import (
-            Color,
-            FrameTransform,
-            FrameTransforms,
             JointState,
             JointStates,
-            LinePrimitive,
-            LinePrimitiveLineType,
-            Pose,
-            Quaternion,
-            SceneEntity,
             SceneEntityDeletion,
             SceneEntityDeletionType,
             SceneUpdate,
-            SpherePrimitive,
-            Vector3,
         )
 
         ts = _time(a.stamp)
@@ -131,6 +121,15 @@ class FoxgloveView:
                 log_time=log_time,
             )
             return
+        self._tf(a, ts, log_time)
+        self._support(a, ts, log_time)
+
+    def _tf(self, a: LiveAnswer, ts: Any, log_time: int) -> None:
+        """``base_link`` at the resting pose in the map's frame."""
+        from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
+
+        st = a.step
+        assert st is not None
         T = st.G_T_B
         x, y, z, w = quaternion(T[:3, :3])
         self.tf.log(
@@ -147,6 +146,23 @@ class FoxgloveView:
             ),
             log_time=log_time,
         )
+
+    def _support(self, a: LiveAnswer, ts: Any, log_time: int) -> None:
+        """The support polygon coloured by μ, the CoM, its projection, the tip axis."""
+        from foxglove.messages import (
+            Color,
+            LinePrimitive,
+            LinePrimitiveLineType,
+            Pose,
+            Quaternion,
+            SceneEntity,
+            SceneUpdate,
+            SpherePrimitive,
+            Vector3,
+        )
+
+        st = a.step
+        assert st is not None and a.scene is not None
         sc = a.scene
         r, g, b = mu_colour(float(st.mu), self.mu_max)
         closed = np.vstack([sc.polygon, sc.polygon[:1]])

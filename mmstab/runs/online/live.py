@@ -124,7 +124,8 @@ class LiveFollower:
         self.last_stamp: float | None = None
         self.last_map_wall: float | None = None
         self.last_watchdog: float | None = None
-        self.pending: tuple[Any, float, float] | None = None  # map, stamp, deadline
+        #: maps waiting for their odometry, in arrival order: (map, stamp, deadline)
+        self.pending: deque[tuple[Any, float, float]] = deque()
         self.fault: str | None = None  # an input's fault since the last map
         self.log = ReasonLog(guard.log_period)
         #: called with (stamp [s], frame, command [rad/s], planned posture [rad] or None) as
@@ -156,16 +157,21 @@ class LiveFollower:
         self.tf.add(msg)
 
     def on_map(self, msg: Any, now: float) -> list[LiveAnswer]:
-        """A ``grid_map_msgs/GridMap`` arrived at wall time ``now`` [s]: answers due now."""
-        out = self.flush(now)
+        """A ``grid_map_msgs/GridMap`` arrived at wall time ``now`` [s]: answers due now.
+
+        A map waits (behind the maps already waiting) until the odometry of its stamp has
+        arrived or ``odom_wait`` is over: a busy node's callbacks may take the next map
+        before the odometry received before it.
+        """
         self.last_map_wall = now
         try:
             stamp = stamp_of(msg)
         except (AttributeError, TypeError) as e:
-            return [*out, self._stale(0.0, "", f"malformed map: no header stamp ({e})")]
+            return [self._stale(0.0, "", f"malformed map: no header stamp ({e})")]
         if now - stamp > self.guard.max_map_age:  # old: stale, whatever came before it
-            return [*out, self._answer(msg, stamp, now)]
+            return [self._answer(msg, stamp, now)]
         if self.last_stamp is not None and stamp <= self.last_stamp:
+            out = self.flush(now)
             self._restart()
             self.last_stamp = stamp
             return [
@@ -173,10 +179,8 @@ class LiveFollower:
                 self._stale(stamp, _frame(msg), "map stamp went back: publisher restarted"),
             ]
         self.last_stamp = stamp
-        if not self._ready(stamp):
-            self.pending = (msg, stamp, now + self.guard.odom_wait)  # its odometry may follow
-            return out
-        return [*out, self._answer(msg, stamp, now)]
+        self.pending.append((msg, stamp, now + self.guard.odom_wait))
+        return self.poll(now)
 
     def _ready(self, stamp: float) -> bool:
         """The odometry (and joint state) of the map's stamp have arrived."""
@@ -185,29 +189,30 @@ class LiveFollower:
         return not self.wants_joints or (bool(self.joints) and self.joints[-1][0] >= stamp)
 
     def poll(self, now: float) -> list[LiveAnswer]:
-        """Answer a waiting map whose odometry arrived or whose wait is over."""
-        if self.pending is None:
-            return []
-        msg, stamp, deadline = self.pending
-        if self._ready(stamp) or now >= deadline:
-            self.pending = None
-            return [self._answer(msg, stamp, now)]
-        return []
+        """Answer the waiting maps, in order, whose odometry arrived or whose wait is over."""
+        out = []
+        while self.pending:
+            msg, stamp, deadline = self.pending[0]
+            if not (self._ready(stamp) or now >= deadline):
+                break
+            self.pending.popleft()
+            out.append(self._answer(msg, stamp, now))
+        return out
 
     def flush(self, now: float) -> list[LiveAnswer]:
-        """Answer a waiting map with what has arrived."""
-        if self.pending is None:
-            return []
-        msg, stamp, _ = self.pending
-        self.pending = None
-        return [self._answer(msg, stamp, now)]
+        """Answer every waiting map with what has arrived."""
+        out = []
+        while self.pending:
+            msg, stamp, _ = self.pending.popleft()
+            out.append(self._answer(msg, stamp, now))
+        return out
 
     def watchdog(self, now: float) -> LiveAnswer | None:
         """A stale answer when no map came for ``max_map_age`` of wall time, else None.
 
         Given at most once every ``max_map_age`` [s] while no map comes.
         """
-        if self.pending is not None:
+        if self.pending:
             return None
         since = None if self.last_map_wall is None else now - self.last_map_wall
         if since is not None and since <= self.guard.max_map_age:
@@ -227,7 +232,7 @@ class LiveFollower:
         self.t0 = None
         self.follower.last_time = None
         self.follower.s = None
-        self.pending = None
+        self.pending.clear()
 
     def _stale(self, stamp: float, frame: str, reason: str) -> LiveAnswer:
         return LiveAnswer(stamp, frame, None, stale_verdicts(reason), reason, None)

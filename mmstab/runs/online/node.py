@@ -150,7 +150,7 @@ class MmstabNode:
         try:
             answers = answer()
         except Exception as e:  # the node keeps running, whatever one map did
-            self.live.pending = None
+            self.live.pending.clear()
             why = f"error in the update: {type(e).__name__}: {e}"
             self.node.get_logger().error(why)
             answers = [self.live._stale(time.time(), "", why)]

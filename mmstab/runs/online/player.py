@@ -91,25 +91,55 @@ def play(
         limit: play only up to the ``limit``-th map.
     """
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.qos import DurabilityPolicy, QoSProfile
-    from trajectory_msgs.msg import JointTrajectory
 
-    faults = faults or {}
     rclpy.init()
-    node = rclpy.create_node("mmstab_play")
-    got: list[dict[str, Any]] = []
-    shift_box = [0.0]
+    try:
+        player = Player(topics, faults or {}, answers is not None)
+        with open_recording(path) as reader:
+            maps, sent = player.run(reader, Path(path), rate, limit)
+        player.collect(maps)
+        player.node.destroy_node()
+    finally:
+        rclpy.shutdown()
+    if answers is not None:
+        Path(answers).write_text("".join(json.dumps(a) + "\n" for a in player.got))
+    return {"maps": maps, "messages": sent, "answers": player.answered() if answers else None}
 
-    def on_diag(msg: Any) -> None:
+
+class Player:
+    """The player's node: publishers of the recording's topics, the answers' subscriptions.
+
+    Args:
+        topics: the node's topics.
+        faults: ``{name: T [s]}`` (module text).
+        listen: read the node's answers back.
+    """
+
+    def __init__(self, topics: NodeTopics, faults: dict[str, float], listen: bool) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from trajectory_msgs.msg import JointTrajectory
+
+        self.topics, self.faults, self.listen = topics, faults, listen
+        self._conns: list[Any] = []
+        self.node = rclpy.create_node("mmstab_play")
+        self.got: list[dict[str, Any]] = []
+        self.shift = 0.0  # recorded stamps -> now [s], of the last map published
+        self.pubs: dict[str, tuple[Any, Any]] = {}
+        if listen:
+            n = self.node
+            n.create_subscription(DiagnosticArray, topics.diagnostics_topic, self._diag, 1000)
+            n.create_subscription(JointTrajectory, topics.arm_target_topic, self._target, 1000)
+
+    def _diag(self, msg: Any) -> None:
         head = next((s for s in msg.status if s.name == "mmstab: stability"), None)
         if head is None:
             return
         values = {kv.key: kv.value for kv in head.values}
-        got.append({
+        self.got.append({
             "kind": "diagnostics",
             "received": time.time(),
-            "stamp": float(values["map_stamp"]) - shift_box[0],
+            "stamp": float(values["map_stamp"]) - self.shift,
             "abs_stamp": float(values["map_stamp"]),
             "levels": {s.name.removeprefix("mmstab: "): s.level[0] for s in msg.status},
             "message": head.message,
@@ -117,102 +147,111 @@ def play(
             "values": values,
         })  # fmt: skip
 
-    def on_target(msg: Any) -> None:
-        got.append({
+    def _target(self, msg: Any) -> None:
+        self.got.append({
             "kind": "arm_target", "received": time.time(),
-            "stamp": stamp_of(msg) - shift_box[0],
+            "stamp": stamp_of(msg) - self.shift,
             "positions": [float(x) for x in msg.points[0].positions],
         })  # fmt: skip
 
-    if answers is not None:
-        node.create_subscription(DiagnosticArray, topics.diagnostics_topic, on_diag, 1000)
-        node.create_subscription(JointTrajectory, topics.arm_target_topic, on_target, 1000)
-    with open_recording(path) as reader:
-        ros1 = Path(path).suffix.lower() == ".bag"
-        want = {topics.map_topic, topics.odom_topic, topics.joints_topic, "/tf", "/tf_static"}
-        conns = [c for c in reader.connections if c.topic in want]
-        if not any(c.topic == topics.map_topic for c in conns):
-            raise ConfigError(path, "topic", f"no topic {topics.map_topic!r}")
-        pubs: dict[str, Any] = {}
+    def answered(self) -> int:
+        """The node's answers to maps read back so far."""
+        return sum(a["kind"] == "diagnostics" and a["source"] == "map" for a in self.got)
+
+    def _advertise(self, conns: list[Any]) -> None:
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+
         for c in conns:
-            if c.topic not in pubs:
-                qos: Any = 100
-                if c.topic == "/tf_static":
-                    qos = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-                pubs[c.topic] = (node.create_publisher(message_class(c.msgtype), c.topic, qos), c)
-        map_pub = pubs[topics.map_topic][0]
-        t_end = time.time() + WAIT_NODE
+            if c.topic in self.pubs:
+                continue
+            qos: Any = 100
+            if c.topic == "/tf_static":
+                qos = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            self.pubs[c.topic] = (
+                self.node.create_publisher(message_class(c.msgtype), c.topic, qos),
+                c,
+            )
+
+    def _wait_for_node(self, limit: float, others: bool = True) -> None:
+        """Until a node subscribes to the map (``limit`` [s]), then its other topics (2 s)."""
+        import rclpy
+
+        map_pub = self.pubs[self.topics.map_topic][0]
+        t_end = time.time() + limit
         while map_pub.get_subscription_count() == 0 and time.time() < t_end:
-            rclpy.spin_once(node, timeout_sec=0.05)
+            rclpy.spin_once(self.node, timeout_sec=0.05)
         if map_pub.get_subscription_count() == 0:
-            raise ConfigError(topics.map_topic, "", f"no node subscribed within {WAIT_NODE:g} s")
-        t_end = time.time() + 2.0  # the node's other subscriptions (some may not be there)
+            raise ConfigError(self.topics.map_topic, "", f"no node subscribed within {limit:g} s")
+        t_end = time.time() + (2.0 if others else 0.0)  # some of them may not be subscribed
         while time.time() < t_end and any(
-            p.get_subscription_count() == 0 for p, _ in pubs.values()
+            p.get_subscription_count() == 0 for p, _ in self.pubs.values()
         ):
-            rclpy.spin_once(node, timeout_sec=0.01)
-        start_rec = reader.start_time * 1e-9
-        t0 = time.time()
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+    def _restart(self) -> None:
+        """The publishers destroyed and created again (new ones for the node to match)."""
+        for pub, _ in self.pubs.values():
+            self.node.destroy_publisher(pub)
+        self.pubs.clear()
+        self._advertise(self._conns)
+        self._wait_for_node(WAIT_NODE, others=False)
+
+    def _break(self, msg: Any, t: float) -> None:
+        """A map's faults from their times on (module text)."""
+        f = self.faults
+        if t >= f.get("no-transform", np.inf):
+            msg.header.frame_id = "elsewhere"
+        if t >= f.get("old-map", np.inf):
+            msg.header.stamp = time_msg(stamp_of(msg) - 2.0)
+        if t >= f.get("malformed", np.inf):
+            msg.data[0].data = msg.data[0].data[:-7]
+
+    def run(self, reader: Any, path: Path, rate: float, limit: int | None) -> tuple[int, int]:
+        """Publish the recording at ``rate``; returns (maps, messages) published."""
+        import rclpy
+        from rclpy.serialization import deserialize_message
+
+        t = self.topics
+        want = {t.map_topic, t.odom_topic, t.joints_topic, "/tf", "/tf_static"}
+        self._conns = [c for c in reader.connections if c.topic in want]
+        if not any(c.topic == t.map_topic for c in self._conns):
+            raise ConfigError(path, "topic", f"no topic {t.map_topic!r}")
+        self._advertise(self._conns)
+        self._wait_for_node(WAIT_NODE)
+        ros1 = path.suffix.lower() == ".bag"
+        start, t0 = reader.start_time * 1e-9, time.time()
         maps = sent = 0
-        restarted = False
-        for c, t_ns, raw in reader.messages(connections=conns):
-            t = t_ns * 1e-9 - start_rec
+        back = 0.0  # a restarted publisher's clock is behind
+        for c, t_ns, raw in reader.messages(connections=self._conns):
+            tr = t_ns * 1e-9 - start
             if limit is not None and maps >= limit:
                 break
-            wait = t0 + t / rate - time.time()
-            while wait > 0:
-                rclpy.spin_once(node, timeout_sec=min(wait, 0.01))
-                wait = t0 + t / rate - time.time()
-            if "restart" in faults and t >= faults["restart"] and not restarted:
-                restarted = True
-                for topic, (pub, conn) in list(pubs.items()):
-                    node.destroy_publisher(pub)
-                    pubs[topic] = (
-                        node.create_publisher(message_class(conn.msgtype), topic, 100),
-                        conn,
-                    )
-                map_pub = pubs[topics.map_topic][0]
-                while map_pub.get_subscription_count() == 0:
-                    rclpy.spin_once(node, timeout_sec=0.01)
-            cls = message_class(c.msgtype)
-            from rclpy.serialization import deserialize_message
-
-            data = reader.typestore.ros1_to_cdr(raw, c.msgtype) if ros1 else raw
-            msg = deserialize_message(bytes(data), cls)
-            # recorded stamps -> now: the recording's time t is published at wall t0 + t
-            shift = t0 - start_rec
-            if restarted:
-                shift -= RESTART_BACK
-            if c.topic == topics.map_topic:
-                shift_box[0] = shift
-            is_map = c.topic == topics.map_topic
-            if c.topic in (topics.odom_topic, "/tf") and t >= faults.get("odom-stops", np.inf):
+            while (wait := t0 + tr / rate - time.time()) > 0:
+                rclpy.spin_once(self.node, timeout_sec=min(wait, 0.01))
+            if tr >= self.faults.get("restart", np.inf) and back == 0.0:
+                back = RESTART_BACK
+                self._restart()
+            if c.topic in (t.odom_topic, "/tf") and tr >= self.faults.get("odom-stops", np.inf):
                 continue
+            data = reader.typestore.ros1_to_cdr(raw, c.msgtype) if ros1 else raw
+            msg = deserialize_message(bytes(data), message_class(c.msgtype))
+            shift = t0 - start - back  # the recording's time t is published at wall t0 + t
             _restamp(msg, shift)
-            if is_map:
-                if t >= faults.get("no-transform", np.inf):
-                    msg.header.frame_id = "elsewhere"
-                if t >= faults.get("old-map", np.inf):
-                    msg.header.stamp = time_msg(stamp_of(msg) - 2.0)
-                if t >= faults.get("malformed", np.inf):
-                    msg.data[0].data = msg.data[0].data[:-7]
+            if c.topic == t.map_topic:
+                self.shift = shift
+                self._break(msg, tr)
                 maps += 1
-            pubs[c.topic][0].publish(msg)
+            self.pubs[c.topic][0].publish(msg)
             sent += 1
+        return maps, sent
+
+    def collect(self, maps: int) -> None:
+        """Read answers until there is one per map or none came for ``WAIT_ANSWERS``."""
+        import rclpy
+
         quiet = time.time()
-
-        def n_diag() -> int:
-            return sum(a["kind"] == "diagnostics" and a["source"] == "map" for a in got)
-
-        while answers is not None and time.time() - quiet < WAIT_ANSWERS:
-            before = n_diag()
-            rclpy.spin_once(node, timeout_sec=0.05)
-            if n_diag() != before:
+        while self.listen and time.time() - quiet < WAIT_ANSWERS and self.answered() < maps:
+            before = self.answered()
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+            if self.answered() != before:
                 quiet = time.time()
-            if n_diag() >= maps:
-                break
-    node.destroy_node()
-    rclpy.shutdown()
-    if answers is not None:
-        Path(answers).write_text("".join(json.dumps(a) + "\n" for a in got))
-    return {"maps": maps, "messages": sent, "answers": n_diag() if answers is not None else None}
