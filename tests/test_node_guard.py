@@ -257,3 +257,13 @@ def test_maps_that_come_before_their_odometry_wait_in_order(
     for a, st in zip(got, ref, strict=True):
         assert a.step is not None and np.allclose(a.step.pose, st.pose, atol=1e-12)
         assert np.allclose(a.step.qdot, st.qdot) and a.step.mu == pytest.approx(st.mu, rel=1e-9)
+
+
+def test_faults_are_named_and_timed() -> None:
+    from mmstab.runs.online.player import parse_faults
+
+    assert parse_faults(["odom-stops@1.5", "restart@2"]) == {"odom-stops": 1.5, "restart": 2.0}
+    with pytest.raises(mmstab.ConfigError, match="'bogus': one of odom-stops"):
+        parse_faults(["bogus@1"])
+    with pytest.raises(mmstab.ConfigError, match="a time"):
+        parse_faults(["old-map@soon"])

@@ -28,8 +28,14 @@ def _node(args: argparse.Namespace) -> int | None:
     status = _ready()
     if status is not None:
         return status
+    import importlib.util
+
     from mmstab.core.problem import load_problem
     from mmstab.runs.online.node import MmstabNode
+
+    if args.foxglove and importlib.util.find_spec("foxglove") is None:
+        print("mmstab: error: --foxglove: no foxglove-sdk: install the ros extra", file=sys.stderr)
+        return EXIT_BAD_INPUT
 
     problem = load_problem(args.problem)
     view = None

@@ -209,7 +209,8 @@ class Follower:
         latency = time.perf_counter() - t0
         if self.on_command is not None:
             self.on_command(qdot, None if q_ref is None else np.array(q_ref))
-        G_T_B, polygon, flags = np.full((4, 4), np.nan), np.zeros((0, 3)), ()
+        G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
+        flags: tuple[str, ...] = ()
         if covered:  # for the run's recording, outside the timed update
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
             G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
