@@ -33,6 +33,11 @@ test: setup system ros
 .PHONY: ros
 ROS_STAMP := $(VENV)/.ros-stamp
 $(ROS_STAMP): $(STAMP) ros/setup.sh $(wildcard ros/*/msg/*.msg ros/*/CMakeLists.txt ros/*/package.xml)
+	@command -v cmake >/dev/null 2>&1 && command -v g++ >/dev/null 2>&1 || { \
+	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	    echo "make: installing cmake and g++ (the generated ROS 2 message packages)"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq cmake g++ >/dev/null; \
+	  fi; }
 	$(PY) -m pip install --quiet --editable '.[$(EXTRAS),ros]'
 	sh ros/setup.sh $(VENV)
 	touch $(ROS_STAMP)
