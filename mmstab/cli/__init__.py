@@ -23,6 +23,7 @@ from pathlib import Path
 
 from mmstab.cli.checks import check_options, check_outputs, report_route
 from mmstab.cli.commands import COMMANDS, EXTRA_OPTIONS, PROBLEM_COMMANDS, _urdf, _urdf_out
+from mmstab.cli.node import add_node_commands
 from mmstab.cli.online import add_online_commands
 from mmstab.cli.physics import add_physics_commands
 from mmstab.cli.status import (
@@ -72,6 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_view_command(sub)
     _add_terrain_commands(sub)
     add_online_commands(sub)
+    add_node_commands(sub)
     add_physics_commands(sub)
     return parser
 

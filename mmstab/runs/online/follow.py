@@ -24,6 +24,7 @@ on the clock, so the same recording gives the same commands and μ; only ``laten
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -109,6 +110,9 @@ class FollowStep(NamedTuple):
         gravity_body: gravity in B at rest on the map, as ``mu`` used it [m/s^2] (NaN when
             not covered).
         measured: ``q`` is the recording's joint state (else the loop's own integration).
+        q_ref: the planned posture the step steered toward [rad] (None: none planned yet).
+        flags: the resting pose's flags on the map (``high_centred``, ``line_contact``, ...);
+            computed after the timed part (empty when not covered).
     """
 
     time: float
@@ -129,6 +133,8 @@ class FollowStep(NamedTuple):
     tilt: float
     gravity_body: FloatArray
     measured: bool
+    q_ref: FloatArray | None = None
+    flags: tuple[str, ...] = ()
 
 
 class Follower:
@@ -153,6 +159,10 @@ class Follower:
         self.last_time: float | None = None
         self.period = float(controller.params.dt)
         self.ground = np.zeros((1, 3))  # local ground (z, roll, pitch) last used [m, rad, rad]
+        #: called with the command (tracks, arm) [rad/s] and the planned posture [rad] (None:
+        #: none yet) as soon as the step has them, before the answer's untimed extras (the
+        #: live node publishes the command there: mmstab.runs.online.node)
+        self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
@@ -200,14 +210,17 @@ class Follower:
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         latency = time.perf_counter() - t0
+        if self.on_command is not None:
+            self.on_command(qdot, None if q_ref is None else np.array(q_ref))
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
+        flags: tuple[str, ...] = ()
         if covered:  # for the run's recording, outside the timed update
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
-            G_T_B, polygon = support.G_T_B, support.polygon_G
+            G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
-            tilt, g_now, u.joints is not None,
+            tilt, g_now, u.joints is not None, None if q_ref is None else np.array(q_ref), flags,
         )  # fmt: skip
 
     def _spacing(self) -> float:
