@@ -150,3 +150,29 @@ def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, ca
     # the turn named as the route names its corner (68 deg)
     (corner,) = (c["turn_deg"] for c in s["route"]["corners"] if c["waypoint"] == 1)
     assert f"turning {abs(round(corner))} deg there" in captured.err
+
+
+def test_stretches_are_merged_and_a_tip_below_the_margin_is_named_so():
+    from mmstab.runs.along import limit_verdicts, merged
+
+    assert merged([[4.29, 4.84], [0.0, 0.49], [0.0, 0.55], [4.42, 4.91]]) == [
+        [0.0, 0.55], [4.29, 4.91]
+    ]  # fmt: skip
+    summary = {
+        "s": [0.0, 0.5, 1.0],
+        "stability": {"stable": False, "mu_min": 300.0, "unstable_poses": [],
+                      "stretches": [{"start_s": 0.6, "end_s": 0.7, "worst": 29.3}]},
+        "slip": {"slides": False},
+        "risk": {"slides": []},
+        "climb": {"stalls": False, "steps": []},
+        "high_centred": {"high_centred": False, "stretches": []},
+        "poses": [{"collision_free": True}] * 3,
+    }  # fmt: skip
+    v = limit_verdicts(summary)
+    assert v["tip"] == {"verdict": "below_margin", "unsafe": True, "where": [[0.6, 0.7]],
+                        "mu_min": 29.3}  # fmt: skip
+    summary["stability"]["stretches"][0]["worst"] = -4.0
+    assert limit_verdicts(summary)["tip"]["verdict"] == "tips"
+    assert [v[k]["verdict"] for k in ("slide", "step", "high_centred", "arm_contact")] == [
+        "holds"
+    ] * 4

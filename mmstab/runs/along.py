@@ -181,6 +181,17 @@ def dense_verdicts(
     }
 
 
+def merged(spans: list[list[float]]) -> list[list[float]]:
+    """Stretches ``[start, end]`` [m] sorted, overlapping ones joined."""
+    out: list[list[float]] = []
+    for a, b in sorted(spans):
+        if out and a <= out[-1][1] + 1e-9:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return out
+
+
 def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """One verdict per limit of a route plan's summary: what text, JSON and figures show.
 
@@ -190,9 +201,10 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
     Returns:
         For ``tip``, ``slide``, ``step``, ``high_centred`` and ``arm_contact``: ``verdict``
-        (``holds`` or what happens: ``tips``, ``slides``, ``stalls``, ``high_centred``,
-        ``collides``), ``unsafe`` (it sets the exit status unless allowed) and ``where``
-        (arc lengths [m] of the stretches, ``[start, end]``).
+        (``holds`` or what happens: ``tips`` (μ <= 0), ``below_margin`` (0 < μ <= the
+        margin), ``slides``, ``stalls``, ``high_centred``, ``collides``), ``unsafe`` (it
+        sets the exit status unless allowed) and ``where`` (arc lengths [m] of the
+        stretches, ``[start, end]``, overlapping ones merged).
     """
     s = summary["s"]
     stab, slip = summary["stability"], summary["slip"]
@@ -206,11 +218,16 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     hc = summary["high_centred"]
     hc_where = [[x["start_s"], x["end_s"]] for x in hc["stretches"]]
     contact = [[s[k], s[k]] for k, p in enumerate(summary["poses"]) if not p["collision_free"]]
+    worst = [b["mu"] for b in stab["unstable_poses"]]
+    worst += [x["worst"] for x in stab.get("stretches", [])]
+    tip = (
+        "holds" if stab["stable"] else ("tips" if min(worst, default=0.0) <= 0 else "below_margin")
+    )
     return {
-        "tip": {"verdict": "holds" if stab["stable"] else "tips", "unsafe": not stab["stable"],
-                "where": sorted(tip_where), "mu_min": stab.get("mu_min")},
+        "tip": {"verdict": tip, "unsafe": not stab["stable"], "where": merged(tip_where),
+                "mu_min": min(worst, default=stab.get("mu_min"))},
         "slide": {"verdict": "slides" if slip["slides"] else "holds",
-                  "unsafe": bool(slip["slides"]), "where": sorted(slide_where)},
+                  "unsafe": bool(slip["slides"]), "where": merged(slide_where)},
         "step": {"verdict": "stalls" if climb["stalls"] else "holds", "unsafe": False,
                  "where": stall_where},
         "high_centred": {"verdict": "high_centred" if hc["high_centred"] else "holds",
