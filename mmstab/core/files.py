@@ -7,11 +7,12 @@ field; the command line turns it into one line on stderr and exit status 2.
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -195,6 +196,7 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
     """
     p = Path(path)
     _check_finite(p, data, [])
+    _check_angles(p, data, schema, [])
     validator = jsonschema.Draft202012Validator(schema)
     found = [b for e in validator.iter_errors(data) for b in _branch_errors(e)]
     errors = sorted(found, key=lambda e: (-len(e.absolute_path), str(e.absolute_path)))
@@ -202,10 +204,13 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         return
     err = jsonschema.exceptions.best_match(errors) or errors[0]
     field = _field_path(list(err.absolute_path))
-    if err.validator == "additionalProperties":
-        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
-        field = _field_path([*err.absolute_path, extra[0]]) if extra else field
-        msg = "unknown key"
+    unknown = _unknown_keys(err)
+    if unknown and err.validator in ("additionalProperties", "required"):
+        # a misspelt key is both unknown and missing: name the key the file has, and the
+        # closest valid one (``waypionts``, not "path.center: missing required key")
+        known = list(err.schema.get("properties", {}))
+        field = _field_path([*err.absolute_path, unknown[0]])
+        msg = "unknown key" + did_you_mean(unknown[0], known)
     elif err.validator == "required":
         missing = [r for r in err.validator_value if r not in err.instance]
         field = _field_path([*err.absolute_path, missing[0]])
@@ -214,8 +219,86 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         field = _field_path([*err.absolute_path, "type"])
         msg = f"must be one of {', '.join(_kinds(err))}"
     else:
-        msg = err.message
+        msg = err.message + _unit_hint(err.schema)
     raise ConfigError(p, field, msg)
+
+
+def _unknown_keys(err: Any) -> list[str]:
+    """The keys of the error's mapping that its closed schema does not list (sorted)."""
+    schema = err.schema if isinstance(err.schema, dict) else {}
+    if not isinstance(err.instance, dict) or schema.get("additionalProperties") is not False:
+        return []
+    return sorted(str(k) for k in set(err.instance) - set(schema.get("properties", {})))
+
+
+def did_you_mean(key: str, known: Sequence[str]) -> str:
+    """``"; did you mean 'X'?"`` for the valid key closest to ``key`` (difflib), else ``""``.
+
+    Args:
+        key: the key the file has.
+        known: the valid keys at that place.
+    """
+    close = difflib.get_close_matches(key, [str(k) for k in known], n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def check_known_keys(
+    path: str | os.PathLike[str], field: str, mapping: Any, known: Sequence[str]
+) -> None:
+    """Refuse a key of ``mapping`` that none of the section's forms knows, naming the closest.
+
+    For sections told apart by their keys (``path``: a circle or a route; ``terrain``): a
+    misspelt key that selects the wrong form would otherwise be reported as another form's
+    missing key.
+
+    Raises:
+        ConfigError: ``field.key: unknown key; did you mean 'X'?``.
+    """
+    if not isinstance(mapping, dict):
+        return
+    for key in sorted(str(k) for k in mapping):
+        if key not in known:
+            raise ConfigError(path, f"{field}.{key}", "unknown key" + did_you_mean(key, known))
+
+
+#: A value above this in magnitude, where the unit is radians, is taken as degrees [rad].
+DEGREES_LIKELY = 2 * math.pi + 1e-6
+
+
+def _unit_hint(schema: Any) -> str:
+    """`` [rad]`` after a bound's message on an angle (the schema's ``unit``), else ``""``."""
+    unit = schema.get("unit") if isinstance(schema, dict) else None
+    return f" [{unit}]" if unit else ""
+
+
+def _check_angles(path: Path, node: Any, schema: Any, trail: list[Any]) -> None:
+    """Refuse, naming the unit, a number of ``|value| > 2 pi`` where radians are expected.
+
+    Walks ``node`` along ``schema`` (``properties``, ``items``, every ``oneOf`` branch); the
+    angles are the schemas marked ``"unit": "rad"`` (:data:`mmstab.core.schema.RAD`).
+    """
+    if not isinstance(schema, dict):
+        return
+    if (
+        schema.get("unit") == "rad"
+        and isinstance(node, (int, float))
+        and not isinstance(node, bool)
+        and abs(node) > DEGREES_LIKELY
+    ):
+        msg = (
+            f"{node} looks like degrees; the unit is radians "
+            f"({node} deg = {math.radians(node):.4g} rad)"
+        )
+        raise ConfigError(path, _field_path(trail), msg)
+    for branch in schema.get("oneOf", []) + schema.get("anyOf", []):
+        _check_angles(path, node, branch, trail)
+    if isinstance(node, dict):
+        for key, sub in schema.get("properties", {}).items():
+            if key in node:
+                _check_angles(path, node[key], sub, [*trail, key])
+    elif isinstance(node, list) and isinstance(schema.get("items"), dict):
+        for i, v in enumerate(node):
+            _check_angles(path, v, schema["items"], [*trail, i])
 
 
 def _kinds(err: Any) -> list[str]:
