@@ -42,7 +42,8 @@ def _radians(name: str, value: float) -> None:
     """Refuse an angle of ``|value| > 2 pi`` given where radians are expected, as degrees."""
     import math
 
-    from mmstab.core.files import DEGREES_LIKELY, MmstabError
+    from mmstab.core.files import MmstabError
+    from mmstab.core.hints import DEGREES_LIKELY
 
     if abs(value) > DEGREES_LIKELY:
         raise MmstabError(

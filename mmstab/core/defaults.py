@@ -156,8 +156,9 @@ def joint_defaults(arm_joints: int) -> dict[str, dict[str, Any]]:
     ``controller.w_b`` (2 + n: the sprockets, then 1e-4 per joint), ``posture_gain`` (5 per
     joint), ``posture_weight`` (1e-3 per joint) and ``workspace.grid``: the 4-DoF Cameleon's
     24 x 29 x 25 x 25 for its first joints and 13 per joint beyond the fourth; beyond four
-    joints every count is then scaled by one factor (rounded, at least 2) so that the whole
-    grid has about the 4-DoF grid's 435000 postures (5 joints: 14 x 17 x 15 x 15 x 8 =
+    joints every count is then scaled by one factor (rounded, at least 2; the largest
+    lowered while the grid is larger) so that the whole grid has at most, and about, the
+    4-DoF grid's 435000 postures (5 joints: 14 x 17 x 15 x 15 x 8 =
     428400): a whole grid, as the posture roadmap needs, built in about the 4-DoF grid's
     time. For 4 joints these are
     :data:`DEFAULT_SECTIONS`' values.
@@ -165,7 +166,9 @@ def joint_defaults(arm_joints: int) -> dict[str, dict[str, Any]]:
     n = int(arm_joints)
     counts = [*GRID_4DOF[:n], *[GRID_EXTRA_JOINT] * max(0, n - len(GRID_4DOF))]
     scale = min(1.0, (GRID_POSTURES / math.prod(counts)) ** (1.0 / n))
-    grid = list(GRID_4DOF) if n == len(GRID_4DOF) else [max(2, round(c * scale)) for c in counts]
+    grid = [max(2, round(c * scale)) for c in counts]
+    while math.prod(grid) > GRID_POSTURES:  # rounding up overshot: the largest count down
+        grid[grid.index(max(grid))] -= 1
     return {
         "controller": {
             "w_b": [*SPROCKET_W_B, *[ARM_W_B] * n],

@@ -7,7 +7,6 @@ field; the command line turns it into one line on stderr and exit status 2.
 
 from __future__ import annotations
 
-import difflib
 import json
 import math
 import os
@@ -19,6 +18,8 @@ from typing import Any
 import jsonschema
 import numpy as np
 import yaml
+
+from mmstab.core.hints import degrees_given, did_you_mean, unit_hint, unknown_keys
 
 
 class MmstabError(Exception):
@@ -196,7 +197,9 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
     """
     p = Path(path)
     _check_finite(p, data, [])
-    _check_angles(p, data, schema, [])
+    angle = degrees_given(data, schema, [])
+    if angle is not None:
+        raise ConfigError(p, _field_path(angle[0]), angle[1])
     validator = jsonschema.Draft202012Validator(schema)
     found = [b for e in validator.iter_errors(data) for b in _branch_errors(e)]
     errors = sorted(found, key=lambda e: (-len(e.absolute_path), str(e.absolute_path)))
@@ -204,7 +207,7 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         return
     err = jsonschema.exceptions.best_match(errors) or errors[0]
     field = _field_path(list(err.absolute_path))
-    unknown = _unknown_keys(err)
+    unknown = unknown_keys(err)
     if unknown and err.validator in ("additionalProperties", "required"):
         # a misspelt key is both unknown and missing: name the key the file has, and the
         # closest valid one (``waypionts``, not "path.center: missing required key")
@@ -219,27 +222,8 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         field = _field_path([*err.absolute_path, "type"])
         msg = f"must be one of {', '.join(_kinds(err))}"
     else:
-        msg = err.message + _unit_hint(err.schema)
+        msg = err.message + unit_hint(err.schema)
     raise ConfigError(p, field, msg)
-
-
-def _unknown_keys(err: Any) -> list[str]:
-    """The keys of the error's mapping that its closed schema does not list (sorted)."""
-    schema = err.schema if isinstance(err.schema, dict) else {}
-    if not isinstance(err.instance, dict) or schema.get("additionalProperties") is not False:
-        return []
-    return sorted(str(k) for k in set(err.instance) - set(schema.get("properties", {})))
-
-
-def did_you_mean(key: str, known: Sequence[str]) -> str:
-    """``"; did you mean 'X'?"`` for the valid key closest to ``key`` (difflib), else ``""``.
-
-    Args:
-        key: the key the file has.
-        known: the valid keys at that place.
-    """
-    close = difflib.get_close_matches(key, [str(k) for k in known], n=1, cutoff=0.6)
-    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def check_known_keys(
@@ -259,46 +243,6 @@ def check_known_keys(
     for key in sorted(str(k) for k in mapping):
         if key not in known:
             raise ConfigError(path, f"{field}.{key}", "unknown key" + did_you_mean(key, known))
-
-
-#: A value above this in magnitude, where the unit is radians, is taken as degrees [rad].
-DEGREES_LIKELY = 2 * math.pi + 1e-6
-
-
-def _unit_hint(schema: Any) -> str:
-    """`` [rad]`` after a bound's message on an angle (the schema's ``unit``), else ``""``."""
-    unit = schema.get("unit") if isinstance(schema, dict) else None
-    return f" [{unit}]" if unit else ""
-
-
-def _check_angles(path: Path, node: Any, schema: Any, trail: list[Any]) -> None:
-    """Refuse, naming the unit, a number of ``|value| > 2 pi`` where radians are expected.
-
-    Walks ``node`` along ``schema`` (``properties``, ``items``, every ``oneOf`` branch); the
-    angles are the schemas marked ``"unit": "rad"`` (:data:`mmstab.core.schema.RAD`).
-    """
-    if not isinstance(schema, dict):
-        return
-    if (
-        schema.get("unit") == "rad"
-        and isinstance(node, (int, float))
-        and not isinstance(node, bool)
-        and abs(node) > DEGREES_LIKELY
-    ):
-        msg = (
-            f"{node} looks like degrees; the unit is radians "
-            f"({node} deg = {math.radians(node):.4g} rad)"
-        )
-        raise ConfigError(path, _field_path(trail), msg)
-    for branch in schema.get("oneOf", []) + schema.get("anyOf", []):
-        _check_angles(path, node, branch, trail)
-    if isinstance(node, dict):
-        for key, sub in schema.get("properties", {}).items():
-            if key in node:
-                _check_angles(path, node[key], sub, [*trail, key])
-    elif isinstance(node, list) and isinstance(schema.get("items"), dict):
-        for i, v in enumerate(node):
-            _check_angles(path, v, schema["items"], [*trail, i])
 
 
 def _kinds(err: Any) -> list[str]:

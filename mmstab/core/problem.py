@@ -19,9 +19,9 @@ from mmstab.core.defaults import with_defaults
 from mmstab.core.files import ConfigError, MmstabError, check_known_keys, read_yaml, validate
 from mmstab.core.settings import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
-from mmstab.model.collision import TOUCHING_SAMPLES, touching_pairs
 from mmstab.model.payload import attach_payload, payload_from_section
 from mmstab.model.robot import Robot, link_extent_warnings, load_robot
+from mmstab.model.touching import TOUCHING_SAMPLES, with_touching_allowed
 from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath, is_route, route_path_from_section
@@ -121,22 +121,22 @@ class Problem:
         return {**self.data, "robot": read_yaml(self.robot_path())}
 
 
-_NOTED: set[str] = set()
+_NOTED: set[tuple[Path, str]] = set()
 
 
-def _note_robot(path: Path, robot: Robot) -> None:
+def _note_robot(path: Path, robot: Robot, touching: tuple[tuple[str, str], ...]) -> None:
     """Notes on a robot file, on stderr, once per robot and process (not refusals).
 
     The collision pairs skipped as touching at every posture, and the links whose shape or
     CoM lies off their DH segment.
     """
-    if robot.source_hash in _NOTED:
+    if (path, robot.source_hash) in _NOTED:
         return
-    _NOTED.add(robot.source_hash)
-    touching = touching_pairs(robot)
+    _NOTED.add((path, robot.source_hash))
     if touching:
+        pairs = ", ".join("-".join(pr) for pr in touching)
         print(
-            f"mmstab: note: {path}: {', '.join(touching)} touch at every one of "
+            f"mmstab: note: {path}: {pairs} touch at every one of "
             f"{TOUCHING_SAMPLES + 1} sampled postures: not checked "
             "(collision.allow lists pairs not to check)",
             file=sys.stderr,
@@ -169,8 +169,7 @@ def problem_from_dict(
     if not robot_path.is_file():
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
     check_section(p, data["terrain"])  # before the size bounds read terrain.generate
-    robot = load_robot(robot_path)
-    _note_robot(robot_path, robot)
+    robot, touching = with_touching_allowed(load_robot(robot_path))
     # the per-joint keys the file leaves out, for the robot's joint count (before the sizes)
     data = with_defaults(given, robot.arm_joints)
     check_arm_joints(p, data, robot.arm_joints, sections)
@@ -206,6 +205,7 @@ def problem_from_dict(
             start_angle=float(c["start_angle"]),
             direction=c["direction"],
         )
+    _note_robot(robot_path, robot, touching)  # once valid: a refusal stays one line
     return Problem(
         path=p,
         data=data,

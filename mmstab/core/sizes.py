@@ -344,10 +344,6 @@ def refusal(est: Estimate, force: bool, memory: float | None = None) -> str | No
     return None
 
 
-#: The section of each estimate of :func:`estimates` (the others are their own).
-ESTIMATE_SECTION = {"precision": "workspace"}
-
-
 def check_sizes(
     path: Path,
     data: Mapping[str, Any],
@@ -371,8 +367,8 @@ def check_sizes(
     """
     found = estimates(data)
     memory = available_memory()
-    for name, est in found.items():
-        if sections is not None and ESTIMATE_SECTION.get(name, name) not in sections:
+    for est in found.values():
+        if sections is not None and est.field.split(".")[0] not in sections:
             continue
         why = refusal(est, force, memory)
         if why is not None:

@@ -120,17 +120,15 @@ class CollisionChecker:
     Built once per robot; not thread-safe (it moves its FCL objects). For a process pool,
     build one per worker process.
 
-    Pairs of bodies the robot file allows to touch (``collision.allow``, MoveIt's
-    ``disable_collisions``) are never checked, nor (``touching``) the pairs that touch at every
-    posture (:func:`touching_pairs`, as MoveIt's setup assistant finds them): such a pair (two
-    capsules meeting at a zero-length wrist link) would make every posture collide.
+    Pairs of bodies allowed to touch (``Robot.collision_allow``: the file's ``collision.allow``,
+    as MoveIt's ``disable_collisions``, and, for a problem's robot, the pairs that touch at
+    every posture: :mod:`mmstab.model.touching`) are never checked.
 
     Args:
         robot: the robot; its arm link geometry and base collision boxes are used.
-        touching: skip the pairs that touch at every sampled posture (False: check them).
     """
 
-    def __init__(self, robot: Robot, touching: bool = True):
+    def __init__(self, robot: Robot):
         self.robot = robot
         self.kinematics = robot.kinematics
         self.base_boxes: dict[str, Box] = robot.base.collision_boxes()
@@ -164,19 +162,13 @@ class CollisionChecker:
         def body(other: str | int) -> str:
             return other if isinstance(other, str) else names[other]
 
-        #: the pairs the robot file allows to touch (``collision.allow``): never checked
+        #: the pairs allowed to touch (``Robot.collision_allow``): never checked
         self.allowed: tuple[str, ...] = tuple(
             pr.name
             for pr in every
             if frozenset((names[pr.link], body(pr.other))) in robot.collision_allow
         )
         self.pairs: tuple[Pair, ...] = tuple(pr for pr in every if pr.name not in self.allowed)
-        if touching:
-            #: the pairs that touch at every sampled posture (:func:`touching_pairs`): skipped
-            self.touching: tuple[str, ...] = touching_pairs(robot)
-            self.pairs = tuple(pr for pr in self.pairs if pr.name not in self.touching)
-        else:
-            self.touching = ()
 
     # ---------------------------------------------------------------------------- geometry
     def shape_poses(
@@ -355,42 +347,6 @@ class CollisionChecker:
         R, p = self.shape_poses(qa)
         rows = np.zeros(1, dtype=np.intp)
         return [pair.name for pair in self.pairs if self._fcl(pair, R, p, rows)[0]]
-
-
-#: Postures :func:`touching_pairs` samples (uniform within the joint limits, seeded) [-];
-#: MoveIt's setup assistant samples 10000 by default.
-TOUCHING_SAMPLES = 2000
-#: Seed of that draw.
-TOUCHING_SEED = 0
-_TOUCHING: dict[tuple[str, frozenset[frozenset[str]]], tuple[str, ...]] = {}
-
-
-def touching_pairs(robot: Robot) -> tuple[str, ...]:
-    """The checked pairs that touch at every one of :data:`TOUCHING_SAMPLES` postures.
-
-    The postures are drawn uniformly within the joint limits (``TOUCHING_SEED``), with the
-    stowed one; a pair the file allows (``collision.allow``) is not among them. Computed once
-    per robot and process (a few ms: a pair stops at its first free posture).
-
-    Returns:
-        The pairs' names (``"forearm-wrist"``), in checking order.
-    """
-    key = (robot.source_hash, robot.collision_allow)
-    if key not in _TOUCHING or not robot.source_hash:
-        checker = CollisionChecker(robot, touching=False)
-        rng = np.random.default_rng(TOUCHING_SEED)
-        lo, hi = robot.joint_lower, robot.joint_upper
-        q = np.vstack([robot.stowed, rng.uniform(lo, hi, (TOUCHING_SAMPLES, robot.arm_joints))])
-        R, p = checker.shape_poses(q)
-        found = []
-        for pair in checker.pairs:
-            rows = np.arange(len(q))
-            if not checker._may_touch(pair, p, rows).all():
-                continue
-            if all(checker._fcl(pair, R, p, rows[k : k + 1])[0] for k in rows):
-                found.append(pair.name)
-        _TOUCHING[key] = tuple(found)
-    return _TOUCHING[key]
 
 
 class SequenceCollisions(NamedTuple):

@@ -20,7 +20,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.core import schema
-from mmstab.core.files import ConfigError, check_order, did_you_mean, read_yaml, validate
+from mmstab.core.files import ConfigError, check_order, read_yaml, validate
+from mmstab.core.hints import did_you_mean
 from mmstab.model.kinematics import ArmKinematics
 from mmstab.model.parts import (
     BASE_PARTS,
