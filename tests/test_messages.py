@@ -300,13 +300,16 @@ def _off_the_map(tmp_path: Path) -> Path:
     return path
 
 
-def test_rest_does_not_check_the_route(tmp_path, capsys):
+def test_rest_and_terrain_export_do_not_check_the_route(tmp_path, capsys):
     """Before: 'path.waypoints[0]: the route from here leaves known ground' for rest too."""
     path = _off_the_map(tmp_path)
     line = _refused(capsys, ["plan", path])
     assert f"{path}: path.waypoints[0]: the route from here leaves known ground" in line
     assert main(["rest", str(path), "--pose", "-2", "-1", "0.3", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["pose"] == {"x_m": -2.0, "y_m": -1.0, "yaw_rad": 0.3}
+    out = tmp_path / "ground.npz"
+    assert main(["terrain", "export", str(path), "-o", str(out)]) == 0  # nor terrain export
+    assert out.is_file()
 
 
 def test_rest_labels_contacts_and_polygon_vertices_truthfully(capsys):

@@ -52,8 +52,8 @@ def _radians(name: str, value: float) -> None:
         )
 
 
-#: The sections ``mmstab rest`` uses: the others are not checked beyond the schema (a route
-#: off the map, a workspace grid over the size bound do not stop it).
+#: The sections ``mmstab rest`` and ``terrain export`` use: the others are not checked beyond
+#: the schema (a route off the map, a workspace grid over the size bound do not stop them).
 REST_SECTIONS = ("robot", "terrain", "payload")
 
 #: ``mmstab rest --json``: the unit of each value of :meth:`Stance.to_json` and of the inputs
@@ -173,7 +173,7 @@ def _terrain_export(args: argparse.Namespace) -> None:
     why = refusal(est, force=True)  # a ramp sampled at 1e-6 m: "out of memory", naming nothing
     if why is not None:
         raise MmstabError(f"--size / --resolution: {why}")
-    problem = _problem(args)
+    problem = _problem(args, REST_SECTIONS)
     check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
     hm = as_heightmap(problem.terrain, tuple(args.size), args.resolution)
     path = save_npz(args.out, hm)
