@@ -198,6 +198,11 @@ def test_a_link_shape_left_behind_by_a_changed_dh_length_is_warned(tmp_path, cap
     assert main(["rest", str(path), "--pose", "0", "0", "0"]) == 0
     warned = [w for w in capsys.readouterr().err.splitlines() if "warning" in w]
     assert len(warned) == 1 and "arm.links[2] (forearm)" in warned[0]
+    # refused after the load (an --arm angle beyond the forearm's 2.9 rad): one line still
+    (tmp_path / "again").mkdir()
+    path = write_problem(tmp_path / "again", lambda p, r: r["arm"]["links"][2]["dh"].update(a=0.3))
+    line = _refused(capsys, ["rest", path, "--pose", "0", "0", "0", "--arm", "0", "0", "3", "0"])
+    assert "--arm: joint 2 = 3.0 rad is outside its limits" in line
 
 
 # ----------------------------------------------------------------------- misspelt keys

@@ -127,6 +127,18 @@ def _close_progress_bars() -> None:
 
 
 def _main(argv: Sequence[str] | None) -> int:
+    """The command's status; the problem's load-time notes after it, unless it was refused."""
+    from mmstab.core.notes import held_notes
+
+    with held_notes() as notes:
+        status = _status(argv)
+    if status != EXIT_BAD_INPUT:  # bad input: one line
+        for line in notes:
+            print(line, file=sys.stderr)
+    return status
+
+
+def _status(argv: Sequence[str] | None) -> int:
     from mmstab.core.files import MmstabError, PlanningError, UnstableError
 
     try:

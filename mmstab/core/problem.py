@@ -8,7 +8,6 @@ place where a problem's inputs are checked; stages read their section from
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +16,7 @@ from typing import Any
 from mmstab.core import schema
 from mmstab.core.defaults import with_defaults
 from mmstab.core.files import ConfigError, MmstabError, check_known_keys, read_yaml, validate
+from mmstab.core.notes import note
 from mmstab.core.settings import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
@@ -135,14 +135,13 @@ def _note_robot(path: Path, robot: Robot, touching: tuple[tuple[str, str], ...])
     _NOTED.add((path, robot.source_hash))
     if touching:
         pairs = ", ".join("-".join(pr) for pr in touching)
-        print(
+        note(
             f"mmstab: note: {path}: {pairs} touch at every one of "
             f"{TOUCHING_SAMPLES + 1} sampled postures: not checked "
-            "(collision.allow lists pairs not to check)",
-            file=sys.stderr,
+            "(collision.allow lists pairs not to check)"
         )
     for line in link_extent_warnings(robot):
-        print(f"mmstab: warning: {path}: {line}", file=sys.stderr)
+        note(f"mmstab: warning: {path}: {line}")
 
 
 def problem_from_dict(
