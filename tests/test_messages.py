@@ -22,6 +22,7 @@ from conftest import PROBLEMS, ROBOT_YAML, write_problem
 from mmstab.cli import main
 from mmstab.core.defaults import DEFAULT_SECTIONS, joint_defaults
 from mmstab.core.files import ConfigError
+from mmstab.core.notes import held_notes
 from mmstab.core.problem import problem_from_dict
 from mmstab.core.sizes import WS_FULL_GRID_MAX
 from mmstab.model.collision import CollisionChecker
@@ -346,3 +347,15 @@ def test_rest_json_echoes_its_inputs_with_units(capsys):
     assert main([*argv, "--arm", *map(str, q), "--flipper", "0.1"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert (d["arm"], d["arm_q_rad"], d["flipper_angle_rad"]) == ("given", q, 0.1)
+
+
+def test_a_payload_beyond_the_wrist_is_no_link_off_its_segment():
+    """The payload folds into the wrist's CoM ((1.5 * -0.11 + 3 * 0.3) / 4.5 = 0.163 m ahead of
+    the wrist frame): the warning is about the file's links, not the loaded wrist."""
+    data = yaml.safe_load((PROBLEMS / "ramp.yaml").read_text())
+    data["payload"] = {"mass": 3.0, "com": [0.3, 0.0, 0.0]}
+    with held_notes() as notes:
+        problem = problem_from_dict(data, PROBLEMS / "payload.yaml")
+    assert notes == []
+    assert problem.robot.links[-1].com[0] == pytest.approx((1.5 * -0.11 + 3 * 0.3) / 4.5)
+    assert len(link_extent_warnings(problem.robot)) == 1  # the loaded wrist would be warned

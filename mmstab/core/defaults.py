@@ -158,9 +158,8 @@ def joint_defaults(arm_joints: int) -> dict[str, dict[str, Any]]:
     24 x 29 x 25 x 25 for its first joints and 13 per joint beyond the fourth; beyond four
     joints every count is then scaled by one factor (rounded, at least 2; the largest
     lowered while the grid is larger) so that the whole grid has at most, and about, the
-    4-DoF grid's 435000 postures (5 joints: 14 x 17 x 15 x 15 x 8 =
-    428400): a whole grid, as the posture roadmap needs, built in about the 4-DoF grid's
-    time. For 4 joints these are
+    4-DoF grid's 435000 postures (5 joints: 14 x 17 x 15 x 15 x 8 = 428400): a whole grid, as
+    the posture roadmap needs, built in about the 4-DoF grid's time. For 4 joints these are
     :data:`DEFAULT_SECTIONS`' values.
     """
     n = int(arm_joints)

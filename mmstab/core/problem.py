@@ -169,6 +169,7 @@ def problem_from_dict(
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
     check_section(p, data["terrain"])  # before the size bounds read terrain.generate
     robot, touching = with_touching_allowed(load_robot(robot_path))
+    described = robot  # the file's (a payload moves the last link's CoM)
     # the per-joint keys the file leaves out, for the robot's joint count (before the sizes)
     data = with_defaults(given, robot.arm_joints)
     check_arm_joints(p, data, robot.arm_joints, sections)
@@ -204,7 +205,7 @@ def problem_from_dict(
             start_angle=float(c["start_angle"]),
             direction=c["direction"],
         )
-    _note_robot(robot_path, robot, touching)  # once valid: a refusal stays one line
+    _note_robot(robot_path, described, touching)  # once valid: a refusal stays one line
     return Problem(
         path=p,
         data=data,
