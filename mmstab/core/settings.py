@@ -1,9 +1,10 @@
 """The one registry of a problem's settings checks beyond the JSON schema (inputs layer).
 
-:func:`check_problem` runs, for every command and at load time, every check of
-:data:`SECTION_CHECKS` (semantic checks the schema cannot express: weights that must sum
-to 1, gains that make the discrete loop overshoot, a QP plugin CasADi cannot generate C
-for) and then the size bounds of :mod:`mmstab.core.sizes`. The registry is a plain, explicit
+:func:`check_problem` runs, at load time, every check of :data:`SECTION_CHECKS` (semantic
+checks the schema cannot express: weights that must sum to 1, gains that make the discrete
+loop overshoot, a QP plugin CasADi cannot generate C for) and then the size bounds of
+:mod:`mmstab.core.sizes`, for every command (``rest`` and ``terrain export``: those of the
+sections they use). The registry is a plain, explicit
 table: importing a stage never adds or changes a check, so what is validated does not
 depend on which modules a command happened to import.
 
