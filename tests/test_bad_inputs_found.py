@@ -71,7 +71,11 @@ def test_a_typo_in_a_capsule_is_not_read_as_a_box():
     geometry = robot["arm"]["links"][1]["geometry"]
     assert geometry["type"] == "capsule"
     cases = [
-        (lambda g: g.__setitem__("radus", 0.04), "arm.links[1].geometry.radus", "unknown key"),
+        (
+            lambda g: g.__setitem__("radus", 0.04),
+            "arm.links[1].geometry.radus",
+            "unknown key; did you mean 'radius'?",
+        ),
         (lambda g: g.pop("radius"), "arm.links[1].geometry.radius", "missing required key"),
         (
             lambda g: g.__setitem__("type", "sphere"),

@@ -155,7 +155,7 @@ def test_the_governor_section_is_checked(tmp_path) -> None:
             s = loop_settings(mmstab.load_problem(path))
             assert s.governor == (None if governor is None else GovernorSettings(stop=0.8))
             continue
-        cmd = [sys.executable, "-m", "mmstab", "rest", str(path), "--pose", "0", "0", "0"]
+        cmd = [sys.executable, "-m", "mmstab", "plan", str(path)]  # (rest checks no physics)
         out = subprocess.run(cmd, capture_output=True, text=True)
         assert out.returncode == 2 and out.stderr.count("\n") == 1, out.stderr
         assert "p.yaml" in out.stderr and "physics.governor" in out.stderr, out.stderr

@@ -218,7 +218,7 @@ def test_per_joint_settings_must_match_the_arm(tmp_path):
     data["controller"]["w_b"] = data["controller"]["w_b"][:6]
     path = tmp_path / "p.yaml"
     path.write_text(yaml.safe_dump(data))
-    with pytest.raises(ConfigError, match=r"controller\.w_b.*6-joint arm needs 8"):
+    with pytest.raises(ConfigError, match=r"controller\.w_b: has 6 entries, needs 8 for .*6-joint"):
         load_problem(path)
 
 

@@ -2,7 +2,8 @@
 
 Every subcommand takes a problem (or robot) YAML file. Before any work, every command loads
 and checks the whole problem (schema, the settings registry of :mod:`mmstab.core.settings`, the
-size bounds of :mod:`mmstab.core.sizes`), its options and that its output folders can be written.
+size bounds of :mod:`mmstab.core.sizes`; ``rest`` and ``terrain export``: the schema, and the
+checks of the sections they use), its options and that its output folders can be written.
 
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
@@ -89,7 +90,7 @@ def _run(args: argparse.Namespace) -> int:
             check_output_dir(out.parent, f"output file {out}: folder")
         return args.handler(args, None) or EXIT_OK
     if args.command not in PROBLEM_COMMANDS:  # rest, stability-map, terrain, view
-        return args.handler(args) or EXIT_OK  # they load the problem (all checks) themselves
+        return args.handler(args) or EXIT_OK  # they load the problem themselves
     from mmstab.core.problem import load_problem
 
     problem = load_problem(args.problem, force_size=args.force_size)
@@ -128,6 +129,18 @@ def _close_progress_bars() -> None:
 
 
 def _main(argv: Sequence[str] | None) -> int:
+    """The command's status; the problem's load-time notes after it, unless it was refused."""
+    from mmstab.core.notes import held_notes
+
+    with held_notes() as notes:
+        status = _status(argv)
+    if status != EXIT_BAD_INPUT:  # bad input: one line
+        for line in notes:
+            print(line, file=sys.stderr)
+    return status
+
+
+def _status(argv: Sequence[str] | None) -> int:
     from mmstab.core.files import MmstabError, PlanningError, UnstableError
 
     try:

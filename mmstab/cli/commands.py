@@ -71,11 +71,16 @@ __all__ = [
 _arm_collision = arm_collision_status  # its former name
 
 
-def _problem(args: argparse.Namespace) -> Any:
-    """The problem of a command outside :data:`COMMANDS` (checked at load, as everywhere)."""
+def _problem(args: argparse.Namespace, sections: tuple[str, ...] | None = None) -> Any:
+    """The problem of a command outside :data:`COMMANDS` (checked at load, as everywhere).
+
+    ``sections``: the sections the command uses (None: all): the checks and size bounds of
+    the others are skipped (:func:`mmstab.core.problem.problem_from_dict`).
+    """
     from mmstab.core.problem import load_problem
 
-    return load_problem(args.problem, force_size=getattr(args, "force_size", False))
+    force = getattr(args, "force_size", False)
+    return load_problem(args.problem, force_size=force, sections=sections)
 
 
 def _announce(problem: Any, *sections: str, duration: float | None = None) -> None:

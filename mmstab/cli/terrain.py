@@ -26,6 +26,8 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
         raise MmstabError(f"--arm: expected 'stowed' or {n} angles [rad], got {arm}") from None
     if q.shape != (n,) or not np.isfinite(q).all():
         raise MmstabError(f"--arm: expected 'stowed' or {n} finite angles [rad], got {arm}")
+    for i, qi in enumerate(q):
+        _radians(f"--arm: joint {i}", float(qi))
     bad = np.flatnonzero((q < robot.joint_lower) | (q > robot.joint_upper))
     if bad.size:
         i = int(bad[0])
@@ -34,6 +36,43 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
             f"[{robot.joint_lower[i]}, {robot.joint_upper[i]}]"
         )
     return q
+
+
+def _radians(name: str, value: float) -> None:
+    """Refuse an angle of ``|value| > 2 pi`` given where radians are expected, as degrees."""
+    import math
+
+    from mmstab.core.files import MmstabError
+    from mmstab.core.hints import DEGREES_LIKELY
+
+    if abs(value) > DEGREES_LIKELY:
+        raise MmstabError(
+            f"{name}: {value:g} looks like degrees; the unit is radians "
+            f"({value:g} deg = {math.radians(value):.4g} rad)"
+        )
+
+
+#: The sections ``mmstab rest`` and ``terrain export`` use: the others are not checked beyond
+#: the schema (a route off the map, a workspace grid over the size bound do not stop them).
+REST_SECTIONS = ("robot", "terrain", "payload")
+
+#: ``mmstab rest --json``: the unit of each value of :meth:`Stance.to_json` and of the inputs
+#: echoed (docs/cli.md).
+REST_UNITS = {
+    "roll": "rad",
+    "pitch": "rad",
+    "z": "m",
+    "G_T_B": "m (translation column)",
+    "contacts": "m",
+    "support_polygon": "m",
+    "mu": "N rad",
+    "tilt": "rad",
+    "friction": "-",
+    "slip_margin": "rad",
+    "pose": "x_m, y_m [m], yaw_rad [rad]",
+    "arm_q_rad": "rad",
+    "flipper_angle_rad": "rad",
+}
 
 
 def _finite(name: str, values: Sequence[float]) -> None:
@@ -54,9 +93,11 @@ def _rest(args: argparse.Namespace) -> None:
     from mmstab.stability.stance import stance
 
     _finite("--pose", args.pose)
+    _radians("--pose YAW", args.pose[2])
     if args.flipper is not None:
         _finite("--flipper", [args.flipper])
-    problem = _problem(args)
+        _radians("--flipper", args.flipper)
+    problem = _problem(args, REST_SECTIONS)
     limits = problem.robot.base.flippers.limits
     if args.flipper is not None and limits and not limits.lower <= args.flipper <= limits.upper:
         raise MmstabError(
@@ -66,7 +107,16 @@ def _rest(args: argparse.Namespace) -> None:
     q = _arm_posture(problem.robot, args.arm)
     st = stance(problem.terrain, problem.robot, args.pose, args.flipper, q)
     if args.json:
-        print(json.dumps(st.to_json(), allow_nan=True))
+        robot = problem.robot
+        echoed = {  # the inputs the stance is for, as used (stowed: the robot's angles)
+            "pose": dict(zip(("x_m", "y_m", "yaw_rad"), map(float, args.pose), strict=True)),
+            "arm": "stowed" if q is None else "given",
+            "arm_q_rad": (robot.stowed if q is None else q).tolist(),
+            "flipper_angle_rad": float(
+                robot.base.flippers.angle if args.flipper is None else args.flipper
+            ),
+        }
+        print(json.dumps({**st.to_json(), **echoed, "units": REST_UNITS}, allow_nan=True))
         return
     np.set_printoptions(precision=4, suppress=True)
     print(
@@ -79,8 +129,11 @@ def _rest(args: argparse.Namespace) -> None:
         f"{np.degrees(st.tilt + st.slip_margin):.2f} deg (friction {st.friction:g}): slip "
         f"margin {np.degrees(st.slip_margin):+.2f} deg; limit crossed: {st.binding}"
     )
-    print(f"rest: {len(st.contacts)} contacts; support polygon (G, m):")
-    print(np.array2string(st.support_polygon, prefix="  "))
+    print(
+        f"rest: {len(st.contacts)} touching contact points; support polygon of "
+        f"{len(st.support_polygon)} vertices (hull of the load-carrying contacts; G, m):"
+    )
+    print("  " + np.array2string(st.support_polygon, prefix="  "))
     print(f"rest: G_T_B =\n{st.G_T_B}")
 
 
@@ -122,7 +175,7 @@ def _terrain_export(args: argparse.Namespace) -> None:
     why = refusal(est, force=True)  # a ramp sampled at 1e-6 m: "out of memory", naming nothing
     if why is not None:
         raise MmstabError(f"--size / --resolution: {why}")
-    problem = _problem(args)
+    problem = _problem(args, REST_SECTIONS)
     check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
     hm = as_heightmap(problem.terrain, tuple(args.size), args.resolution)
     path = save_npz(args.out, hm)

@@ -10,6 +10,7 @@ against the closed schema, so a misspelt key is still refused.
 from __future__ import annotations
 
 import copy
+import math
 from typing import Any
 
 #: Section -> its default keys (``problems/ramp.yaml``'s values; a test holds them equal).
@@ -138,12 +139,62 @@ ROUTE_METHOD = "roadmap"
 HEIGHTMAP_ROUTE_PLANNER: dict[str, Any] = {"ground_clearance": 0.05, "attitude_margin": 0.0524}
 
 
-def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
+#: Per arm joint of the default problem: the sprockets' ``w_b`` (2), then the arm's per-joint
+#: values, and the workspace grid's samples of each of the 4-DoF Cameleon's joints.
+SPROCKET_W_B = [1e-06, 1e-06]
+ARM_W_B, POSTURE_GAIN, POSTURE_WEIGHT = 1e-04, 5.0, 1e-03
+GRID_4DOF = (24, 29, 25, 25)
+#: Samples of each joint beyond the fourth, before scaling (``problems/ramp_6dof.yaml``'s) [-].
+GRID_EXTRA_JOINT = 13
+#: Postures of the default grid of any arm: the 4-DoF grid's [-].
+GRID_POSTURES = 24 * 29 * 25 * 25
+
+
+def joint_defaults(arm_joints: int) -> dict[str, dict[str, Any]]:
+    """The per-joint settings of an arm of ``arm_joints`` joints, by section.
+
+    ``controller.w_b`` (2 + n: the sprockets, then 1e-4 per joint), ``posture_gain`` (5 per
+    joint), ``posture_weight`` (1e-3 per joint) and ``workspace.grid``: the 4-DoF Cameleon's
+    24 x 29 x 25 x 25 for its first joints and 13 per joint beyond the fourth; beyond four
+    joints every count is then scaled by one factor (rounded, at least 2; the largest
+    lowered while the grid is larger) so that the whole grid has at most, and about, the
+    4-DoF grid's 435000 postures (5 joints: 14 x 17 x 15 x 15 x 8 = 428400): a whole grid, as
+    the posture roadmap needs, built in about the 4-DoF grid's time. For 4 joints these are
+    :data:`DEFAULT_SECTIONS`' values.
+    """
+    n = int(arm_joints)
+    counts = [*GRID_4DOF[:n], *[GRID_EXTRA_JOINT] * max(0, n - len(GRID_4DOF))]
+    scale = min(1.0, (GRID_POSTURES / math.prod(counts)) ** (1.0 / n))
+    grid = [max(2, round(c * scale)) for c in counts]
+    while math.prod(grid) > GRID_POSTURES:  # rounding up overshot: the largest count down
+        grid[grid.index(max(grid))] -= 1
+    return {
+        "controller": {
+            "w_b": [*SPROCKET_W_B, *[ARM_W_B] * n],
+            "posture_gain": [POSTURE_GAIN] * n,
+            "posture_weight": [POSTURE_WEIGHT] * n,
+        },
+        "workspace": {"grid": grid},
+    }
+
+
+#: The per-joint keys of a problem (:func:`joint_defaults`), as (section, key).
+PER_JOINT_KEYS = (
+    ("controller", "w_b"),
+    ("controller", "posture_gain"),
+    ("controller", "posture_weight"),
+    ("workspace", "grid"),
+)
+
+
+def with_defaults(data: dict[str, Any], arm_joints: int | None = None) -> dict[str, Any]:
     """A copy of a problem mapping with the omitted sections and keys filled in.
 
     Precedence: the file's keys, then :data:`SECTION_DEFAULTS` (:data:`ROUTE_METHOD` for a
     route's ``planner.method``, :data:`HEIGHTMAP_ROUTE_PLANNER` on a route over a heightmap),
     then the default problem's values (:data:`DEFAULT_SECTIONS`) for a section or key left out.
+    With ``arm_joints`` (the robot's joint count), a per-joint key left out
+    (:data:`PER_JOINT_KEYS`) takes :func:`joint_defaults`' value for that many joints.
     """
     out = dict(data)
     path, planner, terrain = data.get("path"), data.get("planner"), data.get("terrain")
@@ -164,4 +215,13 @@ def with_defaults(data: dict[str, Any]) -> dict[str, Any]:
             out[name] = merged
     if route_method and isinstance(out.get("planner"), dict):
         out["planner"]["method"] = ROUTE_METHOD
+    if arm_joints is not None:
+        for name, keys in joint_defaults(arm_joints).items():
+            given = data.get(name)
+            given = given if isinstance(given, dict) else {}
+            if not isinstance(out.get(name), dict):
+                continue
+            for key, value in keys.items():
+                if key not in given:
+                    out[name][key] = value
     return out

@@ -11,13 +11,15 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import jsonschema
 import numpy as np
 import yaml
+
+from mmstab.core.hints import degrees_given, did_you_mean, unit_hint, unknown_keys
 
 
 class MmstabError(Exception):
@@ -195,6 +197,9 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
     """
     p = Path(path)
     _check_finite(p, data, [])
+    angle = degrees_given(data, schema, [])
+    if angle is not None:
+        raise ConfigError(p, _field_path(angle[0]), angle[1])
     validator = jsonschema.Draft202012Validator(schema)
     found = [b for e in validator.iter_errors(data) for b in _branch_errors(e)]
     errors = sorted(found, key=lambda e: (-len(e.absolute_path), str(e.absolute_path)))
@@ -202,10 +207,13 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         return
     err = jsonschema.exceptions.best_match(errors) or errors[0]
     field = _field_path(list(err.absolute_path))
-    if err.validator == "additionalProperties":
-        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
-        field = _field_path([*err.absolute_path, extra[0]]) if extra else field
-        msg = "unknown key"
+    unknown = unknown_keys(err)
+    if unknown and err.validator in ("additionalProperties", "required"):
+        # a misspelt key is both unknown and missing: name the key the file has, and the
+        # closest valid one (``waypionts``, not "path.center: missing required key")
+        known = list(err.schema.get("properties", {}))
+        field = _field_path([*err.absolute_path, unknown[0]])
+        msg = "unknown key" + did_you_mean(unknown[0], known)
     elif err.validator == "required":
         missing = [r for r in err.validator_value if r not in err.instance]
         field = _field_path([*err.absolute_path, missing[0]])
@@ -214,8 +222,27 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
         field = _field_path([*err.absolute_path, "type"])
         msg = f"must be one of {', '.join(_kinds(err))}"
     else:
-        msg = err.message
+        msg = err.message + unit_hint(err.schema)
     raise ConfigError(p, field, msg)
+
+
+def check_known_keys(
+    path: str | os.PathLike[str], field: str, mapping: Any, known: Sequence[str]
+) -> None:
+    """Refuse a key of ``mapping`` that none of the section's forms knows, naming the closest.
+
+    For sections told apart by their keys (``path``: a circle or a route; ``terrain``): a
+    misspelt key that selects the wrong form would otherwise be reported as another form's
+    missing key.
+
+    Raises:
+        ConfigError: ``field.key: unknown key; did you mean 'X'?``.
+    """
+    if not isinstance(mapping, dict):
+        return
+    for key in sorted(str(k) for k in mapping):
+        if key not in known:
+            raise ConfigError(path, f"{field}.{key}", "unknown key" + did_you_mean(key, known))
 
 
 def _kinds(err: Any) -> list[str]:

@@ -8,22 +8,34 @@ place where a problem's inputs are checked; stages read their section from
 from __future__ import annotations
 
 import os
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from mmstab.core import schema
 from mmstab.core.defaults import with_defaults
-from mmstab.core.files import ConfigError, MmstabError, read_yaml, validate
+from mmstab.core.files import ConfigError, MmstabError, check_known_keys, read_yaml, validate
+from mmstab.core.notes import note
 from mmstab.core.settings import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
-from mmstab.model.robot import Robot, load_robot
+from mmstab.model.robot import Robot, link_extent_warnings, load_robot
+from mmstab.model.touching import TOUCHING_SAMPLES, with_touching_allowed
 from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath, is_route, route_path_from_section
 from mmstab.terrain import Terrain, from_section
 from mmstab.terrain.factory import check_section
+
+#: Every key of a ``path:`` section, circle or route.
+PATH_KEYS = tuple(
+    dict.fromkeys(
+        k
+        for form in (schema.PATH_CIRCLE, schema.PATH_ROUTE_WAYPOINTS, schema.PATH_ROUTE_FILE)
+        for k in form["properties"]
+    )
+)
 
 
 @dataclass(frozen=True)
@@ -109,43 +121,81 @@ class Problem:
         return {**self.data, "robot": read_yaml(self.robot_path())}
 
 
+_NOTED: set[tuple[Path, str]] = set()
+
+
+def _note_robot(path: Path, robot: Robot, touching: tuple[tuple[str, str], ...]) -> None:
+    """Notes on a robot file, on stderr, once per robot and process (not refusals).
+
+    The collision pairs skipped as touching at every posture, and the links whose shape or
+    CoM lies off their DH segment.
+    """
+    if (path, robot.source_hash) in _NOTED:
+        return
+    _NOTED.add((path, robot.source_hash))
+    if touching:
+        pairs = ", ".join("-".join(pr) for pr in touching)
+        note(
+            f"mmstab: note: {path}: {pairs} touch at every one of "
+            f"{TOUCHING_SAMPLES + 1} sampled postures: not checked "
+            "(collision.allow lists pairs not to check)"
+        )
+    for line in link_extent_warnings(robot):
+        note(f"mmstab: warning: {path}: {line}")
+
+
 def problem_from_dict(
-    data: dict[str, Any], path: str | os.PathLike[str], *, force_size: bool = False
+    data: dict[str, Any],
+    path: str | os.PathLike[str],
+    *,
+    force_size: bool = False,
+    sections: Collection[str] | None = None,
 ) -> Problem:
     """Validate a problem mapping read from ``path`` (robot path relative to it).
 
-    Every check runs here, whatever the command: the schema, the registry of
-    :mod:`mmstab.core.settings` and the size bounds of :mod:`mmstab.core.sizes` (``force_size``
-    accepts sizes beyond the time bounds, not beyond the memory).
+    Every check runs here: the schema, the registry of :mod:`mmstab.core.settings` and the
+    size bounds of :mod:`mmstab.core.sizes` (``force_size`` accepts sizes beyond the time
+    bounds, not beyond the memory). ``sections``: the sections the command uses (None: every
+    one); the semantic checks and size bounds of the others are skipped, and without
+    ``path`` a route is not checked against the ground (``mmstab rest``); the whole file is
+    still checked against the schema.
     """
     p = Path(path)
-    data = with_defaults(data)
+    given = data
+    data = with_defaults(given)
     validate(p, data, schema.problem_schema())
     robot_path = (p.parent / data["robot"]).resolve()
     if not robot_path.is_file():
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
     check_section(p, data["terrain"])  # before the size bounds read terrain.generate
-    check_problem(p, data, force_size=force_size)
+    robot, touching = with_touching_allowed(load_robot(robot_path))
+    described = robot  # the file's (a payload moves the last link's CoM)
+    # the per-joint keys the file leaves out, for the robot's joint count (before the sizes)
+    data = with_defaults(given, robot.arm_joints)
+    check_arm_joints(p, data, robot.arm_joints, sections)
+    check_problem(p, data, force_size=force_size, sections=sections)
     c = data["path"]
+    # a misspelt ``waypoints`` would make a circle missing its ``center``: name the key
+    check_known_keys(p, "path", c, PATH_KEYS)
     if is_route(c):
         form = schema.PATH_ROUTE_FILE if "file" in c else schema.PATH_ROUTE_WAYPOINTS
         validate(p, {"path": c}, schema.obj(path=form))
     else:
         validate(p, {"path": c}, schema.obj(path=schema.PATH_CIRCLE))
-    robot = load_robot(robot_path)
-    check_arm_joints(p, data, robot.arm_joints)
     if "payload" in data:  # optional: without it the robot is the file's, unchanged
         robot = attach_payload(robot, payload_from_section(p, data["payload"]))
     terrain = from_section(p, data["terrain"], robot)
     base_path: CirclePath | RoutePath
     if is_route(c):
-        base_path = route_path_from_section(p, c, robot, terrain)
+        drives = sections is None or "path" in sections
+        base_path = route_path_from_section(p, c, robot, terrain, on_ground=drives)
         # its run lasts the driving time, not controller.duration, and it plans every
         # planner.spacing, not planner.poses: bound those too
         n = base_path.planned_poses(data["planner"].get("spacing"))
         route_sizes = estimates(data, base_path.duration, "path", n)
-        for est in (route_sizes["controller"], route_sizes["animation"], route_sizes["planner"]):
-            why = refusal(est, force_size)
+        for name in ("controller", "animation", "planner"):
+            est = route_sizes[name]
+            why = refusal(est, force_size) if sections is None or name in sections else None
             if why is not None:
                 raise ConfigError(p, est.field, why)
     else:
@@ -155,6 +205,7 @@ def problem_from_dict(
             start_angle=float(c["start_angle"]),
             direction=c["direction"],
         )
+    _note_robot(robot_path, described, touching)  # once valid: a refusal stays one line
     return Problem(
         path=p,
         data=data,
@@ -165,10 +216,15 @@ def problem_from_dict(
     )
 
 
-def load_problem(path: str | os.PathLike[str], *, force_size: bool = False) -> Problem:
+def load_problem(
+    path: str | os.PathLike[str],
+    *,
+    force_size: bool = False,
+    sections: Collection[str] | None = None,
+) -> Problem:
     """Load and validate a problem YAML file (see :func:`problem_from_dict`).
 
     Raises:
         ConfigError: naming the file (problem or robot) and the field at fault.
     """
-    return problem_from_dict(read_yaml(path), path, force_size=force_size)
+    return problem_from_dict(read_yaml(path), path, force_size=force_size, sections=sections)

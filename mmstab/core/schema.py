@@ -25,6 +25,15 @@ VEC3: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 3, "maxItems"
 VEC3_POS: dict[str, Any] = {"type": "array", "items": POS, "minItems": 3, "maxItems": 3}
 VEC4: dict[str, Any] = {"type": "array", "items": NUM, "minItems": 4, "maxItems": 4}
 WEIGHT01: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1}
+#: An angle [rad]: ``unit`` (ignored by jsonschema) makes :func:`mmstab.core.files.validate`
+#: refuse ``|value| > 2 pi`` as degrees, naming the unit, and add ``[rad]`` to a bound's message.
+RAD: dict[str, Any] = {"type": "number", "unit": "rad"}
+VEC3_RAD: dict[str, Any] = {"type": "array", "items": RAD, "minItems": 3, "maxItems": 3}
+
+
+def angle(**bounds: float) -> dict[str, Any]:
+    """An angle [rad] with JSON-schema bounds (``minimum=0, maximum=1.2``)."""
+    return {**RAD, **bounds}
 
 
 def obj(**props: Any) -> dict[str, Any]:
@@ -65,16 +74,16 @@ M_POS: dict[str, Any] = {**POS, "maximum": MAX_ROBOT_SIZE}
 KG: dict[str, Any] = {**POS, "maximum": MAX_ROBOT_MASS}
 VEC3_M, VEC3_M_POS = vec(3, M), vec(3, M_POS)
 
-BOX = obj(type={"const": "box"}, size=VEC3_M_POS, center=VEC3_M, rpy=VEC3)
+BOX = obj(type={"const": "box"}, size=VEC3_M_POS, center=VEC3_M, rpy=VEC3_RAD)
 CAPSULE = obj(type={"const": "capsule"}, radius=M_POS, p0=VEC3_M, p1=VEC3_M)
 
 LINK = obj(
     name={"type": "string", "minLength": 1},
-    dh=obj(a=M, alpha=NUM, d=M, theta_offset=NUM),
+    dh=obj(a=M, alpha=RAD, d=M, theta_offset=RAD),
     mass=KG,
     com=VEC3_M,
     geometry={"oneOf": [BOX, CAPSULE]},
-    limits=obj(lower=NUM, upper=NUM, velocity=POS),
+    limits=obj(lower=RAD, upper=RAD, velocity=POS),
 )
 
 ROBOT = obj(
@@ -93,19 +102,28 @@ ROBOT = obj(
             velocity_limit=POS,
         ),
         flippers=with_optional(
-            obj(length=M_POS, width=M_POS, thickness=M_POS, pivot=VEC3_M, angle=NUM),
+            obj(length=M_POS, width=M_POS, thickness=M_POS, pivot=VEC3_M, angle=RAD),
             # optional: the range [rad] and rate [rad/s] the planner may move them in
             # (planner.flipper_angles); not part of the description's hash (no cache uses it)
-            limits=obj(lower=NUM, upper=NUM, rate=POS),
+            limits=obj(lower=RAD, upper=RAD, rate=POS),
         ),
     ),
     arm=obj(
-        mount=obj(xyz=VEC3_M, rpy=VEC3),
+        mount=obj(xyz=VEC3_M, rpy=VEC3_RAD),
         # any number of joints (the 4-DoF Cameleon, a 6-DoF variant: robots/cameleon_6dof.yaml)
         links={"type": "array", "items": LINK, "minItems": 1, "maxItems": MAX_ARM_JOINTS},
-        stowed=vec_min(1),  # one angle per link
+        stowed=vec_min(1, RAD),  # one angle per link
     ),
 )
+#: Optional ``collision:`` of a robot file: pairs of bodies (arm link names, or the base parts
+#: ``body``, ``track_left``, ``track_right``, ``flipper_left``, ``flipper_right``) never checked
+#: against each other, as MoveIt's SRDF ``disable_collisions`` (docs/urdf.md).
+COLLISION: dict[str, Any] = {
+    "type": "object",
+    "properties": {"allow": {"type": "array", "items": vec(2, {"type": "string", "minLength": 1})}},
+    "additionalProperties": False,
+}
+ROBOT = with_optional(ROBOT, collision=COLLISION)
 
 # One entry per pipeline stage; a problem file has every section.
 PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
@@ -138,7 +156,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             coarse_seeds=INT_POS,
             sigma0_unit={"enum": ["m", "diameter"]},
             restarts={"type": "integer", "minimum": 0, "maximum": 8},
-            turret_window={"oneOf": [{"type": "null"}, POS]},  # [rad]; null: unbounded
+            turret_window={
+                "oneOf": [{"type": "null"}, angle(exclusiveMinimum=0)]
+            },  # [rad]; null: unbounded
             sequence_candidates={"type": "integer", "minimum": 1, "maximum": 4096},
             motion_cost={"enum": ["com", "joints"]},  # method roadmap's motion term
             # method roadmap: least height [m] of the arm above the plane the tracks rest on
@@ -146,7 +166,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             ground_clearance={"oneOf": [{"type": "null"}, NONNEG]},
             # method roadmap on terrain: the arm clears the ground through the body's tilts
             # up to this [rad] about its origin; null: off (docs/roadmap.md)
-            attitude_margin={"oneOf": [{"type": "null"}, {**NONNEG, "maximum": 0.5}]},
+            attitude_margin={"oneOf": [{"type": "null"}, angle(minimum=0, maximum=0.5)]},
             climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0
@@ -204,7 +224,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
 
 # The ``path:`` section: a circle on the ground, or a route (``mmstab.paths.route``), told
 # apart by ``waypoints`` / ``file``.
-PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=NUM, direction={"enum": ["ccw", "cw"]})
+PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=RAD, direction={"enum": ["ccw", "cw"]})
 _ROUTE_BASE = with_optional(
     obj(speed=POS, turn_radius=NONNEG),  # speed on lines [m/s], corner arcs [m] (0: pivots)
     acceleration=POS,  # optional [m/s^2], default 0.3
@@ -266,12 +286,12 @@ LEVERS: dict[str, Any] = with_optional(
         margin=NUM,  # [N rad]: "safe" / "holds" means mu >= margin
         speeds=vec_min(1, POS),  # lap-speed factors of the dynamic-mu comparison (1 = lap_time)
         samples=INT_POS,  # samples along one lap for the dynamic measure
-        side_slope={"type": "number", "minimum": 0, "maximum": 1.2},  # [rad]: payload, flippers
+        side_slope=angle(minimum=0, maximum=1.2),  # [rad]: payload, flippers
         max_payload=POS,  # [kg]: the payload bisection's upper bracket
         payload_com=VEC3,  # [m]: the payload's CoM in the wrist frame
         payload_reach=NONNEG,  # [m]: "held at the front/side": the tool this far beyond the tracks
         bisection_steps=INT_POS,  # steps of every bisection
-        max_slope={"type": "number", "exclusiveMinimum": 0, "maximum": 1.2},  # [rad] bracket
+        max_slope=angle(exclusiveMinimum=0, maximum=1.2),  # [rad] bracket
         robots={"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
         variant_grid=vec(4, {"type": "integer", "minimum": 2}),  # workspace grid of the variants
         flipper_angles={"type": "integer", "minimum": 1, "maximum": 64},  # per pose (planner key)
@@ -291,7 +311,7 @@ ONLINE = obj(
     map_topic={"type": "string", "pattern": "^/"},
     odom_topic={"type": "string", "pattern": "^/"},
     horizon=POS,
-    replan_tol=POS,
+    replan_tol=angle(exclusiveMinimum=0),
     planner={"enum": ["roadmap", "warm"]},
     joints_topic={"oneOf": [{"type": "null"}, {"type": "string", "pattern": "^/"}]},
     record=obj(
@@ -317,7 +337,7 @@ ONLINE = obj(
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
-    tip_angle={"type": "number", "exclusiveMinimum": 0, "maximum": 1.5},
+    tip_angle=angle(exclusiveMinimum=0, maximum=1.5),
     slip_distance=POS,
     slip_window=POS,
     check_dt=POS,

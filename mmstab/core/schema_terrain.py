@@ -15,7 +15,8 @@ from mmstab.core.schema import NONNEG, NUM, POS, SEED, obj, obj_optional, vec, w
 # heightmap file, path relative to the problem file; ``resolution`` [m/cell] rasterises a
 # mesh) or ``{generate: {kind, seed, size, resolution, ...}}`` (a seeded generator); both
 # heightmap forms take an optional ``compliance`` [m] (:data:`COMPLIANCE`).
-SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2}
+SLOPE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 1.2, "unit": "rad"}
+AZIMUTH: dict[str, Any] = {"type": "number", "unit": "rad"}
 #: ``terrain.compliance`` [m] of a heightmap: the tracks' bottom runs bear load this far
 #: above the ground (``mmstab.terrain.rest.RestSettings.compliance``); at most 0.2 m.
 COMPLIANCE: dict[str, Any] = {"type": "number", "minimum": 0, "maximum": 0.2}
@@ -40,9 +41,9 @@ TERRAIN_FILE: dict[str, Any] = {
 }
 #: Keys of each generator kind beyond kind, seed, size [m, m] and resolution [m/cell].
 TERRAIN_KINDS: dict[str, dict[str, Any]] = {
-    "plane": {"slope": SLOPE, "azimuth": NUM},
-    "kerb": {"height": NUM, "distance": NUM, "azimuth": NUM},
-    "ditch": {"depth": POS, "width": POS, "distance": NUM, "azimuth": NUM},
+    "plane": {"slope": SLOPE, "azimuth": AZIMUTH},
+    "kerb": {"height": NUM, "distance": NUM, "azimuth": AZIMUTH},
+    "ditch": {"depth": POS, "width": POS, "distance": NUM, "azimuth": AZIMUTH},
     "bumps": {"amplitude": NONNEG, "wavelength": POS},
     "rough": {
         "amplitude": NONNEG,
@@ -51,7 +52,7 @@ TERRAIN_KINDS: dict[str, dict[str, Any]] = {
         "hill_height": NUM,
         "hill_radius": POS,
         "slope": SLOPE,
-        "azimuth": NUM,
+        "azimuth": AZIMUTH,
     },
 }
 

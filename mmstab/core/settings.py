@@ -1,9 +1,10 @@
 """The one registry of a problem's settings checks beyond the JSON schema (inputs layer).
 
-:func:`check_problem` runs, for every command and at load time, every check of
-:data:`SECTION_CHECKS` (semantic checks the schema cannot express: weights that must sum
-to 1, gains that make the discrete loop overshoot, a QP plugin CasADi cannot generate C
-for) and then the size bounds of :mod:`mmstab.core.sizes`. The registry is a plain, explicit
+:func:`check_problem` runs, at load time, every check of :data:`SECTION_CHECKS` (semantic
+checks the schema cannot express: weights that must sum to 1, gains that make the discrete
+loop overshoot, a QP plugin CasADi cannot generate C for) and then the size bounds of
+:mod:`mmstab.core.sizes`, for every command (``rest`` and ``terrain export``: those of the
+sections they use). The registry is a plain, explicit
 table: importing a stage never adds or changes a check, so what is validated does not
 depend on which modules a command happened to import.
 
@@ -15,7 +16,7 @@ This module imports nothing above the inputs layer (:mod:`mmstab.core.files`,
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -86,14 +87,18 @@ def check_workspace(path: Path, section: Mapping[str, Any]) -> None:
         )
 
 
-def check_arm_joints(path: Path, data: Mapping[str, Any], n: int) -> None:
-    """Per-joint settings sized for the robot's arm of ``n`` joints.
+def check_arm_joints(
+    path: Path, data: Mapping[str, Any], n: int, sections: Collection[str] | None = None
+) -> None:
+    """Per-joint settings sized for the robot's arm of ``n`` joints; every mismatch at once.
 
     ``controller.w_b`` has 2 + n weights (sprockets, then the arm), ``controller.posture_gain``
-    and ``controller.posture_weight`` n, ``workspace.grid`` n sample counts.
+    and ``controller.posture_weight`` n, ``workspace.grid`` n sample counts. A key the file
+    leaves out takes its per-joint default (:func:`mmstab.core.defaults.joint_defaults`).
+    ``sections``: the sections the command uses (None: all); the others are not checked.
 
     Raises:
-        ConfigError: naming the first field of the wrong length.
+        ConfigError: naming the first field of the wrong length, and the others after it.
     """
     wanted = {
         "controller.w_b": 2 + n,
@@ -101,13 +106,23 @@ def check_arm_joints(path: Path, data: Mapping[str, Any], n: int) -> None:
         "controller.posture_weight": n,
         "workspace.grid": n,
     }
+    wrong = []
     for field, size in wanted.items():
         section, key = field.split(".")
+        if sections is not None and section not in sections:
+            continue
         got = len(data[section][key])
         if got != size:
-            raise ConfigError(
-                path, field, f"has {got} entries; the robot's {n}-joint arm needs {size}"
-            )
+            wrong.append((field, got, size))
+    if not wrong:
+        return
+    parts = [f"{field}: has {got} entries, needs {size}" for field, got, size in wrong]
+    msg = (
+        f"{parts[0].split(': ', 1)[1]} for the robot's {n}-joint arm"
+        + "".join(f"; {p}" for p in parts[1:])
+        + " (left out, a per-joint key takes its default for the robot's joints)"
+    )
+    raise ConfigError(path, wrong[0][0], msg)
 
 
 def check_plugin(plugin: str) -> None:
@@ -156,7 +171,11 @@ SECTION_CHECKS: Mapping[str, SectionCheck] = MappingProxyType(
 
 
 def check_problem(
-    path: Path, data: Mapping[str, Any], *, force_size: bool = False
+    path: Path,
+    data: Mapping[str, Any],
+    *,
+    force_size: bool = False,
+    sections: Collection[str] | None = None,
 ) -> dict[str, Estimate]:
     """Every check of a schema-valid problem: the registry, then the size bounds.
 
@@ -165,6 +184,8 @@ def check_problem(
         data: its content, already valid against :func:`mmstab.core.schema.problem_schema`.
         force_size: accept sizes whose time estimate exceeds the bound (``--force-size``);
             memory bounds hold regardless.
+        sections: the sections the command uses (None: every section); the checks and bounds
+            of the others are skipped (their schema still holds).
 
     Returns:
         The size estimates by field (:func:`mmstab.core.sizes.check_sizes`).
@@ -173,8 +194,9 @@ def check_problem(
         ConfigError: naming the file and the first field at fault.
     """
     for name, check in SECTION_CHECKS.items():
-        check(path, data[name])
-    return check_sizes(path, data, force=force_size)
+        if sections is None or name in sections:
+            check(path, data[name])
+    return check_sizes(path, data, force=force_size, sections=sections)
 
 
 def check_duration(

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -344,13 +344,20 @@ def refusal(est: Estimate, force: bool, memory: float | None = None) -> str | No
     return None
 
 
-def check_sizes(path: Path, data: Mapping[str, Any], *, force: bool = False) -> dict[str, Estimate]:
+def check_sizes(
+    path: Path,
+    data: Mapping[str, Any],
+    *,
+    force: bool = False,
+    sections: Collection[str] | None = None,
+) -> dict[str, Estimate]:
     """Refuse a problem whose sizes exceed this machine's bounds (module docstring).
 
     Args:
         path: the problem file (for messages).
         data: the problem, valid against its schema.
         force: accept estimates beyond :data:`MAX_SECONDS` (not beyond the memory).
+        sections: the sections the command uses (None: all); the others are not bounded.
 
     Returns:
         The estimates, by section.
@@ -361,6 +368,8 @@ def check_sizes(path: Path, data: Mapping[str, Any], *, force: bool = False) -> 
     found = estimates(data)
     memory = available_memory()
     for est in found.values():
+        if sections is not None and est.field.split(".")[0] not in sections:
+            continue
         why = refusal(est, force, memory)
         if why is not None:
             raise ConfigError(path, est.field, why)

@@ -23,10 +23,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.core.masks import true_runs
+from mmstab.model.parts import BASE_PARTS as PARTS_OF_BASE
 from mmstab.model.robot import Box, FloatArray, Geometry, Robot
 
 #: The base parts an arm link is checked against, in checking order.
-BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
+BASE_PARTS = PARTS_OF_BASE
 
 
 def arm_pairs(n: int) -> tuple[tuple[int, int], ...]:
@@ -119,6 +120,10 @@ class CollisionChecker:
     Built once per robot; not thread-safe (it moves its FCL objects). For a process pool,
     build one per worker process.
 
+    Pairs of bodies allowed to touch (``Robot.collision_allow``: the file's ``collision.allow``,
+    as MoveIt's ``disable_collisions``, and, for a problem's robot, the pairs that touch at
+    every posture: :mod:`mmstab.model.touching`) are never checked.
+
     Args:
         robot: the robot; its arm link geometry and base collision boxes are used.
     """
@@ -145,17 +150,25 @@ class CollisionChecker:
         self._request = fcl.CollisionRequest()
         names = [link.name for link in robot.links]
         # link-vs-body first: it is the pair most often in contact, so later pairs skip more
-        self.pairs: tuple[Pair, ...] = tuple(
-            [
-                Pair(f"{names[i]}-{part}", i, part, tuple(range(i + 1)))
-                for part in BASE_PARTS
-                for i in range(len(names))
-            ]
-            + [
-                Pair(f"{names[i]}-{names[j]}", i, j, tuple(range(i + 1, j + 1)))
-                for i, j in arm_pairs(len(names))
-            ]
+        every = [
+            Pair(f"{names[i]}-{part}", i, part, tuple(range(i + 1)))
+            for part in BASE_PARTS
+            for i in range(len(names))
+        ] + [
+            Pair(f"{names[i]}-{names[j]}", i, j, tuple(range(i + 1, j + 1)))
+            for i, j in arm_pairs(len(names))
+        ]
+
+        def body(other: str | int) -> str:
+            return other if isinstance(other, str) else names[other]
+
+        #: the pairs allowed to touch (``Robot.collision_allow``): never checked
+        self.allowed: tuple[str, ...] = tuple(
+            pr.name
+            for pr in every
+            if frozenset((names[pr.link], body(pr.other))) in robot.collision_allow
         )
+        self.pairs: tuple[Pair, ...] = tuple(pr for pr in every if pr.name not in self.allowed)
 
     # ---------------------------------------------------------------------------- geometry
     def shape_poses(

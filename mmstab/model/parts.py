@@ -170,6 +170,10 @@ class Flippers:
         )
 
 
+#: The base parts' names (:meth:`Base.collision_boxes`), in the collision checker's order.
+BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
+
+
 @dataclass(frozen=True)
 class Base:
     """The tracked base: mass [kg], CoM [m] (body frame), and its collision parts."""

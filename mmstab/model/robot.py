@@ -21,8 +21,10 @@ from numpy.typing import ArrayLike
 
 from mmstab.core import schema
 from mmstab.core.files import ConfigError, check_order, read_yaml, validate
+from mmstab.core.hints import did_you_mean
 from mmstab.model.kinematics import ArmKinematics
 from mmstab.model.parts import (
+    BASE_PARTS,
     FLIPPER_CONTACT_TOL,
     ArmLink,
     Base,
@@ -55,6 +57,7 @@ __all__ = [
     "robot_from_dict",
     "with_flipper_angle",
     "flipper_ground_angle",
+    "link_extent_warnings",
 ]
 
 
@@ -72,6 +75,9 @@ class Robot:
         tool_wrench: external wrench at the tool (the wrist frame's origin), body frame,
             ``[f (3) [N], n (3) [N m]]`` (6,), or None (``mmstab.model.payload``). It loads the
             force-angle measure, not the arm's masses, so it is not in ``source_hash``.
+        collision_allow: pairs of bodies (link names, base part names) the self-collision
+            checker never checks against each other: the file's ``collision.allow``
+            (MoveIt's ``disable_collisions``).
     """
 
     name: str
@@ -81,6 +87,7 @@ class Robot:
     stowed: FloatArray
     source_hash: str = ""
     tool_wrench: FloatArray | None = None
+    collision_allow: frozenset[frozenset[str]] = frozenset()
 
     @property
     def arm_mass(self) -> float:
@@ -236,7 +243,81 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
         mount_T=homogeneous(rpy_matrix(mount["rpy"]), mount["xyz"]),
         stowed=stowed,
         source_hash=digest,
+        collision_allow=_allowed_pairs(p, data.get("collision", {}), [ln.name for ln in links]),
     )
+
+
+def _allowed_pairs(
+    path: Path, section: dict[str, Any], names: list[str]
+) -> frozenset[frozenset[str]]:
+    """``collision.allow``: pairs of known bodies, each of two different names.
+
+    Raises:
+        ConfigError: ``collision.allow[i][j]`` naming an unknown body and the closest valid one.
+    """
+    known = [*names, *BASE_PARTS]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        i = [k for k, n in enumerate(names) if n == dup][1]
+        raise ConfigError(path, f"arm.links[{i}].name", f"{dup!r} names two links")
+    pairs = []
+    for i, pair in enumerate(section.get("allow", [])):
+        for j, name in enumerate(pair):
+            if name not in known:
+                hint = did_you_mean(name, known) or f"; one of {', '.join(known)}"
+                raise ConfigError(
+                    path, f"collision.allow[{i}][{j}]", f"unknown body {name!r}{hint}"
+                )
+        if pair[0] == pair[1]:
+            raise ConfigError(path, f"collision.allow[{i}]", "a pair of two different bodies")
+        pairs.append(frozenset(pair))
+    return frozenset(pairs)
+
+
+#: A link's collision shape or CoM farther than this from its DH segment (from the previous
+#: joint's origin to its own frame's origin) is reported at load [m]:
+#: :func:`link_extent_warnings`.
+LINK_EXTENT_TOL = 0.05
+
+
+def _segment_distance(x: FloatArray, a: FloatArray, b: FloatArray) -> float:
+    """Distance from point ``x`` to the segment ``a``-``b`` [m]."""
+    ab = b - a
+    t = float(np.clip(np.dot(x - a, ab) / np.dot(ab, ab), 0.0, 1.0)) if np.dot(ab, ab) > 0 else 0.0
+    return float(np.linalg.norm(x - (a + t * ab)))
+
+
+def link_extent_warnings(robot: Robot, tol: float = LINK_EXTENT_TOL) -> list[str]:
+    """Links whose collision shape or CoM lies beyond their DH segment by more than ``tol`` [m].
+
+    A link's DH segment runs, in its own (distal) frame R_i, from the previous joint's origin
+    ``(-a, -d sin(alpha), -d cos(alpha))`` to R_i's origin; a capsule's ends, a box's centre
+    and the CoM are measured from it. A changed DH length (``dh.a``) that left the shape and
+    the CoM where they were is the usual cause.
+
+    Returns:
+        One line per such link: ``arm.links[i] (name): ...`` with the distances [m].
+    """
+    out = []
+    for i, link in enumerate(robot.links):
+        start = np.array([-link.a, -link.d * np.sin(link.alpha), -link.d * np.cos(link.alpha)])
+        end = np.zeros(3)
+        g = link.geometry
+        points = {"com": link.com}
+        if isinstance(g, Capsule):
+            points.update({"geometry.p0": g.p0, "geometry.p1": g.p1})
+        else:
+            points["geometry.center"] = g.center
+        far = {k: _segment_distance(v, start, end) for k, v in points.items()}
+        far = {k: v for k, v in far.items() if v > tol}
+        if far:
+            length = float(np.hypot(link.a, link.d))
+            what = ", ".join(f"{k} {v:.3f} m" for k, v in far.items())
+            out.append(
+                f"arm.links[{i}] ({link.name}): {what} off its DH segment of {length:.3f} m "
+                f"(more than {tol} m: was dh.a or dh.d changed without them?)"
+            )
+    return out
 
 
 def _flatten(node: Any, prefix: str = "") -> list[tuple[str, str]]:

@@ -240,7 +240,11 @@ def pivot_at(route: Route, s: float) -> int | None:
 
 
 def route_path_from_section(
-    problem_path: str | os.PathLike[str], section: dict[str, Any], robot: Robot, terrain: Terrain
+    problem_path: str | os.PathLike[str],
+    section: dict[str, Any],
+    robot: Robot,
+    terrain: Terrain,
+    on_ground: bool = True,
 ) -> RoutePath:
     """Build and check a route ``path:`` section (see the module docstring).
 
@@ -249,6 +253,8 @@ def route_path_from_section(
         section: the validated ``path:`` mapping of a route.
         robot: the robot (track speed, separation, footprint).
         terrain: the ground the route must stay on.
+        on_ground: check that the footprint stays on known ground (False: a command that
+            does not drive the route, ``mmstab rest``).
 
     Raises:
         ConfigError: naming the problem (or route) file and the field at fault.
@@ -264,7 +270,7 @@ def route_path_from_section(
             "curvature at any speed (turn_radius 0: a pivot turn on the spot at every corner)",
         )
     planned: PlannedRoute = route_from_section(p, section, speed_limits(robot, section))
-    off = first_off_ground(planned.route, terrain, footprint_body(robot))
+    off = first_off_ground(planned.route, terrain, footprint_body(robot)) if on_ground else None
     if off is not None:
         if "file" in section:
             wp = read_waypoints_csv((p.parent / section["file"]).resolve())

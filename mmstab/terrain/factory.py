@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.core import schema, schema_terrain
-from mmstab.core.files import ConfigError, validate
+from mmstab.core.files import ConfigError, check_known_keys, validate
 from mmstab.model.robot import Robot
 from mmstab.terrain.base import DEFAULT_FRICTION, Terrain
 from mmstab.terrain.generators import Grid, generate
@@ -29,6 +29,17 @@ from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.terrain.io import load_heightmap
 from mmstab.terrain.ramp import Ramp
 from mmstab.terrain.recording import DEFAULT_TOPIC, is_recording, load_grid_map
+
+#: Every top-level key of a ``terrain:`` section, whichever its form.
+TERRAIN_KEYS = tuple(
+    dict.fromkeys(
+        [
+            "generate",
+            *schema_terrain.TERRAIN_FILE["properties"],
+            *schema_terrain.TERRAIN_RAMP["properties"],
+        ]
+    )
+)
 
 
 def check_section(problem_path: Path, section: Any) -> str:
@@ -39,6 +50,8 @@ def check_section(problem_path: Path, section: Any) -> str:
     """
     if not isinstance(section, dict):
         raise ConfigError(problem_path, "terrain", "must be a mapping")
+    # a misspelt ``generate`` or ``file`` would be read as a ramp's: name the key
+    check_known_keys(problem_path, "terrain", section, TERRAIN_KEYS)
     if "generate" in section:
         gen = section["generate"]
         top = schema.with_optional(
