@@ -20,10 +20,14 @@ Per control period the run records the simulated state, the commanded speeds, th
 errors, mmstab's predicted μ at the simulated pose (the base rested on the terrain, the arm
 as simulated) and the **simulated μ**: the force-angle measure of the contacts MuJoCo loads
 (contact points with a positive normal force, their hull along gravity) with the simulated
-overall CoM and m·g. Verdicts: **tipped** when the chassis turns more than ``tip_angle`` off
-its resting attitude on the terrain; **slid** when, over any ``slip_window`` seconds, the
-base moved more than ``slip_distance`` *down the slope* beyond what the tracks commanded
-(the kinematic plant's motion from each simulated state; :func:`downhill_drift`).
+overall CoM and m·g. Verdicts: **tipped** when the physics loses the robot: MuJoCo's contacts
+stop supporting it (their μ ≤ 0, or none, for ``tip_hold`` seconds) or its attitude passes
+the point of no return (the vertical through the CoM leaves the tracks' footprint); the
+chassis' tilt off its resting attitude on the terrain beyond ``disagreement_angle`` is a
+**disagreement** with mmstab's resting pose, reported, not a tip; **slid** when, over any
+``slip_window`` seconds, the base moved more than ``slip_distance`` *down the slope* beyond
+what the tracks commanded (the kinematic plant's motion from each simulated state;
+:func:`downhill_drift`).
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from mmstab.physics.loop_checks import (
     downhill_drift,
     predicted_path_slip,
     simulated_mu,
+    support_lost,
 )
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
@@ -62,7 +67,10 @@ class LoopSettings:
     Attributes:
         control_dt: control period [s] (a whole number of MuJoCo steps).
         duration: simulated time [s]; None: the controller's (a route's driving time).
-        tip_angle: chassis tilt off its resting attitude that counts as tipped [rad].
+        disagreement_angle: chassis tilt off its predicted resting attitude that is reported
+            as a disagreement with mmstab's rest (not a verdict) [rad].
+        tip_hold: how long MuJoCo's contacts may lose the support (their μ ≤ 0, or no
+            contact) before the robot counts as tipped [s].
         slip_distance: uncommanded downhill displacement that counts as sliding [m].
         slip_window: the window over which it is measured [s].
         check_dt: period of the tip check and the simulated μ [s] (reports, not control).
@@ -79,7 +87,8 @@ class LoopSettings:
 
     control_dt: float = 0.004
     duration: float | None = None
-    tip_angle: float = 0.35
+    disagreement_angle: float = 0.35
+    tip_hold: float = 0.25
     slip_distance: float = 0.05
     slip_window: float = 1.0
     check_dt: float = 0.02
@@ -114,7 +123,7 @@ class PhysicsRun:
             and where no contact is loaded).
         tilt_error: chassis tilt off the terrain's resting attitude [rad] (every ``check_dt``).
         slip: uncommanded downhill displacement over the last ``slip_window`` [m].
-        tipped: time it tipped [s], or None.
+        tipped: time it tipped [s] (its support lost, or overturned), or None.
         slid: time it slid [s], or None.
         real_time_factor: simulated time / wall time (controller included) [-].
         wall_seconds: wall time of the loop [s].
@@ -140,6 +149,11 @@ class PhysicsRun:
             (:mod:`mmstab.physics.governor`; 0 when it never fell behind that far).
         stalled: time the run ended with its reference unfinished, having waited
             ``governor.wait_limit`` [s], or None.
+        tip_cause: ``support lost`` (MuJoCo's contacts' μ ≤ 0 for ``tip_hold``) or
+            ``overturned`` (past the point of no return), None when it did not tip.
+        disagreement: first time the tilt off the predicted rest passed
+            ``disagreement_angle`` [s], or None (a report: mmstab's rest and the simulated
+            attitude disagree there; not a tip).
     """
 
     t: FloatArray
@@ -165,6 +179,8 @@ class PhysicsRun:
     timing: dict[str, Any] | None = None
     reference_wait_s: float = 0.0
     stalled: float | None = None
+    tip_cause: str | None = None
+    disagreement: float | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -272,7 +288,7 @@ def run_closed_loop(
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states, ref_map = np.zeros((steps + 1, 5 + n)), np.zeros((steps + 1, clock.tables[1].shape[1]))
     qdots, status, clock_t = np.zeros((steps, 2 + n)), np.zeros(steps), np.zeros(steps + 1)
-    checks, positions = TipCheck(problem, loop.tip_angle), []
+    checks, positions = TipCheck(problem), []
     controller = BufferedStep(step, 5 + n, ref_map.shape[1], params)
     pose, G_T_B, arm_q, M_T_B = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
@@ -284,7 +300,7 @@ def run_closed_loop(
         last = clock.done or clock.stalled(k) or k == steps
         if k % every == 0 or last:
             positions.append(sim.data.qpos.copy())  # contacts and μ after the run
-            if checks.record(k, state[:3], G_T_B, last) or last:
+            if checks.record(k, state[:3], G_T_B, last, sim.data.subtree_com[0]) or last:
                 break
         qdots[k], status[k] = controller(state, ref)
         clock.advance()
@@ -296,12 +312,20 @@ def run_closed_loop(
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
     mu_sim, tilt, arm = _check_records(sim, checks, positions, m)
+    end, cause = checks.end, None if checks.end is None else "overturned"
+    idx = np.asarray(checks.index[: len(checks.tilt)], dtype=int)
+    idx = idx[idx < m]
+    lost = support_lost(t[idx], mu_sim[idx], loop.tip_hold)
+    if lost is not None and (end is None or idx[lost[1]] < end[1]):  # the support went first
+        end, cause = (int(idx[lost[1]]), int(idx[lost[0]]), "tipped"), "support lost"
+        m = end[0] + 1
+        mu_sim, tilt, arm = mu_sim[:m], tilt[:m], arm[:m]
     law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
     tau = clock_t if law is None else law.nominal(clock_t).value  # the references' nominal [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
-    end = checks.end
     cut = end is not None and end[2] in ("tipped", "left_map")
+    over = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     return dataclasses.replace(
         run,
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
@@ -311,6 +335,8 @@ def run_closed_loop(
         timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
         stalled=None if clock.done or cut else float(t[m - 1]),
+        tip_cause=cause if end is not None and end[2] == "tipped" else None,
+        disagreement=float(t[over[0]]) if len(over) else None,
     )
 
 
