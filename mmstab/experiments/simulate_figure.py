@@ -51,7 +51,8 @@ def draw_run(problem: Problem, run: PhysicsRun, loop: LoopSettings) -> Any:
         label, colour, marker = EVENTS[kind]
         k = min(int(np.searchsorted(run.t, t_event)), len(run.t) - 1)
         a.plot(*run.state[k, :2], marker, color=colour, ms=10, label=f"{label} {t_event:.2f} s")
-    a.set(xlabel="x in M [m]", ylabel="y in M [m]", title="path from above", aspect="equal")
+    a.set(xlabel="x in M [m]", ylabel="y in M [m]", title="path from above")
+    a.set_aspect("equal", adjustable="datalim")
     a.legend(fontsize=7)
     ok = np.isfinite(run.tilt_error)
     b.plot(run.t[ok], np.degrees(run.tilt_error[ok]), lw=1, color="C4")

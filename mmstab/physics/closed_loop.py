@@ -47,11 +47,9 @@ from mmstab.model.robot import FloatArray
 from mmstab.physics.governor import GovernorSettings, ReferenceClock
 from mmstab.physics.loop_checks import (
     TipCheck,
-    contact_records,
     downhill_drift,
     predicted_path_slip,
-    simulated_mu,
-    support_lost,
+    run_end,
 )
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
@@ -311,21 +309,12 @@ def run_closed_loop(
         state = np.concatenate([pose, sprockets, arm_q])
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
-    mu_sim, tilt, arm = _check_records(sim, checks, positions, m)
-    end, cause = checks.end, None if checks.end is None else "overturned"
-    idx = np.asarray(checks.index[: len(checks.tilt)], dtype=int)
-    idx = idx[idx < m]
-    lost = support_lost(t[idx], mu_sim[idx], loop.tip_hold)
-    if lost is not None and (end is None or idx[lost[1]] < end[1]):  # the support went first
-        end, cause = (int(idx[lost[1]]), int(idx[lost[0]]), "tipped"), "support lost"
-        m = end[0] + 1
-        mu_sim, tilt, arm = mu_sim[:m], tilt[:m], arm[:m]
+    m, mu_sim, tilt, arm, end, cause = run_end(sim, checks, positions, m, t, loop.tip_hold)
     law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
     tau = clock_t if law is None else law.nominal(clock_t).value  # the references' nominal [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
     cut = end is not None and end[2] in ("tipped", "left_map")
-    over = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     return dataclasses.replace(
         run,
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
@@ -335,22 +324,8 @@ def run_closed_loop(
         timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
         stalled=None if clock.done or cut else float(t[m - 1]),
-        tip_cause=cause if end is not None and end[2] == "tipped" else None,
-        disagreement=float(t[over[0]]) if len(over) else None,
+        tip_cause=cause,
     )
-
-
-def _check_records(
-    sim: RobotSim, checks: TipCheck, positions: list[FloatArray], m: int
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
-    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
-    mass = float(sim.model.body_subtreemass[0])
-    for (i, value), (points, com, touches) in zip(
-        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
-    ):
-        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
-    return mu_sim, tilt, arm
 
 
 def _finish(
@@ -386,6 +361,7 @@ def _finish(
     window = int(round(loop.slip_window / dt))
     slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
     over = np.flatnonzero(slip > loop.slip_distance)
+    off_rest = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     tau = t if tau is None else tau
     origin_ref = circle_pose(problem.base_path, tau / ctrl_settings.lap_time).value[:, :2]
     return PhysicsRun(
@@ -400,4 +376,5 @@ def _finish(
             turn_ratio=resolve_turn_ratio(robot, loop.turn_ratio)),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
         base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
+        disagreement=float(t[off_rest[0]]) if len(off_rest) else None,
     )  # fmt: skip

@@ -131,6 +131,31 @@ def support_lost(t: FloatArray, mu: FloatArray, hold: float) -> tuple[int, int] 
     return None
 
 
+def tip_end(
+    checks: TipCheck, t: FloatArray, mu: FloatArray, m: int, hold: float
+) -> tuple[Any, str | None]:
+    """The run's end (last period, event's, kind) and the tip's cause, after the run.
+
+    The checks' end (overturned or off the map), unless the simulated μ ``mu`` (per period,
+    NaN between checks) lost the support (:func:`support_lost`, ``hold`` [s]) before it.
+
+    Args:
+        checks: the run's checks.
+        t: the periods' times [s].
+        mu: MuJoCo's contacts' μ per period [N rad].
+        m: periods the run kept.
+        hold: the tip's hold time [s].
+    """
+    end = checks.end
+    cause = "overturned" if end is not None and end[2] == "tipped" else None
+    idx = np.asarray(checks.index[: len(checks.tilt)], dtype=int)
+    idx = idx[idx < m]
+    lost = support_lost(t[idx], mu[idx], hold)
+    if lost is not None and (end is None or idx[lost[1]] < end[1]):  # the support went first
+        return (int(idx[lost[1]]), int(idx[lost[0]]), "tipped"), "support lost"
+    return end, cause
+
+
 class TipCheck:
     """The overturn and off-map checks of a run; the tilt off the predicted rest beside them.
 
@@ -186,6 +211,39 @@ class TipCheck:
             self.end = (k, k, "tipped")
             return True
         return False
+
+
+def run_end(
+    sim: RobotSim,
+    checks: TipCheck,
+    positions: list[FloatArray],
+    m: int,
+    t: FloatArray,
+    hold: float,
+) -> tuple[int, FloatArray, FloatArray, FloatArray, Any, str | None]:
+    """The checks' records of a run of ``m`` periods, cut where the support was lost.
+
+    (periods kept, simulated μ, tilt off rest, arm on the ground, the end, the tip's cause);
+    ``hold``: the tip's hold time [s] (:func:`tip_end`).
+    """
+    mu_sim, tilt, arm = check_records(sim, checks, positions, m)
+    end, cause = tip_end(checks, t, mu_sim, m, hold)
+    if cause == "support lost":  # the run ends once the support was lost tip_hold
+        m = end[0] + 1
+    return m, mu_sim[:m], tilt[:m], arm[:m], end, cause
+
+
+def check_records(
+    sim: RobotSim, checks: TipCheck, positions: list[FloatArray], m: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
+    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
+    mass = float(sim.model.body_subtreemass[0])
+    for (i, value), (points, com, touches) in zip(
+        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
+    ):
+        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    return mu_sim, tilt, arm
 
 
 def predicted_path_slip(
