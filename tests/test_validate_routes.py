@@ -21,6 +21,7 @@ import pytest
 from mmstab.experiments.validate_routes import (
     OUTCOMES,
     PLAN_VERDICTS,
+    event_place,
     load_settings,
     route_problem,
     run_routes,
@@ -67,6 +68,24 @@ def test_ditch_and_kerb_lie_across_the_route() -> None:
         levels = np.unique(np.round(e, 9))
         assert any(np.isclose(levels, -depth)) or any(np.isclose(levels, height - depth))
         assert any(np.isclose(levels, height)) and any(np.isclose(levels, 0.0))
+
+
+def test_event_place_by_hand() -> None:
+    """Distances to a 0.5 m ditch band at x = 1, a kerb along y = 2 and the corner (3, 0)."""
+    data = {
+        "terrain": {"generate": {"features": {
+            "ditch": {"depth": 0.1, "width": 0.5, "distance": 1.0, "azimuth": 0.0},
+            "kerb": {"height": 0.05, "distance": -2.0, "azimuth": -np.pi / 2}}}},
+        "path": {"waypoints": [[0.0, 0.0], [3.0, 0.0], [3.0, 3.0]]},
+    }  # fmt: skip
+    assert event_place(data, [1.1, 0.0]) == pytest.approx(
+        {"to_ditch_m": 0.0, "to_kerb_m": 2.0, "to_corner_m": 1.9}
+    )
+    assert event_place(data, [2.0, 1.5]) == pytest.approx(
+        {"to_ditch_m": 0.75, "to_kerb_m": 0.5, "to_corner_m": np.hypot(1.0, 1.5)}
+    )
+    data["terrain"]["generate"]["features"] = {}
+    assert event_place(data, [0.0, 0.0])["to_ditch_m"] is None
 
 
 @pytest.mark.mujoco

@@ -136,6 +136,27 @@ def ground_record(data: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def event_place(data: dict[str, Any], xy: Any) -> dict[str, float | None]:
+    """How far the point ``xy`` (2,) [m] in M is from the map's ditch, kerb and corners [m].
+
+    The ditch's distance is from its band (0 inside it), the kerb's from its edge, the
+    corners' from the nearest interior waypoint; None where the map has no such feature.
+    """
+    p = np.asarray(xy, dtype=float)
+    features = data["terrain"]["generate"].get("features", {})
+    out: dict[str, float | None] = {}
+    for name in ("ditch", "kerb"):
+        f = features.get(name)
+        if f is None:
+            out[f"to_{name}_m"] = None
+            continue
+        along = p @ [np.cos(f["azimuth"]), np.sin(f["azimuth"])] - f["distance"]
+        out[f"to_{name}_m"] = float(max(abs(along) - f.get("width", 0.0) / 2, 0.0))
+    corners = np.asarray(data["path"]["waypoints"], dtype=float)[1:-1]
+    out["to_corner_m"] = float(np.min(np.linalg.norm(corners - p, axis=1)))
+    return out
+
+
 def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     """Plan and simulate route k (the pool's job): its record."""
     settings, k, out = task
@@ -202,6 +223,10 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         "arm_ground_contact": sim["arm_ground_contact"],
         "qp_failures": sim["qp_failures"],
     }
+    if outcome != "holds":  # where the run failed: near the ditch, the kerb, the corner?
+        t_event = min(e["time_s"] for e in record["events"].values() if e is not None)
+        k_event = min(int(np.searchsorted(run.t, t_event)), len(run.t) - 1)
+        record["event_place"] = event_place(data, run.state[k_event, :2])
     if settings.get("runs_figures", True) and (verdict == "accepted") != (outcome == "holds"):
         from mmstab.experiments.simulate_figure import write_run_figure
 
