@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from mmstab.experiments.validate_routes import (
     OUTCOMES,
@@ -68,6 +69,20 @@ def test_ditch_and_kerb_lie_across_the_route() -> None:
         levels = np.unique(np.round(e, 9))
         assert any(np.isclose(levels, -depth)) or any(np.isclose(levels, height - depth))
         assert any(np.isclose(levels, height)) and any(np.isclose(levels, 0.0))
+
+
+def test_bad_settings_name_the_field(tmp_path, capsys) -> None:
+    """A bad settings file: one line naming the file and the field, exit 2, nothing written."""
+    from mmstab.experiments.validate_routes import main
+
+    bad = tmp_path / "bad.yaml"
+    data = yaml.safe_load(SETTINGS.read_text())
+    data["routes"] = 0
+    bad.write_text(yaml.safe_dump(data))
+    assert main([str(bad), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad.yaml" in err and "routes" in err
+    assert not (tmp_path / "out").exists()
 
 
 def test_event_place_by_hand() -> None:

@@ -165,7 +165,7 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     from mmstab.core.problem import load_problem
     from mmstab.experiments.routes import route_summary
     from mmstab.experiments.simulate import loop_settings, simulate_run, summarize
-    from mmstab.planner import route_risk
+    from mmstab.planner import RoutePlan, route_risk
     from mmstab.runs.verdict import planner_margin
 
     data = route_problem(settings, k)
@@ -183,6 +183,7 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     except PlanningError as e:
         return record | {"plan": "no plan", "plan_exit": PLAN_VERDICTS["no plan"],
                          "plan_error": str(e), "mujoco": None}  # fmt: skip
+    assert isinstance(plan, RoutePlan)  # a route's plan
     s = route_summary(problem, plan, route_risk(plan, planner_margin(problem.section("planner"))))
     verdict = plan_verdict_of(s)
     record |= {

@@ -86,7 +86,7 @@ class LoopSettings:
     control_dt: float = 0.004
     duration: float | None = None
     disagreement_angle: float = 0.35
-    tip_hold: float = 1.0
+    tip_hold: float = 0.8
     slip_distance: float = 0.05
     slip_window: float = 1.0
     check_dt: float = 0.02
