@@ -35,7 +35,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
     print(
         f"simulate: mu min predicted {s['mu_predicted_min']:.1f}, simulated "
         f"{s['mu_simulated_min']:.1f} N rad (median difference {d['median_abs']:.1f} N rad); "
-        f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
+        f"tilt off rest max {_rad(s['tilt_off_rest_max_rad'])}; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
     timing_line("simulate", s["arm_timing"])
@@ -63,6 +63,11 @@ def _simulate(args: argparse.Namespace) -> int | None:
         if status is not None:
             return status
     return _arm_ground_status(s, args)
+
+
+def _rad(value: float | None) -> str:
+    """An angle [rad] for the summary line; ``none`` where no check had one."""
+    return "none" if value is None else f"{value:.3f} rad"
 
 
 def _disagreement_warning(s: dict[str, Any]) -> None:
