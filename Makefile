@@ -131,6 +131,15 @@ VERDICTS ?= problems/verdicts.yaml
 verdicts: setup
 	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
 
+## mmstab's verdicts on seeded random routes over user-like ground (side slopes, bumps, ditches,
+## kerbs) refereed by MuJoCo: each route planned as `mmstab plan` and simulated as `mmstab
+## simulate` (refused ones forced), two processes -> results/validate_routes/summary.json,
+## validate_routes.png (docs/validation.md, "Routes refereed by MuJoCo")
+.PHONY: validate-routes
+VALIDATE_ROUTES ?= problems/validate_routes.yaml
+validate-routes: setup
+	$(PY) -m mmstab.experiments.validate_routes $(VALIDATE_ROUTES)
+
 ## mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
 ## (docs/skid.md)

@@ -18,7 +18,7 @@ from mmstab.control.plant import build_plant
 from mmstab.control.reference import initial_state
 from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
 from mmstab.physics.closed_loop import run_closed_loop
-from mmstab.physics.loop_checks import TipCheck, downhill_drift
+from mmstab.physics.loop_checks import TipCheck, downhill_drift, support_lost
 from mmstab.physics.robot_model import ModelSettings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -184,28 +184,58 @@ def test_servo_feed_forward_removes_the_lag_of_a_moving_target() -> None:
     assert abs(lags[1]) < 0.1 * lags[0]
 
 
-def test_tip_check_in_batches_finds_the_first_tilted_record() -> None:
-    """Records evaluated 4 at a time: the verdict is the first record over the tip angle."""
+def test_tilt_off_rest_is_a_disagreement_and_overturning_a_tip() -> None:
+    """Records evaluated 4 at a time: a tilt off the rest stops nothing, an overturn does.
+
+    The chassis tilted 0.5 rad (29 deg) off its rest about x from the 6th record: recorded
+    as the tilt (the disagreement), the run goes on. Rolled 1.4 rad with the CoM 0.3 m above
+    the footprint's centre, the vertical through the CoM lands outside the footprint (the
+    tracks' half width is 0.30 m or less, 0.3 tan(1.4) = 1.7 m): overturned, the run stops
+    at that record, its pending tilts evaluated first.
+    """
     problem = mmstab.load_problem(ROOT / "problems" / "kerb.yaml")  # a 6 m heightmap
-    checks = TipCheck(problem, tip_angle=0.35, batch=4)
+    checks = TipCheck(problem, batch=4)
     poses = np.array([[-2.0 + 0.1 * k, 0.0, 0.0] for k in range(10)])
     rest = problem.terrain.G_T_B(poses)
-    tilted = rest.copy()
-    c, s_ = np.cos(0.5), np.sin(0.5)
-    tilted[5:, :3, :3] = rest[5:, :3, :3] @ np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])
-    stops = []
-    for k in range(10):  # the loop stops at the first True
-        stops.append(checks.record(10 * k, poses[k], tilted[k], k == 9))
-        if stops[-1]:
-            break
-    assert stops == [False] * 7 + [True]  # evaluated at the 8th record
-    assert checks.end == (50, 50, "tipped") and checks.index == [0, 10, 20, 30, 40, 50]
-    assert np.allclose(checks.tilt[:5], 0.0, atol=1e-9) and checks.tilt[5] == pytest.approx(0.5)
-    off = TipCheck(problem, tip_angle=0.35, batch=2)
+
+    def rolled(T: np.ndarray, angle: float) -> np.ndarray:
+        c, s_ = np.cos(angle), np.sin(angle)
+        out = T.copy()
+        out[:3, :3] = T[:3, :3] @ np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])
+        return out
+
+    def com_above(T: np.ndarray) -> np.ndarray:
+        return T[:3, 3] + 0.3 * T[:3, 2]
+
+    stops = [
+        checks.record(10 * k, poses[k], rolled(rest[k], 0.5 * (k >= 5)), False,
+                      com_above(rolled(rest[k], 0.5 * (k >= 5))))
+        for k in range(9)
+    ]  # fmt: skip
+    assert stops == [False] * 9 and checks.end is None
+    assert np.allclose(checks.tilt[:5], 0.0, atol=1e-9)
+    assert np.allclose(checks.tilt[5:8], 0.5) and len(checks.tilt) == 8  # the 9th pending
+    over = rolled(rest[9], 1.4)
+    assert checks.record(90, poses[9], over, False, com_above(over)) is True
+    assert checks.end == (90, 90, "tipped") and len(checks.tilt) == 10
+    assert checks.tilt[9] == pytest.approx(1.4)
+    off = TipCheck(problem, batch=2)
     outside = np.array([[2.0, 0.0, 0.0], [9.0, 0.0, 0.0]])  # the second off the map
     assert off.record(0, outside[0], rest[0], False) is False
     assert off.record(7, outside[1], rest[0], False) is True
     assert off.end == (0, 7, "left_map") and off.index == [0] and len(off.tilt) == 1
+
+
+def test_support_lost_needs_the_hold_time() -> None:
+    """μ ≤ 0 (or no contact, NaN) for ``hold`` seconds is a tip; shorter dips are not."""
+    t = np.arange(20) * 0.02
+    mu = np.full(20, 500.0)
+    mu[2:6] = -1.0  # 0.06 s: a dip
+    assert support_lost(t, mu, 0.1) is None
+    mu[10:13], mu[13:17] = np.nan, 0.0  # lost from 0.20 s, 0.10 s later at check 15
+    assert support_lost(t, mu, 0.1) == (10, 15)
+    assert support_lost(t, mu, 0.06) == (2, 5)
+    assert support_lost(t, np.full(20, 1.0), 0.0) is None
 
 
 def test_stowed_plan_holds_the_arm_stowed(ramp) -> None:

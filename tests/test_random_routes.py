@@ -27,13 +27,14 @@ import os
 import time
 import traceback
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pytest
 import yaml
 
 from mmstab.core.problem import Problem, load_problem
+from mmstab.experiments.random_routes import random_route
 from mmstab.paths import Pivot
 from mmstab.runs.verdict import MIN_CLEARANCE
 
@@ -62,47 +63,6 @@ TURN_MAX_DEG = 90.0
 #: Free ground around the route's waypoints on the map [m] (the footprint reaches 0.67 m).
 MAP_MARGIN = 1.5
 RESULTS = ROOT / "results" / "random_routes"
-
-
-class RandomRoute(NamedTuple):
-    """A drawn route.
-
-    Attributes:
-        waypoints: (n, 2) [m] in the map frame, centred on its origin.
-        turn_radius: the corner arcs' radius [m]; 0: every corner pivots.
-        speed: on straight lines [m/s].
-        turns_deg: the signed turn at each interior waypoint [deg].
-    """
-
-    waypoints: np.ndarray
-    turn_radius: float
-    speed: float
-    turns_deg: np.ndarray
-
-
-def random_route(rng: np.random.Generator, pivot_everywhere: bool) -> RandomRoute:
-    """3-5 waypoints, legs 2-4 m, turns up to 90 deg either way, at least one pivot.
-
-    One corner (drawn) turns 60-90 deg. With ``pivot_everywhere`` the turn radius is 0;
-    otherwise it is 10-40 % more than the largest radius whose arc fits that corner's
-    shorter leg alone, so that corner pivots and the others keep an arc when theirs fits.
-    """
-    n = int(rng.integers(3, 6))
-    legs = rng.uniform(2.0, 4.0, n - 1)
-    turns = rng.uniform(-1.0, 1.0, n - 2) * np.radians(TURN_MAX_DEG)
-    sharp = int(rng.integers(0, n - 2))
-    turns[sharp] = rng.choice([-1.0, 1.0]) * rng.uniform(np.radians(60), np.radians(TURN_MAX_DEG))
-    yaw = np.cumsum(np.r_[rng.uniform(-np.pi, np.pi), turns])
-    steps = legs[:, None] * np.column_stack([np.cos(yaw), np.sin(yaw)])
-    xy = np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)])
-    xy -= 0.5 * (xy.min(axis=0) + xy.max(axis=0))
-    if pivot_everywhere:
-        radius = 0.0
-    else:  # the arc's tangent length R tan(turn / 2) longer than the shorter leg
-        fits = min(legs[sharp], legs[sharp + 1]) / np.tan(abs(turns[sharp]) / 2)
-        radius = float(fits * rng.uniform(1.1, 1.4))
-    speed = float(rng.uniform(0.2, 0.3))
-    return RandomRoute(xy, radius, speed, np.degrees(turns))
 
 
 def random_terrain(rng: np.random.Generator, size: list[float]) -> dict[str, Any]:

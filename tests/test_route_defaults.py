@@ -89,7 +89,8 @@ def test_a_random_route_in_mujoco_does_not_tip_nor_touch_the_ground(k, tmp_path,
     assert problem.route is not None  # the whole route: no tip stopped the run
     added = 0.0 if run.timing is None else run.timing["run_time_added_s"]  # the arm's time law
     assert run.t[-1] == pytest.approx(problem.route.duration + added, abs=2 * loop.control_dt)
-    assert run.tipped is None and np.nanmax(run.tilt_error) < loop.tip_angle
+    assert run.tipped is None and run.disagreement is None
+    assert np.nanmax(run.tilt_error) < loop.disagreement_angle
     assert run.arm_ground is not None and np.isfinite(run.arm_ground).sum() > 1000
     assert np.nansum(run.arm_ground == 1) == 0
     assert int(np.sum(run.status != 0)) == 0

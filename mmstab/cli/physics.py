@@ -35,14 +35,17 @@ def _simulate(args: argparse.Namespace) -> int | None:
     print(
         f"simulate: mu min predicted {s['mu_predicted_min']:.1f}, simulated "
         f"{s['mu_simulated_min']:.1f} N rad (median difference {d['median_abs']:.1f} N rad); "
-        f"tilt off rest max {s['tilt_off_rest_max_rad']:.3f} rad; downhill drift max "
+        f"tilt off rest max {_rad(s['tilt_off_rest_max_rad'])}; downhill drift max "
         f"{s['downhill_drift_max_m']:.3f} m per {s['slip_window_s']:g} s"
     )
     timing_line("simulate", s["arm_timing"])
     high_centred_warning(s["high_centred"])
     _governor_lines(s)
+    _disagreement_warning(s)
     if s["tipped"] is not None:
-        line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s"
+        how = {"support lost": f"its contacts' mu <= 0 for {s['tip_hold_s']:g} s",
+               "overturned": "past the point of no return"}[s["tipped"]["cause"]]  # fmt: skip
+        line = f"the robot tips over in MuJoCo at {s['tipped']['time_s']:.2f} s ({how})"
         print(f"mmstab: unstable: {line}", file=sys.stderr)
         return EXIT_UNSTABLE
     if s["left_map"] is not None:  # past the map the model does not hold: not allowable
@@ -60,6 +63,22 @@ def _simulate(args: argparse.Namespace) -> int | None:
         if status is not None:
             return status
     return _arm_ground_status(s, args)
+
+
+def _rad(value: float | None) -> str:
+    """An angle [rad] for the summary line; ``none`` where no check had one."""
+    return "none" if value is None else f"{value:.3f} rad"
+
+
+def _disagreement_warning(s: dict[str, Any]) -> None:
+    """A warning where the simulated attitude left mmstab's predicted rest (not a tip)."""
+    d = s["disagreement"]
+    if d is not None:
+        print(f"mmstab: warning: disagreement: the chassis tilts more than "
+              f"{s['disagreement_angle_rad']:g} rad off mmstab's predicted resting attitude "
+              f"from {d['time_s']:.2f} s (at most {d['tilt_off_rest_max_rad']:.3f} rad)"
+              + ("; MuJoCo's contacts still carry it" if s["tipped"] is None else ""),
+              file=sys.stderr)  # fmt: skip
 
 
 def _governor_lines(s: dict[str, Any]) -> None:

@@ -94,7 +94,8 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
     "physics": {
         "control_dt": 0.004,
         "duration": None,
-        "tip_angle": 0.35,
+        "disagreement_angle": 0.35,
+        "tip_hold": 0.8,
         "slip_distance": 0.05,
         "slip_window": 1.0,
         "check_dt": 0.02,

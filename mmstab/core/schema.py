@@ -327,7 +327,8 @@ ONLINE = obj(
 
 # The controller in the loop on the whole robot in MuJoCo (mmstab simulate; docs/physics.md):
 # control period [s], simulated time [s] (null: the controller's / the route's), the chassis
-# tilt off rest that is a tip [rad], the downhill drift [m] over a window [s] that is a
+# tilt off the predicted rest reported as a disagreement [rad], how long the contacts may lose
+# the support before it is a tip [s], the downhill drift [m] over a window [s] that is a
 # slide, the period of those checks [s], the controller step's backend, the road wheels'
 # collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices"), the
 # arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
@@ -337,7 +338,9 @@ ONLINE = obj(
 PHYSICS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
-    tip_angle=angle(exclusiveMinimum=0, maximum=1.5),
+    disagreement_angle=angle(exclusiveMinimum=0, maximum=1.5),
+    tip_angle=angle(exclusiveMinimum=0, maximum=1.5),  # the former name of disagreement_angle
+    tip_hold={"type": "number", "minimum": 0, "maximum": 10},
     slip_distance=POS,
     slip_window=POS,
     check_dt=POS,

@@ -58,10 +58,12 @@ TERRAIN_KINDS: dict[str, dict[str, Any]] = {
 
 
 #: Optional features laid onto a generated map (any kind): a band ditch and a kerb across
-#: it, as the ``ditch`` and ``kerb`` kinds (their keys), added to its elevation.
+#: it and egg-box bumps over it, as the ``ditch``, ``kerb`` and ``bumps`` kinds (their keys),
+#: added to its elevation.
 TERRAIN_FEATURES: dict[str, Any] = {
     "ditch": obj(**TERRAIN_KINDS["ditch"]),
     "kerb": obj(**TERRAIN_KINDS["kerb"]),
+    "bumps": obj(**TERRAIN_KINDS["bumps"]),
 }
 
 

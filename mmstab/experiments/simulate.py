@@ -4,8 +4,10 @@ Plans the problem (as ``mmstab track`` does), then runs the closed loop of
 :mod:`mmstab.physics.closed_loop` on the whole robot in MuJoCo along the problem's path
 (the ramp lap or a route) and, beside it for comparison, the kinematic run of
 :mod:`mmstab.runs.tracking`. Writes to the output folder: ``summary.json`` (verdicts:
-tipped, slid; base and arm-CoM errors; predicted against simulated μ; QP failures; the
-real-time factor), ``physics.png`` and the settings (``problem.yaml``).
+tipped and its cause, slid, the disagreement with the predicted rest; base and arm-CoM
+errors; predicted against simulated μ; QP failures; the real-time factor), ``physics.png``
+(:mod:`mmstab.experiments.simulate_figure`: path, tilt, μ and errors over time, the events)
+and the settings (``problem.yaml``).
 """
 
 from __future__ import annotations
@@ -19,9 +21,10 @@ import numpy as np
 from mmstab.app import generated_step, plan
 from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.reference import initial_state
-from mmstab.core.files import write_figure, write_json
+from mmstab.core.files import write_json
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
+from mmstab.experiments.simulate_figure import write_run_figure
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
@@ -34,7 +37,8 @@ def loop_settings(problem: Problem) -> LoopSettings:
     return LoopSettings(
         control_dt=float(s["control_dt"]),
         duration=None if s["duration"] is None else float(s["duration"]),
-        tip_angle=float(s["tip_angle"]),
+        disagreement_angle=float(s["disagreement_angle"]),
+        tip_hold=float(s["tip_hold"]),
         slip_distance=float(s["slip_distance"]),
         slip_window=float(s["slip_window"]),
         check_dt=float(s["check_dt"]),
@@ -67,6 +71,27 @@ def stowed_plan(robot: Any, arm_plan: Any) -> Any:
     )
 
 
+def simulate_run(problem: Problem, loop: LoopSettings, arm_plan: Any = None) -> PhysicsRun:
+    """The closed loop of ``mmstab simulate`` with the settings ``loop``.
+
+    Args:
+        problem: the problem.
+        loop: the loop's settings (:func:`loop_settings`, maybe changed).
+        arm_plan: the problem's plan (:func:`mmstab.app.plan`); None: planned here.
+    """
+    cs = controller_settings(problem)
+    if loop.backend == "generated":
+        step = generated_step(problem).function
+        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
+    else:
+        step = build_controller(problem.robot, cs).step
+    arm_plan = plan(problem) if arm_plan is None else arm_plan
+    if loop.arm == "stowed":
+        arm_plan = stowed_plan(problem.robot, arm_plan)
+    state0 = initial_state(problem.base_path, problem.robot.stowed)
+    return run_closed_loop(problem, arm_plan, step, cs, loop, state0)
+
+
 def run_simulate(
     problem: Problem,
     out: str | Path | None = None,
@@ -87,17 +112,7 @@ def run_simulate(
         loop = dataclasses.replace(loop, duration=float(duration))
     if arm is not None:
         loop = dataclasses.replace(loop, arm=arm)
-    cs = controller_settings(problem)
-    if loop.backend == "generated":
-        step = generated_step(problem).function
-        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
-    else:
-        step = build_controller(problem.robot, cs).step
-    arm_plan = plan(problem)
-    if loop.arm == "stowed":
-        arm_plan = stowed_plan(problem.robot, arm_plan)
-    state0 = initial_state(problem.base_path, problem.robot.stowed)
-    run = run_closed_loop(problem, arm_plan, step, cs, loop, state0)
+    run = simulate_run(problem, loop)
     d = output_dir(out, "physics")
     summary = summarize(run, loop)
     summary["backend"], summary["arm"] = loop.backend, loop.arm
@@ -107,7 +122,7 @@ def run_simulate(
     summary["high_centred"] = high_centred_verdict(
         problem.terrain, *path_samples(problem.base_path)
     )
-    _figure(d / "physics.png", run)
+    write_run_figure(d / "physics.png", problem, run, loop)
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)
     return summary
@@ -122,11 +137,15 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
     return {
         "duration_s": float(run.t[-1]),
         "control_dt_s": float(run.t[1] - run.t[0]) if len(run.t) > 1 else None,
-        "tipped": None if run.tipped is None else {"time_s": run.tipped},
+        "tipped": None if run.tipped is None else {"time_s": run.tipped, "cause": run.tip_cause},
+        "tip_hold_s": loop.tip_hold,
+        "disagreement": None
+        if run.disagreement is None
+        else {"time_s": run.disagreement, "tilt_off_rest_max_rad": _nanmax(run.tilt_error)},
+        "disagreement_angle_rad": loop.disagreement_angle,
         "slid": None if run.slid is None else {"time_s": run.slid},
         "left_map": None if run.left_map is None else {"time_s": run.left_map},
-        "tip_angle_rad": loop.tip_angle,
-        "tilt_off_rest_max_rad": float(np.nanmax(run.tilt_error)),
+        "tilt_off_rest_max_rad": _nanmax(run.tilt_error),
         "slip_distance_m": loop.slip_distance,
         "slip_window_s": loop.slip_window,
         "downhill_drift_max_m": float(np.max(run.slip)),
@@ -160,6 +179,12 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "reference_wait_s": run.reference_wait_s,
         "stalled": None if run.stalled is None else {"time_s": run.stalled},
     }
+
+
+def _nanmax(values: np.ndarray) -> float | None:
+    """The largest finite value, None when there is none."""
+    ok = np.isfinite(values)
+    return float(np.max(values[ok])) if ok.any() else None
 
 
 def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
@@ -197,23 +222,3 @@ def _where_no_slip(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "no_slip_predicted_fraction": float(both.mean()),
         "base_error_max_where_cone_holds_m": worst(cone),
     }
-
-
-def _figure(path: Path, run: PhysicsRun) -> None:
-    import matplotlib.pyplot as plt
-
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
-    ok = np.isfinite(run.mu_simulated)
-    a.plot(run.t, run.mu_predicted, lw=1, label="mmstab: predicted at the simulated pose")
-    a.plot(run.t[ok], run.mu_simulated[ok], lw=1, label="MuJoCo: loaded contacts")
-    a.set(xlabel="t [s]", ylabel="mu [N rad]", title="stability in the closed loop")
-    a.legend(fontsize=7)
-    b.plot(run.t, run.base_error, lw=1, label="base control point")
-    if run.base_origin_error is not None:
-        b.plot(run.t, run.base_origin_error, lw=1, label="body origin")
-    b.plot(run.t, run.arm_com_error, lw=1, label="arm CoM")
-    b.plot(run.t, run.slip, lw=1, label="uncommanded drift downhill over 1 s (< 0: uphill)")
-    b.set(xlabel="t [s]", ylabel="[m]", title="tracking errors in MuJoCo")
-    b.legend(fontsize=7)
-    fig.tight_layout()
-    write_figure(path, fig)

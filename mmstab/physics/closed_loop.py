@@ -20,10 +20,14 @@ Per control period the run records the simulated state, the commanded speeds, th
 errors, mmstab's predicted μ at the simulated pose (the base rested on the terrain, the arm
 as simulated) and the **simulated μ**: the force-angle measure of the contacts MuJoCo loads
 (contact points with a positive normal force, their hull along gravity) with the simulated
-overall CoM and m·g. Verdicts: **tipped** when the chassis turns more than ``tip_angle`` off
-its resting attitude on the terrain; **slid** when, over any ``slip_window`` seconds, the
-base moved more than ``slip_distance`` *down the slope* beyond what the tracks commanded
-(the kinematic plant's motion from each simulated state; :func:`downhill_drift`).
+overall CoM and m·g. Verdicts: **tipped** when the physics loses the robot: MuJoCo's contacts
+stop supporting it (their μ ≤ 0, or none, for ``tip_hold`` seconds) or its attitude passes
+the point of no return (the vertical through the CoM leaves the tracks' footprint); the
+chassis' tilt off its resting attitude on the terrain beyond ``disagreement_angle`` is a
+**disagreement** with mmstab's resting pose, reported, not a tip; **slid** when, over any
+``slip_window`` seconds, the base moved more than ``slip_distance`` *down the slope* beyond
+what the tracks commanded (the kinematic plant's motion from each simulated state;
+:func:`downhill_drift`).
 """
 
 from __future__ import annotations
@@ -43,10 +47,9 @@ from mmstab.model.robot import FloatArray
 from mmstab.physics.governor import GovernorSettings, ReferenceClock
 from mmstab.physics.loop_checks import (
     TipCheck,
-    contact_records,
     downhill_drift,
     predicted_path_slip,
-    simulated_mu,
+    run_end,
 )
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
@@ -62,7 +65,10 @@ class LoopSettings:
     Attributes:
         control_dt: control period [s] (a whole number of MuJoCo steps).
         duration: simulated time [s]; None: the controller's (a route's driving time).
-        tip_angle: chassis tilt off its resting attitude that counts as tipped [rad].
+        disagreement_angle: chassis tilt off its predicted resting attitude that is reported
+            as a disagreement with mmstab's rest (not a verdict) [rad].
+        tip_hold: how long MuJoCo's contacts may lose the support (their μ ≤ 0, or no
+            contact) before the robot counts as tipped [s].
         slip_distance: uncommanded downhill displacement that counts as sliding [m].
         slip_window: the window over which it is measured [s].
         check_dt: period of the tip check and the simulated μ [s] (reports, not control).
@@ -79,7 +85,8 @@ class LoopSettings:
 
     control_dt: float = 0.004
     duration: float | None = None
-    tip_angle: float = 0.35
+    disagreement_angle: float = 0.35
+    tip_hold: float = 0.8
     slip_distance: float = 0.05
     slip_window: float = 1.0
     check_dt: float = 0.02
@@ -114,7 +121,7 @@ class PhysicsRun:
             and where no contact is loaded).
         tilt_error: chassis tilt off the terrain's resting attitude [rad] (every ``check_dt``).
         slip: uncommanded downhill displacement over the last ``slip_window`` [m].
-        tipped: time it tipped [s], or None.
+        tipped: time it tipped [s] (its support lost, or overturned), or None.
         slid: time it slid [s], or None.
         real_time_factor: simulated time / wall time (controller included) [-].
         wall_seconds: wall time of the loop [s].
@@ -140,6 +147,11 @@ class PhysicsRun:
             (:mod:`mmstab.physics.governor`; 0 when it never fell behind that far).
         stalled: time the run ended with its reference unfinished, having waited
             ``governor.wait_limit`` [s], or None.
+        tip_cause: ``support lost`` (MuJoCo's contacts' μ ≤ 0 for ``tip_hold``) or
+            ``overturned`` (past the point of no return), None when it did not tip.
+        disagreement: first time the tilt off the predicted rest passed
+            ``disagreement_angle`` [s], or None (a report: mmstab's rest and the simulated
+            attitude disagree there; not a tip).
     """
 
     t: FloatArray
@@ -165,6 +177,8 @@ class PhysicsRun:
     timing: dict[str, Any] | None = None
     reference_wait_s: float = 0.0
     stalled: float | None = None
+    tip_cause: str | None = None
+    disagreement: float | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -272,7 +286,7 @@ def run_closed_loop(
     every = max(int(round(loop.check_dt / dt)), 1)  # μ and tilt: reports, not control
     states, ref_map = np.zeros((steps + 1, 5 + n)), np.zeros((steps + 1, clock.tables[1].shape[1]))
     qdots, status, clock_t = np.zeros((steps, 2 + n)), np.zeros(steps), np.zeros(steps + 1)
-    checks, positions = TipCheck(problem, loop.tip_angle), []
+    checks, positions = TipCheck(problem), []
     controller = BufferedStep(step, 5 + n, ref_map.shape[1], params)
     pose, G_T_B, arm_q, M_T_B = read_back(sim, M_T_G)
     state = np.concatenate([pose, [0.0, 0.0], arm_q])
@@ -284,7 +298,7 @@ def run_closed_loop(
         last = clock.done or clock.stalled(k) or k == steps
         if k % every == 0 or last:
             positions.append(sim.data.qpos.copy())  # contacts and μ after the run
-            if checks.record(k, state[:3], G_T_B, last) or last:
+            if checks.record(k, state[:3], G_T_B, last, sim.data.subtree_com[0]) or last:
                 break
         qdots[k], status[k] = controller(state, ref)
         clock.advance()
@@ -295,12 +309,11 @@ def run_closed_loop(
         state = np.concatenate([pose, sprockets, arm_q])
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
-    mu_sim, tilt, arm = _check_records(sim, checks, positions, m)
+    m, mu_sim, tilt, arm, end, cause = run_end(sim, checks, positions, m, t, loop.tip_hold)
     law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
     tau = clock_t if law is None else law.nominal(clock_t).value  # the references' nominal [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
-    end = checks.end
     cut = end is not None and end[2] in ("tipped", "left_map")
     return dataclasses.replace(
         run,
@@ -311,20 +324,8 @@ def run_closed_loop(
         timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
         stalled=None if clock.done or cut else float(t[m - 1]),
+        tip_cause=cause,
     )
-
-
-def _check_records(
-    sim: RobotSim, checks: TipCheck, positions: list[FloatArray], m: int
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
-    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
-    mass = float(sim.model.body_subtreemass[0])
-    for (i, value), (points, com, touches) in zip(
-        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
-    ):
-        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
-    return mu_sim, tilt, arm
 
 
 def _finish(
@@ -362,6 +363,7 @@ def _finish(
     window = int(round(loop.slip_window / dt))
     slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
     over = np.flatnonzero(slip > loop.slip_distance)
+    off_rest = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     tau = t if tau is None else tau
     origin_ref = circle_pose(problem.base_path, tau / ctrl_settings.lap_time).value[:, :2]
     return PhysicsRun(
@@ -376,4 +378,5 @@ def _finish(
             turn_ratio=resolve_turn_ratio(robot, loop.turn_ratio)),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
         base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
+        disagreement=float(t[off_rest[0]]) if len(off_rest) else None,
     )  # fmt: skip

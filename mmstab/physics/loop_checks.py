@@ -1,7 +1,8 @@
 """The closed loop's checks on the simulated robot (:mod:`mmstab.physics.closed_loop`).
 
-The tip and off-map check, batched (:class:`TipCheck`); the contact set the simulated μ is
-measured on and the μ itself; whether the arm touches the ground.
+The overturn and off-map checks and the tilt off the predicted rest (:class:`TipCheck`); the
+contact set the simulated μ is measured on, the μ itself and where it loses the support
+(:func:`support_lost`); whether the arm touches the ground.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_sim import RobotSim
@@ -97,28 +99,106 @@ def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> Fl
     return np.asarray(np.arccos(c))
 
 
-class TipCheck:
-    """The tip and off-map checks of a run, evaluated in batches (the rest solve batched).
+def beyond_no_return(support_B: FloatArray, G_T_B: FloatArray, com_G: FloatArray) -> bool:
+    """Whether the body's attitude is past the point of no return: it overturns.
 
-    Records the simulated pose every ``check_dt`` and evaluates ``batch`` records at once:
-    the verdict is that of the first record over the tip angle (or off the map); the run
-    stops there, the periods simulated after it (at most a batch) are dropped.
+    The vertical through the simulated overall CoM ``com_G`` (3,) [m] leaves the tracks'
+    whole footprint ``support_B`` (n, 3) in B [m] (the largest support the chassis can
+    stand on) at the body's pose ``G_T_B`` (4, 4): μ of that footprint is ≤ 0, so gravity
+    turns the robot further over whatever ground carries it.
+    """
+    points = support_B @ G_T_B[:3, :3].T + G_T_B[:3, 3]
+    mu = contact_force_angle(points, com_G, np.array([0.0, 0.0, -1.0])).mu
+    return bool(not mu > 0)
+
+
+def support_lost(t: FloatArray, mu: FloatArray, hold: float) -> tuple[int, int] | None:
+    """The first stretch where MuJoCo's loaded contacts lose the robot's support.
+
+    Args:
+        t: the checks' times (K,) [s].
+        mu: the simulated μ at them (K,) [N rad]; ≤ 0 or NaN (no contact) is lost support.
+        hold: how long the support stays lost before it is a tip [s].
+
+    Returns:
+        (first check of the stretch, check at which ``hold`` has passed), or None.
+    """
+    lost = ~(np.asarray(mu) > 0)
+    for a, b in true_runs(lost):
+        done = np.flatnonzero(t[a:b] - t[a] >= hold - 1e-9)
+        if len(done):
+            return int(a), int(a + done[0])
+    return None
+
+
+def tip_end(
+    checks: TipCheck, t: FloatArray, mu: FloatArray, m: int, hold: float
+) -> tuple[Any, str | None]:
+    """The run's end (last period, event's, kind) and the tip's cause, after the run.
+
+    The checks' end (overturned or off the map), unless the simulated μ ``mu`` (per period,
+    NaN between checks) lost the support (:func:`support_lost`, ``hold`` [s]) before it.
+
+    Args:
+        checks: the run's checks.
+        t: the periods' times [s].
+        mu: MuJoCo's contacts' μ per period [N rad].
+        m: periods the run kept.
+        hold: the tip's hold time [s].
+    """
+    end = checks.end
+    cause = "overturned" if end is not None and end[2] == "tipped" else None
+    idx = np.asarray(checks.index[: len(checks.tilt)], dtype=int)
+    idx = idx[idx < m]
+    lost = support_lost(t[idx], mu[idx], hold)
+    if lost is not None and (end is None or idx[lost[1]] < end[1]):  # the support went first
+        return (int(idx[lost[1]]), int(idx[lost[0]]), "tipped"), "support lost"
+    return end, cause
+
+
+class TipCheck:
+    """The overturn and off-map checks of a run; the tilt off the predicted rest beside them.
+
+    Every ``check_dt`` the loop records the simulated pose. At each record the attitude is
+    checked against the point of no return (:func:`beyond_no_return`, cheap); the tilts off
+    the terrain's resting attitude (a rest solve) are evaluated ``batch`` records at once
+    (and at an overturn or the run's last record). The run stops at the first record off the
+    map or overturned; the periods simulated after it (at most a batch) are dropped. The tilt
+    off the predicted rest decides nothing: it is the run's disagreement with mmstab's
+    resting pose (reported, not a tip).
     """
 
-    def __init__(self, problem: Problem, tip_angle: float, batch: int = 25):
-        self.problem, self.tip_angle, self.batch = problem, tip_angle, batch
+    def __init__(self, problem: Problem, batch: int = 25):
+        self.problem, self.batch = problem, batch
+        self.support_B = np.asarray(problem.robot.base.support_points(), dtype=float)
         self.index: list[int] = []
         self.poses: list[FloatArray] = []
         self.frames: list[FloatArray] = []
         self.tilt: list[float] = []
         self.end: tuple[int, int, str] | None = None  # (last period, event's, kind)
 
-    def record(self, k: int, pose: FloatArray, G_T_B: FloatArray, last: bool) -> bool:
-        """Record period ``k``; True when the run must stop (tipped or off its map)."""
+    def record(
+        self,
+        k: int,
+        pose: FloatArray,
+        G_T_B: FloatArray,
+        last: bool,
+        com_G: FloatArray | None = None,
+    ) -> bool:
+        """Record period ``k``; True when the run must stop (overturned or off its map).
+
+        Args:
+            k: the control period.
+            pose: the simulated base pose (x, y, heading in M) [m, rad].
+            G_T_B: the simulated body pose (4, 4).
+            last: the run's last record (evaluate what is pending).
+            com_G: the simulated overall CoM in G (3,) [m]; None: no overturn check.
+        """
         self.index.append(k)
         self.poses.append(pose)
         self.frames.append(G_T_B)
-        if len(self.index) - len(self.tilt) >= self.batch or last:
+        over = com_G is not None and beyond_no_return(self.support_B, G_T_B, com_G)
+        if len(self.index) - len(self.tilt) >= self.batch or last or over:
             new = tilts_off_rest(self.problem, np.array(self.poses[len(self.tilt) :]),
                                  np.array(self.frames[len(self.tilt) :]))  # fmt: skip
             for j, value in enumerate(new, start=len(self.tilt)):
@@ -127,11 +207,43 @@ class TipCheck:
                     self.index, self.tilt = self.index[:j], self.tilt[:j]
                     return True
                 self.tilt.append(float(value))
-                if value > self.tip_angle:
-                    self.end = (self.index[j], self.index[j], "tipped")
-                    self.index = self.index[: j + 1]
-                    return True
+        if over:
+            self.end = (k, k, "tipped")
+            return True
         return False
+
+
+def run_end(
+    sim: RobotSim,
+    checks: TipCheck,
+    positions: list[FloatArray],
+    m: int,
+    t: FloatArray,
+    hold: float,
+) -> tuple[int, FloatArray, FloatArray, FloatArray, Any, str | None]:
+    """The checks' records of a run of ``m`` periods, cut where the support was lost.
+
+    (periods kept, simulated μ, tilt off rest, arm on the ground, the end, the tip's cause);
+    ``hold``: the tip's hold time [s] (:func:`tip_end`).
+    """
+    mu_sim, tilt, arm = check_records(sim, checks, positions, m)
+    end, cause = tip_end(checks, t, mu_sim, m, hold)
+    if cause == "support lost":  # the run ends once the support was lost tip_hold
+        m = end[0] + 1
+    return m, mu_sim[:m], tilt[:m], arm[:m], end, cause
+
+
+def check_records(
+    sim: RobotSim, checks: TipCheck, positions: list[FloatArray], m: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
+    mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
+    mass = float(sim.model.body_subtreemass[0])
+    for (i, value), (points, com, touches) in zip(
+        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
+    ):
+        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    return mu_sim, tilt, arm
 
 
 def predicted_path_slip(

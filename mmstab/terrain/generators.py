@@ -206,13 +206,18 @@ KINDS: dict[str, Callable[[Grid, dict[str, Any], np.random.Generator], Heightmap
 }
 
 
+#: Features ``generate`` lays onto a map, in this order.
+FEATURES = ("ditch", "kerb", "bumps")
+
+
 def generate(settings: dict[str, Any]) -> Heightmap:
     """Build the map a (validated) ``terrain.generate`` mapping describes.
 
     Args:
         settings: ``kind``, ``seed``, ``size`` [m, m], ``resolution`` [m/cell], the
             kind's own keys (``schema_terrain.TERRAIN_KINDS``) and optional ``features``: a
-            ``ditch`` and/or a ``kerb`` (their kinds' keys) added to the elevation.
+            ``ditch``, a ``kerb`` and/or ``bumps`` (their kinds' keys) added to the elevation
+            in that order (the bumps' phases drawn after the kind's randomness).
     """
     grid = Grid.of_size(tuple(settings["size"]), settings["resolution"])
     rng = np.random.default_rng(settings["seed"])
@@ -220,10 +225,10 @@ def generate(settings: dict[str, Any]) -> Heightmap:
     name = f"generate.{settings['kind']}(seed {settings['seed']})"
     elevation = hm.elevation
     features = settings.get("features", {})
-    if features:  # a ditch and a kerb laid onto the map (drawn after the kind's randomness)
+    if features:  # laid onto the map (drawn after the kind's randomness)
         elevation = elevation.copy()
-        for feature in ("ditch", "kerb"):
+        for feature in FEATURES:
             if feature in features:
                 elevation += KINDS[feature](grid, features[feature], rng).elevation
-        name += " + " + " + ".join(f for f in ("ditch", "kerb") if f in features)
+        name += " + " + " + ".join(f for f in FEATURES if f in features)
     return Heightmap.build(elevation, hm.resolution, hm.origin, name)
