@@ -245,3 +245,17 @@ def test_stowed_plan_holds_the_arm_stowed(ramp) -> None:
     assert np.array_equal(stowed.postures, np.tile(problem.robot.stowed, (k, 1)))
     com = problem.robot.arm_com(problem.robot.stowed)
     assert np.allclose(stowed.target_com, com) and np.array_equal(stowed.fractions, plan.fractions)
+
+
+def test_an_older_problem_files_tip_angle_is_the_disagreement_angle(tmp_path) -> None:
+    """Problem files written before the rename (``physics.tip_angle``) still load and run."""
+    from conftest import write_problem
+
+    from mmstab.core.problem import load_problem
+    from mmstab.experiments.simulate import loop_settings
+
+    path = write_problem(tmp_path, lambda p, r: p.setdefault("physics", {}).update(tip_angle=0.5))
+    assert loop_settings(load_problem(path)).disagreement_angle == 0.5
+    path = write_problem(tmp_path, lambda p, r: p.setdefault("physics", {}).update(tip_angle=30))
+    with pytest.raises(Exception, match="rad"):
+        load_problem(path)  # degrees refused, as for the new name

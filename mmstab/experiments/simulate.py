@@ -37,7 +37,8 @@ def loop_settings(problem: Problem) -> LoopSettings:
     return LoopSettings(
         control_dt=float(s["control_dt"]),
         duration=None if s["duration"] is None else float(s["duration"]),
-        disagreement_angle=float(s["disagreement_angle"]),
+        # ``tip_angle``: its former name, still read from older problem files
+        disagreement_angle=float(s.get("tip_angle", s["disagreement_angle"])),
         tip_hold=float(s["tip_hold"]),
         slip_distance=float(s["slip_distance"]),
         slip_window=float(s["slip_window"]),
