@@ -176,3 +176,68 @@ def test_stretches_are_merged_and_a_tip_below_the_margin_is_named_so():
     assert [v[k]["verdict"] for k in ("slide", "step", "high_centred", "arm_contact")] == [
         "holds"
     ] * 4
+
+
+def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
+    from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+    from mmstab.cli.verdicts import verify_status
+
+    def v(plan, mujoco, event=None):
+        events = dict.fromkeys(("tipped", "left_map", "slid", "stalled"))
+        if event:
+            events[event] = {"time_s": 3.0}
+        agree = (plan == "accepted") == (mujoco == "holds")
+        return {"plan": plan, "mujoco": mujoco, "agree": agree, "events": events,
+                "mu_relative_difference_median": 0.02, "simulated_s": 9.0,
+                "base_error_max_m": 0.05, "base_origin_error_max_m": 0.06, "run": "x"}  # fmt: skip
+
+    assert verify_status(None, None) is None
+    assert verify_status(v("accepted", "holds"), None) is None
+    assert verify_status(v("accepted", "slides", "slid"), None) == EXIT_SLIDES
+    assert verify_status(v("accepted", "leaves the map", "left_map"), None) == EXIT_SLIDES
+    assert verify_status(v("accepted", "tips", "tipped"), None) == EXIT_UNSTABLE
+    assert verify_status(v("accepted", "stalls", "stalled"), None) is None
+    assert verify_status(v("slides", "holds"), EXIT_SLIDES) == EXIT_SLIDES  # its own status
+    out = capsys.readouterr()
+    assert "physics disagrees: mmstab accepted the route but in MuJoCo it tips" in out.err
+    assert "DISAGREE" in out.out and "slides (slid at 3.00 s)" in out.out
+
+
+@pytest.mark.mujoco
+@pytest.mark.slow
+def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
+    """The sliding turn on a plane map, planned and run in MuJoCo: both say it slides."""
+    import json
+
+    import yaml
+
+    from mmstab.cli import main
+    from mmstab.experiments.verify import OUTCOMES
+
+    problem = {
+        "robot": str(ROBOT),
+        "terrain": {
+            "generate": {"kind": "plane", "seed": 0, "size": [8.0, 8.0], "resolution": 0.05,
+                         "slope": 0.17, "azimuth": float(np.pi / 2)},
+            "friction": 0.35,
+        },
+        "path": {"waypoints": [[-2.5, -1.0], [0.5, -1.0], [1.5, 1.5]], "speed": 0.25,
+                 "turn_radius": 0.0},
+        "workspace": {"grid": [10, 8, 8, 8]},
+        "planner": {"spacing": 0.5},
+    }  # fmt: skip
+    path = tmp_path / "turn.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    assert main(["plan", str(path), "-o", str(out), "--verify", "--allow-sliding"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    v = s["verify"]
+    sim = json.loads((out / "verify" / "summary.json").read_text())
+    assert v["plan"] == "slides" and v["mujoco"] in OUTCOMES
+    assert v["mujoco"] == (
+        "slides" if sim["slid"] is not None and sim["tipped"] is None else v["mujoco"]
+    )
+    assert v["agree"] == (v["mujoco"] != "holds")
+    assert (out / "verify" / "physics.png").stat().st_size > 10_000
+    assert f"verify in MuJoCo ({sim['duration_s']:.1f} s): {v['mujoco']}" in capsys.readouterr().out

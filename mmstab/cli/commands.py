@@ -20,6 +20,7 @@ from mmstab.cli.verdicts import (
     slides_status,
     timing_line,
     tipped_status,
+    verify_status,
 )
 
 #: Default output folder of each command (``-o`` overrides it).
@@ -197,7 +198,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     from mmstab.experiments.routes import run_route_plan
 
-    s = run_route_plan(problem, args.out or DEFAULT_OUT["plan"])
+    s = run_route_plan(problem, args.out or DEFAULT_OUT["plan"], verify=args.verify)
     r = s["risk"]
 
     def spans(key: str) -> str:
@@ -215,7 +216,8 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
     _climb_line(s["climb"], s["s"])
     high_centred_warning(s["high_centred"])
-    return plan_status(s, args) or slides_status(s, args)
+    status = plan_status(s, args) or slides_status(s, args)
+    return verify_status(s.get("verify"), status)
 
 
 def _climb_line(climb: dict[str, Any], s: list[float]) -> None:

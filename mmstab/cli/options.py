@@ -25,7 +25,18 @@ _ALLOW_SLIDING = (
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
     "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
-    "plan": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
+    "plan": [
+        _ALLOW_UNSTABLE,
+        _ALLOW_SLIDING,
+        (
+            "--verify",
+            {
+                "action": "store_true",
+                "help": "then run the route in MuJoCo and report whether physics agrees "
+                "(an accepted route that fails there exits 3 or 4; the validate extra)",
+            },
+        ),
+    ],
     "fig7": [_ALLOW_UNSTABLE],
     "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
     "animation": [_ALLOW_UNSTABLE],

@@ -118,3 +118,34 @@ def limits_line(command: str, verdicts: dict[str, Any], spacing: float) -> None:
              "arm_contact": "arm contact"}  # fmt: skip
     parts = [f"{names[k]}: {v['verdict'].replace('_', '-')}{where(v)}" for k, v in verdicts.items()]
     print(f"{command}: verdicts along the path (every {100 * spacing:.0f} cm): " + "; ".join(parts))
+
+
+def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | None:
+    """``plan --verify``: MuJoCo's outcome beside the plan's verdict, one line.
+
+    An accepted plan that tips (exit 3), slides or leaves the map (exit 4) in MuJoCo is not
+    accepted: physics is the referee where the model is unsure. A refused plan keeps its
+    status; a stall is a warning.
+    """
+    if verify is None:
+        return status
+    v = verify
+    events = {k: e["time_s"] for k, e in v["events"].items() if e is not None}
+    when = ", ".join(f"{k} at {t:.2f} s" for k, t in events.items()) or "no event"
+    mu = v["mu_relative_difference_median"]
+    print(
+        f"plan: verify in MuJoCo ({v['simulated_s']:.1f} s): {v['mujoco']} ({when}); mmstab "
+        f"{v['plan']}: {'agree' if v['agree'] else 'DISAGREE'}; mu predicted vs simulated "
+        f"{'n/a' if mu is None else f'{100 * mu:.1f} %'} (median); base error max "
+        f"{100 * v['base_error_max_m']:.1f} cm "
+        f"(body origin {100 * v['base_origin_error_max_m']:.1f} cm)"
+    )
+    if status is not None or v["plan"] != "accepted" or v["mujoco"] in ("holds", "stalls"):
+        if v["mujoco"] == "stalls":
+            print(
+                "mmstab: warning: the route stalls in MuJoCo (stuck, not unsafe)", file=sys.stderr
+            )
+        return status
+    line = f"mmstab accepted the route but in MuJoCo it {v['mujoco']} ({when}); see {v['run']}"
+    print(f"mmstab: physics disagrees: {line}", file=sys.stderr)
+    return EXIT_UNSTABLE if v["mujoco"] == "tips" else EXIT_SLIDES

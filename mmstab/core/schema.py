@@ -335,11 +335,10 @@ ONLINE = obj(
 # achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
 # governor (the base error [m] from which the reference slows, at which it stops, and the
 # wait [s] after which the run ends stalled; null: the reference runs on time).
-PHYSICS = obj(
+PHYSICS_KEYS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
     disagreement_angle=angle(exclusiveMinimum=0, maximum=1.5),
-    tip_angle=angle(exclusiveMinimum=0, maximum=1.5),  # the former name of disagreement_angle
     tip_hold={"type": "number", "minimum": 0, "maximum": 10},
     slip_distance=POS,
     slip_window=POS,
@@ -351,6 +350,8 @@ PHYSICS = obj(
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
 )
+# ``tip_angle``: the former name of ``disagreement_angle``, still read from older files
+PHYSICS = with_optional(PHYSICS_KEYS, tip_angle=angle(exclusiveMinimum=0, maximum=1.5))
 
 #: Sections a problem may leave out; the command that needs one says so when it is missing.
 OPTIONAL_SECTIONS: dict[str, dict[str, Any]] = {

@@ -276,8 +276,14 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     return out
 
 
-def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
-    """Plan the problem's route, write the summary and the two figures (module docstring)."""
+def run_route_plan(
+    problem: Problem, out: str | Path | None = None, verify: bool = False
+) -> dict[str, Any]:
+    """Plan the problem's route, write the summary and the two figures (module docstring).
+
+    ``verify``: then run the plan in MuJoCo (:func:`mmstab.experiments.verify.verify_plan`,
+    into ``verify/``) and put its outcome beside the plan's verdict (``summary["verify"]``).
+    """
     plan = make_plan(problem)
     if not isinstance(plan, RoutePlan):
         raise MmstabError(f"{problem.path}: path: not a route")
@@ -294,6 +300,10 @@ def run_route_plan(problem: Problem, out: str | Path | None = None) -> dict[str,
     )
     write_run(d / "plan.mcap", problem.robot, frames, mu_max(problem.robot))
     save_settings(d, problem)
+    if verify:
+        from mmstab.experiments.verify import verify_plan
+
+        summary["verify"] = verify_plan(problem, plan, summary, d / "verify")
     write_json(d / "summary.json", summary)
     return summary
 

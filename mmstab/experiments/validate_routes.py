@@ -35,11 +35,7 @@ import numpy as np
 import yaml
 
 from mmstab.core.files import MmstabError, read_yaml, validate, write_figure, write_json
-
-#: The plan's verdicts and their ``mmstab plan`` exit statuses (``mmstab/cli/status.py``).
-PLAN_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "no plan": 6}
-#: MuJoCo's outcomes, the first that happened in this order naming the run.
-OUTCOMES = ("tips", "leaves the map", "slides", "stalls", "holds")
+from mmstab.experiments.verify import OUTCOMES, PLAN_VERDICTS, outcome_of, plan_verdict_of
 
 _RANGE = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
 _P = {"type": "number", "minimum": 0, "maximum": 1}
@@ -101,23 +97,6 @@ def route_problem(settings: dict[str, Any], k: int) -> dict[str, Any]:
         },  # fmt: skip
         **settings.get("problem", {}),
     }
-
-
-def plan_verdict_of(summary: dict[str, Any]) -> str:
-    """``mmstab plan``'s verdict of a route plan's summary: its stability, then its slip."""
-    if not summary["stability"]["stable"]:
-        return "tips"
-    if summary["slip"]["slides"]:
-        return "slides"
-    return "accepted"
-
-
-def outcome_of(s: dict[str, Any]) -> str:
-    """MuJoCo's outcome of a ``mmstab simulate`` summary (:data:`OUTCOMES`' order)."""
-    for name, key in zip(OUTCOMES, ("tipped", "left_map", "slid", "stalled"), strict=False):
-        if s[key] is not None:
-            return name
-    return "holds"
 
 
 def ground_record(data: dict[str, Any]) -> dict[str, Any]:
