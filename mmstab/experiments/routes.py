@@ -109,6 +109,8 @@ def route_summary(problem: Problem, plan: RoutePlan, risk: RouteRisk) -> dict[st
         "ms_per_pose_max": float(1e3 * np.max(warm)),
         "ms_first_pose": float(1e3 * plan.search_seconds[0]),
         "cpu_ms_per_pose": float(1e3 * np.median(warm_cpu)),
+        "warm_started": bool(plan.warm.any()),
+        "fixed_seconds": float(plan.fixed_seconds),
         "settings": plan.settings._asdict(),
         "poses": poses,
         "stability": plan_verdict(poses, planner_margin(problem.section("planner"))),

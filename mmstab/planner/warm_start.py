@@ -84,6 +84,9 @@ class RoutePlan(NamedTuple):
         settings: the planner settings.
         moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) with
             ``method: roadmap``, else empty.
+        fixed_seconds: wall time before the poses' search [s]: the caches loaded (or
+            built) and what the search keeps between plans of a process
+            (:func:`mmstab.planner.plan.plan_route`); 0 when not measured.
     """
 
     s: FloatArray
@@ -103,6 +106,7 @@ class RoutePlan(NamedTuple):
     search_cpu_seconds: FloatArray
     settings: PlannerSettings
     moves: tuple[FloatArray, ...] = ()
+    fixed_seconds: float = 0.0
 
 
 def warm_settings(settings: PlannerSettings, sigma: float) -> PlannerSettings:

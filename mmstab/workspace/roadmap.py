@@ -19,6 +19,7 @@ import dataclasses
 import functools
 import hashlib
 import os
+import sys
 import time
 from collections.abc import Generator
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
+from tqdm import tqdm
 
 from mmstab.core.files import MmstabError, write_npz
 from mmstab.core.steps import drain
@@ -36,7 +38,7 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.workspace.cache import DEFAULT_CACHE_DIR
+from mmstab.workspace.cache import default_cache_dir
 from mmstab.workspace.grid import JointGrid, joint_grid
 from mmstab.workspace.region import Workspace
 
@@ -248,11 +250,21 @@ def _grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
 
 
 def _free_moves(
-    checker: CollisionChecker, q: FloatArray, j: int, step: float, steps: int
+    checker: CollisionChecker,
+    q: FloatArray,
+    j: int,
+    step: float,
+    steps: int,
+    bar: tqdm | None = None,
 ) -> NDArray[np.bool_]:
-    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures."""
+    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures.
+
+    ``bar``: advanced by one per interior posture checked.
+    """
     ok = np.ones(len(q), dtype=bool)
     for s in range(1, steps + 1):
+        if bar is not None:
+            bar.update(1)
         rows = np.flatnonzero(ok)
         if not len(rows):
             break
@@ -265,13 +277,16 @@ def _free_moves(
     return ok
 
 
-def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION) -> Roadmap:
+def build_roadmap(
+    robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION, progress: bool = False
+) -> Roadmap:
     """The lattice roadmap over V's collision-free grid postures (module text).
 
     Args:
         robot: the robot (the one V was built for).
         ws: the workspace V (its grid and its collision-free postures).
         resolution: largest point motion between checked postures of an edge [m].
+        progress: show a progress bar (on a terminal): the edges' checked postures.
     """
     if ws.samples:
         raise MmstabError(
@@ -290,6 +305,9 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     steps = np.maximum(np.ceil(reach * jg.step / resolution).astype(np.int64) - 1, 0)
     checker = CollisionChecker(robot)
     edges, lengths = [], []
+    bar = tqdm(
+        total=int(steps.sum()) + 1, unit="check", desc="roadmap", disable=None if progress else True
+    )
     for j in range(robot.arm_joints):
         # no edge wraps the turret's full turn: its range ends at a stop (the posture at
         # 2 pi is the one at 0, but the joint cannot move through the stop between them)
@@ -299,7 +317,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         rows = np.flatnonzero(inside)
         other = lookup[np.ravel_multi_index(tuple(nxt[rows].T), tuple(shape))]
         rows, other = rows[other >= 0], other[other >= 0]
-        free = _free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]))
+        free = _free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]), bar)
         edges.append(np.column_stack([rows[free], other[free]]))
         lengths.append(np.full(int(free.sum()), float(jg.step[j])))
     e = np.concatenate(edges).astype(np.int64) if edges else np.zeros((0, 2), np.int64)
@@ -307,6 +325,9 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     n = len(nodes_q)
     g = csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
     _, component = connected_components(g, directed=False)
+    arrays = node_arrays(robot, nodes_q)
+    bar.update(1)
+    bar.close()
     return Roadmap(
         grid=tuple(int(x) for x in ws.grid),
         nodes_q=nodes_q,
@@ -316,7 +337,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         reach=reach,
         steps=steps,
         resolution=float(resolution),
-        **node_arrays(robot, nodes_q),
+        **arrays,
         build_seconds=time.perf_counter() - t0,
     )
 
@@ -359,17 +380,22 @@ def load_or_build_roadmap(
     ws: Workspace,
     resolution: float = DEFAULT_RESOLUTION,
     cache_dir: str | os.PathLike[str] | None = None,
+    progress: bool = True,
 ) -> Roadmap:
     """The roadmap of a robot and its V: from memory, from the cache file, else built.
 
-    The file is ``results/workspace/roadmap-<key>.npz`` (:func:`roadmap_key`), written
-    atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
+    The file is ``roadmap-<key>.npz`` (:func:`roadmap_key`) in the cache folder (default
+    :func:`mmstab.workspace.cache.default_cache_dir`, shared by every working folder),
+    written atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
     ground heights and clearances were kept in it gets them added (the graph is the same).
+    A build says where the file goes (one line on stderr) and, with ``progress`` on a
+    terminal, shows a progress bar.
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
-    path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR) / f"roadmap-{key}.npz"
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = folder / f"roadmap-{key}.npz"
     rm, missing = None, True
     if path.is_file():
         try:
@@ -383,7 +409,13 @@ def load_or_build_roadmap(
         except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
             rm, missing = None, True
     if rm is None:
-        rm = build_roadmap(robot, ws, resolution)
+        if progress:
+            print(
+                f"mmstab: building the posture roadmap of the {list(ws.grid)} grid, once per "
+                f"robot and grid (about a minute) -> {path}",
+                file=sys.stderr,
+            )
+        rm = build_roadmap(robot, ws, resolution, progress)
     if missing:
         write_npz(path, **roadmap_arrays(rm))
     _MEMORY[key] = rm
