@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,6 +54,8 @@ SLACK = 1e-9
 BLOCK = 2
 #: Lattice samples along a tile's edge (the ground is sampled by tiles, kept for a route).
 TILE = 64
+#: Who computes the pieces and heights: the C kernel (default) or its NumPy twin.
+Backend = Literal["c", "numpy"]
 
 
 class ArmPieces(NamedTuple):
@@ -121,14 +123,23 @@ class PiecesB(NamedTuple):
 
 
 def pieces_in_body(
-    robot: Robot, pieces: ArmPieces, postures: ArrayLike, margin: float = 0.0
+    robot: Robot,
+    pieces: ArmPieces,
+    postures: ArrayLike,
+    margin: float = 0.0,
+    backend: Backend = "numpy",
 ) -> PiecesB:
     """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad].
 
     ``margin`` [rad]: the lowest over the body's tilts up to it (:func:`tilted_height`).
+    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.under_arm_c`, its twin).
     """
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
+    if backend == "c":
+        from mmstab.planner.under_arm_c import pieces_kernel
+
+        return PiecesB(*pieces_kernel(frames, pieces.link, pieces.points, pieces.radius, margin))
     low = np.empty((len(q), len(pieces.link)))
     centre = np.empty((len(q), len(pieces.link), 3))
     mid = pieces.points.mean(axis=1)  # (P, 3)
@@ -193,6 +204,7 @@ class PoseGround:
     box: tuple[int, int, int, int] = (0, -1, 0, -1)  # tile index range (ti0, ti1, tj0, tj1)
     peak: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
     top: float = 0.0  # the peak's max [m]
+    backend: Backend = "numpy"  # who computes the heights (the peak map is NumPy's)
 
     @functools.cached_property
     def cos_tilt(self) -> float:
@@ -247,6 +259,16 @@ class PoseGround:
         support plane are left to the plane check (+inf; a move's samples, module text).
         """
         self._cover()
+        if self.backend == "c" and len(body.low):
+            from mmstab.planner.under_arm_c import heights_kernel
+
+            h_c = heights_kernel(
+                body.low, body.centre, self.M_T_B, self.top, above, plane, self.peak,
+                (self.box[0] * TILE, self.box[2] * TILE), BLOCK, self.cells + 2 * BLOCK,
+                LATTICE, SLACK,
+            )  # fmt: skip
+            if h_c is not None:
+                return h_c  # else a square leaves the map: widened below, as NumPy does
         lowest = body.low / self.cos_tilt
         h = lowest - max(self.top, 0.0)
         look = np.flatnonzero(h.ravel() < above)
@@ -275,6 +297,8 @@ class GroundUnderArm:
         M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
         margin: the body's tilt in motion the arm must clear the ground through [rad]
             (``planner.attitude_margin``, :func:`mmstab.model.ground.tilted_height`); 0: none.
+        backend: ``c``: the pieces and heights by the C kernel
+            (:mod:`mmstab.planner.under_arm_c`); ``numpy``: its twin, here.
     """
 
     def __init__(
@@ -284,8 +308,9 @@ class GroundUnderArm:
         poses: ArrayLike,
         M_T_B: FloatArray | None = None,
         margin: float = 0.0,
+        backend: Backend = "c",
     ) -> None:
-        self.robot, self.margin = robot, float(margin)
+        self.robot, self.margin, self.backend = robot, float(margin), backend
         self.pieces = arm_pieces(robot)
         p = np.atleast_2d(np.asarray(poses, dtype=float))
         T = terrain.M_T_B(p) if M_T_B is None else np.asarray(M_T_B, dtype=float)
@@ -298,14 +323,14 @@ class GroundUnderArm:
         # (1 − cos θ + sin θ), D ≤ the turret's distance + the arm's reach
         far = float(np.linalg.norm(reach[0])) + reach[1]
         self.drop = far * (1.0 - np.cos(self.margin) + np.sin(self.margin))
-        self.poses = [PoseGround(tiles, T[k], cells, reach) for k in range(len(T))]
+        self.poses = [PoseGround(tiles, T[k], cells, reach, backend=backend) for k in range(len(T))]
 
     def __len__(self) -> int:
         return len(self.poses)
 
     def body(self, postures: ArrayLike) -> PiecesB:
         """The arm's pieces in B for postures (n, 4) [rad] (pose-independent)."""
-        return pieces_in_body(self.robot, self.pieces, postures, self.margin)
+        return pieces_in_body(self.robot, self.pieces, postures, self.margin, self.backend)
 
     def heights(self, k: int, postures: ArrayLike, body: PiecesB | None = None) -> FloatArray:
         """Least height [m] above the ground under the arm at pose ``k``, per posture (n,)."""
