@@ -63,3 +63,54 @@ def test_a_roadmap_build_says_where_its_file_goes(tmp_path, monkeypatch, capsys)
     again = rm_module.load_or_build_roadmap(problem.robot, ws)  # from the file: silent
     assert capsys.readouterr().err == ""
     assert np.array_equal(again.edges, rm.edges)
+
+
+def test_what_plans_derive_from_a_roadmap_is_kept_beside_it_and_equal(tmp_path, monkeypatch):
+    """The ground graph, start node, its tree and component view: read back the same."""
+    import os
+
+    from mmstab.core.problem import load_problem
+    from mmstab.planner.grounded import ground_graph
+    from mmstab.planner.roadmap import component_view
+    from mmstab.planner.roadmap_moves import start_tree
+    from mmstab.workspace import load_or_build_workspace
+    from mmstab.workspace import roadmap as rm_module
+
+    monkeypatch.setenv("MMSTAB_CACHE", str(tmp_path / "cache"))
+    problem = load_problem(write_problem(tmp_path, _grid))
+    robot = problem.robot
+    ws = load_or_build_workspace(problem, progress=False)
+
+    def derived():
+        monkeypatch.setattr(rm_module, "_MEMORY", {})  # a new process's view
+        rm = rm_module.load_or_build_roadmap(robot, ws, progress=False)
+        start = rm.connect(robot.stowed, robot)
+        g = ground_graph(rm, 0.02)
+        view = component_view(robot, rm, start, 0.02)
+        return rm, start, g, view, start_tree(rm, start, 0.02)[1]
+
+    first = derived()  # built (the roadmap, no copy of it), computed and written
+    folder = rm_module.default_cache_dir()
+
+    def kept():
+        return sorted(p.name.split("-")[0] for p in next(folder.glob("roadmap-*/")).iterdir())
+
+    assert kept() == ["connect", "ground", "tree", "view"]
+    again = derived()  # read back (and the roadmap's arrays copied uncompressed)
+    assert kept() == ["arrays.npz", "connect", "ground", "tree", "view"]
+    assert again[0] is not first[0] and again[1] == first[1]
+    assert (again[2].graph != first[2].graph).nnz == 0
+    assert np.array_equal(again[2].component, first[2].component)
+    assert np.array_equal(again[3].reach, first[3].reach)
+    assert np.array_equal(again[3].clusters.cluster_of, first[3].clusters.cluster_of)
+    assert again[3].diameter == first[3].diameter and again[3].joint_span == first[3].joint_span
+    assert np.array_equal(again[4], first[4])
+    assert np.array_equal(again[0].edges, first[0].edges)
+    # a rebuilt roadmap file (newer): its old derived arrays are not used
+    source = next(folder.glob("roadmap-*.npz"))
+    stamp = source.stat().st_mtime_ns
+    os.utime(source, ns=(stamp + 10**9, stamp + 10**9))
+    tree_file = next(folder.glob("roadmap-*/tree-*.npz"))
+    np.savez(tree_file, _stamp=np.int64(stamp), pred=np.zeros(3, np.int32))  # stale, wrong
+    third = derived()
+    assert np.array_equal(third[4], first[4])  # computed again, not the stale file

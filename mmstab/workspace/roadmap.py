@@ -24,6 +24,7 @@ import time
 from collections.abc import Generator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,6 +41,7 @@ from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.cache import default_cache_dir
 from mmstab.workspace.grid import JointGrid, joint_grid
+from mmstab.workspace.kept import SOURCE_ATTR, kept_arrays, kept_beside
 from mmstab.workspace.region import Workspace
 
 #: Largest motion of any point of the arm between two checked postures of an edge [m].
@@ -124,6 +126,17 @@ class Roadmap:
             MmstabError: none is (q collides, or is boxed in at this grid's spacing).
         """
         qa = np.asarray(q, dtype=float).reshape(len(self.grid))
+        if np.array_equal(qa, robot.stowed):  # every plan's start: kept beside the file
+            tag = hashlib.sha256(qa.tobytes()).hexdigest()[:12]
+
+            def node() -> dict[str, NDArray[np.int64]]:
+                return {"node": np.int64(self._connect(qa, robot, candidates))}
+
+            return int(kept_arrays(self, f"connect-{tag}-{candidates}", node)["node"])
+        return self._connect(qa, robot, candidates)
+
+    def _connect(self, qa: FloatArray, robot: Robot, candidates: int) -> int:
+        """:meth:`connect` itself."""
         _, idx = self._tree.query(
             np.r_[np.cos(qa[0]), np.sin(qa[0]), qa[1:]], k=min(candidates, len(self.nodes_q))
         )
@@ -389,7 +402,8 @@ def load_or_build_roadmap(
     written atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
     ground heights and clearances were kept in it gets them added (the graph is the same).
     A build says where the file goes (one line on stderr) and, with ``progress`` on a
-    terminal, shows a progress bar.
+    terminal, shows a progress bar. The arrays are read from an uncompressed copy beside
+    the file (``roadmap-<key>/arrays.npz``, :mod:`mmstab.workspace.kept`) once written.
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
@@ -399,8 +413,12 @@ def load_or_build_roadmap(
     rm, missing = None, True
     if path.is_file():
         try:
-            with np.load(path) as z:
-                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+
+            def read() -> dict[str, np.ndarray]:
+                with np.load(path) as z:
+                    return {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+
+            kw: dict[str, Any] = kept_beside(path, "arrays", read)  # uncompressed: read fast
             kw["grid"] = tuple(int(n) for n in kw["grid"])
             kw["resolution"] = float(kw["resolution"])
             kw["build_seconds"] = float(kw["build_seconds"])
@@ -417,6 +435,11 @@ def load_or_build_roadmap(
             )
         rm = build_roadmap(robot, ws, resolution, progress)
     if missing:
-        write_npz(path, **roadmap_arrays(rm))
+        try:
+            write_npz(path, **roadmap_arrays(rm))
+        except OSError:  # a read-only cache folder: built in every process
+            pass
+    if path.is_file():  # what plans derive from it is kept beside it (mmstab.workspace.kept)
+        object.__setattr__(rm, SOURCE_ATTR, path)
     _MEMORY[key] = rm
     return rm
