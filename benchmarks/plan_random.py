@@ -39,7 +39,7 @@ from common import machine_info
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def one(k: int, runs: int) -> dict[str, Any]:
+def one(k: int, runs: int, methods: tuple[str, ...] = ("sequence", "cmaes")) -> dict[str, Any]:
     """Pair ``k`` in this process: the one-off roadmap plan first, then the repeats."""
     t0 = time.perf_counter()
     sys.path.insert(0, str(ROOT / "tests"))
@@ -65,7 +65,7 @@ def one(k: int, runs: int) -> dict[str, Any]:
         "imports_s": imports,
         "load_problem_s": load_s,
         "one_off": {
-            "fixed_s": plan.fixed_seconds,
+            "fixed_s": getattr(plan, "fixed_seconds", float("nan")),  # nan: not reported
             "ms_per_pose": 1e3 * float(np.sum(plan.search_seconds)) / poses,
             "cpu_ms_per_pose": 1e3 * search_cpu / poses,
             "wall_s": one_off_wall,
@@ -82,7 +82,7 @@ def one(k: int, runs: int) -> dict[str, Any]:
         per_pose["roadmap"].append(1e3 * float(np.sum(p.search_seconds)) / poses)
         cpu.append(1e3 * float(np.sum(p.search_cpu_seconds)) / poses)
     out["roadmap_cpu_ms_per_pose"] = float(np.median(cpu))
-    for method in ("sequence", "cmaes"):
+    for method in methods:
         data = copy.deepcopy(problem.data)
         data["planner"]["method"] = method
         other = problem_from_dict(data, problem.path)
@@ -101,16 +101,23 @@ def one(k: int, runs: int) -> dict[str, Any]:
     return out
 
 
+def _ms(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.1f}"
+
+
 def main() -> None:
     """Run every pair in its own process and write the medians."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=10, help="pairs 0 .. N-1")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--out", default="results/bench/plan_random.json")
+    ap.add_argument("--roadmap-only", action="store_true", help="no sequence, no CMA-ES")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one is not None:
-        print(json.dumps(one(args.one, args.runs)))
+        print(
+            json.dumps(one(args.one, args.runs, () if args.roadmap_only else ("sequence", "cmaes")))
+        )
         return
     t_start = time.perf_counter()
     load_before = os.getloadavg()
@@ -118,15 +125,16 @@ def main() -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     for k in range(args.pairs):
         cmd = [sys.executable, __file__, "--one", str(k), "--runs", str(args.runs)]
+        cmd += ["--roadmap-only"] if args.roadmap_only else []
         proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
         r = json.loads(proc.stdout.strip().splitlines()[-1])
         pairs.append(r)
         ms = r["ms_per_pose"]
-        seq = "did not settle" if ms["sequence"] is None else f"{ms['sequence']:.1f}"
+        seq = "did not settle" if "sequence_failed" in r else _ms(ms["sequence"])
         print(
             f"pair {k}: {r['poses']} poses; roadmap one-off {r['one_off']['ms_per_pose']:.1f} "
             f"ms/pose + fixed {r['one_off']['fixed_s']:.2f} s, median of {args.runs} "
-            f"{ms['roadmap']:.1f}; sequence {seq}; cmaes {ms['cmaes']:.1f} ms/pose",
+            f"{ms['roadmap']:.1f}; sequence {seq}; cmaes {_ms(ms['cmaes'])} ms/pose",
             flush=True,
         )
 
@@ -171,8 +179,8 @@ def main() -> None:
         f"roadmap one-off {m['roadmap_one_off_ms_per_pose']:.1f} ms/pose (fixed costs "
         f"{m['roadmap_one_off_fixed_s']:.2f} s, worst {m['roadmap_one_off_fixed_s_max']:.2f}), "
         f"repeated {m['roadmap_ms_per_pose']:.1f} (CPU {m['roadmap_cpu_ms_per_pose']:.1f}); "
-        f"sequence {m['sequence_ms_per_pose'] or float('nan'):.1f} "
-        f"({m['sequence_settled_pairs']} settled); per-pose CMA-ES {m['cmaes_ms_per_pose']:.1f}; "
+        f"sequence {_ms(m['sequence_ms_per_pose'])} "
+        f"({m['sequence_settled_pairs']} settled); per-pose CMA-ES {_ms(m['cmaes_ms_per_pose'])}; "
         f"load {result['load_average_after'][0]:.1f} -> {out}"
     )
 
