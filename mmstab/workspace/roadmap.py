@@ -130,7 +130,7 @@ class Roadmap:
             tag = hashlib.sha256(qa.tobytes()).hexdigest()[:12]
 
             def node() -> dict[str, NDArray[np.int64]]:
-                return {"node": np.int64(self._connect(qa, robot, candidates))}
+                return {"node": np.array(self._connect(qa, robot, candidates), dtype=np.int64)}
 
             return int(kept_arrays(self, f"connect-{tag}-{candidates}", node)["node"])
         return self._connect(qa, robot, candidates)
