@@ -36,26 +36,26 @@ from tqdm import tqdm
 from mmstab.core.files import MmstabError, write_npz
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.cache import default_cache_dir
-from mmstab.workspace.grid import JointGrid, joint_grid
+from mmstab.workspace.grid import joint_grid
 from mmstab.workspace.kept import SOURCE_ATTR, kept_arrays, kept_beside
 from mmstab.workspace.region import Workspace
+from mmstab.workspace.roadmap_checks import (  # noqa: F401 (MOVE_CLEARANCE: its name here too)
+    CHECK_CHUNK,
+    COARSE_STRIDE,
+    MOVE_CLEARANCE,
+    coarse_first,
+    free_moves,
+    grid_index,
+    node_arrays,
+)
 
 #: Largest motion of any point of the arm between two checked postures of an edge [m].
 DEFAULT_RESOLUTION = 0.02
-#: Smallest clearance [m] between an arm link and the robot that a shortcut's straight
-#: move keeps (:meth:`Roadmap.shortcut`): the tracked arm follows the moves within a few
-#: millimetres, and a tracking run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``).
-MOVE_CLEARANCE = 0.003
 #: Largest motion of any arm point between two postures whose clearance is measured [m].
 CLEARANCE_STEP = 0.004
-#: A move's checked postures go to the checker every this many first (:func:`_coarse_first`).
-COARSE_STRIDE = 8
-#: Postures per batch handed to the collision checker.
-CHECK_CHUNK = 16384
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +155,7 @@ class Roadmap:
         """
         d = np.asarray(qb, dtype=float) - qa
         n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
-        for u in _coarse_first(n):
+        for u in coarse_first(n):
             if np.asarray(checker.collides(qa + u[:, None] * d), dtype=bool).any():
                 return False
         return True
@@ -244,52 +244,6 @@ class Roadmap:
         return float(np.linalg.norm(np.diff(qa, axis=0), axis=1).sum())
 
 
-def _coarse_first(n: int, stride: int = COARSE_STRIDE) -> tuple[FloatArray, FloatArray]:
-    """The fractions i / n, i = 0..n, in two batches: every ``stride``-th, then the rest.
-
-    A move that fails usually fails over a stretch, which the first batch finds at a
-    ``stride``-th of the cost; a move that passes is checked at every fraction all the same.
-    """
-    i = np.arange(n + 1)
-    first = (i % stride == 0) | (i == n)
-    return i[first] / n, i[~first] / n
-
-
-def _grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
-    """Grid indices (N, 4) of grid postures q [rad]."""
-    lo = np.array([a[0] for a in jg.axes])
-    idx = np.rint((q - lo) / jg.step).astype(np.int64)
-    return np.minimum(idx, np.array(jg.shape) - 1)
-
-
-def _free_moves(
-    checker: CollisionChecker,
-    q: FloatArray,
-    j: int,
-    step: float,
-    steps: int,
-    bar: tqdm | None = None,
-) -> NDArray[np.bool_]:
-    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures.
-
-    ``bar``: advanced by one per interior posture checked.
-    """
-    ok = np.ones(len(q), dtype=bool)
-    for s in range(1, steps + 1):
-        if bar is not None:
-            bar.update(1)
-        rows = np.flatnonzero(ok)
-        if not len(rows):
-            break
-        shifted = q[rows].copy()
-        shifted[:, j] += step * s / (steps + 1)
-        for c in range(0, len(rows), CHECK_CHUNK):
-            part = rows[c : c + CHECK_CHUNK]
-            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK]), dtype=bool)
-            ok[part[hit]] = False
-    return ok
-
-
 def build_roadmap(
     robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION, progress: bool = False
 ) -> Roadmap:
@@ -310,7 +264,7 @@ def build_roadmap(
     jg = joint_grid(robot, ws.grid)
     shape = np.array(jg.shape)
     nodes_q = np.asarray(ws.valid_q, dtype=float)
-    idx = _grid_index(jg, nodes_q)
+    idx = grid_index(jg, nodes_q)
     flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
     lookup = np.full(jg.size, -1, dtype=np.int64)
     lookup[flat] = np.arange(len(nodes_q))
@@ -330,7 +284,7 @@ def build_roadmap(
         rows = np.flatnonzero(inside)
         other = lookup[np.ravel_multi_index(tuple(nxt[rows].T), tuple(shape))]
         rows, other = rows[other >= 0], other[other >= 0]
-        free = _free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]), bar)
+        free = free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]), bar)
         edges.append(np.column_stack([rows[free], other[free]]))
         lengths.append(np.full(int(free.sum()), float(jg.step[j])))
     e = np.concatenate(edges).astype(np.int64) if edges else np.zeros((0, 2), np.int64)
@@ -364,17 +318,6 @@ def roadmap_key(robot: Robot, grid: tuple[int, ...], resolution: float, version:
         f"{np.round(geo, 9).tobytes().hex()}"
     )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-
-def node_arrays(robot: Robot, nodes_q: FloatArray) -> dict[str, FloatArray]:
-    """The nodes' ``node_com``, ``_ground``, ``_clearance`` [m], kept in the cache file."""
-    checker, step = CollisionChecker(robot), range(0, len(nodes_q), CHECK_CHUNK)
-    clear = [checker.clearance(nodes_q[c : c + CHECK_CHUNK], MOVE_CLEARANCE) for c in step]
-    return {
-        "node_com": np.asarray(robot.arm_com(nodes_q), dtype=float).reshape(-1, 3),
-        "node_ground": arm_ground_clearance(robot, nodes_q),
-        "node_clearance": np.concatenate(clear) if clear else np.zeros(0),
-    }
 
 
 def roadmap_arrays(rm: Roadmap) -> dict[str, object]:
