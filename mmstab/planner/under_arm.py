@@ -11,7 +11,7 @@ With the support plane in M, ``z = P(x, y)``, and ``c`` the cosine of the body's
 so its height above the ground is ``z_B(p) / c − r(x, y)`` with ``r = s − P`` the ground's
 rise above the support plane (0 on a plane: the slope is not counted twice). The arm's
 collision shapes are cut into pieces (:func:`arm_pieces`: a capsule into segments of at most
-:data:`~mmstab.planner.arm_pieces.PIECE` [m], a box into boxes of edges at most that); a piece is at least
+``arm_pieces.PIECE`` [m], a box into boxes of edges at most that); a piece is at least
 ``z_low / c − max(r, 0)`` above the ground, ``z_low`` its lowest point in B, the max over a
 square about its centre's map x, y that holds the ball around the piece and :data:`SWEEP`
 more (a move's samples). ``r`` is sampled on a lattice of :data:`LATTICE` [m] aligned to M's
@@ -344,12 +344,11 @@ class KeptPieces:
         if new.size:
             body = self.under.body(self.postures[new])
             end = self.size + len(new)
-            if end > len(self.low):
-                more = max(end, 2 * len(self.low)) - len(self.low)
-                grown = [
-                    np.concatenate([a, np.empty((more, *a.shape[1:]))])
-                    for a in (self.low, self.centre)
-                ]
+            if end > len(self.low):  # the kept rows copied, the new room left untouched
+                size = max(end, 2 * len(self.low))
+                grown = [np.empty((size, *a.shape[1:])) for a in (self.low, self.centre)]
+                for g, a in zip(grown, (self.low, self.centre), strict=True):
+                    g[: self.size] = a[: self.size]
                 self.low, self.centre = grown
             self.slot[new] = self.size + np.arange(len(new))  # (a copy per doubling only)
             self.low[self.size : end], self.centre[self.size : end] = body.low, body.centre
