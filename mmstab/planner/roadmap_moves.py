@@ -84,12 +84,13 @@ def astar(
     g, nodes_q = ground_graph(roadmap, ground).graph, roadmap.nodes_q
     ptr, nbr, w = g.indptr, g.indices, g.data
     goal = nodes_q[b].tolist()
-    q: dict[int, list[float]] = {}
+    dist: dict[int, float] = {}  # each node's heuristic, computed once
 
     def h(n: int) -> float:
-        if n not in q:
-            q[n] = nodes_q[n].tolist()
-        return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
+        v = dist.get(n)
+        if v is None:
+            v = dist[n] = sum(abs(x - y) for x, y in zip(nodes_q[n].tolist(), goal, strict=True))
+        return v
 
     best, parent = {a: 0.0}, {a: a}
     heap = [(h(a), 0.0, a)]
