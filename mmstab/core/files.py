@@ -322,16 +322,6 @@ def write_npz(path: str | os.PathLike[str], **arrays: Any) -> Path:
     return _atomic(Path(path), _w)
 
 
-def write_npz_uncompressed(path: str | os.PathLike[str], **arrays: Any) -> Path:
-    """Write arrays to an uncompressed ``.npz`` (read at memory speed), atomically."""
-
-    def _w(t: Path) -> None:
-        with open(t, "wb") as fh:
-            np.savez(fh, **arrays)
-
-    return _atomic(Path(path), _w)
-
-
 def write_npy(path: str | os.PathLike[str], array: Any) -> Path:
     """Write one array to an uncompressed ``.npy`` (memory-mappable), atomically."""
 

@@ -4,10 +4,11 @@ A one-off plan needs more than the roadmap's file: the graph of the nodes above 
 ground clearance and its components (:func:`mmstab.planner.grounded.ground_graph`), the
 start node (``Roadmap.connect``: a k-d tree over every node), its shortest-path tree and
 the component's clusters. Each is the same in every process, so the first process writes
-it into ``roadmap-<key>/`` beside ``roadmap-<key>.npz`` (uncompressed ``.npz``, one per
-name, written atomically) and every later one reads it there. Each file holds the
-roadmap file's modification time: a rebuilt roadmap's old files are not used (computed
-and written again). Without a cache file (a roadmap built in memory) nothing is kept.
+it into ``roadmap-<key>/<name>/`` beside ``roadmap-<key>.npz`` (one uncompressed ``.npy``
+per array, each written atomically, then ``_stamp.npy``: the roadmap file's modification
+time) and every later one reads it there, memory-mapped copy-on-write (only the pages a
+plan touches are read). A rebuilt roadmap's old files are not used (computed and written
+again). Without a cache file (a roadmap built in memory) nothing is kept.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core.files import write_npz_uncompressed
+from mmstab.core.files import write_npy
 
 #: The attribute of a loaded roadmap naming its file (set by ``load_or_build_roadmap``).
 SOURCE_ATTR = "_source_file"
@@ -48,16 +49,28 @@ def kept_beside(
         stamp = source.stat().st_mtime_ns
     except OSError:
         return compute()
-    path = source.with_suffix("") / f"{name}.npz"
+    folder = source.with_suffix("") / name
     try:
-        with np.load(path) as z:
-            if int(z["_stamp"]) == stamp:
-                return {k: z[k] for k in z.files if k != "_stamp"}
-    except (OSError, ValueError, KeyError):
+        if int(np.load(folder / "_stamp.npy")) == stamp:
+            return {f.stem: _mapped(f) for f in sorted(folder.glob("*.npy")) if f.stem != "_stamp"}
+    except (OSError, ValueError):
         pass
     arrays = compute()
-    try:
-        write_npz_uncompressed(path, _stamp=np.int64(stamp), **arrays)
+    try:  # the stamp last: a folder cut short is never read
+        (folder / "_stamp.npy").unlink(missing_ok=True)
+        for old in folder.glob("*.npy"):
+            old.unlink()
+        for key, value in arrays.items():
+            write_npy(folder / f"{key}.npy", value)
+        write_npy(folder / "_stamp.npy", np.int64(stamp))
     except OSError:  # a read-only cache folder: computed in every process
         pass
     return arrays
+
+
+def _mapped(path: Path) -> np.ndarray:
+    """The array of a ``.npy`` file, memory-mapped copy-on-write (read where touched)."""
+    try:
+        return np.asarray(np.load(path, mmap_mode="c"))
+    except ValueError:  # an empty array cannot be mapped
+        return np.load(path)

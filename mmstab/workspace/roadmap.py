@@ -346,7 +346,7 @@ def load_or_build_roadmap(
     ground heights and clearances were kept in it gets them added (the graph is the same).
     A build says where the file goes (one line on stderr) and, with ``progress`` on a
     terminal, shows a progress bar. The arrays are read from an uncompressed copy beside
-    the file (``roadmap-<key>/arrays.npz``, :mod:`mmstab.workspace.kept`) once written.
+    the file (``roadmap-<key>/arrays/``, memory-mapped, :mod:`mmstab.workspace.kept`).
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
