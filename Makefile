@@ -105,6 +105,7 @@ fig8: setup
 ## planner vs the exhaustive Eq. 6 reference: time per pose, fitness gap -> results/bench/plan.json
 ## (and other CMA-ES set-ups on the same poses -> results/bench/plan_alternatives.json)
 ## (and along the rough route, warm-started: its "route" entry, benchmarks/plan_route.py)
+## (and a one-off plan of 10 seeded random routes, every check on -> results/bench/plan_random.json)
 ## the reliable search (within 0.5 % of the exhaustive optimum) on the same lap
 .PHONY: plan-reliable
 plan-reliable: setup
@@ -118,6 +119,7 @@ plan-paper: setup
 bench-plan: setup
 	$(PY) benchmarks/plan.py problems/ramp_reliable.yaml --alternatives
 	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
+	$(PY) benchmarks/plan_random.py --pairs 10 --runs 5
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity

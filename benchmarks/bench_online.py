@@ -8,11 +8,19 @@ map, re-plan of the poses whose ground changed, one controller step). Beside it,
 same run, the offline warm-started planner on the same route poses on the problem's own
 terrain (its per-pose search time, the resting pose included), and the whole offline plan
 per pose. Medians over the repeats of each percentile.
+
+The slow maps: per repeat, the slowest 1 % of the updates (p99 is the least of them),
+each with what it did: the map's index (the first sets the horizon up), the poses it
+re-planned and left uncovered, and the garbage collector's time within it (``gc.callbacks``
+around ``Follower.update``); a cause per map (``first map``, ``re-plan``, ``garbage
+collection`` when the collector took half of it or more, else ``other``), the count of
+each among the slow maps, and the slowest map of the run with its cause.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import statistics
 import time
@@ -28,8 +36,63 @@ from mmstab.core.files import write_json  # noqa: E402
 from mmstab.core.problem import load_problem  # noqa: E402
 from mmstab.experiments.online import offline_plan  # noqa: E402
 from mmstab.experiments.recording import record_route  # noqa: E402
+from mmstab.runs.online.follow import Follower  # noqa: E402
 from mmstab.runs.online.run import follow_recording, summarize  # noqa: E402
 from mmstab.workspace import load_or_build_workspace  # noqa: E402
+
+#: Seconds the garbage collector ran, in total and during each update of the current run.
+GC_TOTAL, GC_PER_UPDATE = [0.0, 0.0], []  # [total, the running pass's start]
+
+
+def _gc_clock(phase: str, info: dict) -> None:
+    if phase == "start":
+        GC_TOTAL[1] = time.perf_counter()
+    else:
+        GC_TOTAL[0] += time.perf_counter() - GC_TOTAL[1]
+
+
+def _timed_update(update):
+    """``Follower.update`` that records the collector's time within each update."""
+
+    def wrapped(self, u):
+        before = GC_TOTAL[0]
+        step = update(self, u)
+        GC_PER_UPDATE.append(GC_TOTAL[0] - before)
+        return step
+
+    return wrapped
+
+
+def cause(index: int, step, gc_s: float) -> str:
+    """What made an update slow (module text)."""
+    if index == 0:
+        return "first map"
+    if step.replanned:
+        return "re-plan"
+    if gc_s >= 0.5 * step.latency:
+        return "garbage collection"
+    return "other"
+
+
+def slow_maps(run, gc_per_update: list[float]) -> list[dict]:
+    """The slowest 1 % of a run's updates (at least one), slowest first, with their causes."""
+    lat = np.array([x.latency for x in run.steps])
+    count = max(1, int(np.ceil(0.01 * len(lat))))
+    out = []
+    for i in np.argsort(-lat)[:count]:
+        st, g = run.steps[int(i)], gc_per_update[int(i)]
+        out.append(
+            {
+                "index": int(i),
+                "time_s": float(st.time),
+                "latency_ms": 1e3 * float(st.latency),
+                "replanned_poses": int(st.replanned),
+                "uncovered_poses": int(st.uncovered),
+                "gc_ms": 1e3 * g,
+                "cause": cause(int(i), st, g),
+            }
+        )
+    return out
 
 
 def main() -> None:
@@ -47,10 +110,14 @@ def main() -> None:
     if not rec.exists():
         record_route(problem, rec)
     ws = load_or_build_workspace(problem)
-    runs, offline_pose, offline_total = [], [], []
+    gc.callbacks.append(_gc_clock)
+    Follower.update = _timed_update(Follower.update)  # type: ignore[method-assign]
+    runs, offline_pose, offline_total, slow = [], [], [], []
     for _ in range(args.repeats):
+        GC_PER_UPDATE.clear()
         run = follow_recording(problem, rec, ws)
         runs.append(summarize(run))
+        slow.append(slow_maps(run, list(GC_PER_UPDATE)))
         t0 = time.perf_counter()
         off = offline_plan(problem, run, ws)
         offline_total.append((time.perf_counter() - t0) / len(off.s))
@@ -69,6 +136,14 @@ def main() -> None:
             "whole_plan_mean": 1e3 * statistics.median(offline_total),
         },
         "targets_ms": {"p50": 10.0, "p99": 30.0},
+        "slow_maps": {
+            "per_repeat": slow,
+            "causes": {
+                c: sum(m["cause"] == c for r in slow for m in r)
+                for c in ("first map", "re-plan", "garbage collection", "other")
+            },
+            "slowest": max((m for r in slow for m in r), key=lambda m: m["latency_ms"]),
+        },
         "repeats": args.repeats,
         "machine": machine_info(one_core=True),
     }
@@ -78,6 +153,13 @@ def main() -> None:
         f"{result['online_latency_ms']['p99']:.2f} ms per map ({result['updates']} maps); "
         f"offline: {result['offline_ms_per_pose']['search_median']:.2f} ms per pose (search), "
         f"{result['offline_ms_per_pose']['whole_plan_mean']:.2f} ms per pose (whole plan)"
+    )
+    w, c = result["slow_maps"]["slowest"], result["slow_maps"]["causes"]
+    print(
+        f"online: max {result['online_latency_ms']['max']:.1f} ms; the slowest map: "
+        f"{w['latency_ms']:.1f} ms, map {w['index']} ({w['cause']}: {w['replanned_poses']} "
+        f"poses re-planned, gc {w['gc_ms']:.1f} ms); the slowest 1 % of maps by cause: "
+        + ", ".join(f"{k} {v}" for k, v in c.items())
     )
 
 

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import copy
+import os
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +11,10 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 PROBLEMS = ROOT / "problems"
+#: The tests' cache folder (workspaces, roadmaps, compiled C): the repository's own
+#: results/workspace, built on first use in a fresh clone, never the user's cache folder;
+#: a caller's $MMSTAB_CACHE wins.
+os.environ.setdefault("MMSTAB_CACHE", str(ROOT / "results" / "workspace"))
 ROBOT_YAML = PROBLEMS / "robots" / "cameleon.yaml"
 RAMP_YAML = PROBLEMS / "ramp.yaml"
 

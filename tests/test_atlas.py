@@ -208,7 +208,7 @@ def full_run(tiny_problem, cluster, tmp_path_factory):
     out = tmp_path_factory.mktemp("full")
     before = quiet_counts(client)
     with pytest.MonkeyPatch.context() as mp:
-        mp.chdir(out)  # the workspace cache (results/workspace) goes there too
+        mp.chdir(out)  # whatever the command writes in its working folder goes there too
         argv = ["atlas", str(tiny_problem.path), "-o", str(out), "--scheduler", address]
         assert main(argv) == 0
     import xarray as xr

@@ -181,7 +181,7 @@ def test_a_planner_that_gives_up_exits_6_not_2(tmp_path, monkeypatch, capsys):
         p["planner"].update(method="sequence", poses=4)
 
     path = write_problem(tmp_path, edit)
-    monkeypatch.chdir(tmp_path)  # the workspace cache (results/workspace) goes there
+    monkeypatch.chdir(tmp_path)  # the command writes in its working folder
     monkeypatch.setattr(sequence, "MAX_ROUNDS", 0)  # gives up before its first round
     status = main(["plan", str(path), "-o", str(tmp_path / "out")])
     last = capsys.readouterr().err.splitlines()[-1]  # after the workspace's progress bar

@@ -215,6 +215,7 @@ def test_unwritable_codegen_directory_is_refused_before_work(tmp_path, capsys, m
 
 def test_unwritable_workspace_cache_is_refused_only_when_needed(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MMSTAB_CACHE", "results/workspace")  # under the file made next
     path = write_problem(tmp_path, _small())
     (tmp_path / "results").write_text("not a folder")
     assert main(["fig3", str(path), "-o", "f3"]) == 2

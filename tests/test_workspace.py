@@ -308,7 +308,7 @@ def test_bad_workspace_grid_names_the_field(tmp_path):
 # ------------------------------------------------------------------------------------ CLI
 def test_fig3_and_workspace_commands(tmp_path):
     problem = write_problem(tmp_path, _set_grid([8, 6, 6, 6]))
-    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env = {**os.environ, "MPLBACKEND": "Agg", "MMSTAB_CACHE": str(tmp_path / "cache")}
 
     def run(*args):
         return subprocess.run(
@@ -331,10 +331,11 @@ def test_fig3_and_workspace_commands(tmp_path):
     for name in ("fig3a_V.png", "fig3b_invalid_hull.png", "fig3c_all_hull.png"):
         assert (tmp_path / "fig3" / name).stat().st_size > 10_000
     assert f"{s['valid']} valid" in out
-    # fig3 cached the workspace under results/workspace; the command reuses it
+    # fig3 cached the workspace in the cache folder ($MMSTAB_CACHE); the command reuses it
     out = run("workspace", str(problem))
     assert f"{s['postures']} postures, {s['valid']} valid, {s['invalid']} invalid" in out
-    assert "loaded" in out and len(list((tmp_path / "results/workspace").glob("*.npz"))) == 1
+    assert "loaded" in out and len(list((tmp_path / "cache").glob("*.npz"))) == 1
+    assert not (tmp_path / "results").exists()  # nothing in the working folder
     assert "built" in run("workspace", str(problem), "--force")
 
 

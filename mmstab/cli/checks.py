@@ -38,12 +38,12 @@ def output_dirs(args: argparse.Namespace, problem: Any) -> list[tuple[Path, str]
     if args.command in DEFAULT_OUT:
         outs.append((Path(args.out or DEFAULT_OUT[args.command]), "output folder"))
     if args.command in USES_WORKSPACE or (args.command == "codegen" and args.example):
-        from mmstab.workspace import DEFAULT_CACHE_DIR, workspace_cache_path
+        from mmstab.workspace import default_cache_dir, workspace_cache_path
 
         cache_dir = args.out if args.command == "workspace" else None
         cached = workspace_cache_path(problem, cache_dir)
         if getattr(args, "force", False) or not cached.is_file():
-            folder = Path(cache_dir) if cache_dir is not None else DEFAULT_CACHE_DIR
+            folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
             outs.append((folder, "workspace cache folder"))
     generated = args.command == "codegen" or getattr(args, "backend", None) == "generated"
     if generated and not (args.command == "codegen" and args.out is not None):

@@ -207,7 +207,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
 
     print(
         f"plan: route {s['route']['length_m']:.2f} m, {len(s['s'])} poses, "
-        f"{s['ms_per_pose']:.1f} ms per warm pose (median; first {s['ms_first_pose']:.1f} ms); "
+        f"{_pose_times(s)}; "
         f"at the planned poses mu planned min {min(s['mu_planned']):.1f}, stowed min "
         f"{min(s['mu_stowed']):.1f}, arm removed min {min(s['mu_removed']):.1f} N rad; "
         f"stowed below the margin {r['margin']:g} where the planned arm is not: "
@@ -218,6 +218,17 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     high_centred_warning(s["high_centred"])
     status = plan_status(s, args) or slides_status(s, args)
     return verify_status(s.get("verify"), status)
+
+
+def _pose_times(s: dict[str, Any]) -> str:
+    """The plan's time per pose, warm-started or the whole search's share, and fixed costs."""
+    fixed = f", fixed costs {s['fixed_seconds']:.2f} s (caches, once per process)"
+    if s["warm_started"]:
+        return (
+            f"{s['ms_per_pose']:.1f} ms per warm-started pose (median; the first, cold, "
+            f"{s['ms_first_pose']:.1f} ms){fixed}"
+        )
+    return f"{s['ms_per_pose']:.1f} ms per pose (the whole-route search / poses){fixed}"
 
 
 def _climb_line(climb: dict[str, Any], s: list[float]) -> None:

@@ -1,8 +1,9 @@
 """mmstab's own C, compiled on first use into a cached shared library.
 
-Three stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
-the resting pose of the base on a heightmap (``terrain/rest.c``) and the ground's peaks under
-the arm on a live map (``runs/online/lattice_peak.c``). Each is compiled once
+Four stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
+the resting pose of the base on a heightmap (``terrain/rest.c``), the ground under the arm
+at a route's poses (``planner/under_arm.c``) and the ground's peaks under the arm on a live
+map (``runs/online/lattice_peak.c``). Each is compiled once
 per source text and compile command with the system compiler and kept in the cache folder;
 the file name carries a hash of both, so an edited source is never confused with an old
 build, and the library is written atomically (compiled next to it, renamed).
@@ -34,10 +35,19 @@ LONG, DOUBLE = ctypes.c_long, ctypes.c_double
 LIB_CFLAGS = ("-O3", "-std=c99", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
 
 
+#: The environment variable that moves mmstab's cache folder (:func:`cache_dir`).
+CACHE_ENV = "MMSTAB_CACHE"
+
+
 def cache_dir() -> Path:
-    """Where compiled libraries are kept: ``$MMSTAB_CACHE``, else the user cache folder."""
-    if os.environ.get("MMSTAB_CACHE"):
-        return Path(os.environ["MMSTAB_CACHE"]).expanduser()
+    """Mmstab's cache folder, shared by every working folder (read at every call).
+
+    ``$MMSTAB_CACHE``, else ``$XDG_CACHE_HOME/mmstab``, else ``~/.cache/mmstab``: compiled
+    libraries, the workspaces V and the posture roadmaps (each file named by a key of what
+    it was built from, so robots and settings never mix).
+    """
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV]).expanduser()
     xdg = os.environ.get("XDG_CACHE_HOME")
     return (Path(xdg) if xdg else Path.home() / ".cache") / "mmstab"
 

@@ -349,6 +349,16 @@ def write_npz(path: str | os.PathLike[str], **arrays: Any) -> Path:
     return _atomic(Path(path), _w)
 
 
+def write_npy(path: str | os.PathLike[str], array: Any) -> Path:
+    """Write one array to an uncompressed ``.npy`` (memory-mappable), atomically."""
+
+    def _w(t: Path) -> None:
+        with open(t, "wb") as fh:
+            np.save(fh, np.asarray(array))
+
+    return _atomic(Path(path), _w)
+
+
 def write_figure(path: str | os.PathLike[str], fig: Any, dpi: int = 110) -> Path:
     """Save a matplotlib figure as PNG, atomically, and close it."""
     import matplotlib.pyplot as plt

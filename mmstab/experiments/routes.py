@@ -139,6 +139,8 @@ def route_summary(
         "ms_per_pose_max": float(1e3 * np.max(warm)),
         "ms_first_pose": float(1e3 * plan.search_seconds[0]),
         "cpu_ms_per_pose": float(1e3 * np.median(warm_cpu)),
+        "warm_started": bool(plan.warm.any()),
+        "fixed_seconds": float(plan.fixed_seconds),
         "settings": plan.settings._asdict(),
         "poses": poses,
         "stability": with_stretches(plan_verdict(poses, margin), dense, "tip", "stable"),

@@ -23,6 +23,7 @@ from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import lowest_along_moves
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import CLEARANCE_STEP, Roadmap
 
 
@@ -41,7 +42,8 @@ class Graph(NamedTuple):
 def ground_graph(roadmap: Roadmap, ground: float | None) -> Graph:
     """The graph of the nodes ``ground`` [m] above the plane (None: the whole roadmap).
 
-    Built once per roadmap and threshold (0.2–0.3 s on the default grid) and kept.
+    Built once per roadmap and threshold (0.2–0.3 s on the default grid) and kept, in
+    memory and beside the roadmap's cache file (:mod:`mmstab.workspace.kept`).
     """
     if ground is None:
         return Graph(roadmap.graph, roadmap.component)
@@ -50,13 +52,23 @@ def ground_graph(roadmap: Roadmap, ground: float | None) -> Graph:
         kept = {}
         object.__setattr__(roadmap, "_ground_graphs", kept)
     if ground not in kept:
-        keep = np.asarray(roadmap.node_ground >= ground)
-        both = keep[roadmap.edges[:, 0]] & keep[roadmap.edges[:, 1]]
-        e, w, n = roadmap.edges[both], roadmap.lengths[both], len(roadmap.nodes_q)
-        rows, cols = np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]]
-        graph = csr_matrix((np.r_[w, w], (rows, cols)), shape=(n, n))
-        component = connected_components(graph, directed=False)[1]  # a dropped node: its own
-        kept[ground] = Graph(graph, np.asarray(component, dtype=np.int64))
+        n = len(roadmap.nodes_q)
+
+        def compute() -> dict[str, np.ndarray]:
+            keep = np.asarray(roadmap.node_ground >= ground)
+            both = keep[roadmap.edges[:, 0]] & keep[roadmap.edges[:, 1]]
+            e, w = roadmap.edges[both], roadmap.lengths[both]
+            rows, cols = np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]]
+            g = csr_matrix((np.r_[w, w], (rows, cols)), shape=(n, n))
+            component = connected_components(g, directed=False)[1]  # a dropped node: its own
+            return {
+                "data": g.data, "indices": g.indices, "indptr": g.indptr,
+                "component": np.asarray(component, dtype=np.int64),
+            }  # fmt: skip
+
+        a = kept_arrays(roadmap, f"ground-{float(ground)!r}", compute)
+        graph = csr_matrix((a["data"], a["indices"], a["indptr"]), shape=(n, n))
+        kept[ground] = Graph(graph, a["component"])
     return kept[ground]
 
 

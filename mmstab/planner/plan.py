@@ -8,8 +8,11 @@ The region searched is ``workspace.method``'s (:func:`mmstab.planner.regions.pla
 
 from __future__ import annotations
 
+import time
+
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
+from mmstab.model.robot import Robot
 from mmstab.paths.route import DEFAULT_SPACING, route_samples
 from mmstab.planner.along_path import Plan, solve_path
 from mmstab.planner.regions import PlanningRegion, planning_region
@@ -77,13 +80,16 @@ def plan_route(
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route (waypoints or file)")
+    t0 = time.perf_counter()
     ws, region = problem_region(problem, workspace, progress)
     section = problem.section("planner")
     settings = PlannerSettings.from_section(section)
     s = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
     poses = route.route.sample(s).pose
     solver = PostureSolver(problem.robot, ws)
-    return solve_route(
+    prepare_search(problem.robot, ws, settings)
+    fixed = time.perf_counter() - t0
+    plan = solve_route(
         problem.robot,
         problem.terrain,
         region,
@@ -93,6 +99,27 @@ def plan_route(
         solver.realise,
         route.fraction_of_s(s),
     )
+    return plan._replace(fixed_seconds=fixed)
+
+
+def prepare_search(robot: Robot, ws: Workspace, settings: PlannerSettings) -> None:
+    """Load (or build) what the search keeps between the plans of a process, once.
+
+    ``method: roadmap``: the roadmap (its cache file), the start node's component on the
+    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree; a
+    route's poses then cost only their own search, and a one-off plan reports these fixed
+    costs apart (``RoutePlan.fixed_seconds``). Other methods: nothing.
+    """
+    if settings.method != "roadmap" or robot.tool_wrench is not None:
+        return
+    from mmstab.planner.roadmap import component_view
+    from mmstab.planner.roadmap_moves import start_tree
+    from mmstab.workspace.roadmap import load_or_build_roadmap
+
+    roadmap = load_or_build_roadmap(robot, ws)
+    start = roadmap.connect(robot.stowed, robot)
+    component_view(robot, roadmap, start, settings.ground_clearance)
+    start_tree(roadmap, start, settings.ground_clearance)
 
 
 def plan_problem(

@@ -16,6 +16,7 @@ the answer, for the controller.
 from __future__ import annotations
 
 import time
+from dataclasses import fields
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -39,6 +40,7 @@ from mmstab.planner.roadmap_moves import (  # noqa: F401 (the moves' names, as b
 from mmstab.planner.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.under_arm import GroundUnderArm
+from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
@@ -209,7 +211,8 @@ def component_view(
     """The :class:`ComponentView` of node ``start``'s component (kept with the roadmap).
 
     With ``ground`` [m]: the component among the nodes whose arm stays that far above the
-    support plane (:func:`mmstab.planner.grounded.ground_graph`).
+    support plane (:func:`mmstab.planner.grounded.ground_graph`). Kept in memory and beside
+    the roadmap's cache file (:mod:`mmstab.workspace.kept`).
     """
     views = getattr(roadmap, "_views", None)
     if views is None:
@@ -218,16 +221,29 @@ def component_view(
     component = ground_graph(roadmap, ground).component
     comp = (int(component[start]), ground)
     if comp not in views:
-        reach = np.flatnonzero(component == comp[0])
-        samples = node_coms(robot, roadmap)[reach]
-        bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+
+        def compute() -> dict[str, np.ndarray]:
+            reach = np.flatnonzero(component == comp[0])
+            samples = node_coms(robot, roadmap)[reach]
+            bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+            clusters = node_clusters(samples, bins, TURRET_BINS)
+            return {
+                "reach": reach, "bins": bins,
+                "diameter": np.float64(np.ptp(samples, axis=0).max() if len(samples) > 1 else 1),
+                "joint_span": np.float64(max(np.ptp(roadmap.nodes_q[reach], axis=0).sum(), 1e-9)),
+                **{f"clusters.{f.name}": getattr(clusters, f.name) for f in fields(clusters)},
+            }  # fmt: skip
+
+        ground_tag = None if ground is None else float(ground)
+        a = kept_arrays(roadmap, f"view-{comp[0]}-{ground_tag!r}", compute)
+        cl = {c.name: a[f"clusters.{c.name}"] for c in fields(NodeClusters)}
         views[comp] = ComponentView(
-            reach=reach,
-            samples=samples,
-            diameter=float(np.ptp(samples, axis=0).max()) if len(samples) > 1 else 1.0,
-            bins=bins,
-            clusters=node_clusters(samples, bins, TURRET_BINS),
-            joint_span=max(float(np.ptp(roadmap.nodes_q[reach], axis=0).sum()), 1e-9),
+            reach=a["reach"],
+            samples=node_coms(robot, roadmap)[a["reach"]],
+            diameter=float(a["diameter"]),
+            bins=a["bins"],
+            clusters=NodeClusters(**cl),
+            joint_span=float(a["joint_span"]),
         )
     return views[comp]
 

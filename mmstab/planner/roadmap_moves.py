@@ -29,6 +29,7 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.grounded import ground_graph, shortcut_above_steps
 from mmstab.planner.under_arm import GroundUnderArm
+from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap
 
 #: Node expansions of an A* query before the whole component is searched instead.
@@ -43,15 +44,21 @@ def start_tree(
     """Shortest-path tree from node ``start`` (its predecessors), kept with the roadmap.
 
     Every plan's first move leaves the arm's start node (the stowed arm's): one search
-    over the whole component, once (on the nodes ``ground`` [m] above the plane, if set).
+    over the whole component, once (on the nodes ``ground`` [m] above the plane, if set),
+    kept in memory and beside the roadmap's cache file (:mod:`mmstab.workspace.kept`).
     """
     trees = getattr(roadmap, "_trees", None)
     if trees is None:
         trees = {}
         object.__setattr__(roadmap, "_trees", trees)
     if (start, ground) not in trees:
-        graph = ground_graph(roadmap, ground).graph
-        trees[start, ground] = dijkstra(graph, indices=start, return_predecessors=True)[1]
+
+        def compute() -> dict[str, np.ndarray]:
+            graph = ground_graph(roadmap, ground).graph
+            return {"pred": dijkstra(graph, indices=start, return_predecessors=True)[1]}
+
+        name = f"tree-{start}-{None if ground is None else float(ground)!r}"
+        trees[start, ground] = kept_arrays(roadmap, name, compute)["pred"]
     return start, trees[start, ground]
 
 
@@ -77,12 +84,13 @@ def astar(
     g, nodes_q = ground_graph(roadmap, ground).graph, roadmap.nodes_q
     ptr, nbr, w = g.indptr, g.indices, g.data
     goal = nodes_q[b].tolist()
-    q: dict[int, list[float]] = {}
+    dist: dict[int, float] = {}  # each node's heuristic, computed once
 
     def h(n: int) -> float:
-        if n not in q:
-            q[n] = nodes_q[n].tolist()
-        return sum(abs(x - y) for x, y in zip(q[n], goal, strict=True))
+        v = dist.get(n)
+        if v is None:
+            v = dist[n] = sum(abs(x - y) for x, y in zip(nodes_q[n].tolist(), goal, strict=True))
+        return v
 
     best, parent = {a: 0.0}, {a: a}
     heap = [(h(a), 0.0, a)]

@@ -11,7 +11,7 @@ With the support plane in M, ``z = P(x, y)``, and ``c`` the cosine of the body's
 so its height above the ground is ``z_B(p) / c − r(x, y)`` with ``r = s − P`` the ground's
 rise above the support plane (0 on a plane: the slope is not counted twice). The arm's
 collision shapes are cut into pieces (:func:`arm_pieces`: a capsule into segments of at most
-:data:`PIECE` [m], a box into boxes of edges at most that); a piece is at least
+``arm_pieces.PIECE`` [m], a box into boxes of edges at most that); a piece is at least
 ``z_low / c − max(r, 0)`` above the ground, ``z_low`` its lowest point in B, the max over a
 square about its centre's map x, y that holds the ball around the piece and :data:`SWEEP`
 more (a move's samples). ``r`` is sampled on a lattice of :data:`LATTICE` [m] aligned to M's
@@ -30,21 +30,19 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
 from mmstab.model.ground import tilted_height
-from mmstab.model.parts import Box
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.arm_pieces import ArmPieces, arm_pieces, arm_reach
 from mmstab.terrain import Terrain
 
 #: Lattice step of the ground's samples in M [m] (the shipped maps' cells are multiples).
 LATTICE = 0.01
-#: Longest piece of a capsule [m]: a piece's square reaches its radius + half this past it.
-PIECE = 0.05
 #: Largest move of an arm point between the sampled postures of a move [m]: the squares
 #: are widened by it, so the ground under the arm between two samples counts.
 SWEEP = 0.01
@@ -54,63 +52,8 @@ SLACK = 1e-9
 BLOCK = 2
 #: Lattice samples along a tile's edge (the ground is sampled by tiles, kept for a route).
 TILE = 64
-
-
-class ArmPieces(NamedTuple):
-    """The arm's collision shapes cut into pieces, in their links' frames.
-
-    Attributes:
-        link: the link of each piece (P,).
-        points: each piece's corners (box) or segment ends (capsule, repeated) (P, 8, 3) [m].
-        radius: the capsule's radius, 0 for a box (P,) [m].
-        ball: radius of a ball about the points' mean holding the piece (P,) [m].
-    """
-
-    link: NDArray[np.intp]
-    points: FloatArray
-    radius: FloatArray
-    ball: FloatArray
-
-
-def arm_pieces(robot: Robot, piece: float = PIECE) -> ArmPieces:
-    """The arm's links' collision shapes as pieces (a capsule cut into ``piece`` [m] segments)."""
-    link, points, radius = [], [], []
-    for i, lk in enumerate(robot.links):
-        g = lk.geometry
-        if isinstance(g, Box):  # cut into boxes of edges at most ``piece``
-            cuts = np.maximum(np.ceil(g.size / piece), 1).astype(int)
-            sub = g.size / cuts
-            corner = np.array([[sx, sy, sz] for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)])
-            R = g.frame_T_shape[:3, :3]
-            for ijk in np.ndindex(*cuts):
-                local = (np.array(ijk) + corner) * sub - g.size / 2
-                link.append(i)
-                points.append(local @ R.T + g.center)
-                radius.append(0.0)
-            continue
-        n = max(int(np.ceil(np.linalg.norm(g.p1 - g.p0) / piece)), 1)
-        ends = g.p0 + np.linspace(0.0, 1.0, n + 1)[:, None] * (g.p1 - g.p0)
-        for a, b in zip(ends[:-1], ends[1:], strict=True):
-            link.append(i)
-            points.append(np.repeat(np.stack([a, b]), 4, axis=0))
-            radius.append(float(g.radius))
-    pts, rad = np.array(points), np.array(radius)
-    centre = pts.mean(axis=1, keepdims=True)
-    ball = np.linalg.norm(pts - centre, axis=2).max(axis=1) + rad
-    return ArmPieces(np.array(link), pts, rad, ball)
-
-
-def arm_reach(robot: Robot, pieces: ArmPieces) -> tuple[FloatArray, float]:
-    """A ball in B holding the arm at every posture: the turret's origin [m], a radius [m].
-
-    Every point of link i is within Σ_{j<i} |o_{j+1} − o_j| + |p − o_i| of the turret's
-    origin o_0 (the links' origins at fixed offsets along the chain).
-    """
-    frames = robot.kinematics.link_frames(np.atleast_2d(robot.stowed))[0]
-    o = frames[:, :3, 3]
-    chain = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(o, axis=0), axis=1))]
-    far = np.linalg.norm(pieces.points, axis=2).max(axis=1) + pieces.radius
-    return o[0], float((chain[pieces.link] + far).max())
+#: Who computes the pieces and heights: the C kernel (default) or its NumPy twin.
+Backend = Literal["c", "numpy"]
 
 
 class PiecesB(NamedTuple):
@@ -121,14 +64,23 @@ class PiecesB(NamedTuple):
 
 
 def pieces_in_body(
-    robot: Robot, pieces: ArmPieces, postures: ArrayLike, margin: float = 0.0
+    robot: Robot,
+    pieces: ArmPieces,
+    postures: ArrayLike,
+    margin: float = 0.0,
+    backend: Backend = "numpy",
 ) -> PiecesB:
     """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad].
 
     ``margin`` [rad]: the lowest over the body's tilts up to it (:func:`tilted_height`).
+    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.under_arm_c`, its twin).
     """
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
+    if backend == "c":
+        from mmstab.planner.under_arm_c import pieces_kernel
+
+        return PiecesB(*pieces_kernel(frames, pieces.link, pieces.points, pieces.radius, margin))
     low = np.empty((len(q), len(pieces.link)))
     centre = np.empty((len(q), len(pieces.link), 3))
     mid = pieces.points.mean(axis=1)  # (P, 3)
@@ -193,6 +145,7 @@ class PoseGround:
     box: tuple[int, int, int, int] = (0, -1, 0, -1)  # tile index range (ti0, ti1, tj0, tj1)
     peak: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
     top: float = 0.0  # the peak's max [m]
+    backend: Backend = "numpy"  # who computes the heights (the peak map is NumPy's)
 
     @functools.cached_property
     def cos_tilt(self) -> float:
@@ -247,6 +200,16 @@ class PoseGround:
         support plane are left to the plane check (+inf; a move's samples, module text).
         """
         self._cover()
+        if self.backend == "c" and len(body.low):
+            from mmstab.planner.under_arm_c import heights_kernel
+
+            h_c = heights_kernel(
+                body.low, body.centre, self.M_T_B, self.top, above, plane, self.peak,
+                (self.box[0] * TILE, self.box[2] * TILE), BLOCK, self.cells + 2 * BLOCK,
+                LATTICE, SLACK,
+            )  # fmt: skip
+            if h_c is not None:
+                return h_c  # else a square leaves the map: widened below, as NumPy does
         lowest = body.low / self.cos_tilt
         h = lowest - max(self.top, 0.0)
         look = np.flatnonzero(h.ravel() < above)
@@ -275,6 +238,8 @@ class GroundUnderArm:
         M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
         margin: the body's tilt in motion the arm must clear the ground through [rad]
             (``planner.attitude_margin``, :func:`mmstab.model.ground.tilted_height`); 0: none.
+        backend: ``c``: the pieces and heights by the C kernel
+            (:mod:`mmstab.planner.under_arm_c`); ``numpy``: its twin, here.
     """
 
     def __init__(
@@ -284,8 +249,9 @@ class GroundUnderArm:
         poses: ArrayLike,
         M_T_B: FloatArray | None = None,
         margin: float = 0.0,
+        backend: Backend = "c",
     ) -> None:
-        self.robot, self.margin = robot, float(margin)
+        self.robot, self.margin, self.backend = robot, float(margin), backend
         self.pieces = arm_pieces(robot)
         p = np.atleast_2d(np.asarray(poses, dtype=float))
         T = terrain.M_T_B(p) if M_T_B is None else np.asarray(M_T_B, dtype=float)
@@ -298,14 +264,14 @@ class GroundUnderArm:
         # (1 − cos θ + sin θ), D ≤ the turret's distance + the arm's reach
         far = float(np.linalg.norm(reach[0])) + reach[1]
         self.drop = far * (1.0 - np.cos(self.margin) + np.sin(self.margin))
-        self.poses = [PoseGround(tiles, T[k], cells, reach) for k in range(len(T))]
+        self.poses = [PoseGround(tiles, T[k], cells, reach, backend=backend) for k in range(len(T))]
 
     def __len__(self) -> int:
         return len(self.poses)
 
     def body(self, postures: ArrayLike) -> PiecesB:
         """The arm's pieces in B for postures (n, 4) [rad] (pose-independent)."""
-        return pieces_in_body(self.robot, self.pieces, postures, self.margin)
+        return pieces_in_body(self.robot, self.pieces, postures, self.margin, self.backend)
 
     def heights(self, k: int, postures: ArrayLike, body: PiecesB | None = None) -> FloatArray:
         """Least height [m] above the ground under the arm at pose ``k``, per posture (n,)."""
@@ -378,12 +344,11 @@ class KeptPieces:
         if new.size:
             body = self.under.body(self.postures[new])
             end = self.size + len(new)
-            if end > len(self.low):
-                more = max(end, 2 * len(self.low)) - len(self.low)
-                grown = [
-                    np.concatenate([a, np.empty((more, *a.shape[1:]))])
-                    for a in (self.low, self.centre)
-                ]
+            if end > len(self.low):  # the kept rows copied, the new room left untouched
+                size = max(end, 2 * len(self.low))
+                grown = [np.empty((size, *a.shape[1:])) for a in (self.low, self.centre)]
+                for g, a in zip(grown, (self.low, self.centre), strict=True):
+                    g[: self.size] = a[: self.size]
                 self.low, self.centre = grown
             self.slot[new] = self.size + np.arange(len(new))  # (a copy per doubling only)
             self.low[self.size : end], self.centre[self.size : end] = body.low, body.centre

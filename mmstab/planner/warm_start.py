@@ -89,6 +89,9 @@ class RoutePlan(NamedTuple):
         mu_search: μ of the target CoM on the basis the search ranks on (K,) [N rad]: the
             support polygon of the stowed arm's rest (one affine form per pose; the
             search's quality is measured on it). Empty when not known.
+        fixed_seconds: wall time before the poses' search [s]: the caches loaded (or
+            built) and what the search keeps between plans of a process
+            (:func:`mmstab.planner.plan.plan_route`); 0 when not measured.
     """
 
     s: FloatArray
@@ -109,6 +112,7 @@ class RoutePlan(NamedTuple):
     settings: PlannerSettings
     moves: tuple[FloatArray, ...] = ()
     mu_search: FloatArray = np.zeros(0)
+    fixed_seconds: float = 0.0
 
 
 def planned_com(robot: Robot, postures: ArrayLike, target_com: ArrayLike) -> FloatArray:

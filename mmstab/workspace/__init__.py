@@ -7,7 +7,8 @@ then ``V = hull(all CoMs) minus hull(invalid CoMs)``, tested with the hulls' hal
 Membership follows ``docs/design.md`` ("Workspace"): ``A_all p <= b_all and not
 (A_bad p <= b_bad)``, both with a slack of ``HULL_TOL``, so the boundary of hull(invalid)
 is not in V. Building is ``build_workspace`` (no files, :mod:`.build`);
-``load_or_build_workspace`` adds the cache under ``results/workspace/<key>.npz``
+``load_or_build_workspace`` adds the cache as ``<key>.npz`` in mmstab's cache folder
+(``$MMSTAB_CACHE``, else ``~/.cache/mmstab``)
 (:mod:`.cache`), keyed by the robot description, the grid and ``WORKSPACE_VERSION``.
 Modules: :mod:`.grid`, :mod:`.hulls`, :mod:`.region`, :mod:`.build`, :mod:`.cache`.
 """
@@ -21,8 +22,8 @@ from mmstab.workspace.build import (
     label_chunk,
 )
 from mmstab.workspace.cache import (
-    DEFAULT_CACHE_DIR,
     WORKSPACE_VERSION,
+    default_cache_dir,
     load_or_build_workspace,
     load_workspace,
     save_workspace,
@@ -43,7 +44,6 @@ from mmstab.workspace.hulls import (
 from mmstab.workspace.region import Workspace, workspace_from_clouds
 
 __all__ = [
-    "DEFAULT_CACHE_DIR",
     "DEFAULT_CHUNK",
     "FLAT_TOL",
     "FULL_TURN_TOL",
@@ -67,6 +67,7 @@ __all__ = [
     "load_or_build_workspace",
     "load_workspace",
     "save_workspace",
+    "default_cache_dir",
     "workspace_cache_path",
     "workspace_from_clouds",
     "workspace_key",

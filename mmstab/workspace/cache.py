@@ -1,4 +1,9 @@
-"""The workspace cache under ``results/workspace/<key>.npz`` (or ``$MMSTAB_CACHE``)."""
+"""The workspace cache: ``<key>.npz`` in mmstab's cache folder (:func:`default_cache_dir`).
+
+The folder is shared by every working folder: ``$MMSTAB_CACHE``, else the user's cache
+folder (``$XDG_CACHE_HOME/mmstab``, else ``~/.cache/mmstab``); the key holds the robot
+description, the grid and the version, so robots and settings never mix.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mmstab.core.files import write_npz
+from mmstab.core import clib
+from mmstab.core.clib import CACHE_ENV  # noqa: F401 (the variable that moves the cache)
+from mmstab.core.files import write_npy, write_npz
 from mmstab.core.problem import Problem
 from mmstab.core.sizes import announce, workspace_estimate, workspace_postures
 from mmstab.model.robot import Robot
@@ -21,11 +28,14 @@ from mmstab.workspace.region import Workspace
 
 #: Bump when labelling or the cache format changes: old cache files are then ignored.
 WORKSPACE_VERSION = 1
-#: The environment variable that moves the cache (the same cache from any working folder).
-CACHE_ENV = "MMSTAB_CACHE"
-#: Where ``load_or_build_workspace`` keeps built workspaces and roadmaps: ``$MMSTAB_CACHE``,
-#: else ``results/workspace`` relative to the working folder.
-DEFAULT_CACHE_DIR = Path(os.environ.get(CACHE_ENV) or Path("results") / "workspace")
+
+
+def default_cache_dir() -> Path:
+    """Where ``load_or_build_workspace`` keeps workspaces and roadmaps (module text).
+
+    Read at every call, so ``$MMSTAB_CACHE`` set after import counts.
+    """
+    return clib.cache_dir()
 
 
 # ---------------------------------------------------------------------------------- cache
@@ -83,7 +93,7 @@ def load_or_build_workspace(
         problem: the problem (robot and ``workspace.grid``).
         force: rebuild (and overwrite the cache) even when a cached copy matches.
         progress: show a progress bar while building.
-        cache_dir: cache folder (default ``results/workspace``).
+        cache_dir: cache folder (default :func:`default_cache_dir`).
         executor: passed to :func:`build_workspace`.
     """
     section = problem.section("workspace")
@@ -91,7 +101,7 @@ def load_or_build_workspace(
     path = workspace_cache_path(problem, cache_dir)
     if not force and path.is_file():
         try:
-            return load_workspace(path)
+            return with_in_V(load_workspace(path), path)
         except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
             why = _short(exc)
             print(
@@ -104,12 +114,40 @@ def load_or_build_workspace(
         problem.robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
     )
     save_workspace(path, ws)
+    return with_in_V(ws, path)
+
+
+def in_V_path(path: Path) -> Path:
+    """The file beside a workspace's cache file that keeps ``Workspace.valid_in_V``."""
+    return path.with_name(f"{path.stem}-in-V.npy")
+
+
+def with_in_V(ws: Workspace, path: Path) -> Workspace:
+    """``ws`` with ``valid_in_V`` read from beside its cache file ``path``, else computed.
+
+    V's membership of every valid CoM (both hulls' tests, about a second on the default
+    grid) is the same at every load: kept in ``<key>-in-V.npy`` (written when missing, or
+    older than the workspace's file, or of another length) and read from there.
+    """
+    side = in_V_path(path)
+    try:
+        if side.stat().st_mtime_ns >= path.stat().st_mtime_ns:
+            flags = np.load(side)
+            if flags.dtype == np.bool_ and flags.shape == (len(ws.valid_com),):
+                ws.__dict__["valid_in_V"] = flags  # the cached property, filled
+                return ws
+    except (OSError, ValueError):
+        pass
+    try:
+        write_npy(side, ws.valid_in_V)
+    except OSError:  # a read-only cache: computed every time
+        pass
     return ws
 
 
 def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:
     """Where ``load_or_build_workspace`` keeps the problem's workspace."""
-    base = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR)
+    base = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     section = problem.section("workspace")
     key = workspace_key(
         problem.robot, section["grid"], section.get("samples"), int(section["seed"])

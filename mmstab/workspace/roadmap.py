@@ -19,39 +19,43 @@ import dataclasses
 import functools
 import hashlib
 import os
+import sys
 import time
 from collections.abc import Generator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
+from tqdm import tqdm
 
 from mmstab.core.files import MmstabError, write_npz
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.workspace.cache import DEFAULT_CACHE_DIR
-from mmstab.workspace.grid import JointGrid, joint_grid
+from mmstab.workspace.cache import default_cache_dir
+from mmstab.workspace.grid import joint_grid
+from mmstab.workspace.kept import SOURCE_ATTR, kept_arrays, kept_beside
 from mmstab.workspace.region import Workspace
+from mmstab.workspace.roadmap_checks import (  # noqa: F401 (MOVE_CLEARANCE: its name here too)
+    CHECK_CHUNK,
+    COARSE_STRIDE,
+    MOVE_CLEARANCE,
+    coarse_first,
+    free_moves,
+    grid_index,
+    node_arrays,
+)
 
 #: Largest motion of any point of the arm between two checked postures of an edge [m].
 DEFAULT_RESOLUTION = 0.02
-#: Smallest clearance [m] between an arm link and the robot that a shortcut's straight
-#: move keeps (:meth:`Roadmap.shortcut`): the tracked arm follows the moves within a few
-#: millimetres, and a tracking run must keep 1 mm (``mmstab.runs.verdict.MIN_CLEARANCE``).
-MOVE_CLEARANCE = 0.003
 #: Largest motion of any arm point between two postures whose clearance is measured [m].
 CLEARANCE_STEP = 0.004
-#: A move's checked postures go to the checker every this many first (:func:`_coarse_first`).
-COARSE_STRIDE = 8
-#: Postures per batch handed to the collision checker.
-CHECK_CHUNK = 16384
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,6 +126,17 @@ class Roadmap:
             MmstabError: none is (q collides, or is boxed in at this grid's spacing).
         """
         qa = np.asarray(q, dtype=float).reshape(len(self.grid))
+        if np.array_equal(qa, robot.stowed):  # every plan's start: kept beside the file
+            tag = hashlib.sha256(qa.tobytes()).hexdigest()[:12]
+
+            def node() -> dict[str, NDArray[np.int64]]:
+                return {"node": np.array(self._connect(qa, robot, candidates), dtype=np.int64)}
+
+            return int(kept_arrays(self, f"connect-{tag}-{candidates}", node)["node"])
+        return self._connect(qa, robot, candidates)
+
+    def _connect(self, qa: FloatArray, robot: Robot, candidates: int) -> int:
+        """:meth:`connect` itself."""
         _, idx = self._tree.query(
             np.r_[np.cos(qa[0]), np.sin(qa[0]), qa[1:]], k=min(candidates, len(self.nodes_q))
         )
@@ -140,7 +155,7 @@ class Roadmap:
         """
         d = np.asarray(qb, dtype=float) - qa
         n = int(np.ceil(float(self.reach @ np.abs(d)) / self.resolution)) + 1
-        for u in _coarse_first(n):
+        for u in coarse_first(n):
             if np.asarray(checker.collides(qa + u[:, None] * d), dtype=bool).any():
                 return False
         return True
@@ -229,49 +244,16 @@ class Roadmap:
         return float(np.linalg.norm(np.diff(qa, axis=0), axis=1).sum())
 
 
-def _coarse_first(n: int, stride: int = COARSE_STRIDE) -> tuple[FloatArray, FloatArray]:
-    """The fractions i / n, i = 0..n, in two batches: every ``stride``-th, then the rest.
-
-    A move that fails usually fails over a stretch, which the first batch finds at a
-    ``stride``-th of the cost; a move that passes is checked at every fraction all the same.
-    """
-    i = np.arange(n + 1)
-    first = (i % stride == 0) | (i == n)
-    return i[first] / n, i[~first] / n
-
-
-def _grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
-    """Grid indices (N, 4) of grid postures q [rad]."""
-    lo = np.array([a[0] for a in jg.axes])
-    idx = np.rint((q - lo) / jg.step).astype(np.int64)
-    return np.minimum(idx, np.array(jg.shape) - 1)
-
-
-def _free_moves(
-    checker: CollisionChecker, q: FloatArray, j: int, step: float, steps: int
-) -> NDArray[np.bool_]:
-    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures."""
-    ok = np.ones(len(q), dtype=bool)
-    for s in range(1, steps + 1):
-        rows = np.flatnonzero(ok)
-        if not len(rows):
-            break
-        shifted = q[rows].copy()
-        shifted[:, j] += step * s / (steps + 1)
-        for c in range(0, len(rows), CHECK_CHUNK):
-            part = rows[c : c + CHECK_CHUNK]
-            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK]), dtype=bool)
-            ok[part[hit]] = False
-    return ok
-
-
-def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION) -> Roadmap:
+def build_roadmap(
+    robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOLUTION, progress: bool = False
+) -> Roadmap:
     """The lattice roadmap over V's collision-free grid postures (module text).
 
     Args:
         robot: the robot (the one V was built for).
         ws: the workspace V (its grid and its collision-free postures).
         resolution: largest point motion between checked postures of an edge [m].
+        progress: show a progress bar (on a terminal): the edges' checked postures.
     """
     if ws.samples:
         raise MmstabError(
@@ -282,7 +264,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     jg = joint_grid(robot, ws.grid)
     shape = np.array(jg.shape)
     nodes_q = np.asarray(ws.valid_q, dtype=float)
-    idx = _grid_index(jg, nodes_q)
+    idx = grid_index(jg, nodes_q)
     flat = np.ravel_multi_index(tuple(idx.T), tuple(shape))
     lookup = np.full(jg.size, -1, dtype=np.int64)
     lookup[flat] = np.arange(len(nodes_q))
@@ -290,6 +272,9 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     steps = np.maximum(np.ceil(reach * jg.step / resolution).astype(np.int64) - 1, 0)
     checker = CollisionChecker(robot)
     edges, lengths = [], []
+    bar = tqdm(
+        total=int(steps.sum()) + 1, unit="check", desc="roadmap", disable=None if progress else True
+    )
     for j in range(robot.arm_joints):
         # no edge wraps the turret's full turn: its range ends at a stop (the posture at
         # 2 pi is the one at 0, but the joint cannot move through the stop between them)
@@ -299,7 +284,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         rows = np.flatnonzero(inside)
         other = lookup[np.ravel_multi_index(tuple(nxt[rows].T), tuple(shape))]
         rows, other = rows[other >= 0], other[other >= 0]
-        free = _free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]))
+        free = free_moves(checker, nodes_q[rows], j, float(jg.step[j]), int(steps[j]), bar)
         edges.append(np.column_stack([rows[free], other[free]]))
         lengths.append(np.full(int(free.sum()), float(jg.step[j])))
     e = np.concatenate(edges).astype(np.int64) if edges else np.zeros((0, 2), np.int64)
@@ -307,6 +292,9 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
     n = len(nodes_q)
     g = csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
     _, component = connected_components(g, directed=False)
+    arrays = node_arrays(robot, nodes_q)
+    bar.update(1)
+    bar.close()
     return Roadmap(
         grid=tuple(int(x) for x in ws.grid),
         nodes_q=nodes_q,
@@ -316,7 +304,7 @@ def build_roadmap(robot: Robot, ws: Workspace, resolution: float = DEFAULT_RESOL
         reach=reach,
         steps=steps,
         resolution=float(resolution),
-        **node_arrays(robot, nodes_q),
+        **arrays,
         build_seconds=time.perf_counter() - t0,
     )
 
@@ -330,17 +318,6 @@ def roadmap_key(robot: Robot, grid: tuple[int, ...], resolution: float, version:
         f"{np.round(geo, 9).tobytes().hex()}"
     )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-
-def node_arrays(robot: Robot, nodes_q: FloatArray) -> dict[str, FloatArray]:
-    """The nodes' ``node_com``, ``_ground``, ``_clearance`` [m], kept in the cache file."""
-    checker, step = CollisionChecker(robot), range(0, len(nodes_q), CHECK_CHUNK)
-    clear = [checker.clearance(nodes_q[c : c + CHECK_CHUNK], MOVE_CLEARANCE) for c in step]
-    return {
-        "node_com": np.asarray(robot.arm_com(nodes_q), dtype=float).reshape(-1, 3),
-        "node_ground": arm_ground_clearance(robot, nodes_q),
-        "node_clearance": np.concatenate(clear) if clear else np.zeros(0),
-    }
 
 
 def roadmap_arrays(rm: Roadmap) -> dict[str, object]:
@@ -359,22 +336,32 @@ def load_or_build_roadmap(
     ws: Workspace,
     resolution: float = DEFAULT_RESOLUTION,
     cache_dir: str | os.PathLike[str] | None = None,
+    progress: bool = True,
 ) -> Roadmap:
     """The roadmap of a robot and its V: from memory, from the cache file, else built.
 
-    The file is ``results/workspace/roadmap-<key>.npz`` (:func:`roadmap_key`), written
-    atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
+    The file is ``roadmap-<key>.npz`` (:func:`roadmap_key`) in the cache folder (default
+    :func:`mmstab.workspace.cache.default_cache_dir`, shared by every working folder),
+    written atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
     ground heights and clearances were kept in it gets them added (the graph is the same).
+    A build says where the file goes (one line on stderr) and, with ``progress`` on a
+    terminal, shows a progress bar. The arrays are read from an uncompressed copy beside
+    the file (``roadmap-<key>/arrays/``, memory-mapped, :mod:`mmstab.workspace.kept`).
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
-    path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR) / f"roadmap-{key}.npz"
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = folder / f"roadmap-{key}.npz"
     rm, missing = None, True
     if path.is_file():
         try:
-            with np.load(path) as z:
-                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+
+            def read() -> dict[str, np.ndarray]:
+                with np.load(path) as z:
+                    return {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+
+            kw: dict[str, Any] = kept_beside(path, "arrays", read)  # uncompressed: read fast
             kw["grid"] = tuple(int(n) for n in kw["grid"])
             kw["resolution"] = float(kw["resolution"])
             kw["build_seconds"] = float(kw["build_seconds"])
@@ -383,8 +370,19 @@ def load_or_build_roadmap(
         except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
             rm, missing = None, True
     if rm is None:
-        rm = build_roadmap(robot, ws, resolution)
+        if progress:
+            print(
+                f"mmstab: building the posture roadmap of the {list(ws.grid)} grid, once per "
+                f"robot and grid (about a minute) -> {path}",
+                file=sys.stderr,
+            )
+        rm = build_roadmap(robot, ws, resolution, progress)
     if missing:
-        write_npz(path, **roadmap_arrays(rm))
+        try:
+            write_npz(path, **roadmap_arrays(rm))
+        except OSError:  # a read-only cache folder: built in every process
+            pass
+    if path.is_file():  # what plans derive from it is kept beside it (mmstab.workspace.kept)
+        object.__setattr__(rm, SOURCE_ATTR, path)
     _MEMORY[key] = rm
     return rm

@@ -38,17 +38,17 @@ def variant_workspace(
         variant: the robot variant.
         grid: joint grid of V.
         progress: show the build's progress bar.
-        cache_dir: cache folder (default ``results/workspace``, as ``mmstab workspace``).
+        cache_dir: cache folder (default mmstab's, as ``mmstab workspace``).
     """
     from mmstab.workspace import (
-        DEFAULT_CACHE_DIR,
         build_workspace,
+        default_cache_dir,
         load_workspace,
         save_workspace,
         workspace_key,
     )
 
-    folder = Path(cache_dir) if cache_dir is not None else DEFAULT_CACHE_DIR
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = folder / f"{workspace_key(variant.robot, grid)}.npz"
     if path.is_file():
         try:
@@ -127,7 +127,7 @@ def run_atlas(
         progress: show progress bars.
         on_chunk: called after each chunk is stored (tests interrupt runs with it).
         figures: write figures and ``summary.json`` at the end.
-        workspace_cache: workspace cache folder (default ``results/workspace``).
+        workspace_cache: workspace cache folder (default mmstab's).
 
     Returns:
         The summary (``run`` holds this invocation's statistics).

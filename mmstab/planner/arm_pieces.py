@@ -1,0 +1,75 @@
+"""The arm's collision shapes cut into pieces (the ground under the arm's unit, ``under_arm``).
+
+A capsule is cut into segments of at most :data:`PIECE` [m], a box into boxes of edges at
+most that; each piece has a ball about its points' mean that holds it.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.model.parts import Box
+from mmstab.model.robot import FloatArray, Robot
+
+#: Longest piece of a capsule [m]: a piece's square reaches its radius + half this past it.
+PIECE = 0.05
+
+
+class ArmPieces(NamedTuple):
+    """The arm's collision shapes cut into pieces, in their links' frames.
+
+    Attributes:
+        link: the link of each piece (P,).
+        points: each piece's corners (box) or segment ends (capsule, repeated) (P, 8, 3) [m].
+        radius: the capsule's radius, 0 for a box (P,) [m].
+        ball: radius of a ball about the points' mean holding the piece (P,) [m].
+    """
+
+    link: NDArray[np.intp]
+    points: FloatArray
+    radius: FloatArray
+    ball: FloatArray
+
+
+def arm_pieces(robot: Robot, piece: float = PIECE) -> ArmPieces:
+    """The arm's links' collision shapes as pieces (a capsule cut into ``piece`` [m] segments)."""
+    link, points, radius = [], [], []
+    for i, lk in enumerate(robot.links):
+        g = lk.geometry
+        if isinstance(g, Box):  # cut into boxes of edges at most ``piece``
+            cuts = np.maximum(np.ceil(g.size / piece), 1).astype(int)
+            sub = g.size / cuts
+            corner = np.array([[sx, sy, sz] for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)])
+            R = g.frame_T_shape[:3, :3]
+            for ijk in np.ndindex(*cuts):
+                local = (np.array(ijk) + corner) * sub - g.size / 2
+                link.append(i)
+                points.append(local @ R.T + g.center)
+                radius.append(0.0)
+            continue
+        n = max(int(np.ceil(np.linalg.norm(g.p1 - g.p0) / piece)), 1)
+        ends = g.p0 + np.linspace(0.0, 1.0, n + 1)[:, None] * (g.p1 - g.p0)
+        for a, b in zip(ends[:-1], ends[1:], strict=True):
+            link.append(i)
+            points.append(np.repeat(np.stack([a, b]), 4, axis=0))
+            radius.append(float(g.radius))
+    pts, rad = np.array(points), np.array(radius)
+    centre = pts.mean(axis=1, keepdims=True)
+    ball = np.linalg.norm(pts - centre, axis=2).max(axis=1) + rad
+    return ArmPieces(np.array(link), pts, rad, ball)
+
+
+def arm_reach(robot: Robot, pieces: ArmPieces) -> tuple[FloatArray, float]:
+    """A ball in B holding the arm at every posture: the turret's origin [m], a radius [m].
+
+    Every point of link i is within Σ_{j<i} |o_{j+1} − o_j| + |p − o_i| of the turret's
+    origin o_0 (the links' origins at fixed offsets along the chain).
+    """
+    frames = robot.kinematics.link_frames(np.atleast_2d(robot.stowed))[0]
+    o = frames[:, :3, 3]
+    chain = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(o, axis=0), axis=1))]
+    far = np.linalg.norm(pieces.points, axis=2).max(axis=1) + pieces.radius
+    return o[0], float((chain[pieces.link] + far).max())

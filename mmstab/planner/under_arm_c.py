@@ -1,0 +1,120 @@
+"""The ground under the arm's C kernel (``under_arm.c``), called through ctypes.
+
+Two functions of :mod:`mmstab.planner.under_arm`, operation for operation: the arm's pieces
+in B for a batch of postures (:func:`mmstab.planner.under_arm.pieces_in_body`, the lowest
+point over the body's tilts up to the attitude margin) and one pose's least heights above
+the ground under the arm (:meth:`mmstab.planner.under_arm.PoseGround.heights`, on the
+pose's peak map built in NumPy). Compiled on first use (:mod:`mmstab.core.clib`); the NumPy
+functions stay as the independent twin (``GroundUnderArm(backend="numpy")``), equal to
+rounding (tests/test_under_arm_kernel.py).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, compiled_library
+
+UNDER_ARM_NAME = "mmstab_under_arm"  #: the library's name
+UNDER_ARM_SOURCE = Path(__file__).with_name("under_arm.c")  #: its C source
+
+_D, _L, _long, _double = DOUBLES, LONGS, LONG, DOUBLE
+
+
+@lru_cache(maxsize=1)
+def _kernels() -> tuple[Any, Any]:
+    lib = ctypes.CDLL(str(compiled_library(UNDER_ARM_SOURCE, UNDER_ARM_NAME)))
+    pieces, heights = lib.mmstab_arm_pieces, lib.mmstab_arm_heights
+    # frames n L link points radius mid P margin cm sm | low centre
+    pieces.argtypes = [_D, _long, _long, _L, _D, _D, _D, _long, _long, _double, _double, _D, _D]
+    # low centre n P T cos top above plane peak rows cols i0 j0 block reach lattice slack | h
+    heights.argtypes = [_D, _D, _long, _long, _D, _double, _double, _double, _long, _D]
+    heights.argtypes += [_long, _long, _long, _long, _long, _long, _double, _double, _D]
+    for f in (pieces, heights):
+        f.restype = ctypes.c_int
+    return pieces, heights
+
+
+def pieces_kernel(
+    frames: NDArray[np.float64],
+    link: NDArray[np.intp],
+    points: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each piece's lowest z_B and centre in B, from the postures' link frames.
+
+    Args:
+        frames: the links' frames in B per posture (n, L, 4, 4).
+        link: each piece's link (P,).
+        points: each piece's corners or segment ends in its link's frame (P, 8, 3) [m].
+        radius: each piece's capsule radius, 0 for a box (P,) [m].
+        margin: the body's tilt the lowest point is taken over [rad]; 0: none.
+
+    Returns:
+        low (n, P) [m] and centre (n, P, 3) [m].
+    """
+    F = np.ascontiguousarray(frames, dtype=np.float64)
+    n, L = F.shape[:2]
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    P = len(pts)
+    low, centre = np.empty((n, P)), np.empty((n, P, 3))
+    _kernels()[0](
+        F, n, L, np.ascontiguousarray(link, dtype=np.int64), pts,
+        np.ascontiguousarray(radius, dtype=np.float64),
+        np.ascontiguousarray(pts.mean(axis=1)), P, int(margin != 0.0),
+        float(np.cos(margin)), float(np.sin(margin)), low, centre,
+    )  # fmt: skip
+    return low, centre
+
+
+def heights_kernel(
+    low: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    M_T_B: NDArray[np.float64],
+    top: float,
+    above: float,
+    plane: bool,
+    peak: NDArray[np.float64],
+    origin: tuple[int, int],
+    block: int,
+    reach: int,
+    lattice: float,
+    slack: float,
+) -> NDArray[np.float64] | None:
+    """One pose's least height of each posture above the ground under the arm (n,) [m].
+
+    Args:
+        low: the pieces' lowest z_B (n, P) [m].
+        centre: their centres in B (n, P, 3) [m].
+        M_T_B: the pose's resting body pose in M (4, 4).
+        top: the peak map's max [m].
+        above: pieces this far over the highest ground are not looked at closer [m].
+        plane: pieces over ground not above the support plane: +inf.
+        peak: the rise's max over squares about each block (rows, cols) [m].
+        origin: lattice sample (i, j) of block (0, 0).
+        block: lattice samples along a block's edge.
+        reach: a piece's square must lie this many samples inside the map.
+        lattice: the lattice step [m].
+        slack: round-off allowance [m].
+
+    Returns:
+        None when some piece's square leaves the map (the caller widens it).
+    """
+    lo = np.ascontiguousarray(low, dtype=np.float64)
+    n, P = lo.shape
+    T = np.ascontiguousarray(M_T_B, dtype=np.float64)
+    pk = np.ascontiguousarray(peak, dtype=np.float64)
+    h = np.empty(n)
+    code = _kernels()[1](
+        lo, np.ascontiguousarray(centre, dtype=np.float64), n, P, T, float(T[2, 2]),
+        float(top), float(above), int(plane), pk, pk.shape[0], pk.shape[1],
+        int(origin[0]), int(origin[1]), int(block), int(reach), float(lattice), float(slack), h,
+    )  # fmt: skip
+    return None if code else h

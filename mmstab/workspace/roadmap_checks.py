@@ -1,0 +1,84 @@
+"""The posture roadmap's checks in batches: the edges' moves and the nodes' own arrays.
+
+Helpers of :mod:`mmstab.workspace.roadmap`: a move's checked postures coarse first, the
+grid indices of grid postures, the collision checks of every edge along one joint, and the
+per-node arrays the roadmap's cache file keeps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from tqdm import tqdm
+
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.ground import arm_ground_clearance
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.workspace.grid import JointGrid
+
+#: Smallest clearance [m] between an arm link and the robot that a shortcut's straight
+#: move keeps (:meth:`mmstab.workspace.roadmap.Roadmap.shortcut`): the tracked arm follows
+#: the moves within a few millimetres, and a tracking run must keep 1 mm
+#: (``mmstab.runs.verdict.MIN_CLEARANCE``).
+MOVE_CLEARANCE = 0.003
+#: A move's checked postures go to the checker every this many first (:func:`coarse_first`).
+COARSE_STRIDE = 8
+#: Postures per batch handed to the collision checker.
+CHECK_CHUNK = 16384
+
+
+def coarse_first(n: int, stride: int = COARSE_STRIDE) -> tuple[FloatArray, FloatArray]:
+    """The fractions i / n, i = 0..n, in two batches: every ``stride``-th, then the rest.
+
+    A move that fails usually fails over a stretch, which the first batch finds at a
+    ``stride``-th of the cost; a move that passes is checked at every fraction all the same.
+    """
+    i = np.arange(n + 1)
+    first = (i % stride == 0) | (i == n)
+    return i[first] / n, i[~first] / n
+
+
+def grid_index(jg: JointGrid, q: FloatArray) -> NDArray[np.int64]:
+    """Grid indices (N, 4) of grid postures q [rad]."""
+    lo = np.array([a[0] for a in jg.axes])
+    idx = np.rint((q - lo) / jg.step).astype(np.int64)
+    return np.minimum(idx, np.array(jg.shape) - 1)
+
+
+def free_moves(
+    checker: CollisionChecker,
+    q: FloatArray,
+    j: int,
+    step: float,
+    steps: int,
+    bar: tqdm | None = None,
+) -> NDArray[np.bool_]:
+    """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures.
+
+    ``bar``: advanced by one per interior posture checked.
+    """
+    ok = np.ones(len(q), dtype=bool)
+    for s in range(1, steps + 1):
+        if bar is not None:
+            bar.update(1)
+        rows = np.flatnonzero(ok)
+        if not len(rows):
+            break
+        shifted = q[rows].copy()
+        shifted[:, j] += step * s / (steps + 1)
+        for c in range(0, len(rows), CHECK_CHUNK):
+            part = rows[c : c + CHECK_CHUNK]
+            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK]), dtype=bool)
+            ok[part[hit]] = False
+    return ok
+
+
+def node_arrays(robot: Robot, nodes_q: FloatArray) -> dict[str, FloatArray]:
+    """The nodes' ``node_com``, ``_ground``, ``_clearance`` [m], kept in the cache file."""
+    checker, step = CollisionChecker(robot), range(0, len(nodes_q), CHECK_CHUNK)
+    clear = [checker.clearance(nodes_q[c : c + CHECK_CHUNK], MOVE_CLEARANCE) for c in step]
+    return {
+        "node_com": np.asarray(robot.arm_com(nodes_q), dtype=float).reshape(-1, 3),
+        "node_ground": arm_ground_clearance(robot, nodes_q),
+        "node_clearance": np.concatenate(clear) if clear else np.zeros(0),
+    }
