@@ -24,8 +24,11 @@ setup: $(STAMP)
 ## (workspace V -> stability sweeps -> CMA-ES plan -> tracking on the ramp -> animation)
 demo: setup fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 
+## two pytest workers (pytest-xdist; TEST_WORKERS=auto: one per core), a file's tests on one
+## worker (its module fixtures built once); the 15 slowest tests listed (docs/testing.md)
+TEST_WORKERS ?= 2
 test: setup system
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 ## system packages the tests need (Debian): chromium for the browser test of `mmstab view`
 .PHONY: system

@@ -31,6 +31,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from mmstab.core.files import MmstabError, write_npz
+from mmstab.core.locks import build_lock, file_stamp
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import arm_ground_clearance
@@ -363,28 +364,37 @@ def load_or_build_roadmap(
     """The roadmap of a robot and its V: from memory, from the cache file, else built.
 
     The file is ``results/workspace/roadmap-<key>.npz`` (:func:`roadmap_key`), written
-    atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
-    ground heights and clearances were kept in it gets them added (the graph is the same).
+    atomically by one process at a time (:mod:`mmstab.core.locks`); an unreadable one is
+    rebuilt; one written before the nodes' CoMs and ground heights and clearances were kept
+    in it gets them added (the graph is the same).
     """
     key = roadmap_key(robot, ws.grid, resolution, ROADMAP_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
     path = Path(cache_dir if cache_dir is not None else DEFAULT_CACHE_DIR) / f"roadmap-{key}.npz"
-    rm, missing = None, True
-    if path.is_file():
-        try:
-            with np.load(path) as z:
-                kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
-            kw["grid"] = tuple(int(n) for n in kw["grid"])
-            kw["resolution"] = float(kw["resolution"])
-            kw["build_seconds"] = float(kw["build_seconds"])
-            missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
-            rm = Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})})
-        except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
-            rm, missing = None, True
-    if rm is None:
-        rm = build_roadmap(robot, ws, resolution)
+    seen = file_stamp(path)  # before reading: a file published after it is seen below
+    rm, missing = _read_roadmap(robot, path)
     if missing:
-        write_npz(path, **roadmap_arrays(rm))
+        with build_lock(path):  # one builder per file: another process may be building it
+            if file_stamp(path) not in (None, seen):  # it did, while we waited
+                rm, missing = _read_roadmap(robot, path)
+            rm = rm if rm is not None else build_roadmap(robot, ws, resolution)
+            if missing:
+                write_npz(path, **roadmap_arrays(rm))
+    assert rm is not None
     _MEMORY[key] = rm
     return rm
+
+
+def _read_roadmap(robot: Robot, path: Path) -> tuple[Roadmap | None, bool]:
+    """The roadmap in ``path`` (None: absent or unreadable) and whether to (re)write the file."""
+    try:
+        with np.load(path) as z:
+            kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+        kw["grid"] = tuple(int(n) for n in kw["grid"])
+        kw["resolution"] = float(kw["resolution"])
+        kw["build_seconds"] = float(kw["build_seconds"])
+        missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
+        return Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})}), missing
+    except Exception:  # noqa: BLE001 - absent, or any unreadable cache: rebuild
+        return None, True
