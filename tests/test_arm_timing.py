@@ -143,6 +143,7 @@ def test_the_time_law_of_one_swing_meets_the_bound_and_no_more() -> None:
     assert real_times(np.array([0.0, 1.0]), np.array([0.5, 0.5]))[-1] == pytest.approx(2.0)
 
 
+@pytest.mark.mujoco
 def test_a_fast_turret_swing_tips_in_mujoco_and_not_when_timed() -> None:
     runs = {}
     for fraction in (None, 0.5):

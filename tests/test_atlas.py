@@ -27,6 +27,7 @@ from mmstab.planner import solve_pose
 from mmstab.stability.static import robot_force_angle
 from mmstab.terrain import Ramp
 
+pytestmark = pytest.mark.dask
 CACHE = None  # set per session by the ``cache`` fixture
 
 TINY_ATLAS = {

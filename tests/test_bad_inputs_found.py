@@ -239,6 +239,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return problem, d / "run.mcap"
 
 
+@pytest.mark.slow
 def test_follow_refuses_odometry_after_every_map_before_writing(recording, tmp_path, capsys):
     from rosbags.highlevel import AnyReader
 

@@ -80,6 +80,7 @@ def _yaw_rate(robot, belts, spin_up=1.0, duration=2.0):
     return np.angle(np.exp(1j * (b.yaw - a.yaw))) / duration
 
 
+@pytest.mark.mujoco
 def test_mujoco_turns_at_the_commanded_rate_through_the_drive(robot):
     """Pivot and arc: 0.45-0.6 of the commanded yaw rate at η = 1; within 5 % at MuJoCo's η."""
     pytest.importorskip("mujoco")

@@ -122,6 +122,7 @@ def _run(ramp, duration: float, governor: GovernorSettings | None, track_kv: flo
     return run_closed_loop(problem, plan, step, cs, loop, state0, model)
 
 
+@pytest.mark.mujoco
 def test_the_default_governor_leaves_a_run_that_keeps_up_alone(ramp) -> None:
     a, b = _run(ramp, 0.6, GovernorSettings()), _run(ramp, 0.6, None)
     assert np.array_equal(a.state, b.state) and np.array_equal(a.qdot, b.qdot)
@@ -129,6 +130,7 @@ def test_the_default_governor_leaves_a_run_that_keeps_up_alone(ramp) -> None:
     assert a.reference_wait_s == 0.0 and a.stalled is None
 
 
+@pytest.mark.mujoco
 def test_weak_tracks_fall_behind_and_the_reference_waits_for_them(ramp) -> None:
     """Track servos at 0.5 % of their gain cannot drive the lap's speed up the ramp: on time
     the base falls 33 cm behind in 4 s; governed, its error stays near ``stop`` (the weak base

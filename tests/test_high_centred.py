@@ -46,6 +46,7 @@ def test_a_plane_never_high_centres(robot):
     assert not v["high_centred"] and v["stretches"] == []
 
 
+@pytest.mark.mujoco
 def test_the_dem_lap_high_centres_where_mujoco_stalls():
     """``dem.yaml``: MuJoCo's robot stops dead at (1.47, -0.38) m, its chassis on the ditch's
     edge (docs/physics.md): the rested path says so there."""

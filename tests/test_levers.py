@@ -293,6 +293,7 @@ def test_bisect_largest():
 
 
 # -------------------------------------------------------------------------- mmstab levers
+@pytest.mark.slow
 def test_levers_subprocess_small(tmp_path):
     def edit(p, r):
         p["workspace"]["grid"] = SMALL_GRID

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+pytestmark = pytest.mark.mujoco
 mujoco = pytest.importorskip("mujoco")
 
 from mmstab.core.files import MmstabError  # noqa: E402

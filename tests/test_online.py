@@ -78,6 +78,7 @@ def test_recordings_are_seeded_and_look_like_elevation_maps(tmp_path: Path) -> N
             assert 0.005 < np.std(err) < 0.015 and abs(np.mean(err)) < 0.003  # 1 cm RMS noise
 
 
+@pytest.mark.slow
 def test_follow_reproduces_the_offline_plan_where_the_map_agrees(
     clean: tuple[mmstab.Problem, Path], tmp_path: Path
 ) -> None:
@@ -110,6 +111,7 @@ def test_follow_reproduces_the_offline_plan_where_the_map_agrees(
     assert route is not None and np.allclose(route.s_at(replay.plan_fractions), planned_s)
 
 
+@pytest.mark.slow
 def test_the_warm_planner_online_reproduces_its_offline_plan(
     clean: tuple[mmstab.Problem, Path], tmp_path: Path
 ) -> None:
@@ -161,6 +163,7 @@ def test_along_a_polyline() -> None:
     assert np.allclose(along(path[:1], 0.7), [0.0, 0.0])
 
 
+@pytest.mark.slow
 def test_the_same_recording_gives_the_same_answers(clean: tuple[mmstab.Problem, Path]) -> None:
     problem, path = clean
     a, b = follow_recording(problem, path, limit=40), follow_recording(problem, path, limit=40)
@@ -284,6 +287,7 @@ def with_joint_states(src: Path, out: Path, names: list[str], q: np.ndarray) -> 
                 w.write("/joint_states", "sensor_msgs/msg/JointState", m.time, js)
 
 
+@pytest.mark.slow
 def test_measured_joint_states_replace_the_integrated_posture(
     clean: tuple[mmstab.Problem, Path], tmp_path: Path
 ) -> None:
@@ -341,6 +345,7 @@ def test_runs_round_trip_as_recordings(tmp_path: Path, name: str) -> None:
     assert len(got["/arm_trajectory"]) == 1 and len(got["/arm_trajectory"][0].message.points) == 5
 
 
+@pytest.mark.slow
 def test_cli_record_then_follow(tmp_path: Path) -> None:
     from mcap.reader import make_reader
 
@@ -382,6 +387,7 @@ def test_follow_needs_a_route(tmp_path: Path) -> None:
         build_follower(mmstab.load_problem(ROOT / "problems" / "ramp.yaml"))
 
 
+@pytest.mark.slow
 def test_a_start_on_no_map_is_no_nan_in_the_summary(tmp_path: Path) -> None:
     """rough.yaml's first maps do not cover the robot: ``follow --limit 5`` wrote NaN into
     summary.json (a ValueError traceback); μ min and tilt max are null, the line says n/a."""

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS
 
+pytestmark = pytest.mark.mujoco
 mujoco = pytest.importorskip("mujoco")
 
 from mmstab.experiments.verdicts import load_settings, sim_settings  # noqa: E402

@@ -19,6 +19,7 @@ import pytest
 
 import mmstab
 
+pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from mmstab.physics.robot_sim import RobotSim  # noqa: E402
@@ -53,6 +54,7 @@ def test_front_load_of_the_postures(kerb) -> None:
     assert front_share(BACK) == pytest.approx(0.424, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_the_stowed_arm_climbs_with_momentum_the_arm_ahead_does_not(kerb) -> None:
     # the front wheel stops at the face at x = 0.042 m (its rim 0.11 m ahead of its axle)
     assert _drive(kerb, kerb.robot.stowed, 0.05, 6.0) < 0.1  # a crawl: stuck at the face
@@ -115,6 +117,7 @@ def test_climb_limit_is_invariant_to_the_kerb_direction(kerb) -> None:
 
 
 @pytest.mark.parametrize("height", [0.08, 0.10])
+@pytest.mark.slow
 def test_climb_limit_is_conservative_against_mujoco_at_a_crawl(kerb, height) -> None:
     """Every CoM the limit lets climb climbs in MuJoCo at 5 cm/s, and every stall is refused."""
     from mmstab.stability.climb import climb_limit

@@ -21,6 +21,8 @@ from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.physics.loop_checks import TipCheck, downhill_drift
 from mmstab.physics.robot_model import ModelSettings
 
+pytestmark = pytest.mark.mujoco
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -112,6 +114,7 @@ def test_downhill_drift_by_hand() -> None:
     assert downhill_drift(plant, up, back, qd_up, dt, 100)[-1] == pytest.approx(0.05)
 
 
+@pytest.mark.slow
 def test_cli_simulate(tmp_path: Path) -> None:
     env = {**os.environ, "MPLBACKEND": "Agg"}
     r = subprocess.run(
@@ -146,6 +149,7 @@ def _ramp_arm_in_the_ground(tmp_path: Path) -> Path:
     return write_problem(tmp_path, edit)
 
 
+@pytest.mark.slow
 def test_cli_simulate_arm_on_the_ground_is_exit_5(tmp_path: Path) -> None:
     """An arm link touching the ground in MuJoCo is a verdict: exit 5 unless allowed."""
     env, problem = {**os.environ, "MPLBACKEND": "Agg"}, _ramp_arm_in_the_ground(tmp_path)

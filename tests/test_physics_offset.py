@@ -27,6 +27,8 @@ from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.stability.skid import track_patch, turn_slide
 from mmstab.stability.slip import terrain_friction
 
+pytestmark = pytest.mark.mujoco
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -57,6 +59,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[float, object]:
     return out
 
 
+@pytest.mark.slow
 def test_the_slide_per_radian_lies_between_the_two_points(runs) -> None:
     problem, _ = runs[0.2]
     pose = problem.base_path.pose_at(np.array([0.5]))

@@ -11,6 +11,7 @@ import pytest
 from conftest import PROBLEMS
 from scipy.optimize import brentq, fsolve
 
+pytestmark = pytest.mark.mujoco
 mujoco = pytest.importorskip("mujoco")
 
 from mmstab.core.files import MmstabError  # noqa: E402

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
+pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from mmstab.physics.skid_sim import measure_twist  # noqa: E402

@@ -267,6 +267,7 @@ def _cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_plan_and_track_a_route_with_a_pivot_from_the_cli(tmp_path):
     problem = tmp_path / "pivot.yaml"
     problem.write_text(yaml.safe_dump(small_problem()))

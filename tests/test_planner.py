@@ -71,6 +71,7 @@ def test_plan_targets_in_V_and_realised_collision_free(coarse):
     assert np.all(plan.postures <= problem.robot.joint_upper + 1e-12)
 
 
+@pytest.mark.slow
 def test_pure_stability_beats_stowed_and_arm_removed(tmp_path, problem):
     """Paper's claim, on the default problem: reconfiguring the arm improves stability."""
     from mmstab.workspace import load_or_build_workspace

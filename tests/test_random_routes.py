@@ -289,6 +289,7 @@ def coarse_cache(tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("k", FAST_PAIRS)
+@pytest.mark.slow
 def test_a_random_route_plans_and_tracks(k, tmp_path, coarse_cache):
     """Plan found, μ planned >= stowed, no QP failure, no arm contact, the clearance kept."""
     problem = load_problem(pair_problem(k, tmp_path, COARSE))

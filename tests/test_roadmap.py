@@ -188,6 +188,7 @@ def test_arm_collision_verdict_and_exit_status():
     assert _arm_collision(summary(3, 0.0), lenient) is None
 
 
+@pytest.mark.slow
 def test_plan_and_track_a_route_on_the_roadmap_from_the_cli(tmp_path):
     """Method roadmap, planned and tracked: no arm contact, the clearance kept, no QP failure."""
     import json

@@ -76,6 +76,8 @@ def cache(tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("k", (0, 1))
+@pytest.mark.slow
+@pytest.mark.mujoco
 def test_a_random_route_in_mujoco_does_not_tip_nor_touch_the_ground(k, tmp_path, cache):
     """Whole route, controller in the loop: no tip, no arm link on the ground, no QP failure."""
     problem = load_problem(pair_problem(k, tmp_path, COARSE))

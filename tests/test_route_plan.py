@@ -237,6 +237,7 @@ def _cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_plan_and_track_a_terrain_route_from_the_cli(tmp_path):
     data = rough_data(waypoints=[[-3.0, -0.6], [-1.5, -0.6]], speed=0.25)
     data["planner"]["spacing"] = 0.5

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
+pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from mmstab.experiments.skid_rough import _case, route_poses  # noqa: E402
@@ -87,6 +88,7 @@ def _run(path: Path, out: Path) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_make_skid_rough_ground_small(tmp_path, robot):
     rough = {"problem": str(ROOT / "problems" / "rough.yaml"), "spacing": 6.0,
              "commands": {"straight": [0.25, 0.0], "arc_left": [0.25, 0.3]}}  # fmt: skip

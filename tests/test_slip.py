@@ -176,6 +176,7 @@ def test_plan_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, mo
     assert "mmstab: warning: the tracks would slide" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_track_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, monkeypatch):
     """The tracked run's base poses, checked like the plan's (20 deg slope, friction 0.3)."""
     import json

@@ -142,6 +142,7 @@ def test_bad_terrain_sections(tmp_path, capsys, terrain, where):
     assert err.count("\n") == 0 and f"{path}: {where}" in err
 
 
+@pytest.mark.slow
 def test_bad_files_and_poses_one_line_exit_2_nothing_written(tmp_path):
     import trimesh
 

@@ -372,6 +372,7 @@ def test_planned_start_has_no_transient(problem):
 
 
 # ----------------------------------------------------------------------------- experiment
+@pytest.mark.slow
 def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
     from mmstab.experiments.tracking import run_tracking
 
@@ -498,6 +499,7 @@ def default_posture(problem, default_plan):
     return build_posture_reference(problem.robot, default_plan, posture_samples(s.lap_time, s.dt))
 
 
+@pytest.mark.slow
 def test_default_posture_reference_is_collision_free(problem, default_plan, default_posture):
     """The planned postures interpolated collide (s ≈ 0.81-0.87): the via postures repair it."""
     from mmstab.control.reference import periodic_spline

@@ -142,6 +142,7 @@ def test_on_a_plane_the_check_is_the_plane_check(robot, small, kind):
 
 
 @pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.slow
 def test_the_check_is_a_lower_bound_of_the_dense_heights(robot, small, seed):
     terrain = _map(robot, "bumps", seed)
     poses = _poses(4)

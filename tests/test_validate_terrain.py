@@ -11,6 +11,7 @@ import pytest
 import yaml
 from conftest import ROBOT_YAML, ROOT
 
+pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 SCRIPT = ROOT / "benchmarks" / "validate_terrain.py"

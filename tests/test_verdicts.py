@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS
 
+pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from mmstab.experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
@@ -114,6 +115,7 @@ def test_planned_postures_clear_the_ground(cameleon, postures):
 
 
 # ------------------------------------------------------------------ the coarse grid
+@pytest.mark.slow
 def test_coarse_grid_agrees_with_mujoco(postures, settings):
     """72 cases on the rigid-wheel model: roll and pitch, slip- and tip-bound, braked and
     driven, each arm, -1.5, -0.5 and +1.5 deg around mmstab's critical slope.

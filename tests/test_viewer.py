@@ -388,6 +388,7 @@ def leftovers(marker: str) -> list[str]:
     ]
 
 
+@pytest.mark.browser
 def test_viewer_renders_in_headless_chromium(problem, run_dir):
     from mmstab.viz.viewer.snapshot import find_chromium
 

@@ -306,6 +306,7 @@ def test_bad_workspace_grid_names_the_field(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ CLI
+@pytest.mark.slow
 def test_fig3_and_workspace_commands(tmp_path):
     problem = write_problem(tmp_path, _set_grid([8, 6, 6, 6]))
     env = {**os.environ, "MPLBACKEND": "Agg"}
