@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import copy
 import os
+import sys
 
 # One OpenBLAS thread per test process, set before NumPy loads it (subprocesses inherit it):
 # make test runs two workers on two cores, and OpenBLAS's threads on an oversubscribed
@@ -19,6 +20,13 @@ ROOT = Path(__file__).resolve().parents[1]
 PROBLEMS = ROOT / "problems"
 ROBOT_YAML = PROBLEMS / "robots" / "cameleon.yaml"
 RAMP_YAML = PROBLEMS / "ramp.yaml"
+
+# Test modules import helpers from one another by name (``from test_under_arm import ...``)
+# across the stage folders (docs/testing.md): every folder of tests/ is on the import path,
+# whichever file is collected first (module names stay unique, as pytest needs anyway).
+for _folder in sorted(p for p in Path(__file__).resolve().parent.iterdir() if p.is_dir()):
+    if not _folder.name.startswith((".", "_")) and str(_folder) not in sys.path:
+        sys.path.append(str(_folder))
 
 
 @pytest.fixture(scope="session")

@@ -17,8 +17,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "mmstab"
 
 #: Layer of each package or module (prefix match: the longest listed prefix wins). The folder

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 import mmstab
 from mmstab.control.controller import build_controller
@@ -26,7 +26,6 @@ from mmstab.experiments.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.stability.dynamic import robot_mu
 
-ROOT = Path(__file__).resolve().parents[1]
 #: The swing of random route pair 5 that tipped in MuJoCo: the turret 5.76 -> 2.09 rad with
 #: the arm out (shoulder 0.2, elbow 0.24 rad), here in 0.6 s on the ramp's 0.1 rad slope.
 ARM_FROM, ARM_TO = [5.76, 0.2, 0.24, 0.0], [2.09, 0.2, 0.24, 0.0]

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
 PROBLEMS = ("ramp.yaml", "rough.yaml", "kerb.yaml", "dem.yaml", "ramp_6dof.yaml")
 ROBOTS = ("cameleon.yaml", "cameleon_6dof.yaml")
 

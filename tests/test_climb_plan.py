@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import mmstab
 from mmstab import app
 from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
 from mmstab.runs.verdict import climb_verdict
 from mmstab.stability.climb import ClimbLimit
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")

@@ -6,11 +6,11 @@ from __future__ import annotations
 import dataclasses
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 import mmstab
 from mmstab import app
@@ -20,7 +20,6 @@ from mmstab.experiments.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.physics.governor import GovernorSettings, ReferenceClock, clock_rate
 
-ROOT = Path(__file__).resolve().parents[1]
 OFFSET = 0.2  # [m]
 SLICES = StepReference.offsets(4)
 

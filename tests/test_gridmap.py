@@ -16,14 +16,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 from mmstab.core.bags import BagWriter
 from mmstab.core.files import ConfigError
 from mmstab.terrain.gridmap import GRIDMAP, GridMapFrame, from_message, to_message, typestore
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.recording import load_grid_map, messages
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def hand_message(

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import ROOT
 
 from mmstab.core.problem import load_problem
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.terrain import Heightmap, HeightmapTerrain, Ramp
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def block_field(height: float) -> Heightmap:

@@ -14,12 +14,12 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab.codegen import STEP_NAME, generate
 from mmstab.control.controller import (
@@ -37,7 +37,6 @@ from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
 from mmstab.workspace import grid_postures, joint_grid
 
-ROOT = Path(__file__).resolve().parents[1]
 PROBLEM_6DOF = ROOT / "problems" / "ramp_6dof.yaml"
 N = 6
 

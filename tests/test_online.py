@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 import mmstab
 from mmstab.core.bags import BagWriter
@@ -25,8 +26,6 @@ from mmstab.runs.recording import TOPICS, RunFrames, joint_names, write_run
 from mmstab.runs.store import load_run
 from mmstab.terrain.gridmap import GRIDMAP, typestore
 from mmstab.terrain.recording import messages
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def problem_file(tmp_path: Path, planner: str = "roadmap", **record: float) -> Path:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 import mmstab
 from mmstab.experiments.online import offline_plan
@@ -29,7 +30,6 @@ from mmstab.runs.online.stream import MapUpdate, map_updates
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.io import save_npz
 
-ROOT = Path(__file__).resolve().parents[1]
 SLOPE = 0.3  # [rad], rising toward +y
 BUMP_K = 4  # the pose whose arm the bump lies under
 BUMP_HEIGHT, BUMP_RADIUS = 0.15, 0.15  # [m]

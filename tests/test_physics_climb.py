@@ -12,10 +12,9 @@ posture when the nose pitches up on the kerb) does not even at 0.5 m/s.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import mmstab
 
@@ -24,7 +23,6 @@ pytest.importorskip("mujoco")
 
 from mmstab.physics.robot_sim import RobotSim  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 AHEAD = np.array([0.0, -0.3, 0.24, 2.2])  # the arm stretched ahead, 10 cm above the plane
 BACK = np.array([3.14, -0.3, 0.24, 2.2])  # the same, turned to the rear
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import mmstab
 from mmstab import app
@@ -22,8 +23,6 @@ from mmstab.physics.loop_checks import TipCheck, downhill_drift
 from mmstab.physics.robot_model import ModelSettings
 
 pytestmark = pytest.mark.mujoco
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")

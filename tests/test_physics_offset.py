@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab import app
 from mmstab.control.controller import build_controller
@@ -28,8 +29,6 @@ from mmstab.stability.skid import track_patch, turn_slide
 from mmstab.stability.slip import terrain_friction
 
 pytestmark = pytest.mark.mujoco
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _side_slope(tmp_path: Path, offset: float) -> object:

@@ -12,11 +12,11 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
@@ -24,7 +24,6 @@ pytest.importorskip("mujoco")
 from mmstab.physics.skid_sim import measure_twist  # noqa: E402
 from mmstab.stability.skid import skid_twist, track_patch  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 MU = 0.7
 
 

@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import problem_from_dict
 from mmstab.paths import Arc, Line, Pivot, SpeedLimits, route_from_waypoints, speed_profile
 from mmstab.paths.route import RoutePath
 
-ROOT = Path(__file__).resolve().parents[1]
 #: Half the track separation of the limits below [m].
 R_PIVOT = 0.21
 LIMITS = SpeedLimits(

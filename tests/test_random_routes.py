@@ -32,12 +32,12 @@ from typing import Any, NamedTuple
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab.core.problem import Problem, load_problem
 from mmstab.paths import Pivot
 from mmstab.runs.verdict import MIN_CLEARANCE
 
-ROOT = Path(__file__).resolve().parents[1]
 ROBOT = ROOT / "problems" / "robots" / "cameleon.yaml"
 #: Environment variable that runs the full set (any non-empty value but ``0``).
 FULL_ENV = "MMSTAB_RANDOM_ROUTES"

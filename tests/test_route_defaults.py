@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 from test_random_routes import COARSE, pair_problem
 
 from mmstab import app
@@ -26,7 +27,6 @@ from mmstab.core.problem import load_problem
 from mmstab.experiments.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 
-ROOT = Path(__file__).resolve().parents[1]
 ROUTE = {"waypoints": [[0.0, 0.0], [3.0, 0.0]], "speed": 0.2}
 HEIGHTMAP = {"generate": {"kind": "rough", "seed": 1, "size": [8.0, 6.0], "resolution": 0.05}}
 

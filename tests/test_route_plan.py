@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem, problem_from_dict
@@ -30,7 +31,6 @@ from mmstab.planner import (
 from mmstab.planner.fitness import pose_fitness
 from mmstab.stability.static import mu_max
 
-ROOT = Path(__file__).resolve().parents[1]
 ROUGH = ROOT / "problems" / "rough.yaml"
 COARSE = [10, 8, 8, 8]
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ROOT
 
 pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
@@ -28,8 +29,6 @@ from mmstab.stability.skid import skid_twist, track_patch  # noqa: E402
 from mmstab.terrain.factory import ramp_heightmap  # noqa: E402
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain  # noqa: E402
 from mmstab.terrain.ramp import Ramp  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("v, w", [(0.25, 0.3), (0.0, 0.4)])
