@@ -286,4 +286,4 @@ kerb: setup
 ## (PAIRS=60: pairs 0-59, the 40 beyond the issue's drawn by the same generator)
 PAIRS ?= 20
 random-routes: setup
-	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set
+	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/runs/test_random_routes.py -k full_set

@@ -1,4 +1,4 @@
-"""What the bad-input campaign (tests/test_bad_inputs_fuzz.py) found, one test per fix.
+"""What the bad-input campaign (tests/cli/test_bad_inputs_fuzz.py) found, one test per fix.
 
 Each was a traceback, a message that named nothing or the wrong thing, an output written
 before the refusal, or an invalid input run; now one line, exit status 2, nothing written.

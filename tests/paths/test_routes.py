@@ -125,7 +125,7 @@ def test_csv_routes_and_section_errors(tmp_path):
     f.write_text("0,0\n1,zero\n")
     with pytest.raises(ConfigError, match=r"route.csv: line 2: expected numbers"):
         read_waypoints_csv(f)
-    # a corner whose arc does not fit is a pivot turn now (tests/test_pivot.py), both here:
+    # a corner whose arc does not fit is a pivot turn now (tests/paths/test_pivot.py), both here:
     # the 0.3 m leg holds neither 0.5 m tangent (R tan 45 deg)
     jog = route_from_section(
         prob, {"waypoints": [[0, 0], [2, 0], [2, 0.3], [4, 0.3]], "turn_radius": 0.5}, LIMITS

@@ -1,7 +1,7 @@
 """The whole robot in MuJoCo (issue 25): mass model, Coulomb friction, tip-over, driving.
 
 The numbers quoted in docs/physics.md ("The whole robot in MuJoCo") are the ones these tests
-measure; ``pytest -s tests/test_physics_robot.py`` prints them.
+measure; ``pytest -s tests/physics/test_physics_robot.py`` prints them.
 """
 
 from __future__ import annotations

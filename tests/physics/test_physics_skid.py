@@ -67,7 +67,7 @@ def test_straight_on_a_side_slope_does_not_slide(robot):
 
 def test_make_skid_small_grid(tmp_path):
     settings = yaml.safe_load((ROOT / "problems" / "skid.yaml").read_text())
-    settings.pop("rough_ground")  # the grid alone (tests/test_skid_rough.py runs the section)
+    settings.pop("rough_ground")  # the grid alone (test_skid_rough.py runs the section)
     settings |= {"problem": str(ROOT / "problems" / "rough.yaml"), "slopes_deg": [20.0],
                  "headings_deg": [0.0], "sim": {"settle": 0.5, "transient": 0.5, "duration": 1.0},
                  "commands": {"pivot_left": [0.0, 0.4], "straight": [0.25, 0.0]}}  # fmt: skip

@@ -4,7 +4,7 @@
 ``planner.ground_clearance`` / ``planner.attitude_margin`` gets 0.05 m / 0.0524 rad
 (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`); the shipped problems name what
 their committed numbers were made with. The MuJoCo test runs two of the tests' seeded
-random routes (``tests/test_random_routes.py``, coarse grid) whole: with the defaults of
+random routes (``tests/runs/test_random_routes.py``, coarse grid) whole: with the defaults of
 before (map frame, 0.02 m, no margin) pair 0 tipped at 54.7 s and the arm touched the ground
 on 5.0 % (pair 0) and 3.8 % (pair 1) of the checks.
 """
