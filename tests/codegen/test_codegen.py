@@ -50,30 +50,47 @@ from mmstab.runs.rollout import (
 pytestmark = pytest.mark.slow  # compiles C; still part of `make test`
 
 
+@pytest.fixture(scope="session")
+def built(problem, tmp_path_factory):
+    """A plugin's C generated and compiled once a session, its example programs on first use.
+
+    The fixtures below share it: the same plugin's library and programs are built once.
+    """
+    made: dict = {}
+
+    def get(plugin: str, programs: bool = False):
+        if plugin not in made:
+            made[plugin] = [generate(problem, tmp_path_factory.mktemp(f"codegen_{plugin}"), plugin)]
+        if programs and len(made[plugin]) == 1:
+            out = tmp_path_factory.mktemp(f"programs_{plugin}")
+            made[plugin].append(build_programs(made[plugin][0], out))
+        return made[plugin][0], (made[plugin][1] if programs else None)
+
+    return get
+
+
 @pytest.fixture(scope="session", params=CODEGEN_PLUGINS)
-def generated(request, problem, tmp_path_factory):
-    out = tmp_path_factory.mktemp(f"codegen_{request.param}")
-    return generate(problem, out, request.param)
+def generated(request, built):
+    return built(request.param)[0]
 
 
 @pytest.fixture(scope="session")
-def generated_default(problem, tmp_path_factory):
-    """The problem's own plugin (codegen.plugin: box)."""
-    gen = generate(problem, tmp_path_factory.mktemp("codegen_default"))
+def generated_default(problem, built):
+    """The problem's own plugin (codegen.plugin: box), found up to date in box's folder."""
+    gen = generate(problem, built("box")[0].directory)
     assert gen.plugin == "box"
     return gen
 
 
 @pytest.fixture(scope="session")
-def programs(generated_default, tmp_path_factory):
-    return build_programs(generated_default, tmp_path_factory.mktemp("programs"))
+def programs(generated_default, built):
+    return built(generated_default.plugin, programs=True)[1]
 
 
 @pytest.fixture(scope="session", params=("box", "qrqp"))
-def heap_free(request, problem, tmp_path_factory):
+def heap_free(request, built):
     """The plugins whose generated step must not touch the heap, with their programs."""
-    gen = generate(problem, tmp_path_factory.mktemp(f"heap_free_{request.param}"), request.param)
-    return gen, build_programs(gen, tmp_path_factory.mktemp(f"programs_{request.param}"))
+    return built(request.param, programs=True)
 
 
 def random_cases(robot, rng: np.random.Generator, n: int):
