@@ -24,8 +24,11 @@ setup: $(STAMP)
 ## (workspace V -> stability sweeps -> CMA-ES plan -> tracking on the ramp -> animation)
 demo: setup fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 
+## two pytest workers (pytest-xdist; TEST_WORKERS=auto: one per core), a file's tests on one
+## worker (its module fixtures built once); the 15 slowest tests listed (docs/testing.md)
+TEST_WORKERS ?= 2
 test: setup system ros
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 ## ROS 2 for `mmstab node` (docs/online.md): the ros extra's wheels (rclpy, Fast DDS, the message
 ## and rosidl/CMake wheels), then the message packages no wheel carries (grid_map_msgs, tf2_msgs)
@@ -316,4 +319,4 @@ kerb: setup
 ## (PAIRS=60: pairs 0-59, the 40 beyond the 20 by the same generator)
 PAIRS ?= 20
 random-routes: setup
-	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/test_random_routes.py -k full_set
+	MMSTAB_RANDOM_ROUTES=1 MMSTAB_RANDOM_PAIRS=$(PAIRS) $(PY) -m pytest -q -s tests/runs/test_random_routes.py -k full_set

@@ -2,7 +2,7 @@
 
 Usage: ``python benchmarks/plan_random.py [--pairs N] [--runs R] [--out FILE]``; writes
 ``results/bench/plan_random.json``. The routes are the seeded random maps and routes of
-``tests/test_random_routes.py`` (pairs 0 .. N-1, the problems' default grid and planner:
+``tests/runs/test_random_routes.py`` (pairs 0 .. N-1, the problems' default grid and planner:
 ``method: roadmap`` with the ground under the arm, the attitude margin and the climb limit
 on). Each pair runs in a fresh process, as ``mmstab plan`` would:
 

@@ -1,7 +1,7 @@
 """Profile: where a one-off ``mmstab plan`` of a seeded random route spends its time.
 
 Usage: ``python benchmarks/profile_plan.py [--pairs 0 1 2] [--out FILE]``. Each pair (the
-seeded random map and route of ``tests/test_random_routes.py``, default grid, every default
+seeded random map and route of ``tests/runs/test_random_routes.py``, default grid, every default
 check on) is planned in a fresh process, as ``mmstab plan`` would (the workspace V and the
 roadmap from their caches, built first if missing), under cProfile; the process's time is
 split into the stages below (a function's cumulative time, the stages disjoint by

@@ -2,6 +2,13 @@ from __future__ import annotations
 
 import copy
 import os
+import sys
+
+# One OpenBLAS thread per test process, set before NumPy loads it (subprocesses inherit it):
+# make test runs two workers on two cores, and OpenBLAS's threads on an oversubscribed
+# machine made each small LAPACK call wait 0.1-0.25 s (a 200-triangulation test: 21 s -> 0.5 s)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +24,13 @@ PROBLEMS = ROOT / "problems"
 os.environ.setdefault("MMSTAB_CACHE", str(ROOT / "results" / "workspace"))
 ROBOT_YAML = PROBLEMS / "robots" / "cameleon.yaml"
 RAMP_YAML = PROBLEMS / "ramp.yaml"
+
+# Test modules import helpers from one another by name (``from test_under_arm import ...``)
+# across the stage folders (docs/testing.md): every folder of tests/ is on the import path,
+# whichever file is collected first (module names stay unique, as pytest needs anyway).
+for _folder in sorted(p for p in Path(__file__).resolve().parent.iterdir() if p.is_dir()):
+    if not _folder.name.startswith((".", "_")) and str(_folder) not in sys.path:
+        sys.path.append(str(_folder))
 
 
 @pytest.fixture(scope="session")

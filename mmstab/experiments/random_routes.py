@@ -1,7 +1,7 @@
 """Seeded random routes and user-like ground under them (``make validate-routes``, tests).
 
 :func:`random_route` draws a route's waypoints, turn radius and speed from a
-``numpy.random.Generator`` (the generator of ``tests/test_random_routes.py``'s pairs);
+``numpy.random.Generator`` (the generator of ``tests/runs/test_random_routes.py``'s pairs);
 :func:`user_ground` draws a ``terrain.generate`` section under a route as a user's ground is:
 a side slope at any azimuth, rough ground on a broad bump, and now and then a ditch or a kerb
 across the route (laid where the route crosses it, perpendicular to its leg there) and

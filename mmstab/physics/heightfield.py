@@ -5,7 +5,7 @@ Heightmap convention (ROS grid_map, ``docs/terrain.md``): ``resolution`` [m/cell
 row = y and column = x. Samples sit at cell centres; the surface between them is
 interpolated (bilinear here, two triangles per cell in MuJoCo: equal on planes).
 
-MuJoCo's hfield conventions (checked by ``tests/test_mujoco_drop.py``):
+MuJoCo's hfield conventions (checked by ``tests/physics/test_mujoco_drop.py``):
 
 - ``size = (rx, ry, elevation_z, base_z)``: the field spans ``[-rx, rx] x [-ry, ry]`` about
   the geom's position, with its first and last samples ON those edges, so

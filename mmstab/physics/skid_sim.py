@@ -5,7 +5,7 @@ heading (:func:`measure_twist_at`: at a pose on any ground, a heightmap's includ
 its two tracks at constant surface speeds and averages the twist of the body
 frame B over a window after a start-up transient: the velocity of B's origin in B and the
 yaw rate about the ramp's normal. It is the physics side of
-:mod:`mmstab.stability.skid` (``make skid``, ``tests/test_physics_skid.py``).
+:mod:`mmstab.stability.skid` (``make skid``, ``tests/physics/test_physics_skid.py``).
 """
 
 from __future__ import annotations

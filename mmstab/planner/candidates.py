@@ -8,7 +8,7 @@ the 42 ms per pose. Here the nodes are grouped once per roadmap component into c
 (turret bin x a :data:`CLUSTER_SIZE` voxel of the arm CoM), and at every pose of a route
 (one batch) each cluster gets bounds on its members' values; only the clusters whose upper
 bound reaches a threshold that some cluster certifies are scored. The answer is exactly
-that of scoring every node (``tests/test_roadmap_candidates.py``).
+that of scoring every node (``tests/planner/test_roadmap_candidates.py``).
 
 **Bounds.** Axis j's tip-over angle is ``atan2(s_j, c_j)`` with ``(s_j, c_j)`` affine in the
 arm CoM (:mod:`mmstab.planner.fitness`): within a ball of radius r about a cluster's centre

@@ -6,7 +6,7 @@ point over the body's tilts up to the attitude margin) and one pose's least heig
 the ground under the arm (:meth:`mmstab.planner.under_arm.PoseGround.heights`, on the
 pose's peak map built in NumPy). Compiled on first use (:mod:`mmstab.core.clib`); the NumPy
 functions stay as the independent twin (``GroundUnderArm(backend="numpy")``), equal to
-rounding (tests/test_under_arm_kernel.py).
+rounding (tests/planner/test_under_arm_kernel.py).
 """
 
 from __future__ import annotations

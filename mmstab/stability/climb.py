@@ -26,7 +26,7 @@ centre (the stowed arm puts it 4.9 cm ahead, the arm stretched ahead 9.6 cm).
 Assumptions: quasi-static (no momentum: a robot driving at speed may bump over a step this
 condition refuses), both tracks meet the step together (the track's plane,
 no lateral gravity), rigid wheels, Coulomb friction. Against the whole robot in MuJoCo
-crawling at 5 cm/s (``tests/test_physics_climb.py``) it is conservative: it never lets
+crawling at 5 cm/s (``tests/physics/test_physics_climb.py``) it is conservative: it never lets
 through a CoM that stalls there, and refuses some that climb (at an 8 cm kerb by 5 cm of
 CoM or more).
 """

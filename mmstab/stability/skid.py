@@ -22,7 +22,7 @@ a continuation in ε. The model is homogeneous: the twist scales with the belt s
 Assumptions: quasi-static (no inertia: a steady turn at low speed), rigid planar support,
 belts as line contacts at ``y = ±separation / 2`` over ``x ∈ [−L/2, L/2]``, isotropic
 Coulomb friction, the arm still. Checked against the whole robot in MuJoCo in
-``tests/test_physics_skid.py`` (docs/skid.md).
+``tests/physics/test_physics_skid.py`` (docs/skid.md).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ import numpy as np
 from mmstab.core import clib
 from mmstab.core.clib import CACHE_ENV  # noqa: F401 (the variable that moves the cache)
 from mmstab.core.files import write_npy, write_npz
+from mmstab.core.locks import build_lock, file_stamp
 from mmstab.core.problem import Problem
 from mmstab.core.sizes import announce, workspace_estimate, workspace_postures
 from mmstab.model.robot import Robot
@@ -89,6 +90,9 @@ def load_or_build_workspace(
 ) -> Workspace:
     """The problem's workspace: from the cache when robot and grid are unchanged, else built.
 
+    One process at a time builds a cache file (:mod:`mmstab.core.locks`): a second one asking
+    for the same workspace meanwhile waits and reads the first one's file.
+
     Args:
         problem: the problem (robot and ``workspace.grid``).
         force: rebuild (and overwrite the cache) even when a cached copy matches.
@@ -99,22 +103,37 @@ def load_or_build_workspace(
     section = problem.section("workspace")
     grid, samples, seed = tuple(section["grid"]), section.get("samples"), int(section["seed"])
     path = workspace_cache_path(problem, cache_dir)
-    if not force and path.is_file():
-        try:
-            return with_in_V(load_workspace(path), path)
-        except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
-            why = _short(exc)
-            print(
-                f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
-                file=sys.stderr,
-            )
-    if progress:
-        announce(workspace_estimate(grid, samples))
-    ws = build_workspace(
-        problem.robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
-    )
-    save_workspace(path, ws)
+    seen = file_stamp(path)  # before reading: a file published after it is seen below
+    ws = None if force else _read_cache(path)
+    if ws is not None:
+        return with_in_V(ws, path)
+    with build_lock(path):  # one builder per cache file: another process may be building it
+        if not force and file_stamp(path) not in (None, seen):  # it did, while we waited
+            ws = _read_cache(path)
+            if ws is not None:
+                return with_in_V(ws, path)
+        if progress:
+            announce(workspace_estimate(grid, samples))
+        ws = build_workspace(
+            problem.robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
+        )
+        save_workspace(path, ws)
     return with_in_V(ws, path)
+
+
+def _read_cache(path: Path) -> Workspace | None:
+    """The cached workspace at ``path``, or None (absent, or unreadable: a one-line notice)."""
+    if not path.is_file():
+        return None
+    try:
+        return load_workspace(path)
+    except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
+        why = _short(exc)
+        print(
+            f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
+            file=sys.stderr,
+        )
+    return None
 
 
 def in_V_path(path: Path) -> Path:
@@ -143,6 +162,21 @@ def with_in_V(ws: Workspace, path: Path) -> Workspace:
     except OSError:  # a read-only cache: computed every time
         pass
     return ws
+
+
+def _read_cache(path: Path) -> Workspace | None:
+    """The cached workspace at ``path``, or None (absent, or unreadable: a one-line notice)."""
+    if not path.is_file():
+        return None
+    try:
+        return load_workspace(path)
+    except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
+        why = _short(exc)
+        print(
+            f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
+            file=sys.stderr,
+        )
+    return None
 
 
 def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:

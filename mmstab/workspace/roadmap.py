@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from mmstab.core.files import MmstabError, write_npz
+from mmstab.core.locks import build_lock, file_stamp
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.reach import sampled_reach
@@ -342,7 +343,7 @@ def load_or_build_roadmap(
 
     The file is ``roadmap-<key>.npz`` (:func:`roadmap_key`) in the cache folder (default
     :func:`mmstab.workspace.cache.default_cache_dir`, shared by every working folder),
-    written atomically; an unreadable one is rebuilt; one written before the nodes' CoMs and
+    written atomically by one process at a time (:mod:`mmstab.core.locks`); an unreadable one is rebuilt; one written before the nodes' CoMs and
     ground heights and clearances were kept in it gets them added (the graph is the same).
     A build says where the file goes (one line on stderr) and, with ``progress`` on a
     terminal, shows a progress bar. The arrays are read from an uncompressed copy beside
@@ -353,36 +354,61 @@ def load_or_build_roadmap(
         return _MEMORY[key]
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = folder / f"roadmap-{key}.npz"
-    rm, missing = None, True
-    if path.is_file():
-        try:
-
-            def read() -> dict[str, np.ndarray]:
-                with np.load(path) as z:
-                    return {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
-
-            kw: dict[str, Any] = kept_beside(path, "arrays", read)  # uncompressed: read fast
-            kw["grid"] = tuple(int(n) for n in kw["grid"])
-            kw["resolution"] = float(kw["resolution"])
-            kw["build_seconds"] = float(kw["build_seconds"])
-            missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
-            rm = Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})})
-        except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
-            rm, missing = None, True
-    if rm is None:
-        if progress:
-            print(
-                f"mmstab: building the posture roadmap of the {list(ws.grid)} grid, once per "
-                f"robot and grid (about a minute) -> {path}",
-                file=sys.stderr,
-            )
-        rm = build_roadmap(robot, ws, resolution, progress)
+    seen = file_stamp(path)  # before reading: a file published after it is seen below
+    rm, missing = _read_roadmap(robot, path)
     if missing:
-        try:
-            write_npz(path, **roadmap_arrays(rm))
-        except OSError:  # a read-only cache folder: built in every process
-            pass
+        with build_lock(path):  # one builder per file: another process may be building it
+            if file_stamp(path) not in (None, seen):  # it did, while we waited
+                rm, missing = _read_roadmap(robot, path)
+            if rm is None:
+                if progress:
+                    print(
+                        f"mmstab: building the posture roadmap of the {list(ws.grid)} grid, "
+                        f"once per robot and grid (about a minute) -> {path}",
+                        file=sys.stderr,
+                    )
+                rm = build_roadmap(robot, ws, resolution, progress)
+            if missing:
+                try:
+                    write_npz(path, **roadmap_arrays(rm))
+                except OSError:  # a read-only cache folder: built in every process
+                    pass
+    assert rm is not None
     if path.is_file():  # what plans derive from it is kept beside it (mmstab.workspace.kept)
         object.__setattr__(rm, SOURCE_ATTR, path)
     _MEMORY[key] = rm
     return rm
+
+
+def _read_roadmap(robot: Robot, path: Path) -> tuple[Roadmap | None, bool]:
+    """The roadmap in ``path`` (None: absent or unreadable) and whether to (re)write the file."""
+    try:
+        with np.load(path) as z:
+            kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+        kw["grid"] = tuple(int(n) for n in kw["grid"])
+        kw["resolution"] = float(kw["resolution"])
+        kw["build_seconds"] = float(kw["build_seconds"])
+        missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
+        return Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})}), missing
+    except Exception:  # noqa: BLE001 - absent, or any unreadable cache: rebuild
+        return None, True
+
+
+def _read_roadmap(robot: Robot, path: Path) -> tuple[Roadmap | None, bool]:
+    """The roadmap in ``path`` (None: absent or unreadable) and whether to (re)write the file."""
+    if not path.is_file():
+        return None, True
+    try:
+
+        def read() -> dict[str, np.ndarray]:
+            with np.load(path) as z:
+                return {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
+
+        kw: dict[str, Any] = kept_beside(path, "arrays", read)  # uncompressed: read fast
+        kw["grid"] = tuple(int(n) for n in kw["grid"])
+        kw["resolution"] = float(kw["resolution"])
+        kw["build_seconds"] = float(kw["build_seconds"])
+        missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
+        return Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})}), missing
+    except Exception:  # noqa: BLE001 - any unreadable cache: rebuild
+        return None, True

@@ -1,7 +1,7 @@
 """The ramp's golden numbers: what the library computes today, to pin a refactor.
 
 Run once on the code to pin (``python tests/golden/make_golden.py``): it writes
-``tests/golden/ramp.json``. ``tests/test_golden_ramp.py`` recomputes the same numbers with
+``tests/golden/ramp.json``. ``tests/golden/test_golden_ramp.py`` recomputes the same numbers with
 :func:`compute` and compares them with the file (≤ 1e-9 where deterministic).
 
 What is pinned (all on ``problems/ramp.yaml``, the workspace on a coarse grid so it builds in a

@@ -18,8 +18,8 @@ error has no instantaneous correction and decays only through the heading on a c
 the default lap a 0.1 m offset is still 0.1 m after 10 s, 1.5 mm after the 30 s lap); for d > 0
 the block [[cos γ, −d sin γ], [sin γ, d cos γ]] is invertible, so the point's error is
 corrected directly (the usual look-ahead point of differential-drive tracking; the same 0.1 m
-offset is under 0.1 mm after 5 s; tests/test_tracking.py) and the light heading row only keeps
-the body aligned where the point's motion leaves it free. The reference must use the same d
+offset is under 0.1 mm after 5 s; tests/control/test_tracking.py) and the light heading row only
+keeps the body aligned where the point's motion leaves it free. The reference must use the same d
 (:func:`mmstab.control.reference.base_reference`). Whatever d, J has rank 5 (three base rows, two
 sprockets): a moving, consistent reference with feed-forward (the circle) is tracked to zero
 error, but a *constant* target is reached only up to an error in J's left null space (Jᵀ W_A e

@@ -3,7 +3,7 @@
 A node on a robot (``mmstab node``, :mod:`mmstab.runs.online.node`) answers each elevation
 map with the online loop's step (:meth:`~mmstab.runs.online.follow.Follower.update`) only
 when its inputs are fresh and whole; otherwise it answers **stale** and says why. The rules,
-each one tested without ROS (``tests/test_node_guard.py``):
+each one tested without ROS (``tests/online/test_node_guard.py``):
 
 * a map older than ``max_map_age`` [s] (wall clock now minus its header stamp) is stale;
 * a map whose frame no transform joins to the odometry's is stale;

@@ -6,7 +6,7 @@ NumPy path builds the lattice by tiles of 64 x 64 samples wherever a piece is lo
 (5 ms a scoring on the rough route, most of it on samples no piece's square needs); the
 kernel computes a block's max, a row's and a peak only where a piece asks, and keeps them
 for the pose (:class:`LatticePeaks`, kept with the pose's state while its map stands). Same
-operations in the same order, so the same peaks (``tests/test_online_lattice.py``).
+operations in the same order, so the same peaks (``tests/online/test_online_lattice.py``).
 Compiled on first use (:mod:`mmstab.core.clib`); without a C compiler the NumPy path runs.
 """
 

@@ -1,0 +1,141 @@
+"""``make validate-routes``: random routes over user-like ground, mmstab's verdicts vs MuJoCo.
+
+The generator lays its ditch and kerb across the route (checked on the map's cells); a coarse
+subset of the experiment (a flat route and the settings' route 1, which crosses a 15 cm
+ditch on an 18 deg slope) runs whole: the confusion table is recounted from the per-route
+records, the flat route is accepted by ``mmstab plan`` (its exit status, by the command
+itself) and holds in MuJoCo, tracked within the bar.
+"""
+
+from __future__ import annotations
+
+import copy
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from mmstab.experiments.validate_routes import (
+    OUTCOMES,
+    PLAN_VERDICTS,
+    event_place,
+    load_settings,
+    route_problem,
+    run_routes,
+)
+from mmstab.terrain.generators import generate
+
+ROOT = Path(__file__).resolve().parents[2]
+SETTINGS = ROOT / "problems" / "validate_routes.yaml"
+
+
+def _flat(settings: dict) -> dict:
+    """The settings with a flat, featureless map (no slope, roughness, bump or feature)."""
+    s = copy.deepcopy(settings)
+    g = s["ground"]
+    g["slope_deg"] = g["roughness_m"] = g["hill_m"] = [0.0, 0.0]
+    for f in ("ditch", "kerb", "bumps"):
+        g[f]["probability"] = 0.0
+    return s
+
+
+def test_ditch_and_kerb_lie_across_the_route() -> None:
+    """On a map with only a ditch and a kerb, the route's cells reach both levels.
+
+    Route cells (nearest cell centres along the polyline, every 1 cm): some at the ditch's
+    floor -depth (or -depth + height where the two overlap), some at the kerb's top +height
+    (or the kerb's floor where it drops: then the start is at +height); so both features cut
+    the route, whatever the drawn azimuths.
+    """
+    base = load_settings(SETTINGS)
+    s = _flat(base)
+    s["ground"]["ditch"]["probability"] = s["ground"]["kerb"]["probability"] = 1.0
+    for k in range(6):
+        data = route_problem(s, k)
+        g = data["terrain"]["generate"]
+        depth, height = g["features"]["ditch"]["depth"], g["features"]["kerb"]["height"]
+        assert 0.08 <= depth <= 0.20 and 0.4 <= g["features"]["ditch"]["width"] <= 0.8
+        assert 0.04 <= height <= 0.10
+        hm = generate(g)
+        wp = np.asarray(data["path"]["waypoints"])
+        pts = np.vstack([np.linspace(a, b, int(np.linalg.norm(b - a) / 0.01))
+                         for a, b in zip(wp[:-1], wp[1:], strict=True)])  # fmt: skip
+        ij = np.round((pts - hm.origin) / hm.resolution).astype(int)
+        e = np.asarray(hm.elevation)[ij[:, 1], ij[:, 0]]
+        levels = np.unique(np.round(e, 9))
+        assert any(np.isclose(levels, -depth)) or any(np.isclose(levels, height - depth))
+        assert any(np.isclose(levels, height)) and any(np.isclose(levels, 0.0))
+
+
+def test_bad_settings_name_the_field(tmp_path, capsys) -> None:
+    """A bad settings file: one line naming the file and the field, exit 2, nothing written."""
+    from mmstab.experiments.validate_routes import main
+
+    bad = tmp_path / "bad.yaml"
+    data = yaml.safe_load(SETTINGS.read_text())
+    data["routes"] = 0
+    bad.write_text(yaml.safe_dump(data))
+    assert main([str(bad), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad.yaml" in err and "routes" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_event_place_by_hand() -> None:
+    """Distances to a 0.5 m ditch band at x = 1, a kerb along y = 2 and the corner (3, 0)."""
+    data = {
+        "terrain": {"generate": {"features": {
+            "ditch": {"depth": 0.1, "width": 0.5, "distance": 1.0, "azimuth": 0.0},
+            "kerb": {"height": 0.05, "distance": -2.0, "azimuth": -np.pi / 2}}}},
+        "path": {"waypoints": [[0.0, 0.0], [3.0, 0.0], [3.0, 3.0]]},
+    }  # fmt: skip
+    assert event_place(data, [1.1, 0.0]) == pytest.approx(
+        {"to_ditch_m": 0.0, "to_kerb_m": 2.0, "to_corner_m": 1.9}
+    )
+    assert event_place(data, [2.0, 1.5]) == pytest.approx(
+        {"to_ditch_m": 0.75, "to_kerb_m": 0.5, "to_corner_m": np.hypot(1.0, 1.5)}
+    )
+    data["terrain"]["generate"]["features"] = {}
+    assert event_place(data, [0.0, 0.0])["to_ditch_m"] is None
+
+
+@pytest.mark.mujoco
+@pytest.mark.slow
+def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
+    pytest.importorskip("mujoco")
+    settings = load_settings(SETTINGS)
+    flat = run_routes(_flat(settings), tmp_path / "flat", [0])
+    ditch = run_routes(settings, tmp_path / "ditch", [1])
+    records = flat["records"] + ditch["records"]
+    # the confusion table, recounted from the records
+    for s in (flat, ditch):
+        counts = Counter((r["plan"], r["mujoco"] or "not simulated") for r in s["records"])
+        for v in PLAN_VERDICTS:
+            for o in [*OUTCOMES, "not simulated"]:
+                assert s["confusion"][v][o] == counts[(v, o)]
+        assert sum(map(sum, (row.values() for row in s["confusion"].values()))) == 1
+    f = flat["records"][0]
+    assert f["slope_deg"] == 0.0 and f["ditch"] is None and f["kerb"] is None
+    assert (f["plan"], f["plan_exit"], f["mujoco"]) == ("accepted", 0, "holds")
+    assert f["events"] == {"tipped": None, "left_map": None, "slid": None, "stalled": None}
+    assert f["disagreement"] is None and f["qp_failures"] == 0
+    assert f["base_origin_error_max_m"] < 0.10 and f["base_error_max_m"] < 0.10
+    assert f["simulated_s"] >= f["route_duration_s"] - 0.01  # the whole route driven
+    assert flat["bars"]["accepted_never_fail"]["holds"]
+    # the route's plan by `mmstab plan` itself: the same exit status
+    problem = tmp_path / "flat" / f["problem"]
+    cmd = [sys.executable, "-m", "mmstab", "plan", str(problem), "-o", str(tmp_path / "plan")]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == f["plan_exit"], r.stderr
+    d = ditch["records"][0]
+    assert d["ditch"] is not None and d["plan"] in PLAN_VERDICTS
+    assert d["plan_exit"] == PLAN_VERDICTS[d["plan"]] and d["mujoco"] in OUTCOMES
+    if d["mujoco"] == "tips":  # the physics' own event: the contacts' mu went <= 0
+        assert d["events"]["tipped"]["cause"] in ("support lost", "overturned")
+        assert d["mu_simulated_min"] <= 0 or d["events"]["tipped"]["cause"] == "overturned"
+    assert all((tmp_path / x).exists() for x in ("flat/summary.json", "ditch/validate_routes.png"))
+    assert len(records) == 2

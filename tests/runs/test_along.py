@@ -1,0 +1,243 @@
+"""The route's verdicts between its planned poses (``mmstab.runs.along``), and the rim rest.
+
+A ditch or a kerb between two planned poses is found by the samples every few cm; the
+stretch says where, which limit and by how much. The ditch of a user's map (a 20 cm deep,
+0.6 m wide ditch across a 15 deg side slope, written with NumPy) gives a rest that cycles
+between two triangles on the far rim: it is carried by both.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mmstab.runs.along import (
+    acceleration_margin,
+    along_path,
+    bracket,
+    dense_verdicts,
+    sample_spacing,
+)
+from mmstab.stability.stance import stance
+from mmstab.stability.support import loaded_support
+from mmstab.terrain import HeightmapTerrain
+from mmstab.terrain.heightmap import Heightmap
+from mmstab.terrain.rest import RestSettings
+
+ROBOT = Path(__file__).resolve().parents[2] / "problems" / "robots" / "cameleon.yaml"
+
+
+def test_acceleration_margin_by_hand():
+    # 58.5 kg at 0.2 m/s^2: |f| = 58.5 * hypot(9.81, 0.2), tilted by atan(0.2 / 9.81)
+    want = 58.5 * np.sqrt(9.81**2 + 0.04) * np.arctan(0.2 / 9.81)
+    assert acceleration_margin(58.5, 0.2) == pytest.approx(want, rel=1e-12)
+    assert acceleration_margin(58.5, 0.0) == 0.0
+
+
+def test_bracket_names_the_poses_before_and_after():
+    before, after = bracket([0.0, 0.5, 1.0], [0.0, 0.2, 0.5, 0.7, 1.0])
+    assert before.tolist() == [0, 0, 1, 1, 2]
+    assert after.tolist() == [1, 1, 2, 2, 2]
+
+
+def ditch_ground(rng: np.random.Generator) -> Heightmap:
+    """The user's map: 15 deg side slope (uphill +y), a 0.6 m ditch across x = 0, bumps."""
+    res = 0.05
+    x = np.arange(-5, 5 + 1e-9, res)
+    X, Y = np.meshgrid(x, x)
+    z = np.tan(np.radians(15)) * Y - 0.20 * (np.abs(X) < 0.3)
+    for _ in range(6):
+        cx, cy = rng.uniform(-4, 4, 2)
+        z += 0.06 * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * 0.3**2))
+    return Heightmap.build(z, res, [x[0], x[0]], "ditch")
+
+
+def test_a_ditch_between_two_planned_poses_is_found(robot):
+    terrain = HeightmapTerrain(ditch_ground(np.random.default_rng(7))).with_robot(robot)
+    assert sample_spacing(terrain) == pytest.approx(0.05)
+    # two planned poses 1.6 m apart, either side of the ditch, both on flat ground
+    stowed = robot.arm_com(robot.stowed)
+    s_plan = np.array([0.0, 1.6])
+    s = np.arange(0.0, 1.6 + 1e-9, 0.05)
+    poses = np.c_[-0.8 + s, np.full_like(s, -0.8), np.zeros_like(s)]
+    along = along_path(robot, terrain, poses, s, s_plan, np.tile(stowed, (2, 1)))
+    ends = loaded_support(robot, terrain, poses[[0, -1]], stowed)
+    assert (ends.mu > 300).all()  # the planned poses see nothing
+    # the samples: the same μ as rest at each, and the ditch's nose-down pitch
+    rest = [stance(terrain, robot, p).mu for p in poses]
+    np.testing.assert_allclose(along.mu, rest, rtol=0, atol=1e-9)
+    assert np.nanmax(along.tilt) > np.radians(25)  # the nose in the ditch, on a 15 deg slope
+    found = dense_verdicts(terrain, along, margin=400.0)
+    tip = found["tip"]
+    assert tip["binds"] and tip["threshold"] == 400.0
+    over = [x for x in tip["stretches"] if x["start_s"] <= 0.8 <= x["end_s"] + 0.3]
+    assert over, tip["stretches"]  # a stretch over the ditch (x = -0.3..0.3 m)
+    for x in tip["stretches"]:
+        inside = (s >= x["start_s"] - 1e-9) & (s <= x["end_s"] + 1e-9)
+        assert x["worst"] == pytest.approx(np.min(along.mu[inside]))
+        assert x["by"] == pytest.approx(400.0 - x["worst"])
+    # the slip limit at friction 0.3 (16.7 deg): the nose-down pitch slides, flat ground not
+    slippery = HeightmapTerrain(terrain.heightmap, friction=0.3).with_robot(robot)
+    slide = dense_verdicts(slippery, along, margin=0.0)["slide"]
+    assert slide["binds"]
+    assert all(x["worst"] > np.arctan(0.3) for x in slide["stretches"])
+    assert 0.0 not in [x["start_s"] for x in slide["stretches"]]
+
+
+def test_a_rest_that_cycles_on_the_rim_is_carried_by_both_triangles(robot):
+    """The track run's state at the far rim: the steps cycle between two triangles."""
+    terrain = HeightmapTerrain(ditch_ground(np.random.default_rng(7))).with_robot(robot)
+    pose = np.array([-0.05145186, -0.81029017, 0.19739475])
+    q = np.array([1.48695085, -0.19979983, 0.24162407, -0.25352201])
+    com = robot.overall_com(robot.arm_com(q))
+    for backend in ("c", "numpy"):
+        ground = HeightmapTerrain(
+            terrain.heightmap, settings=RestSettings(backend=backend)
+        ).with_robot(robot)
+        r = ground.rest(pose, com_body=com)
+        assert not r.converged[0] and not r.tips_over[0]
+        front = r.bearing[0] & (ground.candidates.points[:, 0] > 0.2)
+        assert front.any()  # the far rim carries load, not only the near rim's wheels
+        mu = loaded_support(robot, ground, pose, robot.arm_com(q)).mu[0]
+        assert 0 < mu < 100  # balanced across the rim: positive, and small
+    # without the cycle's contacts the near rim alone would say it tips (a false verdict)
+    rigid = HeightmapTerrain(terrain.heightmap, settings=RestSettings(cycle_tol=0.0)).with_robot(
+        robot
+    )
+    assert loaded_support(robot, rigid, pose, robot.arm_com(q)).mu[0] < 0
+
+
+def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, capsys, monkeypatch):
+    """A 68 deg pivot on a 10 deg plane map, friction 0.35: the poses hold, the turn slides."""
+    import json
+
+    import yaml
+
+    from mmstab.cli import main
+
+    problem = {
+        "robot": str(ROBOT),
+        "terrain": {
+            "generate": {"kind": "plane", "seed": 0, "size": [8.0, 8.0], "resolution": 0.05,
+                         "slope": 0.17, "azimuth": float(np.pi / 2)},
+            "friction": 0.35,
+        },
+        "path": {"waypoints": [[-2.5, -1.0], [0.5, -1.0], [1.5, 1.5]], "speed": 0.25,
+                 "turn_radius": 0.0},
+        "workspace": {"grid": [10, 8, 8, 8]},
+        "planner": {"spacing": 0.5},
+    }  # fmt: skip
+    path = tmp_path / "turn.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    monkeypatch.chdir(tmp_path)
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 4
+    captured = capsys.readouterr()
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["slip"]["sliding_poses"] == [] and s["along_path"]["slide"]["stretches"] == []
+    (turn,) = s["slip"]["turns"]["sliding_turns"]
+    # the same stretch in risk, in the verdicts, in the text
+    (slide,) = s["risk"]["slides"]
+    assert [slide["start_s"], slide["end_s"]] == [s["s"][turn["first"]], s["s"][turn["last"]]]
+    assert s["verdicts"]["slide"] == {
+        "verdict": "slides",
+        "unsafe": True,
+        "where": [[slide["start_s"], slide["end_s"]]],
+    }
+    assert f"slide: slides at s = {slide['start_s']:.2f}-{slide['end_s']:.2f} m" in captured.out
+    assert "tip: holds" in captured.out and s["verdicts"]["tip"]["verdict"] == "holds"
+    # the turn named as the route names its corner (68 deg)
+    (corner,) = (c["turn_deg"] for c in s["route"]["corners"] if c["waypoint"] == 1)
+    assert f"turning {abs(round(corner))} deg there" in captured.err
+
+
+def test_stretches_are_merged_and_a_tip_below_the_margin_is_named_so():
+    from mmstab.runs.along import limit_verdicts, merged
+
+    assert merged([[4.29, 4.84], [0.0, 0.49], [0.0, 0.55], [4.42, 4.91]]) == [
+        [0.0, 0.55], [4.29, 4.91]
+    ]  # fmt: skip
+    summary = {
+        "s": [0.0, 0.5, 1.0],
+        "stability": {"stable": False, "mu_min": 300.0, "unstable_poses": [],
+                      "stretches": [{"start_s": 0.6, "end_s": 0.7, "worst": 29.3}]},
+        "slip": {"slides": False},
+        "risk": {"slides": []},
+        "climb": {"stalls": False, "steps": []},
+        "high_centred": {"high_centred": False, "stretches": []},
+        "poses": [{"collision_free": True}] * 3,
+    }  # fmt: skip
+    v = limit_verdicts(summary)
+    assert v["tip"] == {"verdict": "below_margin", "unsafe": True, "where": [[0.6, 0.7]],
+                        "mu_min": 29.3}  # fmt: skip
+    summary["stability"]["stretches"][0]["worst"] = -4.0
+    assert limit_verdicts(summary)["tip"]["verdict"] == "tips"
+    assert [v[k]["verdict"] for k in ("slide", "step", "high_centred", "arm_contact")] == [
+        "holds"
+    ] * 4
+
+
+def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
+    from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+    from mmstab.cli.verdicts import verify_status
+
+    def v(plan, mujoco, event=None):
+        events = dict.fromkeys(("tipped", "left_map", "slid", "stalled"))
+        if event:
+            events[event] = {"time_s": 3.0}
+        agree = (plan == "accepted") == (mujoco == "holds")
+        return {"plan": plan, "mujoco": mujoco, "agree": agree, "events": events,
+                "mu_relative_difference_median": 0.02, "simulated_s": 9.0,
+                "base_error_max_m": 0.05, "base_origin_error_max_m": 0.06, "run": "x"}  # fmt: skip
+
+    assert verify_status(None, None) is None
+    assert verify_status(v("accepted", "holds"), None) is None
+    assert verify_status(v("accepted", "slides", "slid"), None) == EXIT_SLIDES
+    assert verify_status(v("accepted", "leaves the map", "left_map"), None) == EXIT_SLIDES
+    assert verify_status(v("accepted", "tips", "tipped"), None) == EXIT_UNSTABLE
+    assert verify_status(v("accepted", "stalls", "stalled"), None) is None
+    assert verify_status(v("slides", "holds"), EXIT_SLIDES) == EXIT_SLIDES  # its own status
+    out = capsys.readouterr()
+    assert "physics disagrees: mmstab accepted the route but in MuJoCo it tips" in out.err
+    assert "DISAGREE" in out.out and "slides (slid at 3.00 s)" in out.out
+
+
+@pytest.mark.mujoco
+@pytest.mark.slow
+def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
+    """The sliding turn on a plane map, planned and run in MuJoCo: both say it slides."""
+    import json
+
+    import yaml
+
+    from mmstab.cli import main
+    from mmstab.experiments.verify import OUTCOMES
+
+    problem = {
+        "robot": str(ROBOT),
+        "terrain": {
+            "generate": {"kind": "plane", "seed": 0, "size": [8.0, 8.0], "resolution": 0.05,
+                         "slope": 0.17, "azimuth": float(np.pi / 2)},
+            "friction": 0.35,
+        },
+        "path": {"waypoints": [[-2.5, -1.0], [0.5, -1.0], [1.5, 1.5]], "speed": 0.25,
+                 "turn_radius": 0.0},
+        "workspace": {"grid": [10, 8, 8, 8]},
+        "planner": {"spacing": 0.5},
+    }  # fmt: skip
+    path = tmp_path / "turn.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    assert main(["plan", str(path), "-o", str(out), "--verify", "--allow-sliding"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    v = s["verify"]
+    sim = json.loads((out / "verify" / "summary.json").read_text())
+    assert v["plan"] == "slides" and v["mujoco"] in OUTCOMES
+    assert v["mujoco"] == (
+        "slides" if sim["slid"] is not None and sim["tipped"] is None else v["mujoco"]
+    )
+    assert v["agree"] == (v["mujoco"] != "holds")
+    assert (out / "verify" / "physics.png").stat().st_size > 10_000
+    assert f"verify in MuJoCo ({sim['duration_s']:.1f} s): {v['mujoco']}" in capsys.readouterr().out
