@@ -164,21 +164,6 @@ def with_in_V(ws: Workspace, path: Path) -> Workspace:
     return ws
 
 
-def _read_cache(path: Path) -> Workspace | None:
-    """The cached workspace at ``path``, or None (absent, or unreadable: a one-line notice)."""
-    if not path.is_file():
-        return None
-    try:
-        return load_workspace(path)
-    except Exception as exc:  # noqa: BLE001 - any unreadable cache (0-byte, cut, garbage)
-        why = _short(exc)
-        print(
-            f"mmstab: notice: workspace cache {path} unreadable ({why}); rebuilding",
-            file=sys.stderr,
-        )
-    return None
-
-
 def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:
     """Where ``load_or_build_workspace`` keeps the problem's workspace."""
     base = Path(cache_dir) if cache_dir is not None else default_cache_dir()

@@ -343,8 +343,9 @@ def load_or_build_roadmap(
 
     The file is ``roadmap-<key>.npz`` (:func:`roadmap_key`) in the cache folder (default
     :func:`mmstab.workspace.cache.default_cache_dir`, shared by every working folder),
-    written atomically by one process at a time (:mod:`mmstab.core.locks`); an unreadable one is rebuilt; one written before the nodes' CoMs and
-    ground heights and clearances were kept in it gets them added (the graph is the same).
+    written atomically by one process at a time (:mod:`mmstab.core.locks`); an unreadable
+    one is rebuilt; one written before the nodes' CoMs and ground heights and clearances
+    were kept in it gets them added (the graph is the same).
     A build says where the file goes (one line on stderr) and, with ``progress`` on a
     terminal, shows a progress bar. The arrays are read from an uncompressed copy beside
     the file (``roadmap-<key>/arrays/``, memory-mapped, :mod:`mmstab.workspace.kept`).
@@ -378,20 +379,6 @@ def load_or_build_roadmap(
         object.__setattr__(rm, SOURCE_ATTR, path)
     _MEMORY[key] = rm
     return rm
-
-
-def _read_roadmap(robot: Robot, path: Path) -> tuple[Roadmap | None, bool]:
-    """The roadmap in ``path`` (None: absent or unreadable) and whether to (re)write the file."""
-    try:
-        with np.load(path) as z:
-            kw = {f.name: z[f.name] for f in dataclasses.fields(Roadmap) if f.name in z}
-        kw["grid"] = tuple(int(n) for n in kw["grid"])
-        kw["resolution"] = float(kw["resolution"])
-        kw["build_seconds"] = float(kw["build_seconds"])
-        missing = not {"node_com", "node_ground", "node_clearance"} <= kw.keys()
-        return Roadmap(**{**kw, **(node_arrays(robot, kw["nodes_q"]) if missing else {})}), missing
-    except Exception:  # noqa: BLE001 - absent, or any unreadable cache: rebuild
-        return None, True
 
 
 def _read_roadmap(robot: Robot, path: Path) -> tuple[Roadmap | None, bool]:
