@@ -303,12 +303,17 @@ def test_run_interruptibly_answers_raises_and_yields_to_ctrl_c():
     assert run_interruptibly(sum, [1, 2, 3]) == 6
     with pytest.raises(ZeroDivisionError):
         run_interruptibly(lambda: 1 / 0)
+    # a shell's background job starts with SIGINT ignored: the test needs Python's handler
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT))
     start = time.monotonic()
     timer.start()
-    with pytest.raises(KeyboardInterrupt):
-        run_interruptibly(time.sleep, 3.0)  # a long call that never checks for signals
-    timer.join()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_interruptibly(time.sleep, 3.0)  # a long call that never checks for signals
+    finally:
+        timer.join()
+        signal.signal(signal.SIGINT, previous)
     # back well before the 3 s call ends (a loaded machine delays the timer thread, so no
     # tighter bound: it failed once at 1 s under load 4-6)
     assert time.monotonic() - start < 2.5

@@ -36,7 +36,10 @@ def test_the_kerb_route_constrains_the_pose_before_the_kerb_and_the_next(kerb) -
     assert np.all(c.climbs(com)) and np.all(com[c.constrained, 0] < 0.025)
 
 
-def test_without_the_limit_the_plan_keeps_the_arm_ahead_and_stalls(kerb, tmp_path) -> None:
+def test_without_the_limit_the_plan_is_checked_at_the_kerb_face(kerb, tmp_path) -> None:
+    """Without the climb limit the kerb's plan is only checked: on the loaded support (the
+    nose on the kerb's face at the step pose) the most stable postures no longer load the
+    front, so it climbs; on the tracks' rectangle they did and it stalled."""
     import yaml
 
     data = yaml.safe_load((ROOT / "problems" / "kerb.yaml").read_text())
@@ -48,7 +51,8 @@ def test_without_the_limit_the_plan_keeps_the_arm_ahead_and_stalls(kerb, tmp_pat
     plan = app.plan(problem)
     poses = problem.base_path.pose_at(plan.fractions)
     v = climb_verdict(problem.robot, problem.terrain, poses, plan.target_com, False)
-    assert v["stalls"] is True  # the most stable postures load the front: it stalls at the face
+    assert v["steps"] and all(s["height"] > 0.05 for s in v["steps"])  # the kerb's face, found
+    assert v["stalls"] is False and v["stowed_stalls"] is True  # the stowed arm would stall
 
 
 def _limit(bounds: list[float]) -> ClimbLimit:
