@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def one(k: int, runs: int, methods: tuple[str, ...] = ("sequence", "cmaes")) -> dict[str, Any]:
     """Pair ``k`` in this process: the one-off roadmap plan first, then the repeats."""
     t0 = time.perf_counter()
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "runs")]
     from test_random_routes import pair_problem
 
     from mmstab.core.files import PlanningError

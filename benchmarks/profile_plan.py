@@ -47,7 +47,7 @@ STAGES = (
 
 def one(k: int, out: Path) -> None:
     """Pair ``k`` planned in this process under cProfile; the stats dumped to ``out``."""
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "runs")]
     from test_random_routes import pair_problem
 
     from mmstab.core.problem import load_problem
