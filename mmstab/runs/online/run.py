@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from mmstab.core.files import ConfigError
 from mmstab.core.problem import Problem
 from mmstab.runs.online.follow import FollowSettings, FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
@@ -62,7 +63,8 @@ def follow_recording(
         limit: follow only the first ``limit`` maps.
 
     Raises:
-        ConfigError: an unreadable recording, missing topics, bad maps (one line each).
+        ConfigError: an unreadable recording, missing topics, bad maps, no map after any
+            odometry (one line each).
     """
     skipped = [0]
     steps = []
@@ -72,6 +74,8 @@ def follow_recording(
     # the first map read before V and the roadmap are built: a garbage recording or a missing
     # topic is refused at once (it took a workspace build, 20 s without a cache, before)
     first = list(itertools.islice(updates, 1))
+    if not first:  # before the workspace and the roadmap are built, or anything written
+        raise ConfigError(path, "odometry", "no map arrived after any odometry")
     follower = build_follower(problem, workspace)
     # the set-up's objects (V, the roadmap, CasADi's) out of the collector's full passes: one
     # such pass over them took 63 ms on a map of the rough route, now each scans the loop's own
