@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
     p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
     p.set_defaults(handler=_urdf)
-    from mmstab.viz.viewer.cli import add_view_command  # issue 18: the browser viewer
+    from mmstab.viz.viewer.cli import add_view_command  # the browser viewer
 
     add_view_command(sub)
     _add_terrain_commands(sub)

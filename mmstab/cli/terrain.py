@@ -1,4 +1,4 @@
-"""Terrain commands of ``mmstab`` (issue 14): ``rest``, ``stability-map``, ``terrain export``."""
+"""Terrain commands of ``mmstab``: ``rest``, ``stability-map``, ``terrain export``."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 from mmstab.cli.commands import _problem
 
 
-# ------------------------------------------------- terrain (issue 14): rest, maps, export
+# ------------------------------------------------- terrain: rest, maps, export
 def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
     """``--arm``: ``stowed`` (or absent) -> None; one angle [rad] per joint, within its limits."""
     import numpy as np

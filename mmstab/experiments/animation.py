@@ -1,4 +1,4 @@
-"""The tracking run as an animated GIF (issue 7): the robot driving the circle on the ramp.
+"""The tracking run as an animated GIF: the robot driving the circle on the ramp.
 
 It renders the stored run of ``mmstab track`` (``results/tracking/run.npz``), so
 ``make demo`` simulates the lap once; only when no run of this problem is stored does it

@@ -1,4 +1,4 @@
-"""Sliding in turns (issue 25): mmstab's skid-steer model against the whole robot in MuJoCo.
+"""Sliding in turns: mmstab's skid-steer model against the whole robot in MuJoCo.
 
 Settings come from ``problems/skid.yaml``: the robot's problem, the friction, the ramp
 slopes and headings, the track commands (pivots, arcs, straight) and the durations.

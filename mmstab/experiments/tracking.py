@@ -61,7 +61,7 @@ def run_tracking(
         out: output folder (default ``results/tracking``).
         plugin: QP plugin (default the problem's ``controller.plugin``, or ``codegen.plugin``
             for the generated backend).
-        backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C, issue 6).
+        backend: ``interpreted`` (CasADi ``conic``) or ``generated`` (compiled C).
         duration: simulated time [s] (default the problem's ``controller.duration``).
         plan: an arm plan; default :func:`mmstab.app.plan` on the problem.
         initial_arm: ``stowed`` or ``planned`` (see :mod:`mmstab.runs.tracking`).

@@ -1,4 +1,4 @@
-"""Verdicts against physics (issue 25): mmstab's tips / holds / slides against MuJoCo's.
+"""Verdicts against physics: mmstab's tips / holds / slides against MuJoCo's.
 
 Settings come from ``problems/verdicts.yaml``: the grid's axes (heading, payload, arm,
 friction, track speed) and the slope offsets around mmstab's critical slope, the

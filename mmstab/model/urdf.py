@@ -1,4 +1,4 @@
-"""URDF export of a robot description (issue 7), so RViz, pinocchio, MuJoCo or Drake can load it.
+"""URDF export of a robot description, so RViz, pinocchio, MuJoCo or Drake can load it.
 
 Tree (all frames follow ``docs/design.md``, "Frames")::
 

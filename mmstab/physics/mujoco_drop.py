@@ -1,4 +1,4 @@
-"""MuJoCo heightfield drop tests of the tracked base (issue 14 item 5).
+"""MuJoCo heightfield drop tests of the tracked base.
 
 The robot is ONE free rigid body whose collision geometry is exactly the one the
 terrain's contact model uses, in the body frame B (origin at the centre of the

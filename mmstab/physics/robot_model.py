@@ -1,4 +1,4 @@
-"""The whole robot as a MuJoCo model (MJCF text), generated from its description (issue 25).
+"""The whole robot as a MuJoCo model (MJCF text), generated from its description.
 
 Tree (frames as in ``docs/design.md``, "Frames"; the body frame B is MuJoCo's body ``base``)::
 

@@ -1,4 +1,4 @@
-"""The ground under the MuJoCo robot model and the robot's start pose on it (issue 25).
+"""The ground under the MuJoCo robot model and the robot's start pose on it.
 
 :mod:`mmstab.physics.robot_model` writes the MJCF; this module says what the ground is (a
 plane through a planar terrain's map frame, or a heightmap) and where the robot starts.

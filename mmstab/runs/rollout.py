@@ -1,4 +1,4 @@
-"""Whole closed-loop runs without per-step Python overhead (issue 6, "whole-run speed").
+"""Whole closed-loop runs without per-step Python overhead.
 
 :func:`rollout` runs the tracking closed loop (controller step, then the exact-arc motion of
 the base and the joints over dt) on a precomputed reference sequence, with one of three

@@ -1,6 +1,6 @@
 """How faithful the workspace V is to the labelled clouds (paper Fig. 3 numbers).
 
-Moved whole out of :mod:`mmstab.workspace` (issue 11: modules under ~400 lines).
+Moved whole out of :mod:`mmstab.workspace` (modules by concept).
 """
 
 from __future__ import annotations

@@ -109,13 +109,9 @@ def test_a_rest_that_cycles_on_the_rim_is_carried_by_both_triangles(robot):
     assert loaded_support(robot, rigid, pose, robot.arm_com(q)).mu[0] < 0
 
 
-def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, capsys, monkeypatch):
-    """A 68 deg pivot on a 10 deg plane map, friction 0.35: the poses hold, the turn slides."""
-    import json
-
+def turn_problem(tmp_path):
+    """A 68 deg pivot on a 10 deg plane map at friction 0.35: the poses hold, the turn slides."""
     import yaml
-
-    from mmstab.cli import main
 
     problem = {
         "robot": str(ROBOT),
@@ -131,6 +127,16 @@ def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, ca
     }  # fmt: skip
     path = tmp_path / "turn.yaml"
     path.write_text(yaml.safe_dump(problem))
+    return path
+
+
+def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, capsys, monkeypatch):
+    """A 68 deg pivot on a 10 deg plane map, friction 0.35: the poses hold, the turn slides."""
+    import json
+
+    from mmstab.cli import main
+
+    path = turn_problem(tmp_path)
     monkeypatch.chdir(tmp_path)
     assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 4
     captured = capsys.readouterr()
@@ -209,25 +215,10 @@ def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
     """The sliding turn on a plane map, planned and run in MuJoCo: both say it slides."""
     import json
 
-    import yaml
-
     from mmstab.cli import main
     from mmstab.experiments.verify import OUTCOMES
 
-    problem = {
-        "robot": str(ROBOT),
-        "terrain": {
-            "generate": {"kind": "plane", "seed": 0, "size": [8.0, 8.0], "resolution": 0.05,
-                         "slope": 0.17, "azimuth": float(np.pi / 2)},
-            "friction": 0.35,
-        },
-        "path": {"waypoints": [[-2.5, -1.0], [0.5, -1.0], [1.5, 1.5]], "speed": 0.25,
-                 "turn_radius": 0.0},
-        "workspace": {"grid": [10, 8, 8, 8]},
-        "planner": {"spacing": 0.5},
-    }  # fmt: skip
-    path = tmp_path / "turn.yaml"
-    path.write_text(yaml.safe_dump(problem))
+    path = turn_problem(tmp_path)
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"
     assert main(["plan", str(path), "-o", str(out), "--verify", "--allow-sliding"]) == 0

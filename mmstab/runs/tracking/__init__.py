@@ -19,7 +19,7 @@ through ``Function.buffer()`` on preallocated arrays. The composition applies qÌ
 step reports SUCCESS (else qÌ‡ = 0: hold still, whatever the backend returned) and flags a
 non-finite next state. Any Function with :class:`StepBackend`'s signature can be the step: the
 interpreted ``Controller.step`` (default) or the code-generated library loaded with
-``casadi.external`` (issue 6).
+``casadi.external``.
 
 **Failures.** A step that fails (status != SUCCESS: infeasible bounds, solver not certified)
 holds still for that period; every such step is recorded (:attr:`TrackingRun.failures`). A
