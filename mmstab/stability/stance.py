@@ -62,7 +62,7 @@ class Stance(NamedTuple):
     binding: str
 
     def to_json(self) -> dict[str, Any]:
-        """Exactly the keys of ``mmstab rest --json``."""
+        """The stance's keys of ``mmstab rest --json`` (the command adds the inputs, with units)."""
         return {
             "roll": self.roll,
             "pitch": self.pitch,
