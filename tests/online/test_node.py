@@ -14,6 +14,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -82,6 +83,11 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
 def play(setup: dict[str, Any], name: str, *faults: str, rate: float = 1.0) -> list[dict[str, Any]]:
     """Play the recording (with faults) and return the node's answers to its maps."""
     out = setup["dir"] / f"{name}.jsonl"
+    # the node serves the whole module: a play whose first stamp is older than the last
+    # play's last one would be a restarted publisher to it, so each starts after that
+    wait = setup.get("last_abs_stamp", 0.0) + 0.2 - time.time()
+    if wait > 0:
+        time.sleep(wait)
     cmd = [sys.executable, "-m", "mmstab", "play", str(setup["rec"]), "--problem",
            str(setup["problem"]), "--answers", str(out), "--rate", str(rate)]  # fmt: skip
     for f in faults:
@@ -89,6 +95,8 @@ def play(setup: dict[str, Any], name: str, *faults: str, rate: float = 1.0) -> l
     r = subprocess.run(cmd, env=setup["env"], capture_output=True, text=True, timeout=150)
     assert r.returncode == 0, r.stderr[-2000:] + Path(setup["log"]).read_text()[-2000:]
     got = [json.loads(line) for line in out.read_text().splitlines()]
+    stamps = [a["abs_stamp"] for a in got if isinstance(a.get("abs_stamp"), float)]
+    setup["last_abs_stamp"] = max([setup.get("last_abs_stamp", 0.0), *stamps])
     setup["targets"] = [a for a in got if a["kind"] == "arm_target"]
     return [a for a in got if a["kind"] == "diagnostics" and a["source"] == "map"]
 
