@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.core.files import write_yaml
+from mmstab.core.files import MmstabError, write_yaml
 from mmstab.core.problem import Problem
 
 
@@ -56,3 +59,39 @@ def route_corners(problem: Problem) -> dict[str, Any]:
     """
     route = problem.route
     return {} if route is None else {"corners": route.corners(), "pivots": route.report()}
+
+
+def experiment_run(
+    argv: list[str] | None,
+    doc: str,
+    settings: str,
+    out: str,
+    run: Callable[[Any, str], dict[str, Any]],
+    load: Callable[[str], Any],
+) -> tuple[dict[str, Any], str] | int:
+    """A ``python -m mmstab.experiments.NAME [SETTINGS] [-o DIR]`` run, its summary and folder.
+
+    Args:
+        argv: the arguments (``None``: the command line's).
+        doc: the module's docstring (its first line is the help's description).
+        settings: the settings file's default path.
+        out: the output folder's default path.
+        run: ``(settings, out) -> summary``.
+        load: ``path -> settings`` (checked: one line naming the file and field if not).
+
+    Returns:
+        ``(summary, out)``, or the exit status: 2 for refused settings (one line on stderr),
+        130 for Ctrl-C.
+    """
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("settings", nargs="?", default=settings)
+    parser.add_argument("-o", "--out", default=out, help="output folder")
+    args = parser.parse_args(argv)
+    try:
+        return run(load(args.settings), args.out), args.out
+    except MmstabError as exc:
+        print(f"mmstab: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mmstab: interrupted", file=sys.stderr)
+        return 130

@@ -55,7 +55,7 @@ from mmstab.runs.verdict import (
     turn_check,
 )
 from mmstab.stability.static import mu_max
-from mmstab.stability.support import stability_along
+from mmstab.stability.support import loaded_mu
 
 #: Robot snapshots drawn in the 3-D figure.
 SNAPSHOTS = 6
@@ -80,7 +80,7 @@ def route_summary(
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
-    mu_realised = stability_along(robot, problem.terrain, plan.poses, realised).reconfigured
+    mu_realised = loaded_mu(robot, problem.terrain, plan.poses, realised)  # one case, one batch
     times = np.asarray(plan.fractions) * route.lap_time
     slip = slip_verdict(problem.terrain, plan.poses, turn_check(problem, plan.target_com, times))
     margin = planner_margin(problem.section("planner"))

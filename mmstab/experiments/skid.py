@@ -14,7 +14,6 @@ route over a heightmap (:mod:`mmstab.experiments.skid_rough`, ``rough.png``).
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -22,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_figure, write_json
+from mmstab.core.files import ConfigError, read_yaml, write_figure, write_json
 from mmstab.experiments import skid_rough
+from mmstab.experiments.common import experiment_run
 from mmstab.experiments.skid_measures import TURNING, median, per_radian
 from mmstab.physics.skid_sim import measure_twist
 from mmstab.stability.skid import skid_twist, track_patch
@@ -177,15 +177,12 @@ def _ratio(value: float | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m mmstab.experiments.skid [SETTINGS] [-o DIR]``; the exit status."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("settings", nargs="?", default="problems/skid.yaml")
-    parser.add_argument("-o", "--out", default="results/skid", help="output folder")
-    args = parser.parse_args(argv)
-    try:
-        s = run_skid(load_settings(args.settings), args.out)
-    except MmstabError as exc:
-        print(f"mmstab: error: {exc}", file=sys.stderr)
-        return 2
+    got = experiment_run(
+        argv, __doc__, "problems/skid.yaml", "results/skid", run_skid, load_settings
+    )
+    if isinstance(got, int):
+        return got
+    s, out = got
     print(
         f"{s['turning_cases']}/{s['cases']} cases turn; slide per radian, model/MuJoCo: median "
         f"{_ratio(s['slide_per_radian_ratio_median'])}; turn rate model/MuJoCo: median "
@@ -204,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{_ratio(down['model_yaw_over_commanded_median'])} (MuJoCo / model)"
         )
     figures = "skid.png, rough.png" if "rough_ground" in s else "skid.png"
-    print(f"-> {args.out}/summary.json, {figures} ({s['seconds']:.0f} s)")
+    print(f"-> {out}/summary.json, {figures} ({s['seconds']:.0f} s)")
     return 0
 
 

@@ -23,7 +23,6 @@ where mmstab and MuJoCo disagree in ``runs/``. The routes run in a process pool
 
 from __future__ import annotations
 
-import argparse
 import multiprocessing
 import sys
 import time
@@ -34,7 +33,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from mmstab.core.files import MmstabError, read_yaml, validate, write_figure, write_json
+from mmstab.core.files import read_yaml, validate, write_figure, write_json
+from mmstab.experiments.common import experiment_run
 from mmstab.experiments.verify import OUTCOMES, PLAN_VERDICTS, outcome_of, plan_verdict_of
 
 _RANGE = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
@@ -344,22 +344,21 @@ def run_routes(
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m mmstab.experiments.validate_routes [SETTINGS] [-o DIR]``; exit status."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("settings", nargs="?", default="problems/validate_routes.yaml")
-    parser.add_argument("-o", "--out", default="results/validate_routes", help="output folder")
-    args = parser.parse_args(argv)
-    try:
-        s = run_routes(load_settings(args.settings), args.out)
-    except MmstabError as exc:
-        print(f"mmstab: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("mmstab: interrupted", file=sys.stderr)
-        return 130
+    got = experiment_run(
+        argv,
+        __doc__,
+        "problems/validate_routes.yaml",
+        "results/validate_routes",
+        run_routes,
+        load_settings,
+    )
+    if isinstance(got, int):
+        return got
+    s, out = got
     for name, bar in s["bars"].items():
         print(f"{name}: {'holds' if bar['holds'] else 'FAILS'}: "
               f"{ {k: v for k, v in bar.items() if k != 'holds'} }")  # fmt: skip
-    print(f"-> {args.out}/summary.json, validate_routes.png ({s['seconds']:.0f} s)")
+    print(f"-> {out}/summary.json, validate_routes.png ({s['seconds']:.0f} s)")
     return 0
 
 

@@ -11,7 +11,6 @@ every case, every disagreement; the tip slopes predicted vs bisected) and ``verd
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -19,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from mmstab.core.files import ConfigError, MmstabError, read_yaml, write_json
+from mmstab.core.files import ConfigError, read_yaml, write_json
 from mmstab.core.pool import ChunkPool
+from mmstab.experiments.common import experiment_run
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.verdict_sim import VERDICTS, SimSettings, Thresholds
 from mmstab.physics.verdicts import (
@@ -250,23 +250,17 @@ def run_verdicts(
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m mmstab.experiments.verdicts [SETTINGS] [-o DIR]``; the exit status."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("settings", nargs="?", default="problems/verdicts.yaml")
-    parser.add_argument("-o", "--out", default="results/verdicts", help="output folder")
-    args = parser.parse_args(argv)
-    try:
-        s = run_verdicts(load_settings(args.settings), args.out)
-    except MmstabError as exc:
-        print(f"mmstab: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("mmstab: interrupted", file=sys.stderr)
-        return 130
+    got = experiment_run(
+        argv, __doc__, "problems/verdicts.yaml", "results/verdicts", run_verdicts, load_settings
+    )
+    if isinstance(got, int):
+        return got
+    s, out = got
     for name, m in s["models"].items():
         t = s["tip_slopes"].get(name)
         slope = f"; tip slope within 1 deg {t['within_1_deg']}/{t['bracketed']}" if t else ""
         print(f"{name}: {m['agree']}/{m['cases']} agree ({100 * m['agreement']:.1f} %){slope}")
-    print(f"-> {args.out}/summary.json, verdicts.png ({s['seconds']:.0f} s)")
+    print(f"-> {out}/summary.json, verdicts.png ({s['seconds']:.0f} s)")
     return 0
 
 
