@@ -42,7 +42,9 @@ from mmstab.runs.along import (
     acceleration_margin,
     along_path,
     dense_verdicts,
+    bracket,
     limit_verdicts,
+    path_timing,
     sample_spacing,
 )
 from mmstab.runs.high_centred import path_samples
@@ -53,6 +55,7 @@ from mmstab.runs.verdict import (
     planner_margin,
     slip_verdict,
     turn_check,
+    turn_slip,
 )
 from mmstab.stability.static import mu_max
 from mmstab.stability.support import loaded_mu
@@ -81,8 +84,17 @@ def route_summary(
         raise MmstabError(f"{problem.path}: path: not a route")
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
     mu_realised = loaded_mu(robot, problem.terrain, plan.poses, realised)  # one case, one batch
-    times = np.asarray(plan.fractions) * route.lap_time
-    slip = slip_verdict(problem.terrain, plan.poses, turn_check(problem, plan.target_com, times))
+    # the friction cone at the planned poses; the turns' slide along the path's own time law
+    dense_poses, dense_s, times = path_timing(route, sample_spacing(problem.terrain))
+    dense_com = np.asarray(plan.target_com)[bracket(plan.s, dense_s)[0]]
+    slip = slip_verdict(problem.terrain, plan.poses)
+    turning = turn_slip(problem.terrain, dense_poses, turn_check(problem, dense_com, times))
+    slip["turns"] = turning | {"s": [dense_s[0], dense_s[-1]]}
+    slip["turns"]["sliding_turns"] = [
+        x | {"start_s": float(dense_s[x["first"]]), "end_s": float(dense_s[x["last"]])}
+        for x in turning["sliding_turns"]
+    ]
+    slip["slides"] = bool(slip["slides"]) or bool(turning["sliding_turns"])
     margin = planner_margin(problem.section("planner"))
     # between the planned poses: every few cm, the arm in the postures it moves between
     along = plan_along(problem, plan) if along is None else along
@@ -205,7 +217,8 @@ def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
         for x in slip.get("stretches", [])
     ]
     out += [
-        {"start_s": float(s_m[t["first"]]), "end_s": float(s_m[t["last"]]),
+        {"start_s": float(t["start_s"] if "start_s" in t else s_m[t["first"]]),
+         "end_s": float(t["end_s"] if "end_s" in t else s_m[t["last"]]),
          "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
         for t in slip.get("turns", {}).get("sliding_turns", [])
     ]  # fmt: skip
