@@ -58,7 +58,7 @@ def training_cases(summary: dict[str, Any]) -> list[dict[str, Any]]:
     cases = [c | {"kind": "ramp"} for c in summary["all_cases"]]
     cases += [c | {"kind": "rough"} for c in summary.get("rough_ground", {}).get("all_cases", [])]
     return [
-        c | {"kind": c["kind"] + (" turn" if c["yaw_rate_commanded"] else " straight")}
+        c | {"kind": c["kind"] + ("_turn" if c["yaw_rate_commanded"] else "_straight")}
         for c in cases
         if np.hypot(*c["gravity_body"][:2]) > 1e-6  # on a slope: a downhill to slide along
     ]
