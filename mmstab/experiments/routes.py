@@ -251,7 +251,7 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     out: dict[str, Any] = {"mu_searched": searched.tolist(), "mu_optimum_V": opt_v.tolist()}
     gaps = {"V": (opt_v - searched) / np.abs(opt_v)}
     if plan.settings.method == "roadmap":
-        from mmstab.planner.roadmap import node_coms
+        from mmstab.planner.searches.roadmap import node_coms
         from mmstab.workspace.roadmap import load_or_build_roadmap
 
         rm = load_or_build_roadmap(robot, ws)

@@ -34,7 +34,7 @@ from mmstab.physics.verdict_sim import (
     planar_ground,
     sim_verdict,
 )
-from mmstab.planner.exhaustive import best_mu
+from mmstab.planner.searches.exhaustive import best_mu
 from mmstab.stability.slip import binding_limit
 from mmstab.stability.static import robot_force_angle
 

@@ -112,8 +112,8 @@ def prepare_search(robot: Robot, ws: Workspace, settings: PlannerSettings) -> No
     """
     if settings.method != "roadmap" or robot.tool_wrench is not None:
         return
-    from mmstab.planner.roadmap import component_view
-    from mmstab.planner.roadmap_moves import start_tree
+    from mmstab.planner.searches.roadmap import component_view
+    from mmstab.planner.searches.roadmap.moves import start_tree
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
     roadmap = load_or_build_roadmap(robot, ws)
