@@ -58,6 +58,7 @@ _EXPORTS: dict[str, str] = {
     "plan": "mmstab.app.api",
     "track": "mmstab.app.api",
     "PathPlan": "mmstab.app.api",
+    "Controller": "mmstab.control.loop",
     "Tracked": "mmstab.app.api",
     "Settings": "mmstab.app.settings",
     "stability_along": "mmstab.app",
@@ -66,6 +67,7 @@ _EXPORTS: dict[str, str] = {
 __all__ = [
     "CirclePath",
     "ConfigError",
+    "Controller",
     "Heightmap",
     "HeightmapTerrain",
     "MmstabError",
@@ -100,6 +102,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
     from mmstab.app import stability_along
     from mmstab.app.api import PathPlan, Tracked, plan, track
     from mmstab.app.settings import Settings
+    from mmstab.control.loop import Controller
     from mmstab.core.files import ConfigError, MmstabError
     from mmstab.core.problem import Problem, load_problem
     from mmstab.model.payload import Payload, attach_payload
