@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.core.masks import true_runs
+from mmstab.model import collision_distance
 from mmstab.model.collision_bounds import FLOOR_STEPS, turn_floor
 from mmstab.model.parts import BASE_PARTS as PARTS_OF_BASE
 from mmstab.model.robot import Box, FloatArray, Geometry, Robot
@@ -287,6 +288,51 @@ class CollisionChecker:
         d = np.linalg.norm(centre - p[:, pair.other], axis=1)
         return d - radius - self._link_radius[pair.other] - CULL_SLACK
 
+    def _segment_gap(
+        self, pair: Pair, R: FloatArray, p: FloatArray, rows: NDArray[np.intp], need: float
+    ) -> FloatArray | None:
+        """Lower bound on the pair's distance at postures ``rows`` (m,) [m]: its segments'.
+
+        From the capsules' segments (:mod:`mmstab.model.collision_distance`), decided
+        against ``need`` [m] (exact enough to tell which postures keep it); None: a box
+        against a base box, or no C compiler.
+        """
+        if not collision_distance.available():
+            return None
+        ends = [self._ends(i, R, p, rows) for i in (pair.link, pair.other) if isinstance(i, int)]
+        if isinstance(pair.other, str):
+            if ends[0] is None:
+                return None
+            box = self.base_boxes[pair.other]
+            T = box.frame_T_shape
+            a0, a1, r = ends[0]
+            d = collision_distance.segment_box(a0, a1, T[:3, 3], T[:3, :3], box.size / 2, need + r)
+            return d - r
+        if ends[0] is not None and ends[1] is not None:
+            (a0, a1, ra), (b0, b1, rb) = ends[0], ends[1]
+            return collision_distance.segment_segment(a0, a1, b0, b1) - ra - rb
+        box_link, seg = (pair.link, ends[1]) if ends[0] is None else (pair.other, ends[0])
+        if seg is None:
+            return None
+        size = np.asarray(self.robot.links[box_link].geometry.size, dtype=float)
+        a0, a1, r = seg
+        return (
+            collision_distance.segment_box(
+                a0, a1, p[rows, box_link], R[rows, box_link], size / 2, need + r
+            )
+            - r
+        )
+
+    def _ends(
+        self, link: int, R: FloatArray, p: FloatArray, rows: NDArray[np.intp]
+    ) -> tuple[FloatArray, FloatArray, float] | None:
+        """A capsule link's segment ends in B at postures ``rows`` (m, 3) each, its radius [m]."""
+        g = self.robot.links[link].geometry
+        if isinstance(g, Box):
+            return None
+        axis = R[rows, link, :, 2] * (g.length / 2)  # the FCL capsule's axis: its z
+        return p[rows, link] - axis, p[rows, link] + axis, float(g.radius)
+
     def turn_floors(self) -> dict[str, float]:
         """Least distance [m] over a full turn of the pairs one joint alone moves, by name.
 
@@ -396,7 +442,11 @@ class CollisionChecker:
             b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
             rate = step * (2.0 if j >= 0 else 1.0)  # how fast the pair's distance can shrink
             safe_until = 0
-            for n in np.flatnonzero(gaps[:, self._gap_column[pair.name]] < need):
+            rows = np.flatnonzero(gaps[:, self._gap_column[pair.name]] < need)
+            if rows.size:  # the capsules' own distances (mmstab.model.collision_distance)
+                near = self._segment_gap(pair, R, p, rows, need)
+                rows = rows if near is None else rows[near < need]
+            for n in rows:
                 if n < safe_until:
                     continue
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))

@@ -6,6 +6,7 @@ import fcl
 import numpy as np
 from conftest import random_postures
 
+from mmstab.model import collision_distance
 from mmstab.model.collision import CollisionChecker, Pair
 from mmstab.model.reach import joint_reach
 
@@ -64,3 +65,49 @@ def test_keeps_clearance_equals_fcl_on_every_posture_and_pair(robot, rng):
         agree += got == truth
     assert seen == {True, False}  # both answers occur (else the test proves little)
     assert agree == 60
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return q * np.sign(np.linalg.det(q))
+
+
+def test_segment_bounds_equal_fcl_distances_to_boxes_and_capsules(rng):
+    """The C kernel's bounds: below FCL's distance, and within 1e-4 m of it (to round-off)."""
+    half = np.array([0.2, 0.1, 0.05])
+    box = fcl.CollisionObject(fcl.Box(*(2 * half)), fcl.Transform())
+    n = 300
+    a0, a1 = rng.uniform(-0.6, 0.6, (n, 3)), rng.uniform(-0.6, 0.6, (n, 3))
+    b0, b1 = rng.uniform(-0.6, 0.6, (n, 3)), rng.uniform(-0.6, 0.6, (n, 3))
+    centre, R = rng.uniform(-0.1, 0.1, (n, 3)), np.stack([_rotation(rng) for _ in range(n)])
+    to_box = collision_distance.segment_box(a0, a1, centre, R, half)
+    between = collision_distance.segment_segment(a0, a1, b0, b1)
+    r = 0.01
+    for k in range(n):
+        cap_a = _capsule(a0[k], a1[k], r)
+        box.setTransform(fcl.Transform(R[k], centre[k]))
+        d = fcl.distance(cap_a, box, fcl.DistanceRequest(), fcl.DistanceResult())
+        if d > 0:  # FCL answers -1 when they overlap
+            assert to_box[k] - r <= d + 1e-9
+            assert d - (to_box[k] - r) < 1e-4
+        cap_b = _capsule(b0[k], b1[k], r)
+        d = fcl.distance(cap_a, cap_b, fcl.DistanceRequest(), fcl.DistanceResult())
+        if d > 0:
+            assert between[k] - 2 * r <= d + 1e-9
+            assert d - (between[k] - 2 * r) < 1e-4
+    # the stop: a bound decided against it is on the right side of it
+    stop = 0.05
+    decided = collision_distance.segment_box(a0, a1, centre, R, half, stop)
+    np.testing.assert_array_equal(decided >= stop, to_box >= stop)
+
+
+def _capsule(a: np.ndarray, b: np.ndarray, r: float) -> fcl.CollisionObject:
+    """An FCL capsule of radius r [m] around segment a-b (its axis along its local z)."""
+    axis = b - a
+    z = axis / np.linalg.norm(axis)
+    x = np.cross([1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    R = np.column_stack([x, np.cross(z, x), z])
+    return fcl.CollisionObject(
+        fcl.Capsule(r, float(np.linalg.norm(axis))), fcl.Transform(R, (a + b) / 2)
+    )
