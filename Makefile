@@ -145,6 +145,14 @@ VALIDATE_ROUTES ?= problems/validate_routes.yaml
 validate-routes: setup
 	$(PY) -m mmstab.experiments.validate_routes $(VALIDATE_ROUTES)
 
+## mmstab's mu on its loaded support against MuJoCo's robot settled at rest, for each
+## compliance of the tracks' bottom run (12 seeded maps x 6 poses, about 2 minutes)
+## -> results/rest_mu/summary.json, rest_mu.png (docs/physics.md)
+.PHONY: rest-mu
+REST_MU ?= problems/rest_mu.yaml
+rest-mu: setup
+	$(PY) -m mmstab.experiments.rest_mu $(REST_MU)
+
 ## mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
 ## (docs/skid.md)

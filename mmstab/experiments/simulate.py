@@ -24,7 +24,7 @@ from mmstab.control.reference import initial_state
 from mmstab.core.files import write_json
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.experiments.simulate_figure import write_run_figure
+from mmstab.experiments.simulate_figure import write_run_figure, write_run_gif
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
@@ -98,6 +98,7 @@ def run_simulate(
     out: str | Path | None = None,
     duration: float | None = None,
     arm: str | None = None,
+    gif: bool = False,
 ) -> dict[str, Any]:
     """Plan, run the closed loop in MuJoCo, write the summary and figure (module text).
 
@@ -107,6 +108,7 @@ def run_simulate(
         duration: simulated time [s]; None: the section's.
         arm: ``planned`` or ``stowed`` (the arm held stowed along the path); None: the
             section's.
+        gif: also write ``physics.gif``, a replay of the run in MuJoCo's attitudes.
     """
     loop = loop_settings(problem)
     if duration is not None:
@@ -124,6 +126,9 @@ def run_simulate(
         problem.terrain, *path_samples(problem.base_path)
     )
     write_run_figure(d / "physics.png", problem, run, loop)
+    if gif:
+        info = write_run_gif(d / "physics.gif", problem, run)
+        summary["replay"] = {"path": "physics.gif", "frames": info.frames}
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)
     return summary

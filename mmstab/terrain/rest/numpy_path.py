@@ -1,9 +1,9 @@
 """The resting pose's NumPy path: lower, then tip until the supporting contacts hold the CoM.
 
-The algorithm of :mod:`mmstab.terrain.rest` vectorised over poses, in chunks of
+The algorithm of :mod:`mmstab.terrain.rest.poses` vectorised over poses, in chunks of
 :data:`CHUNK`: a coarse stage on a sparse subset of the candidates, then the fine stage on
 each pose's highest candidates (:func:`solve_active`) or on all of them (:func:`solve`,
-the reference path). The C kernel (:mod:`mmstab.terrain.rest_c`) runs the same stages; this
+the reference path). The C kernel (:mod:`mmstab.terrain.rest.kernel`) runs the same stages; this
 path is its independent twin.
 """
 
@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
-from mmstab.terrain.rest_geometry import footprint_corners, heights, jacobian, lift
-from mmstab.terrain.rest_types import BoolArray, RestSettings
+from mmstab.terrain.rest.geometry import footprint_corners, heights, jacobian, lift
+from mmstab.terrain.rest.types import BoolArray, RestSettings
 from mmstab.terrain.support_lp import support_lp
 
 #: Poses solved together (large: the per-round Python overhead is paid once per chunk).
@@ -31,7 +31,7 @@ def numpy_rests(
     p: FloatArray,
     settings: RestSettings,
 ) -> tuple[FloatArray, FloatArray, BoolArray, BoolArray, BoolArray, NDArray[np.int_]]:
-    """:func:`mmstab.terrain.rest.rest_poses`'s stages in NumPy, chunk by chunk.
+    """:func:`mmstab.terrain.rest.poses.rest_poses`'s stages in NumPy, chunk by chunk.
 
     Args:
         hm: the ground.

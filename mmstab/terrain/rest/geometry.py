@@ -3,7 +3,7 @@
 For a pose ``(x, y, yaw)`` and an attitude ``(roll, pitch)`` [rad], a contact candidate
 ``c_k`` (in B) needs the body origin at ``f_k = h(xy_k) - (G_R_B c_k)_z`` [m] to touch the
 ground ``h``; these are the batched evaluations of ``f_k``, of the lever arms and of their
-derivatives that the NumPy solver (:mod:`mmstab.terrain.rest_numpy`) iterates on, and the
+derivatives that the NumPy solver (:mod:`mmstab.terrain.rest.numpy_path`) iterates on, and the
 candidate subsets (sparse, footprint corners) that both solvers start from.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
-from mmstab.terrain.rest_types import BoolArray
+from mmstab.terrain.rest.types import BoolArray
 
 #: Poses per block in the samplers of :func:`lift` and :func:`heights` (their (block,
 #: candidates) temporaries stay in cache while a round works on the whole chunk).

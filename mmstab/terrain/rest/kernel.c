@@ -1,6 +1,6 @@
 /* The resting pose of a rigid tracked base lowered onto a heightmap: mmstab's C kernel.
  *
- * The same algorithm as the NumPy path (mmstab/terrain/rest_numpy.py; rest.py explains
+ * The same algorithm as the NumPy path (mmstab/terrain/rest/numpy_path.py; poses.py explains
  * it: lower, pick the supporting triangle by a 2-D linear programme, Newton step on it,
  * repeat), written per pose: a coarse stage on a sparse subset of the candidates, a fine
  * stage on each pose's highest candidates checked against all of them, and a re-solve on
@@ -236,7 +236,7 @@ static int support_lp(const double *J, const double *f, long Ks, const double q[
     return b[0] < Ks && b[1] < Ks && b[2] < Ks;
 }
 
-/* ---- one solve (rest_numpy.py solve) for one pose -------------------------------------- */
+/* ---- one solve (numpy_path.py solve) for one pose -------------------------------------- */
 
 typedef struct {
     double *f, *J; /* (K), (K, 2) work arrays */

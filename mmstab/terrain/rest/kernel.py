@@ -1,6 +1,6 @@
-"""The resting pose's C kernel (``rest.c``), called through ctypes.
+"""The resting pose's C kernel (``kernel.c``), called through ctypes.
 
-The kernel runs the algorithm of :mod:`mmstab.terrain.rest` per pose, function for
+The kernel runs the algorithm of :mod:`mmstab.terrain.rest.poses` per pose, function for
 function (the coarse stage, the fine stage on each pose's highest candidates with its
 check, the re-solve on all), so it gives the NumPy path's rests to rounding (tested) in a
 fraction of the time, batched or one pose at a time. It is compiled on first use
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
 
 REST_NAME = "mmstab_rest"  #: the kernel's C symbol
-REST_SOURCE = Path(__file__).with_name("rest.c")  #: its C source
+REST_SOURCE = Path(__file__).with_name("kernel.c")  #: its C source
 
 _D, _L, _U8, _long, _double = DOUBLES, LONGS, BYTES, LONG, DOUBLE
 

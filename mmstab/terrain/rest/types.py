@@ -1,4 +1,4 @@
-"""The resting pose's settings and results (:func:`mmstab.terrain.rest.rest_poses`)."""
+"""The resting pose's settings and results (:func:`mmstab.terrain.rest.poses.rest_poses`)."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ class RestSettings(NamedTuple):
             ``tol_step``).
         active_tol: a left-out candidate higher than the subset's highest by more than
             this [m] sends the pose to another pass.
-        backend: ``"c"`` the compiled kernel (:mod:`mmstab.terrain.rest_c`, the default),
+        backend: ``"c"`` the compiled kernel (:mod:`mmstab.terrain.rest.kernel`, the default),
             ``"numpy"`` the vectorised NumPy path here: the same algorithm, kept as its
             independent twin (the tests hold one against the other).
     """

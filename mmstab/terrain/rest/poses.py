@@ -31,14 +31,14 @@ a roll or pitch beyond ``max_tilt`` means the robot tips over.
 
 **Speed.** The first rounds use a sparse subset of the candidates; the rounds after that
 use each pose's highest candidates only, checked against all at the end, with a re-solve
-on all of them where the check fails (:func:`mmstab.terrain.rest_numpy.solve_active`): the
+on all of them where the check fails (:func:`mmstab.terrain.rest.numpy_path.solve_active`): the
 reference path's rests (``active_candidates=0``) at a fraction of the work
 (``docs/terrain.md``, Speed).
 
-**Where.** The settings and results are :mod:`mmstab.terrain.rest_types`; the C kernel's
-driver is here (the kernel itself: :mod:`mmstab.terrain.rest_c`), the NumPy twin
-:mod:`mmstab.terrain.rest_numpy` on the geometry of :mod:`mmstab.terrain.rest_geometry`;
-:mod:`mmstab.terrain.rest_result` turns attitudes into :class:`RestPoses` (or an off-map
+**Where.** The settings and results are :mod:`mmstab.terrain.rest.types`; the C kernel's
+driver is here (the kernel itself: :mod:`mmstab.terrain.rest.kernel`), the NumPy twin
+:mod:`mmstab.terrain.rest.numpy_path` on the geometry of :mod:`mmstab.terrain.rest.geometry`;
+:mod:`mmstab.terrain.rest.result` turns attitudes into :class:`RestPoses` (or an off-map
 error).
 """
 
@@ -48,22 +48,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
-from mmstab.terrain.rest_c import KernelRests, rest_kernel
-from mmstab.terrain.rest_geometry import BLOCK, coarse_subset, footprint_corners, rotations
-from mmstab.terrain.rest_numpy import CHUNK, numpy_rests
-from mmstab.terrain.rest_result import raise_off_map, rest_result
-from mmstab.terrain.rest_types import BoolArray, RestPoses, RestSettings
+from mmstab.terrain.rest.geometry import coarse_subset, footprint_corners
+from mmstab.terrain.rest.kernel import KernelRests, rest_kernel
+from mmstab.terrain.rest.numpy_path import numpy_rests
+from mmstab.terrain.rest.result import raise_off_map, rest_result
+from mmstab.terrain.rest.types import RestPoses, RestSettings
 
-__all__ = [
-    "BLOCK",
-    "CHUNK",
-    "BoolArray",
-    "RestPoses",
-    "RestSettings",
-    "coarse_subset",
-    "rest_poses",
-    "rotations",
-]
+__all__ = ["rest_poses"]
 
 
 def rest_poses(

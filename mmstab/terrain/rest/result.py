@@ -1,7 +1,7 @@
 """The resting pose's result: flags and body poses from the solved attitudes; off-map errors.
 
 Both solvers (the C kernel and the NumPy twin) end in attitudes and lifts; these turn them
-into :class:`~mmstab.terrain.rest_types.RestPoses` (height, ``G_T_B``, touching and bearing
+into :class:`~mmstab.terrain.rest.types.RestPoses` (height, ``G_T_B``, touching and bearing
 contacts, high-centring, line contact) or, for a pose that needs ground off the map, into an
 :class:`~mmstab.terrain.heightmap.OffMapError` that names it.
 """
@@ -13,8 +13,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.terrain.contacts import CHASSIS
 from mmstab.terrain.heightmap import FloatArray, Heightmap, OffMapError
-from mmstab.terrain.rest_geometry import rotations
-from mmstab.terrain.rest_types import BoolArray, RestPoses, RestSettings
+from mmstab.terrain.rest.geometry import rotations
+from mmstab.terrain.rest.types import BoolArray, RestPoses, RestSettings
 
 
 def raise_off_map(
