@@ -183,20 +183,28 @@ def prepare_search(robot: Robot, ws: Workspace, settings: PlannerSettings) -> No
     """Load (or build) what the search keeps between the plans of a process, once.
 
     ``method: roadmap``: the roadmap (its cache file), the start node's component on the
-    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree; a
+    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, the
+    compiled kernels loaded (the moves' clearance bounds, the ground under the arm) and the
+    robot's turn floors (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`); a
     route's poses then cost only their own search, and a one-off plan reports these fixed
     costs apart (``RoutePlan.fixed_seconds``). Other methods: nothing.
     """
     if settings.method != "roadmap" or robot.tool_wrench is not None:
         return
+    from mmstab.model import collision_distance
+    from mmstab.model.collision import CollisionChecker
     from mmstab.planner.searches.roadmap import component_view
     from mmstab.planner.searches.roadmap.moves import start_tree
+    from mmstab.planner.under_arm_c import load_kernels
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
     roadmap = load_or_build_roadmap(robot, ws)
     start = roadmap.connect(robot.stowed, robot)
     component_view(robot, roadmap, start, settings.ground_clearance)
     start_tree(roadmap, start, settings.ground_clearance)
+    CollisionChecker(robot).turn_floors()
+    collision_distance.available()
+    load_kernels()
 
 
 def plan_problem(
