@@ -80,7 +80,7 @@ def simulate_run(problem: Problem, loop: LoopSettings, arm_plan: Any = None) -> 
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
-        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
+        cs = dataclasses.replace(cs, plugin=Settings.from_problem(problem).codegen.plugin)
     else:
         step = build_controller(problem.robot, cs).step
     arm_plan = plan(problem) if arm_plan is None else arm_plan
