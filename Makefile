@@ -145,6 +145,14 @@ VALIDATE_ROUTES ?= problems/validate_routes.yaml
 validate-routes: setup
 	$(PY) -m mmstab.experiments.validate_routes $(VALIDATE_ROUTES)
 
+## mmstab's mu on its loaded support against MuJoCo's robot settled at rest, for each
+## compliance of the tracks' bottom run (12 seeded maps x 6 poses, about 2 minutes)
+## -> results/rest_mu/summary.json, rest_mu.png (docs/physics.md)
+.PHONY: rest-mu
+REST_MU ?= problems/rest_mu.yaml
+rest-mu: setup
+	$(PY) -m mmstab.experiments.rest_mu $(REST_MU)
+
 ## mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
 ## (docs/skid.md)
@@ -318,6 +326,14 @@ kerb: setup
 	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable --allow-sliding
 	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/kerb.yaml -o results/kerb
+
+## a user's ditch (problems/ditch.yaml, its ground from problems/terrains/make_ditch.py):
+## planned with every verdict and run in MuJoCo beside it (plan --verify: refused, exit 3),
+## and the physics run replayed -> results/ditch/ (docs/verdicts.md, "A user's ditch")
+.PHONY: ditch
+ditch: setup
+	$(MMSTAB) plan problems/ditch.yaml -o results/ditch --verify; test $$? -eq 3
+	$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif; test $$? -eq 3
 
 ## 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json

@@ -10,9 +10,12 @@ The names below are the public API, re-exported from their stages::
 
     import mmstab
 
-    problem = mmstab.load_problem("problems/ramp.yaml")
-    plan = mmstab.plan(problem)        # the workspace V (cached), Eq. 6, the postures
-    problem, plan, run = mmstab.track(problem, plan, duration=2.0, progress=False)
+    robot = mmstab.load_robot("problems/robots/cameleon.yaml")
+    ramp = mmstab.Ramp(0.2)
+    route = mmstab.route_path(robot, ramp, [[0, 0], [2, 0]], speed=0.3, turn_radius=0.5)
+    plan = mmstab.plan(robot, ramp, route)   # the workspace V (cached), Eq. 6, the verdicts
+    run = mmstab.track(plan).run             # the QP controller drives it
+    problem_plan = mmstab.plan(mmstab.load_problem("problems/ramp.yaml"))  # from a file
 
 They load on first use, so ``import mmstab`` stays light (no CasADi until a stage is asked for).
 """
@@ -53,25 +56,34 @@ _EXPORTS: dict[str, str] = {
     "robot_mu": "mmstab.stability.dynamic",
     "stance": "mmstab.stability.stance",
     "Stance": "mmstab.stability.stance",
+    "route_path": "mmstab.paths.route",
     # the pipeline (the layer the CLI and the experiments share)
-    "plan": "mmstab.app",
-    "track": "mmstab.app",
+    "plan": "mmstab.app.api",
+    "track": "mmstab.app.api",
+    "PathPlan": "mmstab.app.api",
+    "Controller": "mmstab.control.loop",
+    "Tracked": "mmstab.app.api",
+    "Settings": "mmstab.app.settings",
     "stability_along": "mmstab.app",
 }
 
 __all__ = [
     "CirclePath",
     "ConfigError",
+    "Controller",
     "Heightmap",
     "HeightmapTerrain",
     "MmstabError",
+    "PathPlan",
     "Payload",
     "Problem",
     "Ramp",
     "Robot",
     "RoutePath",
+    "Settings",
     "Stance",
     "Terrain",
+    "Tracked",
     "attach_payload",
     "flipper_ground_angle",
     "force_angle",
@@ -82,6 +94,7 @@ __all__ = [
     "robot_force_angle",
     "robot_mu",
     "roll_pitch",
+    "route_path",
     "stability_along",
     "stance",
     "track",
@@ -89,13 +102,16 @@ __all__ = [
 ]  # the keys of _EXPORTS (a test holds them equal)
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
-    from mmstab.app import plan, stability_along, track
+    from mmstab.app import stability_along
+    from mmstab.app.api import PathPlan, Tracked, plan, track
+    from mmstab.app.settings import Settings
+    from mmstab.control.loop import Controller
     from mmstab.core.files import ConfigError, MmstabError
     from mmstab.core.problem import Problem, load_problem
     from mmstab.model.payload import Payload, attach_payload
     from mmstab.model.robot import Robot, flipper_ground_angle, load_robot, with_flipper_angle
     from mmstab.paths.circle import CirclePath
-    from mmstab.paths.route import RoutePath
+    from mmstab.paths.route import RoutePath, route_path
     from mmstab.stability.dynamic import robot_mu
     from mmstab.stability.stance import Stance, stance
     from mmstab.stability.static import force_angle, robot_force_angle

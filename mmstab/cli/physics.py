@@ -22,7 +22,7 @@ def _simulate(args: argparse.Namespace) -> int | None:
     if args.duration is not None and not args.duration > 0:
         raise MmstabError(f"--duration: must be positive, got {args.duration}")
     _check_duration(args, problem)
-    s = run_simulate(problem, out, args.duration, args.arm)
+    s = run_simulate(problem, out, args.duration, args.arm, gif=args.gif)
     print(
         f"simulate: {s['duration_s']:.2f} s in MuJoCo ({s['backend']} controller, "
         f"{s['arm']} arm, {s['model']['wheel']} wheels) at "
@@ -147,6 +147,9 @@ def add_physics_commands(sub: Any) -> None:
         choices=["planned", "stowed"],
         default=None,
         help="the plan's arm postures or the arm held stowed (default: physics.arm)",
+    )
+    p.add_argument(
+        "--gif", action="store_true", help="also write physics.gif, a replay in MuJoCo's attitudes"
     )
     p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the robot slides")
     p.add_argument(

@@ -13,13 +13,14 @@ import numpy as np
 
 from mmstab.app import plan as plan_of
 from mmstab.app import stability_along, workspace
+from mmstab.app.settings import Settings
 from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
 from mmstab.experiments.plan_quality import draw_lap_quality, lap_quality
-from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
-from mmstab.runs.high_centred import high_centred_verdict, path_samples
-from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict, turn_check
+from mmstab.planner import Plan, planning_region, solve_pose
+from mmstab.runs.plan_verdicts import lap_verdicts
+from mmstab.runs.verdict import plan_verdict
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
 from mmstab.terrain import roll_pitch
@@ -42,12 +43,13 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 7: the first CMA samples and the converged CoM at the rolled pose."""
     robot = problem.robot
     ws = workspace(problem)
-    settings = PlannerSettings.from_section(problem.section("planner"))
+    every = Settings.from_problem(problem)
+    settings = every.planner
     if settings.method == "sequence":  # one pose: the per-pose search the figure shows
         settings = settings._replace(method="cmaes")
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
-    region = planning_region(ws, problem.section("workspace")["method"])
+    region = planning_region(ws, every.workspace.method)
     stowed = robot.arm_com(robot.stowed)
     target = solve_pose(robot, problem.terrain, region, pose, stowed, settings, rng)
     solver = PostureSolver(robot, ws)
@@ -110,7 +112,7 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         "collision_free": realised.collision_free,
         "seconds": target.seconds,
     }
-    summary["stability"] = plan_verdict([summary], planner_margin(problem.section("planner")))
+    summary["stability"] = plan_verdict([summary], every.verdicts.margin)
     save_settings(d, problem)
     write_json(d / "summary.json", summary)
     return summary
@@ -157,15 +159,6 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     }
 
 
-def lap_slip(problem: Problem, poses: list[dict[str, Any]]) -> dict[str, Any]:
-    """The slip verdict of a lap plan's poses: the friction cone and the lap's turns."""
-    coms = [p["target_com"] for p in poses]
-    lap = float(problem.section("controller")["lap_time"])  # a circle: one lap
-    times = [lap * p["fraction"] for p in poses]
-    turns = turn_check(problem, coms, times, lap if problem.base_path.closed else None)
-    return slip_verdict(problem.terrain, [p["pose"] for p in poses], turns)
-
-
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
     ws = workspace(problem)
@@ -175,15 +168,19 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         raise MmstabError(f"{problem.path}: path: Fig. 8 needs a circle")
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
-    summary["stability"] = plan_verdict(
-        summary["poses"], planner_margin(problem.section("planner"))
-    )
-    summary["slip"] = lap_slip(problem, summary["poses"])
-    lap = path_samples(problem.base_path)
-    summary["high_centred"] = high_centred_verdict(problem.terrain, *lap)
-    quality = lap_quality(
-        problem, planning_region(ws, problem.section("workspace")["method"]), plan
-    )
+    settings = Settings.from_problem(problem)
+    lap_time = settings.controller.lap_time  # a circle: one lap
+    v = lap_verdicts(
+        problem.robot,
+        problem.terrain,
+        problem.base_path,
+        summary["poses"],
+        settings.verdicts,
+        lap_time,
+    )  # the verdicts mmstab.plan returns
+    for key in ("stability", "slip", "high_centred"):
+        summary[key] = v[key]
+    quality = lap_quality(problem, planning_region(ws, settings.workspace.method), plan)
     for k, p in enumerate(summary["poses"]):
         for key, values in quality["per_pose"].items():
             if key != "fraction" and values is not None:

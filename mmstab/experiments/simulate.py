@@ -19,15 +19,17 @@ from typing import Any
 import numpy as np
 
 from mmstab.app import generated_step, plan
+from mmstab.app.settings import Settings
 from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.reference import initial_state
 from mmstab.core.files import write_json
 from mmstab.core.problem import Problem
 from mmstab.experiments.common import output_dir, save_settings
-from mmstab.experiments.simulate_figure import write_run_figure
+from mmstab.experiments.simulate_figure import write_run_figure, write_run_gif
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.runs.tracking.simulation import settings_for_path
 from mmstab.stability.drive import resolve_turn_ratio
 
 
@@ -54,12 +56,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
 
 def controller_settings(problem: Problem) -> ControllerSettings:
     """The controller's settings; a route sets its own lap time and duration."""
-    cs = ControllerSettings.from_section(problem.section("controller"))
-    if problem.route is not None:
-        cs = dataclasses.replace(
-            cs, lap_time=problem.route.lap_time, duration=problem.route.duration
-        )
-    return cs
+    return settings_for_path(Settings.from_problem(problem).controller, problem.base_path)
 
 
 def stowed_plan(robot: Any, arm_plan: Any) -> Any:
@@ -83,7 +80,7 @@ def simulate_run(problem: Problem, loop: LoopSettings, arm_plan: Any = None) -> 
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
-        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
+        cs = dataclasses.replace(cs, plugin=Settings.from_problem(problem).codegen.plugin)
     else:
         step = build_controller(problem.robot, cs).step
     arm_plan = plan(problem) if arm_plan is None else arm_plan
@@ -98,6 +95,7 @@ def run_simulate(
     out: str | Path | None = None,
     duration: float | None = None,
     arm: str | None = None,
+    gif: bool = False,
 ) -> dict[str, Any]:
     """Plan, run the closed loop in MuJoCo, write the summary and figure (module text).
 
@@ -107,6 +105,7 @@ def run_simulate(
         duration: simulated time [s]; None: the section's.
         arm: ``planned`` or ``stowed`` (the arm held stowed along the path); None: the
             section's.
+        gif: also write ``physics.gif``, a replay of the run in MuJoCo's attitudes.
     """
     loop = loop_settings(problem)
     if duration is not None:
@@ -123,7 +122,11 @@ def run_simulate(
     summary["high_centred"] = high_centred_verdict(
         problem.terrain, *path_samples(problem.base_path)
     )
+    place_events(summary, run, problem.base_path)
     write_run_figure(d / "physics.png", problem, run, loop)
+    if gif:
+        info = write_run_gif(d / "physics.gif", problem, run)
+        summary["replay"] = {"path": "physics.gif", "frames": info.frames}
     save_settings(d, problem, physics=dataclasses.asdict(loop))
     write_json(d / "summary.json", summary)
     return summary
@@ -180,6 +183,27 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "reference_wait_s": run.reference_wait_s,
         "stalled": None if run.stalled is None else {"time_s": run.stalled},
     }
+
+
+def place_events(summary: dict[str, Any], run: PhysicsRun, path: Any) -> None:
+    """Add where each event of ``summary`` happened (in place).
+
+    The body origin ``xy_m`` (x, y) in M [m] at the event's time and, on a route, ``s_m``:
+    the distance along it of the path's nearest point [m], as the plan's verdicts name places.
+    """
+    u = np.linspace(0.0, 1.0, 4001)
+    on_route = hasattr(path, "s_at")
+    xy_path = np.asarray(path.pose_at(u))[:, :2] if on_route else None
+    for key in ("tipped", "slid", "left_map", "stalled", "disagreement"):
+        event = summary.get(key)
+        if event is None:
+            continue
+        k = min(int(np.searchsorted(run.t, event["time_s"])), len(run.t) - 1)
+        xy = run.state[k, :2]
+        event["xy_m"] = [float(xy[0]), float(xy[1])]
+        if xy_path is not None:
+            j = int(np.argmin(np.linalg.norm(xy_path - xy, axis=1)))
+            event["s_m"] = float(np.asarray(path.s_at(u[j : j + 1]))[0])
 
 
 def _nanmax(values: np.ndarray) -> float | None:

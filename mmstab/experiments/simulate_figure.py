@@ -88,3 +88,36 @@ def draw_run(problem: Problem, run: PhysicsRun, loop: LoopSettings) -> Any:
 def write_run_figure(path: Path, problem: Problem, run: PhysicsRun, loop: LoopSettings) -> None:
     """Draw the run (:func:`draw_run`) to ``path`` (PNG)."""
     write_figure(path, draw_run(problem, run, loop))
+
+
+def write_run_gif(path: Path, problem: Problem, run: PhysicsRun, progress: bool = False) -> Any:
+    """A replay of the run (``physics.gif``): MuJoCo's body attitude at every check.
+
+    The robot is drawn where MuJoCo had it (``run.body_G_T_B``, not mmstab's resting pose),
+    coloured by the μ of MuJoCo's loaded contacts; frame count, rate and size come from the
+    problem's ``animation`` section. Returns :class:`mmstab.viz.animation.AnimationInfo`.
+    """
+    from mmstab.stability.static import mu_max
+    from mmstab.viz.animation import render_animation
+
+    if run.body_G_T_B is None:
+        raise ValueError("write_run_gif: the run has no recorded body poses")
+    frames = run.body_G_T_B
+    at = np.flatnonzero(np.isfinite(frames[:, 0, 0]))
+    n = problem.robot.arm_joints
+    cfg = problem.section("animation")
+    return render_animation(
+        problem.robot,
+        problem.terrain,
+        run.t[at],
+        run.state[at, :3],
+        run.state[at, -n:],
+        run.mu_simulated[at],
+        path,
+        fps=cfg["fps"],
+        size=(cfg["width"], cfg["height"]),
+        max_frames=cfg["frames"],
+        mu_scale=mu_max(problem.robot),
+        progress=progress,
+        body_poses=frames[at],
+    )

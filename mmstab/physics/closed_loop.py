@@ -149,6 +149,8 @@ class PhysicsRun:
             ``governor.wait_limit`` [s], or None.
         tip_cause: ``support lost`` (MuJoCo's contacts' μ ≤ 0 for ``tip_hold``) or
             ``overturned`` (past the point of no return), None when it did not tip.
+        body_G_T_B: the simulated body's pose in G (N+1, 4, 4) at every ``check_dt`` (NaN
+            between): the attitude MuJoCo gave it, for a replay (``simulate --gif``).
         disagreement: first time the tilt off the predicted rest passed
             ``disagreement_angle`` [s], or None (a report: mmstab's rest and the simulated
             attitude disagree there; not a tip).
@@ -179,6 +181,7 @@ class PhysicsRun:
     stalled: float | None = None
     tip_cause: str | None = None
     disagreement: float | None = None
+    body_G_T_B: FloatArray | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -325,7 +328,17 @@ def run_closed_loop(
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
         stalled=None if clock.done or cut else float(t[m - 1]),
         tip_cause=cause,
+        body_G_T_B=frames_at_checks(checks, m),
     )
+
+
+def frames_at_checks(checks: TipCheck, m: int) -> FloatArray:
+    """The checks' simulated body poses G_T_B on the run's ``m`` periods (m, 4, 4), NaN between."""
+    out = np.full((m, 4, 4), np.nan)
+    for k, G_T_B in zip(checks.index, checks.frames, strict=False):
+        if k < m:
+            out[k] = G_T_B
+    return out
 
 
 def _finish(

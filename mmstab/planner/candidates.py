@@ -1,6 +1,6 @@
 """Each pose's candidate roadmap nodes, without scoring every node (branch and bound).
 
-``method: roadmap`` (:mod:`mmstab.planner.roadmap`) gives each pose the ``count`` best
+``method: roadmap`` (:mod:`mmstab.planner.searches.roadmap`) gives each pose the ``count`` best
 reachable nodes by Eq. 6's stability term, spread round robin over turret bins (the best
 of every bin in turn, :func:`spread_top`), each clear of the robot. Scoring all 288,097
 nodes of the default roadmap at every pose (an ``arctan2`` per tip-over axis) took 26 of
@@ -38,7 +38,6 @@ from numpy.typing import NDArray
 
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
-from mmstab.planner.candidate_picks import among, rank_bound, scored_values, spread_top
 from mmstab.planner.fitness import LinearFitness
 from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
@@ -152,11 +151,14 @@ def scored_rows(
     low: list[NDArray[np.intp]] | None = None,
     bounds: tuple[FloatArray, FloatArray] | None = None,
     kept: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-) -> tuple[NDArray[np.intp], FloatArray]:
+) -> tuple[NDArray[np.intp], FloatArray, NDArray[np.bool_]]:
     """Reach rows (ascending) that hold every pose's rows ranked below ``rank`` per bin.
 
-    Returns the rows and the thresholds (K, bins): at pose k, bin b's rows ranked below
-    ``rank`` have values at least ``tau[k, b]`` (-inf: the bin is taken whole).
+    Returns the rows, the thresholds (K, bins): at pose k, bin b's rows ranked below
+    ``rank`` have values at least ``tau[k, b]`` (-inf: the bin is taken whole), and which of
+    the rows may reach their bin's threshold at each pose (K, rows): the others' cluster
+    bounds lie below it there, so only these need scoring at that pose (a sixth of the rows
+    on the random routes: the poses' support polygons differ, and so do their best rows).
 
     Args:
         cl: the clusters.
@@ -180,13 +182,14 @@ def scored_rows(
     proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
     tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
     tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
-    keep = ((upper >= tau[:, cl.cluster_bin] - BOUND_SLACK) & (members > 0)).any(axis=0)
-    take = np.flatnonzero(keep)
+    reaches = upper >= tau[:, cl.cluster_bin] - BOUND_SLACK  # (K, C)
+    take = np.flatnonzero((reaches & (members > 0)).any(axis=0))
     if take.size == 0:  # no clusters (an empty component)
-        return np.zeros(0, dtype=np.intp), tau
+        return np.zeros(0, dtype=np.intp), tau, np.zeros((len(fits), 0), dtype=bool)
     sizes = cl.start[take + 1] - cl.start[take]
     offset = np.repeat(cl.start[take] - np.r_[0, np.cumsum(sizes)[:-1]], sizes)
-    return np.sort(cl.rows[np.arange(int(sizes.sum())) + offset]), tau
+    rows = np.sort(cl.rows[np.arange(int(sizes.sum())) + offset])
+    return rows, tau, reaches[:, cl.cluster_of[rows]]
 
 
 def proof_order(
@@ -341,10 +344,11 @@ def route_candidates(
         eligible, low = clear.eligible(), clear.low(K)
         if not np.array_equal(eligible, kept_for):  # the proofs' order kept while it stands
             kept, kept_for = proof_order(cl, eligible, bounds[0]), eligible.copy()
-        sub, tau = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
-        bad, sub_bins = ~eligible[sub], bins[sub]
+        union, tau, reaches = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
         more = []
         for k, fit in enumerate(fits):
+            sub = union[reaches[k]]  # the rest lie below the threshold: never in ``top``
+            bad, sub_bins = ~eligible[sub], bins[sub]
             v = scored_values(fit, samples, sub, scored[k], kept_v[k])
             scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf
@@ -368,3 +372,63 @@ def route_candidates(
         ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
     mu = np.stack([fit.mu(samples[r]) for fit, r in zip(fits, rows, strict=True)])
     return Candidates(rows, np.where(mu > 0, value, -np.inf), mu)
+
+
+# The rows a pose's candidates are picked from: the rank bound of the picks within their
+# turret bins, the round robin over the bins, and the values of a search's rows, each row
+# scored once per search.
+
+
+def rank_bound(bin_rows: NDArray[np.intp], count: int) -> int:
+    """The smallest R with Σ_b min(R, n_b) ≥ count: chosen rows rank below R in their bin."""
+    n = np.sort(np.asarray(bin_rows))
+    for r in range(1, int(n.max(initial=0)) + 1):
+        if int(np.minimum(n, r).sum()) >= count:
+            return r
+    return int(n.max(initial=0))
+
+
+def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+    """``count`` rows: the best of every turret bin in turn (round robin), best first.
+
+    The same answer as :func:`mmstab.planner.searches.sequence._diverse_top` (ties by row order),
+    without a Python loop over the bins.
+    """
+    order = np.argsort(-values, kind="stable")
+    b = bins[order]
+    by_bin = np.argsort(b, kind="stable")  # value order kept within each bin
+    sb = b[by_bin]
+    rank = np.empty(len(order), dtype=np.intp)
+    rank[by_bin] = np.arange(len(order)) - np.searchsorted(sb, sb, side="left")
+    chosen = order[np.lexsort((-values[order], rank))][:count]
+    return chosen[np.argsort(-values[chosen], kind="stable")]
+
+
+def among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """Whether each of ``rows`` is one of ``sorted_rows`` (ascending)."""
+    at = np.minimum(np.searchsorted(sorted_rows, rows), max(len(sorted_rows) - 1, 0))
+    return np.asarray(sorted_rows[at] == rows) if len(sorted_rows) else np.zeros(len(rows), bool)
+
+
+def scored_values(
+    fit: LinearFitness, samples: FloatArray, rows: NDArray[np.intp], before: NDArray[np.intp],
+    values: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """Eq. 6's values [-] of reach rows ``rows`` (ascending), each scored once a search.
+
+    A row's value does not depend on the rows scored with it, so those of ``before``
+    (ascending, the last round's) are taken from their ``values``.
+
+    Args:
+        fit: Eq. 6 at the pose.
+        samples: the reach rows' arm CoMs, body frame (N, 3) [m].
+        rows: the rows to value.
+        before: rows valued before.
+        values: their values [-].
+    """
+    at = np.minimum(np.searchsorted(before, rows), max(len(before) - 1, 0))
+    old = before[at] == rows if len(before) else np.zeros(len(rows), dtype=bool)
+    v = np.empty(len(rows))
+    v[old] = values[at[old]]
+    v[~old] = fit(samples[rows[~old]])
+    return v

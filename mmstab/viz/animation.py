@@ -95,6 +95,7 @@ def render_animation(
     mu_scale: float | None = None,
     view: tuple[float, float] = (32.0, -65.0),
     progress: bool = True,
+    body_poses: ArrayLike | None = None,
 ) -> AnimationInfo:
     """Render a run as an animated GIF (matplotlib ``FuncAnimation`` + ``PillowWriter``).
 
@@ -112,6 +113,8 @@ def render_animation(
         mu_scale: margin [N rad] shown full green; default the largest finite ``mu``.
         view: camera (elevation, azimuth) [deg], as ``Axes3D.view_init``.
         progress: show a tqdm progress bar while rendering.
+        body_poses: the body's poses ``G_T_B`` (T, 4, 4) to draw (a physics run's attitude);
+            None: the terrain's resting pose at each base pose.
 
     Returns:
         ``AnimationInfo(path, frames, indices)``.
@@ -133,7 +136,10 @@ def render_animation(
 
     fig = plt.figure(figsize=(size[0] / DPI, size[1] / DPI), dpi=DPI)
     ax3d: Any = fig.add_axes((0.0, 0.0, 0.6, 0.92), projection="3d")
-    G_T_Bs, travelled = _draw_scene(ax3d, robot, terrain, poses, q, idx, view)
+    frames_G = None if body_poses is None else np.asarray(body_poses, dtype=float)
+    if frames_G is not None and frames_G.shape != (len(t), 4, 4):
+        raise ValueError(f"body_poses: expected ({len(t)}, 4, 4), got {frames_G.shape}")
+    G_T_Bs, travelled = _draw_scene(ax3d, robot, terrain, poses, q, idx, view, frames_G)
     panel = _draw_margin_panel(fig, t, m, scale)
     cmap = matplotlib.colormaps[MU_CMAP]
     frames = _Frames(ax3d, robot, terrain, t, poses, q, m, cmap, scale, G_T_Bs, travelled, panel)
@@ -149,6 +155,7 @@ def _draw_scene(
     q: FloatArray,
     idx: NDArray[np.intp],
     view: tuple[float, float],
+    body_poses: FloatArray | None = None,
 ) -> tuple[dict[int, FloatArray], LayerLines]:
     """The static scene: the ground, the planned and the (empty) travelled track, the camera.
 
@@ -157,7 +164,10 @@ def _draw_scene(
     Returns:
         The body poses ``G_T_B`` of the frames' samples, and the travelled track's artist.
     """
-    G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
+    if body_poses is None:
+        G_T_Bs = {int(k): terrain.G_T_B(poses[k]) for k in idx}
+    else:
+        G_T_Bs = {int(k): body_poses[k] for k in idx}
     pts_G = np.concatenate([mesh_points(robot_meshes(robot, q[k], G_T_Bs[int(k)])) for k in idx])
     pts_S = transform_points(np.linalg.inv(terrain.G_T_M()), pts_G)
     lo, hi = pts_S.min(axis=0) - 0.15, pts_S.max(axis=0) + 0.15

@@ -262,3 +262,27 @@ def test_an_older_problem_files_tip_angle_is_the_disagreement_angle(tmp_path) ->
     path = write_problem(tmp_path, lambda p, r: p.setdefault("physics", {}).update(tip_angle=30))
     with pytest.raises(Exception, match="rad"):
         load_problem(path)  # degrees refused, as for the new name
+
+
+def test_a_replay_draws_the_robot_where_mujoco_had_it(ramp, tmp_path: Path) -> None:
+    import copy
+
+    from PIL import Image
+
+    from mmstab.experiments.simulate_figure import write_run_gif
+
+    problem, plan = ramp
+    run = _run(problem, plan, 1.0)
+    at = np.flatnonzero(np.isfinite(run.body_G_T_B[:, 0, 0]))
+    assert len(at) > 5 and np.array_equal(at, np.flatnonzero(np.isfinite(run.tilt_error)))
+    # the recorded frames are MuJoCo's attitude: their tilt off the terrain's rest is the run's
+    z_rest = np.asarray(problem.terrain.G_T_B(run.state[at, :3])).reshape(-1, 4, 4)[:, :3, 2]
+    tilt = np.arccos(np.clip(np.einsum("ni,ni->n", z_rest, run.body_G_T_B[at, :3, 2]), -1, 1))
+    assert tilt == pytest.approx(run.tilt_error[at], abs=1e-9)
+    M_T_B = np.linalg.inv(problem.terrain.G_T_M()) @ run.body_G_T_B[at]
+    assert M_T_B[:, :2, 3] == pytest.approx(run.state[at, :2], abs=1e-9)  # B's origin in M
+    short = copy.deepcopy(problem)
+    short.data.setdefault("animation", {}).update(frames=6, width=240, height=160)
+    info = write_run_gif(tmp_path / "physics.gif", short, run)
+    with Image.open(info.path) as gif:
+        assert gif.n_frames == info.frames == 6

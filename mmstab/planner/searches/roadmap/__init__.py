@@ -1,0 +1,431 @@
+"""``method: roadmap``: postures along a path chosen on the posture roadmap.
+
+Like ``method: sequence`` (:mod:`mmstab.planner.searches.sequence`) it maximises Eq. 6 summed along
+the path, each pose's motion term against the previous pose's choice, by dynamic
+programming over poses x candidate postures. The candidates are the roadmap's nodes
+(:mod:`mmstab.workspace.roadmap`) in the component of the arm's start posture (the stowed
+arm), each pose's ``sequence_candidates`` best by Eq. 6's stability term spread over the
+turret, with a stable posture only (μ > 0). Any two nodes of a component are joined by a
+roadmap path of checked collision-free moves, so every move the search chooses is
+feasible by construction: no lazy check, no round limit; the search is exact on the
+candidates. When some pose has no stable candidate (or the turret window leaves no
+sequence), :class:`NoPlanError` names the pose. The chosen moves' roadmap paths come with
+the answer, for the controller (:mod:`~mmstab.planner.searches.roadmap.moves`). Per pose (a
+caller planning one pose) :class:`RoadmapSearch` is the exhaustive reference.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import fields
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.core.files import MmstabError, PlanningError
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
+from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
+from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
+from mmstab.planner.grounded import ground_graph
+from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.searches.base import PathChoice, PathTask, PoseChoice, PoseTask
+from mmstab.planner.searches.exhaustive import ExhaustiveSearch
+from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' names, as before)
+    ASTAR_EXPANSIONS,
+    astar,
+    ground_move,
+    roadmap_move,
+    start_tree,
+)
+from mmstab.planner.searches.sequence import _turret_bins, _viterbi
+from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.under_arm import GroundUnderArm
+from mmstab.workspace.kept import kept_arrays
+from mmstab.workspace.roadmap import Roadmap, load_or_build_roadmap
+
+#: Turret-angle bins over which each pose's candidates are spread.
+TURRET_BINS = 24
+
+
+class NoPlanError(PlanningError):
+    """No sequence of reachable stable postures exists; ``pose`` is the first without one."""
+
+    def __init__(self, message: str, pose_index: int):
+        super().__init__(message)
+        self.pose_index = pose_index
+
+
+class RoadmapSequence(NamedTuple):
+    """The chosen roadmap nodes along the path.
+
+    Attributes:
+        nodes: the chosen node per pose (K,).
+        postures: their postures (K, 4) [rad].
+        com: their arm CoMs, body frame (K, 3) [m].
+        fitness: Eq. 6 per pose, the previous pose's choice as previous CoM (K,).
+        mu: force-angle measure per pose [N rad] (K,).
+        total: the sum of ``fitness``.
+        moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
+            the start posture (open path) or from the last pose (closed).
+        seconds: wall time [s].
+    """
+
+    nodes: NDArray[np.intp]
+    postures: FloatArray
+    com: FloatArray
+    fitness: FloatArray
+    mu: FloatArray
+    total: float
+    moves: tuple[FloatArray, ...]
+    seconds: float
+
+
+def best_sequence(
+    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
+) -> tuple[NDArray[np.intp], float]:
+    """Exact max of Σ value[k][c_k] − motion[k][c_{k−1}, c_k] over allowed moves.
+
+    Open: Viterbi. Closed (``motion``/``allowed`` have K entries, the last closing the loop):
+    Viterbi from every feasible first candidate in turn, the closing move folded into the
+    last pose's values. Total -inf when no sequence is allowed.
+    """
+    K = len(value)
+    if not closed or K == 1:
+        return _viterbi(value, motion[: K - 1], allowed[: K - 1])
+    best_path, best_total = np.zeros(K, dtype=np.intp), -np.inf
+    for start in np.flatnonzero(np.isfinite(value[0])):
+        v = np.full_like(value, -np.inf)
+        v[1:] = value[1:]
+        v[0, start] = value[0, start]
+        close = np.where(allowed[K - 1][:, start], -motion[K - 1][:, start], -np.inf)
+        v[K - 1] = v[K - 1] + close
+        path, total = _viterbi(v, motion[: K - 1], allowed[: K - 1])
+        if total > best_total:
+            best_path, best_total = path, total
+    return best_path, best_total
+
+
+def _first_dead_pose(value: FloatArray, allowed: list[NDArray[np.bool_]]) -> int:
+    """The first pose that no allowed sequence of finite values reaches."""
+    alive = np.isfinite(value[0])
+    for k in range(len(value)):
+        if k:
+            alive = (allowed[k - 1] & alive[:, None]).any(axis=0) & np.isfinite(value[k])
+        if not alive.any():
+            return k
+    return len(value) - 1
+
+
+def _no_plan(
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    poses: FloatArray,
+    settings: PlannerSettings,
+) -> NoPlanError:
+    """The error naming the first pose no allowed sequence reaches."""
+    k = _first_dead_pose(value, allowed)
+    x, y, h = np.asarray(poses, dtype=float)[k]
+    ground = settings.ground_clearance
+    return NoPlanError(
+        f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
+        f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
+        + (" within the turret window" if settings.turret_window is not None else "")
+        + ("" if ground is None else f" with the arm {ground:g} m above the ground"),
+        k,
+    )
+
+
+class Mover:
+    """The arm's moves into each chosen node (:func:`~.roadmap.moves.ground_move`).
+
+    From the start node (an open path) or the last pose's node (a loop); each move kept
+    per pair of nodes and the poses it joins, so a plan chosen again reuses them.
+    """
+
+    def __init__(
+        self, robot: Robot, roadmap: Roadmap, start: int, ground: float | None,
+        under: GroundUnderArm | None,
+    ) -> None:  # fmt: skip
+        self.robot, self.roadmap, self.start, self.ground, self.under = (
+            robot, roadmap, start, ground, under,
+        )  # fmt: skip
+        self.checker = CollisionChecker(robot)  # the staircase's corners cut where free
+        self.tree = start_tree(roadmap, start, ground)
+        self.kept: dict[tuple[int, int, tuple[int, ...]], FloatArray | None] = {}
+
+    def moves(self, nodes: NDArray[np.intp], closed: bool) -> tuple[list[FloatArray], list[int]]:
+        """The moves into ``nodes`` (K,), and the pairs with none (-1: the first, from start)."""
+        K = len(nodes)
+        loop = closed and K > 1
+        before = [nodes[-1] if loop else self.start, *nodes[:-1]]
+        moves: list[FloatArray] = []
+        failed: list[int] = []
+        for k, (a, b) in enumerate(zip(before, nodes, strict=True)):
+            ks = ((K - 1 if loop else 0), 0) if k == 0 else (k - 1, k)
+            key = (int(a), int(b), ks)
+            if key not in self.kept:
+                self.kept[key] = ground_move(
+                    self.robot, self.roadmap, self.checker, int(a), int(b), self.ground,
+                    self.under, tuple(sorted(set(ks))), self.tree,
+                )  # fmt: skip
+            move = self.kept[key]
+            if move is None:
+                failed.append(K - 1 if loop and k == 0 else k - 1)
+            else:
+                moves.append(move)
+        return moves, failed
+
+
+def node_coms(robot: Robot, roadmap: Roadmap) -> FloatArray:
+    """Arm CoMs of the roadmap's nodes, body frame (N, 3) [m] (kept with the roadmap).
+
+    ``robot`` is the roadmap's own (its cache key holds the robot's hash).
+    """
+    return np.asarray(roadmap.node_com)
+
+
+class ComponentView(NamedTuple):
+    """What every plan from one roadmap component needs, computed once and kept.
+
+    Attributes:
+        reach: the component's nodes (N,).
+        samples: their arm CoMs, body frame (N, 3) [m].
+        diameter: the CoMs' largest extent along an axis [m] (Eq. 6's ``d_workspace``).
+        bins: turret bin of each (N,).
+        clusters: the nodes grouped for the candidates' bounds.
+        joint_span: the postures' L1 extent, Σ_j (max q_j − min q_j) [rad] (the
+            ``motion_cost: joints`` normaliser).
+    """
+
+    reach: NDArray[np.intp]
+    samples: FloatArray
+    diameter: float
+    bins: NDArray[np.intp]
+    clusters: NodeClusters
+    joint_span: float
+
+
+def component_view(
+    robot: Robot, roadmap: Roadmap, start: int, ground: float | None = None
+) -> ComponentView:
+    """The :class:`ComponentView` of node ``start``'s component (kept with the roadmap).
+
+    With ``ground`` [m]: the component among the nodes whose arm stays that far above the
+    support plane (:func:`mmstab.planner.grounded.ground_graph`). Kept in memory and beside
+    the roadmap's cache file (:mod:`mmstab.workspace.kept`).
+    """
+    views = getattr(roadmap, "_views", None)
+    if views is None:
+        views = {}
+        object.__setattr__(roadmap, "_views", views)
+    component = ground_graph(roadmap, ground).component
+    comp = (int(component[start]), ground)
+    if comp not in views:
+
+        def compute() -> dict[str, np.ndarray]:
+            reach = np.flatnonzero(component == comp[0])
+            samples = node_coms(robot, roadmap)[reach]
+            bins = _turret_bins(roadmap.nodes_q[reach, 0], TURRET_BINS)
+            clusters = node_clusters(samples, bins, TURRET_BINS)
+            return {
+                "reach": reach, "bins": bins,
+                "diameter": np.float64(np.ptp(samples, axis=0).max() if len(samples) > 1 else 1),
+                "joint_span": np.float64(max(np.ptp(roadmap.nodes_q[reach], axis=0).sum(), 1e-9)),
+                **{f"clusters.{f.name}": getattr(clusters, f.name) for f in fields(clusters)},
+            }  # fmt: skip
+
+        ground_tag = None if ground is None else float(ground)
+        a = kept_arrays(roadmap, f"view-{comp[0]}-{ground_tag!r}", compute)
+        cl = {c.name: a[f"clusters.{c.name}"] for c in fields(NodeClusters)}
+        views[comp] = ComponentView(
+            reach=a["reach"],
+            samples=node_coms(robot, roadmap)[a["reach"]],
+            diameter=float(a["diameter"]),
+            bins=a["bins"],
+            clusters=NodeClusters(**cl),
+            joint_span=float(a["joint_span"]),
+        )
+    return views[comp]
+
+
+def _forbid_low_ends(
+    clear: NodeClearance,
+    cand: NDArray[np.intp],
+    value: FloatArray,
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
+) -> None:
+    """Forbid the moves one of whose ends is too low above the other pose's ground.
+
+    The arm moves while the base drives between the two poses: each end posture must
+    clear both poses' ground (measured for the stable candidates only).
+    """
+    for i, (ka, kb) in enumerate(pairs):
+        fa, fb = np.isfinite(value[ka]), np.isfinite(value[kb])
+        allowed[i][fa] &= clear.at(kb, cand[ka, fa])[:, None]
+        allowed[i][:, fb] &= clear.at(ka, cand[kb, fb])[None, :]
+
+
+def _choose(
+    value: FloatArray,
+    motion: list[FloatArray],
+    allowed: list[NDArray[np.bool_]],
+    pairs: list[tuple[int, int]],
+    closed: bool,
+    cand: NDArray[np.intp],
+    reach: NDArray[np.intp],
+    mover: Mover,
+) -> tuple[NDArray[np.intp], NDArray[np.intp] | None, list[FloatArray]]:
+    """The best sequence whose moves all clear the ground: the choice (K,), its nodes, moves.
+
+    A move with no path clear of the ground at the poses it joins is forbidden and the
+    choice made again (``value`` and ``allowed`` updated in place); nodes None: no plan.
+    """
+    K = len(value)
+    while True:
+        path, total = best_sequence(value, motion, allowed, closed)
+        if not np.isfinite(total):
+            return path, None, []
+        nodes = reach[cand[np.arange(K), path]]
+        moves, failed = mover.moves(nodes, closed)
+        if not failed:
+            return path, nodes, moves
+        for i in failed:  # -1: the open path's first move, from the start
+            if i < 0:
+                value[0, path[0]] = -np.inf
+            else:
+                allowed[i][path[pairs[i][0]], path[pairs[i][1]]] = False
+
+
+def solve_roadmap_sequence(
+    robot: Robot,
+    gravity_body: FloatArray,
+    roadmap: Roadmap,
+    settings: PlannerSettings,
+    mu_max: float,
+    closed: bool,
+    poses: FloatArray,
+    start_q: FloatArray | None = None,
+    under: GroundUnderArm | None = None,
+    climb: ClimbPlan | None = None,
+    polygons: list[FloatArray] | None = None,
+) -> RoadmapSequence:
+    """Choose one reachable roadmap node per pose (module text).
+
+    Args:
+        robot: the robot.
+        gravity_body: gravity in the body frame at each pose (K, 3) [m/s^2].
+        roadmap: the posture roadmap.
+        settings: planner settings (weights, ``turret_window``, ``sequence_candidates``).
+        mu_max: Eq. 6's normaliser [N rad].
+        closed: the path is a loop (the last pose's choice is the first's previous).
+        poses: base poses (K, 3) [m, m, rad], for the message when no plan exists.
+        start_q: the arm's start posture (4,) [rad]; default the stowed arm.
+        under: the ground under the arm at each pose: a node too low above it at pose k is
+            no candidate there, a move too low at the poses it joins is not chosen.
+        polygons: each pose's support polygon in B (n, 3) [m]
+            (:func:`mmstab.planner.pose.support_polygons_at`); None: the tracks' rectangle.
+        climb: the climb limit along the poses: at a constrained pose only nodes whose
+            overall CoM lets the tracks climb its step (:mod:`mmstab.planner.climbing`).
+
+    Raises:
+        NoPlanError: some pose has no reachable stable posture (the message names it).
+    """
+    t0 = time.perf_counter()
+    if robot.tool_wrench is not None:
+        raise MmstabError("planner: method roadmap does not take payload.wrench yet")
+    start_q = robot.stowed if start_q is None else np.asarray(start_q, dtype=float)
+    start = roadmap.connect(start_q, robot)
+    view = component_view(robot, roadmap, start, settings.ground_clearance)
+    reach, samples, diameter = view.reach, view.samples, view.diameter
+    g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    K, M = len(g), min(settings.sequence_candidates, len(reach))
+    stowed = robot.arm_com(start_q)
+    stab = settings._replace(w_motion=0.0)
+    polys: list[Any] = [None] * K if polygons is None else list(polygons)
+    fits = same_axes([
+        pose_fitness(robot, gk, stowed, stab, mu_max, diameter, pk).linear()
+        for gk, pk in zip(g, polys, strict=True)
+    ])  # fmt: skip
+    ground = settings.ground_clearance
+    clear = NodeClearance(roadmap, reach, ground, under)
+    if climb is not None:
+        clear.excluded.update(climb_exclusions(robot, climb, samples, clear.eligible(), fits))
+    cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
+    span = (view.diameter, view.joint_span)
+    cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
+    if not closed:
+        value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
+    pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
+    motion, allowed = transitions(
+        cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
+        cost.metric,
+    )  # fmt: skip
+    _forbid_low_ends(clear, cand, value, allowed, pairs)
+    mover = Mover(robot, roadmap, int(start), ground, under)
+    path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
+    if nodes is None:
+        raise _no_plan(value, allowed, poses, settings)
+    if not closed or K == 1:  # from the start posture itself onto its node
+        first = np.vstack([start_q, moves[0]])
+        moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
+    chosen = cand[np.arange(K), path]
+    fitness = value[np.arange(K), path].copy()
+    for i, (a, b) in enumerate(pairs):
+        fitness[b] -= motion[i][path[a], path[b]]
+    return RoadmapSequence(
+        nodes=nodes,
+        postures=roadmap.nodes_q[nodes].copy(),
+        com=samples[chosen].copy(),
+        fitness=fitness,
+        mu=mu[np.arange(K), path].copy(),
+        total=float(fitness.sum()),
+        moves=tuple(moves),
+        seconds=time.perf_counter() - t0,
+    )
+
+
+class RoadmapSearch:
+    """The whole path over the posture roadmap's component reachable from the stowed arm."""
+
+    def choose(self, task: PoseTask) -> PoseChoice:
+        """The exhaustive answer at a single pose."""
+        return ExhaustiveSearch().choose(task)
+
+    def choose_path(self, task: PathTask) -> PathChoice:
+        """The chosen nodes' CoMs, postures and the roadmap moves into them."""
+        if task.region.workspace is None:
+            raise MmstabError("planner: method roadmap needs the labelled workspace V")
+        roadmap = load_or_build_roadmap(task.robot, task.region.workspace)
+        poses = np.zeros((len(task.gravity_body), 3)) if task.poses is None else task.poses
+        under = None
+        if task.terrain is not None and task.poses is not None:  # the ground under the arm
+            margin = task.settings.attitude_margin or 0.0
+            under = GroundUnderArm(task.robot, task.terrain, task.poses, margin=margin)
+        elif task.settings.attitude_margin:
+            raise MmstabError("planner.attitude_margin: needs a terrain and a route")
+        climb = None
+        if task.settings.climb and task.terrain is not None and task.poses is not None:
+            climb = climb_plan(task.robot, task.terrain, task.poses, task.closed)
+        polygons = None
+        if task.terrain is not None and task.poses is not None:  # the loaded support
+            polygons = support_polygons_at(task.robot, task.terrain, task.poses)
+        seq = solve_roadmap_sequence(
+            task.robot,
+            task.gravity_body,
+            roadmap,
+            task.settings,
+            task.mu_max,
+            task.closed,
+            poses,
+            under=under,
+            climb=climb,
+            polygons=polygons,
+        )
+        return PathChoice(
+            target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
+            moves=seq.moves,
+        )  # fmt: skip
