@@ -26,6 +26,9 @@ from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.polygon import support_vertices
 from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
 
+#: Each robot's contact candidates by (its id, the flipper angle), the robot kept with them.
+_CANDIDATES: dict[tuple[int, float | None], tuple[Robot | None, ContactCandidates]] = {}
+
 
 def with_flipper_angle(robot: Robot, angle: float | None) -> Robot:
     """The robot with its flippers at ``angle`` [rad] (``None``: unchanged)."""
@@ -96,8 +99,19 @@ class HeightmapTerrain:
 
     @functools.cached_property
     def candidates(self) -> ContactCandidates:
-        """Contact candidates of the bound robot in B."""
-        return contact_candidates(self._robot().base)
+        """Contact candidates of the bound robot in B.
+
+        They depend on the robot and the flipper angle only: kept per robot, so a new map
+        under the same robot (the online loop's every map) does not compute them again.
+        """
+        key = (id(self.robot), self.flipper_angle)
+        kept = _CANDIDATES.get(key)
+        if kept is None or kept[0] is not self.robot:
+            cand = contact_candidates(self._robot().base)
+            for a in cand:  # shared from now on: read-only
+                a.setflags(write=False)
+            kept = _CANDIDATES[key] = (self.robot, cand)
+        return kept[1]
 
     @functools.cached_property
     def com_body(self) -> FloatArray:
