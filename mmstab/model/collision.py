@@ -392,7 +392,9 @@ class CollisionChecker:
 
         Args:
             q: joint angles (N, 4) or (4,) [rad].
-            cull_above: skip the pairs whose bounding spheres stay at least this far [m]
+            cull_above: skip the pairs whose bounding spheres, turn floor
+                (:meth:`turn_floors`) or capsules' segments
+                (:mod:`mmstab.model.collision_distance`) keep them at least this far [m]
                 apart (None: every pair): the answer is then exact where it is below
                 ``cull_above`` and a lower bound, at least ``cull_above``, elsewhere.
         """
@@ -400,6 +402,7 @@ class CollisionChecker:
         R, p = self.shape_poses(qa)
         out = np.full(len(qa), np.inf)
         request = fcl.DistanceRequest()
+        floors = {} if cull_above is None else self.turn_floors()
         for pair in self.pairs:
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other
@@ -407,9 +410,17 @@ class CollisionChecker:
             rows = np.arange(len(qa))
             if cull_above is not None:
                 gap = self._gap(pair, p)
+                floor = floors.get(pair.name, -np.inf)
+                if floor >= cull_above:  # at every angle
+                    gap = np.maximum(gap, floor)
                 far = gap >= cull_above
                 out[far] = np.minimum(out[far], gap[far])
                 rows = np.flatnonzero(~far)
+                near = self._segment_gap(pair, R, p, rows, cull_above) if rows.size else None
+                if near is not None:
+                    far_too = near >= cull_above
+                    out[rows[far_too]] = np.minimum(out[rows[far_too]], near[far_too])
+                    rows = rows[~far_too]
             for n in rows:
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))
                 if j >= 0:
