@@ -29,7 +29,7 @@ from common import machine_info
 from mmstab.core.files import write_json
 from mmstab.core.problem import load_problem
 from mmstab.model.collision import CollisionChecker
-from mmstab.planner.roadmap import roadmap_move
+from mmstab.planner.searches.roadmap import roadmap_move
 from mmstab.workspace import load_or_build_workspace
 from mmstab.workspace.roadmap import Roadmap, build_roadmap, load_or_build_roadmap
 

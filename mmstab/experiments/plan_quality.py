@@ -30,7 +30,7 @@ from mmstab.planner import (
     solve_exhaustive,
 )
 from mmstab.planner.regions import as_region
-from mmstab.planner.sequence import above_ground
+from mmstab.planner.searches.sequence import above_ground
 from mmstab.stability.static import mu_max, robot_force_angle
 from mmstab.viz.plotting import new_figure
 

@@ -5,33 +5,17 @@ One pipeline, candidates -> fitness -> choice -> postures, around one search int
 - ``regions`` (where the arm CoM may be, with its cached views), ``fitness`` (Eq. 6 per
   population and in batched affine form), ``wrench`` (the tool wrench in Eq. 6),
   ``turret`` (the turret window);
-- ``search`` (the interface a search implements), ``searches`` (the registry, one module
-  per search: ``exhaustive``, ``cmaes``, ``sequence``), with the algorithms they run:
-  ``exhaustive`` (every sample; coarse seeds), ``cmaes`` (pycma ask/tell, IPOP), ``warm``
-  (a compact warm-started CMA-ES), ``sequence`` (the whole path by dynamic programming);
+- ``searches`` (the registry, one module per search with the algorithm it runs, behind
+  the interface a search implements, ``searches.base``): ``exhaustive`` (every sample),
+  ``cmaes`` (pycma ask/tell, IPOP; and the compact warm-started CMA-ES of the same
+  ask/tell shape), ``sequence`` (the whole path by dynamic programming), ``roadmap``; the
+  coarse pass that seeds them (``searches.coarse``);
 - ``pose`` (one pose through the pipeline), ``along_path`` (poses in turn, or a
   whole-path search), ``warm_start`` (along a route, each pose warm-started), ``risk``
   (where a route is at risk), ``plan`` (a problem's plan), ``levers`` (the flippers).
 """
 
 from mmstab.planner.along_path import Plan, solve_path
-from mmstab.planner.cmaes import (
-    Generation,
-    SearchResult,
-    ask_generation,
-    ranking_values,
-    solve_ipop,
-    solve_start,
-    start_coms,
-)
-from mmstab.planner.exhaustive import (
-    ExhaustiveResult,
-    best_mu,
-    coarse_samples,
-    coarse_seeds,
-    sample_index,
-    solve_exhaustive,
-)
 from mmstab.planner.fitness import (
     CoMRegion,
     Fitness,
@@ -51,8 +35,26 @@ from mmstab.planner.regions import (
     sample_region,
 )
 from mmstab.planner.risk import RiskStretch, RouteRisk, route_risk, stretches
-from mmstab.planner.search import PathChoice, PathSearch, PathTask, PoseChoice, PoseSearch, PoseTask
 from mmstab.planner.searches import SEARCHES, search_for
+from mmstab.planner.searches.base import (
+    PathChoice,
+    PathSearch,
+    PathTask,
+    PoseChoice,
+    PoseSearch,
+    PoseTask,
+)
+from mmstab.planner.searches.cmaes import (
+    Generation,
+    SearchResult,
+    ask_generation,
+    ranking_values,
+    solve_ipop,
+    solve_start,
+    start_coms,
+)
+from mmstab.planner.searches.coarse import coarse_samples, coarse_seeds, sample_index
+from mmstab.planner.searches.exhaustive import best_mu, solve_exhaustive
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm_start import RoutePlan, solve_route
 

@@ -1,9 +1,9 @@
 """The planner along a list of base poses: each pose in turn, or the whole path at once.
 
-A per-pose search (:class:`mmstab.planner.search.PoseSearch`) plans the poses in driving
+A per-pose search (:class:`mmstab.planner.searches.base.PoseSearch`) plans the poses in driving
 order, each penalised against the previous target (Eq. 6) and realised by the IK from the
 previous posture (:mod:`mmstab.planner.pose`); a whole-path search
-(:class:`~mmstab.planner.search.PathSearch`) chooses every pose's CoM and posture at once.
+(:class:`~mmstab.planner.searches.base.PathSearch`) chooses every pose's CoM and posture at once.
 Both give a :class:`Plan`. The previous CoM of the first pose is the stowed arm's: the
 robot starts with its arm folded.
 """
@@ -17,7 +17,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.cmaes import start_coms
 from mmstab.planner.pose import (
     PoseTarget,
     Realise,
@@ -26,8 +25,9 @@ from mmstab.planner.pose import (
     solve_pose,
 )
 from mmstab.planner.regions import CoMRegion, PlanningRegion, as_region
-from mmstab.planner.search import PathSearch, PathTask
 from mmstab.planner.searches import search_for
+from mmstab.planner.searches.base import PathSearch, PathTask
+from mmstab.planner.searches.cmaes import start_coms
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain

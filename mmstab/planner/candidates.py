@@ -1,6 +1,6 @@
 """Each pose's candidate roadmap nodes, without scoring every node (branch and bound).
 
-``method: roadmap`` (:mod:`mmstab.planner.roadmap`) gives each pose the ``count`` best
+``method: roadmap`` (:mod:`mmstab.planner.searches.roadmap`) gives each pose the ``count`` best
 reachable nodes by Eq. 6's stability term, spread round robin over turret bins (the best
 of every bin in turn, :func:`spread_top`), each clear of the robot. Scoring all 288,097
 nodes of the default roadmap at every pose (an ``arctan2`` per tip-over axis) took 26 of
@@ -38,7 +38,6 @@ from numpy.typing import NDArray
 
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
-from mmstab.planner.candidate_picks import among, rank_bound, scored_values, spread_top
 from mmstab.planner.fitness import LinearFitness
 from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
@@ -373,3 +372,63 @@ def route_candidates(
         ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
     mu = np.stack([fit.mu(samples[r]) for fit, r in zip(fits, rows, strict=True)])
     return Candidates(rows, np.where(mu > 0, value, -np.inf), mu)
+
+
+# The rows a pose's candidates are picked from: the rank bound of the picks within their
+# turret bins, the round robin over the bins, and the values of a search's rows, each row
+# scored once per search.
+
+
+def rank_bound(bin_rows: NDArray[np.intp], count: int) -> int:
+    """The smallest R with Σ_b min(R, n_b) ≥ count: chosen rows rank below R in their bin."""
+    n = np.sort(np.asarray(bin_rows))
+    for r in range(1, int(n.max(initial=0)) + 1):
+        if int(np.minimum(n, r).sum()) >= count:
+            return r
+    return int(n.max(initial=0))
+
+
+def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+    """``count`` rows: the best of every turret bin in turn (round robin), best first.
+
+    The same answer as :func:`mmstab.planner.searches.sequence._diverse_top` (ties by row order),
+    without a Python loop over the bins.
+    """
+    order = np.argsort(-values, kind="stable")
+    b = bins[order]
+    by_bin = np.argsort(b, kind="stable")  # value order kept within each bin
+    sb = b[by_bin]
+    rank = np.empty(len(order), dtype=np.intp)
+    rank[by_bin] = np.arange(len(order)) - np.searchsorted(sb, sb, side="left")
+    chosen = order[np.lexsort((-values[order], rank))][:count]
+    return chosen[np.argsort(-values[chosen], kind="stable")]
+
+
+def among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """Whether each of ``rows`` is one of ``sorted_rows`` (ascending)."""
+    at = np.minimum(np.searchsorted(sorted_rows, rows), max(len(sorted_rows) - 1, 0))
+    return np.asarray(sorted_rows[at] == rows) if len(sorted_rows) else np.zeros(len(rows), bool)
+
+
+def scored_values(
+    fit: LinearFitness, samples: FloatArray, rows: NDArray[np.intp], before: NDArray[np.intp],
+    values: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """Eq. 6's values [-] of reach rows ``rows`` (ascending), each scored once a search.
+
+    A row's value does not depend on the rows scored with it, so those of ``before``
+    (ascending, the last round's) are taken from their ``values``.
+
+    Args:
+        fit: Eq. 6 at the pose.
+        samples: the reach rows' arm CoMs, body frame (N, 3) [m].
+        rows: the rows to value.
+        before: rows valued before.
+        values: their values [-].
+    """
+    at = np.minimum(np.searchsorted(before, rows), max(len(before) - 1, 0))
+    old = before[at] == rows if len(before) else np.zeros(len(rows), dtype=bool)
+    v = np.empty(len(rows))
+    v[old] = values[at[old]]
+    v[~old] = fit(samples[rows[~old]])
+    return v

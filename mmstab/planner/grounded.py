@@ -6,7 +6,7 @@ two such nodes may pass through others: on 11 of the 20 random routes
 (docs/routes.md) the moves dipped below the plane, down to 28.6 cm. Here the graph keeps
 only the edges between nodes that clear the plane (their components say what the arm can
 reach without touching it), and a shortcut that dips below it is not taken. The ground
-under the arm at the poses a move joins is :mod:`mmstab.planner.roadmap_moves`' check.
+under the arm at the poses a move joins is :mod:`mmstab.planner.searches.roadmap.moves`' check.
 """
 
 from __future__ import annotations

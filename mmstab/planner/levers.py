@@ -25,9 +25,9 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot, flipper_ground_angle, with_flipper_angle
-from mmstab.planner.cmaes import start_coms
 from mmstab.planner.pose import PoseTarget, solve_pose
 from mmstab.planner.regions import CoMRegion, as_region
+from mmstab.planner.searches.cmaes import start_coms
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain

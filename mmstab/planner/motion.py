@@ -3,7 +3,7 @@
 ``planner.motion_cost``: ``joints`` (the lattice, L1, distance between postures, squared;
 the roadmap distance wherever the staircase between them is free, a lower bound elsewhere)
 or ``com`` (Eq. 6's squared arm-CoM distance). Used by the offline ``method: roadmap``
-(:mod:`mmstab.planner.roadmap`) and the online horizon on the roadmap.
+(:mod:`mmstab.planner.searches.roadmap`) and the online horizon on the roadmap.
 """
 
 from __future__ import annotations

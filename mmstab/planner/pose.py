@@ -2,7 +2,7 @@
 
 Per base pose the planner searches the arm CoM g_a (body frame) inside the planning region
 that maximises Eq. 6 (``mmstab.planner.fitness``), by the search ``planner.method`` names
-(:data:`mmstab.planner.searches.SEARCHES`; the interface is :mod:`mmstab.planner.search`).
+(:data:`mmstab.planner.searches.SEARCHES`; the interface is :mod:`mmstab.planner.searches.base`).
 
 No IK inside the search (as in the paper); afterwards :mod:`mmstab.workspace.ik` finds a
 collision-free posture that realises the target, or the best of V's samples near it
@@ -21,12 +21,10 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.cmaes import SearchResult
-from mmstab.planner.exhaustive import ExhaustiveResult
 from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.regions import CoMRegion, PlanningRegion, as_region
-from mmstab.planner.search import PoseTask
 from mmstab.planner.searches import search_for
+from mmstab.planner.searches.base import ExhaustiveResult, PoseTask, SearchResult
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turret import Window, turret_window
 from mmstab.planner.wrench import with_tool_wrench

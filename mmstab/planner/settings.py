@@ -34,7 +34,7 @@ class PlannerSettings(NamedTuple):
         seed: seed of the planner's own random generator.
         method: ``"cmaes"`` (CMA-ES in V), ``"exhaustive"`` (Eq. 6 over every valid
             grid CoM inside V, the reference) or ``"sequence"`` (the whole path at once
-            over V's postures, ``mmstab.planner.sequence``; per pose as exhaustive).
+            over V's postures, ``mmstab.planner.searches.sequence``; per pose as exhaustive).
         seeding: ``"starts"`` (the FK CoMs of ``starts``) or ``"coarse"`` (the best
             samples of a coarse evaluation of Eq. 6 over V's samples).
         coarse_samples: how many of V's samples the coarse evaluation scores (evenly
@@ -50,7 +50,7 @@ class PlannerSettings(NamedTuple):
         turret_window: largest change of link0 (the turret) between consecutive planned
             poses [rad]; None: unbounded (``mmstab.planner.turret``).
         sequence_candidates: samples per pose among which ``method: sequence`` chooses
-            (``mmstab.planner.sequence``).
+            (``mmstab.planner.searches.sequence``).
         motion_cost: ``method: roadmap``'s motion term between consecutive postures (the
             other methods use Eq. 6's): ``joints`` (the default: the squared lattice
             distance, the L1 joint distance [rad], over the reachable postures' L1 extent

@@ -10,9 +10,11 @@ way. Per pose:
   previous target CoM, with a step size from how far the answer moved between the two
   poses before (``warm_sigma``), the population as one batch, ``WARM_ITERATIONS``
   iterations at most, the start itself kept as a candidate (never worse than staying);
-  by default the compact CMA-ES of :mod:`mmstab.planner.warm` (pycma's set-up and
-  per-iteration cost exceed a warm pose's budget), or ``search="solve_pose"``: the same
-  starts and step size through :func:`~mmstab.planner.pose.solve_pose` (pycma);
+  by default the warm form of the registered search (:func:`warm_pose`: the search's
+  ``warm``, :class:`~mmstab.planner.searches.base.WarmSearch`; for ``cmaes`` and
+  ``exhaustive`` the compact CMA-ES of :mod:`mmstab.planner.searches.cmaes.warm`: pycma's
+  set-up and per-iteration cost exceed a warm pose's budget), or ``search="solve_pose"``:
+  the same starts and step size through :func:`~mmstab.planner.pose.solve_pose` (pycma);
 - a **guard** against a new basin the warm start cannot see (the best posture switching
   sides): a coarse batched pass of Eq. 6 over V's samples (the planner's ``coarse_*``
   settings, affine form); when its best refined sample beats the previous answer and lies
@@ -36,9 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.along_path import solve_path
-from mmstab.planner.cmaes import start_coms
-from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds
-from mmstab.planner.fitness import pose_fitness, support_polygons_at
+from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.pose import (
     KnownGravity,
     PoseTarget,
@@ -48,10 +48,11 @@ from mmstab.planner.pose import (
     solve_pose,
 )
 from mmstab.planner.regions import CoMRegion, PlanningRegion, SampleIndex, as_region
-from mmstab.planner.search import PathSearch
 from mmstab.planner.searches import search_for
+from mmstab.planner.searches.base import PathSearch, WarmSearch, WarmTask
+from mmstab.planner.searches.cmaes import WARM_ITERATIONS
+from mmstab.planner.searches.coarse import SEED_SEPARATION, coarse_seeds
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm import WARM_ITERATIONS, warm_pose
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.stability.support import stability_along
 from mmstab.terrain import Terrain
@@ -201,8 +202,8 @@ def solve_route(
         realise: ``(target_com [m], previous_q [rad]) -> (posture, collision_free)``; the
             previous realised posture is passed on; default none (postures NaN).
         fractions: the route's time fraction of each pose (K,); default s / s[-1].
-        search: how a warm-started pose is searched: ``warm`` (:func:`mmstab.planner.warm.
-            warm_cma`, the population one NumPy batch, no pycma set-up) or ``solve_pose``
+        search: how a warm-started pose is searched: ``warm`` (:func:`warm_pose`, the
+            population one NumPy batch, no pycma set-up) or ``solve_pose``
             (pycma through :func:`solve_pose`, with the same starts and step size). The
             first pose always goes through :func:`solve_pose` (cold).
     """
@@ -272,12 +273,9 @@ def _route_pose(
         t0: ``time.perf_counter()`` at the pose's start [s].
     """
     robot, settings = ctx.robot, ctx.settings
-    if k == 0:
-        starts = None
-        if settings.method == "cmaes" and settings.seeding == "starts":
-            starts = start_coms(robot, ctx.region, settings.starts)
+    if k == 0:  # the search's own starts (cold)
         target = solve_pose(
-            robot, ctx.ground, ctx.region, pose, previous_com, settings, ctx.rng, ctx.mu_max, starts
+            robot, ctx.ground, ctx.region, pose, previous_com, settings, ctx.rng, ctx.mu_max
         )
         return target, False
     starts_list = [previous_com]
@@ -304,6 +302,47 @@ def _route_pose(
         )  # fmt: skip
         target = warm_pose(fit, ctx.region, pose, starts_list, sigma, settings, ctx.rng, t0)
     return target, guard is not None
+
+
+def warm_pose(
+    fit: Fitness,
+    region: PlanningRegion,
+    pose: FloatArray,
+    starts: list[FloatArray],
+    sigma: float,
+    settings: PlannerSettings,
+    rng: np.random.Generator,
+    t0: float,
+) -> PoseTarget:
+    """One warm-started pose: the warm form of the search ``settings.method`` names.
+
+    Args:
+        fit: Eq. 6 at the pose.
+        region: the planning region.
+        pose: the base pose [m, m, rad] (recorded).
+        starts: start means, body frame (3,) each [m].
+        sigma: the warm step size [m].
+        settings: planner settings (population, tolerances; ``WARM_ITERATIONS`` at most).
+        rng: the planner's generator.
+        t0: ``time.perf_counter()`` at the pose's start [s].
+
+    Raises:
+        MmstabError: the search has no warm form (a whole-path search plans a route at once).
+    """
+    search = search_for(settings.method)
+    if not isinstance(search, WarmSearch):
+        raise MmstabError(f"planner.method: {settings.method!r} has no warm-started form")
+    choice = search.warm(WarmTask(region, fit, settings, rng, starts, sigma))
+    com = choice.target_com
+    return PoseTarget(
+        pose=np.asarray(pose, dtype=float),
+        target_com=com,
+        fitness=choice.fitness,
+        mu=float(fit.mu(com)[0]),
+        runs=(),
+        best_start=choice.best_start,
+        seconds=time.perf_counter() - t0,
+    )
 
 
 def _guard_start(ctx: RouteSearch, k: int, previous_com: FloatArray) -> FloatArray | None:

@@ -174,7 +174,7 @@ def test_cli_refuses_a_yaml_alias_bomb_in_one_line(tmp_path):
 
 def test_a_planner_that_gives_up_exits_6_not_2(tmp_path, monkeypatch, capsys):
     """A search that gives up is no bad input: its own status, one line naming the search."""
-    import mmstab.planner.sequence as sequence
+    import mmstab.planner.searches.sequence as sequence
 
     def edit(p, r):
         p["workspace"]["grid"] = [8, 6, 6, 6]

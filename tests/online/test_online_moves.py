@@ -15,7 +15,12 @@ from test_under_arm import GROUND, _map, small  # noqa: F401  (small: the roadma
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.planner.grounded import shortcut_above
-from mmstab.planner.roadmap_moves import REROUTES, _path_nodes, ground_move, ground_move_steps
+from mmstab.planner.searches.roadmap.moves import (
+    REROUTES,
+    _path_nodes,
+    ground_move,
+    ground_move_steps,
+)
 from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.runs.online.moves_ahead import MovesAhead
 

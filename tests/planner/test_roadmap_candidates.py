@@ -16,8 +16,8 @@ from mmstab.planner.candidates import (
     spread_top,
 )
 from mmstab.planner.fitness import linear_fitness
-from mmstab.planner.roadmap import TURRET_BINS, node_coms
-from mmstab.planner.sequence import _diverse_top, _turret_bins
+from mmstab.planner.searches.roadmap import TURRET_BINS, node_coms
+from mmstab.planner.searches.sequence import _diverse_top, _turret_bins
 from mmstab.stability.static import base_polygon, mu_max
 from mmstab.workspace import build_workspace
 from mmstab.workspace.roadmap import build_roadmap

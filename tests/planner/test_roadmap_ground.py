@@ -15,7 +15,7 @@ from test_route_plan import ROOT
 from mmstab.core.problem import problem_from_dict
 from mmstab.model.ground import arm_ground_clearance
 from mmstab.planner import PlannerSettings, plan_route
-from mmstab.planner.roadmap import solve_roadmap_sequence
+from mmstab.planner.searches.roadmap import solve_roadmap_sequence
 from mmstab.stability.static import mu_max
 from mmstab.workspace import build_workspace, load_or_build_workspace
 from mmstab.workspace.roadmap import build_roadmap, load_or_build_roadmap

@@ -297,7 +297,7 @@ class _Ball:
 @pytest.mark.parametrize("target", [[0.3, -0.2, 0.1], [2.0, 0.0, 0.0]])
 def test_warm_cma_finds_a_known_optimum(target):
     """Inside: the peak itself; outside V: the nearest point of the ball (the constrained one)."""
-    from mmstab.planner.warm import warm_cma
+    from mmstab.planner.searches.cmaes import warm_cma
 
     c = np.array(target)
 
@@ -318,7 +318,7 @@ def test_sequence_along_the_rough_route(rough_small):
     """method sequence on rough.yaml (its search before method roadmap): collision-free
     moves, never below stowed."""
     from mmstab.model.collision import CollisionChecker
-    from mmstab.planner.sequence import segments_collide
+    from mmstab.planner.searches.sequence import segments_collide
 
     problem, ws = rough_small
     s = PlannerSettings.from_section(yaml.safe_load(ROUGH.read_text())["planner"])

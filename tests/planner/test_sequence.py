@@ -13,9 +13,9 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.ground import arm_ground_clearance, lowest_along_moves
 from mmstab.model.reach import joint_reach
 from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
-from mmstab.planner.exhaustive import sample_index
 from mmstab.planner.regions import as_region
-from mmstab.planner.sequence import (
+from mmstab.planner.searches.coarse import sample_index
+from mmstab.planner.searches.sequence import (
     MoveCheck,
     _Graph,
     _search_lazily,
@@ -142,7 +142,7 @@ COARSE = [10, 8, 8, 8]
 
 
 def test_diverse_top_by_bins_equals_the_full_sort(rng):
-    from mmstab.planner.sequence import _diverse_top, _turret_bins
+    from mmstab.planner.searches.sequence import _diverse_top, _turret_bins
 
     values = np.round(rng.normal(size=5000), 2)  # ties included
     bins = _turret_bins(rng.uniform(0, 6.28, 5000), 24)

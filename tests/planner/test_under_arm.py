@@ -17,7 +17,7 @@ from conftest import PROBLEMS
 from mmstab.core.problem import load_problem
 from mmstab.model.parts import Box
 from mmstab.planner import PlannerSettings
-from mmstab.planner.roadmap import solve_roadmap_sequence
+from mmstab.planner.searches.roadmap import solve_roadmap_sequence
 from mmstab.planner.under_arm import SWEEP, GroundUnderArm
 from mmstab.stability.static import mu_max
 from mmstab.terrain.generators import (
@@ -202,7 +202,7 @@ def test_planned_postures_and_moves_clear_the_ground_under_the_arm(robot, small,
 
 def test_a_move_whose_end_is_too_low_at_the_other_pose_is_not_taken(robot, small):
     from mmstab.model.collision import CollisionChecker
-    from mmstab.planner.roadmap_moves import ground_move
+    from mmstab.planner.searches.roadmap.moves import ground_move
 
     terrain = _map(robot, "kerb")
     poses = np.array([[0.0, -1.5, 0.0], [0.0, 0.0, 0.0]])  # far from the kerb, then beside it
@@ -225,7 +225,7 @@ def test_a_move_whose_end_is_too_low_at_the_other_pose_is_not_taken(robot, small
 def test_a_move_through_nodes_too_low_is_searched_again_without_them(robot, small):
     """The masked re-route: the shortest path between two clear nodes dips into the kerb."""
     from mmstab.model.collision import CollisionChecker
-    from mmstab.planner.roadmap_moves import _path_nodes, ground_move
+    from mmstab.planner.searches.roadmap.moves import _path_nodes, ground_move
 
     terrain = _map(robot, "kerb")
     poses = np.array([[0.0, 0.0, 0.0]])  # beside the kerb

@@ -8,7 +8,7 @@ whose arc does not fit the sharpest corner), written as a problem YAML file. Eac
 planned on the posture roadmap (``planner.method: roadmap``: collision-free arm moves by
 construction) and tracked over its whole route, and must hold:
 
-- a plan exists (no :class:`~mmstab.planner.roadmap.NoPlanError`);
+- a plan exists (no :class:`~mmstab.planner.searches.roadmap.NoPlanError`);
 - planned μ >= stowed μ at every planned pose (within :data:`MU_RTOL`);
 - the tracking run: 0 QP failures, 0 samples where an arm link touches the robot, and the
   smallest clearance at least the verdict's (:data:`mmstab.runs.verdict.MIN_CLEARANCE`).
@@ -135,7 +135,7 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     from mmstab import app
     from mmstab.experiments.tracking import self_collisions
     from mmstab.model.ground import arm_ground_clearance
-    from mmstab.planner.roadmap import NoPlanError
+    from mmstab.planner.searches.roadmap import NoPlanError
 
     record: dict[str, Any] = {"pivots": pivots_of(problem)}
     assert problem.route is not None

@@ -71,8 +71,8 @@ def test_what_plans_derive_from_a_roadmap_is_kept_beside_it_and_equal(tmp_path, 
 
     from mmstab.core.problem import load_problem
     from mmstab.planner.grounded import ground_graph
-    from mmstab.planner.roadmap import component_view
-    from mmstab.planner.roadmap_moves import start_tree
+    from mmstab.planner.searches.roadmap import component_view
+    from mmstab.planner.searches.roadmap.moves import start_tree
     from mmstab.workspace import load_or_build_workspace
     from mmstab.workspace import roadmap as rm_module
 

@@ -15,7 +15,7 @@ from test_route_plan import ROUGH, rough_data
 from mmstab.core.problem import problem_from_dict
 from mmstab.model.collision import CollisionChecker
 from mmstab.planner import PlannerSettings, plan_route
-from mmstab.planner.roadmap import NoPlanError, best_sequence, solve_roadmap_sequence
+from mmstab.planner.searches.roadmap import NoPlanError, best_sequence, solve_roadmap_sequence
 from mmstab.stability.static import mu_max
 from mmstab.workspace import build_workspace
 from mmstab.workspace.grid import joint_grid
@@ -222,7 +222,7 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
     from mmstab.experiments.routes import run_route_plan
     from mmstab.planner import gravity_body_at
     from mmstab.planner.fitness import support_polygons_at
-    from mmstab.planner.roadmap import node_coms
+    from mmstab.planner.searches.roadmap import node_coms
     from mmstab.stability.static import force_angle_batch
     from mmstab.stability.support import stability_along
 
@@ -334,7 +334,7 @@ def test_astar_moves_are_shortest_roadmap_paths(small):
     """A* with the L1 heuristic: a path of edges as short as Dijkstra's, pair by pair."""
     from scipy.sparse.csgraph import dijkstra
 
-    from mmstab.planner.roadmap import astar
+    from mmstab.planner.searches.roadmap import astar
 
     _, rm = small
     comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())

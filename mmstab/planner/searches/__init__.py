@@ -1,7 +1,7 @@
 """The registry of the planner's searches: ``planner.method`` -> search.
 
-Each search is one module of this package implementing :class:`mmstab.planner.search.
-PoseSearch` (and :class:`~mmstab.planner.search.PathSearch` when it chooses the whole path
+Each search is one module of this package implementing :class:`mmstab.planner.searches.base.
+PoseSearch` (and :class:`~mmstab.planner.searches.base.PathSearch` when it chooses the whole path
 at once); adding one is that module and its line below (and its name in the schema's
 ``planner.method``, :data:`mmstab.core.schema.PLANNER_METHODS`, which a test keeps equal to
 this registry). ``docs/planner.md``, "Adding a search".
@@ -10,7 +10,7 @@ this registry). ``docs/planner.md``, "Adding a search".
 from __future__ import annotations
 
 from mmstab.core.files import MmstabError
-from mmstab.planner.search import PathSearch, PoseSearch
+from mmstab.planner.searches.base import PathSearch, PoseSearch
 from mmstab.planner.searches.cmaes import CmaesSearch
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
 from mmstab.planner.searches.roadmap import RoadmapSearch

@@ -27,13 +27,12 @@ from numpy.typing import NDArray
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.exhaustive import SEED_SEPARATION, coarse_seeds
 from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.pose import Realise, realise_target, solve_pose
 from mmstab.planner.regions import PlanningRegion, SampleIndex
+from mmstab.planner.searches.coarse import SEED_SEPARATION, coarse_seeds
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm import warm_pose
-from mmstab.planner.warm_start import warm_settings, warm_sigma
+from mmstab.planner.warm_start import warm_pose, warm_settings, warm_sigma
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain

@@ -4,13 +4,13 @@ A move into pose k (:meth:`RoadmapHorizon.move`) is computed once per pair of no
 map of the update that first needs it (the robot past pose k - 1): a shortest roadmap path
 and its cut above the support plane, checked against the ground under the arm at poses
 k - 1 and k on that map, the path searched again without the nodes found too low
-(:func:`~mmstab.planner.roadmap_moves.ground_move`). The paths and cuts do not depend on the
-map, and they are the costly part: up to 35 ms a move on the rough route (the collision
-tests of the cuts, the searches again), on top of that map's update. Here the move runs
+(:func:`~mmstab.planner.searches.roadmap.moves.ground_move`). The paths and cuts do not
+depend on the map, and they are the costly part: up to 35 ms a move on the rough route (the
+collision tests of the cuts, the searches again), on top of that map's update. Here the move runs
 ahead on the maps that re-scored no pose, on the latest map, a step (a path, a cut test) at
 a time, for at most :data:`MOVE_BUDGET` a map (a step may run past it), the nearest planned
 pair first; its paths and cuts are kept by the set of nodes masked
-(:data:`~mmstab.planner.roadmap_moves.Tries`), its answer dropped. The map that needs the
+(:data:`~mmstab.planner.searches.roadmap.moves.Tries`), its answer dropped. The map that needs the
 move runs it again with them: only its checks run, and the searches again where that map
 masks other nodes. So every move is the one the map that needs it would compute alone.
 """
@@ -22,7 +22,7 @@ from collections.abc import Callable, Generator
 
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.roadmap_moves import Tries, ground_move_steps
+from mmstab.planner.searches.roadmap.moves import Tries, ground_move_steps
 from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.roadmap import Roadmap
 

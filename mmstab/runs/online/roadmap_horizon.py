@@ -5,7 +5,7 @@ poses from behind the robot to ``online.horizon`` ahead, each rested on the late
 pose re-scored when new or when the map turned its gravity by more than
 ``online.replan_tol``, what the map does not cover reported), but each pose's posture is a
 node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the offline
-``method: roadmap`` chooses it (:mod:`mmstab.planner.roadmap`):
+``method: roadmap`` chooses it (:mod:`mmstab.planner.searches.roadmap`):
 
 - a pose's candidates are its best reachable nodes by Eq. 6's stability term, spread over
   the turret, each clear of the robot; they are scored once per ground the pose gets and
@@ -33,12 +33,12 @@ from numpy.typing import NDArray
 from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner import roadmap as rp
 from mmstab.planner.candidates import Candidates, NodeClearance, route_candidates
 from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
-from mmstab.planner.roadmap_moves import ground_move
+from mmstab.planner.searches import roadmap as rp
+from mmstab.planner.searches.roadmap.moves import ground_move
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.under_arm import KeptPieces
 from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on, forbid_low
@@ -338,7 +338,7 @@ class RoadmapHorizon:
         From pose ``k - 1``'s node, or from the arm's posture when ``k - 1`` was not planned
         (then joined to its nearest clear node). Computed once per pair of nodes, on the map
         of the update that first needs it: above the ground under the arm at both poses it
-        joins (:func:`~mmstab.planner.roadmap_moves.ground_move`, as offline) where one is
+        joins (:func:`~mmstab.planner.searches.roadmap.moves.ground_move`, as offline) where one is
         found, else above the support plane only (counted: ``moves_plane_only``).
         """
         b = self.nodes[k]

@@ -1,6 +1,6 @@
-"""Postures along a path chosen on the posture roadmap (``planner: {method: roadmap}``).
+"""``method: roadmap``: postures along a path chosen on the posture roadmap.
 
-Like ``method: sequence`` (:mod:`mmstab.planner.sequence`) it maximises Eq. 6 summed along
+Like ``method: sequence`` (:mod:`mmstab.planner.searches.sequence`) it maximises Eq. 6 summed along
 the path, each pose's motion term against the previous pose's choice, by dynamic
 programming over poses x candidate postures. The candidates are the roadmap's nodes
 (:mod:`mmstab.workspace.roadmap`) in the component of the arm's start posture (the stowed
@@ -10,7 +10,8 @@ roadmap path of checked collision-free moves, so every move the search chooses i
 feasible by construction: no lazy check, no round limit; the search is exact on the
 candidates. When some pose has no stable candidate (or the turret window leaves no
 sequence), :class:`NoPlanError` names the pose. The chosen moves' roadmap paths come with
-the answer, for the controller.
+the answer, for the controller (:mod:`~mmstab.planner.searches.roadmap.moves`). Per pose (a
+caller planning one pose) :class:`RoadmapSearch` is the exhaustive reference.
 """
 
 from __future__ import annotations
@@ -26,22 +27,24 @@ from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
-from mmstab.planner.climbing import ClimbPlan, climb_exclusions
-from mmstab.planner.fitness import pose_fitness, same_axes
+from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
+from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.grounded import ground_graph
 from mmstab.planner.motion import motion_cost, transitions
-from mmstab.planner.roadmap_moves import (  # noqa: F401 (the moves' names, as before)
+from mmstab.planner.searches.base import PathChoice, PathTask, PoseChoice, PoseTask
+from mmstab.planner.searches.exhaustive import ExhaustiveSearch
+from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' names, as before)
     ASTAR_EXPANSIONS,
     astar,
     ground_move,
     roadmap_move,
     start_tree,
 )
-from mmstab.planner.sequence import _turret_bins, _viterbi
+from mmstab.planner.searches.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.kept import kept_arrays
-from mmstab.workspace.roadmap import Roadmap
+from mmstab.workspace.roadmap import Roadmap, load_or_build_roadmap
 
 #: Turret-angle bins over which each pose's candidates are spread.
 TURRET_BINS = 24
@@ -136,7 +139,7 @@ def _no_plan(
 
 
 class Mover:
-    """The arm's moves into each chosen node (:func:`mmstab.planner.roadmap_moves.ground_move`).
+    """The arm's moves into each chosen node (:func:`~.roadmap.moves.ground_move`).
 
     From the start node (an open path) or the last pose's node (a loop); each move kept
     per pair of nodes and the poses it joins, so a plan chosen again reuses them.
@@ -383,3 +386,46 @@ def solve_roadmap_sequence(
         moves=tuple(moves),
         seconds=time.perf_counter() - t0,
     )
+
+
+class RoadmapSearch:
+    """The whole path over the posture roadmap's component reachable from the stowed arm."""
+
+    def choose(self, task: PoseTask) -> PoseChoice:
+        """The exhaustive answer at a single pose."""
+        return ExhaustiveSearch().choose(task)
+
+    def choose_path(self, task: PathTask) -> PathChoice:
+        """The chosen nodes' CoMs, postures and the roadmap moves into them."""
+        if task.region.workspace is None:
+            raise MmstabError("planner: method roadmap needs the labelled workspace V")
+        roadmap = load_or_build_roadmap(task.robot, task.region.workspace)
+        poses = np.zeros((len(task.gravity_body), 3)) if task.poses is None else task.poses
+        under = None
+        if task.terrain is not None and task.poses is not None:  # the ground under the arm
+            margin = task.settings.attitude_margin or 0.0
+            under = GroundUnderArm(task.robot, task.terrain, task.poses, margin=margin)
+        elif task.settings.attitude_margin:
+            raise MmstabError("planner.attitude_margin: needs a terrain and a route")
+        climb = None
+        if task.settings.climb and task.terrain is not None and task.poses is not None:
+            climb = climb_plan(task.robot, task.terrain, task.poses, task.closed)
+        polygons = None
+        if task.terrain is not None and task.poses is not None:  # the loaded support
+            polygons = support_polygons_at(task.robot, task.terrain, task.poses)
+        seq = solve_roadmap_sequence(
+            task.robot,
+            task.gravity_body,
+            roadmap,
+            task.settings,
+            task.mu_max,
+            task.closed,
+            poses,
+            under=under,
+            climb=climb,
+            polygons=polygons,
+        )
+        return PathChoice(
+            target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
+            moves=seq.moves,
+        )  # fmt: skip

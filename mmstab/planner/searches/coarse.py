@@ -1,88 +1,21 @@
-"""The exhaustive reference: Eq. 6 over every sample of V at a pose, in one batch.
+"""The coarse pass: Eq. 6 over a strided subset of V's samples, in one batch.
 
-V's samples are the collision-free grid CoMs that V contains (``Workspace.valid_com_in_V``).
-Their best is the ground truth the CMA-ES planner is measured against (tests, ``make
-bench-plan``); ``planner.method: exhaustive`` plans with it. The same batched scoring of a
-strided subset seeds CMA-ES (``planner.seeding: coarse``).
+Its best distinct samples, each refined among its nearest samples, are CMA-ES's start
+means (``planner.seeding: coarse``) and, along a route, the guard's second start against a
+basin the warm start cannot see (:mod:`mmstab.planner.warm_start`, the online horizon).
 """
 
 from __future__ import annotations
 
-import time
-from typing import NamedTuple
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.fitness import Fitness, linear_fitness
+from mmstab.model.robot import FloatArray
+from mmstab.planner.fitness import Fitness
 from mmstab.planner.regions import CoMRegion, SampleIndex, as_region
-from mmstab.stability.static import base_polygon
 
 #: Coarse seeds lie at least this share of V's diameter apart (distinct basins).
 SEED_SEPARATION = 0.25
-
-
-class ExhaustiveResult(NamedTuple):
-    """The best sample of V at one pose.
-
-    Attributes:
-        best_com: the best sample's arm CoM, body frame (3,) [m].
-        best_fitness: its Eq. 6 fitness.
-        best_index: its row in the samples.
-        evaluations: samples scored.
-        seconds: wall time of the scoring [s].
-    """
-
-    best_com: FloatArray
-    best_fitness: float
-    best_index: int
-    evaluations: int
-    seconds: float
-
-
-def solve_exhaustive(fitness: Fitness, samples: ArrayLike) -> ExhaustiveResult:
-    """Score every sample (N, 3) [m] with Eq. 6 in one vectorised call; keep the best.
-
-    Raises:
-        ValueError: no samples.
-    """
-    t0 = time.perf_counter()
-    pts = np.asarray(samples, dtype=float).reshape(-1, 3)
-    if len(pts) == 0:
-        raise ValueError("no samples to score")
-    values = fitness.linear()(pts)
-    k = int(np.argmax(values))
-    return ExhaustiveResult(
-        best_com=pts[k].copy(),
-        best_fitness=float(values[k]),
-        best_index=k,
-        evaluations=len(pts),
-        seconds=time.perf_counter() - t0,
-    )
-
-
-def best_mu(
-    robot: Robot,
-    gravity_body: ArrayLike,
-    samples: ArrayLike,
-    polygon_body: ArrayLike | None = None,
-) -> tuple[float, int]:
-    """The largest force-angle measure over arm-CoM samples (N, 3) [m] at a pose.
-
-    Args:
-        robot: the robot.
-        gravity_body: gravity in B at the pose (3,) [m/s^2].
-        samples: arm CoMs, body frame (N, 3) [m].
-        polygon_body: the support polygon in B (n, 3) [m] (``None``: the tracks' rectangle).
-
-    Returns:
-        (mu [N rad], row of the sample reaching it).
-    """
-    polygon = base_polygon(robot).vertices if polygon_body is None else polygon_body
-    mu = linear_fitness(robot, polygon, gravity_body, np.zeros(3), 1.0, 0.0).mu(samples)
-    k = int(np.argmax(mu))
-    return float(mu[k]), k
 
 
 def coarse_samples(samples: ArrayLike, count: int) -> FloatArray:

@@ -1,4 +1,4 @@
-"""The arm's moves between the nodes ``method: roadmap`` chose (:mod:`mmstab.planner.roadmap`).
+"""The arm's moves between the nodes ``method: roadmap`` chose (:mod:`~.searches.roadmap`).
 
 A move is a shortest roadmap path (the start node's shortest-path tree, else A*, else the
 whole component), shortcut where the cut is free, on the nodes whose arm stays

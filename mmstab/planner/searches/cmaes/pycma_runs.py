@@ -1,4 +1,4 @@
-"""CMA-ES over the arm CoM in V (pycma ask/tell), one population evaluated per batch.
+"""CMA-ES over the arm CoM in V by pycma (ask/tell), one population evaluated per batch.
 
 Samples outside V are discarded and re-asked (the paper); after ``max_resample`` rounds
 those still outside are told ranked below every feasible sample (``ranking_values``).
@@ -19,37 +19,10 @@ from mmstab.core.files import PlanningError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness
 from mmstab.planner.regions import CoMRegion, as_region
+from mmstab.planner.searches.base import SearchResult
 
 #: IPOP's population factor per restart (pycma's ``incpopsize``).
 IPOP_FACTOR = 2
-
-
-class SearchResult(NamedTuple):
-    """One CMA-ES run from one start.
-
-    Attributes:
-        start_com: the start mean [m].
-        best_com: best feasible arm CoM found [m].
-        best_fitness: its fitness.
-        history: best fitness of each iteration (I,).
-        first_samples: the first population (popsize, 3) [m], feasible.
-        evaluations: samples told to CMA-ES.
-        resamples: samples discarded (re-asked) for lying outside V.
-        iterations: CMA iterations.
-        popsize: the population size of this run.
-        sigma0: its initial step size [m].
-    """
-
-    start_com: FloatArray
-    best_com: FloatArray
-    best_fitness: float
-    history: FloatArray
-    first_samples: FloatArray
-    evaluations: int
-    resamples: int
-    iterations: int
-    popsize: int
-    sigma0: float
 
 
 class Generation(NamedTuple):

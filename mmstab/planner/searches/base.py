@@ -13,8 +13,10 @@ Planning is one pipeline whatever the search (``docs/planner.md``, "Adding a sea
 A search chooses per pose (:class:`PoseSearch`: ``choose`` a CoM among the candidates
 with the fitness) or, in addition, along the whole path at once (:class:`PathSearch`:
 ``choose_path``, e.g. ``sequence``); a whole-path search still answers per pose (``choose``),
-for the callers that plan one pose (the atlas, Fig. 7). The pipeline steps 1, 2 and 4 are
-:mod:`mmstab.planner.pose` and :mod:`mmstab.planner.along_path`.
+for the callers that plan one pose (the atlas, Fig. 7). A per-pose search that a route
+plans pose after pose also answers a pose warm-started from the previous one's answer
+(:class:`WarmSearch`: ``warm``, :mod:`mmstab.planner.warm_start`). The pipeline steps 1, 2
+and 4 are :mod:`mmstab.planner.pose` and :mod:`mmstab.planner.along_path`.
 """
 
 from __future__ import annotations
@@ -24,8 +26,6 @@ from typing import NamedTuple, Protocol, runtime_checkable
 import numpy as np
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.cmaes import SearchResult
-from mmstab.planner.exhaustive import ExhaustiveResult
 from mmstab.planner.fitness import Fitness
 from mmstab.planner.regions import PlanningRegion
 from mmstab.planner.settings import PlannerSettings
@@ -52,6 +52,52 @@ class PoseTask(NamedTuple):
     starts: FloatArray | None = None
 
 
+class SearchResult(NamedTuple):
+    """One CMA-ES run from one start.
+
+    Attributes:
+        start_com: the start mean [m].
+        best_com: best feasible arm CoM found [m].
+        best_fitness: its fitness.
+        history: best fitness of each iteration (I,).
+        first_samples: the first population (popsize, 3) [m], feasible.
+        evaluations: samples told to CMA-ES.
+        resamples: samples discarded (re-asked) for lying outside V.
+        iterations: CMA iterations.
+        popsize: the population size of this run.
+        sigma0: its initial step size [m].
+    """
+
+    start_com: FloatArray
+    best_com: FloatArray
+    best_fitness: float
+    history: FloatArray
+    first_samples: FloatArray
+    evaluations: int
+    resamples: int
+    iterations: int
+    popsize: int
+    sigma0: float
+
+
+class ExhaustiveResult(NamedTuple):
+    """The best sample of V at one pose.
+
+    Attributes:
+        best_com: the best sample's arm CoM, body frame (3,) [m].
+        best_fitness: its Eq. 6 fitness.
+        best_index: its row in the samples.
+        evaluations: samples scored.
+        seconds: wall time of the scoring [s].
+    """
+
+    best_com: FloatArray
+    best_fitness: float
+    best_index: int
+    evaluations: int
+    seconds: float
+
+
 class PoseChoice(NamedTuple):
     """A search's answer at one pose.
 
@@ -68,6 +114,27 @@ class PoseChoice(NamedTuple):
     runs: tuple[SearchResult, ...] = ()
     best_start: int = -1
     exhaustive: ExhaustiveResult | None = None
+
+
+class WarmTask(NamedTuple):
+    """A pose along a route warm-started from the previous pose's answer.
+
+    Attributes:
+        region: the planning region.
+        fitness: Eq. 6 at the pose (to maximise), batched over CoMs (N, 3) [m].
+        settings: the planner settings (population, tolerances).
+        rng: the planner's generator.
+        starts: start means, body frame (3,) each [m]: the previous answer, and the
+            guard's second start when it found one.
+        sigma: the warm step size [m].
+    """
+
+    region: PlanningRegion
+    fitness: Fitness
+    settings: PlannerSettings
+    rng: np.random.Generator
+    starts: list[FloatArray]
+    sigma: float
 
 
 class PathTask(NamedTuple):
@@ -133,4 +200,13 @@ class PathSearch(Protocol):
 
     def choose_path(self, task: PathTask) -> PathChoice:
         """A CoM and a posture per pose, chosen together."""
+        ...
+
+
+@runtime_checkable
+class WarmSearch(Protocol):
+    """A per-pose search that also answers a pose warm-started from the one before."""
+
+    def warm(self, task: WarmTask) -> PoseChoice:
+        """The best CoM it finds from ``task.starts`` with step size ``task.sigma``."""
         ...

@@ -1,18 +1,19 @@
 """A warm-started CMA-ES for one pose along a route, the population as one NumPy batch.
 
 pycma costs about 1.3 ms of Python per iteration and 2.5 ms to set up, more than a whole
-warm-started pose may take (10 ms, issue "routes"). This is the textbook (mu/mu_w, lambda)
-CMA-ES (Hansen, "The CMA Evolution Strategy: A Tutorial", 2016: weights, cumulation,
-rank-one and rank-mu updates, cumulative step-size adaptation) for the 3-D arm CoM, with
-the same handling of V as :mod:`mmstab.planner.cmaes`: samples outside V are re-asked up to
-``max_resample`` rounds (drawn up front, one membership test per iteration), those still
-outside are ranked below every feasible one (:func:`~mmstab.planner.cmaes.ranking_values`).
-Its draws come from the caller's generator.
+warm-started pose may take (10 ms). This is the textbook (mu/mu_w, lambda) CMA-ES (Hansen,
+"The CMA Evolution Strategy: A Tutorial", 2016: weights, cumulation, rank-one and rank-mu
+updates, cumulative step-size adaptation) for the 3-D arm CoM, with pycma's ask/tell shape
+(:class:`WarmCMA`: ``ask()``, ``tell(solutions, values)``, ``stop()``, ``result``) and the
+same handling of V as :mod:`~mmstab.planner.searches.cmaes.pycma_runs`: samples outside V
+are re-asked up to ``max_resample`` rounds (drawn up front, one membership test per
+iteration), those still outside are ranked below every feasible one
+(:func:`~mmstab.planner.searches.cmaes.pycma_runs.ranking_values`). Its draws come from the
+caller's generator.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -20,11 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
-from mmstab.planner.cmaes import ranking_values
-from mmstab.planner.fitness import Fitness
-from mmstab.planner.pose import PoseTarget
-from mmstab.planner.regions import CoMRegion, PlanningRegion
-from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.regions import CoMRegion
+from mmstab.planner.searches.cmaes.pycma_runs import ranking_values
 
 #: CMA-ES iterations of a warm-started pose (a cold start uses ``planner.max_iterations``).
 WARM_ITERATIONS = 8
@@ -154,6 +152,102 @@ def _update(st: _State, cma: _Strategy, x: FloatArray, order: NDArray[np.intp], 
     return _State(mean, sigma, C, B, D, pc, ps)
 
 
+class WarmCMA:
+    """The warm CMA-ES as an ask/tell object (pycma's ``CMAEvolutionStrategy`` shape).
+
+    ``ask()`` draws a population inside V (re-asks up front), ``tell(solutions, values)``
+    ranks it by Eq. 6 (maximised; the samples outside V below every feasible one) and
+    updates the distribution, ``stop()`` says whether a budget or tolerance is reached, and
+    ``result`` is the run so far (:class:`WarmResult`). The start is a candidate when it
+    lies inside V.
+
+    Args:
+        fitness: Eq. 6 of a batch of arm CoMs (N, 3) [m] -> (N,) (scores the start).
+        region: the workspace V (``contains``, ``violation``, ``diameter``).
+        start_com: the mean to start from, body frame (3,) [m].
+        sigma0: initial step size [m].
+        rng: the generator the samples are drawn from.
+        popsize: lambda, samples per iteration.
+        max_iterations: iteration budget.
+        max_resample: re-ask rounds for samples outside V per iteration.
+        tol_x: stop when sigma times the largest axis is below this [m].
+        tol_fitness: stop when the range of a population's fitness stayed below this for
+            ``FLAT_ITERATIONS`` iterations.
+    """
+
+    def __init__(
+        self,
+        fitness: Callable[..., FloatArray],
+        region: CoMRegion,
+        start_com: FloatArray,
+        sigma0: float,
+        rng: np.random.Generator,
+        popsize: int,
+        max_iterations: int,
+        max_resample: int,
+        tol_x: float,
+        tol_fitness: float,
+    ) -> None:
+        n = 3
+        self._cma = _strategy(n, popsize)
+        self._region, self._rng = region, rng
+        self._max_iterations, self._max_resample = max_iterations, max_resample
+        self._tol_x, self._tol_fitness = tol_x, tol_fitness
+        self._diameter = float(region.diameter)
+        mean = np.asarray(start_com, dtype=float).copy()
+        self._st = _State(
+            mean, float(sigma0), np.eye(n), np.eye(n), np.ones(n), np.zeros(n), np.zeros(n)
+        )
+        self._best_com, self._best_f = mean.copy(), -np.inf
+        if region.contains(mean[None])[0]:
+            self._best_f = float(fitness(mean[None])[0])
+        self._spread: list[float] = []
+        self._evaluations = self._resamples = 0
+        self._share = 1.0  # share of the last draws inside V
+        self._iterations = 0
+        self._stopped = False
+        self._inside: NDArray[np.bool_] = np.ones(0, dtype=bool)
+
+    def stop(self) -> bool:
+        """Whether the run is over: its iteration budget spent, or a tolerance reached."""
+        return self._stopped or self._iterations >= self._max_iterations
+
+    def ask(self) -> FloatArray:
+        """The next population (lambda, 3) [m], inside V where the re-asks allowed."""
+        self._iterations += 1
+        pop = _draw(self._st, self._cma, self._region, self._rng, self._share, self._max_resample)
+        self._inside, self._share = pop.inside, pop.share
+        self._resamples += pop.resamples
+        return pop.x
+
+    def tell(self, solutions: FloatArray, values: FloatArray) -> None:
+        """Rank the asked population by its Eq. 6 values (N,) (maximised) and update."""
+        x, f, inside, lam = solutions, values, self._inside, self._cma.lam
+        self._evaluations += lam
+        violation = self._region.violation(x) if not inside.all() else np.zeros(lam)
+        order = np.argsort(ranking_values(f, inside, violation, self._diameter), kind="stable")
+        feasible = np.where(inside, f, -np.inf)
+        k = int(np.argmax(feasible))
+        if feasible[k] > self._best_f:
+            self._best_f, self._best_com = float(feasible[k]), x[k].copy()
+        self._st = st = _update(self._st, self._cma, x, order, self._iterations)
+        if st.sigma * st.D.max() < self._tol_x:
+            self._stopped = True
+            return
+        self._spread.append(float(np.ptp(f[inside])) if inside.any() else np.inf)
+        flat = self._spread[-FLAT_ITERATIONS:]
+        if len(self._spread) >= FLAT_ITERATIONS and max(flat) < self._tol_fitness:
+            self._stopped = True  # the populations' values agree (pycma's tolfun)
+
+    @property
+    def result(self) -> WarmResult:
+        """The run so far: the best feasible CoM (the start when nothing beat it)."""
+        return WarmResult(
+            self._best_com, self._best_f, self._iterations, self._evaluations,
+            self._resamples, self._st.sigma,
+        )  # fmt: skip
+
+
 def warm_cma(
     fitness: Callable[..., FloatArray],
     region: CoMRegion,
@@ -166,102 +260,15 @@ def warm_cma(
     tol_x: float,
     tol_fitness: float,
 ) -> WarmResult:
-    """Maximise ``fitness`` over V from ``start_com`` (kept as a candidate when inside V).
+    """Maximise ``fitness`` over V from ``start_com``: :class:`WarmCMA` run to its stop.
 
-    Args:
-        fitness: Eq. 6 of a batch of arm CoMs (N, 3) [m] -> (N,).
-        region: the workspace V (``contains``, ``violation``, ``diameter``).
-        start_com: the mean to start from, body frame (3,) [m].
-        sigma0: initial step size [m].
-        rng: the generator the samples are drawn from.
-        popsize: lambda, samples per iteration.
-        max_iterations: iteration budget.
-        max_resample: re-ask rounds for samples outside V per iteration.
-        tol_x: stop when sigma times the largest axis is below this [m].
-        tol_fitness: stop when the range of a population's fitness stayed below this for
-            ``FLAT_ITERATIONS`` iterations.
+    The arguments are :class:`WarmCMA`'s.
     """
-    n = 3
-    cma = _strategy(n, popsize)
-    lam = cma.lam
-    diameter = float(region.diameter)
-    mean = np.asarray(start_com, dtype=float).copy()
-    st = _State(mean, float(sigma0), np.eye(n), np.eye(n), np.ones(n), np.zeros(n), np.zeros(n))
-    best_com, best_f = mean.copy(), -np.inf
-    if region.contains(mean[None])[0]:
-        best_f = float(fitness(mean[None])[0])
-    spread: list[float] = []
-    evaluations = resamples = 0
-    share = 1.0  # share of the last draws inside V
-    it = 0
-    while it < max_iterations:
-        it += 1
-        pop = _draw(st, cma, region, rng, share, max_resample)
-        x, inside, share = pop.x, pop.inside, pop.share
-        resamples += pop.resamples
-        f = fitness(x)
-        evaluations += lam
-        violation = region.violation(x) if not inside.all() else np.zeros(lam)
-        order = np.argsort(ranking_values(f, inside, violation, diameter), kind="stable")
-        feasible = np.where(inside, f, -np.inf)
-        k = int(np.argmax(feasible))
-        if feasible[k] > best_f:
-            best_f, best_com = float(feasible[k]), x[k].copy()
-        st = _update(st, cma, x, order, it)
-        if st.sigma * st.D.max() < tol_x:
-            break
-        spread.append(float(np.ptp(f[inside])) if inside.any() else np.inf)
-        if len(spread) >= FLAT_ITERATIONS and max(spread[-FLAT_ITERATIONS:]) < tol_fitness:
-            break  # the populations' values agree (pycma's tolfun)
-    return WarmResult(best_com, best_f, it, evaluations, resamples, st.sigma)
-
-
-def warm_pose(
-    fit: Fitness,
-    region: PlanningRegion,
-    pose: FloatArray,
-    starts: list[FloatArray],
-    sigma: float,
-    settings: PlannerSettings,
-    rng: np.random.Generator,
-    t0: float,
-) -> PoseTarget:
-    """One warm-started pose: :func:`warm_cma` from each start, the best answer kept.
-
-    Args:
-        fit: Eq. 6 at the pose.
-        region: the planning region.
-        pose: the base pose [m, m, rad] (recorded).
-        starts: start means, body frame (3,) each [m].
-        sigma: the warm step size [m].
-        settings: planner settings (population, tolerances; ``WARM_ITERATIONS`` at most).
-        rng: the planner's generator.
-        t0: ``time.perf_counter()`` at the pose's start [s].
-    """
-    linear = fit.linear()  # the same Eq. 6, affine per tip-over axis: cheaper per batch
-    runs = [
-        warm_cma(
-            linear.__call__,
-            region,
-            c,
-            sigma,
-            rng,
-            settings.popsize,
-            min(settings.max_iterations, WARM_ITERATIONS),
-            settings.max_resample,
-            settings.tol_x,
-            settings.tol_fitness,
-        )
-        for c in starts
-    ]
-    best = int(np.argmax([r.best_fitness for r in runs]))
-    com = runs[best].best_com
-    return PoseTarget(
-        pose=np.asarray(pose, dtype=float),
-        target_com=com,
-        fitness=float(fit(com)[0]),
-        mu=float(fit.mu(com)[0]),
-        runs=(),
-        best_start=best,
-        seconds=time.perf_counter() - t0,
-    )
+    es = WarmCMA(
+        fitness, region, start_com, sigma0, rng, popsize, max_iterations, max_resample,
+        tol_x, tol_fitness,
+    )  # fmt: skip
+    while not es.stop():
+        x = es.ask()
+        es.tell(x, fitness(x))
+    return es.result
