@@ -28,6 +28,8 @@ from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
 
 #: Each robot's contact candidates by (its id, the flipper angle), the robot kept with them.
 _CANDIDATES: dict[tuple[int, float | None], tuple[Robot | None, ContactCandidates]] = {}
+#: Each robot's overall CoM with the arm stowed in B [m], likewise.
+_STOWED_COM: dict[tuple[int, float | None], tuple[Robot | None, FloatArray]] = {}
 
 
 def with_flipper_angle(robot: Robot, angle: float | None) -> Robot:
@@ -115,10 +117,21 @@ class HeightmapTerrain:
 
     @functools.cached_property
     def com_body(self) -> FloatArray:
-        """Overall CoM of the bound robot in B [m] (base + arm at ``arm_q``)."""
+        """Overall CoM of the bound robot in B [m] (base + arm at ``arm_q``).
+
+        With the arm stowed kept per robot and flipper angle, as the contact candidates.
+        """
+        if self.arm_q is None:
+            key = (id(self.robot), self.flipper_angle)
+            kept = _STOWED_COM.get(key)
+            if kept is None or kept[0] is not self.robot:
+                r = self._robot()
+                com = np.asarray(r.overall_com(r.arm_com(r.stowed)), dtype=float)
+                com.setflags(write=False)
+                kept = _STOWED_COM[key] = (self.robot, com)
+            return kept[1]
         r = self._robot()
-        q = r.stowed if self.arm_q is None else self.arm_q
-        return np.asarray(r.overall_com(r.arm_com(q)), dtype=float)
+        return np.asarray(r.overall_com(r.arm_com(self.arm_q)), dtype=float)
 
     # ---------------------------------------------------------------- Terrain interface
     @property
