@@ -13,7 +13,7 @@ from conftest import PROBLEMS
 pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
-from mmstab.experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
+from experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
 from mmstab.physics.verdict_sim import (  # noqa: E402
     Thresholds,
@@ -161,7 +161,7 @@ def test_bad_settings_file_is_one_line_exit_2(tmp_path):
 
     bad = tmp_path / "verdicts.yaml"
     bad.write_text("cases: 3\n")
-    cmd = [sys.executable, "-m", "mmstab.experiments.verdicts", str(bad), "-o", str(tmp_path / "o")]
+    cmd = [sys.executable, "-m", "experiments.verdicts", str(bad), "-o", str(tmp_path / "o")]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2
     assert r.stderr.startswith(f"mmstab: error: {bad}: missing") and r.stderr.count("\n") == 1

@@ -216,7 +216,7 @@ def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
     import json
 
     from mmstab.cli import main
-    from mmstab.experiments.verify import OUTCOMES
+    from mmstab.outputs.verify import OUTCOMES
 
     path = turn_problem(tmp_path)
     monkeypatch.chdir(tmp_path)
