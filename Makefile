@@ -322,6 +322,14 @@ kerb: setup
 	$(MMSTAB) track problems/kerb.yaml -o results/kerb --allow-unstable --allow-sliding
 	$(MMSTAB) animation problems/kerb.yaml -o results/kerb
 
+## a user's ditch (problems/ditch.yaml, its ground from problems/terrains/make_ditch.py):
+## planned with every verdict and run in MuJoCo beside it (plan --verify: refused, exit 3),
+## and the physics run replayed -> results/ditch/ (docs/verdicts.md, "A user's ditch")
+.PHONY: ditch
+ditch: setup
+	$(MMSTAB) plan problems/ditch.yaml -o results/ditch --verify; test $$? -eq 3
+	$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif; test $$? -eq 3
+
 ## 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json
 .PHONY: random-routes

@@ -5,9 +5,11 @@ Run from the repository's root: ``python examples/track_route.py``.
 
 import mmstab
 
-problem = mmstab.load_problem("examples/slope_route.yaml")
-plan = mmstab.plan(problem)
-problem, plan, run = mmstab.track(problem, plan, progress=False)  # the whole route
+robot = mmstab.load_robot("problems/robots/cameleon.yaml")
+ramp = mmstab.Ramp(0.2)  # a 0.2 rad (11.5 deg) slope rising toward +y
+route = mmstab.route_path(robot, ramp, [[0, 0], [1.5, 0], [2.5, 1]], speed=0.3, turn_radius=0.5)
+plan = mmstab.plan(robot, ramp, route)
+run = mmstab.track(plan).run  # the whole route, the controller's settings as planned
 after = run.t >= 1.0  # after the arm's 1 s start-up move
 print(f"{run.t[-1]:.1f} s simulated, {run.steps} steps of {run.dt * 1e3:.0f} ms")
 print(f"QP failures: {len(run.failures)}, tipped at: {run.tipped}")

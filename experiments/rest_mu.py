@@ -12,7 +12,8 @@ compliance in the list. States where MuJoCo came to rest off mmstab's resting at
 
 Writes ``summary.json`` (settings, per-state records, per compliance the relative
 difference (mmstab − MuJoCo) / MuJoCo: median of its magnitude, median, 10-90 %, shares
-within ±5 % and optimistic by more than 5 %) and ``rest_mu.png``.
+within ±5 % and optimistic by more than 5 %; over all states, those at the same rest, and
+the maps with and without egg-box bumps) and ``rest_mu.png``.
 """
 
 from __future__ import annotations
@@ -108,11 +109,14 @@ def compliance_table(settings: dict[str, Any], records: list[dict[str, Any]]) ->
     sim = np.array([r["mu_simulated"] for r in records])
     pred = np.array([r["mu_predicted"] for r in records]).reshape(len(records), -1)
     same = np.array([r["off_rest_deg"] <= settings.get("same_rest_deg", 1.0) for r in records])
+    bumps = np.array([bool(r["bumps"]) for r in records])
     ok = np.isfinite(sim) & (np.abs(sim) > 1e-9)
     table = {}
     for j, c in enumerate(settings["compliance_m"]):
         row = {}
-        for name, mask in (("all", ok), ("same_rest", ok & same)):
+        groups = (("all", ok), ("same_rest", ok & same), ("bumps", ok & bumps),
+                  ("no_bumps", ok & ~bumps))  # fmt: skip
+        for name, mask in groups:
             rel = (pred[mask, j] - sim[mask]) / np.abs(sim[mask])
             rel = rel[np.isfinite(rel)]
             row[name] = {

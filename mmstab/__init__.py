@@ -54,25 +54,34 @@ _EXPORTS: dict[str, str] = {
     "robot_mu": "mmstab.stability.dynamic",
     "stance": "mmstab.stability.stance",
     "Stance": "mmstab.stability.stance",
+    "route_path": "mmstab.paths.route",
     # the pipeline (the layer the CLI and the experiments share)
-    "plan": "mmstab.app",
-    "track": "mmstab.app",
+    "plan": "mmstab.app.api",
+    "track": "mmstab.app.api",
+    "PathPlan": "mmstab.app.api",
+    "Controller": "mmstab.control.loop",
+    "Tracked": "mmstab.app.api",
+    "Settings": "mmstab.app.settings",
     "stability_along": "mmstab.app",
 }
 
 __all__ = [
     "CirclePath",
     "ConfigError",
+    "Controller",
     "Heightmap",
     "HeightmapTerrain",
     "MmstabError",
+    "PathPlan",
     "Payload",
     "Problem",
     "Ramp",
     "Robot",
     "RoutePath",
+    "Settings",
     "Stance",
     "Terrain",
+    "Tracked",
     "attach_payload",
     "flipper_ground_angle",
     "force_angle",
@@ -83,6 +92,7 @@ __all__ = [
     "robot_force_angle",
     "robot_mu",
     "roll_pitch",
+    "route_path",
     "stability_along",
     "stance",
     "track",
@@ -90,13 +100,16 @@ __all__ = [
 ]  # the keys of _EXPORTS (a test holds them equal)
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
-    from mmstab.app import plan, stability_along, track
+    from mmstab.app import stability_along
+    from mmstab.app.api import PathPlan, Tracked, plan, track
+    from mmstab.app.settings import Settings
+    from mmstab.control.loop import Controller
     from mmstab.core.files import ConfigError, MmstabError
     from mmstab.core.problem import Problem, load_problem
     from mmstab.model.payload import Payload, attach_payload
     from mmstab.model.robot import Robot, flipper_ground_angle, load_robot, with_flipper_angle
     from mmstab.paths.circle import CirclePath
-    from mmstab.paths.route import RoutePath
+    from mmstab.paths.route import RoutePath, route_path
     from mmstab.stability.dynamic import robot_mu
     from mmstab.stability.stance import Stance, stance
     from mmstab.stability.static import force_angle, robot_force_angle

@@ -141,7 +141,7 @@ def run_variants(problem: Problem, settings: LeversSettings) -> dict[str, Any]:
             ),
             "steepest_side_slope_stowed_deg": steepest_side_slope(
                 vp,
-                lambda r, g: float(robot_force_angle(r, g, r.arm_com(r.stowed)).mu[0]),
+                lambda r, g: float(robot_force_angle(r, g, r.arm_com(r.stowed)).mu),
                 settings,
             ),
             **rough,

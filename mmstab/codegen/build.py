@@ -11,7 +11,7 @@ import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, Union
 
 import casadi as ca
 
@@ -72,9 +72,9 @@ class GeneratedController(NamedTuple):
         return ca.external(name, str(self.library.resolve()))
 
 
-def _resolve(
-    source: Problem | tuple[Robot, ControllerSettings],
-) -> tuple[Robot, ControllerSettings, CodegenSettings]:
+def _resolve(source: Source) -> tuple[Robot, ControllerSettings, CodegenSettings]:
+    if isinstance(source, tuple) and len(source) == 3:
+        return source
     if isinstance(source, tuple):
         robot, settings = source
         # the settings' plugin when C can be generated for it, else the default (box)
@@ -85,6 +85,14 @@ def _resolve(
         ControllerSettings.from_section(source.section("controller")),
         CodegenSettings.from_section(source.section("codegen")),
     )
+
+
+#: What the generated step is built for: a problem, or its robot and settings.
+Source = Union[
+    "Problem",
+    tuple[Robot, ControllerSettings],
+    tuple[Robot, ControllerSettings, CodegenSettings],
+]
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -128,7 +136,7 @@ def _layout(ctrl: Controller) -> str:
 
 
 def generate(
-    source: Problem | tuple[Robot, ControllerSettings],
+    source: Source,
     out_dir: str | os.PathLike[str] | None = None,
     plugin: str | None = None,
     *,
@@ -140,7 +148,8 @@ def generate(
     """Generate the controller step's C and compile it, unless already up to date.
 
     Args:
-        source: a problem, or (robot, controller settings).
+        source: a problem, (robot, controller settings) or (robot, controller settings,
+            codegen settings).
         out_dir: output folder (default ``codegen.directory/plugin``, ``results/codegen/plugin``
             for a (robot, settings) source).
         plugin: QP plugin (default the problem's ``codegen.plugin``; for a tuple the

@@ -11,7 +11,7 @@ import os
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from mmstab.core import schema
 from mmstab.core.defaults import with_defaults
@@ -119,6 +119,28 @@ class Problem:
     def to_dict(self) -> dict[str, Any]:
         """Everything a run depended on: the problem and the robot description."""
         return {**self.data, "robot": read_yaml(self.robot_path())}
+
+
+class Scene(NamedTuple):
+    """A robot on the ground with its base's path: a problem's objects without its file.
+
+    What the code-first API (:func:`mmstab.plan`, :func:`mmstab.track`) hands the stages
+    that read only these three of a :class:`Problem`.
+
+    Attributes:
+        robot: the robot.
+        terrain: the ground.
+        base_path: the base's path in the terrain's map frame (a circle or a route).
+    """
+
+    robot: Robot
+    terrain: Terrain
+    base_path: BasePath
+
+    @property
+    def route(self) -> RoutePath | None:
+        """The route, when the path is one, else None."""
+        return self.base_path if isinstance(self.base_path, RoutePath) else None
 
 
 _NOTED: set[tuple[Path, str]] = set()

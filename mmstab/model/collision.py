@@ -23,6 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.core.masks import true_runs
+from mmstab.model import collision_distance
+from mmstab.model.collision_bounds import FLOOR_STEPS, turn_floor
 from mmstab.model.parts import BASE_PARTS as PARTS_OF_BASE
 from mmstab.model.robot import Box, FloatArray, Geometry, Robot
 
@@ -40,6 +42,8 @@ ARM_PAIRS = arm_pairs(4)
 
 #: Slack added to a culling distance so that round-off never culls a touching pair [m].
 CULL_SLACK = 1e-9
+#: Each robot's turn floors (:func:`mmstab.model.collision_bounds.turn_floor`), by its id.
+_FLOORS: dict[int, tuple[Robot, dict[str, float]]] = {}
 
 
 class Pair(NamedTuple):
@@ -169,6 +173,17 @@ class CollisionChecker:
             if frozenset((names[pr.link], body(pr.other))) in robot.collision_allow
         )
         self.pairs: tuple[Pair, ...] = tuple(pr for pr in every if pr.name not in self.allowed)
+        # the base boxes' frames, kept for the pairs' gaps (:meth:`_gaps`)
+        parts = list(self.base_boxes)
+        self._box_R = np.stack([self.base_boxes[b].frame_T_shape[:3, :3] for b in parts])
+        self._box_c = np.stack([self.base_boxes[b].frame_T_shape[:3, 3] for b in parts])
+        self._box_half = np.stack([np.asarray(self.base_boxes[b].size) / 2 for b in parts])
+        self._gap_column = {
+            pr.name: (pr.link * len(parts) + parts.index(pr.other))
+            if isinstance(pr.other, str)
+            else len(robot.links) * len(parts) + k
+            for k, pr in enumerate(self.pairs)
+        }
 
     # ---------------------------------------------------------------------------- geometry
     def shape_poses(
@@ -273,6 +288,103 @@ class CollisionChecker:
         d = np.linalg.norm(centre - p[:, pair.other], axis=1)
         return d - radius - self._link_radius[pair.other] - CULL_SLACK
 
+    def _segment_gap(
+        self, pair: Pair, R: FloatArray, p: FloatArray, rows: NDArray[np.intp], need: float
+    ) -> FloatArray | None:
+        """Lower bound on the pair's distance at postures ``rows`` (m,) [m]: its segments'.
+
+        From the capsules' segments (:mod:`mmstab.model.collision_distance`), decided
+        against ``need`` [m] (exact enough to tell which postures keep it); None: a box
+        against a base box, or no C compiler.
+        """
+        if not collision_distance.available():
+            return None
+        ends = [self._ends(i, R, p, rows) for i in (pair.link, pair.other) if isinstance(i, int)]
+        if isinstance(pair.other, str):
+            if ends[0] is None:
+                return None
+            box = self.base_boxes[pair.other]
+            T = box.frame_T_shape
+            a0, a1, r = ends[0]
+            d = collision_distance.segment_box(a0, a1, T[:3, 3], T[:3, :3], box.size / 2, need + r)
+            return d - r
+        if ends[0] is not None and ends[1] is not None:
+            (a0, a1, ra), (b0, b1, rb) = ends[0], ends[1]
+            return collision_distance.segment_segment(a0, a1, b0, b1) - ra - rb
+        box_link, seg = (pair.link, ends[1]) if ends[0] is None else (pair.other, ends[0])
+        if seg is None:
+            return None
+        size = np.asarray(self.robot.links[box_link].geometry.size, dtype=float)
+        a0, a1, r = seg
+        return (
+            collision_distance.segment_box(
+                a0, a1, p[rows, box_link], R[rows, box_link], size / 2, need + r
+            )
+            - r
+        )
+
+    def _ends(
+        self, link: int, R: FloatArray, p: FloatArray, rows: NDArray[np.intp]
+    ) -> tuple[FloatArray, FloatArray, float] | None:
+        """A capsule link's segment ends in B at postures ``rows`` (m, 3) each, its radius [m]."""
+        g = self.robot.links[link].geometry
+        if isinstance(g, Box):
+            return None
+        axis = R[rows, link, :, 2] * (g.length / 2)  # the FCL capsule's axis: its z
+        return p[rows, link] - axis, p[rows, link] + axis, float(g.radius)
+
+    def turn_floors(self) -> dict[str, float]:
+        """Least distance [m] over a full turn of the pairs one joint alone moves, by name.
+
+        The first link against each base part (:func:`mmstab.model.collision_bounds.turn_floor`),
+        computed once per robot.
+        """
+        kept = _FLOORS.get(id(self.robot))
+        if kept is not None and kept[0] is self.robot:
+            return kept[1]
+        q = np.tile(np.asarray(self.robot.stowed, dtype=float), (FLOOR_STEPS + 1, 1))
+        q[:, 0] = np.linspace(-np.pi, np.pi, FLOOR_STEPS + 1)
+        R, p = self.shape_poses(q)
+        floors: dict[str, float] = {}
+        for pair in self.pairs:
+            if pair.columns != (0,) or not isinstance(pair.other, str):
+                continue
+            geometry = self.robot.links[pair.link].geometry
+            if isinstance(geometry, Box):
+                signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+                corners, inflate = signs * np.asarray(geometry.size) / 2, 0.0  # shape frame
+            else:
+                half = geometry.length / 2
+                corners, inflate = np.array([[0, 0, -half], [0, 0, half]]), geometry.radius
+            floors[pair.name] = turn_floor(
+                self._link_objs[pair.link], self._base_objs[pair.other],
+                R[:, pair.link], p[:, pair.link], corners, inflate,
+            )  # fmt: skip
+        _FLOORS[id(self.robot)] = (self.robot, floors)
+        return floors
+
+    def _gaps(self, p: FloatArray) -> FloatArray:
+        """:meth:`_gap` of every pair at once: (N, columns) [m], a pair's in ``_gap_column``.
+
+        The link-vs-base columns first (link-major), then the pairs of links.
+        """
+        n, links = p.shape[0], p.shape[1]
+        local = np.einsum("nlj,bji->nlbi", p, self._box_R)
+        local -= np.einsum("bi,bij->bj", self._box_c, self._box_R)
+        outside = local - np.clip(local, -self._box_half, self._box_half)
+        d = np.sqrt(np.einsum("nlbi,nlbi->nlb", outside, outside))
+        d -= (self._link_radius + CULL_SLACK)[None, :, None]
+        out = np.full((n, links * len(self._box_R) + len(self.pairs)), np.inf)
+        out[:, : links * len(self._box_R)] = d.reshape(n, -1)
+        for pr in self.pairs:
+            if isinstance(pr.other, int):
+                i, j = pr.link, pr.other
+                reach = self._link_radius[i] + self._link_radius[j] + CULL_SLACK
+                out[:, self._gap_column[pr.name]] = (
+                    np.linalg.norm(p[:, i] - p[:, j], axis=1) - reach
+                )
+        return out
+
     def clearance(self, q: ArrayLike, cull_above: float | None = None) -> FloatArray:
         """Smallest distance between the bodies of any checked pair, per posture (N,) [m].
 
@@ -313,19 +425,28 @@ class CollisionChecker:
         postures of ``q`` (N, 4) [rad] must move no point of the arm more than ``step`` [m],
         so a pair measured ``d`` apart cannot come within ``need`` for the next
         ``(d − need) / step`` postures (half that for a pair of two moving links), which are
-        skipped; pairs whose bounding spheres stay ``need`` apart are not measured; the first
-        posture found closer ends the check.
+        skipped; pairs whose bounding spheres stay ``need`` apart are not measured, nor the
+        pairs one joint alone moves that keep ``need`` at every angle (:meth:`turn_floors`);
+        the first posture found closer ends the check.
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         R, p = self.shape_poses(qa)
         request = fcl.DistanceRequest()
+        floors = self.turn_floors()
+        gaps = self._gaps(p)
         for pair in sorted(self.pairs, key=lambda pr: isinstance(pr.other, str)):
+            if floors.get(pair.name, -np.inf) >= need:  # that far apart at every angle
+                continue
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other
             b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
             rate = step * (2.0 if j >= 0 else 1.0)  # how fast the pair's distance can shrink
             safe_until = 0
-            for n in np.flatnonzero(self._gap(pair, p) < need):
+            rows = np.flatnonzero(gaps[:, self._gap_column[pair.name]] < need)
+            if rows.size:  # the capsules' own distances (mmstab.model.collision_distance)
+                near = self._segment_gap(pair, R, p, rows, need)
+                rows = rows if near is None else rows[near < need]
+            for n in rows:
                 if n < safe_until:
                     continue
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))

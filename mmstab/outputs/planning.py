@@ -13,13 +13,14 @@ import numpy as np
 
 from mmstab.app import plan as plan_of
 from mmstab.app import stability_along, workspace
+from mmstab.app.settings import Settings
 from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, save_settings
 from mmstab.outputs.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
-from mmstab.runs.high_centred import high_centred_verdict, path_samples
-from mmstab.runs.verdict import plan_verdict, planner_margin, slip_verdict, turn_check
+from mmstab.runs.plan_verdicts import lap_verdicts
+from mmstab.runs.verdict import plan_verdict, planner_margin
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
 from mmstab.terrain import roll_pitch
@@ -157,15 +158,6 @@ def plan_summary(problem: Problem, plan: Plan) -> dict[str, Any]:
     }
 
 
-def lap_slip(problem: Problem, poses: list[dict[str, Any]]) -> dict[str, Any]:
-    """The slip verdict of a lap plan's poses: the friction cone and the lap's turns."""
-    coms = [p["target_com"] for p in poses]
-    lap = float(problem.section("controller")["lap_time"])  # a circle: one lap
-    times = [lap * p["fraction"] for p in poses]
-    turns = turn_check(problem, coms, times, lap if problem.base_path.closed else None)
-    return slip_verdict(problem.terrain, [p["pose"] for p in poses], turns)
-
-
 def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 8: the planned configurations along the circle, drawn on the ramp."""
     ws = workspace(problem)
@@ -175,12 +167,18 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         raise MmstabError(f"{problem.path}: path: Fig. 8 needs a circle")
     d = output_dir(out, "fig8")
     summary = plan_summary(problem, plan)
-    summary["stability"] = plan_verdict(
-        summary["poses"], planner_margin(problem.section("planner"))
-    )
-    summary["slip"] = lap_slip(problem, summary["poses"])
-    lap = path_samples(problem.base_path)
-    summary["high_centred"] = high_centred_verdict(problem.terrain, *lap)
+    settings = Settings.from_problem(problem)
+    lap_time = settings.controller.lap_time  # a circle: one lap
+    v = lap_verdicts(
+        problem.robot,
+        problem.terrain,
+        problem.base_path,
+        summary["poses"],
+        settings.verdicts,
+        lap_time,
+    )  # the verdicts mmstab.plan returns
+    for key in ("stability", "slip", "high_centred"):
+        summary[key] = v[key]
     quality = lap_quality(
         problem, planning_region(ws, problem.section("workspace")["method"]), plan
     )

@@ -30,32 +30,16 @@ from typing import Any
 import numpy as np
 
 from mmstab.app import plan as make_plan
+from mmstab.app.settings import Settings
 from mmstab.core.files import MmstabError, write_figure, write_json
-from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, route_corners, save_settings
-from mmstab.paths.route import speed_limits
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
-from mmstab.planner.warm_start import planned_com
-from mmstab.runs.along import (
-    Along,
-    acceleration_margin,
-    along_path,
-    dense_verdicts,
-    limit_verdicts,
-    sample_spacing,
-)
-from mmstab.runs.high_centred import path_samples
+from mmstab.runs.along import Along
+from mmstab.runs.plan_verdicts import plan_along as robot_plan_along
+from mmstab.runs.plan_verdicts import route_verdicts
 from mmstab.runs.recording import frames_at, write_run
-from mmstab.runs.verdict import (
-    climb_verdict,
-    plan_verdict,
-    planner_margin,
-    slip_verdict,
-    turn_check,
-)
 from mmstab.stability.static import mu_max
-from mmstab.stability.support import loaded_mu
 
 #: Robot snapshots drawn in the 3-D figure.
 SNAPSHOTS = 6
@@ -66,32 +50,24 @@ def plan_along(problem: Problem, plan: RoutePlan) -> Along:
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
-    poses, s = path_samples(route, sample_spacing(problem.terrain))
-    planned = planned_com(problem.robot, plan.postures, plan.target_com)
-    return along_path(problem.robot, problem.terrain, poses, s, plan.s, planned)
+    return robot_plan_along(problem.robot, problem.terrain, route, plan)
 
 
 def route_summary(
     problem: Problem, plan: RoutePlan, risk: RouteRisk, along: Along | None = None
 ) -> dict[str, Any]:
-    """The numbers of a route plan (``summary.json``); ``along``: :func:`plan_along`'s."""
+    """The numbers of a route plan (``summary.json``); ``along``: :func:`plan_along`'s.
+
+    The verdicts are :func:`mmstab.runs.plan_verdicts.route_verdicts`' (what
+    :func:`mmstab.plan` returns).
+    """
     robot = problem.robot
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
-    realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
-    mu_realised = loaded_mu(robot, problem.terrain, plan.poses, realised)  # one case, one batch
-    times = np.asarray(plan.fractions) * route.lap_time
-    slip = slip_verdict(problem.terrain, plan.poses, turn_check(problem, plan.target_com, times))
-    margin = planner_margin(problem.section("planner"))
-    # between the planned poses: every few cm, the arm in the postures it moves between
-    along = plan_along(problem, plan) if along is None else along
-    limits = speed_limits(robot, problem.section("path"))
-    accelerating = acceleration_margin(
-        robot.total_mass, max(limits.acceleration, limits.lateral_acceleration)
-    )
-    dense = dense_verdicts(problem.terrain, along, margin, accelerating)
-    slip = with_stretches(slip, dense, "slide", "slides")
+    settings = Settings.from_problem(problem)
+    v = route_verdicts(robot, problem.terrain, route, plan, settings.verdicts, along)
+    mu_realised = v["mu_realised"]
     poses = [
         {
             "s": float(plan.s[k]),
@@ -133,7 +109,7 @@ def route_summary(
             "margin": risk.margin,
             "below_margin": [r._asdict() for r in risk.below_margin],
             "saved_by_planning": [r._asdict() for r in risk.saved_by_planning],
-            "slides": slide_stretches(slip, plan.s),
+            "slides": v["slides"],
         },
         "ms_per_pose": float(1e3 * np.median(warm)),
         "ms_per_pose_max": float(1e3 * np.max(warm)),
@@ -143,73 +119,14 @@ def route_summary(
         "fixed_seconds": float(plan.fixed_seconds),
         "settings": plan.settings._asdict(),
         "poses": poses,
-        "stability": with_stretches(plan_verdict(poses, margin), dense, "tip", "stable"),
-        "slip": slip,
-        "climb": climb_verdict(problem.robot, problem.terrain, plan.poses, plan.target_com, False),
-        "high_centred": {
-            "high_centred": dense["high_centred"]["binds"],
-            "samples": dense["samples"],
-            "spacing_m": dense["spacing_m"],
-            "criterion": "the chassis does not rest on the ground along the path (planned arm)",
-            "stretches": dense["high_centred"]["stretches"],
-        },
-        "along_path": dense,
+        "stability": v["stability"],
+        "slip": v["slip"],
+        "climb": v["climb"],
+        "high_centred": v["high_centred"],
+        "along_path": v["along_path"],
+        "verdicts": v["verdicts"],
     }
-    out["verdicts"] = limit_verdicts(out)
     return out
-
-
-def with_stretches(
-    verdict: dict[str, Any], dense: dict[str, Any], limit: str, key: str
-) -> dict[str, Any]:
-    """A per-pose verdict with the path's stretches between the poses that pass ``limit``.
-
-    Args:
-        verdict: the planned poses' verdict (``stability`` or ``slip``).
-        dense: :func:`mmstab.runs.along.dense_verdicts`.
-        limit: ``tip`` or ``slide``.
-        key: the verdict's flag: ``stable`` (False where a stretch tips) or ``slides``.
-    """
-    out = dict(verdict)
-    found = dense[limit]
-    out["stretches"] = found["stretches"]
-    out["spacing_m"] = dense["spacing_m"]
-    if limit == "tip":  # the margin along the path, with the route's accelerations
-        out["along_threshold"] = found["threshold"]
-        out["acceleration_margin"] = found["acceleration_margin"]
-    if limit == "slide":
-        out.setdefault("critical_tilt", found["critical_tilt"])
-        out.setdefault("friction", found["friction"])
-    if found["binds"]:
-        out[key] = key != "stable"
-    return out
-
-
-def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
-    """Where the tracks slide, in arc lengths [m]: at the planned poses, between them, in turns.
-
-    Each with the worst tilt [rad] where the support's tilt is the reason (``tilt_max``) or
-    the turn's slide within the window [m] (``slide_m``).
-    """
-    s_m = np.asarray(s, dtype=float)
-    mask = np.zeros(s_m.size, dtype=bool)
-    tilt = np.zeros(s_m.size)
-    for b in slip["sliding_poses"]:
-        mask[b["index"]], tilt[b["index"]] = True, b["tilt"]
-    out: list[dict[str, Any]] = [
-        {"start_s": float(s_m[k]), "end_s": float(s_m[j - 1]), "tilt_max": float(tilt[k:j].max())}
-        for k, j in true_runs(mask)
-    ]
-    out += [
-        {"start_s": x["start_s"], "end_s": x["end_s"], "tilt_max": x["worst"]}
-        for x in slip.get("stretches", [])
-    ]
-    out += [
-        {"start_s": float(s_m[t["first"]]), "end_s": float(s_m[t["last"]]),
-         "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
-        for t in slip.get("turns", {}).get("sliding_turns", [])
-    ]  # fmt: skip
-    return sorted(out, key=lambda x: x["start_s"])
 
 
 def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
@@ -289,7 +206,7 @@ def run_route_plan(
     plan = make_plan(problem)
     if not isinstance(plan, RoutePlan):
         raise MmstabError(f"{problem.path}: path: not a route")
-    risk = route_risk(plan, planner_margin(problem.section("planner")))
+    risk = route_risk(plan, Settings.from_problem(problem).verdicts.margin)
     d = output_dir(out, "plan")
     along = plan_along(problem, plan)
     summary = route_summary(problem, plan, risk, along)

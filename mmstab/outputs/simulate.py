@@ -125,6 +125,7 @@ def run_simulate(
     summary["high_centred"] = high_centred_verdict(
         problem.terrain, *path_samples(problem.base_path)
     )
+    place_events(summary, run, problem.base_path)
     write_run_figure(d / "physics.png", problem, run, loop)
     if gif:
         info = write_run_gif(d / "physics.gif", problem, run)
@@ -185,6 +186,27 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "reference_wait_s": run.reference_wait_s,
         "stalled": None if run.stalled is None else {"time_s": run.stalled},
     }
+
+
+def place_events(summary: dict[str, Any], run: PhysicsRun, path: Any) -> None:
+    """Add where each event of ``summary`` happened (in place).
+
+    The body origin ``xy_m`` (x, y) in M [m] at the event's time and, on a route, ``s_m``:
+    the distance along it of the path's nearest point [m], as the plan's verdicts name places.
+    """
+    u = np.linspace(0.0, 1.0, 4001)
+    on_route = hasattr(path, "s_at")
+    xy_path = np.asarray(path.pose_at(u))[:, :2] if on_route else None
+    for key in ("tipped", "slid", "left_map", "stalled", "disagreement"):
+        event = summary.get(key)
+        if event is None:
+            continue
+        k = min(int(np.searchsorted(run.t, event["time_s"])), len(run.t) - 1)
+        xy = run.state[k, :2]
+        event["xy_m"] = [float(xy[0]), float(xy[1])]
+        if xy_path is not None:
+            j = int(np.argmin(np.linalg.norm(xy_path - xy, axis=1)))
+            event["s_m"] = float(np.asarray(path.s_at(u[j : j + 1]))[0])
 
 
 def _nanmax(values: np.ndarray) -> float | None:

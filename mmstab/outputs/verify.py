@@ -54,12 +54,13 @@ def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path)
         against simulated (median relative difference), and the base's largest errors at
         the control point and the body origin [m].
     """
-    from mmstab.outputs.simulate import loop_settings, simulate_run, summarize
+    from mmstab.outputs.simulate import loop_settings, place_events, simulate_run, summarize
     from mmstab.outputs.simulate_figure import write_run_figure
 
     loop = loop_settings(problem)
     run = simulate_run(problem, loop, plan)
     sim = summarize(run, loop)
+    place_events(sim, run, problem.base_path)
     out.mkdir(parents=True, exist_ok=True)
     write_run_figure(out / "physics.png", problem, run, loop)
     write_json(out / "summary.json", sim)

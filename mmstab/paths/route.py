@@ -70,10 +70,13 @@ class RoutePath:
     Attributes:
         route: the geometry (lines and arcs, by arc length).
         profile: the speed profile along it.
+        limits: the speed limits the profile keeps (None: not known; the verdicts then take
+            :data:`ROUTE_DEFAULTS`' accelerations).
     """
 
     route: Route
     profile: SpeedProfile
+    limits: SpeedLimits | None = None
 
     @property
     def duration(self) -> float:
@@ -269,7 +272,8 @@ def route_path_from_section(
             "the inner track would have to run backwards, the tracks cannot follow that "
             "curvature at any speed (turn_radius 0: a pivot turn on the spot at every corner)",
         )
-    planned: PlannedRoute = route_from_section(p, section, speed_limits(robot, section))
+    limits = speed_limits(robot, section)
+    planned: PlannedRoute = route_from_section(p, section, limits)
     off = first_off_ground(planned.route, terrain, footprint_body(robot)) if on_ground else None
     if off is not None:
         if "file" in section:
@@ -287,4 +291,39 @@ def route_path_from_section(
             f"ground at arc length {off[0]:.2f} m: the base's footprint reaches "
             f"({off[1][0]:.2f}, {off[1][1]:.2f}) m, off the map or on an unknown (NaN) cell",
         )
-    return RoutePath(route=planned.route, profile=planned.profile)
+    return RoutePath(route=planned.route, profile=planned.profile, limits=limits)
+
+
+def route_path(
+    robot: Robot,
+    terrain: Terrain,
+    waypoints: ArrayLike,
+    *,
+    speed: float,
+    turn_radius: float,
+    acceleration: float = ROUTE_DEFAULTS["acceleration"],
+    lateral_acceleration: float = ROUTE_DEFAULTS["lateral_acceleration"],
+) -> RoutePath:
+    """A route through waypoints, as a problem file's ``path:`` section gives it.
+
+    Args:
+        robot: the robot (its tracks' speed and separation, its footprint).
+        terrain: the ground the route must stay on.
+        waypoints: (n, 2) of (x, y) or (n, 3) with a yaw [m, m, rad] in the map frame.
+        speed: cruise speed [m/s].
+        turn_radius: corner arcs' radius [m] (0: a pivot turn at every corner).
+        acceleration: longitudinal acceleration limit [m/s^2].
+        lateral_acceleration: lateral acceleration limit in the arcs [m/s^2].
+
+    Raises:
+        ConfigError: the route cannot be driven or leaves known ground (naming the field as
+            a ``path:`` section's).
+    """
+    section = {
+        "waypoints": np.asarray(waypoints, dtype=float).tolist(),
+        "speed": float(speed),
+        "turn_radius": float(turn_radius),
+        "acceleration": float(acceleration),
+        "lateral_acceleration": float(lateral_acceleration),
+    }
+    return route_path_from_section("<code>", section, robot, terrain)

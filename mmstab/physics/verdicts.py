@@ -147,7 +147,7 @@ class ArmPostures:
             mu, k = best_mu(robot, gravity, self.candidate_coms(config.payload))
             return self.candidates[k].copy(), mu
         q = np.asarray(self.fixed[config.arm], dtype=float)
-        return q, float(robot_force_angle(robot, gravity, robot.arm_com(q)).mu[0])
+        return q, float(robot_force_angle(robot, gravity, robot.arm_com(q)).mu)
 
 
 def predict(postures: ArmPostures, config: Config) -> Prediction:

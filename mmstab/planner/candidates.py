@@ -151,11 +151,14 @@ def scored_rows(
     low: list[NDArray[np.intp]] | None = None,
     bounds: tuple[FloatArray, FloatArray] | None = None,
     kept: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-) -> tuple[NDArray[np.intp], FloatArray]:
+) -> tuple[NDArray[np.intp], FloatArray, NDArray[np.bool_]]:
     """Reach rows (ascending) that hold every pose's rows ranked below ``rank`` per bin.
 
-    Returns the rows and the thresholds (K, bins): at pose k, bin b's rows ranked below
-    ``rank`` have values at least ``tau[k, b]`` (-inf: the bin is taken whole).
+    Returns the rows, the thresholds (K, bins): at pose k, bin b's rows ranked below
+    ``rank`` have values at least ``tau[k, b]`` (-inf: the bin is taken whole), and which of
+    the rows may reach their bin's threshold at each pose (K, rows): the others' cluster
+    bounds lie below it there, so only these need scoring at that pose (a sixth of the rows
+    on the random routes: the poses' support polygons differ, and so do their best rows).
 
     Args:
         cl: the clusters.
@@ -179,13 +182,14 @@ def scored_rows(
     proof = np.where(within >= rank, np.take_along_axis(lower, order, axis=1), -np.inf)
     tau = np.full((len(fits), len(cl.bin_start) - 1), -np.inf)
     tau[:, full] = np.maximum.reduceat(proof, first, axis=1)
-    keep = ((upper >= tau[:, cl.cluster_bin] - BOUND_SLACK) & (members > 0)).any(axis=0)
-    take = np.flatnonzero(keep)
+    reaches = upper >= tau[:, cl.cluster_bin] - BOUND_SLACK  # (K, C)
+    take = np.flatnonzero((reaches & (members > 0)).any(axis=0))
     if take.size == 0:  # no clusters (an empty component)
-        return np.zeros(0, dtype=np.intp), tau
+        return np.zeros(0, dtype=np.intp), tau, np.zeros((len(fits), 0), dtype=bool)
     sizes = cl.start[take + 1] - cl.start[take]
     offset = np.repeat(cl.start[take] - np.r_[0, np.cumsum(sizes)[:-1]], sizes)
-    return np.sort(cl.rows[np.arange(int(sizes.sum())) + offset]), tau
+    rows = np.sort(cl.rows[np.arange(int(sizes.sum())) + offset])
+    return rows, tau, reaches[:, cl.cluster_of[rows]]
 
 
 def proof_order(
@@ -340,10 +344,11 @@ def route_candidates(
         eligible, low = clear.eligible(), clear.low(K)
         if not np.array_equal(eligible, kept_for):  # the proofs' order kept while it stands
             kept, kept_for = proof_order(cl, eligible, bounds[0]), eligible.copy()
-        sub, tau = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
-        bad, sub_bins = ~eligible[sub], bins[sub]
+        union, tau, reaches = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
         more = []
         for k, fit in enumerate(fits):
+            sub = union[reaches[k]]  # the rest lie below the threshold: never in ``top``
+            bad, sub_bins = ~eligible[sub], bins[sub]
             v = scored_values(fit, samples, sub, scored[k], kept_v[k])
             scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf

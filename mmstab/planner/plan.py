@@ -13,12 +13,15 @@ import time
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import Robot
-from mmstab.paths.route import DEFAULT_SPACING, route_samples
+from mmstab.paths.base import BasePath
+from mmstab.paths.circle import CirclePath
+from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
 from mmstab.planner.along_path import Plan, solve_path
 from mmstab.planner.regions import PlanningRegion, planning_region
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm_start import RoutePlan, solve_route
-from mmstab.workspace import Workspace
+from mmstab.terrain import Terrain
+from mmstab.workspace import Workspace, WorkspaceSettings
 
 
 def problem_region(
@@ -29,12 +32,23 @@ def problem_region(
     Raises:
         MmstabError: the workspace V is empty.
     """
-    from mmstab.workspace import load_or_build_workspace
+    from mmstab.workspace import robot_workspace
 
-    ws = workspace if workspace is not None else load_or_build_workspace(problem, progress=progress)
+    settings = WorkspaceSettings.from_section(problem.section("workspace"))
+    ws = workspace if workspace is not None else robot_workspace(problem.robot, settings,
+                                                                  progress=progress)  # fmt: skip
+    return ws, region_of(ws, settings.method, str(problem.path))
+
+
+def region_of(ws: Workspace, method: str, where: str = "mmstab") -> PlanningRegion:
+    """The planning region of ``ws`` for ``workspace.method`` (``where``: names the source).
+
+    Raises:
+        MmstabError: the workspace V is empty.
+    """
     if len(ws.valid_com_in_V) == 0:
-        raise MmstabError(f"{problem.path}: the workspace V is empty; no arm CoM can be planned")
-    return ws, planning_region(ws, problem.section("workspace")["method"])
+        raise MmstabError(f"{where}: the workspace V is empty; no arm CoM can be planned")
+    return planning_region(ws, method)
 
 
 def plan_path(problem: Problem, workspace: Workspace | None = None, progress: bool = False) -> Plan:
@@ -45,21 +59,46 @@ def plan_path(problem: Problem, workspace: Workspace | None = None, progress: bo
         workspace: a prebuilt :class:`mmstab.workspace.Workspace`; default: load or build.
         progress: show progress bars.
     """
-    from mmstab.workspace.ik import PostureSolver
-
     ws, region = problem_region(problem, workspace, progress)
     settings = PlannerSettings.from_section(problem.section("planner"))
+    return plan_circle(problem.robot, problem.terrain, problem.circle, ws, region, settings,
+                       str(problem.path))  # fmt: skip
+
+
+def plan_circle(
+    robot: Robot,
+    terrain: Terrain,
+    circle: CirclePath,
+    ws: Workspace,
+    region: PlanningRegion,
+    settings: PlannerSettings,
+    where: str = "mmstab",
+) -> Plan:
+    """Plan a circle: ``settings.poses`` poses over the lap, the planner per pose, IK per target.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        circle: the base's circle in the map frame.
+        ws: the robot's workspace V.
+        region: the region searched (:func:`region_of`).
+        settings: the planner's settings.
+        where: names the source in messages (the problem file).
+
+    Raises:
+        MmstabError: ``settings.flipper_angles`` set (the flippers are planned elsewhere).
+    """
+    from mmstab.workspace.ik import PostureSolver
+
     if settings.flipper_angles:
         raise MmstabError(
-            f"{problem.path}: planner.flipper_angles plans the flippers, which the tracking "
+            f"{where}: planner.flipper_angles plans the flippers, which the tracking "
             "controller does not move; they are planned by make levers "
             "(mmstab.planner.levers.solve_path_flippers)"
         )
-    solver = PostureSolver(problem.robot, ws)
-    poses = problem.circle.poses(settings.poses)
-    return solve_path(
-        problem.robot, problem.terrain, region, poses, settings, solver.realise, closed=True
-    )
+    solver = PostureSolver(robot, ws)
+    poses = circle.poses(settings.poses)
+    return solve_path(robot, terrain, region, poses, settings, solver.realise, closed=True)
 
 
 def plan_route(
@@ -67,16 +106,9 @@ def plan_route(
 ) -> RoutePlan:
     """Plan the problem's route: workspace (cached), poses ``planner.spacing`` apart, IK.
 
-    Poses at 0, ``spacing``, ... and the route's end; their fractions are the route's time
-    fractions (the end is reached before the period ends, ``mmstab.paths.route``). Every
-    pose after the first is warm-started from the one before
-    (:func:`mmstab.planner.warm_start.solve_route`).
-
     Raises:
         MmstabError: the problem's path is not a route, or the workspace V is empty.
     """
-    from mmstab.workspace.ik import PostureSolver
-
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route (waypoints or file)")
@@ -84,42 +116,95 @@ def plan_route(
     ws, region = problem_region(problem, workspace, progress)
     section = problem.section("planner")
     settings = PlannerSettings.from_section(section)
-    s = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
+    spacing = float(section.get("spacing", DEFAULT_SPACING))
+    return plan_route_path(problem.robot, problem.terrain, route, ws, region, settings, spacing,
+                           t0)  # fmt: skip
+
+
+def plan_route_path(
+    robot: Robot,
+    terrain: Terrain,
+    route: RoutePath,
+    ws: Workspace,
+    region: PlanningRegion,
+    settings: PlannerSettings,
+    spacing: float = DEFAULT_SPACING,
+    t0: float | None = None,
+) -> RoutePlan:
+    """Plan a route: poses ``spacing`` apart, each warm-started from the one before, IK.
+
+    Poses at 0, ``spacing``, ... and the route's end; their fractions are the route's time
+    fractions (the end is reached before the period ends, ``mmstab.paths.route``). Every
+    pose after the first is warm-started from the one before
+    (:func:`mmstab.planner.warm_start.solve_route`).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        route: the base's route.
+        ws: the robot's workspace V.
+        region: the region searched (:func:`region_of`).
+        settings: the planner's settings.
+        spacing: distance between planned poses along the route (``planner.spacing``) [m].
+        t0: ``time.perf_counter()`` when the fixed costs began (default: now).
+    """
+    from mmstab.workspace.ik import PostureSolver
+
+    t0 = time.perf_counter() if t0 is None else t0
+    s = route_samples(route.length, spacing)
     poses = route.route.sample(s).pose
-    solver = PostureSolver(problem.robot, ws)
-    prepare_search(problem.robot, ws, settings)
+    solver = PostureSolver(robot, ws)
+    prepare_search(robot, ws, settings)
     fixed = time.perf_counter() - t0
     plan = solve_route(
-        problem.robot,
-        problem.terrain,
-        region,
-        s,
-        poses,
-        settings,
-        solver.realise,
-        route.fraction_of_s(s),
+        robot, terrain, region, s, poses, settings, solver.realise, route.fraction_of_s(s)
     )
     return plan._replace(fixed_seconds=fixed)
+
+
+def plan_base_path(
+    robot: Robot,
+    terrain: Terrain,
+    base_path: BasePath,
+    ws: Workspace,
+    region: PlanningRegion,
+    settings: PlannerSettings,
+    spacing: float = DEFAULT_SPACING,
+) -> Plan | RoutePlan:
+    """:func:`plan_circle` on a closed path, :func:`plan_route_path` on a route."""
+    if isinstance(base_path, CirclePath):
+        return plan_circle(robot, terrain, base_path, ws, region, settings)
+    if isinstance(base_path, RoutePath):
+        return plan_route_path(robot, terrain, base_path, ws, region, settings, spacing)
+    raise MmstabError(f"a path must be a CirclePath or a RoutePath, not {type(base_path).__name__}")
 
 
 def prepare_search(robot: Robot, ws: Workspace, settings: PlannerSettings) -> None:
     """Load (or build) what the search keeps between the plans of a process, once.
 
     ``method: roadmap``: the roadmap (its cache file), the start node's component on the
-    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree; a
+    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, the
+    compiled kernels loaded (the moves' clearance bounds, the ground under the arm) and the
+    robot's turn floors (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`); a
     route's poses then cost only their own search, and a one-off plan reports these fixed
     costs apart (``RoutePlan.fixed_seconds``). Other methods: nothing.
     """
     if settings.method != "roadmap" or robot.tool_wrench is not None:
         return
+    from mmstab.model import collision_distance
+    from mmstab.model.collision import CollisionChecker
     from mmstab.planner.searches.roadmap import component_view
     from mmstab.planner.searches.roadmap.moves import start_tree
+    from mmstab.planner.under_arm_c import load_kernels
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
     roadmap = load_or_build_roadmap(robot, ws)
     start = roadmap.connect(robot.stowed, robot)
     component_view(robot, roadmap, start, settings.ground_clearance)
     start_tree(roadmap, start, settings.ground_clearance)
+    CollisionChecker(robot).turn_floors()
+    collision_distance.available()
+    load_kernels()
 
 
 def plan_problem(

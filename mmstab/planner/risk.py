@@ -61,8 +61,14 @@ class RouteRisk(NamedTuple):
     saved_by_planning: list[RiskStretch]
 
 
-def route_risk(plan: RoutePlanLike, margin: float) -> RouteRisk:
-    """The risk stretches of a route plan against ``margin`` [N rad]."""
+def route_risk(plan: RoutePlanLike, margin: float | None = None) -> RouteRisk:
+    """The risk stretches of a route plan against ``margin`` [N rad].
+
+    ``margin`` None: the plan's own (``plan.margin``, :class:`mmstab.PathPlan`'s
+    ``planner.margin``), else 0.
+    """
+    if margin is None:
+        margin = float(getattr(plan, "margin", 0.0))
     below = plan.mu_planned <= margin
     saved = (plan.mu_stowed <= margin) & ~below
     return RouteRisk(

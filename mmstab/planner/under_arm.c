@@ -28,6 +28,9 @@ int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
             double lo = INFINITY;
             for (int m = 0; m < 8; m++) {
                 const double *a = pt + 3 * m;
+                /* a capsule's segment ends come repeated: the same point gives the same z */
+                if (m > 0 && a[0] == a[-3] && a[1] == a[-2] && a[2] == a[-1])
+                    continue;
                 double z = F[8] * a[0] + F[9] * a[1] + F[10] * a[2] + F[11];
                 if (margin) { /* numpy.einsum's sum of 3 products: (0 + 2) + 1 */
                     z = (F[8] * a[0] + F[10] * a[2]) + F[9] * a[1] + F[11];

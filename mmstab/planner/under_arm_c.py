@@ -41,6 +41,11 @@ def _kernels() -> tuple[Any, Any]:
     return pieces, heights
 
 
+def load_kernels() -> None:
+    """Compile (first use) and load the kernels now, not within a plan's first pose."""
+    _kernels()
+
+
 def pieces_kernel(
     frames: NDArray[np.float64],
     link: NDArray[np.intp],

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from mmstab.core.files import UnstableError
+from mmstab.runs.verdict_settings import DEFAULT_MARGIN, VerdictSettings
 from mmstab.stability.slip import terrain_friction, terrain_slip
 from mmstab.stability.support import posture_mu
 
@@ -43,8 +44,6 @@ if TYPE_CHECKING:
 #: run may reach (FCL distance at each saved sample); below it, or on contact, the run fails.
 MIN_CLEARANCE = 0.001
 
-#: ``planner.margin`` when the problem does not set it [N rad].
-DEFAULT_MARGIN = 0.0
 #: Unstable poses listed in one message (the rest are counted).
 LISTED_POSES = 5
 
@@ -88,22 +87,32 @@ def plan_verdict(poses: Sequence[Mapping[str, Any]], margin: float) -> dict[str,
 
 
 def plan_stability(problem: Problem, plan: Plan | RoutePlan) -> dict[str, Any]:
+    """:func:`robot_plan_stability` with the problem's ``planner.margin``."""
+    margin = planner_margin(problem.section("planner"))
+    return robot_plan_stability(problem.robot, problem.terrain, plan, margin)
+
+
+def robot_plan_stability(
+    robot: Robot, terrain: Terrain, plan: Plan | RoutePlan, margin: float
+) -> dict[str, Any]:
     """The verdict of a plan made by :func:`mmstab.planner.plan_path` (no summary needed).
 
     Args:
-        problem: the problem (robot, terrain, ``planner.margin``).
+        robot: the robot.
+        terrain: the ground.
         plan: the plan: its targets' μ and the postures realising them.
+        margin: μ must exceed this (``planner.margin``) [N rad].
 
     Returns:
         :func:`plan_verdict` of its poses.
     """
     # the one μ of each planned state (its loaded support, the tool wrench when given)
-    realised = posture_mu(problem.robot, problem.terrain, plan.poses, np.asarray(plan.postures))
+    realised = posture_mu(robot, terrain, plan.poses, np.asarray(plan.postures))
     poses = [
         {"pose": t.pose, "mu_planned": float(t.mu), "mu_realised": float(m)}
         for t, m in zip(plan.targets, realised, strict=True)
     ]
-    return plan_verdict(poses, planner_margin(problem.section("planner")))
+    return plan_verdict(poses, margin)
 
 
 def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
@@ -233,19 +242,32 @@ def thinned(times: Any, step: float) -> Any:
 def turn_check(
     problem: Problem, arm_com_body: Any, times: Any, period: float | None = None
 ) -> TurnCheck:
-    """The problem's :class:`TurnCheck`: the slide and window of its ``physics:`` section.
+    """The problem's :class:`TurnCheck` (:func:`robot_turn_check` of its ``physics:``)."""
+    settings = VerdictSettings.from_sections(problem.section("planner"), problem.section("physics"))
+    return robot_turn_check(problem.robot, settings, arm_com_body, times, period)
+
+
+def robot_turn_check(
+    robot: Robot,
+    settings: VerdictSettings,
+    arm_com_body: Any,
+    times: Any,
+    period: float | None = None,
+) -> TurnCheck:
+    """A robot's :class:`TurnCheck`: the slide and window of ``settings``.
 
     Args:
-        problem: the problem.
+        robot: the robot.
+        settings: the slide's limits (``slip_distance``, ``slip_window``, ``turn_ratio``).
         arm_com_body: the arm's CoM at each pose, body frame (N, 3) [m].
         times: when the path reaches each pose (N,) [s].
         period: the loop's period [s] (closed paths), else None.
     """
     from mmstab.stability.drive import resolve_turn_ratio
 
-    s, robot = problem.section("physics"), problem.robot
-    return TurnCheck(robot, arm_com_body, times, float(s["slip_distance"]), float(s["slip_window"]),
-                     period, resolve_turn_ratio(robot, s["turn_ratio"]))  # fmt: skip
+    ratio = resolve_turn_ratio(robot, settings.turn_ratio)
+    return TurnCheck(robot, arm_com_body, times, settings.slip_distance, settings.slip_window,
+                     period, ratio)  # fmt: skip
 
 
 def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:

@@ -80,24 +80,43 @@ class Stance(NamedTuple):
 
 
 def stance(
-    terrain: Terrain,
-    robot: Robot,
+    robot: Robot | Terrain,
+    terrain: Terrain | Robot,
     pose: ArrayLike,
     flipper_angle: float | None = None,
     arm_q: ArrayLike | None = None,
+    *,
+    arm: ArrayLike | None = None,
 ) -> Stance:
-    """The stance on any terrain (pose in the terrain's map frame).
+    """The robot at rest at one pose on any terrain, its μ, tilt and flags.
+
+    ``stance(robot, terrain, pose, arm=q)``; the older order ``stance(terrain, robot, pose,
+    flipper_angle, arm_q)`` gives the same.
 
     Args:
-        terrain: the ground.
         robot: the robot.
-        pose: base pose (x [m], y [m], yaw [rad]) in the map frame.
+        terrain: the ground.
+        pose: base pose (x [m], y [m], yaw [rad]) in the terrain's map frame.
         flipper_angle: flipper angle [rad] (``None``: the robot's).
-        arm_q: arm posture (4,) [rad] (``None``: stowed).
+        arm_q: the older name of ``arm``.
+        arm: arm posture (``robot.arm_joints``,) [rad]; ``None``: the robot's stowed
+            posture (``robot.stowed``).
 
     Raises:
         MmstabError: a load the ground cannot take (flippers into a plane), a pose off the map.
+        ValueError: ``arm`` and ``arm_q`` both given, or a posture of another shape.
     """
+    if not isinstance(robot, Robot):  # the older order: (terrain, robot, ...)
+        robot, terrain = terrain, robot
+    if not isinstance(robot, Robot) or isinstance(terrain, Robot):
+        raise TypeError("stance(robot, terrain, pose): give one robot and one terrain")
+    if arm is not None and arm_q is not None:
+        raise ValueError("stance: give the posture once (arm=...)")
+    arm_q = arm if arm is not None else arm_q
+    if arm_q is not None and np.shape(arm_q) != (robot.arm_joints,):
+        raise ValueError(
+            f"stance: arm must have shape ({robot.arm_joints},) [rad], got {np.shape(arm_q)}"
+        )
     r = with_flipper_angle(robot, flipper_angle)
     q = r.stowed if arm_q is None else np.asarray(arm_q, dtype=float)
     ground = terrain.with_robot(r, None, q)

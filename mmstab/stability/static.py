@@ -21,7 +21,7 @@ The μ mmstab reports for a state is this measure on the contacts that carry its
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -40,9 +40,13 @@ class SupportPolygon(NamedTuple):
 
 
 class ForceAngle(NamedTuple):
-    """Force-angle result: ``mu`` [N rad] and the per-axis signed angles ``angles`` [rad]."""
+    """Force-angle result: ``mu`` [N rad] and the per-axis signed angles ``angles`` [rad].
 
-    mu: FloatArray
+    ``mu`` is (B,) for B states, a float for one (:func:`robot_force_angle` of a (3,)
+    gravity); ``angles`` (B, k) or (k,).
+    """
+
+    mu: Any
     angles: FloatArray
 
 
@@ -236,17 +240,20 @@ def robot_force_angle(
         arm_com_body: arm CoM g_a in B (B, 3) or (3,) [m]; ``None`` = the arm removed.
 
     Returns:
-        ``ForceAngle`` with mu (B,) [N rad], f_r = m g with m the mass on the base.
+        ``ForceAngle`` with mu (B,) [N rad], f_r = m g with m the mass on the base; for one
+        state (gravity (3,), arm CoM (3,) or None) mu is a float and angles (k,).
     """
+    one = np.ndim(gravity_body) == 1 and (arm_com_body is None or np.ndim(arm_com_body) == 1)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     if arm_com_body is None:
         mass, com = robot.base.mass, np.broadcast_to(robot.base.com, g.shape)
     else:
         mass, com = robot.total_mass, robot.overall_com(np.atleast_2d(arm_com_body))
-    return force_angle_batch(base_polygon(robot).vertices, com, mass * g)
+    out = force_angle_batch(base_polygon(robot).vertices, com, mass * g)
+    return ForceAngle(float(out.mu[0]), out.angles[0]) if one else out
 
 
 def mu_max(robot: Robot) -> float:
     """The measure on flat ground with the arm stowed: the normaliser of Eq. 6 [N rad]."""
     flat = np.array([0.0, 0.0, -9.81])
-    return float(robot_force_angle(robot, flat, robot.arm_com(robot.stowed)).mu[0])
+    return float(robot_force_angle(robot, flat, robot.arm_com(robot.stowed)).mu)

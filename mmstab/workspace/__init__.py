@@ -26,6 +26,8 @@ from mmstab.workspace.cache import (
     default_cache_dir,
     load_or_build_workspace,
     load_workspace,
+    robot_cache_path,
+    robot_workspace,
     save_workspace,
     workspace_cache_path,
     workspace_key,
@@ -42,6 +44,7 @@ from mmstab.workspace.hulls import (
     hull_diameter,
 )
 from mmstab.workspace.region import Workspace, workspace_from_clouds
+from mmstab.workspace.settings import WorkspaceSettings
 
 __all__ = [
     "DEFAULT_CHUNK",
@@ -55,6 +58,7 @@ __all__ = [
     "HalfSpaces",
     "JointGrid",
     "Workspace",
+    "WorkspaceSettings",
     "arm_com_from_frames",
     "build_workspace",
     "convex_hull",
@@ -66,6 +70,8 @@ __all__ = [
     "label_chunk",
     "load_or_build_workspace",
     "load_workspace",
+    "robot_cache_path",
+    "robot_workspace",
     "save_workspace",
     "default_cache_dir",
     "workspace_cache_path",

@@ -26,6 +26,7 @@ from mmstab.core.sizes import announce, workspace_estimate, workspace_postures
 from mmstab.model.robot import Robot
 from mmstab.workspace.build import build_workspace
 from mmstab.workspace.region import Workspace
+from mmstab.workspace.settings import WorkspaceSettings
 
 #: Bump when labelling or the cache format changes: old cache files are then ignored.
 WORKSPACE_VERSION = 1
@@ -88,21 +89,35 @@ def load_or_build_workspace(
     cache_dir: str | os.PathLike[str] | None = None,
     executor: Executor | None = None,
 ) -> Workspace:
-    """The problem's workspace: from the cache when robot and grid are unchanged, else built.
+    """The problem's workspace (:func:`robot_workspace` of its robot and ``workspace:``)."""
+    settings = WorkspaceSettings.from_section(problem.section("workspace"))
+    return robot_workspace(problem.robot, settings, force, progress, cache_dir, executor)
+
+
+def robot_workspace(
+    robot: Robot,
+    settings: WorkspaceSettings | None = None,
+    force: bool = False,
+    progress: bool = True,
+    cache_dir: str | os.PathLike[str] | None = None,
+    executor: Executor | None = None,
+) -> Workspace:
+    """A robot's workspace: from the cache when robot and grid are unchanged, else built.
 
     One process at a time builds a cache file (:mod:`mmstab.core.locks`): a second one asking
     for the same workspace meanwhile waits and reads the first one's file.
 
     Args:
-        problem: the problem (robot and ``workspace.grid``).
+        robot: the robot.
+        settings: the grid, its draw and seed (default :class:`WorkspaceSettings`).
         force: rebuild (and overwrite the cache) even when a cached copy matches.
         progress: show a progress bar while building.
         cache_dir: cache folder (default :func:`default_cache_dir`).
         executor: passed to :func:`build_workspace`.
     """
-    section = problem.section("workspace")
-    grid, samples, seed = tuple(section["grid"]), section.get("samples"), int(section["seed"])
-    path = workspace_cache_path(problem, cache_dir)
+    settings = settings if settings is not None else WorkspaceSettings()
+    grid, samples, seed = settings.grid, settings.samples, settings.seed
+    path = robot_cache_path(robot, settings, cache_dir)
     seen = file_stamp(path)  # before reading: a file published after it is seen below
     ws = None if force else _read_cache(path)
     if ws is not None:
@@ -115,7 +130,7 @@ def load_or_build_workspace(
         if progress:
             announce(workspace_estimate(grid, samples))
         ws = build_workspace(
-            problem.robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
+            robot, grid, executor=executor, progress=progress, samples=samples, seed=seed
         )
         save_workspace(path, ws)
     return with_in_V(ws, path)
@@ -166,9 +181,14 @@ def with_in_V(ws: Workspace, path: Path) -> Workspace:
 
 def workspace_cache_path(problem: Problem, cache_dir: str | os.PathLike[str] | None = None) -> Path:
     """Where ``load_or_build_workspace`` keeps the problem's workspace."""
+    settings = WorkspaceSettings.from_section(problem.section("workspace"))
+    return robot_cache_path(problem.robot, settings, cache_dir)
+
+
+def robot_cache_path(
+    robot: Robot, settings: WorkspaceSettings, cache_dir: str | os.PathLike[str] | None = None
+) -> Path:
+    """Where :func:`robot_workspace` keeps a robot's workspace for ``settings``."""
     base = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    section = problem.section("workspace")
-    key = workspace_key(
-        problem.robot, section["grid"], section.get("samples"), int(section["seed"])
-    )
+    key = workspace_key(robot, settings.grid, settings.samples, settings.seed)
     return base / f"{key}.npz"

@@ -137,7 +137,7 @@ def test_weight_at_the_tool_tips_where_a_payload_at_the_wrist_tips(small):
 
     def mu_mass(mass: float, k: int) -> float:
         carried = attach_payload(robot, Payload(mass, np.zeros(3)))
-        return float(robot_force_angle(carried, g, carried.arm_com(q[k])).mu[0])
+        return robot_force_angle(carried, g, carried.arm_com(q[k])).mu  # one pose: a float
 
     for k in range(len(q)):
         assert mu_wrench(0.0, k) == pytest.approx(mu_mass(0.0, k), rel=1e-12)

@@ -16,7 +16,7 @@ BLOCK = re.compile(r"```python\n(.*?)```", re.S)
 @pytest.mark.slow
 def test_api_examples_run():
     blocks = BLOCK.findall((ROOT / "docs" / "api.md").read_text())
-    assert len(blocks) == 6
+    assert len(blocks) == 9
     env = {**os.environ, "MPLBACKEND": "Agg"}
     for code in blocks:
         out = subprocess.run(

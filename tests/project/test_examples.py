@@ -11,10 +11,10 @@ from conftest import ROOT
 
 #: script -> text its output must contain
 EXPECTED = {
-    "rest_on_heightmap.py": "pitch [deg]",
-    "plan_route.py": "below it with the arm stowed only",
+    "rest_on_heightmap.py": "worst mu",
+    "plan_route.py": "below 450 N rad with the arm stowed only",
     "track_route.py": "tipped at: None",
-    "stability_map.py": "worst mu",
+    "controller_loop.py": "arm CoM error 0.00 mm",
 }
 
 
@@ -26,10 +26,10 @@ def test_every_example_is_listed():
 def test_example_runs(script, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
     args = [sys.executable, str(ROOT / "examples" / script)]
-    if script == "stability_map.py":
+    if script == "rest_on_heightmap.py":
         args.append(str(tmp_path / "map.png"))
     out = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr  # each script ends in an assert of its own
     assert EXPECTED[script] in out.stdout, out.stdout
-    if script == "stability_map.py":
+    if script == "rest_on_heightmap.py":
         assert (tmp_path / "map.png").stat().st_size > 10_000

@@ -191,7 +191,7 @@ def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
     def v(plan, mujoco, event=None):
         events = dict.fromkeys(("tipped", "left_map", "slid", "stalled"))
         if event:
-            events[event] = {"time_s": 3.0}
+            events[event] = {"time_s": 3.0, "xy_m": [0.5, 0.1], "s_m": 1.25}
         agree = (plan == "accepted") == (mujoco == "holds")
         return {"plan": plan, "mujoco": mujoco, "agree": agree, "events": events,
                 "mu_relative_difference_median": 0.02, "simulated_s": 9.0,
@@ -206,7 +206,7 @@ def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
     assert verify_status(v("slides", "holds"), EXIT_SLIDES) == EXIT_SLIDES  # its own status
     out = capsys.readouterr()
     assert "physics disagrees: mmstab accepted the route but in MuJoCo it tips" in out.err
-    assert "DISAGREE" in out.out and "slides (slid at 3.00 s)" in out.out
+    assert "DISAGREE" in out.out and "slides (slid at 3.00 s (s = 1.25 m))" in out.out
 
 
 @pytest.mark.mujoco
@@ -232,3 +232,60 @@ def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
     assert v["agree"] == (v["mujoco"] != "holds")
     assert (out / "verify" / "physics.png").stat().st_size > 10_000
     assert f"verify in MuJoCo ({sim['duration_s']:.1f} s): {v['mujoco']}" in capsys.readouterr().out
+
+
+def test_a_physics_event_is_placed_on_the_route():
+    """An event's body origin and its distance along the route, by hand on an L route."""
+    from types import SimpleNamespace
+
+    from mmstab.outputs.simulate import place_events
+    from mmstab.paths import SpeedLimits, route_from_waypoints, speed_profile
+    from mmstab.paths.route import RoutePath
+
+    route = route_from_waypoints(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.5]]), 0.3)
+    limits = SpeedLimits(speed=0.25, acceleration=0.5, lateral_acceleration=0.5,
+                         track_speed=1.13, track_separation=0.42)  # fmt: skip
+    path = RoutePath(route=route, profile=speed_profile(route, limits))
+    t = np.linspace(0.0, 10.0, 11)
+    state = np.zeros((11, 7))
+    state[:, :2] = [[0.4 * k, 0.0] for k in range(5)] + [[2.0, 0.2 * k] for k in range(6)]
+    run = SimpleNamespace(t=t, state=state)
+    summary = {"tipped": {"time_s": 2.0}, "slid": {"time_s": 8.0}, "left_map": None}
+    place_events(summary, run, path)
+    assert summary["tipped"]["xy_m"] == [0.8, 0.0] and summary["left_map"] is None
+    assert summary["tipped"]["s_m"] == pytest.approx(0.8, abs=0.01)  # on the first leg
+    # (2.0, 0.6) on the second leg: 1.7 m to the arc, a quarter circle of 0.3 m, 0.3 m on
+    assert summary["slid"]["xy_m"] == pytest.approx([2.0, 0.6])
+    assert summary["slid"]["s_m"] == pytest.approx(1.7 + np.pi / 2 * 0.3 + 0.3, abs=0.01)
+
+
+@pytest.mark.slow
+def test_the_users_ditch_is_named_between_the_poses(tmp_path):
+    """problems/ditch.yaml: the planning poses straddle the ditch; the dense check names it."""
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    from mmstab.core.problem import load_problem
+
+    r = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
+         "-o", str(tmp_path)],
+        capture_output=True, text=True, cwd=ROOT, timeout=600,
+    )  # fmt: skip
+    assert r.returncode == 3, r.stderr  # unstable
+    s = json.loads((tmp_path / "summary.json").read_text())
+    tip = s["verdicts"]["tip"]
+    assert tip["verdict"] == "below_margin" and tip["unsafe"]
+    # the ditch lies across x in [-0.3, 0.3] m: the stretch named is in it (the body origin
+    # within the track's half length of it)
+    ((s0, s1),) = tip["where"]
+    path = load_problem(ROOT / "problems" / "ditch.yaml").base_path
+    u = np.linspace(0.0, 1.0, 20001)
+    x = np.asarray(path.pose_at(u))[:, 0]
+    x_named = np.interp([s0, s1], np.asarray(path.s_at(u)), x)
+    assert np.all(np.abs(x_named) < 0.3 + 0.35) and tip["mu_min"] < 17.6
+    assert min(s["mu_planned"]) > 400  # every planning pose is well clear: the poses miss it
+    assert f"s = {s0:.2f}" in r.stderr

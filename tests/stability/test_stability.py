@@ -92,7 +92,9 @@ def test_robot_on_flat_ground_by_hand(robot):
         * 9.81
     )
     flat = np.array([0.0, 0.0, -9.81])
-    assert robot_force_angle(robot, flat, None).mu[0] == pytest.approx(expected)
+    one = robot_force_angle(robot, flat, None)  # one pose: mu a float
+    assert isinstance(one.mu, float) and one.mu == pytest.approx(expected)
+    assert robot_force_angle(robot, flat[None], None).mu.shape == (1,)
     assert mu_max(robot) > 0
     assert base_polygon(robot).vertices.shape == (4, 3)  # flippers raised: not in contact
 

@@ -29,8 +29,10 @@ from mmstab.control.posture import PostureReference
 from mmstab.control.reference import initial_state
 from mmstab.control.tasks import TaskModel, build_task_model
 from mmstab.core.files import MmstabError, UnstableError
-from mmstab.core.problem import Problem
+from mmstab.core.problem import Problem, Scene
 from mmstab.model.robot import FloatArray
+from mmstab.paths.base import BasePath
+from mmstab.paths.route import RoutePath
 from mmstab.runs.tracking.backend import StepBackend, as_backend, build_advance
 from mmstab.runs.tracking.loop import describe_nonfinite, run_loop
 from mmstab.runs.tracking.run import (
@@ -47,7 +49,7 @@ from mmstab.terrain import wrap_angle
 
 
 def simulate(
-    problem: Problem,
+    problem: Problem | Scene,
     plan: TrackingPlan,
     *,
     plugin: str | None = None,
@@ -113,18 +115,18 @@ def simulate(
 
 
 def resolve_settings(
-    problem: Problem,
+    problem: Problem | Scene,
     plugin: str | None,
     duration: float | None,
     settings: ControllerSettings | None,
 ) -> tuple[ControllerSettings, float]:
     """The run's controller settings and duration [s] (checked; see :func:`simulate`)."""
     if settings is None:
-        settings = ControllerSettings.from_section(problem.section("controller"))
-        if problem.route is not None:  # a route sets its own period and length (routes.path)
-            settings = dataclasses.replace(
-                settings, lap_time=problem.route.lap_time, duration=problem.route.duration
-            )
+        if not isinstance(problem, Problem):
+            raise MmstabError("a run of a Scene needs its controller settings (settings=...)")
+        settings = settings_for_path(
+            ControllerSettings.from_section(problem.section("controller")), problem.base_path
+        )
     if plugin is not None:
         if plugin not in PLUGINS:
             raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {PLUGINS}")
@@ -135,8 +137,17 @@ def resolve_settings(
     return settings, duration
 
 
+def settings_for_path(settings: ControllerSettings, base_path: BasePath) -> ControllerSettings:
+    """``settings`` for a run along ``base_path``: a route sets its own period and length."""
+    if isinstance(base_path, RoutePath):  # its lap_time and duration (mmstab.paths.route)
+        return dataclasses.replace(
+            settings, lap_time=base_path.lap_time, duration=base_path.duration
+        )
+    return settings
+
+
 def start_state(
-    problem: Problem, plan: TrackingPlan, initial_arm: InitialArm, state0: ArrayLike | None
+    problem: Problem | Scene, plan: TrackingPlan, initial_arm: InitialArm, state0: ArrayLike | None
 ) -> FloatArray:
     """The initial state (5 + n,), checked: finite, the right size, the robot not tipping."""
     robot = problem.robot
@@ -161,7 +172,7 @@ def start_state(
     return s0
 
 
-def mu_with_arm(problem: Problem, states: FloatArray) -> FloatArray:
+def mu_with_arm(problem: Problem | Scene, states: FloatArray) -> FloatArray:
     """μ with the arm as it is at each state (m, 5 + n) [N rad] (m,).
 
     The one μ: on the contacts that carry the state's load, with the tool wrench if any.
@@ -169,7 +180,7 @@ def mu_with_arm(problem: Problem, states: FloatArray) -> FloatArray:
     return posture_mu(problem.robot, problem.terrain, states[:, :3], states[:, ARM])
 
 
-def first_tip(problem: Problem, chunk: FloatArray) -> int | None:
+def first_tip(problem: Problem | Scene, chunk: FloatArray) -> int | None:
     """The first of the states ``chunk`` (m, 5 + n) with μ < 0 (the robot tips), or None."""
     bad = np.flatnonzero(mu_with_arm(problem, chunk) < 0)
     return int(bad[0]) if bad.size else None
@@ -205,7 +216,7 @@ class Setup(NamedTuple):
 
 
 def set_up(
-    problem: Problem,
+    problem: Problem | Scene,
     plan: TrackingPlan,
     step: ca.Function | StepBackend | None,
     settings: ControllerSettings,
@@ -248,7 +259,7 @@ class Trajectory(NamedTuple):
 
 
 def record(
-    problem: Problem,
+    problem: Problem | Scene,
     setup: Setup,
     run: Trajectory,
     *,

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 import casadi as ca
 from numpy.typing import ArrayLike
 
+from mmstab.app.settings import Settings
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem, problem_from_dict
 from mmstab.stability.support import StabilityCases
@@ -106,7 +107,7 @@ def with_plugin(problem: Problem, plugin: str | None) -> Problem:
     """The problem with ``controller.plugin`` replaced (validated again); itself if None."""
     from mmstab.control.controller import PLUGINS
 
-    if plugin is None or plugin == problem.section("controller")["plugin"]:
+    if plugin is None or plugin == Settings.from_problem(problem).controller.plugin:
         return problem
     if plugin not in PLUGINS:
         raise MmstabError(f"unknown QP plugin {plugin!r}; choose one of {', '.join(PLUGINS)}")
@@ -173,7 +174,7 @@ def track(
         raise MmstabError(f"backend must be 'interpreted' or 'generated', got {backend!r}")
     step: Any = None
     if backend == "generated":  # default plugin: the code-generable codegen.plugin
-        plugin = plugin if plugin is not None else problem.section("codegen")["plugin"]
+        plugin = plugin if plugin is not None else Settings.from_problem(problem).codegen.plugin
         problem = with_plugin(problem, plugin)
         step = generated_step(problem, plugin)  # build (or load) before planning: fail early
     else:

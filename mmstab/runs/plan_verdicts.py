@@ -1,0 +1,227 @@
+"""A plan's verdicts, one per limit: what ``mmstab plan`` reports and exits on.
+
+:func:`route_verdicts` (a route: at the planned poses and every few cm between them, the
+arm in the postures it moves between) and :func:`lap_verdicts` (a circle's lap: at the
+planned poses, the lap's turns and its high-centred stretches) give the same records:
+``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred`` and ``verdicts``
+(:func:`mmstab.runs.along.limit_verdicts`: tip, slide, step, high_centred, arm_contact).
+:func:`exit_status` is ``mmstab plan``'s exit status for them (``docs/cli.md``): 3 where a
+pose tips or falls below the margin, 4 where the tracks slide, else 0.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mmstab.core.masks import true_runs
+from mmstab.paths.route import ROUTE_DEFAULTS, RoutePath
+from mmstab.runs.along import (
+    Along,
+    acceleration_margin,
+    along_path,
+    dense_verdicts,
+    limit_verdicts,
+    sample_spacing,
+)
+from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.runs.verdict import climb_verdict, plan_verdict, robot_turn_check, slip_verdict
+from mmstab.runs.verdict_settings import VerdictSettings
+from mmstab.stability.support import loaded_mu
+
+if TYPE_CHECKING:
+    from mmstab.model.robot import Robot
+    from mmstab.paths.base import BasePath
+    from mmstab.planner import RoutePlan
+    from mmstab.terrain.base import Terrain
+
+#: ``mmstab plan``'s exit status where a pose tips or is below the margin, where the tracks
+#: slide (:mod:`mmstab.cli.status`' ``EXIT_UNSTABLE``, ``EXIT_SLIDES``).
+EXIT_UNSTABLE, EXIT_SLIDES = 3, 4
+
+
+def plan_along(robot: Robot, terrain: Terrain, route: BasePath, plan: RoutePlan) -> Along:
+    """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
+    from mmstab.planner.warm_start import planned_com
+
+    poses, s = path_samples(route, sample_spacing(terrain))
+    planned = planned_com(robot, plan.postures, plan.target_com)
+    return along_path(robot, terrain, poses, s, plan.s, planned)
+
+
+def route_acceleration(route: RoutePath) -> float:
+    """The larger of the route's acceleration limits [m/s^2] (the file's, else the defaults)."""
+    limits = route.limits
+    if limits is None:
+        return max(ROUTE_DEFAULTS["acceleration"], ROUTE_DEFAULTS["lateral_acceleration"])
+    return max(limits.acceleration, limits.lateral_acceleration)
+
+
+def route_verdicts(
+    robot: Robot,
+    terrain: Terrain,
+    route: RoutePath,
+    plan: RoutePlan,
+    settings: VerdictSettings,
+    along: Along | None = None,
+) -> dict[str, Any]:
+    """The verdicts of a route plan (``summary.json``'s records of ``mmstab plan``).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        route: the route planned.
+        plan: its plan.
+        settings: the margin and the slide's limits.
+        along: :func:`plan_along`'s samples, if already made.
+
+    Returns:
+        ``mu_realised`` (K,) [N rad] (the realised postures' μ, one loaded batch),
+        ``stability``, ``slip``, ``climb``, ``high_centred``, ``along_path`` (the dense
+        samples' verdicts), ``slides`` (where the tracks slide, arc lengths [m]) and
+        ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
+    """
+    realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
+    mu_realised = loaded_mu(robot, terrain, plan.poses, realised)  # one case, one batch
+    times = np.asarray(plan.fractions) * route.lap_time
+    turns = robot_turn_check(robot, settings, plan.target_com, times)
+    slip = slip_verdict(terrain, plan.poses, turns)
+    # between the planned poses: every few cm, the arm in the postures it moves between
+    along = plan_along(robot, terrain, route, plan) if along is None else along
+    accelerating = acceleration_margin(robot.total_mass, route_acceleration(route))
+    dense = dense_verdicts(terrain, along, settings.margin, accelerating)
+    slip = with_stretches(slip, dense, "slide", "slides")
+    poses = [
+        {"pose": plan.poses[k], "mu_planned": float(plan.mu_planned[k]),
+         "mu_realised": float(mu_realised[k]), "collision_free": bool(plan.collision_free[k])}
+        for k in range(len(plan.s))
+    ]  # fmt: skip
+    stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
+    out: dict[str, Any] = {
+        "mu_realised": mu_realised,
+        "stability": stability,
+        "slip": slip,
+        "climb": climb_verdict(robot, terrain, plan.poses, plan.target_com, False),
+        "high_centred": {
+            "high_centred": dense["high_centred"]["binds"],
+            "samples": dense["samples"],
+            "spacing_m": dense["spacing_m"],
+            "criterion": "the chassis does not rest on the ground along the path (planned arm)",
+            "stretches": dense["high_centred"]["stretches"],
+        },
+        "along_path": dense,
+        "slides": slide_stretches(slip, plan.s),
+    }
+    out["verdicts"] = limit_verdicts({**out, "s": plan.s.tolist(), "poses": poses,
+                                      "risk": {"slides": out["slides"]}})  # fmt: skip
+    return out
+
+
+def lap_verdicts(
+    robot: Robot,
+    terrain: Terrain,
+    lap: BasePath,
+    poses: list[dict[str, Any]],
+    settings: VerdictSettings,
+    lap_time: float,
+) -> dict[str, Any]:
+    """The verdicts of a closed path's plan (``mmstab plan`` on a circle).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        lap: the closed path.
+        poses: per planned pose: ``pose`` (3,) [m, m, rad], ``fraction`` of the lap,
+            ``target_com`` (3,) body frame [m], ``mu_planned``, ``mu_realised`` [N rad],
+            ``collision_free``.
+        settings: the margin and the slide's limits.
+        lap_time: one lap [s] (``controller.lap_time``).
+
+    Returns:
+        ``stability``, ``slip`` (the friction cone at the poses and the lap's turns),
+        ``climb``, ``high_centred`` (every few cm around the lap), ``slides`` and
+        ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`; ``where`` in arc lengths
+        from the lap's start [m]).
+    """
+    coms = [p["target_com"] for p in poses]
+    times = [lap_time * p["fraction"] for p in poses]
+    period = lap_time if lap.closed else None
+    turns = robot_turn_check(robot, settings, coms, times, period)
+    pose_xy = [p["pose"] for p in poses]
+    out: dict[str, Any] = {
+        "stability": plan_verdict(poses, settings.margin),
+        "slip": slip_verdict(terrain, pose_xy, turns),
+        "high_centred": high_centred_verdict(terrain, *path_samples(lap)),
+        "climb": climb_verdict(robot, terrain, np.asarray(pose_xy), np.asarray(coms), True),
+    }
+    s = [lap.length * float(p["fraction"]) for p in poses]
+    out["slides"] = slide_stretches(out["slip"], s)
+    out["verdicts"] = limit_verdicts({**out, "s": s, "poses": poses,
+                                      "risk": {"slides": out["slides"]}})  # fmt: skip
+    return out
+
+
+def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
+    """``mmstab plan``'s exit status for a plan's verdicts (no ``--allow-...`` option).
+
+    3 where a pose tips or falls below the margin, else 4 where the tracks slide, else 0.
+    """
+    if verdicts["tip"]["unsafe"]:
+        return EXIT_UNSTABLE
+    if verdicts["slide"]["unsafe"]:
+        return EXIT_SLIDES
+    return 0
+
+
+def with_stretches(
+    verdict: dict[str, Any], dense: dict[str, Any], limit: str, key: str
+) -> dict[str, Any]:
+    """A per-pose verdict with the path's stretches between the poses that pass ``limit``.
+
+    Args:
+        verdict: the planned poses' verdict (``stability`` or ``slip``).
+        dense: :func:`mmstab.runs.along.dense_verdicts`.
+        limit: ``tip`` or ``slide``.
+        key: the verdict's flag: ``stable`` (False where a stretch tips) or ``slides``.
+    """
+    out = dict(verdict)
+    found = dense[limit]
+    out["stretches"] = found["stretches"]
+    out["spacing_m"] = dense["spacing_m"]
+    if limit == "tip":  # the margin along the path, with the route's accelerations
+        out["along_threshold"] = found["threshold"]
+        out["acceleration_margin"] = found["acceleration_margin"]
+    if limit == "slide":
+        out.setdefault("critical_tilt", found["critical_tilt"])
+        out.setdefault("friction", found["friction"])
+    if found["binds"]:
+        out[key] = key != "stable"
+    return out
+
+
+def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
+    """Where the tracks slide, in arc lengths [m]: at the planned poses, between them, in turns.
+
+    Each with the worst tilt [rad] where the support's tilt is the reason (``tilt_max``) or
+    the turn's slide within the window [m] (``slide_m``).
+    """
+    s_m = np.asarray(s, dtype=float)
+    mask = np.zeros(s_m.size, dtype=bool)
+    tilt = np.zeros(s_m.size)
+    for b in slip["sliding_poses"]:
+        mask[b["index"]], tilt[b["index"]] = True, b["tilt"]
+    out: list[dict[str, Any]] = [
+        {"start_s": float(s_m[k]), "end_s": float(s_m[j - 1]), "tilt_max": float(tilt[k:j].max())}
+        for k, j in true_runs(mask)
+    ]
+    out += [
+        {"start_s": x["start_s"], "end_s": x["end_s"], "tilt_max": x["worst"]}
+        for x in slip.get("stretches", [])
+    ]
+    out += [
+        {"start_s": float(s_m[t["first"]]), "end_s": float(s_m[t["last"]]),
+         "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
+        for t in slip.get("turns", {}).get("sliding_turns", [])
+    ]  # fmt: skip
+    return sorted(out, key=lambda x: x["start_s"])
