@@ -1,4 +1,4 @@
-"""Terrain experiments: the stability map of a problem's ground and its 3-D view at rest.
+"""``mmstab stability-map``: the stability map of a problem's ground and its 3-D view at rest.
 
 ``mmstab stability-map PROBLEM`` (``make terrain`` runs it on every shipped terrain):
 mu of the stowed arm over a grid of positions x headings, the worst and the best heading
