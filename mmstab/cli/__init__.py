@@ -1,9 +1,10 @@
 """The ``mmstab`` command line: one subcommand per pipeline stage or command output.
 
 Every subcommand takes a problem (or robot) YAML file. Before any work, every command loads
-and checks the whole problem (schema, the settings registry of :mod:`mmstab.core.settings`, the
-size bounds of :mod:`mmstab.core.sizes`; ``rest`` and ``terrain export``: the schema, and the
-checks of the sections they use), its options and that its output folders can be written.
+and checks the whole problem (schema, the settings registry of
+:mod:`mmstab.core.setting_checks`, the size bounds of :mod:`mmstab.core.sizes`; ``rest``
+and ``terrain export``: the schema, and the checks of the sections they use), its options
+and that its output folders can be written.
 
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or

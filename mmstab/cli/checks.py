@@ -15,7 +15,7 @@ def check_options(args: argparse.Namespace, problem: Any) -> None:
         MmstabError: naming the option.
     """
     from mmstab.core.files import MmstabError
-    from mmstab.core.settings import PLUGINS, check_duration, check_plugin
+    from mmstab.core.setting_checks import PLUGINS, check_duration, check_plugin
 
     plugin = getattr(args, "plugin", None)
     if args.command == "codegen" and plugin is not None:

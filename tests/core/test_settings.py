@@ -11,11 +11,12 @@ import pytest
 import yaml
 from conftest import RAMP_YAML, ROOT, write_problem
 
-from mmstab.cli import main
+from experiments.__main__ import build_parser as experiments_parser
+from mmstab.cli import build_parser, main
 from mmstab.core import sizes
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.core.problem import load_problem
-from mmstab.core.settings import SECTION_CHECKS, check_duration
+from mmstab.core.setting_checks import SECTION_CHECKS, check_duration
 
 GB = 1e9
 
@@ -38,7 +39,7 @@ def test_problem_imports_nothing_above_the_inputs():
     loaded = set(out.stdout.split())
     for above in ("controller", "codegen", "planner", "tasks", "workspace", "tracking"):
         assert f"mmstab.{above}" not in loaded
-    assert {"mmstab.core.settings", "mmstab.core.sizes", "mmstab.core.schema"} <= loaded
+    assert {"mmstab.core.setting_checks", "mmstab.core.sizes", "mmstab.core.schema"} <= loaded
 
 
 def test_importing_a_stage_registers_nothing():
@@ -63,7 +64,8 @@ def test_every_command_checks_the_planner_weights(tmp_path, capsys, command, mon
     path = write_problem(tmp_path, _weights_1_8)
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"
-    assert main([command, str(path), "-o", str(out)]) == 2
+    parser = experiments_parser if command == "fig5" else build_parser
+    assert main([command, str(path), "-o", str(out)], parser=parser) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "planner.w_motion" in err and str(path) in err
     assert not out.exists() and not (tmp_path / "results").exists()
@@ -149,7 +151,8 @@ def test_beyond_memory_is_refused_naming_the_field(tmp_path, memory_16gb, capsys
         load_problem(path, force_size=True)  # memory bounds are not overridable
     assert info.value.field == field
     assert "memory" in info.value.message and "16 GB available" in info.value.message
-    assert main(["fig5", str(path), "--force-size", "-o", str(tmp_path / "o")]) == 2
+    argv = ["fig5", str(path), "--force-size", "-o", str(tmp_path / "o")]
+    assert main(argv, parser=experiments_parser) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and field in err
 

@@ -47,7 +47,7 @@ LAYERS: dict[str, int] = {
     "mmstab.__main__": 11,
 }
 #: Known upward imports, each with its reason; nothing else may point up.
-ALLOWED_UP: set[tuple[str, str]] = set()  # none: the settings registry (mmstab.core.settings)
+ALLOWED_UP: set[tuple[str, str]] = set()  # none: the settings registry (mmstab.core.setting_checks)
 
 
 def module_name(path: Path) -> str:
