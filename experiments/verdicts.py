@@ -21,9 +21,7 @@ import numpy as np
 from experiments.common import experiment_run
 from mmstab.core.files import ConfigError, read_yaml, write_json
 from mmstab.core.pool import ChunkPool
-from mmstab.physics.robot_model import ModelSettings
-from mmstab.physics.verdict_sim import VERDICTS, SimSettings, Thresholds
-from mmstab.physics.verdicts import (
+from mmstab.physics.edge_cases import (
     ArmPostures,
     Case,
     Config,
@@ -33,6 +31,8 @@ from mmstab.physics.verdicts import (
     case_sim,
     configs,
 )
+from mmstab.physics.robot_model import ModelSettings
+from mmstab.physics.verdict_sim import VERDICTS, SimSettings, Thresholds
 
 #: Keys the settings file must have.
 REQUIRED = ("problem", "grid", "thresholds", "sim", "models", "main_model", "bisection")

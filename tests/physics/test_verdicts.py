@@ -15,13 +15,7 @@ pytest.importorskip("mujoco")
 
 from experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
-from mmstab.physics.verdict_sim import (  # noqa: E402
-    Thresholds,
-    Trajectory,
-    classify,
-    first_crossing,
-)
-from mmstab.physics.verdicts import (  # noqa: E402
+from mmstab.physics.edge_cases import (  # noqa: E402
     ArmPostures,
     Config,
     arm_ground_clearance,
@@ -31,6 +25,12 @@ from mmstab.physics.verdicts import (  # noqa: E402
     configs,
     predict,
     predicted_verdict,
+)
+from mmstab.physics.verdict_sim import (  # noqa: E402
+    Thresholds,
+    Trajectory,
+    classify,
+    first_crossing,
 )
 from mmstab.workspace.build import build_workspace  # noqa: E402
 
