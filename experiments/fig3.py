@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.app import workspace
+from mmstab.app.settings import Settings
 from mmstab.core.files import write_figure, write_json
 from mmstab.core.problem import Problem
 from mmstab.model.robot import Robot
@@ -122,10 +123,10 @@ def run_fig3(
         out: output folder (default ``results/fig3``).
         force: rebuild the workspace even when the cache matches.
     """
-    cfg = problem.section("workspace")
+    cfg = Settings.from_problem(problem).workspace
     ws = workspace(problem, force=force)
-    fid = measure_fidelity(problem.robot, ws, cfg["precision_samples"], cfg["seed"])
-    rng = np.random.default_rng(cfg["seed"])
+    fid = measure_fidelity(problem.robot, ws, cfg.precision_samples, cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
     d = output_dir(out, "fig3")
     plot_fig3(problem.robot, ws, sample_in_workspace(ws, PLOT_POINTS, rng), d, rng)
     summary = {

@@ -74,7 +74,11 @@ def map_states(task: tuple[dict[str, Any], int, str]) -> list[dict[str, Any]]:
     path = Path(out) / "problems" / f"map{k:02d}.yaml"
     path.write_text(yaml.safe_dump(data))
     problem = load_problem(path)
+    from mmstab.terrain import HeightmapTerrain
+
     robot, terrain = problem.robot, problem.terrain
+    if not isinstance(terrain, HeightmapTerrain):  # the generator writes heightmaps
+        raise TypeError(f"map {k}: expected a heightmap terrain, got {terrain.kind!r}")
     n = settings["poses_per_map"]
     fractions = (np.arange(n) + 0.5) / n
     M_T_G = np.linalg.inv(terrain.G_T_M())

@@ -34,6 +34,7 @@ import numpy as np
 import yaml
 
 from experiments.common import experiment_run
+from mmstab.app.settings import Settings
 from mmstab.core.files import read_yaml, validate, write_figure, write_json
 from mmstab.outputs.verify import OUTCOMES, PLAN_VERDICTS, outcome_of, plan_verdict_of
 
@@ -145,7 +146,6 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     from mmstab.outputs.routes import route_summary
     from mmstab.outputs.simulate import loop_settings, simulate_run, summarize
     from mmstab.planner import RoutePlan, route_risk
-    from mmstab.runs.verdict import planner_margin
 
     data = route_problem(settings, k)
     path = Path(out) / "problems" / f"route{k:02d}.yaml"
@@ -163,7 +163,8 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         return record | {"plan": "no plan", "plan_exit": PLAN_VERDICTS["no plan"],
                          "plan_error": str(e), "mujoco": None}  # fmt: skip
     assert isinstance(plan, RoutePlan)  # a route's plan
-    s = route_summary(problem, plan, route_risk(plan, planner_margin(problem.section("planner"))))
+    margin = Settings.from_problem(problem).verdicts.margin
+    s = route_summary(problem, plan, route_risk(plan, margin))
     verdict = plan_verdict_of(s)
     record |= {
         "plan": verdict,

@@ -11,9 +11,12 @@ The names below are the public API, re-exported from their stages::
 
     import mmstab
 
-    problem = mmstab.load_problem("problems/ramp.yaml")
-    plan = mmstab.plan(problem)        # the workspace V (cached), Eq. 6, the postures
-    problem, plan, run = mmstab.track(problem, plan, duration=2.0, progress=False)
+    robot = mmstab.load_robot("problems/robots/cameleon.yaml")
+    ramp = mmstab.Ramp(0.2)
+    route = mmstab.route_path(robot, ramp, [[0, 0], [2, 0]], speed=0.3, turn_radius=0.5)
+    plan = mmstab.plan(robot, ramp, route)   # the workspace V (cached), Eq. 6, the verdicts
+    run = mmstab.track(plan).run             # the QP controller drives it
+    problem_plan = mmstab.plan(mmstab.load_problem("problems/ramp.yaml"))  # from a file
 
 They load on first use, so ``import mmstab`` stays light (no CasADi until a stage is asked for).
 """

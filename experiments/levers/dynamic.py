@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 
 from experiments.levers.common import SIM_WINDOW, LeversSettings, bisect_largest
+from mmstab.app.settings import Settings
 from mmstab.core.files import write_figure
 from mmstab.core.problem import Problem, problem_from_dict
 from mmstab.model.robot import FloatArray, Robot
@@ -228,7 +229,7 @@ def run_dynamic(
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Static vs dynamic μ at the lap speeds; the fastest safe lap (summary, curves)."""
     robot, terrain, circle = problem.robot, problem.terrain, problem.circle
-    lap_time = float(problem.section("controller")["lap_time"])
+    lap_time = Settings.from_problem(problem).controller.lap_time
     arms = {
         "planned": posture_spline(plan_postures),
         "stowed": lambda s: np.broadcast_to(robot.stowed, (np.size(s), 4)).copy(),

@@ -8,9 +8,10 @@ from typing import Any
 import numpy as np
 
 from experiments.levers.common import LeversSettings, planar_slope
+from mmstab.app.settings import Settings
 from mmstab.core.files import write_figure
 from mmstab.core.problem import Problem, load_problem
-from mmstab.planner import PlannerSettings, solve_path
+from mmstab.planner import solve_path
 from mmstab.planner.levers import solve_path_flippers
 from mmstab.terrain import Terrain, from_section
 from mmstab.viz.plotting import new_figure
@@ -22,12 +23,11 @@ def run_flippers(
     """μ along the lap, arm only vs arm + flippers, on the problem's ramp and the side slope."""
     robot = problem.robot
     # the exhaustive search on both sides: no sampling noise between the two plans
-    psettings = PlannerSettings.from_section(problem.section("planner"))._replace(
-        method="exhaustive"
-    )
+    every = Settings.from_problem(problem)
+    psettings = every.planner._replace(method="exhaustive")
     loaded_settings = psettings._replace(flipper_angles=settings.flipper_angles)
     poses = problem.circle.poses(psettings.poses)
-    dt = float(problem.section("controller")["lap_time"]) / psettings.poses
+    dt = every.controller.lap_time / psettings.poses
     grounds: dict[str, Terrain] = {
         "ramp": problem.terrain,
         "side_slope": planar_slope(problem, settings.side_slope),

@@ -14,10 +14,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from experiments.levers.common import LeversSettings, bisect_largest, planar_slope
+from mmstab.app.settings import Settings
 from mmstab.core.files import ConfigError, write_figure
 from mmstab.core.problem import Problem, load_problem, problem_from_dict
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner import PlannerSettings, best_mu, solve_path
+from mmstab.planner import best_mu, solve_path
 from mmstab.stability.static import contact_force_angle, robot_force_angle
 from mmstab.terrain import GRAVITY_G, Terrain, from_section
 from mmstab.viz.plotting import new_figure
@@ -99,7 +100,7 @@ def run_variants(problem: Problem, settings: LeversSettings) -> dict[str, Any]:
     """Each robot file on the problem's lap and on side slopes (module text)."""
     from mmstab.workspace import load_or_build_workspace
 
-    psettings = PlannerSettings.from_section(problem.section("planner"))
+    psettings = Settings.from_problem(problem).planner
     out: dict[str, Any] = {"workspace_grid": list(settings.variant_grid), "robots": {}}
     for robot_file in settings.robots:
         t0 = time.perf_counter()

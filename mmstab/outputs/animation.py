@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from mmstab.app.settings import Settings
 from mmstab.core.files import MmstabError, write_json
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir
@@ -105,7 +106,7 @@ def run_animation(
         "simulated_s": float(run.t[-1]),
         "mu_min": float(np.min(run.mu["planned"])),
         "source": str(d / "run.npz"),
-        "tipped": tipping_of(run, float(problem.section("controller")["dt"])),
+        "tipped": tipping_of(run, Settings.from_problem(problem).controller.dt),
     }
     write_json(d / "animation.json", summary)
     return summary

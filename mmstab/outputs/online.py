@@ -24,12 +24,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from mmstab.app.settings import Settings
 from mmstab.core.files import ConfigError, MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import save_settings
 from mmstab.planner.fitness import support_polygons_at
 from mmstab.planner.plan import problem_region
-from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.warm_start import solve_route
 from mmstab.runs.online.follow import FollowSettings
 from mmstab.runs.online.horizon import angle_between
@@ -77,7 +77,7 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
     route = problem.route
     assert route is not None
     ws, region = problem_region(problem, workspace, False)
-    settings = PlannerSettings.from_section(problem.section("planner"))
+    settings = Settings.from_problem(problem).planner
     s = run.s_grid
     poses = route.route.sample(s).pose
     robot = problem.robot

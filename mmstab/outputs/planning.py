@@ -18,9 +18,9 @@ from mmstab.core.files import MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, save_settings
 from mmstab.outputs.plan_quality import draw_lap_quality, lap_quality
-from mmstab.planner import Plan, PlannerSettings, planning_region, solve_pose
+from mmstab.planner import Plan, planning_region, solve_pose
 from mmstab.runs.plan_verdicts import lap_verdicts
-from mmstab.runs.verdict import plan_verdict, planner_margin
+from mmstab.runs.verdict import plan_verdict
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
 from mmstab.terrain import roll_pitch
@@ -43,12 +43,13 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     """Paper Fig. 7: the first CMA samples and the converged CoM at the rolled pose."""
     robot = problem.robot
     ws = workspace(problem)
-    settings = PlannerSettings.from_section(problem.section("planner"))
+    every = Settings.from_problem(problem)
+    settings = every.planner
     if settings.method == "sequence":  # one pose: the per-pose search the figure shows
         settings = settings._replace(method="cmaes")
     pose = np.array(problem.section("sweep")["roll_pose"], dtype=float)
     rng = np.random.default_rng(settings.seed)
-    region = planning_region(ws, problem.section("workspace")["method"])
+    region = planning_region(ws, every.workspace.method)
     stowed = robot.arm_com(robot.stowed)
     target = solve_pose(robot, problem.terrain, region, pose, stowed, settings, rng)
     solver = PostureSolver(robot, ws)
@@ -111,7 +112,7 @@ def run_fig7(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         "collision_free": realised.collision_free,
         "seconds": target.seconds,
     }
-    summary["stability"] = plan_verdict([summary], planner_margin(problem.section("planner")))
+    summary["stability"] = plan_verdict([summary], every.verdicts.margin)
     save_settings(d, problem)
     write_json(d / "summary.json", summary)
     return summary
@@ -179,9 +180,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     )  # the verdicts mmstab.plan returns
     for key in ("stability", "slip", "high_centred"):
         summary[key] = v[key]
-    quality = lap_quality(
-        problem, planning_region(ws, problem.section("workspace")["method"]), plan
-    )
+    quality = lap_quality(problem, planning_region(ws, settings.workspace.method), plan)
     for k, p in enumerate(summary["poses"]):
         for key, values in quality["per_pose"].items():
             if key != "fraction" and values is not None:

@@ -150,7 +150,7 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     from mmstab.workspace import load_or_build_workspace
 
     ws = load_or_build_workspace(problem, progress=False)
-    region = planning_region(ws, problem.section("workspace")["method"])
+    region = planning_region(ws, Settings.from_problem(problem).workspace.method)
     samples = region_samples(region)
     gravity = gravity_body_at(problem.terrain, plan.poses)
     robot = problem.robot

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.app import generated_step, plan
+from mmstab.app.settings import Settings
 from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.reference import initial_state
 from mmstab.core.files import write_json
@@ -28,6 +29,7 @@ from mmstab.outputs.simulate_figure import write_run_figure, write_run_gif
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.runs.tracking.simulation import settings_for_path
 from mmstab.stability.drive import resolve_turn_ratio
 
 
@@ -54,12 +56,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
 
 def controller_settings(problem: Problem) -> ControllerSettings:
     """The controller's settings; a route sets its own lap time and duration."""
-    cs = ControllerSettings.from_section(problem.section("controller"))
-    if problem.route is not None:
-        cs = dataclasses.replace(
-            cs, lap_time=problem.route.lap_time, duration=problem.route.duration
-        )
-    return cs
+    return settings_for_path(Settings.from_problem(problem).controller, problem.base_path)
 
 
 def stowed_plan(robot: Any, arm_plan: Any) -> Any:
@@ -83,7 +80,7 @@ def simulate_run(problem: Problem, loop: LoopSettings, arm_plan: Any = None) -> 
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
-        cs = dataclasses.replace(cs, plugin=problem.section("codegen")["plugin"])
+        cs = dataclasses.replace(cs, plugin=Settings.from_problem(problem).codegen.plugin)
     else:
         step = build_controller(problem.robot, cs).step
     arm_plan = plan(problem) if arm_plan is None else arm_plan
