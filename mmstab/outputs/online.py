@@ -10,7 +10,7 @@ browser viewer replays it: ``mmstab view PROBLEM --run OUT``.
 The offline plan is the same planner over the same route poses on the problem's own
 terrain, all poses at once: ``method: roadmap`` with the ground under the arm (as ``mmstab
 plan`` runs it) for ``online.planner: roadmap``, the warm-started CMA-ES
-(:func:`mmstab.planner.warm_start.solve_route`) for ``warm``.
+(:func:`mmstab.planner.along_route.solve_route`) for ``warm``.
 A pose's online answer is compared with it where the map **agrees** with that terrain
 (the resting gravity in B on the map within ``online.replan_tol`` of the offline one).
 """
@@ -28,9 +28,9 @@ from mmstab.app.settings import Settings
 from mmstab.core.files import ConfigError, MmstabError, write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.outputs.common import save_settings
+from mmstab.planner.along_route import solve_route
 from mmstab.planner.fitness import support_polygons_at
 from mmstab.planner.plan import problem_region
-from mmstab.planner.warm_start import solve_route
 from mmstab.runs.online.follow import FollowSettings
 from mmstab.runs.online.horizon import angle_between
 from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summarize
