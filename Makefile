@@ -162,6 +162,12 @@ SKID ?= problems/skid.yaml
 skid: setup
 	$(PY) -m experiments.skid $(SKID)
 
+## the belts' shear modulus K of the skid-steer model (physics.shear_modulus) fitted on make skid's
+## MuJoCo runs -> results/skid_fit/summary.json (docs/skid.md; seconds)
+.PHONY: skid-fit
+skid-fit: setup
+	$(PY) -m experiments.skid_fit problems/skid_fit.yaml
+
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
 tracking: setup

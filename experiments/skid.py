@@ -56,7 +56,8 @@ def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
     """Every slope × heading × command: MuJoCo's twist and the model's."""
     from mmstab.core.problem import load_problem
 
-    robot = load_problem(settings["problem"]).robot
+    problem = load_problem(settings["problem"])
+    robot, shear = problem.robot, float(problem.section("physics")["shear_modulus"])
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
     mu, sim = float(settings["friction"]), settings["sim"]
@@ -68,7 +69,7 @@ def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
                 m = measure_twist(robot, np.radians(slope), np.radians(heading), belts, mu,
                                   settle=sim["settle"], transient=sim["transient"],
                                   duration=sim["duration"])  # fmt: skip
-                p = skid_twist(patch, m.gravity_body, com, belts, mu)
+                p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
                 cases.append(_case(slope, heading, name, (v, w), m, p))
     return cases
 
@@ -85,6 +86,7 @@ def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> 
     return {
         "slope_deg": float(slope), "heading_deg": float(heading), "command": name,
         "speed": float(v), "yaw_rate_commanded": float(w),
+        "gravity_body": np.asarray(g, dtype=float).tolist(),
         "mujoco": {"velocity_body": m.velocity_body.tolist(), "yaw_rate": m.yaw_rate,
                    "downhill": mj},
         "model": {"velocity_body": p.velocity_body[0].tolist(), "yaw_rate": float(p.yaw_rate[0]),

@@ -72,7 +72,7 @@ def run_cases(robot: Any, section: dict[str, Any], sim: dict[str, Any]) -> list[
     from mmstab.stability.slip import terrain_friction
 
     ground = load_problem(section["problem"])
-    mu = terrain_friction(ground.terrain)
+    mu, shear = terrain_friction(ground.terrain), float(ground.section("physics")["shear_modulus"])
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
     cases = []
@@ -81,7 +81,7 @@ def run_cases(robot: Any, section: dict[str, Any], sim: dict[str, Any]) -> list[
             belts = (v - w * b / 2, v + w * b / 2)
             m = measure_twist_at(robot, ground.terrain, pose, belts, settle=sim["settle"],
                                  transient=sim["transient"], duration=sim["duration"])  # fmt: skip
-            p = skid_twist(patch, m.gravity_body, com, belts, mu)
+            p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
             cases.append(_case(float(s), pose, name, (float(v), float(w)), m, p))
     return cases
 

@@ -349,6 +349,7 @@ PHYSICS_KEYS = obj(
     timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
+    shear_modulus={"type": "number", "minimum": 0, "maximum": 1},
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
 )
 # ``tip_angle``: the former name of ``disagreement_angle``, still read from older files

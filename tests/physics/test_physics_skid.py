@@ -80,7 +80,8 @@ def test_make_skid_small_grid(tmp_path):
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["cases"] == 2 and s["turning_cases"] == 1
     assert 0.75 < s["slide_per_radian_ratio_median"] < 1.35
-    assert s["straight_downhill_max_m_s"]["model"] < 1e-3
+    # driven straight at 20 deg the model's belts creep by their shear, a few mm/s
+    assert 1e-3 < s["straight_downhill_max_m_s"]["model"] < 0.01
     assert (tmp_path / "out" / "skid.png").stat().st_size > 10_000
 
 

@@ -24,6 +24,7 @@ pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from experiments.skid_rough import _case, route_poses  # noqa: E402
+from mmstab.core.defaults import SECTION_DEFAULTS  # noqa: E402
 from mmstab.physics.skid_sim import MeasuredTwist, measure_twist, measure_twist_at  # noqa: E402
 from mmstab.stability.skid import skid_twist, track_patch  # noqa: E402
 from mmstab.terrain.factory import ramp_heightmap  # noqa: E402
@@ -105,7 +106,7 @@ def test_make_skid_rough_ground_small(tmp_path, robot):
     for c in cases:  # the model's side, again from the case's own gravity
         v, w = c["speed"], c["yaw_rate_commanded"]
         p = skid_twist(track_patch(robot), c["gravity_body"], com, (v - w * b / 2, v + w * b / 2),
-                       0.7)  # fmt: skip
+                       0.7, SECTION_DEFAULTS["physics"]["shear_modulus"])  # fmt: skip
         assert c["model"]["holds"] == bool(p.holds[0])
         if c["model"]["holds"]:
             assert c["model"]["yaw_rate"] == pytest.approx(float(p.yaw_rate[0]), abs=1e-12)
