@@ -175,6 +175,26 @@ class CollisionChecker:
         self.pairs: tuple[Pair, ...] = tuple(pr for pr in every if pr.name not in self.allowed)
         # the base boxes' frames, kept for the pairs' gaps (:meth:`_gaps`)
         parts = list(self.base_boxes)
+        geometries = [link.geometry for link in robot.links]
+        self._table = collision_distance.PairTable(
+            kind=np.array([0 if isinstance(g, Box) else 1 for g in geometries], dtype=np.int64),
+            half_length=np.array([0.0 if isinstance(g, Box) else g.length / 2 for g in geometries]),
+            radius=np.array([0.0 if isinstance(g, Box) else float(g.radius) for g in geometries]),
+            box_half=np.array(
+                [np.asarray(g.size) / 2 if isinstance(g, Box) else np.zeros(3) for g in geometries]
+            ),
+            ball=np.ascontiguousarray(self._link_radius, dtype=float),
+            base_centre=np.stack([self.base_boxes[b].frame_T_shape[:3, 3] for b in parts]),
+            base_R=np.ascontiguousarray(
+                np.stack([self.base_boxes[b].frame_T_shape[:3, :3] for b in parts])
+            ),
+            base_half=np.stack([np.asarray(self.base_boxes[b].size) / 2 for b in parts]),
+            link=np.array([pr.link for pr in self.pairs], dtype=np.int64),
+            other=np.array(
+                [-1 - parts.index(pr.other) if isinstance(pr.other, str) else pr.other
+                 for pr in self.pairs], dtype=np.int64,
+            ),
+        )  # fmt: skip
         self._box_R = np.stack([self.base_boxes[b].frame_T_shape[:3, :3] for b in parts])
         self._box_c = np.stack([self.base_boxes[b].frame_T_shape[:3, 3] for b in parts])
         self._box_half = np.stack([np.asarray(self.base_boxes[b].size) / 2 for b in parts])
@@ -394,7 +414,9 @@ class CollisionChecker:
 
         Args:
             q: joint angles (N, 4) or (4,) [rad].
-            cull_above: skip the pairs whose bounding spheres stay at least this far [m]
+            cull_above: skip the pairs whose bounding spheres, turn floor
+                (:meth:`turn_floors`) or capsules' segments
+                (:mod:`mmstab.model.collision_distance`) keep them at least this far [m]
                 apart (None: every pair): the answer is then exact where it is below
                 ``cull_above`` and a lower bound, at least ``cull_above``, elsewhere.
         """
@@ -402,6 +424,7 @@ class CollisionChecker:
         R, p = self.shape_poses(qa)
         out = np.full(len(qa), np.inf)
         request = fcl.DistanceRequest()
+        floors = {} if cull_above is None else self.turn_floors()
         for pair in self.pairs:
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other
@@ -409,9 +432,17 @@ class CollisionChecker:
             rows = np.arange(len(qa))
             if cull_above is not None:
                 gap = self._gap(pair, p)
+                floor = floors.get(pair.name, -np.inf)
+                if floor >= cull_above:  # at every angle
+                    gap = np.maximum(gap, floor)
                 far = gap >= cull_above
                 out[far] = np.minimum(out[far], gap[far])
                 rows = np.flatnonzero(~far)
+                near = self._segment_gap(pair, R, p, rows, cull_above) if rows.size else None
+                if near is not None:
+                    far_too = near >= cull_above
+                    out[rows[far_too]] = np.minimum(out[rows[far_too]], near[far_too])
+                    rows = rows[~far_too]
             for n in rows:
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))
                 if j >= 0:
@@ -435,20 +466,23 @@ class CollisionChecker:
         R, p = self.shape_poses(qa)
         request = fcl.DistanceRequest()
         floors = self.turn_floors()
-        gaps = self._gaps(p)
-        for pair in sorted(self.pairs, key=lambda pr: isinstance(pr.other, str)):
-            if floors.get(pair.name, -np.inf) >= need:  # that far apart at every angle
+        skip = np.array([floors.get(pr.name, -np.inf) >= need for pr in self.pairs])
+        if collision_distance.available():  # every pair's bounds at once, in C
+            near = collision_distance.pairs_near(self._table, R, p, need, skip, CULL_SLACK)
+        else:
+            gaps = self._gaps(p)
+            near = np.stack([gaps[:, self._gap_column[pr.name]] < need for pr in self.pairs], 1)
+        order = sorted(range(len(self.pairs)), key=lambda i: isinstance(self.pairs[i].other, str))
+        for index in order:
+            pair = self.pairs[index]
+            if skip[index]:  # that far apart at every angle
                 continue
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other
             b = self._base_objs[pair.other] if isinstance(pair.other, str) else self._link_objs[j]
             rate = step * (2.0 if j >= 0 else 1.0)  # how fast the pair's distance can shrink
             safe_until = 0
-            rows = np.flatnonzero(gaps[:, self._gap_column[pair.name]] < need)
-            if rows.size:  # the capsules' own distances (mmstab.model.collision_distance)
-                near = self._segment_gap(pair, R, p, rows, need)
-                rows = rows if near is None else rows[near < need]
-            for n in rows:
+            for n in np.flatnonzero(near[:, index]):
                 if n < safe_until:
                     continue
                 a.setTransform(fcl.Transform(R[n, pair.link], p[n, pair.link]))

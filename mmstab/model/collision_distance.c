@@ -129,3 +129,82 @@ int mmstab_segment_segment(const double *a0, const double *a1, const double *b0,
     }
     return 0;
 }
+
+/* Every checked pair at every posture at once: near[k * P + j] = 1 where pair j may come
+ * within ``need`` [m] at posture k (its bounds do not clear it), else 0.
+ * Shapes: R (n, L, 9) row-major and p (n, L, 3), each link shape's pose in B (a capsule's
+ * axis its z); kind[l] 1 capsule (hl[l] its half length, rad[l] its radius), 0 box (box
+ * half extents hb[3 l..]); ball[l] its bounding sphere about p. Base boxes: bc (B, 3), br
+ * (B, 9), bh (B, 3). Pairs: pa[j] a link, pb[j] a link (>= 0) or base box -1 - b; skip[j]
+ * 1: the pair is not measured (near 0). slack_sphere [m] is taken off the bounding
+ * spheres' gap, slack [m] off the segments' bounds. */
+int mmstab_pairs_near(const double *R, const double *p, long n, long L, const long *kind,
+                      const double *hl, const double *rad, const double *hb, const double *ball,
+                      const double *bc, const double *br, const double *bh, long P,
+                      const long *pa, const long *pb, const long *skip, double need,
+                      double slack_sphere, double slack, unsigned char *near)
+{
+    for (long k = 0; k < n; k++) {
+        for (long j = 0; j < P; j++) {
+            unsigned char out = 0;
+            long a = pa[j], b = pb[j];
+            const double *Ra = R + (k * L + a) * 9, *pa3 = p + (k * L + a) * 3;
+            if (skip[j]) {
+                near[k * P + j] = 0;
+                continue;
+            }
+            if (b < 0) { /* a link against a base box */
+                long bb = -1 - b;
+                const double *c = bc + 3 * bb, *r = br + 9 * bb, *h = bh + 3 * bb;
+                double q[3];
+                for (int i = 0; i < 3; i++) {
+                    double s = 0.0;
+                    for (int m = 0; m < 3; m++)
+                        s += r[3 * m + i] * (pa3[m] - c[m]);
+                    q[i] = s;
+                }
+                double gap = point_box(q, h) - ball[a] - slack_sphere;
+                if (gap < need) {
+                    out = 1;
+                    if (kind[a] == 1) {
+                        double e0[3], e1[3], o;
+                        for (int i = 0; i < 3; i++) {
+                            e0[i] = pa3[i] - Ra[3 * i + 2] * hl[a];
+                            e1[i] = pa3[i] + Ra[3 * i + 2] * hl[a];
+                        }
+                        double stop = need + rad[a] + slack;
+                        mmstab_segment_box(e0, e1, 1, c, r, 0, h, stop, &o);
+                        out = o - slack - rad[a] < need;
+                    }
+                }
+            } else { /* two links */
+                const double *Rb = R + (k * L + b) * 9, *pb3 = p + (k * L + b) * 3;
+                double dx = pa3[0] - pb3[0], dy = pa3[1] - pb3[1], dz = pa3[2] - pb3[2];
+                double gap = sqrt(dx * dx + dy * dy + dz * dz) - ball[a] - ball[b] - slack_sphere;
+                if (gap < need) {
+                    out = 1;
+                    double a0[3], a1[3], b0[3], b1[3], o;
+                    for (int i = 0; i < 3; i++) {
+                        a0[i] = pa3[i] - Ra[3 * i + 2] * hl[a];
+                        a1[i] = pa3[i] + Ra[3 * i + 2] * hl[a];
+                        b0[i] = pb3[i] - Rb[3 * i + 2] * hl[b];
+                        b1[i] = pb3[i] + Rb[3 * i + 2] * hl[b];
+                    }
+                    if (kind[a] == 1 && kind[b] == 1) {
+                        mmstab_segment_segment(a0, a1, b0, b1, 1, &o);
+                        out = o - slack - rad[a] - rad[b] < need;
+                    } else if (kind[a] == 1 || kind[b] == 1) { /* a box link and a capsule */
+                        long cap = kind[a] == 1 ? a : b, box = kind[a] == 1 ? b : a;
+                        const double *e0 = kind[a] == 1 ? a0 : b0, *e1 = kind[a] == 1 ? a1 : b1;
+                        const double *Rx = R + (k * L + box) * 9, *px = p + (k * L + box) * 3;
+                        double stop = need + rad[cap] + slack;
+                        mmstab_segment_box(e0, e1, 1, px, Rx, 0, hb + 3 * box, stop, &o);
+                        out = o - slack - rad[cap] < need;
+                    }
+                }
+            }
+            near[k * P + j] = out;
+        }
+    }
+    return 0;
+}

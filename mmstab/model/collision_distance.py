@@ -18,11 +18,12 @@ from __future__ import annotations
 import ctypes
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
-from mmstab.core.clib import DOUBLE, DOUBLES, LONG, compiled_library
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, compiled_library
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray
 
@@ -32,17 +33,21 @@ SLACK = 1e-5
 
 
 @lru_cache(maxsize=1)
-def _kernels() -> tuple[Any, Any] | None:
+def _kernels() -> tuple[Any, Any, Any] | None:
     try:
         lib = ctypes.CDLL(str(compiled_library(SOURCE, "mmstab_collision_distance")))
     except MmstabError:
         return None
-    box, seg = lib.mmstab_segment_box, lib.mmstab_segment_segment
+    box, seg, near = lib.mmstab_segment_box, lib.mmstab_segment_segment, lib.mmstab_pairs_near
     box.argtypes = [DOUBLES, DOUBLES, LONG, DOUBLES, DOUBLES, LONG, DOUBLES, DOUBLE, DOUBLES]
     seg.argtypes = [DOUBLES, DOUBLES, DOUBLES, DOUBLES, LONG, DOUBLES]
-    for f in (box, seg):
+    # R p n L kind hl rad hb ball bc br bh P pa pb skip need slack_sphere slack | near
+    near.argtypes = [DOUBLES, DOUBLES, LONG, LONG, LONGS, DOUBLES, DOUBLES, DOUBLES, DOUBLES]
+    near.argtypes += [DOUBLES, DOUBLES, DOUBLES, LONG, LONGS, LONGS, LONGS, DOUBLE, DOUBLE]
+    near.argtypes += [DOUBLE, BYTES]
+    for f in (box, seg, near):
         f.restype = ctypes.c_int
-    return box, seg
+    return box, seg, near
 
 
 def available() -> bool:
@@ -90,3 +95,68 @@ def segment_segment(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArr
     out = np.empty(len(a0))
     kernels[1](_c(a0), _c(a1), _c(b0), _c(b1), len(a0), out)
     return out - SLACK
+
+
+class PairTable(NamedTuple):
+    """A checker's shapes and pairs as the kernel reads them (:func:`pairs_near`).
+
+    Attributes:
+        kind: per link, 1 a capsule, 0 a box (L,).
+        half_length: a capsule's half length [m] (L,).
+        radius: a capsule's radius [m] (L,).
+        box_half: a box link's half extents [m] (L, 3).
+        ball: each link shape's bounding radius about its centre [m] (L,).
+        base_centre: the base boxes' centres in B (B, 3) [m].
+        base_R: their rotations, box frame to B (B, 3, 3).
+        base_half: their half extents (B, 3) [m].
+        link: each pair's link (P,).
+        other: its other link, or -1 - b for base box b (P,).
+    """
+
+    kind: NDArray[np.int64]
+    half_length: FloatArray
+    radius: FloatArray
+    box_half: FloatArray
+    ball: FloatArray
+    base_centre: FloatArray
+    base_R: FloatArray
+    base_half: FloatArray
+    link: NDArray[np.int64]
+    other: NDArray[np.int64]
+
+
+def pairs_near(
+    table: PairTable,
+    R: FloatArray,
+    p: FloatArray,
+    need: float,
+    skip: NDArray[np.int64],
+    sphere_slack: float,
+) -> NDArray[np.bool_]:
+    """Per posture and pair, whether its bounds leave it possibly within ``need`` [m] (N, P).
+
+    The bounding spheres' gap (less ``sphere_slack`` [m]) first, then the capsules'
+    segments against the boxes and each other (less :data:`SLACK`); a box against a base
+    box by its sphere alone. Pairs with ``skip`` 1 are never near.
+
+    Args:
+        table: the checker's shapes and pairs.
+        R: each link shape's rotation in B per posture (N, L, 3, 3).
+        p: its centre in B (N, L, 3) [m].
+        need: the clearance asked [m].
+        skip: per pair, 1 to leave it out (P,).
+        sphere_slack: taken off the spheres' gap [m] (the checker's culling slack).
+    """
+    kernels = _kernels()
+    assert kernels is not None, "collision_distance: no C compiler (check available())"
+    n, L = p.shape[:2]
+    P = len(table.link)
+    out = np.zeros((n, P), dtype=np.uint8)
+    t = table
+    kernels[2](
+        _c(R), _c(p), n, L, t.kind, t.half_length, t.radius, t.box_half, t.ball,
+        t.base_centre, t.base_R, t.base_half, P, t.link, t.other,
+        np.ascontiguousarray(skip, dtype=np.int64), float(need), float(sphere_slack),
+        SLACK, out,
+    )  # fmt: skip
+    return out.view(bool)

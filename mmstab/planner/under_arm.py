@@ -339,8 +339,7 @@ class KeptPieces:
 
     def add(self, rows: NDArray[np.intp]) -> None:
         """Compute the pieces of ``rows`` not kept yet, in one batch."""
-        new = np.unique(rows)
-        new = new[self.slot[new] < 0]
+        new = np.unique(rows[self.slot[rows] < 0])  # those not kept, ascending
         if new.size:
             body = self.under.body(self.postures[new])
             end = self.size + len(new)
@@ -356,6 +355,8 @@ class KeptPieces:
 
     def __call__(self, rows: NDArray[np.intp]) -> PiecesB:
         """The pieces of ``rows`` (n,)."""
-        self.add(rows)
         at = self.slot[rows]
+        if (at < 0).any():
+            self.add(rows)
+            at = self.slot[rows]
         return PiecesB(self.low[at], self.centre[at])

@@ -26,6 +26,11 @@ from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.polygon import support_vertices
 from mmstab.terrain.rest import RestPoses, RestSettings, rest_poses
 
+#: Each robot's contact candidates by (its id, the flipper angle), the robot kept with them.
+_CANDIDATES: dict[tuple[int, float | None], tuple[Robot | None, ContactCandidates]] = {}
+#: Each robot's overall CoM with the arm stowed in B [m], likewise.
+_STOWED_COM: dict[tuple[int, float | None], tuple[Robot | None, FloatArray]] = {}
+
 
 def with_flipper_angle(robot: Robot, angle: float | None) -> Robot:
     """The robot with its flippers at ``angle`` [rad] (``None``: unchanged)."""
@@ -96,15 +101,37 @@ class HeightmapTerrain:
 
     @functools.cached_property
     def candidates(self) -> ContactCandidates:
-        """Contact candidates of the bound robot in B."""
-        return contact_candidates(self._robot().base)
+        """Contact candidates of the bound robot in B.
+
+        They depend on the robot and the flipper angle only: kept per robot, so a new map
+        under the same robot (the online loop's every map) does not compute them again.
+        """
+        key = (id(self.robot), self.flipper_angle)
+        kept = _CANDIDATES.get(key)
+        if kept is None or kept[0] is not self.robot:
+            cand = contact_candidates(self._robot().base)
+            for a in cand:  # shared from now on: read-only
+                a.setflags(write=False)
+            kept = _CANDIDATES[key] = (self.robot, cand)
+        return kept[1]
 
     @functools.cached_property
     def com_body(self) -> FloatArray:
-        """Overall CoM of the bound robot in B [m] (base + arm at ``arm_q``)."""
+        """Overall CoM of the bound robot in B [m] (base + arm at ``arm_q``).
+
+        With the arm stowed kept per robot and flipper angle, as the contact candidates.
+        """
+        if self.arm_q is None:
+            key = (id(self.robot), self.flipper_angle)
+            kept = _STOWED_COM.get(key)
+            if kept is None or kept[0] is not self.robot:
+                r = self._robot()
+                com = np.asarray(r.overall_com(r.arm_com(r.stowed)), dtype=float)
+                com.setflags(write=False)
+                kept = _STOWED_COM[key] = (self.robot, com)
+            return kept[1]
         r = self._robot()
-        q = r.stowed if self.arm_q is None else self.arm_q
-        return np.asarray(r.overall_com(r.arm_com(q)), dtype=float)
+        return np.asarray(r.overall_com(r.arm_com(self.arm_q)), dtype=float)
 
     # ---------------------------------------------------------------- Terrain interface
     @property
