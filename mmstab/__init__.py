@@ -4,7 +4,8 @@ The package is laid out as the pipeline (``docs/architecture.md``): ``core`` (co
 schema, the problem) -> ``model`` (robot, kinematics) and ``terrain`` / ``paths`` (the ground
 and the base's path) -> ``stability`` (force-angle) -> ``workspace`` (the arm-CoM workspace V)
 -> ``planner`` (Eq. 6 per pose) -> ``control`` (the QP controller) -> ``codegen`` -> ``runs``,
-``physics``, ``viz`` -> ``app`` -> ``experiments`` -> ``cli``.
+``physics``, ``viz`` -> ``app`` -> ``outputs`` -> ``cli`` (the paper's figures and the
+studies: the repository's ``experiments/``, outside the package).
 
 The names below are the public API, re-exported from their stages::
 

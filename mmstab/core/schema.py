@@ -242,8 +242,9 @@ PATH_ROUTE_FILE = with_optional(
 )
 
 
-# The tip-over envelope atlas (mmstab atlas; docs/atlas.md). An axis is a list of values or
-# an evenly spaced range (a full-turn heading range omits its end); every axis is optional.
+# The tip-over envelope atlas (python -m experiments atlas; docs/atlas.md). An axis is a list
+# of values or an evenly spaced range (a full-turn heading range omits its end); every axis
+# is optional.
 _RANGE = obj(start=NUM, stop=NUM, num={"type": "integer", "minimum": 1, "maximum": 10000})
 _AXIS = {"oneOf": [{"type": "array", "items": NUM, "minItems": 1, "maxItems": 10000}, _RANGE]}
 _FLIPPER = {"oneOf": [NUM, {"enum": ["robot", "ground"]}]}

@@ -51,7 +51,7 @@ EXIT_UNSTABLE, EXIT_SLIDES = 3, 4
 
 def plan_along(robot: Robot, terrain: Terrain, route: BasePath, plan: RoutePlan) -> Along:
     """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
-    from mmstab.planner.warm_start import planned_com
+    from mmstab.planner.along_route import planned_com
 
     poses, s = path_samples(route, sample_spacing(terrain))
     planned = planned_com(robot, plan.postures, plan.target_com)

@@ -9,9 +9,9 @@ import pytest
 import yaml
 from conftest import ROOT
 
+from experiments.skid_fit import fit, load_settings, main, pinball, training_cases
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.core.files import ConfigError
-from mmstab.experiments.skid_fit import fit, load_settings, main, pinball, training_cases
 
 SETTINGS = ROOT / "problems" / "skid_fit.yaml"
 

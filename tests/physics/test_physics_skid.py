@@ -74,7 +74,7 @@ def test_make_skid_small_grid(tmp_path):
     path = tmp_path / "skid.yaml"
     path.write_text(yaml.safe_dump(settings))
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    cmd = [sys.executable, "-m", "mmstab.experiments.skid", str(path), "-o", str(tmp_path / "out")]
+    cmd = [sys.executable, "-m", "experiments.skid", str(path), "-o", str(tmp_path / "out")]
     done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -89,7 +89,7 @@ def test_make_skid_bad_settings_exit_2(tmp_path):
     path = tmp_path / "skid.yaml"
     path.write_text(yaml.safe_dump({"problem": "rough.yaml", "friction": 0.7, "slopes_deg": [],
                                     "headings_deg": [0], "commands": {}, "sim": {}}))  # fmt: skip
-    cmd = [sys.executable, "-m", "mmstab.experiments.skid", str(path), "-o", str(tmp_path / "o")]
+    cmd = [sys.executable, "-m", "experiments.skid", str(path), "-o", str(tmp_path / "o")]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "slopes_deg" in done.stderr and str(path) in done.stderr

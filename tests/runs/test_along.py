@@ -221,7 +221,7 @@ def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
     import json
 
     from mmstab.cli import main
-    from mmstab.experiments.verify import OUTCOMES
+    from mmstab.outputs.verify import OUTCOMES
 
     path = turn_problem(tmp_path)
     monkeypatch.chdir(tmp_path)
@@ -243,7 +243,7 @@ def test_a_physics_event_is_placed_on_the_route():
     """An event's body origin and its distance along the route, by hand on an L route."""
     from types import SimpleNamespace
 
-    from mmstab.experiments.simulate import place_events
+    from mmstab.outputs.simulate import place_events
     from mmstab.paths import SpeedLimits, route_from_waypoints, speed_profile
     from mmstab.paths.route import RoutePath
 
