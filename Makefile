@@ -59,20 +59,21 @@ system:
 	  fi; }
 
 lint: setup
-	$(VENV)/bin/ruff check mmstab tests benchmarks
-	$(VENV)/bin/ruff format --check mmstab tests benchmarks
-	$(VENV)/bin/mypy mmstab
+	$(VENV)/bin/ruff check mmstab experiments tests benchmarks
+	$(VENV)/bin/ruff format --check mmstab experiments tests benchmarks
+	$(VENV)/bin/mypy mmstab experiments
 
 format: setup
-	$(VENV)/bin/ruff format mmstab tests benchmarks
-	$(VENV)/bin/ruff check --fix mmstab tests benchmarks
+	$(VENV)/bin/ruff format mmstab experiments tests benchmarks
+	$(VENV)/bin/ruff check --fix mmstab experiments tests benchmarks
 
-## paper experiments: one target each, results in results/<name>/
+## paper experiments: one target each, results in results/<name>/ (python -m experiments,
+## the repository's experiments/ package: not installed, run from the repository root)
 fig5: setup
-	$(MMSTAB) fig5 $(PROBLEM)
+	$(PY) -m experiments fig5 $(PROBLEM)
 
 fig6: setup
-	$(MMSTAB) fig6 $(PROBLEM)
+	$(PY) -m experiments fig6 $(PROBLEM)
 
 figures: fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 
@@ -89,7 +90,7 @@ workspace: setup
 	$(MMSTAB) workspace $(PROBLEM)
 
 fig3: setup
-	$(MMSTAB) fig3 $(PROBLEM)
+	$(PY) -m experiments fig3 $(PROBLEM)
 
 bench-workspace: setup
 	$(PY) benchmarks/workspace.py $(PROBLEM)
@@ -127,14 +128,14 @@ bench-plan: setup
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
 fidelity: setup
-	$(MMSTAB) fidelity $(PROBLEM)
+	$(PY) -m experiments fidelity $(PROBLEM)
 
 ## mmstab's tips / holds / slides against MuJoCo's on a grid of edge cases
 ## -> results/verdicts/summary.json, verdicts.png (docs/verdicts.md)
 .PHONY: verdicts
 VERDICTS ?= problems/verdicts.yaml
 verdicts: setup
-	$(PY) -m mmstab.experiments.verdicts $(VERDICTS)
+	$(PY) -m experiments.verdicts $(VERDICTS)
 
 ## mmstab's verdicts on seeded random routes over user-like ground (side slopes, bumps, ditches,
 ## kerbs) refereed by MuJoCo: each route planned as `mmstab plan` and simulated as `mmstab
@@ -143,7 +144,7 @@ verdicts: setup
 .PHONY: validate-routes
 VALIDATE_ROUTES ?= problems/validate_routes.yaml
 validate-routes: setup
-	$(PY) -m mmstab.experiments.validate_routes $(VALIDATE_ROUTES)
+	$(PY) -m experiments.validate_routes $(VALIDATE_ROUTES)
 
 ## mmstab's mu on its loaded support against MuJoCo's robot settled at rest, for each
 ## compliance of the tracks' bottom run (12 seeded maps x 6 poses, about 2 minutes)
@@ -151,7 +152,7 @@ validate-routes: setup
 .PHONY: rest-mu
 REST_MU ?= problems/rest_mu.yaml
 rest-mu: setup
-	$(PY) -m mmstab.experiments.rest_mu $(REST_MU)
+	$(PY) -m experiments.rest_mu $(REST_MU)
 
 ## mmstab's skid-steer model (sliding in turns) against the whole robot in MuJoCo
 ## on a ramp grid and along rough.yaml's route -> results/skid/summary.json, skid.png, rough.png
@@ -159,7 +160,13 @@ rest-mu: setup
 .PHONY: skid
 SKID ?= problems/skid.yaml
 skid: setup
-	$(PY) -m mmstab.experiments.skid $(SKID)
+	$(PY) -m experiments.skid $(SKID)
+
+## the belts' shear modulus K of the skid-steer model (physics.shear_modulus) fitted on make skid's
+## MuJoCo runs -> results/skid_fit/summary.json (docs/skid.md; seconds)
+.PHONY: skid-fit
+skid-fit: setup
+	$(PY) -m experiments.skid_fit problems/skid_fit.yaml
 
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
@@ -259,7 +266,7 @@ bench-sizes: setup
 # the atlas wants each cell's best posture: the reliable planner search (docs/planner.md)
 ATLAS_PROBLEM ?= problems/ramp_reliable.yaml
 atlas: setup
-	$(MMSTAB) atlas $(ATLAS_PROBLEM)
+	$(PY) -m experiments atlas $(ATLAS_PROBLEM)
 
 bench-atlas: setup
 	$(PY) benchmarks/atlas.py $(ATLAS_PROBLEM)
@@ -267,12 +274,12 @@ bench-atlas: setup
 ## payload, flippers, lap speed, robot variants (docs/levers.md) -> results/levers/
 .PHONY: levers
 levers: setup
-	$(MMSTAB) levers problems/levers.yaml
+	$(PY) -m experiments levers problems/levers.yaml
 
 ## the atlas on generated rough ground, three terrain seeds x two payloads -> results/atlas_rough/
 .PHONY: atlas-rough
 atlas-rough: setup
-	$(MMSTAB) atlas problems/rough_atlas.yaml -o results/atlas_rough
+	$(PY) -m experiments atlas problems/rough_atlas.yaml -o results/atlas_rough
 
 ## plan and track along a route over rough ground (docs/routes.md) -> results/rough/,
 ## results/kerb/: the plan (plan/), the tracking run, its figures and the animation

@@ -28,10 +28,10 @@ from typing import Any
 
 from common import machine_info
 
+from experiments.atlas.driver import available_cores, dask_client
+from experiments.atlas.runner import run_atlas
 from mmstab.core.files import read_yaml, write_json
 from mmstab.core.problem import Problem, problem_from_dict
-from mmstab.experiments.atlas.driver import available_cores, dask_client
-from mmstab.experiments.atlas.runner import run_atlas
 
 
 def with_atlas(problem_path: str, slopes: int, headings: int, chunks: tuple[int, int]) -> Problem:

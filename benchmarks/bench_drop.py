@@ -22,7 +22,7 @@ from mujoco import rollout
 
 from mmstab.core.files import write_json
 from mmstab.model.robot import load_robot
-from mmstab.physics.experiment import build_terrain, sample_poses
+from mmstab.physics.drop_validation import build_terrain, sample_poses
 from mmstab.physics.mujoco_drop import DropModel, _quat, drop
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -34,8 +34,8 @@ from common import machine_info  # noqa: E402
 
 from mmstab.core.files import write_json  # noqa: E402
 from mmstab.core.problem import load_problem  # noqa: E402
-from mmstab.experiments.online import offline_plan  # noqa: E402
-from mmstab.experiments.recording import record_route  # noqa: E402
+from mmstab.outputs.online import offline_plan  # noqa: E402
+from mmstab.outputs.recording import record_route  # noqa: E402
 from mmstab.runs.online.follow import Follower  # noqa: E402
 from mmstab.runs.online.run import follow_recording, summarize  # noqa: E402
 from mmstab.workspace import load_or_build_workspace  # noqa: E402

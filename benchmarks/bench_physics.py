@@ -32,7 +32,7 @@ from mmstab.control.controller import build_controller  # noqa: E402
 from mmstab.control.reference import initial_state  # noqa: E402
 from mmstab.core.files import write_json  # noqa: E402
 from mmstab.core.problem import load_problem  # noqa: E402
-from mmstab.experiments.simulate import controller_settings, loop_settings  # noqa: E402
+from mmstab.outputs.simulate import controller_settings, loop_settings  # noqa: E402
 from mmstab.physics.closed_loop import run_closed_loop  # noqa: E402
 from mmstab.physics.robot_model import ModelSettings  # noqa: E402
 from mmstab.physics.robot_sim import RobotSim  # noqa: E402

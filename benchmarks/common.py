@@ -1,12 +1,22 @@
-"""What every benchmark records about the machine it ran on."""
+"""What every benchmark records about the machine it ran on; the repository on the path.
+
+The repository's root goes on the import path here, so the benchmarks that time the
+studies (``experiments/``, not installed) import them, wherever they are run from.
+"""
 
 from __future__ import annotations
 
 import os
 import platform
+import sys
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.append(str(ROOT))
 
 
 def machine_info(**extra: Any) -> dict[str, Any]:

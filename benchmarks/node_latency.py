@@ -34,7 +34,7 @@ from common import machine_info
 
 from mmstab.core.files import write_json
 from mmstab.core.problem import load_problem
-from mmstab.experiments.recording import record_route
+from mmstab.outputs.recording import record_route
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -45,7 +45,7 @@ from common import machine_info
 
 from mmstab.core.files import write_json
 from mmstab.core.problem import load_problem
-from mmstab.experiments.routes import route_quality
+from mmstab.outputs.routes import route_quality
 from mmstab.paths.route import DEFAULT_SPACING, route_samples
 from mmstab.planner import (
     PlannerSettings,

@@ -86,7 +86,7 @@ def main() -> None:
         _peak_bytes(lambda: build_workspace(robot, grid, progress=False)),
     )
 
-    from mmstab.experiments.sweeps import link0_sweep
+    from experiments.sweeps import link0_sweep
 
     sw = base.section("sweep")
     poses = base.circle.poses(sw["poses"])

@@ -14,7 +14,7 @@ import sys
 from common import machine_info
 
 from mmstab.core.files import MmstabError
-from mmstab.physics.experiment import PREDICTORS, main_validation
+from mmstab.physics.drop_validation import PREDICTORS, main_validation
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,7 +7,7 @@ import mmstab
 
 robot = mmstab.load_robot("problems/robots/cameleon.yaml")
 ramp = mmstab.Ramp(0.2)  # a 0.2 rad (11.5 deg) slope rising toward +y
-route = mmstab.route_path(robot, ramp, [[0, 0], [1.5, 0], [2.5, 1]], speed=0.3, turn_radius=0.5)
+route = mmstab.route_path(robot, ramp, [[0, 0], [1.5, 0], [2.5, 1]], speed=0.2, turn_radius=1.0)
 plan = mmstab.plan(robot, ramp, route)
 run = mmstab.track(plan).run  # the whole route, the controller's settings as planned
 after = run.t >= 1.0  # after the arm's 1 s start-up move

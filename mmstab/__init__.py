@@ -4,15 +4,19 @@ The package is laid out as the pipeline (``docs/architecture.md``): ``core`` (co
 schema, the problem) -> ``model`` (robot, kinematics) and ``terrain`` / ``paths`` (the ground
 and the base's path) -> ``stability`` (force-angle) -> ``workspace`` (the arm-CoM workspace V)
 -> ``planner`` (Eq. 6 per pose) -> ``control`` (the QP controller) -> ``codegen`` -> ``runs``,
-``physics``, ``viz`` -> ``app`` -> ``experiments`` -> ``cli``.
+``physics``, ``viz`` -> ``app`` -> ``outputs`` -> ``cli`` (the paper's figures and the
+studies: the repository's ``experiments/``, outside the package).
 
 The names below are the public API, re-exported from their stages::
 
     import mmstab
 
-    problem = mmstab.load_problem("problems/ramp.yaml")
-    plan = mmstab.plan(problem)        # the workspace V (cached), Eq. 6, the postures
-    problem, plan, run = mmstab.track(problem, plan, duration=2.0, progress=False)
+    robot = mmstab.load_robot("problems/robots/cameleon.yaml")
+    ramp = mmstab.Ramp(0.2)
+    route = mmstab.route_path(robot, ramp, [[0, 0], [2, 0]], speed=0.3, turn_radius=0.5)
+    plan = mmstab.plan(robot, ramp, route)   # the workspace V (cached), Eq. 6, the verdicts
+    run = mmstab.track(plan).run             # the QP controller drives it
+    problem_plan = mmstab.plan(mmstab.load_problem("problems/ramp.yaml"))  # from a file
 
 They load on first use, so ``import mmstab`` stays light (no CasADi until a stage is asked for).
 """

@@ -25,6 +25,14 @@ os.environ.setdefault("MMSTAB_CACHE", str(ROOT / "results" / "workspace"))
 ROBOT_YAML = PROBLEMS / "robots" / "cameleon.yaml"
 RAMP_YAML = PROBLEMS / "ramp.yaml"
 
+# The repository's experiments/ (not installed) imports from its root, in this process and
+# in the subprocesses the tests start (``python -m experiments ...``) wherever they run.
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p
+)
+
 # Test modules import helpers from one another by name (``from test_under_arm import ...``)
 # across the stage folders (docs/testing.md): every folder of tests/ is on the import path,
 # whichever file is collected first (module names stay unique, as pytest needs anyway).

@@ -1,9 +1,10 @@
-"""The ``mmstab`` command line: one subcommand per pipeline stage or experiment.
+"""The ``mmstab`` command line: one subcommand per pipeline stage or command output.
 
 Every subcommand takes a problem (or robot) YAML file. Before any work, every command loads
-and checks the whole problem (schema, the settings registry of :mod:`mmstab.core.settings`, the
-size bounds of :mod:`mmstab.core.sizes`; ``rest`` and ``terrain export``: the schema, and the
-checks of the sections they use), its options and that its output folders can be written.
+and checks the whole problem (schema, the settings registry of
+:mod:`mmstab.core.setting_checks`, the size bounds of :mod:`mmstab.core.sizes`; ``rest``
+and ``terrain export``: the schema, and the checks of the sections they use), its options
+and that its output folders can be written.
 
 Exit statuses (``docs/cli.md``): 0 done; 2 bad input (one line ``mmstab: error: ...``,
 nothing written); 3 unstable (the best plan has a pose at or below the stability margin, or
@@ -19,11 +20,20 @@ import argparse
 import os
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from mmstab.cli.checks import check_options, check_outputs, report_route
-from mmstab.cli.commands import COMMANDS, EXTRA_OPTIONS, PROBLEM_COMMANDS, _urdf, _urdf_out
+from mmstab.cli.commands import (
+    COMMANDS,
+    DEFAULT_OUT,
+    EXTRA_OPTIONS,
+    USES_WORKSPACE,
+    Handler,
+    _urdf,
+    _urdf_out,
+)
 from mmstab.cli.node import add_node_commands
 from mmstab.cli.online import add_online_commands
 from mmstab.cli.physics import add_physics_commands
@@ -37,21 +47,38 @@ from mmstab.cli.status import (
 )
 from mmstab.cli.terrain import _add_terrain_commands
 
-__all__ = ["build_parser", "check_options", "check_outputs", "entry", "main"]
+__all__ = [
+    "EPILOG",
+    "add_problem_commands",
+    "build_parser",
+    "check_options",
+    "check_outputs",
+    "entry",
+    "main",
+]
+
+#: The exit statuses, as every parser's epilog says them.
+EPILOG = (
+    "exit status: 0 done, 2 bad input, 3 unstable, 4 slides, 5 arm collision, 6 no plan,"
+    " 130 interrupted, 141 output pipe closed (docs/cli.md)"
+)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (exposed for tests and docs)."""
-    parser = argparse.ArgumentParser(
-        prog="mmstab",
-        description="Stability-aware planning and control of a tracked mobile manipulator.",
-        epilog=(
-            "exit status: 0 done, 2 bad input, 3 unstable, 4 slides, 5 arm collision, 6 no plan,"
-            " 130 interrupted, 141 output pipe closed (docs/cli.md)"
-        ),
-    )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, help_text, handler in COMMANDS:
+def add_problem_commands(
+    sub: Any,
+    commands: Sequence[tuple[str, str, Handler]],
+    options: Mapping[str, list[tuple[str, dict[str, Any]]]],
+    default_out: Mapping[str, str],
+    uses_workspace: Collection[str],
+) -> None:
+    """Add commands that take a problem file to the subparsers ``sub``.
+
+    Each gets ``problem``, ``-o/--out``, ``--force-size`` and its ``options``; before it
+    runs, :func:`main` loads and checks the problem and the folders it will write
+    (``default_out``: its default output folder; ``uses_workspace``: it may build the
+    workspace cache). ``python -m experiments`` adds its own this way.
+    """
+    for name, help_text, handler in commands:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.add_argument("problem", help="problem YAML file (e.g. problems/ramp.yaml)")
         p.add_argument("-o", "--out", default=None, help="output folder (default results/NAME)")
@@ -60,9 +87,25 @@ def build_parser() -> argparse.ArgumentParser:
             action="store_true",
             help="run sizes whose time estimate exceeds the bound (not beyond the memory)",
         )
-        for flag, kwargs in EXTRA_OPTIONS.get(name, []):
+        for flag, kwargs in options.get(name, []):
             p.add_argument(flag, **kwargs)
-        p.set_defaults(handler=handler)
+        p.set_defaults(
+            handler=handler,
+            problem_command=True,
+            default_out=default_out.get(name),
+            uses_workspace=name in uses_workspace,
+        )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for tests and docs)."""
+    parser = argparse.ArgumentParser(
+        prog="mmstab",
+        description="Stability-aware planning and control of a tracked mobile manipulator.",
+        epilog=EPILOG,
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add_problem_commands(sub, COMMANDS, EXTRA_OPTIONS, DEFAULT_OUT, USES_WORKSPACE)
     # commands that take a robot description rather than a problem
     help_text = "export the robot description as URDF (base_link = body frame B)"
     p = sub.add_parser("urdf", help=help_text, description=help_text)
@@ -89,7 +132,7 @@ def _run(args: argparse.Namespace) -> int:
                 raise MmstabError(f"output file {out}: is a folder")
             check_output_dir(out.parent, f"output file {out}: folder")
         return args.handler(args, None) or EXIT_OK
-    if args.command not in PROBLEM_COMMANDS:  # rest, stability-map, terrain, view
+    if not getattr(args, "problem_command", False):  # rest, stability-map, terrain, view
         return args.handler(args) or EXIT_OK  # they load the problem themselves
     from mmstab.core.problem import load_problem
 
@@ -100,14 +143,21 @@ def _run(args: argparse.Namespace) -> int:
     return args.handler(args, problem) or EXIT_OK
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (0, 2-6 or 130; module docstring)."""
+Parser = Callable[[], argparse.ArgumentParser]
+
+
+def main(argv: Sequence[str] | None = None, parser: Parser = build_parser) -> int:
+    """Entry point; returns the exit status (0, 2-6 or 130; module docstring).
+
+    ``parser``: the command line's parser (default ``mmstab``'s; ``python -m experiments``
+    passes its own).
+    """
     previous = None
     try:
         from mmstab.core.pool import note_interrupts
 
         previous = note_interrupts()  # remembered even where C code swallows it
-        return _main(argv)
+        return _main(argv, parser)
     except KeyboardInterrupt:  # at any moment, imports included
         _close_progress_bars()
         print("mmstab: interrupted", file=sys.stderr)
@@ -128,23 +178,23 @@ def _close_progress_bars() -> None:
         bar.close()
 
 
-def _main(argv: Sequence[str] | None) -> int:
+def _main(argv: Sequence[str] | None, parser: Parser) -> int:
     """The command's status; the problem's load-time notes after it, unless it was refused."""
     from mmstab.core.notes import held_notes
 
     with held_notes() as notes:
-        status = _status(argv)
+        status = _status(argv, parser)
     if status != EXIT_BAD_INPUT:  # bad input: one line
         for line in notes:
             print(line, file=sys.stderr)
     return status
 
 
-def _status(argv: Sequence[str] | None) -> int:
+def _status(argv: Sequence[str] | None, parser: Parser) -> int:
     from mmstab.core.files import MmstabError, PlanningError, UnstableError
 
     try:
-        return _run(build_parser().parse_args(argv))
+        return _run(parser().parse_args(argv))
     except UnstableError as exc:
         print(f"mmstab: unstable: {exc}", file=sys.stderr)
         return EXIT_UNSTABLE
@@ -159,7 +209,7 @@ def _status(argv: Sequence[str] | None) -> int:
         return EXIT_BAD_INPUT
 
 
-def entry() -> None:
+def entry(parser: Parser = build_parser) -> None:
     """The ``mmstab`` program: exit with :func:`main`'s status; after a Ctrl-C, at once.
 
     An interrupted run has already removed its temporary files while unwinding, and its
@@ -168,7 +218,7 @@ def entry() -> None:
     left pending.
     """
     try:
-        status = main()
+        status = main(parser=parser)
     except KeyboardInterrupt:
         status = EXIT_INTERRUPTED
     except BrokenPipeError:  # stdout's reader left (| head): stop quietly, as a C program

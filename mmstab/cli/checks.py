@@ -6,8 +6,6 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.commands import DEFAULT_OUT, USES_WORKSPACE
-
 
 # --------------------------------------------------------------------------- pre-flight checks
 def check_options(args: argparse.Namespace, problem: Any) -> None:
@@ -17,7 +15,7 @@ def check_options(args: argparse.Namespace, problem: Any) -> None:
         MmstabError: naming the option.
     """
     from mmstab.core.files import MmstabError
-    from mmstab.core.settings import PLUGINS, check_duration, check_plugin
+    from mmstab.core.setting_checks import PLUGINS, check_duration, check_plugin
 
     plugin = getattr(args, "plugin", None)
     if args.command == "codegen" and plugin is not None:
@@ -35,9 +33,11 @@ def check_options(args: argparse.Namespace, problem: Any) -> None:
 def output_dirs(args: argparse.Namespace, problem: Any) -> list[tuple[Path, str]]:
     """The folders a command will write to, with what they are (for messages)."""
     outs: list[tuple[Path, str]] = []
-    if args.command in DEFAULT_OUT:
-        outs.append((Path(args.out or DEFAULT_OUT[args.command]), "output folder"))
-    if args.command in USES_WORKSPACE or (args.command == "codegen" and args.example):
+    default_out = getattr(args, "default_out", None)
+    if default_out is not None:
+        outs.append((Path(args.out or default_out), "output folder"))
+    uses_workspace = getattr(args, "uses_workspace", False)
+    if uses_workspace or (args.command == "codegen" and args.example):
         from mmstab.workspace import default_cache_dir, workspace_cache_path
 
         cache_dir = args.out if args.command == "workspace" else None

@@ -25,29 +25,20 @@ from mmstab.cli.verdicts import (
 
 #: Default output folder of each command (``-o`` overrides it).
 DEFAULT_OUT = {
-    "fig5": "results/fig5",
-    "fig6": "results/fig6",
-    "fig3": "results/fig3",
     "plan": "results/plan",
     "fig7": "results/fig7",
     "fig8": "results/fig8",
     "track": "results/tracking",
     "animation": "results/tracking",
-    "fidelity": "results/fidelity",
-    "atlas": "results/atlas",
-    "levers": "results/levers",
 }
 #: Commands that load or build the workspace (its cache folder must be writable to build).
 USES_WORKSPACE = {
     "workspace",
-    "fig3",
     "plan",
     "fig7",
     "fig8",
     "track",
     "animation",
-    "atlas",
-    "levers",
 }
 #: Commands that run the planner (``--allow-unstable``).
 PLANS = ("plan", "fig7", "fig8", "track", "animation")
@@ -97,22 +88,6 @@ def _announce(problem: Any, *sections: str, duration: float | None = None) -> No
         announce(found[name])
 
 
-def _fig5(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.sweeps import run_fig5
-
-    s = run_fig5(problem, args.out)
-    maxima = [round(float(x), 2) for x in s["local_maxima_rad"]]
-    print(f"fig5: local maxima at link0 = {maxima} rad")
-
-
-def _fig6(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.sweeps import run_fig6
-
-    _announce(problem, "sweep")
-    s = run_fig6(problem, args.out)
-    print(f"fig6: {s['poses_with_two_maxima']} of {len(s['poses'])} poses with two maxima")
-
-
 def _workspace(args: argparse.Namespace, problem: Any) -> None:
     from mmstab.app import workspace
     from mmstab.workspace import workspace_cache_path
@@ -128,19 +103,8 @@ def _workspace(args: argparse.Namespace, problem: Any) -> None:
     )
 
 
-def _fig3(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.fig3 import run_fig3
-
-    _announce(problem, "precision")
-    s = run_fig3(problem, args.out, force=args.force)
-    print(
-        f"fig3: {s['valid']} valid / {s['invalid']} invalid, volume V {s['volume_V']:.4f} m^3, "
-        f"recall {s['recall']:.3f}, precision {s['precision']:.3f}"
-    )
-
-
 def _track(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.tracking import run_tracking
+    from mmstab.outputs.tracking import run_tracking
 
     _announce(problem, "planner", "controller", duration=args.duration)
     s = run_tracking(
@@ -178,7 +142,7 @@ def _urdf_out(args: argparse.Namespace, name: str) -> str:
 
 
 def _plan(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.planning import run_fig8
+    from mmstab.outputs.planning import run_fig8
 
     if problem.route is not None:
         return _plan_route(args, problem)
@@ -196,7 +160,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.routes import run_route_plan
+    from mmstab.outputs.routes import run_route_plan
 
     s = run_route_plan(problem, args.out or DEFAULT_OUT["plan"], verify=args.verify)
     r = s["risk"]
@@ -248,7 +212,7 @@ def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
 
 
 def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.planning import run_fig7
+    from mmstab.outputs.planning import run_fig7
 
     s = run_fig7(problem, args.out)
     com = [round(float(x), 3) for x in s["target_com"]]
@@ -257,25 +221,12 @@ def _fig7(args: argparse.Namespace, problem: Any) -> int | None:
 
 
 def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.planning import run_fig8
+    from mmstab.outputs.planning import run_fig8
 
     _announce(problem, "planner")
     s = run_fig8(problem, args.out)
     print(f"fig8: arm side per pose {s['sides']}")
     return plan_status(s, args) or slides_status(s, args)
-
-
-def _fidelity(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.fidelity import run_fidelity
-
-    s = run_fidelity(problem, args.out, args.results)
-    f6, f8, f11, f12 = s["fig6"], s["fig8"], s["fig11"], s["fig12"]
-    below = ", ".join(f"{i['start_s']:.2f}-{i['end_s']:.2f} s" for i in f12["below_stowed"])
-    print(
-        f"fidelity: fig6 {f6['poses_with_two_maxima']}/{f6['poses']} sweeps with two maxima; "
-        f"fig8 sides {f8['sides']}; fig11 saturates: {f11['saturates']}; "
-        f"fig12 below the stowed arm: {below or 'never'}"
-    )
 
 
 def _codegen(args: argparse.Namespace, problem: Any) -> None:
@@ -298,7 +249,7 @@ def _codegen(args: argparse.Namespace, problem: Any) -> None:
 
 
 def _animation(args: argparse.Namespace, problem: Any) -> int | None:
-    from mmstab.experiments.animation import run_animation
+    from mmstab.outputs.animation import run_animation
 
     stored = (Path(args.out or DEFAULT_OUT["animation"]) / "run.npz").is_file()
     _announce(problem, *(("animation",) if stored else ("planner", "controller", "animation")))
@@ -307,60 +258,15 @@ def _animation(args: argparse.Namespace, problem: Any) -> int | None:
     return tipped_status(s)
 
 
-def _atlas(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.atlas.runner import run_atlas
-
-    s = run_atlas(problem, args.out, args.scheduler, args.workers, processes=not args.threads)
-    r = s["run"]
-    print(
-        f"atlas: {s['cells']} cells ({r['cells_computed']} computed now, "
-        f"{r['cells_already_stored']} resumed) on {r['workers']} workers, "
-        f"{r['cells_per_second']:.1f} cells/s; figures and summary in {args.out or 'results/atlas'}"
-    )
-    for v in s["variants"]:
-        lim = v["mean_limit_deg"]
-        print(
-            f"  {v['robot']}, flippers {v['flipper']}: mean steepest slope with mu >= "
-            f"{s['margin_N_rad']:g} N rad: planned {lim['planned']} deg, stowed {lim['stowed']} "
-            f"deg, arm removed {lim['arm removed']} deg"
-        )
-
-
-def _levers(args: argparse.Namespace, problem: Any) -> None:
-    from mmstab.experiments.levers import run_levers
-
-    s = run_levers(problem, args.out)
-    d, p = s["dynamic"], s["payload"]
-    lap = {k: d[k]["fastest_safe_lap_time_s"] for k in ("planned", "stowed")}
-    print(
-        f"levers: fastest safe lap (mu >= {s['margin_N_rad']:g} N rad): planned arm "
-        f"{lap['planned']:.2f} s, stowed {lap['stowed']:.2f} s (the tracks allow "
-        f"{d['track_speed_limit_lap_time_s']:.2f} s); heaviest payload planned front/left/right "
-        + "/".join(
-            "-"
-            if p[k]["planned"]["heaviest_kg"] is None
-            else f"{p[k]['planned']['heaviest_kg']:.1f}"
-            for k in ("front", "left", "right")
-        )
-        + f" kg; {s['seconds']:.0f} s; figures and summary in {args.out or 'results/levers'}"
-    )
-
-
 # (name, help, handler)
 COMMANDS: list[tuple[str, str, Handler]] = [
-    ("fig5", "paper Fig. 5: stability over a link0 sweep at one rolled pose", _fig5),
-    ("fig6", "paper Fig. 6: link0 sweeps at poses along the circle", _fig6),
     ("workspace", "build (or load the cached) arm-CoM workspace V", _workspace),
-    ("fig3", "paper Fig. 3: workspace V, hull of invalid CoMs, hull of all CoMs", _fig3),
     ("plan", "plan the arm CoM along the path (circle or route) and the postures", _plan),
     ("fig7", "paper Fig. 7: CMA-ES samples and the converged CoM at the rolled pose", _fig7),
     ("fig8", "paper Fig. 8: planned configurations along the circle on the ramp", _fig8),
     ("track", "paper Fig. 9-12: track the path and the planned arm CoM (one run)", _track),
     ("codegen", "the controller step as C + a compiled library (-o DIR)", _codegen),
     ("animation", "the tracking run as a GIF (results/tracking/animation.gif)", _animation),
-    ("atlas", "tip-over envelope atlas over slope x heading x robot x flippers (Dask)", _atlas),
-    ("fidelity", "paper claims vs the saved results of fig6, fig8, tracking", _fidelity),
-    ("levers", "payload, flippers, lap speed and robot variants as stability levers", _levers),
 ]
 
 #: Commands of :data:`COMMANDS`: handlers of (args, the problem loaded and checked).

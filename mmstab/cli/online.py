@@ -24,7 +24,7 @@ def _number(value: float | None, spec: str, unit: str) -> str:
 
 def _record(args: argparse.Namespace) -> int | None:
     from mmstab.core.files import MmstabError, check_output_dir
-    from mmstab.experiments.recording import record_route
+    from mmstab.outputs.recording import record_route
 
     problem = _problem(args)
     out = Path(args.out or f"results/online/{Path(args.problem).stem}.mcap")
@@ -41,7 +41,7 @@ def _record(args: argparse.Namespace) -> int | None:
 
 def _follow(args: argparse.Namespace) -> int | None:
     from mmstab.core.files import ConfigError, MmstabError, check_output_dir
-    from mmstab.experiments.online import run_follow
+    from mmstab.outputs.online import run_follow
     from mmstab.terrain.recording import is_recording
 
     problem = _problem(args)

@@ -24,7 +24,6 @@ _ALLOW_SLIDING = (
 #: Options beyond ``problem``, ``--out`` and ``--force-size``, by command name.
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
-    "fig3": [("--force", {"action": "store_true", "help": "rebuild the workspace"})],
     "plan": [
         _ALLOW_UNSTABLE,
         _ALLOW_SLIDING,
@@ -63,20 +62,6 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
                 "help": "exit 0 (warning) when the tracked arm touches the robot or comes "
                 "closer than the required clearance (runs/verdict.py MIN_CLEARANCE)",
             },
-        ),
-    ],
-    "fidelity": [
-        ("--results", {"default": "results", "help": "where fig6/, fig8/, tracking/ are"})
-    ],
-    "atlas": [
-        (
-            "--scheduler",
-            {"default": None, "help": "address of a running Dask scheduler (default: local)"},
-        ),
-        ("--workers", {"type": int, "default": None, "help": "local workers (default: cores)"}),
-        (
-            "--threads",
-            {"action": "store_true", "help": "local workers as threads of one process"},
         ),
     ],
     "codegen": [

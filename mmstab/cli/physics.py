@@ -14,7 +14,7 @@ from mmstab.cli.verdicts import high_centred_warning, report, timing_line
 def _simulate(args: argparse.Namespace) -> int | None:
     from mmstab.core.files import MmstabError, check_output_dir
     from mmstab.core.problem import load_problem
-    from mmstab.experiments.simulate import run_simulate
+    from mmstab.outputs.simulate import run_simulate
 
     problem = load_problem(args.problem)
     out = Path(args.out or "results/physics")

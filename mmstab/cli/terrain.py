@@ -139,7 +139,7 @@ def _rest(args: argparse.Namespace) -> None:
 
 def _stability_map(args: argparse.Namespace) -> None:
     from mmstab.core.files import MmstabError, check_output_dir
-    from mmstab.experiments.terrain import run_stability_map
+    from mmstab.outputs.stability_map import run_stability_map
 
     if not 0 < args.spacing < float("inf") or args.headings < 1:
         raise MmstabError("--spacing must be finite and > 0 [m] and --headings >= 1")

@@ -131,10 +131,13 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
         return status
     v = verify
     events = {k: e for k, e in v["events"].items() if e is not None}
-    when = ", ".join(
-        f"{k} at {e['time_s']:.2f} s" + (f" (s = {e['s_m']:.2f} m)" if "s_m" in e else "")
-        for k, e in events.items()
-    ) or "no event"
+    when = (
+        ", ".join(
+            f"{k} at {e['time_s']:.2f} s" + (f" (s = {e['s_m']:.2f} m)" if "s_m" in e else "")
+            for k, e in events.items()
+        )
+        or "no event"
+    )
     mu = v["mu_relative_difference_median"]
     print(
         f"plan: verify in MuJoCo ({v['simulated_s']:.1f} s): {v['mujoco']} ({when}); mmstab "

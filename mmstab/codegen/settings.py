@@ -1,4 +1,4 @@
-"""The ``codegen:`` section: settings (the plugin check lives in :mod:`mmstab.core.settings`)."""
+"""The ``codegen:`` section: settings (the plugin check: :mod:`mmstab.core.setting_checks`)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from mmstab.core.settings import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
-from mmstab.core.settings import QPOASES_MESSAGE as QPOASES_MESSAGE
-from mmstab.core.settings import check_codegen
-from mmstab.core.settings import check_plugin as check_plugin
+from mmstab.core.setting_checks import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
+from mmstab.core.setting_checks import QPOASES_MESSAGE as QPOASES_MESSAGE
+from mmstab.core.setting_checks import check_codegen
+from mmstab.core.setting_checks import check_plugin as check_plugin
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,5 +30,6 @@ class CodegenSettings:
         return cls(plugin=str(section["plugin"]), directory=str(section["directory"]))
 
 
-#: The ``codegen:`` check of the settings registry (:func:`mmstab.core.settings.check_codegen`).
+#: The ``codegen:`` check of the settings registry
+#: (:func:`mmstab.core.setting_checks.check_codegen`).
 check_settings = check_codegen

@@ -104,6 +104,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "timestep": 0.004,
         "arm": "planned",
         "turn_ratio": 1.0,
+        # the belts' Wong-Chiang shear modulus K [m], fitted by `make skid-fit` on the skid
+        # experiment's MuJoCo runs (results/skid_fit/summary.json: shear_modulus_m)
+        "shear_modulus": 0.0041,
         "governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 10.0},
     },
     "online": {

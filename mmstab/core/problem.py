@@ -17,7 +17,7 @@ from mmstab.core import schema
 from mmstab.core.defaults import with_defaults
 from mmstab.core.files import ConfigError, MmstabError, check_known_keys, read_yaml, validate
 from mmstab.core.notes import note
-from mmstab.core.settings import check_arm_joints, check_problem
+from mmstab.core.setting_checks import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
 from mmstab.model.robot import Robot, link_extent_warnings, load_robot
@@ -175,7 +175,7 @@ def problem_from_dict(
 ) -> Problem:
     """Validate a problem mapping read from ``path`` (robot path relative to it).
 
-    Every check runs here: the schema, the registry of :mod:`mmstab.core.settings` and the
+    Every check runs here: the schema, the registry of :mod:`mmstab.core.setting_checks` and the
     size bounds of :mod:`mmstab.core.sizes` (``force_size`` accepts sizes beyond the time
     bounds, not beyond the memory). ``sections``: the sections the command uses (None: every
     one); the semantic checks and size bounds of the others are skipped, and without

@@ -242,8 +242,9 @@ PATH_ROUTE_FILE = with_optional(
 )
 
 
-# The tip-over envelope atlas (mmstab atlas; docs/atlas.md). An axis is a list of values or
-# an evenly spaced range (a full-turn heading range omits its end); every axis is optional.
+# The tip-over envelope atlas (python -m experiments atlas; docs/atlas.md). An axis is a list
+# of values or an evenly spaced range (a full-turn heading range omits its end); every axis
+# is optional.
 _RANGE = obj(start=NUM, stop=NUM, num={"type": "integer", "minimum": 1, "maximum": 10000})
 _AXIS = {"oneOf": [{"type": "array", "items": NUM, "minItems": 1, "maxItems": 10000}, _RANGE]}
 _FLIPPER = {"oneOf": [NUM, {"enum": ["robot", "ground"]}]}
@@ -348,6 +349,7 @@ PHYSICS_KEYS = obj(
     timestep={"type": "number", "exclusiveMinimum": 0, "maximum": 0.01},
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
+    shear_modulus={"type": "number", "minimum": 0, "maximum": 1},
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
 )
 # ``tip_angle``: the former name of ``disagreement_angle``, still read from older files

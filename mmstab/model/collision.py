@@ -334,9 +334,9 @@ class CollisionChecker:
         box_link, seg = (pair.link, ends[1]) if ends[0] is None else (pair.other, ends[0])
         if seg is None:
             return None
-        box_shape = self.robot.links[box_link].geometry
-        assert isinstance(box_shape, Box)  # the link without segment ends
-        size = np.asarray(box_shape.size, dtype=float)
+        link_box = self.robot.links[box_link].geometry
+        assert isinstance(link_box, Box)  # the pair's other shape has no segment: a box
+        size = np.asarray(link_box.size, dtype=float)
         a0, a1, r = seg
         return (
             collision_distance.segment_box(

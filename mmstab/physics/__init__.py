@@ -2,7 +2,7 @@
 
 :mod:`~mmstab.physics.robot_model` generates the robot's MJCF, :mod:`~mmstab.physics.robot_sim`
 simulates it, :mod:`~mmstab.physics.closed_loop` runs the controller on it,
-:mod:`~mmstab.physics.verdicts` / :mod:`~mmstab.physics.verdict_sim` hold mmstab's tip and
+:mod:`~mmstab.physics.edge_cases` / :mod:`~mmstab.physics.verdict_sim` hold mmstab's tip and
 slide verdicts against it. The heightfield drops of the base alone:
 
 :mod:`~mmstab.physics.mujoco_drop` builds the MuJoCo model and drops the robot;

@@ -388,7 +388,8 @@ def _finish(
         slip_predicted=slip_limit(gravity, terrain_friction(problem.terrain)).slides,
         path_slip_predicted=predicted_path_slip(
             problem, ref, dt, ctrl_settings.base_offset, loop.slip_window, loop.slip_distance,
-            turn_ratio=resolve_turn_ratio(robot, loop.turn_ratio)),
+            turn_ratio=resolve_turn_ratio(robot, loop.turn_ratio),
+            shear_modulus=float(problem.section("physics")["shear_modulus"])),
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
         base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
         disagreement=float(t[off_rest[0]]) if len(off_rest) else None,

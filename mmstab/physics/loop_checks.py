@@ -255,6 +255,7 @@ def predicted_path_slip(
     distance: float,
     every: int = 25,
     turn_ratio: float = 1.0,
+    shear_modulus: float = 0.0,
 ) -> FloatArray:
     """Whether mmstab predicts the path slides (its turns or its cone), per sample (N,) bool.
 
@@ -275,6 +276,7 @@ def predicted_path_slip(
         distance: the slip distance [m].
         every: samples between the model's evaluations [-].
         turn_ratio: the drive layer's η [-]: the model's belts are the ones it commands.
+        shear_modulus: the belts' shear modulus K [m] (``physics.shear_modulus``).
     """
     from mmstab.control.layout import StepReference
     from mmstab.stability.skid import track_patch, turn_slide
@@ -288,7 +290,8 @@ def predicted_path_slip(
     speed = rate[:, 0] * c + rate[:, 1] * s  # the point's speed along the heading = B's
     com = robot.overall_com(np.atleast_2d(robot.arm_com(np.asarray(r.q_ref)[idx])))
     slide = turn_slide(track_patch(robot), problem.terrain.gravity_body(poses), com, speed,
-                       rate[:, 2], terrain_friction(problem.terrain), turn_ratio).rate  # fmt: skip
+                       rate[:, 2], terrain_friction(problem.terrain), turn_ratio,
+                       shear_modulus).rate  # fmt: skip
     slide[~np.isfinite(slide)] = 1e3  # beyond the friction cone at the reference pose
     step = every * dt
     acc = np.concatenate([[0.0], np.cumsum(slide * step)])

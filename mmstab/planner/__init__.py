@@ -11,11 +11,12 @@ One pipeline, candidates -> fitness -> choice -> postures, around one search int
   ask/tell shape), ``sequence`` (the whole path by dynamic programming), ``roadmap``; the
   coarse pass that seeds them (``searches.coarse``);
 - ``pose`` (one pose through the pipeline), ``along_path`` (poses in turn, or a
-  whole-path search), ``warm_start`` (along a route, each pose warm-started), ``risk``
+  whole-path search), ``along_route`` (along a route, each pose warm-started), ``risk``
   (where a route is at risk), ``plan`` (a problem's plan), ``levers`` (the flippers).
 """
 
 from mmstab.planner.along_path import Plan, solve_path
+from mmstab.planner.along_route import RoutePlan, solve_route
 from mmstab.planner.fitness import (
     CoMRegion,
     Fitness,
@@ -56,7 +57,6 @@ from mmstab.planner.searches.cmaes import (
 from mmstab.planner.searches.coarse import coarse_samples, coarse_seeds, sample_index
 from mmstab.planner.searches.exhaustive import best_mu, solve_exhaustive
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm_start import RoutePlan, solve_route
 
 __all__ = [
     "SEARCHES",

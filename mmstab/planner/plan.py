@@ -2,7 +2,7 @@
 
 A closed path (the circle) is planned at ``planner.poses`` poses evenly spread over the
 lap (:func:`plan_path`); an open one (a route) at poses ``planner.spacing`` apart, each
-warm-started from the one before (:func:`plan_route`, :mod:`mmstab.planner.warm_start`).
+warm-started from the one before (:func:`plan_route`, :mod:`mmstab.planner.along_route`).
 The region searched is ``workspace.method``'s (:func:`mmstab.planner.regions.planning_region`).
 """
 
@@ -17,9 +17,9 @@ from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
 from mmstab.planner.along_path import Plan, solve_path
+from mmstab.planner.along_route import RoutePlan, solve_route
 from mmstab.planner.regions import PlanningRegion, planning_region
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm_start import RoutePlan, solve_route
 from mmstab.terrain import Terrain
 from mmstab.workspace import Workspace, WorkspaceSettings
 
@@ -136,7 +136,7 @@ def plan_route_path(
     Poses at 0, ``spacing``, ... and the route's end; their fractions are the route's time
     fractions (the end is reached before the period ends, ``mmstab.paths.route``). Every
     pose after the first is warm-started from the one before
-    (:func:`mmstab.planner.warm_start.solve_route`).
+    (:func:`mmstab.planner.along_route.solve_route`).
 
     Args:
         robot: the robot.

@@ -73,6 +73,23 @@ def sample_spacing(terrain: Terrain) -> float:
     return SPACING if hm is None else float(min(SPACING, hm.resolution))
 
 
+def path_timing(route: Any, spacing: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(poses (N, 3) in M, arc lengths (N,) [m], times (N,) [s]) along a route's time law.
+
+    Samples every ``spacing`` [m] of the route's parameter (a pivot's is the tracks' run,
+    :mod:`mmstab.paths.geometry`), each at the time its speed profile reaches it: a pivot's
+    heading turns in the seconds the path takes for it, not spread over the planned poses'
+    half-metre segments (the turn verdict's window, :func:`mmstab.runs.verdict.turn_slip`).
+
+    Args:
+        route: the route (:class:`mmstab.paths.route.RoutePath`).
+        spacing: [m].
+    """
+    n = max(int(np.ceil(route.length / spacing)) + 1, 2)
+    s = np.linspace(0.0, route.length, n)
+    return route.poses(n), s, np.asarray(route.fraction_of_s(s)) * route.lap_time
+
+
 def bracket(s_plan: ArrayLike, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the planned poses before and after each arc length ``s`` [m]."""
     sp = np.asarray(s_plan, dtype=float)

@@ -21,12 +21,20 @@ from mmstab.runs.along import (
     Along,
     acceleration_margin,
     along_path,
+    bracket,
     dense_verdicts,
     limit_verdicts,
+    path_timing,
     sample_spacing,
 )
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
-from mmstab.runs.verdict import climb_verdict, plan_verdict, robot_turn_check, slip_verdict
+from mmstab.runs.verdict import (
+    climb_verdict,
+    plan_verdict,
+    robot_turn_check,
+    slip_verdict,
+    turn_slip,
+)
 from mmstab.runs.verdict_settings import VerdictSettings
 from mmstab.stability.support import loaded_mu
 
@@ -43,7 +51,7 @@ EXIT_UNSTABLE, EXIT_SLIDES = 3, 4
 
 def plan_along(robot: Robot, terrain: Terrain, route: BasePath, plan: RoutePlan) -> Along:
     """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
-    from mmstab.planner.warm_start import planned_com
+    from mmstab.planner.along_route import planned_com
 
     poses, s = path_samples(route, sample_spacing(terrain))
     planned = planned_com(robot, plan.postures, plan.target_com)
@@ -84,9 +92,18 @@ def route_verdicts(
     """
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
     mu_realised = loaded_mu(robot, terrain, plan.poses, realised)  # one case, one batch
-    times = np.asarray(plan.fractions) * route.lap_time
-    turns = robot_turn_check(robot, settings, plan.target_com, times)
-    slip = slip_verdict(terrain, plan.poses, turns)
+    # the friction cone at the planned poses; the turns' slide along the path's own time law
+    # (a pivot's slide falls in the second the pivot takes, :func:`path_timing`)
+    dense_poses, dense_s, times = path_timing(route, sample_spacing(terrain))
+    dense_com = np.asarray(plan.target_com)[bracket(plan.s, dense_s)[0]]
+    slip = slip_verdict(terrain, plan.poses)
+    turning = turn_slip(terrain, dense_poses, robot_turn_check(robot, settings, dense_com, times))
+    turning["sliding_turns"] = [
+        x | {"start_s": float(dense_s[x["first"]]), "end_s": float(dense_s[x["last"]])}
+        for x in turning["sliding_turns"]
+    ]
+    slip["turns"] = turning
+    slip["slides"] = bool(slip["slides"]) or bool(turning["sliding_turns"])
     # between the planned poses: every few cm, the arm in the postures it moves between
     along = plan_along(robot, terrain, route, plan) if along is None else along
     accelerating = acceleration_margin(robot.total_mass, route_acceleration(route))
@@ -220,7 +237,8 @@ def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
         for x in slip.get("stretches", [])
     ]
     out += [
-        {"start_s": float(s_m[t["first"]]), "end_s": float(s_m[t["last"]]),
+        {"start_s": float(t["start_s"] if "start_s" in t else s_m[t["first"]]),
+         "end_s": float(t["end_s"] if "end_s" in t else s_m[t["last"]]),
          "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
         for t in slip.get("turns", {}).get("sliding_turns", [])
     ]  # fmt: skip

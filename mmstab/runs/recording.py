@@ -129,7 +129,7 @@ def transform_stamped(
 ) -> Any:
     """``geometry_msgs/TransformStamped`` of ``parent_T_child`` (4, 4) at ``t`` [s].
 
-    Also the odometry's pose (:mod:`mmstab.experiments.recording`): one quaternion convention.
+    Also the odometry's pose (:mod:`mmstab.outputs.recording`): one quaternion convention.
     """
     types = store.types
     x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()

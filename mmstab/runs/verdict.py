@@ -214,6 +214,8 @@ class TurnCheck(NamedTuple):
         period: the loop's period when the poses close a loop (the last turns into the
             first), else None [s].
         turn_ratio: the drive layer's η [-] (``physics.turn_ratio``; its belts turn the path).
+        shear_modulus: the belts' shear modulus K [m] (``physics.shear_modulus``;
+            :func:`mmstab.stability.skid.skid_twist`).
     """
 
     robot: Robot
@@ -223,6 +225,7 @@ class TurnCheck(NamedTuple):
     window: float
     period: float | None = None
     turn_ratio: float = 1.0
+    shear_modulus: float = 0.0
 
 
 #: The turn check's samples per slip window at most: a tracking run's are thinned to this
@@ -258,7 +261,8 @@ def robot_turn_check(
 
     Args:
         robot: the robot.
-        settings: the slide's limits (``slip_distance``, ``slip_window``, ``turn_ratio``).
+        settings: the slide's limits (``slip_distance``, ``slip_window``, ``turn_ratio``,
+            ``shear_modulus``).
         arm_com_body: the arm's CoM at each pose, body frame (N, 3) [m].
         times: when the path reaches each pose (N,) [s].
         period: the loop's period [s] (closed paths), else None.
@@ -267,19 +271,23 @@ def robot_turn_check(
 
     ratio = resolve_turn_ratio(robot, settings.turn_ratio)
     return TurnCheck(robot, arm_com_body, times, settings.slip_distance, settings.slip_window,
-                     period, ratio)  # fmt: skip
+                     period, ratio, settings.shear_modulus)  # fmt: skip
 
 
 def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
-    """The downhill slide the turns between consecutive poses cost (:mod:`..skid`).
+    """The downhill slide the motion between consecutive poses costs (:mod:`..skid`).
 
-    Each segment's heading change costs the skid-steer model's slide per radian (the worse of
-    its two end poses, the belts at the segment's ratio of forward travel to turn), spread over
-    the segment's time (poses denser than :data:`TURN_SAMPLES_PER_WINDOW` per window are
-    thinned first). A segment slides when the slide within any ``check.window`` ending in
-    it exceeds ``check.distance`` (the closed loop's "slid": the controller makes up a slower
-    slide); a run of such segments is a sliding turn. Poses beyond the friction cone are the
-    cone's verdict, not a turn's.
+    Each segment costs the skid-steer model's downhill motion beyond the commanded one (the
+    worse of its two end poses, the belts at the segment's forward speed and turn rate): its
+    slide per radian times the heading change, or on a straight segment the belts' creep
+    times the segment's time; spread over that time (poses denser than
+    :data:`TURN_SAMPLES_PER_WINDOW` per window are thinned first). A segment slides when the
+    slide within any ``check.window`` ending in it exceeds ``check.distance`` (the closed
+    loop's "slid", :func:`mmstab.physics.loop_checks.downhill_drift`: the same quantity and
+    threshold); a run of such segments is a sliding turn. Poses beyond the friction cone
+    are the cone's verdict, not a turn's. The poses should be the path's own, at its time
+    law (:func:`mmstab.runs.along.path_timing`), so that a pivot's slide falls in the second
+    it takes.
 
     Returns:
         ``distance_m``, ``window_s``, ``slide_rate_max_m_s`` and ``sliding_turns`` (first and
@@ -302,11 +310,13 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
     turn = np.angle(np.exp(1j * (P[after, 2] - P[:n, 2])))
     heading = np.c_[np.cos(P[:n, 2]), np.sin(P[:n, 2])]
     travel = np.sum((P[after, :2] - P[:n, :2]) * heading, 1)
-    patch, per_radian = track_patch(robot), np.zeros(n)
+    dt_seg = np.maximum(t_end - t[:n], 1e-9)
+    patch, slide = track_patch(robot), np.zeros(n)
     for end in (np.arange(n), after):  # the worse of each segment's two end poses
-        ts = turn_slide(patch, gravity[end], com[end], travel, turn, friction, check.turn_ratio)
-        per_radian = np.maximum(per_radian, np.nan_to_num(ts.per_radian, nan=0.0, posinf=0.0))
-    slide = per_radian * np.abs(turn)
+        ts = turn_slide(patch, gravity[end], com[end], travel / dt_seg, turn / dt_seg, friction,
+                        check.turn_ratio, check.shear_modulus)  # fmt: skip
+        rate = np.where(np.isfinite(ts.per_radian) | (np.abs(turn) < 1e-6), ts.rate, 0.0)
+        slide = np.maximum(slide, np.nan_to_num(rate, nan=0.0, posinf=0.0) * dt_seg)
     # cumulative slide against time (piecewise linear); slide within the window ending at each end
     T = np.r_[t[0], t_end]
     S = np.r_[0.0, np.cumsum(slide)]
@@ -318,12 +328,13 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
          "slide_in_window_m": float(windowed[a:b].max())}
         for a, b in true_runs(windowed > check.distance)
     ]  # fmt: skip
-    dt = np.maximum(t_end - t[:n], 1e-9)
     return {
         "distance_m": check.distance,
         "window_s": check.window,
-        "slide_rate_max_m_s": float(np.max(slide / dt, initial=0.0)),
-        "criterion": "downhill slide of the turns (skid-steer model) within the window <= distance",
+        "shear_modulus_m": check.shear_modulus,
+        "slide_rate_max_m_s": float(np.max(slide / dt_seg, initial=0.0)),
+        "criterion": "downhill motion beyond the command (skid-steer model) within the window "
+        "<= distance",
         "sliding_turns": turns,
     }
 
@@ -401,8 +412,13 @@ def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
     turns = verdict.get("turns", {}).get("sliding_turns", [])
     if turns:
         named = "; ".join(
-            f"poses {t['first']}-{t['last']}: turning {math.degrees(t['turn_rad']):.0f} deg "
-            f"there, {100 * t['slide_in_window_m']:.1f} cm"
+            (
+                f"s = {t['start_s']:.2f}-{t['end_s']:.2f} m"
+                if "start_s" in t
+                else f"poses {t['first']}-{t['last']}"
+            )
+            + f": turning {math.degrees(t['turn_rad']):.0f} deg there, "
+            f"{100 * t['slide_in_window_m']:.1f} cm"
             for t in turns[:LISTED_POSES]
         )
         parts.append(

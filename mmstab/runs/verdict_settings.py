@@ -27,12 +27,15 @@ class VerdictSettings:
         slip_window: [s] (``physics.slip_window``).
         turn_ratio: the drive layer's η in (0, 1], or ``"auto"`` (the robot's pivot-turn
             ratio) (``physics.turn_ratio``) [-].
+        shear_modulus: the belts' shear modulus K of the skid-steer model
+            (``physics.shear_modulus``) [m].
     """
 
     margin: float = DEFAULT_MARGIN
     slip_distance: float = SECTION_DEFAULTS["physics"]["slip_distance"]
     slip_window: float = SECTION_DEFAULTS["physics"]["slip_window"]
     turn_ratio: float | str = SECTION_DEFAULTS["physics"]["turn_ratio"]
+    shear_modulus: float = SECTION_DEFAULTS["physics"]["shear_modulus"]
 
     @classmethod
     def from_sections(
@@ -45,4 +48,5 @@ class VerdictSettings:
             slip_distance=float(physics.get("slip_distance", cls.slip_distance)),
             slip_window=float(physics.get("slip_window", cls.slip_window)),
             turn_ratio=ratio if isinstance(ratio, str) else float(ratio),
+            shear_modulus=float(physics.get("shear_modulus", cls.shear_modulus)),
         )

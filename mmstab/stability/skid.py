@@ -135,23 +135,56 @@ def normal_loads(patch: TrackPatch, gravity_body: ArrayLike, com_body: ArrayLike
     return np.maximum(loads, 0.0)
 
 
+def contact_time(patch: TrackPatch, belts: FloatArray) -> FloatArray:
+    """How long each sample's belt element has been on the ground (N, 2K) [s per belt-speed unit].
+
+    A belt running backward under the body at ``u > 0`` lays its elements down at the front
+    (x = L/2) and lifts them at the rear: an element at x has been down ``(L/2 - x) / u``;
+    running forward (u < 0), ``(x + L/2) / |u|``; a standing belt (braked, or the inner belt
+    of a pivot about it) forever (``inf``).
+
+    Args:
+        patch: the belts' samples.
+        belts: (N, 2) belt surface speeds (left, right) [m/s] (any common scale).
+    """
+    u = belts[:, patch.side]
+    half = patch.length / 2
+    entered = np.where(u >= 0, half - patch.x, patch.x + half)
+    with np.errstate(divide="ignore"):
+        return np.where(np.abs(u) > 1e-9, entered / np.abs(u), np.inf)
+
+
 def _forces(
-    patch: TrackPatch, loads: FloatArray, belts: FloatArray, z: FloatArray, eps: float
+    patch: TrackPatch,
+    loads: FloatArray,
+    belts: FloatArray,
+    z: FloatArray,
+    eps: float,
+    tau: FloatArray | None = None,
+    shear: float = 0.0,
 ) -> tuple[FloatArray, FloatArray]:
-    """(friction forces and yaw moment (N, 3), their Jacobian (N, 3, 3)) per unit weight/μ."""
+    """(friction forces and yaw moment (N, 3), their Jacobian (N, 3, 3)) per unit weight/μ.
+
+    ``tau``: :func:`contact_time`, ``shear``: the shear modulus K [m] (0: Coulomb).
+    """
     u = belts[:, patch.side]
     sx = z[:, :1] - z[:, 2:3] * patch.y - u
     sy = z[:, 1:2] + z[:, 2:3] * patch.x
     sigma = np.sqrt(sx**2 + sy**2 + eps**2)
-    fx, fy = -loads * sx / sigma, -loads * sy / sigma
+    if shear > 0 and tau is not None:  # Wong-Chiang: phi = 1 - exp(-j / K), j = sigma tau
+        finite = np.isfinite(tau)
+        decay = np.exp(-sigma * np.where(finite, tau, 0.0) / shear)
+        phi = np.where(finite, 1.0 - decay, 1.0)
+        c = np.where(finite, np.where(finite, tau, 0.0) / shear * decay, 0.0)
+    else:
+        phi, c = np.ones_like(sigma), np.zeros_like(sigma)
+    fx, fy = -loads * phi * sx / sigma, -loads * phi * sy / sigma
     F = np.stack([fx.sum(1), fy.sum(1), (patch.x * fy - patch.y * fx).sum(1) / patch.length], 1)
-    # d f / d s = -n (I / σ - s sᵀ / σ³); d s / d z = [[1, 0, -y], [0, 1, x]]
-    s3 = sigma**3
-    dxx, dyy, dxy = (
-        -loads * (1 / sigma - sx**2 / s3),
-        -loads * (1 / sigma - sy**2 / s3),
-        loads * sx * sy / s3,
-    )
+    # d f / d s = -n (phi (I / σ - s sᵀ / σ³) + c s sᵀ / σ²); d s / d z = [[1, 0, -y], [0, 1, x]]
+    s3, s2 = sigma**3, sigma**2
+    dxx = -loads * (phi * (1 / sigma - sx**2 / s3) + c * sx**2 / s2)
+    dyy = -loads * (phi * (1 / sigma - sy**2 / s3) + c * sy**2 / s2)
+    dxy = -loads * (-phi * sx * sy / s3 + c * sx * sy / s2)
     ds = (
         (np.ones_like(patch.x), np.zeros_like(patch.x), -patch.y),
         (np.zeros_like(patch.x), np.ones_like(patch.x), patch.x),
@@ -171,6 +204,7 @@ def skid_twist(
     com_body: ArrayLike,
     belt_speeds: ArrayLike,
     friction: float,
+    shear_modulus: float = 0.0,
 ) -> SkidTwist:
     """The steady twist for belt speeds on a plane (module docstring).
 
@@ -181,6 +215,7 @@ def skid_twist(
         belt_speeds: (N, 2) or (2,) belt surface speeds (left, right) [m/s], positive driving
             forward.
         friction: Coulomb coefficient of belts on ground [-] (> 0).
+        shear_modulus: Wong-Chiang's shear deformation modulus K [m] (0: rigid Coulomb).
     """
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     belts = np.atleast_2d(np.asarray(belt_speeds, dtype=float))
@@ -200,15 +235,16 @@ def skid_twist(
     load = load / friction
     z = commanded * np.array([1.0, 1.0, 0.5]) / scale  # turns at about half the command
     u = belts / scale
+    tau, K = contact_time(patch, u), float(shear_modulus)
     for eps in _EPS:
         for _ in range(60):
-            F, J = _forces(patch, loads, u, z, eps)
+            F, J = _forces(patch, loads, u, z, eps, tau, K)
             r = F + load
             if np.all(np.abs(r[holds]) < _TOL):
                 break
             step = np.linalg.solve(J + 1e-12 * np.eye(3), -r[:, :, None])[:, :, 0]
-            z = z + _backtrack(patch, loads, u, z, step, load, eps)[:, None] * step
-    converged = np.all(np.abs(_forces(patch, loads, u, z, _EPS[-1])[0] + load) < 1e-6, 1)
+            z = z + _backtrack(patch, loads, u, z, step, load, eps, tau, K)[:, None] * step
+    converged = np.all(np.abs(_forces(patch, loads, u, z, _EPS[-1], tau, K)[0] + load) < 1e-6, 1)
     moving = np.abs(belts).max(1) > 1e-9
     z = np.where(moving[:, None], z * scale, 0.0)
     z[~(holds & (converged | ~moving))] = np.nan
@@ -223,12 +259,15 @@ def _backtrack(
     step: FloatArray,
     load: FloatArray,
     eps: float,
+    tau: FloatArray,
+    shear: float,
 ) -> FloatArray:
     """Per-sample step lengths that reduce the residual (halving from 1, at most 8 times)."""
-    r0 = np.sum((_forces(patch, loads, u, z, eps)[0] + load) ** 2, 1)
+    r0 = np.sum((_forces(patch, loads, u, z, eps, tau, shear)[0] + load) ** 2, 1)
     alpha = np.ones(len(z))
     for _ in range(8):
-        r = np.sum((_forces(patch, loads, u, z + alpha[:, None] * step, eps)[0] + load) ** 2, 1)
+        moved = z + alpha[:, None] * step
+        r = np.sum((_forces(patch, loads, u, moved, eps, tau, shear)[0] + load) ** 2, 1)
         worse = r > r0
         if not worse.any():
             break
@@ -240,10 +279,10 @@ class TurnSlide(NamedTuple):
     """The downhill slide a path's motion costs, from :func:`skid_twist` (N samples).
 
     Attributes:
-        rate: downhill slide the slope adds to the motion on level ground [m/s] while the
-            path turns at its yaw rate (the model's slide per radian times the path's turn
-            rate; on straight stretches the added downhill velocity, zero where the tracks
-            hold); ``inf`` where the friction cone does not hold.
+        rate: downhill velocity beyond the commanded one [m/s]: where the path turns, the
+            model's slide per radian times the path's turn rate; on straight stretches the
+            downhill creep (the belts' shear, zero for rigid Coulomb contacts inside the
+            cone); ``inf`` where the friction cone does not hold.
         per_radian: downhill slide per radian of heading change [m/rad] (NaN on straight
             stretches).
         turn_ratio: the model's yaw rate over the path's [-] (NaN on straight stretches).
@@ -278,16 +317,22 @@ def turn_slide(
     yaw_rate: ArrayLike,
     friction: float,
     turn_ratio: float = 1.0,
+    shear_modulus: float = 0.0,
 ) -> TurnSlide:
-    """The slide a path costs where it turns on a slope (module docstring).
+    """The slide a path costs on a slope (module docstring): its velocity beyond the command.
 
     The belts run at the drive layer's speeds for the path's twist, ``v ∓ ω b / (2 η)``
-    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's twist on the slope, less
-    its twist on level ground (same belts and CoM), says how far B slides downhill per radian
-    the heading turns. The
-    path's heading must turn as the path does, so the slide rate is that times |ω|: the
-    tracks' turn deficit (the model turns slower than commanded) does not hide the slide
-    (the model's yaw rate is taken at least :data:`TURN_FLOOR` times the path's).
+    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's velocity of B's origin
+    less the commanded one (v along x_B), projected on the downhill direction, is what
+    MuJoCo's "slid" measures (the motion beyond the kinematic track model's,
+    :func:`mmstab.physics.loop_checks.downhill_drift`): the slope's pull, the belts' creep
+    and, where the CoM is off the belts' centre, the level turn's own sideways skid. Where
+    the path turns its heading must turn as the path's does, so the slide per radian is
+    that velocity over the model's yaw rate (at least :data:`TURN_FLOOR` times the path's:
+    the tracks' turn deficit does not hide the slide) and the rate that times |ω|; at least
+    the rigid Coulomb model's slope part per radian (its twist less the same belts' on level
+    ground: where the level skid points uphill it does not hide the slope's pull, and the
+    shear never prices a turn below the rigid model).
 
     Args:
         patch: the belts' samples.
@@ -297,24 +342,33 @@ def turn_slide(
         yaw_rate: the path's yaw rate (N,) [rad/s].
         friction: Coulomb coefficient [-].
         turn_ratio: the drive layer's η [-] (:class:`mmstab.stability.drive.DriveLayer`).
+        shear_modulus: the belts' shear modulus K [m] (:func:`skid_twist`; 0: Coulomb).
     """
     w = np.asarray(yaw_rate, dtype=float)
     belts = belts_for_twist(speed, w, patch.separation, turn_ratio)
-    twist = skid_twist(patch, gravity_body, com_body, belts, friction)
+    twist = skid_twist(patch, gravity_body, com_body, belts, friction, shear_modulus)
+    rigid = skid_twist(patch, gravity_body, com_body, belts, friction)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     norm = np.linalg.norm(g[:, :2], axis=1, keepdims=True)
     down = np.divide(g[:, :2], norm, out=np.zeros_like(g[:, :2]), where=norm > 1e-12)
-    # the slope's part: on level ground too B's origin circles a point off it when the CoM
-    # is off the belts' centre (a tracking offset, not a slide)
+    v = np.broadcast_to(np.asarray(speed, dtype=float), (len(twist.yaw_rate),))
+    beyond = np.sum((twist.velocity_body - np.c_[v, np.zeros_like(v)]) * down, 1)
+    # the rigid model's slope part (the same belts and CoM on level ground taken off): where
+    # the level turn's sideways skid points uphill it does not hide the slope's pull
     level = np.c_[np.zeros((len(g), 2)), -np.linalg.norm(g, axis=1)]
     flat = skid_twist(patch, level, com_body, belts, friction)
-    extra = twist.velocity_body - flat.velocity_body
-    downhill = np.maximum(np.sum(extra * down, 1), 0.0)
+    slope = np.sum((rigid.velocity_body - flat.velocity_body) * down, 1)
     turning = np.abs(w) > 1e-6
-    got = np.abs(twist.yaw_rate)
+    floor = TURN_FLOOR * np.abs(w)
     with np.errstate(invalid="ignore"):  # NaN twist where the cone does not hold
-        per_radian = np.where(turning, downhill / np.maximum(got, TURN_FLOOR * np.abs(w)), np.nan)
-    rate = np.where(turning, per_radian * np.abs(w), downhill)
+        per_radian = np.where(
+            turning,
+            np.fmax(np.maximum(beyond, 0.0) / np.maximum(np.abs(twist.yaw_rate), floor),
+                    np.maximum(slope, 0.0) / np.maximum(np.abs(rigid.yaw_rate), floor)),
+            np.nan,
+        )  # fmt: skip
+    per_radian = np.where(np.isnan(twist.yaw_rate), np.nan, per_radian)
+    rate = np.where(turning, per_radian * np.abs(w), np.maximum(beyond, 0.0))
     rate = np.where(np.isnan(rate), np.inf, rate)
     ratio = np.where(turning, twist.yaw_rate / np.where(turning, w, 1.0), np.nan)
     return TurnSlide(rate, np.where(twist.holds, per_radian, np.inf), ratio)

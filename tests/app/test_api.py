@@ -126,3 +126,16 @@ def test_exit_statuses_are_the_clis():
     from mmstab.runs import plan_verdicts
 
     assert (plan_verdicts.EXIT_UNSTABLE, plan_verdicts.EXIT_SLIDES) == (EXIT_UNSTABLE, EXIT_SLIDES)
+
+
+@pytest.mark.slow
+def test_track_on_the_generated_step_is_the_problems(ramp_plans):
+    """backend="generated": the compiled step, as track(problem, plan) runs it."""
+    from_file, in_code = ramp_plans
+    tracked = mmstab.track(in_code, duration=0.2, backend="generated")
+    problem = mmstab.load_problem(RAMP_YAML)
+    assert tracked.settings.plugin == Settings.from_problem(problem).codegen.plugin == "box"
+    old = mmstab.track(problem, from_file.stage, duration=0.2, backend="generated", progress=False)
+    np.testing.assert_allclose(tracked.run.state, old.run.state, atol=1e-12)
+    interpreted = mmstab.track(in_code, duration=0.2, plugin=tracked.settings.plugin)
+    np.testing.assert_allclose(tracked.run.state, interpreted.run.state, atol=1e-9)

@@ -18,7 +18,8 @@ import pytest
 import yaml
 from conftest import PROBLEMS, write_problem
 
-from mmstab.cli import main
+from experiments.__main__ import build_parser as experiments_parser
+from mmstab.cli import build_parser, main
 from mmstab.core.files import ConfigError, read_yaml, validate
 from mmstab.core.problem import load_problem
 from mmstab.core.schema import ROBOT
@@ -26,9 +27,9 @@ from mmstab.model.robot import robot_from_dict
 from mmstab.terrain.heightmap import check_layout
 
 
-def _refused(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
-    """Run ``argv``: exit status 2 and one line on stderr, returned."""
-    assert main(argv) == 2
+def _refused(capsys: pytest.CaptureFixture[str], argv: list[str], parser=build_parser) -> str:
+    """Run ``argv`` (``parser``'s command line): exit status 2 and one line on stderr, returned."""
+    assert main(argv, parser=parser) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("mmstab: error: "), err
     return err[0]
@@ -232,7 +233,7 @@ def test_stability_map_and_export_bound_their_options(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """problems/rough.yaml (robot path absolute) and its first second recorded."""
-    from mmstab.experiments.recording import record_route
+    from mmstab.outputs.recording import record_route
 
     d = tmp_path_factory.mktemp("rec")
     data = yaml.safe_load((PROBLEMS / "rough.yaml").read_text())
@@ -302,7 +303,7 @@ def test_levers_checks_its_robot_files_before_any_work(
     path = write_problem(tmp_path, edit)
     (tmp_path / "robots" / "six.yaml").write_text(yaml.safe_dump(six))
     out = tmp_path / "out"
-    line = _refused(capsys, ["levers", str(path), "-o", str(out)])
+    line = _refused(capsys, ["levers", str(path), "-o", str(out)], experiments_parser)
     assert f"problem.yaml: {field}: " in line and message in line
     assert not out.exists()
 

@@ -9,6 +9,7 @@ import sys
 import pytest
 from conftest import ROOT, write_problem
 
+from experiments.__main__ import build_parser as experiments_parser
 from mmstab.cli import main
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
@@ -100,7 +101,7 @@ def test_bad_input_names_file_and_field(tmp_path, capsys, case, edit, filename, 
     assert info.value.path.endswith(filename)
     assert info.value.field == field
     out = tmp_path / "out"
-    assert main(["fig5", str(path), "-o", str(out)]) == 2
+    assert main(["fig5", str(path), "-o", str(out)], parser=experiments_parser) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert filename in err and field in err and "Traceback" not in err
@@ -111,7 +112,7 @@ def test_cli_subprocess_bad_file_exit_status(tmp_path):
     path = write_problem(tmp_path, lambda p, r: r["base"].__setitem__("mass", -1.0))
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
-        [sys.executable, "-m", "mmstab", "fig6", str(path), "-o", str(tmp_path / "o")],
+        [sys.executable, "-m", "experiments", "fig6", str(path), "-o", str(tmp_path / "o")],
         capture_output=True,
         text=True,
         env=env,
@@ -121,7 +122,7 @@ def test_cli_subprocess_bad_file_exit_status(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "base.mass" in proc.stderr
     assert not (tmp_path / "o").exists()
     missing = subprocess.run(
-        [sys.executable, "-m", "mmstab", "fig5", str(tmp_path / "no.yaml")],
+        [sys.executable, "-m", "experiments", "fig5", str(tmp_path / "no.yaml")],
         capture_output=True,
         text=True,
         env=env,

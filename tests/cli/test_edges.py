@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.cli import main
+from experiments.__main__ import build_parser as experiments_parser
+from mmstab.cli import build_parser, main
 from mmstab.core.files import UnstableError, check_output_dir
 from mmstab.core.problem import load_problem
 from mmstab.runs.verdict import plan_verdict, pose_mu
@@ -195,7 +196,8 @@ def test_unwritable_output_folder_is_refused_before_work(tmp_path, capsys, monke
         ("/proc/x", "cannot write in /proc"),
         ("a_file/sub", "a_file is not a folder"),
     ):
-        assert main([command, str(path), "-o", out]) == 2
+        parser = experiments_parser if command == "fig5" else build_parser
+        assert main([command, str(path), "-o", out], parser=parser) == 2
         line = _one_line(capsys.readouterr().err)
         assert line.startswith("mmstab: error: ") and out in line and why in line
     assert not (tmp_path / "results").exists()  # no workspace built
@@ -218,7 +220,7 @@ def test_unwritable_workspace_cache_is_refused_only_when_needed(tmp_path, capsys
     monkeypatch.setenv("MMSTAB_CACHE", "results/workspace")  # under the file made next
     path = write_problem(tmp_path, _small())
     (tmp_path / "results").write_text("not a folder")
-    assert main(["fig3", str(path), "-o", "f3"]) == 2
+    assert main(["fig3", str(path), "-o", "f3"], parser=experiments_parser) == 2
     assert "workspace cache folder results/workspace" in _one_line(capsys.readouterr().err)
 
 

@@ -22,7 +22,7 @@ from mmstab.control.timing import (
     timed_mu,
 )
 from mmstab.core.problem import problem_from_dict
-from mmstab.experiments.simulate import controller_settings, loop_settings
+from mmstab.outputs.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.stability.dynamic import robot_mu
 

@@ -374,7 +374,7 @@ def test_planned_start_has_no_transient(problem):
 # ----------------------------------------------------------------------------- experiment
 @pytest.mark.slow
 def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
-    from mmstab.experiments.tracking import run_tracking
+    from mmstab.outputs.tracking import run_tracking
 
     s = run_tracking(
         problem, tmp_path, plan=posture_plan(problem.robot), duration=0.5, progress=False
@@ -405,7 +405,7 @@ def test_run_tracking_writes_figures_and_summary(problem, tmp_path):
 @pytest.mark.slow
 def test_generated_backend_gives_the_interpreted_trajectory(tmp_path):
     """run_tracking(backend="generated") simulates with the compiled step: same run as qrqp."""
-    from mmstab.experiments.tracking import run_tracking
+    from mmstab.outputs.tracking import run_tracking
 
     def edit(prob, rob):
         prob["codegen"]["directory"] = str(tmp_path / "gen")
@@ -463,8 +463,8 @@ def test_cli_track_end_to_end(tmp_path):
 
 
 def test_self_collisions_reports_intervals_and_pairs(problem):
-    from mmstab.experiments.tracking import self_collisions
     from mmstab.model.collision import CollisionChecker
+    from mmstab.outputs.tracking import self_collisions
 
     robot = problem.robot
     hit = np.array([2.25, -0.41, 0.5, 0.17])  # turret to the left-rear, upper arm down: hits

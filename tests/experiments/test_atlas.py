@@ -9,19 +9,20 @@ import numpy as np
 import pytest
 from conftest import write_problem
 
-from mmstab.cli import main
-from mmstab.core.problem import load_problem
-from mmstab.experiments.atlas.cell import (
+from experiments.__main__ import build_parser as experiments_parser
+from experiments.atlas.cell import (
     ChunkTask,
     VariantPayload,
     cell_rng,
     compute_chunk,
     worker_counts,
 )
-from mmstab.experiments.atlas.figures import binds_first, envelope
-from mmstab.experiments.atlas.runner import payload, run_atlas
-from mmstab.experiments.atlas.spec import atlas_spec, flipper_ground_angle, with_flipper_angle
-from mmstab.experiments.atlas.store import CELL_VARIABLES
+from experiments.atlas.figures import binds_first, envelope
+from experiments.atlas.runner import payload, run_atlas
+from experiments.atlas.spec import atlas_spec, flipper_ground_angle, with_flipper_angle
+from experiments.atlas.store import CELL_VARIABLES
+from mmstab.cli import main
+from mmstab.core.problem import load_problem
 from mmstab.model.robot import FLIPPER_CONTACT_TOL
 from mmstab.planner import solve_pose
 from mmstab.stability.static import robot_force_angle
@@ -211,7 +212,7 @@ def full_run(tiny_problem, cluster, tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.chdir(out)  # whatever the command writes in its working folder goes there too
         argv = ["atlas", str(tiny_problem.path), "-o", str(out), "--scheduler", address]
-        assert main(argv) == 0
+        assert main(argv, parser=experiments_parser) == 0
     import xarray as xr
 
     ds = xr.open_zarr(out / "atlas.zarr", consolidated=False, chunks=None).load()
@@ -318,7 +319,7 @@ BAD = [
 def test_bad_atlas_section_is_one_line_and_exit_2(tmp_path, capsys, atlas, field, words):
     path = write_problem(tmp_path, _bad(atlas))
     out = tmp_path / "out"
-    assert main(["atlas", str(path), "-o", str(out)]) == 2
+    assert main(["atlas", str(path), "-o", str(out)], parser=experiments_parser) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and str(path) in err and field in err and words in err
     assert not out.exists()
@@ -326,13 +327,13 @@ def test_bad_atlas_section_is_one_line_and_exit_2(tmp_path, capsys, atlas, field
 
 def test_store_of_another_atlas_is_not_resumed(tmp_path, capsys, tiny_problem):
     spec = atlas_spec(tiny_problem)
-    from mmstab.experiments.atlas.store import AtlasStore
+    from experiments.atlas.store import AtlasStore
 
     AtlasStore.open_or_create(tmp_path / "atlas.zarr", spec, np.ones(spec.shape[:3]))
     path = write_problem(
         tmp_path, _bad({**TINY_ATLAS, "margin": 1.0, "chunks": {"slope": 1, "heading": 4}})
     )  # noqa: E501
-    assert main(["atlas", str(path), "-o", str(tmp_path)]) == 2
+    assert main(["atlas", str(path), "-o", str(tmp_path)], parser=experiments_parser) == 2
     err = capsys.readouterr().err
     assert "holds another atlas" in err and len(err.strip().splitlines()) == 1
 
@@ -348,7 +349,7 @@ def test_payload_is_picklable_without_kinematics(tiny_problem):
 
 
 def test_unreachable_scheduler_is_one_line(tmp_path, capsys, tiny_problem, monkeypatch):
-    import mmstab.experiments.atlas.driver as driver
+    import experiments.atlas.driver as driver
 
     monkeypatch.setattr(driver, "CONNECT_TIMEOUT", 1.0)
     argv = [
@@ -360,7 +361,7 @@ def test_unreachable_scheduler_is_one_line(tmp_path, capsys, tiny_problem, monke
         "tcp://127.0.0.1:9",
     ]
     monkeypatch.chdir(tmp_path)
-    assert main(argv) == 2
+    assert main(argv, parser=experiments_parser) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err[0]
 
@@ -438,7 +439,7 @@ def test_payload_and_seed_axes_on_the_cluster(cluster, tmp_path):
 
     import xarray as xr
 
-    from mmstab.experiments.atlas.cell import heightmap_yaw
+    from experiments.atlas.cell import heightmap_yaw
     from mmstab.stability.stance import stance
     from mmstab.terrain.generators import generate
     from mmstab.terrain.heightmap_terrain import HeightmapTerrain

@@ -1,4 +1,4 @@
-"""mmstab fidelity: numbers from saved results, checked on a hand-made results tree."""
+"""python -m experiments fidelity: numbers from saved results, on a hand-made results tree."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 import yaml
 from conftest import RAMP_YAML
 
-from mmstab.experiments.fidelity import below_intervals, fig6_fidelity, fig8_fidelity
+from experiments.fidelity import below_intervals, fig6_fidelity, fig8_fidelity
 
 
 def test_below_intervals_by_hand():
@@ -93,7 +93,7 @@ def test_fidelity_command_on_a_results_tree(tmp_path):
     cmd = [
         sys.executable,
         "-m",
-        "mmstab",
+        "experiments",
         "fidelity",
         str(RAMP_YAML),
         "--results",
@@ -120,7 +120,7 @@ def test_fidelity_missing_result_is_one_line_exit_2(tmp_path):
     cmd = [
         sys.executable,
         "-m",
-        "mmstab",
+        "experiments",
         "fidelity",
         str(RAMP_YAML),
         "--results",

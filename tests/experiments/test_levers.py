@@ -1,5 +1,5 @@
-"""Stability levers: the payload section, the tool wrench and the flippers in the planner,
-the dynamic measure along a lap, and ``mmstab levers`` end to end (small settings)."""
+"""Stability levers: the payload section, the tool wrench and the flippers in the planner, the
+dynamic measure along a lap, and ``python -m experiments levers`` end to end (small settings)."""
 
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from conftest import PROBLEMS, write_problem
 
+from experiments import levers as L
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import load_problem
-from mmstab.experiments import levers as L
 from mmstab.model.payload import Payload, attach_payload
 from mmstab.paths.circle import CirclePath
 from mmstab.planner import PlannerSettings, plan_path, pose_fitness, solve_pose
@@ -292,7 +292,7 @@ def test_bisect_largest():
     assert math.isnan(L.bisect_largest(lambda x: False, 0.0, 10.0, 5))
 
 
-# -------------------------------------------------------------------------- mmstab levers
+# ------------------------------------------------------------------ python -m experiments levers
 @pytest.mark.slow
 def test_levers_subprocess_small(tmp_path):
     def edit(p, r):
@@ -320,7 +320,7 @@ def test_levers_subprocess_small(tmp_path):
     out = tmp_path / "out"
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
-        [sys.executable, "-m", "mmstab", "levers", str(path), "-o", str(out)],
+        [sys.executable, "-m", "experiments", "levers", str(path), "-o", str(out)],
         capture_output=True,
         text=True,
         cwd=PROBLEMS.parent,  # the repository's workspace and roadmap caches (rough.yaml's)
@@ -360,7 +360,7 @@ def test_levers_subprocess_small(tmp_path):
     # bad input: a levers section without its keys is one line, exit 2
     bad = write_problem(tmp_path, lambda p, r: p.update(levers={"margin": 1.0}), "bad.yaml")
     proc = subprocess.run(
-        [sys.executable, "-m", "mmstab", "levers", str(bad), "-o", str(tmp_path / "o2")],
+        [sys.executable, "-m", "experiments", "levers", str(bad), "-o", str(tmp_path / "o2")],
         capture_output=True,
         text=True,
         cwd=tmp_path,
@@ -439,7 +439,7 @@ def test_the_route_measure_starts_after_the_approach_as_it_ran():
     """
     from types import SimpleNamespace
 
-    from mmstab.experiments.levers.dynamic import after_approach
+    from experiments.levers.dynamic import after_approach
 
     t = np.arange(0, 3.0, 0.004)
     run = SimpleNamespace(t=t, dt=0.004, approach=SimpleNamespace(duration=1.754))

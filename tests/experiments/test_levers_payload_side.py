@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import ROBOT_YAML
 
-from mmstab.experiments import levers as L
+from experiments import levers as L
 from mmstab.model.payload import Payload, attach_payload
 from mmstab.model.robot import load_robot
 

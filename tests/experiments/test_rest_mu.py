@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from mmstab.experiments.rest_mu import compliance_table, load_settings, map_states
+from experiments.rest_mu import compliance_table, load_settings, map_states
 
 pytestmark = pytest.mark.mujoco
 

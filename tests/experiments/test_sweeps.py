@@ -10,14 +10,18 @@ import sys
 import numpy as np
 from conftest import RAMP_YAML, ROOT
 
-from mmstab.experiments.common import circular_extrema
+from experiments.common import circular_extrema
 from mmstab.stability.static import robot_force_angle
 
 
 def _run(*args: str) -> None:
     env = {**os.environ, "MPLBACKEND": "Agg"}
     subprocess.run(
-        [sys.executable, "-m", "mmstab", *args], check=True, env=env, cwd=ROOT, capture_output=True
+        [sys.executable, "-m", "experiments", *args],
+        check=True,
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
     )
 
 
@@ -65,7 +69,7 @@ def test_fig6_one_curve_per_pose(tmp_path, problem):
 
 def test_two_maxima_need_a_mild_roll(robot):
     """docs/stability.md: 0.1 rad of roll gives the paper's two maxima; from 0.15 rad, one."""
-    from mmstab.experiments.sweeps import link0_sweep
+    from experiments.sweeps import link0_sweep
     from mmstab.terrain import Ramp
 
     counts = {}

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
-from mmstab.experiments.validate_routes import (
+from experiments.validate_routes import (
     OUTCOMES,
     PLAN_VERDICTS,
     event_place,
@@ -73,7 +73,7 @@ def test_ditch_and_kerb_lie_across_the_route() -> None:
 
 def test_bad_settings_name_the_field(tmp_path, capsys) -> None:
     """A bad settings file: one line naming the file and the field, exit 2, nothing written."""
-    from mmstab.experiments.validate_routes import main
+    from experiments.validate_routes import main
 
     bad = tmp_path / "bad.yaml"
     data = yaml.safe_load(SETTINGS.read_text())

@@ -89,8 +89,8 @@ def step_cases(robot: Any) -> tuple[np.ndarray, np.ndarray]:
 
 def compute_sweeps(problem: Any) -> dict[str, Any]:
     """Fig. 5 and Fig. 6: μ over the link0 sweep, maxima, stowed and arm removed."""
-    from mmstab.experiments.common import circular_extrema
-    from mmstab.experiments.sweeps import link0_sweep
+    from experiments.common import circular_extrema
+    from experiments.sweeps import link0_sweep
 
     cfg = problem.section("sweep")
     out: dict[str, Any] = {}

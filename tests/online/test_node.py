@@ -25,7 +25,7 @@ import yaml
 from test_online import problem_file, with_joint_states
 
 import mmstab
-from mmstab.experiments.recording import record_route
+from mmstab.outputs.recording import record_route
 from mmstab.runs.online.guard import STALE, VERDICTS
 from mmstab.runs.online.rosenv import ros_available
 from mmstab.runs.online.run import follow_recording

@@ -18,7 +18,7 @@ import pytest
 from test_online import problem_file
 
 import mmstab
-from mmstab.experiments.recording import record_route
+from mmstab.outputs.recording import record_route
 from mmstab.runs.online.follow import FollowSettings, build_follower
 from mmstab.runs.online.guard import (
     ERROR,

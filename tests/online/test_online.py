@@ -16,9 +16,9 @@ from conftest import ROOT
 
 import mmstab
 from mmstab.core.bags import BagWriter
-from mmstab.experiments.online import run_follow
-from mmstab.experiments.recording import record_route
 from mmstab.model.urdf import robot_to_urdf
+from mmstab.outputs.online import run_follow
+from mmstab.outputs.recording import record_route
 from mmstab.runs.online.follow import build_follower
 from mmstab.runs.online.run import follow_recording
 from mmstab.runs.online.stream import ODOMETRY, map_updates, odometry_of

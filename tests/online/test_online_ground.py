@@ -20,9 +20,9 @@ import yaml
 from conftest import ROOT
 
 import mmstab
-from mmstab.experiments.online import offline_plan
-from mmstab.experiments.recording import record_route
 from mmstab.model.parts import Box
+from mmstab.outputs.online import offline_plan
+from mmstab.outputs.recording import record_route
 from mmstab.runs.online.follow import Follower, build_follower
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.run import follow_recording

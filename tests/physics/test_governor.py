@@ -16,7 +16,7 @@ import mmstab
 from mmstab import app
 from mmstab.control.layout import StepReference
 from mmstab.control.reference import initial_state
-from mmstab.experiments.simulate import controller_settings, loop_settings
+from mmstab.outputs.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.physics.governor import GovernorSettings, ReferenceClock, clock_rate
 

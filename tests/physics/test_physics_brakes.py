@@ -20,7 +20,7 @@ from conftest import PROBLEMS
 pytestmark = pytest.mark.mujoco
 mujoco = pytest.importorskip("mujoco")
 
-from mmstab.experiments.verdicts import load_settings, sim_settings  # noqa: E402
+from experiments.verdicts import load_settings, sim_settings  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
 from mmstab.physics.robot_model import ModelSettings  # noqa: E402
 from mmstab.physics.robot_sim import RobotSim  # noqa: E402

@@ -17,7 +17,7 @@ import mmstab
 from mmstab import app
 from mmstab.control.plant import build_plant
 from mmstab.control.reference import initial_state
-from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
+from mmstab.outputs.simulate import controller_settings, loop_settings, stowed_plan
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.physics.loop_checks import TipCheck, downhill_drift, support_lost
 from mmstab.physics.robot_model import ModelSettings
@@ -255,7 +255,7 @@ def test_an_older_problem_files_tip_angle_is_the_disagreement_angle(tmp_path) ->
     from conftest import write_problem
 
     from mmstab.core.problem import load_problem
-    from mmstab.experiments.simulate import loop_settings
+    from mmstab.outputs.simulate import loop_settings
 
     path = write_problem(tmp_path, lambda p, r: p.setdefault("physics", {}).update(tip_angle=0.5))
     assert loop_settings(load_problem(path)).disagreement_angle == 0.5
@@ -269,7 +269,7 @@ def test_a_replay_draws_the_robot_where_mujoco_had_it(ramp, tmp_path: Path) -> N
 
     from PIL import Image
 
-    from mmstab.experiments.simulate_figure import write_run_gif
+    from mmstab.outputs.simulate_figure import write_run_gif
 
     problem, plan = ramp
     run = _run(problem, plan, 1.0)

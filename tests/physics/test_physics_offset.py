@@ -23,7 +23,7 @@ from mmstab import app
 from mmstab.control.controller import build_controller
 from mmstab.control.reference import initial_state
 from mmstab.core.problem import problem_from_dict
-from mmstab.experiments.simulate import controller_settings, loop_settings, stowed_plan
+from mmstab.outputs.simulate import controller_settings, loop_settings, stowed_plan
 from mmstab.physics.closed_loop import run_closed_loop
 from mmstab.stability.skid import track_patch, turn_slide
 from mmstab.stability.slip import terrain_friction

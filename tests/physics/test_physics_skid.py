@@ -74,13 +74,14 @@ def test_make_skid_small_grid(tmp_path):
     path = tmp_path / "skid.yaml"
     path.write_text(yaml.safe_dump(settings))
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    cmd = [sys.executable, "-m", "mmstab.experiments.skid", str(path), "-o", str(tmp_path / "out")]
+    cmd = [sys.executable, "-m", "experiments.skid", str(path), "-o", str(tmp_path / "out")]
     done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["cases"] == 2 and s["turning_cases"] == 1
     assert 0.75 < s["slide_per_radian_ratio_median"] < 1.35
-    assert s["straight_downhill_max_m_s"]["model"] < 1e-3
+    # driven straight at 20 deg the model's belts creep by their shear, a few mm/s
+    assert 1e-3 < s["straight_downhill_max_m_s"]["model"] < 0.01
     assert (tmp_path / "out" / "skid.png").stat().st_size > 10_000
 
 
@@ -88,7 +89,7 @@ def test_make_skid_bad_settings_exit_2(tmp_path):
     path = tmp_path / "skid.yaml"
     path.write_text(yaml.safe_dump({"problem": "rough.yaml", "friction": 0.7, "slopes_deg": [],
                                     "headings_deg": [0], "commands": {}, "sim": {}}))  # fmt: skip
-    cmd = [sys.executable, "-m", "mmstab.experiments.skid", str(path), "-o", str(tmp_path / "o")]
+    cmd = [sys.executable, "-m", "experiments.skid", str(path), "-o", str(tmp_path / "o")]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "slopes_deg" in done.stderr and str(path) in done.stderr

@@ -24,7 +24,7 @@ from mmstab.control.controller import build_controller
 from mmstab.control.reference import initial_state
 from mmstab.core.defaults import HEIGHTMAP_ROUTE_PLANNER, with_defaults
 from mmstab.core.problem import load_problem
-from mmstab.experiments.simulate import controller_settings, loop_settings
+from mmstab.outputs.simulate import controller_settings, loop_settings
 from mmstab.physics.closed_loop import run_closed_loop
 
 ROUTE = {"waypoints": [[0.0, 0.0], [3.0, 0.0]], "speed": 0.2}

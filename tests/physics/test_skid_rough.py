@@ -1,4 +1,4 @@
-"""The skid-steer model against MuJoCo on rough ground (mmstab.experiments.skid_rough).
+"""The skid-steer model against MuJoCo on rough ground (experiments.skid_rough).
 
 ``make skid``'s ``rough_ground`` section drives the robot at poses along ``rough.yaml``'s
 route over its heightfield. Checked here: a heightmap that is a plane gives the ramp's
@@ -23,7 +23,8 @@ from conftest import ROOT
 pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
-from mmstab.experiments.skid_rough import _case, route_poses  # noqa: E402
+from experiments.skid_rough import _case, route_poses  # noqa: E402
+from mmstab.core.defaults import SECTION_DEFAULTS  # noqa: E402
 from mmstab.physics.skid_sim import MeasuredTwist, measure_twist, measure_twist_at  # noqa: E402
 from mmstab.stability.skid import skid_twist, track_patch  # noqa: E402
 from mmstab.terrain.factory import ramp_heightmap  # noqa: E402
@@ -82,7 +83,7 @@ def _small_settings(tmp_path: Path, rough: dict) -> Path:
 
 
 def _run(path: Path, out: Path) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "mmstab.experiments.skid", str(path), "-o", str(out)]
+    cmd = [sys.executable, "-m", "experiments.skid", str(path), "-o", str(out)]
     env = {**os.environ, "MPLBACKEND": "Agg"}
     return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
 
@@ -105,7 +106,7 @@ def test_make_skid_rough_ground_small(tmp_path, robot):
     for c in cases:  # the model's side, again from the case's own gravity
         v, w = c["speed"], c["yaw_rate_commanded"]
         p = skid_twist(track_patch(robot), c["gravity_body"], com, (v - w * b / 2, v + w * b / 2),
-                       0.7)  # fmt: skip
+                       0.7, SECTION_DEFAULTS["physics"]["shear_modulus"])  # fmt: skip
         assert c["model"]["holds"] == bool(p.holds[0])
         if c["model"]["holds"]:
             assert c["model"]["yaw_rate"] == pytest.approx(float(p.yaw_rate[0]), abs=1e-12)

@@ -13,15 +13,9 @@ from conftest import PROBLEMS
 pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
-from mmstab.experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
+from experiments.verdicts import confusion, load_settings, sim_settings  # noqa: E402
 from mmstab.model.robot import load_robot  # noqa: E402
-from mmstab.physics.verdict_sim import (  # noqa: E402
-    Thresholds,
-    Trajectory,
-    classify,
-    first_crossing,
-)
-from mmstab.physics.verdicts import (  # noqa: E402
+from mmstab.physics.edge_cases import (  # noqa: E402
     ArmPostures,
     Config,
     arm_ground_clearance,
@@ -31,6 +25,12 @@ from mmstab.physics.verdicts import (  # noqa: E402
     configs,
     predict,
     predicted_verdict,
+)
+from mmstab.physics.verdict_sim import (  # noqa: E402
+    Thresholds,
+    Trajectory,
+    classify,
+    first_crossing,
 )
 from mmstab.workspace.build import build_workspace  # noqa: E402
 
@@ -161,7 +161,7 @@ def test_bad_settings_file_is_one_line_exit_2(tmp_path):
 
     bad = tmp_path / "verdicts.yaml"
     bad.write_text("cases: 3\n")
-    cmd = [sys.executable, "-m", "mmstab.experiments.verdicts", str(bad), "-o", str(tmp_path / "o")]
+    cmd = [sys.executable, "-m", "experiments.verdicts", str(bad), "-o", str(tmp_path / "o")]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2
     assert r.stderr.startswith(f"mmstab: error: {bad}: missing") and r.stderr.count("\n") == 1

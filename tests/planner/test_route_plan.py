@@ -88,7 +88,7 @@ def test_route_and_circle_paths_load(tmp_path):
 
 def test_track_announces_the_time_the_route_run_simulates(tmp_path, capsys, monkeypatch):
     """A route's run lasts its driving time (tracking.simulate); the estimate shown is for it."""
-    import mmstab.experiments.tracking as tracking
+    import mmstab.outputs.tracking as tracking
     from mmstab.cli import main
     from mmstab.core import sizes
     from mmstab.core.files import MmstabError

@@ -115,7 +115,7 @@ def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
     from conftest import write_problem
 
     from mmstab.core.problem import load_problem
-    from mmstab.experiments.tracking import self_collisions
+    from mmstab.outputs.tracking import self_collisions
     from mmstab.planner import plan_path
     from mmstab.runs.tracking import simulate, summarize
     from mmstab.workspace import load_or_build_workspace

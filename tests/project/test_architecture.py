@@ -2,7 +2,9 @@
 
 Layers, lowest first (``docs/architecture.md``): inputs → model/terrain → problem →
 stability → workspace → planner → controller → codegen → application (simulation, rollouts,
-drawing) → app → experiments → CLI. A module may import from its own layer or below, never
+drawing) → app → outputs (what a command writes) → CLI. The paper's figures and the studies
+(the repository's ``experiments/``, not installed) sit above them all: nothing in mmstab
+imports them. A module may import from its own layer or below, never
 above. The static check reads every ``import`` of every module (function-level ones too);
 the dynamic check imports each module with no other mmstab module loaded before it, in a
 fresh interpreter (no cycle, no reliance on import order).
@@ -39,13 +41,13 @@ LAYERS: dict[str, int] = {
     "mmstab.physics": 8,
     "mmstab.viz": 8,
     "mmstab.app": 9,
-    "mmstab.experiments": 10,
-    "mmstab.viz.viewer": 10,  # the browser viewer replays runs and experiments
+    "mmstab.outputs": 10,  # what a command writes: its run, figures and summary
+    "mmstab.viz.viewer": 10,  # the browser viewer replays runs and outputs
     "mmstab.cli": 11,
     "mmstab.__main__": 11,
 }
 #: Known upward imports, each with its reason; nothing else may point up.
-ALLOWED_UP: set[tuple[str, str]] = set()  # none: the settings registry (mmstab.core.settings)
+ALLOWED_UP: set[tuple[str, str]] = set()  # none: the settings registry (mmstab.core.setting_checks)
 
 
 def module_name(path: Path) -> str:
@@ -191,6 +193,25 @@ def import_cycles() -> list[list[str]]:
 KNOWN_CYCLES: list[list[str]] = []  # none: the task model imports no task (issue 27)
 
 
+def test_nothing_in_mmstab_imports_the_experiments():
+    """The repository's ``experiments/`` is not installed: no mmstab module imports it."""
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module]
+            offenders += [
+                f"{path.relative_to(ROOT)}:{node.lineno} {n}"
+                for n in names
+                if n.split(".")[0] == "experiments"
+            ]
+    assert offenders == []
+    assert (ROOT / "experiments" / "__main__.py").is_file()  # the check looks at the right name
+
+
 def test_no_import_cycles():
     assert [c for c in import_cycles() if c not in KNOWN_CYCLES] == []
 
@@ -234,14 +255,13 @@ def test_each_module_imports_alone():
 def test_no_stage_knows_the_ramp():
     """Above mmstab.terrain, the ground is a Terrain: no Ramp, no slope angle.
 
-    The one exception is the atlas, whose axes *are* ramp slopes (an envelope over planar
-    slopes x headings); it builds its ramps and hands them to the stages as Terrains.
+    The atlas, whose axes *are* ramp slopes (an envelope over planar slopes x headings),
+    is a study outside the package (``experiments/atlas``): it builds its ramps and hands
+    them to the stages as Terrains.
     """
     offenders = []
     for path in PACKAGE.rglob("*.py"):
-        if path.is_relative_to(PACKAGE / "terrain") or path.is_relative_to(
-            PACKAGE / "experiments" / "atlas"
-        ):
+        if path.is_relative_to(PACKAGE / "terrain"):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Name) and node.id == "Ramp":

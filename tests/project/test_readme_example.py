@@ -39,7 +39,7 @@ def test_readme_example_runs_and_its_mu_is_the_stance(monkeypatch, capsys, tmp_p
     assert np.all(plan.mu_planned > plan.mu_stowed)  # the planned arm is the more stable
     # the tracked run: no tip, no failed QP, mu positive along it
     assert run.tipped is None and not run.failures and run.mu.reconfigured.min() > 0
-    assert run.t[-1] > 5.0  # the whole route (2.9 m at 0.3 m/s at most), not a stub
+    assert run.t[-1] > 5.0  # the whole route (2.9 m at 0.2 m/s at most), not a stub
     # the same robot, ramp and route as a problem file that names nothing else: the same plan
     problem = yaml.safe_load((ROOT / "examples" / "slope_route.yaml").read_text())
     problem.pop("workspace")  # the file's coarse grid: the code's is the default

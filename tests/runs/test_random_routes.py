@@ -34,8 +34,8 @@ import pytest
 import yaml
 from conftest import ROOT
 
+from experiments.random_routes import random_route
 from mmstab.core.problem import Problem, load_problem
-from mmstab.experiments.random_routes import random_route
 from mmstab.paths import Pivot
 from mmstab.runs.verdict import MIN_CLEARANCE
 
@@ -133,8 +133,8 @@ def pivots_of(problem: Problem) -> int:
 def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any]:
     """Plan and track one pair; the numbers the checks need, and timings [s]."""
     from mmstab import app
-    from mmstab.experiments.tracking import self_collisions
     from mmstab.model.ground import arm_ground_clearance
+    from mmstab.outputs.tracking import self_collisions
     from mmstab.planner.searches.roadmap import NoPlanError
 
     record: dict[str, Any] = {"pivots": pivots_of(problem)}

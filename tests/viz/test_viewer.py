@@ -51,7 +51,7 @@ def posture_plan(robot, k=8):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory, problem):
     """A real (short) run of `mmstab track`'s experiment on the default problem."""
-    from mmstab.experiments.tracking import run_tracking
+    from mmstab.outputs.tracking import run_tracking
 
     d = tmp_path_factory.mktemp("run")
     run_tracking(problem, d, plan=posture_plan(problem.robot), duration=0.3, progress=False)

@@ -219,7 +219,7 @@ def test_plan_and_track_a_route_on_the_roadmap_from_the_cli(tmp_path):
 def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
     """summary.json quality: optima by brute force here, planned <= optimum over the roadmap."""
     from mmstab.core.problem import load_problem
-    from mmstab.experiments.routes import run_route_plan
+    from mmstab.outputs.routes import run_route_plan
     from mmstab.planner import gravity_body_at
     from mmstab.planner.fitness import support_polygons_at
     from mmstab.planner.searches.roadmap import node_coms

@@ -311,9 +311,9 @@ def test_fig3_and_workspace_commands(tmp_path):
     problem = write_problem(tmp_path, _set_grid([8, 6, 6, 6]))
     env = {**os.environ, "MPLBACKEND": "Agg", "MMSTAB_CACHE": str(tmp_path / "cache")}
 
-    def run(*args):
+    def run(*args, program="mmstab"):
         return subprocess.run(
-            [sys.executable, "-m", "mmstab", *args],
+            [sys.executable, "-m", program, *args],
             check=True,
             env=env,
             cwd=tmp_path,
@@ -321,7 +321,7 @@ def test_fig3_and_workspace_commands(tmp_path):
             text=True,
         ).stdout
 
-    out = run("fig3", str(problem), "-o", "fig3")
+    out = run("fig3", str(problem), "-o", "fig3", program="experiments")
     s = json.loads((tmp_path / "fig3" / "summary.json").read_text())
     assert s["postures"] == 8 * 6**3 == s["valid"] + s["invalid"] and s["invalid"] > 0
     assert 0 < s["recall"] <= 1 and 0 <= s["precision"] <= 1

@@ -1,4 +1,4 @@
-"""The ``controller:`` section of a problem file (its checks: :mod:`mmstab.core.settings`)."""
+"""The ``controller:`` section of a problem file (its checks: :mod:`mmstab.core.setting_checks`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from mmstab.core.defaults import SECTION_DEFAULTS
-from mmstab.core.settings import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
-from mmstab.core.settings import PLUGINS as PLUGINS
-from mmstab.core.settings import check_controller
+from mmstab.core.setting_checks import CODEGEN_PLUGINS as CODEGEN_PLUGINS  # re-exported
+from mmstab.core.setting_checks import PLUGINS as PLUGINS
+from mmstab.core.setting_checks import check_controller
 
 
 @dataclass(frozen=True)
@@ -97,5 +97,5 @@ class ControllerSettings:
 
 
 #: The ``controller:`` check of the settings registry
-#: (:func:`mmstab.core.settings.check_controller`).
+#: (:func:`mmstab.core.setting_checks.check_controller`).
 check_settings = check_controller

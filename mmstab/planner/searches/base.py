@@ -15,7 +15,7 @@ with the fitness) or, in addition, along the whole path at once (:class:`PathSea
 ``choose_path``, e.g. ``sequence``); a whole-path search still answers per pose (``choose``),
 for the callers that plan one pose (the atlas, Fig. 7). A per-pose search that a route
 plans pose after pose also answers a pose warm-started from the previous one's answer
-(:class:`WarmSearch`: ``warm``, :mod:`mmstab.planner.warm_start`). The pipeline steps 1, 2
+(:class:`WarmSearch`: ``warm``, :mod:`mmstab.planner.along_route`). The pipeline steps 1, 2
 and 4 are :mod:`mmstab.planner.pose` and :mod:`mmstab.planner.along_path`.
 """
 

@@ -2,7 +2,7 @@
 
 Its best distinct samples, each refined among its nearest samples, are CMA-ES's start
 means (``planner.seeding: coarse``) and, along a route, the guard's second start against a
-basin the warm start cannot see (:mod:`mmstab.planner.warm_start`, the online horizon).
+basin the warm start cannot see (:mod:`mmstab.planner.along_route`, the online horizon).
 """
 
 from __future__ import annotations

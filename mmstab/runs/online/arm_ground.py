@@ -330,10 +330,10 @@ def forbid_low(
 
     A pose's kept candidates were measured on the map that scored it: measured again here
     (free where its state stands). As offline
-    (:func:`mmstab.planner.searches.roadmap._forbid_low_ends`): the arm moves while the
-    base drives between two poses, so each end must clear both poses' ground; with
-    ``behind``, ``chain[0]``'s candidates must also clear the ground of the pose before it
-    (its node fixed).
+    (:func:`mmstab.planner.searches.roadmap._forbid_low_ends`):
+    the arm moves while the base drives between two poses, so each end must clear both
+    poses' ground; with ``behind``, ``chain[0]``'s candidates must also clear the ground of
+    the pose before it (its node fixed).
 
     Args:
         base: the reachable nodes' test.

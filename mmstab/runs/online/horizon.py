@@ -10,7 +10,7 @@ found (a warm start that has converged). A pose whose footprint the map does not
 previous answer (if any) is not trusted for μ.
 
 Re-planning a pose is the offline route planner's warm step
-(:mod:`mmstab.planner.warm_start`): Eq. 6 at the pose, CMA-ES started from the previous
+(:mod:`mmstab.planner.along_route`): Eq. 6 at the pose, CMA-ES started from the previous
 pose's answer and this pose's last answer, plus the coarse guard's seed when it finds a
 better basin; the very first pose is searched cold (:func:`mmstab.planner.solve_pose`,
 CMA-ES). Its posture comes from the same IK (collision-free, from the previous pose's
@@ -27,12 +27,12 @@ from numpy.typing import NDArray
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.along_route import warm_pose, warm_settings, warm_sigma
 from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.pose import Realise, realise_target, solve_pose
 from mmstab.planner.regions import PlanningRegion, SampleIndex
 from mmstab.planner.searches.coarse import SEED_SEPARATION, coarse_seeds
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.warm_start import warm_pose, warm_settings, warm_sigma
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain

@@ -360,7 +360,7 @@ static void largest(const double *score, long *order, long K, long n)
     }
 }
 
-/* ---- the stages (rest_numpy.py numpy_rests and solve_active) --------------------------- */
+/* ---- the stages (numpy_path.py numpy_rests and solve_active) --------------------------- */
 
 /* Resting attitudes of n poses. Returns 0, or -1 when out of memory.
  *

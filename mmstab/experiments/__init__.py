@@ -1,1 +1,0 @@
-"""Experiments of the paper, one function per ``make`` target, each writing ``results/<name>/``."""

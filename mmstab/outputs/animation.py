@@ -1,0 +1,112 @@
+"""The tracking run as an animated GIF: the robot driving the circle on the ramp.
+
+It renders the stored run of ``mmstab track`` (``results/tracking/run.npz``), so
+``make demo`` simulates the lap once; only when no run of this problem is stored does it
+run the tracking experiment first.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mmstab.app.settings import Settings
+from mmstab.core.files import MmstabError, write_json
+from mmstab.core.problem import Problem
+from mmstab.outputs.common import output_dir
+from mmstab.outputs.tracking import run_tracking
+from mmstab.runs.store import Run, load_run
+from mmstab.stability.static import mu_max
+from mmstab.viz.animation import render_animation
+
+
+def stored_or_new_run(
+    problem: Problem, directory: Path, progress: bool, allow_unstable: bool = True
+) -> Run:
+    """The stored run of ``problem`` in ``directory``; tracked and stored first if there is none.
+
+    Args:
+        problem: the problem.
+        directory: the run's folder (``results/tracking``).
+        progress: show progress bars when tracking.
+        allow_unstable: track even when the plan made here is unstable (``run_tracking``).
+    """
+    try:
+        return load_run(directory, problem)
+    except MmstabError as exc:
+        print(f"animation: no stored run to render ({exc}); tracking first", file=sys.stderr)
+    run_tracking(problem, directory, progress=progress, allow_unstable=allow_unstable)
+    return load_run(directory, problem)
+
+
+def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
+    """The ``tipped`` record of a stored run that ends where the robot would tip, or None.
+
+    A run stops at its first sample with μ < 0 (:func:`mmstab.runs.tracking.simulate`) and the
+    stored arrays keep the last sample, so only the last can be negative.
+
+    Args:
+        run: the stored run.
+        dt: its control period [s] (the problem's ``controller.dt``).
+    """
+    mu = run.mu["planned"]
+    if not mu[-1] < 0:
+        return None
+    t = float(run.t[-1])
+    return {"step": int(round(t / dt)), "time_s": t, "pose": run.poses[-1], "mu": float(mu[-1])}
+
+
+def run_animation(
+    problem: Problem,
+    out: str | Path | None = None,
+    progress: bool = True,
+    allow_unstable: bool = True,
+) -> dict[str, Any]:
+    """Render ``results/tracking/animation.gif`` from the stored tracking run.
+
+    The frame count, rate and size come from the problem's ``animation`` section; the
+    margin colour scale is mu_max (flat ground, arm stowed), so green means "as stable as
+    parked on the flat".
+
+    Args:
+        problem: the problem.
+        out: the run's folder and output folder (default ``results/tracking``).
+        progress: show progress bars.
+        allow_unstable: track (when no run is stored) even with an unstable plan; a run
+            that tips over is rendered up to that instant (``tipped`` in the summary).
+
+    Returns:
+        What was rendered (also written to ``animation.json``).
+    """
+    cfg = problem.section("animation")
+    d = output_dir(out, "tracking")
+    run = stored_or_new_run(problem, d, progress, allow_unstable)
+    info = render_animation(
+        problem.robot,
+        problem.terrain,
+        run.t,
+        run.poses,
+        run.q,
+        run.mu["planned"],
+        d / "animation.gif",
+        fps=cfg["fps"],
+        size=(cfg["width"], cfg["height"]),
+        max_frames=cfg["frames"],
+        mu_scale=mu_max(problem.robot),
+        progress=progress,
+    )
+    summary = {
+        "gif": info.path,
+        "frames": info.frames,
+        "fps": cfg["fps"],
+        "size_px": [cfg["width"], cfg["height"]],
+        "simulated_s": float(run.t[-1]),
+        "mu_min": float(np.min(run.mu["planned"])),
+        "source": str(d / "run.npz"),
+        "tipped": tipping_of(run, Settings.from_problem(problem).controller.dt),
+    }
+    write_json(d / "animation.json", summary)
+    return summary
