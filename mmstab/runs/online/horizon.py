@@ -97,24 +97,20 @@ class Rested(NamedTuple):
 
 
 def rest_where_covered(terrain: HeightmapTerrain, poses: FloatArray) -> Rested:
-    """Rest poses (N, 3) on a map: all at once, or one by one when some are not covered."""
+    """Rest poses (N, 3) on a map, all at once.
+
+    A pose off the window or on unknown cells is not covered (NaN); each pose's rest is its
+    own, so the others come out as if rested alone.
+    """
     n = len(poses)
     covered, gravity, ground = np.zeros(n, bool), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     G_T_B = np.full((n, 4, 4), np.nan)
-    try:
-        groups = [(np.arange(n), terrain.rest(poses))]
-    except MmstabError:  # some pose off the window or on unknown cells: find which
-        groups = []
-        for i in range(n):
-            try:
-                groups.append((np.array([i]), terrain.rest(poses[i : i + 1])))
-            except MmstabError:
-                continue
-    for idx, r in groups:
-        covered[idx] = True
-        gravity[idx] = np.einsum("nji,j->ni", r.G_T_B[:, :3, :3], GRAVITY_G)
-        ground[idx] = np.stack([r.z, r.roll, r.pitch], axis=1)
-        G_T_B[idx] = r.G_T_B
+    r = terrain.rest(poses, strict=False)
+    idx = np.flatnonzero(np.isfinite(r.z))
+    covered[idx] = True
+    gravity[idx] = np.einsum("nji,j->ni", r.G_T_B[idx, :3, :3], GRAVITY_G)
+    ground[idx] = np.stack([r.z[idx], r.roll[idx], r.pitch[idx]], axis=1)
+    G_T_B[idx] = r.G_T_B[idx]
     return Rested(covered, gravity, ground, G_T_B)
 
 
