@@ -1,4 +1,4 @@
-"""Benchmark: the online loop's latency per map beside the offline planner (issue 26).
+"""Benchmark: the online loop's latency per map beside the offline planner.
 
 Usage: ``python benchmarks/bench_online.py [PROBLEM.yaml] [--recording FILE] [--repeats N]``;
 writes ``results/bench/online.json``. The recording (``mmstab record``, written if missing)

@@ -9,7 +9,7 @@ one; the rounds each pose took and the flags raised. Three paths, interleaved in
 run on the same poses: the C kernel (the default, ``backend="c"``), its NumPy twin
 (``backend="numpy"``, the same algorithm; the peer) and the kernel on all candidates in
 every round (the reference path, ``active_candidates=0``), with the largest differences
-between their rests. Target of issue 14: <= 0.1 ms per pose batched (the published C++
+between their rests. Target: <= 0.1 ms per pose batched (the published C++
 contact estimator for tracked robots reports about 0.5 ms per pose; not run here).
 """
 

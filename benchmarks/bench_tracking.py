@@ -6,7 +6,7 @@ medians of: the control loop's µs per step (controller step + hold-still guard 
 integration + logging, one CasADi call through ``Function.buffer()``), the loop's wall time,
 and the whole ``simulate`` call (build + reference + loop + stability post-processing; the lap's
 posture reference is checked and repaired once beforehand, timed apart). With
-``mmstab.codegen`` present (issue 6), the generated step is timed too, per code-generable
+``mmstab.codegen`` present, the generated step is timed too, per code-generable
 plugin. Not a test; the machine is shared, so expect noise.
 
 Usage: python benchmarks/bench_tracking.py [PROBLEM.yaml] [--repeats N] [-o JSON]

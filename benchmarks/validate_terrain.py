@@ -1,4 +1,4 @@
-"""Validate a resting-pose predictor against MuJoCo heightfield drops (issue 14 item 5).
+"""Validate a resting-pose predictor against MuJoCo heightfield drops.
 
 Usage: ``python benchmarks/validate_terrain.py [SETTINGS.yaml] [-o DIR] [--predictor NAME]``
 (default ``problems/validate_terrain.yaml`` -> ``results/terrain/summary.json`` and

@@ -1,4 +1,4 @@
-"""The run-time edges (issue 13): unstable answers, output folders, unreadable caches."""
+"""The run-time edges: unstable answers, output folders, unreadable caches."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 from conftest import write_problem
 
-#: Longest a command may take to end after SIGINT [s] (issue 13).
+#: Longest a command may take to end after SIGINT [s].
 LIMIT_S = 2.0
 #: Longest wait for both runs to end [s] (a generous bound on a loaded 2-core machine).
 MARKER_TIMEOUT_S = 60.0

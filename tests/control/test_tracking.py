@@ -427,7 +427,7 @@ def test_generated_backend_gives_the_interpreted_trajectory(tmp_path):
 @pytest.mark.slow
 @pytest.mark.skipif(
     importlib.util.find_spec("mmstab.planner") is None,
-    reason="mmstab.planner (issue 4) has not landed: `mmstab track` needs the plan",
+    reason="mmstab.planner has not landed: `mmstab track` needs the plan",
 )
 def test_cli_track_end_to_end(tmp_path):
     problem = write_problem(tmp_path)

@@ -60,7 +60,7 @@ def _weights_1_8(p, r):
 
 @pytest.mark.parametrize("command", ["fig5", "workspace", "codegen", "track"])
 def test_every_command_checks_the_planner_weights(tmp_path, capsys, command, monkeypatch):
-    """Issue 13 item 6: fig5 accepted weights summing to 1.8 and saved them."""
+    """fig5 once accepted weights summing to 1.8 and saved them: they are refused."""
     path = write_problem(tmp_path, _weights_1_8)
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"

@@ -422,7 +422,7 @@ def test_payload_axis_loads_the_wrist_and_has_its_own_workspace(tmp_path):
 
 
 def test_plane_heightmap_cells_are_the_ramps(tmp_path):
-    """A generated plane swept over its slope parameter is the ramp (issue 14's check)."""
+    """A generated plane swept over its slope parameter is the ramp."""
     ramp = _problem(tmp_path / "ramp", {"axes": SMALL_AXES})
     plane = _problem(
         tmp_path / "plane", {"axes": SMALL_AXES}, {**PLANE, "slope": 0.1, "azimuth": 0.7}

@@ -1,4 +1,4 @@
-"""The levers' stowed payload rows are named by where the load is (issue 25, item 4)."""
+"""The levers' stowed payload rows are named by where the load is."""
 
 from __future__ import annotations
 

@@ -44,7 +44,7 @@ PLANNER = {
     "tol_x": 1.0e-4,
     "max_resample": 3,
     "seed": 7,
-    # the first release's search, explicit since the planner gained other searches (issue 12)
+    # the first release's search, explicit since the planner gained other searches
     "method": "cmaes",
     "seeding": "starts",
     "sigma0_unit": "m",

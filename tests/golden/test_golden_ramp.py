@@ -1,7 +1,7 @@
 """Golden numbers of the ramp (tests/golden/ramp.json): a refactor must not change them.
 
 The file was written by ``tests/golden/make_golden.py`` on the code before the terrain
-refactor (issue 11); :func:`make_golden.compute` recomputes the same quantities with the
+refactor; :func:`make_golden.compute` recomputes the same quantities with the
 current code. Everything here is deterministic (fixed seeds, fixed states), so the
 tolerance is 1e-9.
 """

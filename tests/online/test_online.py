@@ -1,4 +1,4 @@
-"""On a robot (issue 26): generated recordings, the online loop, runs written as recordings."""
+"""On a robot: generated recordings, the online loop, runs written as recordings."""
 
 from __future__ import annotations
 

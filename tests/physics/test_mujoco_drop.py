@@ -1,4 +1,4 @@
-"""MuJoCo heightfield drops of the tracked base vs hand geometry (issue 14 item 5)."""
+"""MuJoCo heightfield drops of the tracked base vs hand geometry."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A braked rigid robot on a slope in MuJoCo (issue 25): it holds up to atan(friction).
+"""A braked rigid robot on a slope in MuJoCo: it holds up to atan(friction).
 
 Facing uphill the friction load runs along the tracks, through the wheels' hinges, which
 only their velocity servos hold. With the ``implicitfast`` integrator MuJoCo solves the

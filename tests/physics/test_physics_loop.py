@@ -1,4 +1,4 @@
-"""The controller in the loop on the whole robot in MuJoCo (issue 25, ``mmstab simulate``)."""
+"""The controller in the loop on the whole robot in MuJoCo (``mmstab simulate``)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The whole robot in MuJoCo (issue 25): mass model, Coulomb friction, tip-over, driving.
+"""The whole robot in MuJoCo: mass model, Coulomb friction, tip-over, driving.
 
 The numbers quoted in docs/physics.md ("The whole robot in MuJoCo") are the ones these tests
 measure; ``pytest -s tests/physics/test_physics_robot.py`` prints them.

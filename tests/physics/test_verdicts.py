@@ -1,4 +1,4 @@
-"""Verdicts against MuJoCo (issue 25): the classifier, mmstab's side, a coarse grid.
+"""Verdicts against MuJoCo: the classifier, mmstab's side, a coarse grid.
 
 The full grid (``make verdicts``, ``problems/verdicts.yaml``) is in ``docs/verdicts.md``,
 "Verdicts against MuJoCo"; here a coarse grid of it on the rigid-wheel model, in < 60 s.

@@ -1,4 +1,4 @@
-"""The exhaustive Eq. 6 reference and the CMA-ES planner measured against it (issue 12)."""
+"""The exhaustive Eq. 6 reference and the CMA-ES planner measured against it."""
 
 from __future__ import annotations
 

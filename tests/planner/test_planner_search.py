@@ -1,4 +1,4 @@
-"""The planner's search interface and registry (issue 27 item 3) and the path protocol (item 5)."""
+"""The planner's search interface, its registry and the path protocol."""
 
 from __future__ import annotations
 

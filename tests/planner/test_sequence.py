@@ -1,4 +1,4 @@
-"""``method: sequence`` (issue 12): V's postures chosen along the whole path at once."""
+"""``method: sequence``: V's postures chosen along the whole path at once."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The turret window (issue 12): link0 stays near its previous angle between planned poses."""
+"""The turret window: link0 stays near its previous angle between planned poses."""
 
 from __future__ import annotations
 

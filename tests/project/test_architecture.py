@@ -190,7 +190,7 @@ def import_cycles() -> list[list[str]]:
 
 
 #: Circles still to break, each with its reason (none may be added).
-KNOWN_CYCLES: list[list[str]] = []  # none: the task model imports no task (issue 27)
+KNOWN_CYCLES: list[list[str]] = []  # none: the task model imports no task
 
 
 def test_nothing_in_mmstab_imports_the_experiments():

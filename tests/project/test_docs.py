@@ -143,3 +143,15 @@ def test_pages_are_short_and_name_no_tracker_issue():
     for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
         hits = re.findall(r"\bissues? \d+", path.read_text(), re.I)
         assert not hits, f"{path.name}: tracker issue numbers {hits}"
+
+
+def test_the_code_names_no_tracker_issue():
+    """A reader of the repository has no tracker: code, tests and problem files say why."""
+    folders = ("mmstab", "experiments", "tests", "benchmarks", "examples", "problems")
+    hits = []
+    for folder in folders:
+        for path in sorted((ROOT / folder).rglob("*")):
+            if path.suffix in (".py", ".c", ".yaml", ".md") and path.is_file():
+                found = re.findall(r"\bissues? #?\d+", path.read_text(errors="ignore"), re.I)
+                hits += [f"{path.relative_to(ROOT)}: {h}" for h in found]
+    assert not hits, hits

@@ -1,4 +1,4 @@
-"""Seeded random routes over seeded random heightmaps: every one plans and tracks (issue 24).
+"""Seeded random routes over seeded random heightmaps: every one plans and tracks.
 
 A generator (:func:`random_pair`, one ``numpy.random.Generator`` per pair) draws a heightmap
 (fractal rough ground on a Gaussian bump on a plane tilted 0-20 deg at any azimuth, now and

@@ -1,4 +1,4 @@
-"""The slip limit (issue 25): the friction cone of a rigid robot on its support."""
+"""The slip limit: the friction cone of a rigid robot on its support."""
 
 from __future__ import annotations
 

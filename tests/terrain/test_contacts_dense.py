@@ -1,4 +1,4 @@
-"""Contacts where the physics has them (issue 25, item 4): a dense check of the belts and the
+"""Contacts where the physics has them: a dense check of the belts and the
 chassis underside at rest on seeded rough ground, against the 5 cm candidates."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""grid_map's GridMap in and out: storage order, circular buffer, recordings (issue 26).
+"""grid_map's GridMap in and out: storage order, circular buffer, recordings.
 
 The storage order is checked against messages built here by hand from grid_map's own
 definition (index (0, 0) at the map's +x/+y corner, column-major data, the buffer's start

@@ -28,7 +28,7 @@ KERB = {
     }
 }
 REST_KEYS = ["roll", "pitch", "z", "G_T_B", "contacts", "support_polygon", "mu", "flags"]
-REST_KEYS += ["tilt", "friction", "slip_margin", "binding"]  # the slip limit (issue 25)
+REST_KEYS += ["tilt", "friction", "slip_margin", "binding"]  # the slip limit
 REST_KEYS += ["pose", "arm", "arm_q_rad", "flipper_angle_rad", "units"]  # the inputs, units
 
 

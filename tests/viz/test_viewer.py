@@ -1,4 +1,4 @@
-"""The browser viewer (issue 18): scene geometry, the stored run, the CLI, a real browser."""
+"""The browser viewer: scene geometry, the stored run, the CLI, a real browser."""
 
 from __future__ import annotations
 
