@@ -286,9 +286,9 @@ def test_the_full_set_of_random_routes(tmp_path):
             record = {"planned": False, "error": traceback.format_exc(limit=3)}
         record["seconds"] = time.perf_counter() - t0
         record["failures"] = failures(record)
-        pairs.append(
-            {"pair": k, "seed": SEED_BASE + k, "problem": yaml.safe_load(path.read_text())} | record
-        )
+        drawn = yaml.safe_load(path.read_text())
+        drawn["robot"] = str(ROBOT.relative_to(ROOT))  # the summary names no machine's folder
+        pairs.append({"pair": k, "seed": SEED_BASE + k, "problem": drawn} | record)
         print(f"pair {k}: {'pass' if not record['failures'] else record['failures']}", flush=True)
     passed = sum(not p["failures"] for p in pairs)
     summary = {
