@@ -91,8 +91,8 @@ def max_min_mu(fit: LinearFitness, samples: ArrayLike) -> tuple[float, int]:
         return float(mu[k]), k
     subset = np.arange(0, n, max(n // SUBSET_ROWS, 1))
     sub = coms[subset]
-    bound = float(fit.mu(sub).max())
     theta = np.arctan2(sub @ fit.sin_gain + fit.sin_offset, sub @ fit.cos_gain + fit.cos_offset)
+    bound = float(theta.min(axis=1).max()) * fit.force  # the subset's best μ
     order = np.argsort(-np.bincount(theta.argmin(axis=1), minlength=theta.shape[1]), kind="stable")
     floor = (bound - 1e-9 * abs(bound)) / fit.force
     alive = np.arange(n)
