@@ -21,6 +21,10 @@ done
 LIBS=$(ls -d "$SITE"/ros_*.libs | tr '\n' ':')
 for pkg in grid_map_msgs tf2_msgs; do
   build="$VENV/ros-build/$pkg"
+  # a cache generated from another checkout's sources makes cmake refuse: start that one afresh
+  if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$HERE/$pkg\$" "$build/CMakeCache.txt"; then
+    rm -rf "$build"
+  fi
   mkdir -p "$build"
   ( cd "$build" &&
     AMENT_PREFIX_PATH="$VENV" LD_LIBRARY_PATH="$LIBS$VENV/lib" PATH="$VENV/bin:$PATH" \
