@@ -269,7 +269,7 @@ class NodeClearance:
     @functools.cached_property
     def _pieces(self) -> KeptPieces:
         assert self.under is not None
-        return KeptPieces(self.under, self.roadmap.nodes_q[self.reach])
+        return KeptPieces(self.under, self.roadmap.nodes_q)  # by node (no copy of the reach's)
 
     def low(self, poses: int) -> list[NDArray[np.intp]]:
         """Per pose, the eligible rows it may not choose: too low there, or ``excluded``."""
@@ -299,11 +299,11 @@ class NodeClearance:
                 sure = self.under.surely_clear(k, lowest, self.ground)
                 self._known[k][x[sure]] = True
                 todo[k] = x[~sure]
-        self._pieces.add(np.concatenate([np.zeros(0, dtype=np.intp), *todo]))
+        self._pieces.add(self.reach[np.concatenate([np.zeros(0, dtype=np.intp), *todo])])
         for k, x in enumerate(todo):
             if x.size:
                 q = self.roadmap.nodes_q[self.reach[x]]
-                clear = self.under.clear(k, q, self.ground, self._pieces(x))
+                clear = self.under.clear(k, q, self.ground, self._pieces(self.reach[x]))
                 self._known[k][x] = True
                 if not clear.all():
                     self._low[k][x[~clear]] = True
