@@ -292,7 +292,7 @@ class NodeClearance:
         for k in range(len(rows)):
             if k not in self._known:
                 self._known[k], self._low[k] = np.zeros(n, bool), np.zeros(n, bool)
-        todo = [np.unique(x[~self._known[k][x]]) for k, x in enumerate(rows)]
+        todo = [_distinct(x[~self._known[k][x]]) for k, x in enumerate(rows)]
         for k, x in enumerate(todo):  # high above the highest ground in reach: clear
             if x.size:
                 lowest = self.roadmap.node_ground[self.reach[x]]
@@ -318,6 +318,13 @@ class NodeClearance:
 
 
 _NONE, _NO_V = np.zeros(0, dtype=np.intp), np.zeros(0)
+
+
+def _distinct(rows: NDArray[np.intp]) -> NDArray[np.intp]:
+    """``rows`` once each: as they are when already increasing, else ``np.unique``."""
+    if len(rows) < 2 or bool((rows[1:] > rows[:-1]).all()):
+        return rows
+    return np.unique(rows)
 
 
 class Candidates(NamedTuple):
@@ -379,7 +386,9 @@ def route_candidates(
             rows[k, :n], value[k, :n] = sub[pick], v[pick]
             best = top[np.isfinite(v[top])]
             if len(best) > count * ahead[k]:
-                best = best[np.argpartition(-v[best], count * ahead[k])[: count * ahead[k]]]
+                best = np.sort(
+                    best[np.argpartition(-v[best], count * ahead[k])[: count * ahead[k]]]
+                )
             more.append(sub[best])
         finite = np.isfinite(value)
         near = clear(np.unique(rows[finite])).all()  # both tests learn what they measure

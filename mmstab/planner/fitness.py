@@ -162,7 +162,10 @@ class LinearFitness(NamedTuple):
             theta = np.arctan2(
                 c @ self.sin_gain + self.sin_offset, c @ self.cos_gain + self.cos_offset
             )
-            out[s : s + BLOCK] = theta.min(axis=1)
+            least = out[s : s + BLOCK]  # theta.min(axis=1), a column at a time (faster)
+            least[:] = theta[:, 0]
+            for j in range(1, theta.shape[1]):
+                np.minimum(least, theta[:, j], out=least)
         return out * self.force
 
     def __call__(self, com_body: ArrayLike) -> FloatArray:

@@ -75,6 +75,8 @@ def test_eq6_without_its_motion_term_is_the_same_floats():
         w_motion=0.0,
     )
     coms = rng.normal(size=(1000, 3)) * 0.4
+    theta = np.arctan2(coms @ fit.sin_gain + fit.sin_offset, coms @ fit.cos_gain + fit.cos_offset)
+    np.testing.assert_array_equal(fit.mu(coms), theta.min(axis=1) * fit.force)
     motion = np.sum((coms - fit.previous_com) ** 2, axis=1)
     want = fit.w_stability * fit.mu(coms) - fit.w_motion * motion  # the formula in full
     np.testing.assert_array_equal(fit(coms), want)
