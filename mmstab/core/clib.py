@@ -1,8 +1,9 @@
 """mmstab's own C, compiled on first use into a cached shared library.
 
-Four stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
+Five stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
 the resting pose of the base on a heightmap (``terrain/rest/kernel.c``), the ground under the arm
-at a route's poses (``planner/under_arm.c``) and the ground's peaks under the arm on a live
+at a route's poses (``planner/under_arm.c``), A* over the posture roadmap
+(``planner/searches/roadmap/astar.c``) and the ground's peaks under the arm on a live
 map (``runs/online/lattice_peak.c``). Each is compiled once
 per source text and compile command with the system compiler and kept in the cache folder;
 the file name carries a hash of both, so an edited source is never confused with an old

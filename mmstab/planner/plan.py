@@ -194,11 +194,13 @@ def prepare_search(
     process, and the compiled kernel), whatever the method.
 
     ``method: roadmap``: the roadmap (its cache file), the start node's component on the
-    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, the
-    compiled kernels loaded (the moves' clearance bounds, the ground under the arm) and the
-    robot's turn floors (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`); a
-    route's poses then cost only their own search, and a one-off plan reports these fixed
-    costs apart (``RoutePlan.fixed_seconds``). Other methods: nothing.
+    nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, A*'s
+    arrays of that graph, the compiled kernels loaded (the moves' clearance bounds, A*, the
+    ground under the arm), the robot's turn floors
+    (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`) and the objects alive then
+    frozen (:func:`freeze_long_lived`); a route's poses then cost only their own search, and
+    a one-off plan reports these fixed costs apart (``RoutePlan.fixed_seconds``). Other
+    methods: nothing more.
     """
     if terrain is not None and poses is not None and len(poses):
         terrain.gravity_body(poses)
@@ -207,7 +209,7 @@ def prepare_search(
     from mmstab.model import collision_distance
     from mmstab.model.collision import CollisionChecker
     from mmstab.planner.searches.roadmap import component_view
-    from mmstab.planner.searches.roadmap.moves import start_tree
+    from mmstab.planner.searches.roadmap.moves import prepare_astar, start_tree
     from mmstab.planner.under_arm_c import load_kernels
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
@@ -215,6 +217,7 @@ def prepare_search(
     start = roadmap.connect(robot.stowed, robot)
     component_view(robot, roadmap, start, settings.ground_clearance)
     start_tree(roadmap, start, settings.ground_clearance)
+    prepare_astar(roadmap, settings.ground_clearance)
     CollisionChecker(robot).turn_floors()
     collision_distance.available()
     load_kernels()
