@@ -473,7 +473,7 @@ class CollisionChecker:
             gaps = self._gaps(p)
             near = np.stack([gaps[:, self._gap_column[pr.name]] < need for pr in self.pairs], 1)
         order = sorted(range(len(self.pairs)), key=lambda i: isinstance(self.pairs[i].other, str))
-        some = near.any(axis=0)  # the pairs no bound clears at some posture (in that order)
+        some: NDArray[np.bool_] = np.asarray(near.any(axis=0))  # some posture near (unbounded)
         for index in order:
             pair = self.pairs[index]
             if skip[index] or not some[index]:  # that far apart at every angle, or bounded
