@@ -2,8 +2,8 @@
 
 Four stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
 the resting pose of the base on a heightmap (``terrain/rest/kernel.c``), the ground under the arm
-at a route's poses (``planner/under_arm.c``) and the ground's peaks under the arm on a live
-map (``runs/online/lattice_peak.c``). Each is compiled once
+at a route's poses (``planner/ground/under_arm.c``) and the ground's peaks under the arm on a live
+map (``planner/ground/lattice_peak.c``). Each is compiled once
 per source text and compile command with the system compiler and kept in the cache folder;
 the file name carries a hash of both, so an edited source is never confused with an old
 build, and the library is written atomically (compiled next to it, renamed).

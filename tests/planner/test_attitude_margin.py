@@ -18,8 +18,8 @@ from mmstab.cli import main
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
 from mmstab.model.ground import tilted_height
+from mmstab.planner.ground.under_arm import GroundUnderArm, arm_pieces
 from mmstab.planner.searches.roadmap import solve_roadmap_sequence
-from mmstab.planner.under_arm import GroundUnderArm, arm_pieces
 from mmstab.stability.static import mu_max
 from mmstab.workspace import build_workspace
 from mmstab.workspace.roadmap import build_roadmap

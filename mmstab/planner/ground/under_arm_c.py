@@ -1,9 +1,9 @@
 """The ground under the arm's C kernel (``under_arm.c``), called through ctypes.
 
-Two functions of :mod:`mmstab.planner.under_arm`, operation for operation: the arm's pieces
-in B for a batch of postures (:func:`mmstab.planner.under_arm.pieces_in_body`, the lowest
+Two functions of :mod:`mmstab.planner.ground.under_arm`, operation for operation: the arm's pieces
+in B for a batch of postures (:func:`mmstab.planner.ground.under_arm.pieces_in_body`, the lowest
 point over the body's tilts up to the attitude margin) and one pose's least heights above
-the ground under the arm (:meth:`mmstab.planner.under_arm.PoseGround.heights`, on the
+the ground under the arm (:meth:`mmstab.planner.ground.under_arm.PoseGround.heights`, on the
 pose's peak map built in NumPy). Compiled on first use (:mod:`mmstab.core.clib`); the NumPy
 functions stay as the independent twin (``GroundUnderArm(backend="numpy")``), equal to
 rounding (tests/planner/test_under_arm_kernel.py).

@@ -1,9 +1,9 @@
-"""A live map's ground on the lattice of :mod:`mmstab.planner.under_arm` (online).
+"""A live map's ground on the lattice of :mod:`mmstab.planner.ground.under_arm` (online).
 
 :class:`GroundUnderArm` samples a terrain's ground on a 1 cm lattice aligned to M, by tiles;
 on a live map (:class:`MapTiles`) an unknown (NaN) cell or one off the map's window makes
 its samples +inf, and :class:`FilledTiles` puts them at a pose's fill above its support
-plane (:mod:`mmstab.runs.online.arm_ground`). The samples are those of
+plane (:mod:`mmstab.planner.ground.map_ground`). The samples are those of
 :meth:`Heightmap.sample` (:func:`lattice_z`: the same arithmetic, separable), so the
 verification of one node (:meth:`MapGround.node_clear`) reads the values the scoring read.
 """
@@ -14,8 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
-from mmstab.planner.under_arm import LATTICE, TILE, GroundTiles, PoseGround
-from mmstab.runs.online.lattice_c import LatticePeaks
+from mmstab.planner.ground.lattice_c import LatticePeaks
+from mmstab.planner.ground.under_arm import LATTICE, TILE, GroundTiles, PoseGround
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -116,7 +116,7 @@ class MapPoseGround(PoseGround):
     (``top``, the bound that clears high arms unlooked): 127,000 lattice samples, 7 ms. Here
     ``top`` is the map cells' bound over the reach (:meth:`MapGround.reach`, at least the
     samples' max), and the lattice is built around the pieces looked at; or, with
-    ``peaks`` (:mod:`mmstab.runs.online.lattice_c`), only its blocks the pieces need.
+    ``peaks`` (:mod:`mmstab.planner.ground.lattice_c`), only its blocks the pieces need.
     """
 
     #: the C kernel's peaks at this pose (None: the NumPy path, the tiles)

@@ -1,6 +1,6 @@
 """The ground's peaks under the arm's pieces on a live map: the C kernel (``lattice_peak.c``).
 
-:class:`~mmstab.runs.online.map_lattice.MapPoseGround` measures the arm's pieces against
+:class:`~mmstab.planner.ground.map_lattice.MapPoseGround` measures the arm's pieces against
 the max of the ground's rise over a square about each (:meth:`PoseGround.heights`). The
 NumPy path builds the lattice by tiles of 64 x 64 samples wherever a piece is looked at
 (5 ms a scoring on the rough route, most of it on samples no piece's square needs); the
@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, kernel_function
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray
-from mmstab.planner.under_arm import BLOCK, LATTICE
+from mmstab.planner.ground.under_arm import BLOCK, LATTICE
 from mmstab.terrain.heightmap import Heightmap
 
 PEAK_NAME = "mmstab_lattice_peak"  #: the kernel's C symbol
