@@ -1,6 +1,6 @@
 """The ground under the arm at each planned pose (``planner.ground_clearance`` on terrain).
 
-:func:`mmstab.model.ground.arm_ground_clearance` measures the arm against the support plane
+:func:`mmstab.model.plane_clearance.arm_ground_clearance` measures the arm against the support plane
 z_B = 0; on uneven ground the terrain under the arm rises above that plane (a kerb, a bump).
 Here a pose's check reads the terrain through its interface only (``M_T_B``, ``G_T_M``,
 ``surface_G``, ``bounds``): the height of an arm point above the ground is its z in the map
@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
-from mmstab.model.ground import tilted_height
+from mmstab.model.plane_clearance import tilted_height
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.ground.arm_pieces import ArmPieces, arm_pieces, arm_reach
 from mmstab.terrain import Terrain
@@ -237,7 +237,8 @@ class GroundUnderArm:
         poses: base poses (K, 3) in M [m, m, rad].
         M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
         margin: the body's tilt in motion the arm must clear the ground through [rad]
-            (``planner.attitude_margin``, :func:`mmstab.model.ground.tilted_height`); 0: none.
+            (``planner.attitude_margin``,
+            :func:`mmstab.model.plane_clearance.tilted_height`); 0: none.
         backend: ``c``: the pieces and heights by the C kernel
             (:mod:`mmstab.planner.ground.under_arm_c`); ``numpy``: its twin, here.
     """
