@@ -1,6 +1,6 @@
 """The ground under the arm's C kernel against its NumPy twin, on seeded random maps.
 
-The kernel (mmstab/planner/ground/under_arm.c) follows
+The kernel (mmstab/planner/ground/kernel.c) follows
 :mod:`mmstab.planner.ground.under_arm`'s NumPy functions operation for operation: the
 pieces' lowest points (over the attitude margin's tilts) come out bit for bit, their
 centres to 1 ulp (NumPy's matrix product may fuse multiply-adds), the heights above the

@@ -36,9 +36,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.ground.lattice_c import LatticePeaks, kernel_available
+from mmstab.planner.ground.kernel import kernel_available
 from mmstab.planner.ground.map_lattice import (
     FilledTiles,
+    LatticePeaks,
     MapPoseGround,
     MapTiles,
     filled,

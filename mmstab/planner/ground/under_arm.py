@@ -73,12 +73,12 @@ def pieces_in_body(
     """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad].
 
     ``margin`` [rad]: the lowest over the body's tilts up to it (:func:`tilted_height`).
-    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.ground.under_arm_c`, its twin).
+    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.ground.kernel`, its twin).
     """
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
     if backend == "c":
-        from mmstab.planner.ground.under_arm_c import pieces_kernel
+        from mmstab.planner.ground.kernel import pieces_kernel
 
         return PiecesB(*pieces_kernel(frames, pieces.link, pieces.points, pieces.radius, margin))
     low = np.empty((len(q), len(pieces.link)))
@@ -201,7 +201,7 @@ class PoseGround:
         """
         self._cover()
         if self.backend == "c" and len(body.low):
-            from mmstab.planner.ground.under_arm_c import heights_kernel
+            from mmstab.planner.ground.kernel import heights_kernel
 
             h_c = heights_kernel(
                 body.low, body.centre, self.M_T_B, self.top, above, plane, self.peak,
@@ -240,7 +240,7 @@ class GroundUnderArm:
             (``planner.attitude_margin``,
             :func:`mmstab.model.plane_clearance.tilted_height`); 0: none.
         backend: ``c``: the pieces and heights by the C kernel
-            (:mod:`mmstab.planner.ground.under_arm_c`); ``numpy``: its twin, here.
+            (:mod:`mmstab.planner.ground.kernel`); ``numpy``: its twin, here.
     """
 
     def __init__(
