@@ -12,9 +12,9 @@ map, at the horizon's poses rested on it (their ``M_T_B`` from the batched rest)
   (:meth:`MapGround.node_clear`), one node per pose: first a bound from the map's cells (the
   ground's rise above the support plane is bilinear minus linear in each cell, so its max
   over a square lies at the corners of the cells the square meets), then, for the pieces
-  that bound does not clear, the scoring's own value (the max over the same lattice
-  samples and blocks), so a node the scoring took is not rejected by its check on the
-  same ground;
+  that bound does not clear, the scoring's own value (the pose's peak at the piece:
+  :meth:`PoseGround._peak_at`, the C kernel's or the tiles'), so a node the scoring took
+  is not rejected by its check on the same ground;
 - **unknown cells** (NaN in the map, or off its window) under the arm count as high as the
   highest mapped ground within the arm's reach at the pose (:meth:`MapGround.reach`: its
   largest rise above the support plane over the map's cells there, 0 at least): an arm
@@ -42,9 +42,6 @@ from mmstab.planner.ground.map_lattice import (
     LatticePeaks,
     MapPoseGround,
     MapTiles,
-    filled,
-    lattice_z,
-    plane_z,
 )
 from mmstab.planner.ground.under_arm import (
     BLOCK,
@@ -54,6 +51,7 @@ from mmstab.planner.ground.under_arm import (
     KeptPieces,
     PiecesB,
     PoseGround,
+    plane_z,
 )
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -238,10 +236,9 @@ class MapGround:
         ok = np.ones(n * P, dtype=bool)
         if doubt.size:
             ok[doubt] = self._lattice_test(
-                T[pose[doubt]],
+                [ks[x] for x in pose[doubt]],
                 c_M.reshape(-1, 3)[doubt],
                 lowest.ravel()[doubt],
-                fill[doubt],
                 ground,
             )
         clear = np.asarray(ok.reshape(n, P).all(axis=1))
@@ -276,24 +273,20 @@ class MapGround:
         return np.asarray(rise.reshape(flat).max(axis=1)), unknown.reshape(flat).any(axis=1)
 
     def _lattice_test(
-        self, T: FloatArray, c_M: FloatArray, lowest: FloatArray, fill: FloatArray, ground: float
+        self, ks: list[int], c_M: FloatArray, lowest: FloatArray, ground: float
     ) -> NDArray[np.bool_]:
-        """The scoring's test of pieces (centres (m, 3) [m] at poses (m, 4, 4)) on the lattice.
+        """The scoring's own test of pieces at poses ``ks`` (m,) (centres (m, 3) [m] in M).
 
-        The unknown ``fill`` (m,) [m] above the plane, as the scoring's.
-        :meth:`PoseGround.heights`' peak at a centre's sample is the max of the rise over
-        the blocks within ``ceil(cells / BLOCK)`` blocks of the sample's block.
+        Each piece's peak is its pose's (:meth:`PoseGround.heights`' value, the C kernel's
+        where it compiled, else the tiles'), its unknown filled as the scoring's; ``lowest``
+        (m,) [m]: the pieces' lowest points over the support plane, vertically.
         """
-        half = -(-self.arm.cells // BLOCK)
-        n = (2 * half + 1) * BLOCK
-        i = np.floor(c_M[:, 0] / LATTICE).astype(np.intp) // BLOCK - half
-        j = np.floor(c_M[:, 1] / LATTICE).astype(np.intp) // BLOCK - half
-        out = np.empty(len(c_M), dtype=bool)
-        for p in range(len(c_M)):
-            x = (i[p] * BLOCK + np.arange(n)) * LATTICE
-            y = (j[p] * BLOCK + np.arange(n)) * LATTICE
-            plane = plane_z(T[p], x[None, :], y[:, None])
-            peak = float((filled(lattice_z(self.hm, x, y), plane, fill[p]) - plane).max())
-            h = lowest[p] - peak if peak > SLACK else lowest[p]
-            out[p] = h >= ground - SLACK
-        return out
+        i = np.floor(c_M[:, 0] / LATTICE).astype(np.intp)
+        j = np.floor(c_M[:, 1] / LATTICE).astype(np.intp)
+        at = np.asarray(ks)
+        peak = np.empty(len(c_M))
+        for k in np.unique(at):
+            of = at == k
+            peak[of] = self.pose(int(k))._peak_at(i[of], j[of])
+        h = np.where(peak > SLACK, lowest - peak, lowest)
+        return np.asarray(h >= ground - SLACK)

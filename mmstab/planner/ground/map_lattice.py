@@ -23,7 +23,14 @@ from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
 from mmstab.planner.ground.kernel import lattice_peak_kernel
-from mmstab.planner.ground.under_arm import BLOCK, LATTICE, TILE, GroundTiles, PoseGround
+from mmstab.planner.ground.under_arm import (
+    BLOCK,
+    LATTICE,
+    TILE,
+    GroundTiles,
+    PoseGround,
+    plane_z,
+)
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -188,14 +195,3 @@ class MapPoseGround(PoseGround):
         bound = self.top
         super()._build(box)
         self.top = bound  # the bound over the whole reach, not this box's max
-
-
-def plane_z(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
-    """The support plane z_B = 0 of body pose(s) ``T`` (..., 4, 4) in M: z_M [m] at x, y [m].
-
-    The arithmetic of :class:`PoseGround`'s (the same values on the same samples).
-    """
-    n, o = T[..., :3, 2], T[..., :3, 3]
-    return np.asarray(
-        o[..., 2] - (n[..., 0] * (x - o[..., 0]) + n[..., 1] * (y - o[..., 1])) / n[..., 2]
-    )

@@ -98,6 +98,18 @@ def pieces_in_body(
     return PiecesB(low, centre)
 
 
+def plane_z(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
+    """The support plane z_B = 0 of body pose(s) ``T`` (..., 4, 4) in M: z_M [m] at x, y [m].
+
+    One arithmetic for every user (:meth:`PoseGround._build`, the live map's fill and cells'
+    bound), so the same values on the same samples.
+    """
+    n, o = T[..., :3, 2], T[..., :3, 3]
+    return np.asarray(
+        o[..., 2] - (n[..., 0] * (x - o[..., 0]) + n[..., 1] * (y - o[..., 1])) / n[..., 2]
+    )
+
+
 class GroundTiles:
     """The ground's z_M on the lattice, sampled by tiles of :data:`TILE` samples and kept."""
 
@@ -154,12 +166,9 @@ class PoseGround:
 
     def _build(self, box: tuple[int, int, int, int]) -> None:
         """The rise's max over squares about every sample of tiles ``box``."""
-        n, o = self.M_T_B[:3, 2], self.M_T_B[:3, 3]
         x = (box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE
         y = (box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE
-        # the support plane z_B = 0 in M: z = o_z − (n_x (x − o_x) + n_y (y − o_y)) / n_z
-        plane = o[2] - (n[0] * (x[None, :] - o[0]) + n[1] * (y[:, None] - o[1])) / n[2]
-        rise = self.tiles.z_M(box) - plane
+        rise = self.tiles.z_M(box) - plane_z(self.M_T_B, x[None, :], y[:, None])
         self.box = box
         # the max over blocks of BLOCK x BLOCK samples, then over the squares of blocks that
         # hold every sample's square (module text): the squares widened by < BLOCK steps
