@@ -166,8 +166,8 @@ class PoseGround:
 
     def _build(self, box: tuple[int, int, int, int]) -> None:
         """The rise's max over squares about every sample of tiles ``box``."""
-        x = (box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE
-        y = (box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE
+        x = np.asarray((box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE, float)
+        y = np.asarray((box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE, float)
         rise = self.tiles.z_M(box) - plane_z(self.M_T_B, x[None, :], y[:, None])
         self.box = box
         # the max over blocks of BLOCK x BLOCK samples, then over the squares of blocks that
