@@ -1,7 +1,9 @@
 """The ground under the arm at each planned pose (``planner.ground_clearance`` on terrain).
 
-:func:`mmstab.model.plane_clearance.arm_ground_clearance` measures the arm against the support plane
-z_B = 0; on uneven ground the terrain under the arm rises above that plane (a kerb, a bump).
+:func:`mmstab.model.plane_clearance.arm_ground_clearance` measures the arm against the
+support plane z_B = 0; on uneven ground the terrain under the arm rises above that plane (a
+kerb, a bump); the online loop runs this same check on each live map
+(:mod:`mmstab.planner.ground.map_ground`).
 Here a pose's check reads the terrain through its interface only (``M_T_B``, ``G_T_M``,
 ``surface_G``, ``bounds``): the height of an arm point above the ground is its z in the map
 frame M less the ground's z_M at the point's map x, y (vertical in M).
