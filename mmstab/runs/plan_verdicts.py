@@ -27,6 +27,7 @@ from mmstab.runs.along import (
     path_timing,
     sample_spacing,
 )
+from mmstab.runs.climb_out import climb_out_verdict
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.verdict import (
     climb_verdict,
@@ -86,7 +87,8 @@ def route_verdicts(
 
     Returns:
         ``mu_realised`` (K,) [N rad] (the realised postures' μ, one loaded batch),
-        ``stability``, ``slip``, ``climb``, ``high_centred``, ``along_path`` (the dense
+        ``stability`` (with ``climb_out``: :func:`mmstab.runs.climb_out.climb_out_verdict`;
+        unstable where a climb overturns the robot), ``slip``, ``climb``, ``high_centred``, ``along_path`` (the dense
         samples' verdicts), ``slides`` (where the tracks slide, arc lengths [m]) and
         ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
     """
@@ -115,6 +117,10 @@ def route_verdicts(
         for k in range(len(plan.s))
     ]  # fmt: skip
     stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
+    # climbs with the rear down, the arm anywhere on its planned moves (runs.climb_out)
+    stability["climb_out"] = climb_out_verdict(robot, terrain, along.poses, along.s, plan)
+    if stability["climb_out"]["overturns"]:
+        stability["stable"] = False
     out: dict[str, Any] = {
         "mu_realised": mu_realised,
         "stability": stability,

@@ -143,6 +143,13 @@ def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
             f"{verdict.get('acceleration_margin', 0.0):.3g} for the route's accelerations) "
             f"at {named}"
         )
+    parts += [
+        f"climbing a step with the rear down at s = {x['start_s']:.2f} m the robot goes over "
+        f"backwards (pitch {math.degrees(x['pitch_rad']):.0f} deg; the arm's planned move puts "
+        f"the CoM {100 * x['com_ahead_of_rear_m']:.1f} cm ahead of the rear contact, before it "
+        "passed the edge)"
+        for x in verdict.get("climb_out", {}).get("stretches", [])[:LISTED_POSES]
+    ]
     return "; ".join(parts)
 
 
