@@ -88,9 +88,10 @@ def climb_out_verdict(
 
     Returns:
         ``overturns`` (any sample does), ``climbs`` (stretches climbing with the rear down
-        past :data:`LISTED_PITCH`: arc lengths [m] and the largest pitch [rad]) and ``stretches`` (where it overturns:
-        arc lengths [m], the pitch there [rad], and ``com_ahead_of_rear_m``: how far the
-        most backward CoM of the arm's move is ahead of the rear contact, < 0 behind it).
+        past :data:`LISTED_PITCH`: arc lengths [m] and the largest pitch [rad]) and
+        ``stretches`` (where it overturns: arc lengths [m], the pitch there [rad], and
+        ``com_ahead_of_rear_m``: how far the most backward CoM of the arm's move is ahead of
+        the rear contact, < 0 behind it).
     """
     s_m = np.asarray(s, dtype=float)
     rest = pivot_rest(robot, terrain, poses)

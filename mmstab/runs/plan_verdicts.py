@@ -88,9 +88,9 @@ def route_verdicts(
     Returns:
         ``mu_realised`` (K,) [N rad] (the realised postures' μ, one loaded batch),
         ``stability`` (with ``climb_out``: :func:`mmstab.runs.climb_out.climb_out_verdict`;
-        unstable where a climb overturns the robot), ``slip``, ``climb``, ``high_centred``, ``along_path`` (the dense
-        samples' verdicts), ``slides`` (where the tracks slide, arc lengths [m]) and
-        ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
+        unstable where a climb overturns the robot), ``slip``, ``climb``, ``high_centred``,
+        ``along_path`` (the dense samples' verdicts), ``slides`` (where the tracks slide,
+        arc lengths [m]) and ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
     """
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
     mu_realised = loaded_mu(robot, terrain, plan.poses, realised)  # one case, one batch

@@ -1,4 +1,4 @@
-"""Climbing a step with the rear down (``mmstab.stability.climb_out``) against the geometry by hand."""
+"""Climbing a step with the rear down (``mmstab.stability.climb_out``) against hand geometry."""
 
 from __future__ import annotations
 
