@@ -117,8 +117,8 @@ def route_verdicts(
         for k in range(len(plan.s))
     ]  # fmt: skip
     stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
-    # climbs with the rear down, the arm anywhere on its planned moves (runs.climb_out)
-    stability["climb_out"] = climb_out_verdict(robot, terrain, along.poses, along.s, plan)
+    # climbs with the rear down, the arm on its posture reference (runs.climb_out)
+    stability["climb_out"] = climb_out_verdict(robot, terrain, route, along.poses, along.s, plan)
     if stability["climb_out"]["overturns"]:
         stability["stable"] = False
     out: dict[str, Any] = {
