@@ -188,7 +188,8 @@ def lap_verdicts(
 def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
     """``mmstab plan``'s exit status for a plan's verdicts (no ``--allow-...`` option).
 
-    3 where a pose tips or falls below the margin, else 4 where the tracks slide, else 0.
+    3 where a pose tips or falls below the margin (or a climb overturns the robot: the
+    ``tip`` verdict), else 4 where the tracks slide, else 0.
     """
     if verdicts["tip"]["unsafe"]:
         return EXIT_UNSTABLE
