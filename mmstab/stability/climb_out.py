@@ -23,8 +23,8 @@ where the foremost contact is under the belt (the front wheel is off the ground)
 the path, a climb that starts from the robot on its end wheels goes on while the CoM stays
 between the rear contact and the front one; it ends, crossed, where the CoM passes the
 front contact; it **overturns** where the CoM falls behind the rear contact, or where the
-rear wheel meets a face (its contact more than 45° off the vertical: the rear cannot
-roll up it with the CoM still behind the edge).
+rear wheel meets a wall (its contact more than 45° off the vertical and the face rising
+above its axle: the rear cannot roll up it with the CoM still behind the edge).
 
 Assumptions: quasi-static (the drive's push on the rear is what moves the climb on; no
 momentum), no lateral gravity (both tracks meet the step together, as the climb limit),
@@ -47,8 +47,10 @@ SAMPLE_STEP = 0.005
 TOUCH_TOL = 1e-3
 #: A contact this far behind the front axle [m] is under the belt: the front wheel is up.
 BELLY_TOL = 0.01
-#: The rear wheel meets a face where its contact is more than this off the vertical [rad].
+#: The rear wheel meets a face where its contact is more than this off the vertical [rad]
+#: and the ground within :data:`WALL_REACH` of its rim rises above its axle [m].
 FACE_ANGLE = np.pi / 4
+WALL_REACH = 0.05
 
 
 class PivotRest(NamedTuple):
@@ -61,7 +63,9 @@ class PivotRest(NamedTuple):
         axle: the rear axle's horizontal position [m] (−L/2).
         axle_z: the rear axle's height [m].
         rear: the rear wheel's ground contact [m].
-        rear_face: the rear wheel's contact is more than :data:`FACE_ANGLE` off the vertical.
+        rear_face: the rear wheel is at a wall: its contact more than :data:`FACE_ANGLE` off
+            the vertical, and the ground within :data:`WALL_REACH` ahead of its rim above its
+            axle.
         front: the foremost contact ahead [m].
         belly: that contact is under the belt, not the front wheel.
     """
@@ -120,7 +124,11 @@ def pivot_rest(robot: Robot, terrain: Terrain, poses: ArrayLike) -> PivotRest:
     j_rear = np.argmax(centre, axis=1)
     axle_z = centre[np.arange(len(z)), j_rear]
     rear = u[j_rear]
-    rear_face = (rear - axle) > r * np.sin(FACE_ANGLE)
+    # ... pressed against a face that rises above its axle within WALL_REACH (a wall it
+    # cannot roll up; a bump's flank below the axle it can)
+    near = (dx > 0) & (dx <= r + WALL_REACH)
+    wall = np.any(np.where(near, z, -np.inf) >= axle_z[:, None], axis=1)
+    rear_face = ((rear - axle) > r * np.sin(FACE_ANGLE)) & wall
     # the pitch each point ahead needs to stay under the outline
     ahead = (dx >= r) & (dx <= L + r)  # nearer points are the rear wheel's own ground
     dz = z - axle_z[:, None]
