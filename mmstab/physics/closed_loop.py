@@ -25,9 +25,9 @@ stop supporting it (their μ ≤ 0, or none, for ``tip_hold`` seconds) or its at
 the point of no return (the vertical through the CoM leaves the tracks' footprint); the
 chassis' tilt off its resting attitude on the terrain beyond ``disagreement_angle`` is a
 **disagreement** with mmstab's resting pose, reported, not a tip; **slid** when, over any
-``slip_window`` seconds, the base moved more than ``slip_distance`` *down the slope* beyond
-what the tracks commanded (the kinematic plant's motion from each simulated state;
-:func:`downhill_drift`).
+``slip_window`` seconds, the base's pivot centre (the point it pivots about on level
+ground) moved more than ``slip_distance`` *down the slope* beyond what the tracks commanded
+(the kinematic plant's motion from each simulated state; :func:`downhill_drift`).
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ from mmstab.physics.governor import GovernorSettings, ReferenceClock
 from mmstab.physics.loop_checks import (
     TipCheck,
     downhill_drift,
+    pivot_centres,
     predicted_path_slip,
     run_end,
 )
@@ -374,7 +375,8 @@ def _finish(
     q = states[:, -n:]
     mu_pred = loaded_mu(robot, problem.terrain, states[:, :3], robot.arm_com(q), q, strict=False)
     window = int(round(loop.slip_window / dt))
-    slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
+    centre = pivot_centres(robot, q[: len(qdots)])  # the point the slide is measured at
+    slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window, centre)
     over = np.flatnonzero(slip > loop.slip_distance)
     off_rest = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     tau = t if tau is None else tau
