@@ -26,7 +26,7 @@ from experiments.common import experiment_run
 from experiments.skid_measures import TURNING, downhill_beyond, median, per_radian
 from mmstab.core.files import ConfigError, read_yaml, write_figure, write_json
 from mmstab.physics.skid_sim import measure_twist
-from mmstab.stability.skid import pivot_centre, skid_twist, track_patch
+from mmstab.stability.skid import skid_twist, track_patch
 
 #: Keys the settings file must have.
 REQUIRED = ("problem", "friction", "slopes_deg", "headings_deg", "commands", "sim")
@@ -60,7 +60,6 @@ def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
     robot, shear = problem.robot, float(problem.section("physics")["shear_modulus"])
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
-    centre = pivot_centre(patch, com)[0]  # where the slide is measured
     mu, sim = float(settings["friction"]), settings["sim"]
     cases = []
     for slope in settings["slopes_deg"]:
@@ -71,19 +70,19 @@ def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
                                   settle=sim["settle"], transient=sim["transient"],
                                   duration=sim["duration"])  # fmt: skip
                 p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
-                cases.append(_case(slope, heading, name, (v, w), m, p, centre))
+                cases.append(_case(slope, heading, name, (v, w), m, p, com))
     return cases
 
 
 def _case(
-    slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any, centre: Any
+    slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any, com: Any
 ) -> dict[str, Any]:
     g = m.gravity_body
     down = g[:2] / max(float(np.linalg.norm(g[:2])), 1e-12)
     v, w = cmd
-    # the pivot centre's velocity beyond the commanded (v, 0), downhill
-    mj = downhill_beyond(m.velocity_body, m.yaw_rate, centre, v, down)
-    model = downhill_beyond(p.velocity_body[0], p.yaw_rate[0], centre, v, down)
+    # the CoM's velocity beyond the commanded (v, 0), downhill
+    mj = downhill_beyond(m.velocity_body, m.yaw_rate, com, v, down)
+    model = downhill_beyond(p.velocity_body[0], p.yaw_rate[0], com, v, down)
     return {
         "slope_deg": float(slope), "heading_deg": float(heading), "command": name,
         "speed": float(v), "yaw_rate_commanded": float(w),
@@ -156,14 +155,12 @@ def run_skid(settings: dict[str, Any], out: str | Path) -> dict[str, Any]:
     cases = run_cases(settings)
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
-    from mmstab.core.problem import load_problem
-
-    robot = load_problem(settings["problem"]).robot
-    centre = pivot_centre(track_patch(robot), robot.overall_com(robot.arm_com(robot.stowed)))
-    summary = {"settings": settings, "pivot_centre_body_m": centre[0].tolist(),
-               **summarize(cases), "all_cases": cases}  # fmt: skip
+    summary = {"settings": settings, **summarize(cases), "all_cases": cases}
     figure(cases, d / "skid.png")
     if "rough_ground" in settings:
+        from mmstab.core.problem import load_problem
+
+        robot = load_problem(settings["problem"]).robot
         rough = skid_rough.run_cases(robot, settings["rough_ground"], settings["sim"])
         summary["rough_ground"] = {**skid_rough.summarize(rough), "all_cases": rough}
         skid_rough.figure(rough, d / "rough.png")

@@ -6,12 +6,12 @@ displacement it gathered since it touched down. A belt that slips lengthwise (or
 all) keeps little sideways resistance in reserve, so the robot creeps downhill inside the
 static friction cone, faster the softer the belts' grip (the larger K). K is fitted here on
 ``make skid``'s cases (the training set: the ramp grid and the poses along ``rough.yaml``'s
-route; the validation routes are held out): the downhill velocity of the pivot centre
-(:func:`mmstab.stability.skid.pivot_centre`) beyond the commanded (v, 0), MuJoCo's against
-the model's for the same belts, gravity in B and CoM, over the
-cases on a slope where the model's cone holds. K minimises the pinball loss at
-``quantile`` (the model under-predicts in about 1 - quantile of the cases), searched on a
-log grid; ``bootstrap`` resamples of the cases (seeded) give its spread.
+route; the validation routes are held out): the downhill velocity of the CoM (projected on
+the support plane) beyond the commanded (v, 0), MuJoCo's against the model's for the same
+belts, gravity in B and CoM, over the cases on a slope where the model's cone holds. K
+minimises the pinball loss at ``quantile`` (the model under-predicts in about 1 - quantile
+of the cases), searched on a log grid; ``bootstrap`` resamples of the cases (seeded) give
+its spread.
 
 Settings: ``problems/skid_fit.yaml``. Writes ``summary.json`` (K, the loss, the share of cases
 the model under-predicts by more than :data:`UNDER` per kind of case, the bootstrap's 5-95 %).
@@ -66,20 +66,19 @@ def training_cases(summary: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def model_downhill(robot: Any, friction: float, cases: list[dict[str, Any]], K: float) -> Any:
-    """The model's pivot-centre downhill velocity beyond (v, 0) per case at K [m] (NaN: slides)."""
-    from mmstab.stability.skid import pivot_centre, point_velocity, skid_twist, track_patch
+    """The model's CoM downhill velocity beyond (v, 0) per case at K [m] (NaN: slides)."""
+    from mmstab.stability.skid import point_velocity, skid_twist, track_patch
 
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
-    centre = pivot_centre(patch, com)
     g = np.array([c["gravity_body"] for c in cases], dtype=float)
     v = np.array([c["speed"] for c in cases], dtype=float)
     w = np.array([c["yaw_rate_commanded"] for c in cases], dtype=float)
     belts = np.c_[v - w * b / 2, v + w * b / 2]
     twist = skid_twist(patch, g, com, belts, friction, K)
     down = g[:, :2] / np.linalg.norm(g[:, :2], axis=1, keepdims=True)
-    at_centre = point_velocity(twist.velocity_body, twist.yaw_rate, centre)
-    return np.sum((at_centre - np.c_[v, np.zeros_like(v)]) * down, axis=1)
+    at_com = point_velocity(twist.velocity_body, twist.yaw_rate, com[:2])
+    return np.sum((at_com - np.c_[v, np.zeros_like(v)]) * down, axis=1)
 
 
 def pinball(residual: Any, quantile: float) -> Any:

@@ -68,14 +68,13 @@ def run_cases(robot: Any, section: dict[str, Any], sim: dict[str, Any]) -> list[
     """Every pose × command: MuJoCo's twist on the heightfield and the model's."""
     from mmstab.core.problem import load_problem
     from mmstab.physics.skid_sim import measure_twist_at
-    from mmstab.stability.skid import pivot_centre, skid_twist, track_patch
+    from mmstab.stability.skid import skid_twist, track_patch
     from mmstab.stability.slip import terrain_friction
 
     ground = load_problem(section["problem"])
     mu, shear = terrain_friction(ground.terrain), float(ground.section("physics")["shear_modulus"])
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
-    centre = pivot_centre(patch, com)[0]  # where the slide is measured
     cases = []
     for s, pose in zip(*route_poses(ground, section["spacing"]), strict=True):
         for name, (v, w) in section["commands"].items():
@@ -83,11 +82,11 @@ def run_cases(robot: Any, section: dict[str, Any], sim: dict[str, Any]) -> list[
             m = measure_twist_at(robot, ground.terrain, pose, belts, settle=sim["settle"],
                                  transient=sim["transient"], duration=sim["duration"])  # fmt: skip
             p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
-            cases.append(_case(float(s), pose, name, (float(v), float(w)), m, p, centre))
+            cases.append(_case(float(s), pose, name, (float(v), float(w)), m, p, com))
     return cases
 
 
-def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any, centre: Any) -> dict[str, Any]:
+def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any, com: Any) -> dict[str, Any]:
     g = np.asarray(m.gravity_body, dtype=float)
     in_plane = float(np.linalg.norm(g[:2]))
     down = g[:2] / max(in_plane, 1e-12)
@@ -97,8 +96,8 @@ def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any, centre: Any)
     if w != 0 and in_plane >= SLOPED * float(np.linalg.norm(g)):
         toward = "uphill" if w * g[1] < 0 else "downhill"
 
-    def downhill(velocity: Any, yaw_rate: Any) -> float:  # the pivot centre's, beyond (v, 0)
-        return downhill_beyond(velocity, yaw_rate, centre, v, down)
+    def downhill(velocity: Any, yaw_rate: Any) -> float:  # the CoM's, beyond (v, 0)
+        return downhill_beyond(velocity, yaw_rate, com, v, down)
 
     return {
         "s_m": s, "pose": [float(x) for x in pose], "command": name, "speed": v,

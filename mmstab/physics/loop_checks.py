@@ -308,20 +308,20 @@ def downhill_drift(
     qdots: FloatArray,
     dt: float,
     window: int,
-    centre_body: FloatArray,
+    com_body: FloatArray,
 ) -> FloatArray:
-    """The pivot centre's downhill motion beyond the commanded one, per ``window`` periods [m].
+    """The CoM's downhill motion beyond the commanded one, per ``window`` periods [m].
 
-    The point measured is the pivot centre (:func:`mmstab.stability.skid.pivot_centre`: the
-    body-fixed point the base pivots about on level ground, for each period's posture),
-    carried from the period's start to its end by the simulated base pose; the commanded
-    motion is the kinematic plant's from the same simulated state, for that point (the plant
-    driving the point along its heading: a command that pivots about it). Both are projected
-    on the downhill direction at the pose (gravity in B, turned by the heading into M's
-    plane) and summed over the last ``window`` periods: the drift is the simulated sum minus
-    the commanded one, but never more than the simulated sum itself (``min(A - C, A)``). A
-    sliding robot moves downhill (A > 0) beyond the command; a level pivot about the centre
-    moves it neither way; the tracks' servo lag and skid in turns move it either way; tracks
+    The point measured is the CoM's foot: the overall CoM (for each period's posture)
+    projected along z_B on the support plane, a body-fixed point carried from the period's
+    start to its end by the simulated base pose; the commanded motion is the kinematic
+    plant's from the same simulated state, for that point (the plant driving the point
+    along its heading: a command that pivots about it). Both are projected on the downhill
+    direction at the pose (gravity in B, turned by the heading into M's plane) and summed
+    over the last ``window`` periods: the drift is the simulated sum minus the commanded
+    one, but never more than the simulated sum itself (``min(A - C, A)``). A sliding robot
+    moves downhill (A > 0) beyond the command; a level pivot (about a point near the CoM)
+    barely moves it; the tracks' servo lag and skid in turns move it either way; tracks
     that slip while they climb (a kerb) fall short of an uphill command (A - C > 0) while
     the base still moves uphill (A < 0): no slide.
 
@@ -332,7 +332,8 @@ def downhill_drift(
         qdots: commanded joint speeds (N, 2 + n) [rad/s].
         dt: control period [s].
         window: periods summed.
-        centre_body: the pivot centre in B's x, y at each period's start (N, 2) or (2,) [m].
+        com_body: the overall CoM in B at each period's start (N, 2) or (N, 3) (its x, y
+            used), or one (2,) [m].
     """
     n = len(qdots)
     pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
@@ -347,23 +348,11 @@ def downhill_drift(
         acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
         return np.asarray(acc - acc[lag])
 
-    p = np.broadcast_to(np.asarray(centre_body, dtype=float), (n, 2))
+    p = np.asarray(com_body, dtype=float)
+    p = np.broadcast_to(p[..., :2], (n, 2))
     c1, s1 = np.cos(states[1 : n + 1, 2]), np.sin(states[1 : n + 1, 2])
     start = np.c_[c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]]
     end = np.c_[c1 * p[:, 0] - s1 * p[:, 1], s1 * p[:, 0] + c1 * p[:, 1]]
     simulated = windowed(states[1 : n + 1, :2] + end - states[:n, :2] - start)
     commanded = windowed(pred[:, :2] - states[:n, :2])
     return np.minimum(simulated - commanded, simulated)
-
-
-def pivot_centres(robot: Any, q: FloatArray) -> FloatArray:
-    """The pivot centre in B's x, y for each arm posture (N, 2) [m] (:func:`downhill_drift`).
-
-    Args:
-        robot: the robot.
-        q: arm postures (N, n) [rad].
-    """
-    from mmstab.stability.skid import pivot_centre, track_patch
-
-    com = robot.overall_com(np.atleast_2d(robot.arm_com(np.atleast_2d(q))))
-    return pivot_centre(track_patch(robot), com)

@@ -275,42 +275,6 @@ def _backtrack(
     return alpha
 
 
-#: CoM positions closer than this share one pivot centre solve [m] (:func:`pivot_centre`)
-CENTRE_GRID = 5e-4
-
-
-def pivot_centre(patch: TrackPatch, com_body: ArrayLike) -> FloatArray:
-    """The point the base pivots about on level ground, in B's x, y (N, 2) [m].
-
-    The rigid model's level pivot (:func:`skid_twist`, belts at ∓1 m/s: the twist is
-    homogeneous in the belt speeds and independent of μ) turns about the instantaneous
-    centre ``(−v_y, v_x) / ω`` of B. It depends on the CoM's x, y only (the loads' centre;
-    gravity has no in-plane part): about 1.3 times as far ahead of the belts' centre as the
-    CoM, and off sideways away from the more loaded belt. MuJoCo's robot pivots about it
-    within 0.5 cm (docs/skid.md). A body-fixed point of the posture: the slide of the
-    verdicts is measured there (:func:`turn_slide`,
-    :func:`mmstab.physics.loop_checks.downhill_drift`). CoMs within :data:`CENTRE_GRID` share
-    one solve; where the model's pivot does not hold (the CoM beyond the belts), the CoM's
-    x, y.
-
-    Args:
-        patch: the belts' samples.
-        com_body: the overall CoM in B (N, 3) or (3,) [m].
-    """
-    com = np.atleast_2d(np.asarray(com_body, dtype=float))
-    _, first, back = np.unique(
-        np.round(com[:, :2] / CENTRE_GRID), axis=0, return_index=True, return_inverse=True
-    )
-    some = com[first]
-    level = np.tile([0.0, 0.0, -1.0], (len(some), 1))
-    twist = skid_twist(patch, level, some, np.array([-1.0, 1.0]), friction=1.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        centre = np.c_[-twist.velocity_body[:, 1], twist.velocity_body[:, 0]]
-        centre = centre / twist.yaw_rate[:, None]
-    centre = np.where(np.isfinite(centre), centre, some[:, :2])
-    return np.asarray(centre[np.ravel(back)])
-
-
 def point_velocity(
     velocity_body: ArrayLike, yaw_rate: ArrayLike, point_body: ArrayLike
 ) -> FloatArray:
@@ -374,12 +338,13 @@ def turn_slide(
     """The slide a path costs on a slope (module docstring): its velocity beyond the command.
 
     The belts run at the drive layer's speeds for the path's twist, ``v ∓ ω b / (2 η)``
-    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's velocity of the pivot
-    centre (:func:`pivot_centre`, the body-fixed point the base pivots about on level
-    ground) less the commanded one (v along x_B: a command that pivots about that point),
-    projected on the downhill direction, is what MuJoCo's "slid" measures (the motion beyond
-    the kinematic track model's, :func:`mmstab.physics.loop_checks.downhill_drift`): the
-    slope's pull and the belts' creep; a level pivot does not move that point. Where
+    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's velocity of the CoM's
+    foot (the overall CoM projected along z_B on the support plane, :func:`point_velocity`)
+    less the commanded one (v along x_B: a command that pivots about that point), projected
+    on the downhill direction, is what MuJoCo's "slid" measures (the motion beyond the
+    kinematic track model's, :func:`mmstab.physics.loop_checks.downhill_drift`): the slope's
+    pull and the belts' creep; a level pivot moves that point 1.5 cm per radian (MuJoCo's
+    1.8 cm with the arm stowed: it turns about a point a little ahead of it). Where
     the path turns its heading must turn as the path's does, so the slide per radian is
     that velocity over the model's yaw rate (at least :data:`TURN_FLOOR` times the path's:
     the tracks' turn deficit does not hide the slide) and the rate that times |ω|; at least
@@ -404,20 +369,19 @@ def turn_slide(
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     n = len(twist.yaw_rate)
     com = np.broadcast_to(np.asarray(com_body, dtype=float), (n, 3))
-    centre = pivot_centre(patch, com)
     norm = np.linalg.norm(g[:, :2], axis=1, keepdims=True)
     down = np.divide(g[:, :2], norm, out=np.zeros_like(g[:, :2]), where=norm > 1e-12)
     v = np.broadcast_to(np.asarray(speed, dtype=float), (n,))
 
-    def at_centre(t: SkidTwist) -> FloatArray:  # the pivot centre's velocity [m/s]
-        return point_velocity(t.velocity_body, t.yaw_rate, centre)
+    def at_com(t: SkidTwist) -> FloatArray:  # the velocity of the CoM's foot on the plane [m/s]
+        return point_velocity(t.velocity_body, t.yaw_rate, com[:, :2])
 
-    beyond = np.sum((at_centre(twist) - np.c_[v, np.zeros_like(v)]) * down, 1)
+    beyond = np.sum((at_com(twist) - np.c_[v, np.zeros_like(v)]) * down, 1)
     # the rigid model's slope part (the same belts and CoM on level ground taken off): where
     # the level turn's sideways skid points uphill it does not hide the slope's pull
     level = np.c_[np.zeros((len(g), 2)), -np.linalg.norm(g, axis=1)]
     flat = skid_twist(patch, level, com_body, belts, friction)
-    slope = np.sum((at_centre(rigid) - at_centre(flat)) * down, 1)
+    slope = np.sum((at_com(rigid) - at_com(flat)) * down, 1)
     turning = np.abs(w) > 1e-6
     floor = TURN_FLOOR * np.abs(w)
     with np.errstate(invalid="ignore"):  # NaN twist where the cone does not hold

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.mujoco
 pytest.importorskip("mujoco")
 
 from mmstab.physics.skid_sim import measure_twist  # noqa: E402
-from mmstab.stability.skid import pivot_centre, skid_twist, track_patch  # noqa: E402
+from mmstab.stability.skid import skid_twist, track_patch  # noqa: E402
 
 MU = 0.7
 
@@ -35,10 +35,10 @@ def both(robot, slope_deg: float, heading_deg: float, v: float, w: float):
     com = robot.overall_com(robot.arm_com(robot.stowed))
     p = skid_twist(track_patch(robot), m.gravity_body, com, belts, MU)
     down = m.gravity_body[:2] / np.linalg.norm(m.gravity_body[:2])
-    c = pivot_centre(track_patch(robot), com)[0]  # the slide is measured there (docs/skid.md)
 
-    def downhill(velocity, yaw_rate):  # the centre's velocity beyond the commanded (v, 0)
-        return float((np.asarray(velocity) + yaw_rate * np.r_[-c[1], c[0]] - [v, 0.0]) @ down)
+    def downhill(velocity, yaw_rate):  # the CoM's velocity beyond the commanded (v, 0)
+        at_com = np.asarray(velocity) + yaw_rate * np.r_[-com[1], com[0]]
+        return float((at_com - [v, 0.0]) @ down)
 
     mj = (downhill(m.velocity_body, m.yaw_rate), m.yaw_rate)
     return mj, (downhill(p.velocity_body[0], p.yaw_rate[0]), p.yaw_rate[0])
