@@ -92,3 +92,73 @@ def test_a_route_plans_the_same_with_the_kernel_and_its_twin(pairs, monkeypatch)
         assert np.array_equal(kernel.postures, twin.postures)
         assert len(kernel.moves) == len(twin.moves) == len(twin.s)
         assert all(np.array_equal(a, b) for a, b in zip(kernel.moves, twin.moves, strict=True))
+
+
+class _Holed:
+    """A terrain with a NaN sample (its interface for the tiles only)."""
+
+    def __init__(self, terrain):
+        self.terrain, self.bounds = terrain, terrain.bounds
+
+    def G_T_M(self):
+        return self.terrain.G_T_M()
+
+    def surface_G(self, x, y):
+        p = self.terrain.surface_G(x, y)
+        p[..., 2] = np.where(
+            (np.abs(x - 0.30) < 0.004) & (np.abs(y - 0.10) < 0.004), np.nan, p[..., 2]
+        )
+        return p
+
+
+def test_peak_map_c_equals_numpy_on_random_maps(pairs):
+    """The pose's peak map by the kernel (tiles unstacked) is NumPy's and SciPy's, bit for bit."""
+    from mmstab.planner.ground.under_arm import GroundTiles, PoseGround
+
+    rng = np.random.default_rng(5)
+    spread = 0.0
+    for problem in pairs:
+        tiles = GroundTiles(problem.terrain)
+        poses = _route_poses(problem, 0.8)
+        for T in problem.terrain.M_T_B(poses):
+            tilt = np.eye(4)  # the resting pose, and one tilted more: a steeper plane
+            a, b = rng.uniform(-0.3, 0.3, 2)
+            tilt[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
+            tilt[:3, :3] = tilt[:3, :3] @ [
+                [1, 0, 0],
+                [0, np.cos(b), -np.sin(b)],
+                [0, np.sin(b), np.cos(b)],
+            ]
+            for M_T_B in (T, T @ tilt):
+                for cells in (7, 12):
+                    twin = PoseGround(tiles, M_T_B, cells, backend="numpy")
+                    kernel = PoseGround(tiles, M_T_B, cells, backend="c")
+                    c = np.floor(M_T_B[:2, 3] / 0.01 / 64).astype(int)
+                    for box in (
+                        (c[0] - 1, c[0] + 1, c[1] - 2, c[1] + 1),
+                        (c[0] - 3, c[0], c[1], c[1]),
+                    ):
+                        twin._build(box)
+                        kernel._build(box)
+                        assert kernel.peak.shape == twin.peak.shape
+                        assert np.array_equal(kernel.peak, twin.peak)
+                        assert kernel.top == twin.top
+                        spread = max(spread, float(np.ptp(twin.peak)))
+    assert spread > 0.02  # the maps' ground varies: a real comparison
+
+
+def test_peak_map_with_a_nan_takes_numpys_path(pairs):
+    """A tile with a NaN sample: the kernel is not used, the map is NumPy's (NaN kept)."""
+    from mmstab.planner.ground.under_arm import GroundTiles, PoseGround
+
+    terrain = _Holed(pairs[0].terrain)
+    T = pairs[0].terrain.M_T_B(np.array([[0.3, 0.1, 0.2]]))[0]
+    maps = []
+    for backend in ("numpy", "c"):
+        ground = PoseGround(GroundTiles(terrain), T, 7, backend=backend)
+        ground._build((-1, 1, -1, 1))
+        assert ground.tiles.nonfinite == {(0, 0)}
+        maps.append(ground)
+    assert np.isnan(maps[0].top) and np.isnan(maps[1].top)
+    assert np.array_equal(maps[0].peak, maps[1].peak, equal_nan=True)
+    assert not maps[1].tiles.finite((-1, 1, -1, 1)) and maps[1].tiles.finite((1, 2, 1, 2))

@@ -235,3 +235,73 @@ int mmstab_lattice_peak(const double *elev, long ny, long nx, const double *orig
     free(g.xs);
     return (int)code;
 }
+
+/* ---- a pose's peak map on a terrain's lattice (mmstab_peak_map) ---- */
+
+/* under_arm.PoseGround._build: the rise of the ground's z_M on the lattice samples of
+ * tiles[tj * ntx + ti] (tile x tile samples each, rows along y; ti < ntx, tj < nty; sample
+ * (i0, j0) first) above the support plane of T (the pose's M_T_B, 4 x 4), its max over
+ * blocks of block x block samples into blocks (nty tile / block, ntx tile / block), and the
+ * max over the (2 half + 1)^2 blocks about each block (the edge's block repeated beyond
+ * it: scipy's maximum_filter, mode "nearest") into peak; rise (2 ntx tile) and rows (blocks'
+ * size): scratch. The plane's z_M is plane_z's arithmetic, in its order; max is exact, so
+ * the same values as NumPy's and SciPy's for samples not NaN (the caller takes NumPy's
+ * path for tiles with a NaN). Returns the blocks' max (top). */
+double mmstab_peak_map(const double *const *tiles, long ntx, long nty, long tile, long i0,
+                       long j0, double lattice, const double *T, long block, long half,
+                       double *rise, double *blocks, double *rows, double *peak)
+{
+    const double n0 = T[2], n1 = T[6], n2 = T[10], o0 = T[3], o1 = T[7], o2 = T[11];
+    const long nx = ntx * tile, ny = nty * tile, bx = nx / block, by = ny / block;
+    double top = -INFINITY, *xs = rise + nx; /* the plane's term along x */
+    for (long i = 0; i < nx; i++)
+        xs[i] = n0 * ((double)(i0 + i) * lattice - o0);
+    for (long j = 0; j < ny; j++) {
+        const double ty = n1 * ((double)(j0 + j) * lattice - o1);
+        for (long t = 0; t < ntx; t++) {
+            const double *z = tiles[(j / tile) * ntx + t] + (j % tile) * tile;
+            double *r = rise + t * tile;
+            const double *x = xs + t * tile;
+            for (long i = 0; i < tile; i++)
+                r[i] = z[i] - (o2 - (x[i] + ty) / n2);
+        }
+        double *b = blocks + (j / block) * bx;
+        if (j % block == 0)
+            for (long i = 0; i < bx; i++)
+                b[i] = -INFINITY;
+        for (long k = 0; k < bx; k++)
+            for (long d = 0; d < block; d++) {
+                double v = rise[k * block + d];
+                b[k] = v > b[k] ? v : b[k];
+            }
+    }
+    for (long k = 0; k < bx * by; k++)
+        top = blocks[k] > top ? blocks[k] : top;
+    for (long j = 0; j < by; j++) { /* the max along a row, then along a column */
+        const double *b = blocks + j * bx;
+        double *r = rows + j * bx;
+        for (long i = 0; i < bx; i++)
+            r[i] = b[i];
+        for (long d = 1; d <= half; d++)
+            for (long i = 0; i < bx; i++) {
+                double lo = b[i - d < 0 ? 0 : i - d], hi = b[i + d >= bx ? bx - 1 : i + d];
+                double m = lo > hi ? lo : hi;
+                r[i] = m > r[i] ? m : r[i];
+            }
+    }
+    for (long j = 0; j < by; j++) {
+        double *p = peak + j * bx;
+        const double *r = rows + j * bx;
+        for (long i = 0; i < bx; i++)
+            p[i] = r[i];
+        for (long d = 1; d <= half; d++) {
+            const double *lo = rows + (j - d < 0 ? 0 : j - d) * bx;
+            const double *hi = rows + (j + d >= by ? by - 1 : j + d) * bx;
+            for (long i = 0; i < bx; i++) {
+                double m = lo[i] > hi[i] ? lo[i] : hi[i];
+                p[i] = m > p[i] ? m : p[i];
+            }
+        }
+    }
+    return top;
+}

@@ -1,13 +1,16 @@
 """The ground under the arm's one C kernel (``kernel.c``), called through ctypes.
 
-Three functions of the check, each its NumPy twin operation for operation:
+Four functions of the check, each its NumPy twin operation for operation:
 
 - :func:`pieces_kernel`: the arm's pieces in B for a batch of postures
   (:func:`mmstab.planner.ground.under_arm.pieces_in_body`, the lowest point over the body's
   tilts up to the attitude margin);
 - :func:`heights_kernel`: one pose's least heights above the ground under the arm
-  (:meth:`mmstab.planner.ground.under_arm.PoseGround.heights`, on the pose's peak map built
-  in NumPy), the offline planner's;
+  (:meth:`mmstab.planner.ground.under_arm.PoseGround.heights`, on the pose's peak map),
+  the offline planner's;
+- :func:`peak_map_kernel`: one pose's peak map on a terrain's lattice
+  (:meth:`mmstab.planner.ground.under_arm.PoseGround._build`: the rise above the support
+  plane, its max over blocks, then over the squares of blocks), the offline planner's;
 - :func:`lattice_peak_kernel`: on a live map, the peaks of the ground's rise computed only
   where a piece asks and kept for the pose
   (:class:`~mmstab.planner.ground.map_lattice.LatticePeaks`), the online loop's.
@@ -38,10 +41,10 @@ _D, _L, _long, _double = DOUBLES, LONGS, LONG, DOUBLE
 
 
 @lru_cache(maxsize=1)
-def _kernels() -> tuple[Any, Any, Any]:
+def _kernels() -> tuple[Any, Any, Any, Any]:
     lib = ctypes.CDLL(str(compiled_library(KERNEL_SOURCE, KERNEL_NAME)))
     pieces, heights = lib.mmstab_arm_pieces, lib.mmstab_arm_heights
-    peak = lib.mmstab_lattice_peak
+    peak, peak_map = lib.mmstab_lattice_peak, lib.mmstab_peak_map
     # frames n L link points radius mid P margin cm sm | low centre
     pieces.argtypes = [_D, _long, _long, _L, _D, _D, _D, _long, _long, _double, _double, _D, _D]
     # low centre n P T cos top above plane peak rows cols i0 j0 block reach lattice slack | h
@@ -51,7 +54,12 @@ def _kernels() -> tuple[Any, Any, Any]:
     peak.argtypes = [_D, _long, _long, _D, _double, _D, _D, _L, _D, _D, _D, _L, _L, _long, _D]
     for f in (pieces, heights, peak):
         f.restype = ctypes.c_int
-    return pieces, heights, peak
+    # tiles ntx nty tile i0 j0 lattice T block half | rise blocks rows peak
+    _P = np.ctypeslib.ndpointer(dtype=np.uintp, flags="C_CONTIGUOUS")
+    peak_map.argtypes = [_P, _long, _long, _long, _long, _long, _double, _D, _long, _long]
+    peak_map.argtypes += [_D, _D, _D, _D]
+    peak_map.restype = ctypes.c_double
+    return pieces, heights, peak, peak_map
 
 
 def load_kernels() -> None:
@@ -183,3 +191,43 @@ def lattice_peak_kernel(
         len(i), out,
     )  # fmt: skip
     return out if code == 0 else None
+
+
+def peak_map_kernel(
+    tiles: list[list[NDArray[np.float64]]],
+    origin: tuple[int, int],
+    lattice: float,
+    M_T_B: NDArray[np.float64],
+    block: int,
+    half: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """One pose's peak map: the ground's rise above the support plane, max over squares.
+
+    Args:
+        tiles: the ground's z_M on the lattice by tiles (square, C-contiguous float64),
+            ``tiles[tj][ti]`` along y then x (the mosaic ``GroundTiles.z_M`` would stack) [m].
+        origin: lattice sample (i, j) of ``tiles[0][0][0, 0]``.
+        lattice: the lattice step [m].
+        M_T_B: the pose's resting body pose in M (4, 4) (its z_B = 0 is the plane).
+        block: lattice samples along a block's edge.
+        half: the squares' half-width [blocks].
+
+    Returns:
+        The blocks' maxima and their max over (2 half + 1)^2 blocks about each block (the
+        edge's block beyond the edge), both (rows / block, cols / block) [m], and the
+        blocks' max [m]. The samples must not be NaN (SciPy's filter's NaN rules are not
+        followed): the caller checks.
+    """
+    tile, nty, ntx = len(tiles[0][0]), len(tiles), len(tiles[0])
+    flat = [t for row in tiles for t in row]
+    if not all(t.flags.c_contiguous and t.dtype == np.float64 for t in flat):
+        raise ValueError("peak_map_kernel: the tiles must be C-contiguous float64")
+    ptrs = np.array([t.ctypes.data for t in flat], dtype=np.uintp)
+    shape = (nty * tile // block, ntx * tile // block)
+    blocks, rows, peak = np.empty(shape), np.empty(shape), np.empty(shape)
+    top = _kernels()[3](
+        ptrs, ntx, nty, tile, int(origin[0]), int(origin[1]), float(lattice),
+        np.ascontiguousarray(M_T_B, dtype=np.float64), int(block), int(half),
+        np.empty(2 * ntx * tile), blocks, rows, peak,
+    )  # fmt: skip
+    return blocks, peak, float(top)

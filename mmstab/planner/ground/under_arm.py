@@ -119,6 +119,7 @@ class GroundTiles:
         self.terrain = terrain
         self.M_T_G = np.linalg.inv(terrain.G_T_M())
         self.tiles: dict[tuple[int, int], FloatArray] = {}
+        self.nonfinite: set[tuple[int, int]] = set()  # tiles with a NaN or an infinity
 
     def _tile(self, ti: int, tj: int) -> FloatArray:
         if (ti, tj) not in self.tiles:
@@ -130,16 +131,24 @@ class GroundTiles:
                 X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
             p_G = self.terrain.surface_G(X, Y)
             self.tiles[ti, tj] = p_G @ self.M_T_G[2, :3] + self.M_T_G[2, 3]
+            if not np.isfinite(self.tiles[ti, tj]).all():
+                self.nonfinite.add((ti, tj))
         return self.tiles[ti, tj]
+
+    def mosaic(self, box: tuple[int, int, int, int]) -> list[list[FloatArray]]:
+        """The tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), by rows along y."""
+        ti0, ti1, tj0, tj1 = box
+        return [[self._tile(ti, tj) for ti in range(ti0, ti1 + 1)] for tj in range(tj0, tj1 + 1)]
+
+    def finite(self, box: tuple[int, int, int, int]) -> bool:
+        """Whether the tiles ``box`` (built) are all finite."""
+        return not any(
+            box[0] <= ti <= box[1] and box[2] <= tj <= box[3] for ti, tj in self.nonfinite
+        )
 
     def z_M(self, box: tuple[int, int, int, int]) -> FloatArray:
         """The ground's z_M [m] on tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), (y, x)."""
-        ti0, ti1, tj0, tj1 = box
-        rows = [
-            np.hstack([self._tile(ti, tj) for ti in range(ti0, ti1 + 1)])
-            for tj in range(tj0, tj1 + 1)
-        ]
-        return np.vstack(rows)
+        return np.vstack([np.hstack(row) for row in self.mosaic(box)])
 
 
 @dataclasses.dataclass
@@ -159,7 +168,7 @@ class PoseGround:
     box: tuple[int, int, int, int] = (0, -1, 0, -1)  # tile index range (ti0, ti1, tj0, tj1)
     peak: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
     top: float = 0.0  # the peak's max [m]
-    backend: Backend = "numpy"  # who computes the heights (the peak map is NumPy's)
+    backend: Backend = "numpy"  # who computes the peak map and the heights
 
     @functools.cached_property
     def cos_tilt(self) -> float:
@@ -170,14 +179,24 @@ class PoseGround:
         """The rise's max over squares about every sample of tiles ``box``."""
         x = np.asarray((box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE, float)
         y = np.asarray((box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE, float)
+        self.box, half = box, -(-self.cells // BLOCK)
+        if self.backend == "c" and isinstance(self.tiles, GroundTiles):
+            mosaic = self.tiles.mosaic(box)  # the tiles unstacked
+            if self.tiles.finite(box) and np.isfinite(self.M_T_B).all():
+                from mmstab.planner.ground.kernel import peak_map_kernel
+
+                # the same values: the same rise, and a max is exact in any order
+                origin = (box[0] * TILE, box[2] * TILE)
+                _, self.peak, self.top = peak_map_kernel(
+                    mosaic, origin, LATTICE, self.M_T_B, BLOCK, half
+                )
+                return
         rise = self.tiles.z_M(box) - plane_z(self.M_T_B, x[None, :], y[:, None])
-        self.box = box
         # the max over blocks of BLOCK x BLOCK samples, then over the squares of blocks that
         # hold every sample's square (module text): the squares widened by < BLOCK steps
         blocks = rise[::BLOCK, ::BLOCK].copy()
         for dj, di in np.ndindex(BLOCK, BLOCK):
             np.maximum(blocks, rise[dj::BLOCK, di::BLOCK], out=blocks)
-        half = -(-self.cells // BLOCK)
         self.peak = maximum_filter(blocks, size=2 * half + 1, mode="nearest")
         self.top = float(blocks.max())
 
