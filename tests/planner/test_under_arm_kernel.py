@@ -162,3 +162,33 @@ def test_peak_map_with_a_nan_takes_numpys_path(pairs):
     assert np.isnan(maps[0].top) and np.isnan(maps[1].top)
     assert np.array_equal(maps[0].peak, maps[1].peak, equal_nan=True)
     assert not maps[1].tiles.finite((-1, 1, -1, 1)) and maps[1].tiles.finite((1, 2, 1, 2))
+
+
+def test_tiles_sampled_together_equal_one_by_one(pairs):
+    """A box's new tiles in one call of the terrain: each tile's values its own call's."""
+    from mmstab.planner.ground.under_arm import TILE, GroundTiles
+
+    for problem in pairs:
+        together = GroundTiles(problem.terrain)
+        b = problem.terrain.bounds
+        edge = int(np.floor(b[1] / 0.01 / TILE))  # a box across the map's edge: clipped
+        for box in ((-2, 1, -1, 2), (edge - 1, edge + 1, 0, 1)):
+            tiles = together.mosaic(box)
+            for tj, row in zip(range(box[2], box[3] + 1), tiles, strict=True):
+                for ti, tile in zip(range(box[0], box[1] + 1), row, strict=True):
+                    assert tile.shape == (TILE, TILE) and tile.flags.c_contiguous
+                    assert np.array_equal(tile, _tile_alone(together, ti, tj))
+        assert np.ptp(together.z_M((-2, 1, -1, 2))) > 0.01  # the ground varies
+
+
+def _tile_alone(tiles, ti, tj):
+    """Tile (ti, tj) as before the batch: numpy.meshgrid, a terrain call of its own."""
+    from mmstab.planner.ground.under_arm import LATTICE, TILE
+
+    x = (ti * TILE + np.arange(TILE)) * LATTICE
+    y = (tj * TILE + np.arange(TILE)) * LATTICE
+    X, Y = np.meshgrid(x, y)
+    b = tiles.terrain.bounds
+    if b is not None:
+        X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
+    return tiles.terrain.surface_G(X, Y) @ tiles.M_T_G[2, :3] + tiles.M_T_G[2, 3]

@@ -123,22 +123,38 @@ class GroundTiles:
 
     def _tile(self, ti: int, tj: int) -> FloatArray:
         if (ti, tj) not in self.tiles:
-            x = (ti * TILE + np.arange(TILE)) * LATTICE
-            y = (tj * TILE + np.arange(TILE)) * LATTICE
-            X, Y = np.meshgrid(x, y)
-            b = self.terrain.bounds
-            if b is not None:  # beyond the map's edge: the edge's ground
-                X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
-            p_G = self.terrain.surface_G(X, Y)
-            self.tiles[ti, tj] = p_G @ self.M_T_G[2, :3] + self.M_T_G[2, 3]
-            if not np.isfinite(self.tiles[ti, tj]).all():
-                self.nonfinite.add((ti, tj))
+            self._sample([(ti, tj)])
         return self.tiles[ti, tj]
+
+    def _sample(self, keys: list[tuple[int, int]]) -> None:
+        """Sample tiles ``keys`` (ti, tj) in one call of the terrain.
+
+        The terrain's surface is elementwise, and the product with M's z row is taken per
+        row of a tile (``(TILE, 3) @ (3,)``) as for a tile alone: the same values.
+        """
+        at = np.asarray(keys, dtype=np.intp).reshape(-1, 2)
+        x = (at[:, :1] * TILE + np.arange(TILE)) * LATTICE  # (k, TILE)
+        y = (at[:, 1:] * TILE + np.arange(TILE)) * LATTICE
+        shape = (len(at), TILE, TILE)  # each tile (y, x) as numpy.meshgrid lays it
+        X, Y = np.broadcast_to(x[:, None, :], shape), np.broadcast_to(y[:, :, None], shape)
+        b = self.terrain.bounds
+        if b is not None:  # beyond the map's edge: the edge's ground
+            X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
+        p_G = self.terrain.surface_G(X, Y)
+        z = p_G @ self.M_T_G[2, :3] + self.M_T_G[2, 3]  # a tile's (TILE, 3) @ (3,) each
+        for key, tile in zip(keys, z, strict=True):
+            self.tiles[key] = np.ascontiguousarray(tile)
+            if not np.isfinite(tile).all():
+                self.nonfinite.add(key)
 
     def mosaic(self, box: tuple[int, int, int, int]) -> list[list[FloatArray]]:
         """The tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), by rows along y."""
         ti0, ti1, tj0, tj1 = box
-        return [[self._tile(ti, tj) for ti in range(ti0, ti1 + 1)] for tj in range(tj0, tj1 + 1)]
+        rows, cols = range(tj0, tj1 + 1), range(ti0, ti1 + 1)
+        new = [(ti, tj) for tj in rows for ti in cols if (ti, tj) not in self.tiles]
+        if len(new) > 1 and type(self)._tile is GroundTiles._tile:  # one call for the new
+            self._sample(new)
+        return [[self._tile(ti, tj) for ti in cols] for tj in rows]
 
     def finite(self, box: tuple[int, int, int, int]) -> bool:
         """Whether the tiles ``box`` (built) are all finite."""
