@@ -5,5 +5,5 @@ margin's tilts, measured against the ground's rise above the pose's support plan
 1 cm lattice in M (``under_arm``: :class:`GroundUnderArm` on a terrain's surface, by
 tiles); on a live map (``map_lattice``: unknown cells filled, tiles kept between maps;
 ``map_ground``: a pose's state per map, one node's verification). One C kernel for both
-(``kernel``, ``kernel.c``): the pieces, the heights on a peak map, a live map's peaks.
+(``kernel``, ``kernel.c``): the pieces, a pose's peak map, the heights on it, a live map's peaks.
 """

@@ -1,7 +1,7 @@
 /* The ground under the arm: mmstab's C kernel of mmstab/planner/ground/'s one check, shared
  * by the offline planner (a route's poses on a terrain) and the online loop (a live map).
  *
- * Three functions, each its NumPy twin operation for operation, so both paths give the
+ * Four functions, each its NumPy twin operation for operation, so both paths give the
  * same values (tested bit for bit on seeded random maps):
  *
  * - mmstab_arm_pieces: under_arm.pieces_in_body, each piece's lowest point z_B (over the
@@ -9,7 +9,9 @@
  *   frames;
  * - mmstab_arm_heights: under_arm.PoseGround.heights, each posture's least height above the
  *   ground under the arm at one pose, from those pieces and the pose's peak map (the rise's
- *   max over squares about every lattice block, built in NumPy);
+ *   max over squares about every lattice block, mmstab_peak_map's);
+ * - mmstab_peak_map: under_arm.PoseGround._build, a pose's peak map from the ground's tiles
+ *   (the rise above the support plane, its max over blocks, then over squares of blocks);
  * - mmstab_lattice_peak: on a live map (map_lattice.MapPoseGround), the same peaks computed
  *   only where a piece asks and kept: the NumPy path samples a pose's ground on the 1 cm
  *   lattice by tiles of 64 x 64 samples around every piece it looks at, takes the rise above

@@ -54,7 +54,7 @@ SLACK = 1e-9
 BLOCK = 2
 #: Lattice samples along a tile's edge (the ground is sampled by tiles, kept for a route).
 TILE = 64
-#: Who computes the pieces and heights: the C kernel (default) or its NumPy twin.
+#: Who computes the pieces, the peak maps and the heights: the C kernel (default) or its NumPy twin.
 Backend = Literal["c", "numpy"]
 
 
