@@ -209,6 +209,8 @@ class Follower:
                 break
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
+        if isinstance(self.horizon, RoadmapHorizon):  # the queued re-plans, the moves ahead
+            self.horizon.spare(t0 + (self.horizon.jobs.budget or 0.0))
         latency = time.perf_counter() - t0
         if self.on_command is not None:
             self.on_command(qdot, None if q_ref is None else np.array(q_ref))
