@@ -178,7 +178,7 @@ class Follower:
 
     def update(self, u: MapUpdate) -> FollowStep:
         """One map (module text)."""
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
         pose = u.odometry.pose
         self.s = s = self.progress(pose[:2])
@@ -210,7 +210,7 @@ class Follower:
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
         if isinstance(self.horizon, RoadmapHorizon):  # the queued re-plans, the moves ahead
-            self.horizon.spare(t0 + (self.horizon.jobs.budget or 0.0))
+            self.horizon.spare(cpu0 + (self.horizon.jobs.budget or 0.0))
         latency = time.perf_counter() - t0
         if self.on_command is not None:
             self.on_command(qdot, None if q_ref is None else np.array(q_ref))

@@ -36,11 +36,13 @@ from typing import Generic, TypeVar
 
 from greenlet import greenlet
 
-#: An update's time [s] after which it starts no step of the queued re-plans (counted from
-#: the map's arrival at the loop; one step at least per map, and a step may run past it).
-UPDATE_BUDGET = 0.006
+#: An update's time [s] after which it starts no step of the queued re-plans: the loop's
+#: processor time (:func:`time.thread_time`, so that other processes on its core do not
+#: starve the re-plans), from the map's arrival at the loop; one step at least per map, and
+#: a step may run past it.
+UPDATE_BUDGET = 0.005
 #: Maps after its trigger on which a deferred re-plan lands.
-LAND_AFTER = 10
+LAND_AFTER = 20
 #: The horizon's first poses (the one behind the robot, the next two ahead): a re-plan of
 #: a pose without a valid landed plan lands before the pose is among them.
 NEAR_POSES = 3
@@ -114,9 +116,9 @@ class Jobs(Generic[T]):
         return True
 
     def advance(self, until: float) -> None:
-        """Step the queued jobs until ``until`` [s] (:func:`time.perf_counter`; one at least)."""
+        """Step the queued jobs until ``until`` [s] (:func:`time.thread_time`; one at least)."""
         first = True
-        while (first or time.perf_counter() < until) and self.step():
+        while (first or time.thread_time() < until) and self.step():
             first = False
 
     def due(

@@ -25,6 +25,7 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
 
 from __future__ import annotations
 
+import time
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -58,7 +59,7 @@ from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace.roadmap import Roadmap
 
 #: Nodes whose arm pieces one step of a re-plan computes (:class:`PausedPieces`).
-PIECES_STEP = 64
+PIECES_STEP = 32
 
 
 class PoseCandidates(NamedTuple):
@@ -281,7 +282,7 @@ class RoadmapHorizon:
                 changes.uncovered,
             )
         replanned = list(changes.replanned)
-        near = set(ks[:NEAR_POSES])
+        near, at_once = set(ks[:NEAR_POSES]), False
         for landed in self.jobs.due(self.maps, near):
             self._land(landed)
         if replanned:
@@ -292,30 +293,38 @@ class RoadmapHorizon:
             compute = lambda: self._replan(terrain, ks, replanned, g, now, ground, arm_q)  # noqa: E731
             touches = frozenset(k for k in ks if k >= replanned[0] - 1)
             self.jobs.add(Job(compute, self.maps + LAND_AFTER, invalid, touches))
-            if invalid & near:  # the step reads it soon: this one (and those before) now
+            at_once = self.jobs.budget is None or bool(invalid & near)
+            if at_once:  # the step reads it soon: this one (and those before) now
                 for landed in self.jobs.due(self.maps, near, everything=True):
                     self._land(landed)
-        self._spare = (ks, None if replanned else ground)
+        self._spare = (ks, None if at_once else ground)
         return changes
 
     def spare(self, until: float) -> None:
         """The map's spare time, after its step: the re-plans' steps, else the moves ahead.
 
-        The queued re-plans' steps until ``until`` (:func:`time.perf_counter` [s]; one step
-        at least); with none queued, the moves ahead (``moves_ahead``, on a map that
-        re-scored no pose).
+        The queued re-plans' steps until ``until`` (:func:`time.thread_time` [s]; one step
+        at least); then, on a map that re-scored no pose at once, the moves ahead
+        (``moves_ahead``) for the time left, or :data:`MOVE_BUDGET` with no re-plan queued:
+        the moves between the landed nodes and between the re-plans' nodes not landed yet,
+        nearest first.
         """
         ks, ground = self._spare
-        if self.jobs.pending():
+        queued = self.jobs.pending()
+        if queued:
             self.jobs.advance(until)
-        elif ground is not None:
-            n = self.nodes
-            at = {(n[k - 1], n[k]): [k - 1, k] for k in ks if k - 1 in n and k in n}
-            self.ahead.want([p for p in at if p not in self._moves])
-            self.ahead.advance(
-                MOVE_BUDGET,
-                lambda p: ground.under(at[p]) if set(at[p]) <= set(ground.M_T_B) else None,
-            )
+        left = until - time.thread_time() if queued else MOVE_BUDGET
+        if ground is None or left <= 0:
+            return
+        at: dict[tuple[int, int], list[int]] = {}
+        for k in ks:
+            for n in (self.nodes, self.chosen.nodes):
+                if k - 1 in n and k in n:
+                    at.setdefault((n[k - 1], n[k]), [k - 1, k])
+        self.ahead.want([p for p in at if p not in self._moves])
+        self.ahead.advance(
+            left, lambda p: ground.under(at[p]) if set(at[p]) <= set(ground.M_T_B) else None
+        )
 
     def settle(self) -> None:
         """Land every queued re-plan (at the end of a run)."""
