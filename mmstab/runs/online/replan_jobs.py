@@ -102,6 +102,10 @@ class Jobs(Generic[T]):
         """Whether a queued job is not computed yet."""
         return any(not j.done for j in self.queue)
 
+    def replacing(self) -> set[int]:
+        """The poses whose landed plans the queued jobs replace as invalid."""
+        return set().union(*(j.invalid for j in self.queue))
+
     def step(self) -> bool:
         """One step of the first job not computed; False when all are."""
         job = next((j for j in self.queue if not j.done), None)

@@ -375,10 +375,12 @@ class RoadmapHorizon:
     def _recheck(self, ground: MapGround, kept: tuple[int, ...]) -> tuple[set[int], set[int]]:
         """The kept poses to score again: their node now too low; their reach now mapped.
 
-        Their landed nodes are checked (the ones the step reads).
+        Their landed nodes are checked (the ones the step reads), but for the poses a queued
+        re-plan replaces as invalid (it lands before the step reads them).
         """
         assert self._arm is not None
-        ks = [k for k in kept if k in self.nodes]
+        replacing = self.jobs.replacing()  # their landed node known too low: not again
+        ks = [k for k in kept if k in self.nodes and k not in replacing]
         again: set[int] = set()
         if ks:
             rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
