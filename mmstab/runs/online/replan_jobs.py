@@ -40,7 +40,7 @@ from greenlet import greenlet
 #: processor time (:func:`time.thread_time`, so that other processes on its core do not
 #: starve the re-plans), from the map's arrival at the loop; one step at least per map, and
 #: a step may run past it.
-UPDATE_BUDGET = 0.005
+UPDATE_BUDGET = 0.007
 #: Maps after its trigger on which a deferred re-plan lands.
 LAND_AFTER = 20
 #: The horizon's first poses (the one behind the robot, the next two ahead): a re-plan of
