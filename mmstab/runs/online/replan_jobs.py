@@ -54,11 +54,18 @@ class _Step(greenlet):  # type: ignore[misc]
     """A job's coroutine (:func:`pause` hands control back only inside one)."""
 
 
+_FORCED = [False]  # jobs being computed to the end (landing): their pauses do nothing
+
+
+def stepped() -> bool:
+    """Whether a job is running a step at a time (:func:`pause` ends its step)."""
+    return isinstance(greenlet.getcurrent(), _Step) and not _FORCED[0]
+
+
 def pause() -> None:
-    """End a step of the running job (nothing outside a job)."""
-    g = greenlet.getcurrent()
-    if isinstance(g, _Step):
-        g.parent.switch()
+    """End a step of the running job (nothing outside a job, or when it must finish now)."""
+    if stepped():
+        greenlet.getcurrent().parent.switch()
 
 
 @dataclass
@@ -148,7 +155,11 @@ class Jobs(Generic[T]):
                 or (touching is not None and j.touches & touching)
             ):
                 last = i
-        while any(not j.done for j in self.queue[: last + 1]):
-            self.step()
+        _FORCED[0] = True  # each computed to its end in one go
+        try:
+            while any(not j.done for j in self.queue[: last + 1]):
+                self.step()
+        finally:
+            _FORCED[0] = False
         landed, self.queue = self.queue[: last + 1], self.queue[last + 1 :]
         return [j.answer for j in landed if j.answer is not None]

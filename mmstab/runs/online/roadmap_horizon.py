@@ -51,7 +51,7 @@ from mmstab.runs.online.horizon import (
     sort_poses,
 )
 from mmstab.runs.online.moves_ahead import MOVE_BUDGET, MovesAhead
-from mmstab.runs.online.replan_jobs import LAND_AFTER, NEAR_POSES, Job, Jobs, pause
+from mmstab.runs.online.replan_jobs import LAND_AFTER, NEAR_POSES, Job, Jobs, pause, stepped
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap import Heightmap
@@ -123,7 +123,10 @@ class PausedPieces(KeptPieces):
     """:class:`KeptPieces` that computes new rows' pieces in steps of a job (:func:`pause`)."""
 
     def add(self, rows: NDArray[np.intp]) -> None:
-        """As :meth:`KeptPieces.add`, :data:`PIECES_STEP` rows per step."""
+        """As :meth:`KeptPieces.add`, :data:`PIECES_STEP` rows per step (in one, outside)."""
+        if not stepped():
+            super().add(rows)
+            return
         new = np.unique(rows[self.slot[rows] < 0])
         for i in range(0, len(new), PIECES_STEP):
             pause()
