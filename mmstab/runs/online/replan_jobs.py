@@ -50,7 +50,7 @@ NEAR_POSES = 3
 T = TypeVar("T")
 
 
-class _Step(greenlet):  # type: ignore[misc]
+class _Step(greenlet):
     """A job's coroutine (:func:`pause` hands control back only inside one)."""
 
 

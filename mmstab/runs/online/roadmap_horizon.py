@@ -20,7 +20,11 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
 - the arm keeps ``planner.ground_clearance`` above the ground under it on the map
   (:mod:`mmstab.runs.online.arm_ground`, through tilts of ``planner.attitude_margin``): a
   pose is scored with that map's ground at it, and every map measures each planned pose's
-  chosen node again; a node now too low re-scores its pose though its gravity stands.
+  chosen node again; a node now too low re-scores its pose though its gravity stands;
+- a re-plan (the scoring and the choice after it) is computed on the data of the map that
+  triggered it, in order, but a step at a time in the maps' spare time, and lands (becomes
+  the plan the step reads and the maps check) on a fixed later map, unless the step is
+  about to read a pose it replaces as invalid (:mod:`mmstab.runs.online.replan_jobs`).
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.searches import roadmap as rp
 from mmstab.planner.searches.roadmap.moves import ground_move
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
+from mmstab.planner.under_arm import KeptPieces
 from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on, forbid_low
 from mmstab.runs.online.horizon import (
     HorizonPose,
@@ -51,15 +55,13 @@ from mmstab.runs.online.horizon import (
     sort_poses,
 )
 from mmstab.runs.online.moves_ahead import MOVE_BUDGET, MovesAhead
-from mmstab.runs.online.replan_jobs import LAND_AFTER, NEAR_POSES, Job, Jobs, pause, stepped
+from mmstab.runs.online.replan_jobs import LAND_AFTER, NEAR_POSES, Job, Jobs, pause
+from mmstab.runs.online.replan_steps import PausedFitness, PausedGround, PausedPieces
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace.roadmap import Roadmap
-
-#: Nodes whose arm pieces one step of a re-plan computes (:class:`PausedPieces`).
-PIECES_STEP = 32
 
 
 class PoseCandidates(NamedTuple):
@@ -92,45 +94,6 @@ class Landed(NamedTuple):
     nodes: dict[int, int]
     plans: dict[int, HorizonPose]
     start_q: dict[int, FloatArray]
-
-
-class PausedFitness(LinearFitness):
-    """Eq. 6 at a pose that ends a job's step each time it values rows (:func:`pause`)."""
-
-    def __call__(self, com_body: Any) -> FloatArray:
-        """As :class:`LinearFitness`, after a pause."""
-        pause()
-        return super().__call__(com_body)
-
-
-class PausedGround(MapGround):
-    """A map's ground under the arm whose check ends a job's step per pose measured."""
-
-    def under(self, ks: list[int]) -> GroundUnderArm:
-        """As :meth:`MapGround.under`; its ``clear`` after a pause."""
-        g = super().under(ks)
-        clear = g.clear
-
-        def paused(*args: Any, **kwargs: Any) -> NDArray[np.bool_]:
-            pause()
-            return clear(*args, **kwargs)
-
-        g.clear = paused  # type: ignore[method-assign]
-        return g
-
-
-class PausedPieces(KeptPieces):
-    """:class:`KeptPieces` that computes new rows' pieces in steps of a job (:func:`pause`)."""
-
-    def add(self, rows: NDArray[np.intp]) -> None:
-        """As :meth:`KeptPieces.add`, :data:`PIECES_STEP` rows per step (in one, outside)."""
-        if not stepped():
-            super().add(rows)
-            return
-        new = np.unique(rows[self.slot[rows] < 0])
-        for i in range(0, len(new), PIECES_STEP):
-            pause()
-            super().add(new[i : i + PIECES_STEP])
 
 
 class RoadmapHorizon:
