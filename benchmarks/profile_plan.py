@@ -33,7 +33,7 @@ STAGES = (
     ("load_roadmap", "workspace/roadmap.py", "load_or_build_roadmap"),
     ("resting_poses", "planner/pose.py", "gravity_body_at"),
     ("component_view", "planner/searches/roadmap/__init__.py", "component_view"),
-    ("ground_under_arm_setup", "planner/under_arm.py", "__init__"),
+    ("ground_under_arm_setup", "planner/ground/under_arm.py", "__init__"),
     ("climb_plan", "planner/climbing.py", "climb_plan"),
     ("candidates", "planner/candidates.py", "route_candidates"),
     ("node_ground_check", "planner/candidates.py", "measure"),

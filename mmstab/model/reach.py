@@ -3,7 +3,7 @@
 A joint-space move by Δq moves no point of the arm more than Σ_j reach_j |Δq_j|, reach_j
 the largest distance of a point of links j.. from joint j's axis. The posture roadmap
 spaces its edges' collision checks with it, and the roadmap's and ``method: sequence``'s
-moves their ground checks (:func:`mmstab.model.ground.lowest_along_moves`).
+moves their ground checks (:func:`mmstab.model.plane_clearance.lowest_along_moves`).
 """
 
 from __future__ import annotations

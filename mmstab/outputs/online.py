@@ -82,8 +82,8 @@ def offline_plan(problem: Problem, run: FollowRun, workspace: Workspace | None) 
     poses = route.route.sample(s).pose
     robot = problem.robot
     if FollowSettings.of(problem).planner == "roadmap":
+        from mmstab.planner.ground.under_arm import GroundUnderArm
         from mmstab.planner.searches.roadmap import solve_roadmap_sequence
-        from mmstab.planner.under_arm import GroundUnderArm
         from mmstab.workspace.roadmap import load_or_build_roadmap
 
         gravity = problem.terrain.gravity_body(poses)

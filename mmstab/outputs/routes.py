@@ -181,7 +181,7 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
         out["mu_optimum_roadmap"] = opt_r.tolist()
         gaps["roadmap"] = (opt_r - searched) / np.abs(opt_r)
         if plan.settings.ground_clearance is not None:
-            from mmstab.model.ground import arm_ground_clearance
+            from mmstab.model.plane_clearance import arm_ground_clearance
 
             low = arm_ground_clearance(robot, region.postures) < plan.settings.ground_clearance
             clear = samples[~low]

@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
-from mmstab.model.ground import arm_ground_clearance
 from mmstab.model.payload import Payload, attach_payload
+from mmstab.model.plane_clearance import arm_ground_clearance
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.physics.verdict_sim import (
     SimSettings,

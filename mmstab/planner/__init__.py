@@ -12,7 +12,8 @@ One pipeline, candidates -> fitness -> choice -> postures, around one search int
   coarse pass that seeds them (``searches.coarse``);
 - ``pose`` (one pose through the pipeline), ``along_path`` (poses in turn, or a
   whole-path search), ``along_route`` (along a route, each pose warm-started), ``risk``
-  (where a route is at risk), ``plan`` (a problem's plan), ``levers`` (the flippers).
+  (where a route is at risk), ``plan`` (a problem's plan), ``levers`` (the flippers);
+- ``ground``: the ground under the arm, one check for the planner and the online loop.
 """
 
 from mmstab.planner.along_path import Plan, solve_path

@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import LinearFitness
-from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
+from mmstab.planner.ground.under_arm import GroundUnderArm, KeptPieces
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
 #: Edge of the arm-CoM voxel that groups nodes into clusters [m]: 4 cm, 5,755 clusters on
@@ -219,7 +219,7 @@ class NodeClearance:
     μ, so without it the plans of the shipped routes put the arm 50–61 cm below the plane
     the tracks rest on. These tests are pose-independent (:meth:`eligible`). With ``under``
     (the ground under the arm at each of the route's poses,
-    :class:`mmstab.planner.under_arm.GroundUnderArm`) a node must also keep its arm
+    :class:`mmstab.planner.ground.under_arm.GroundUnderArm`) a node must also keep its arm
     ``ground`` above the terrain under it at the pose it is chosen for: measured lazily for
     the nodes chosen (:meth:`measure`), those found too low at pose k learnt (:meth:`low`).
     ``excluded`` holds other per-pose tests, known for every row at once: pose k's mask of

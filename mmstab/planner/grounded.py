@@ -21,7 +21,7 @@ from scipy.sparse.csgraph import connected_components
 
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import lowest_along_moves
+from mmstab.model.plane_clearance import lowest_along_moves
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import CLEARANCE_STEP, Roadmap
@@ -76,7 +76,7 @@ def stays_above(robot: Robot, roadmap: Roadmap, q: FloatArray, ground: float) ->
     """Whether the polyline of postures q (n, 4) [rad] keeps the arm ``ground`` [m] up.
 
     Sampled so that no arm point moves more than ``CLEARANCE_STEP`` between two samples
-    (the bound Σ_j reach_j |Δq_j|, :func:`mmstab.model.ground.lowest_along_moves`), the
+    (the bound Σ_j reach_j |Δq_j|, :func:`mmstab.model.plane_clearance.lowest_along_moves`), the
     ends included.
     """
     qa = np.atleast_2d(np.asarray(q, dtype=float))

@@ -193,9 +193,9 @@ def prepare_search(robot: Robot, ws: Workspace, settings: PlannerSettings) -> No
         return
     from mmstab.model import collision_distance
     from mmstab.model.collision import CollisionChecker
+    from mmstab.planner.ground.kernel import load_kernels
     from mmstab.planner.searches.roadmap import component_view
     from mmstab.planner.searches.roadmap.moves import start_tree
-    from mmstab.planner.under_arm_c import load_kernels
     from mmstab.workspace.roadmap import load_or_build_roadmap
 
     roadmap = load_or_build_roadmap(robot, ws)

@@ -65,7 +65,7 @@ class PlannerSettings(NamedTuple):
         attitude_margin: ``method: roadmap`` on a route over terrain: the arm keeps
             ``ground_clearance`` through the body's tilts (pitch, roll) of up to this
             [rad] about its origin, at the planned poses and the moves' ends
-            (:func:`mmstab.model.ground.tilted_height`); None: off (a file that names
+            (:func:`mmstab.model.plane_clearance.tilted_height`); None: off (a file that names
             none: off, on a route over a heightmap 0.0524).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.

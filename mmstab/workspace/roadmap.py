@@ -75,7 +75,7 @@ class Roadmap:
         resolution: the largest point motion between checked postures [m].
         node_com: each node's arm CoM, body frame (N, 3) [m].
         node_ground: each node's arm's lowest point above the support plane z_B = 0 (N,)
-            [m] (:func:`mmstab.model.ground.arm_ground_clearance`).
+            [m] (:func:`mmstab.model.plane_clearance.arm_ground_clearance`).
         node_clearance: each node's FCL clearance from the robot (N,) [m], exact below
             :data:`MOVE_CLEARANCE` (a lower bound above it).
         build_seconds: wall time of the build [s].

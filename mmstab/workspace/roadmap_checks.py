@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance
+from mmstab.model.plane_clearance import arm_ground_clearance
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.grid import JointGrid
 

@@ -1,11 +1,11 @@
 """The ground's peaks under the arm on a live map: the C kernel against the NumPy tiles.
 
-``mmstab/runs/online/lattice_c.py`` computes a pose's lattice peaks only where pieces ask
-(blocks, rows and peaks kept); the NumPy path (:class:`MapTiles`, :class:`FilledTiles`,
-:meth:`PoseGround._build`) samples whole tiles. Both must give the same values, bit for
-bit, on maps with unknown cells, off the window, at tilted rests, and the arm's measures
-on a sequence of maps (each changing some cells, states kept between them) must be the
-same with the kernel and without.
+:class:`mmstab.planner.ground.map_lattice.LatticePeaks` (C) computes a pose's lattice peaks only
+where pieces ask (blocks, rows and peaks kept); the NumPy path (:class:`MapTiles`,
+:class:`FilledTiles`, :meth:`PoseGround._build`) samples whole tiles. Both must give the
+same values, bit for bit, on maps with unknown cells, off the window, at tilted rests, and
+the arm's measures on a sequence of maps (each changing some cells, states kept between
+them) must be the same with the kernel and without.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from conftest import random_postures
 
-from mmstab.planner.under_arm import LATTICE, SLACK
-from mmstab.runs.online.arm_ground import ArmGround, MapGround
-from mmstab.runs.online.lattice_c import LatticePeaks, kernel_available
-from mmstab.runs.online.map_lattice import FilledTiles, MapPoseGround, MapTiles
+from mmstab.planner.ground.kernel import kernel_available
+from mmstab.planner.ground.map_ground import ArmGround, MapGround
+from mmstab.planner.ground.map_lattice import FilledTiles, LatticePeaks, MapPoseGround, MapTiles
+from mmstab.planner.ground.under_arm import LATTICE, SLACK
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 

@@ -14,6 +14,7 @@ from test_under_arm import GROUND, _map, small  # noqa: F401  (small: the roadma
 
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
+from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.searches.roadmap.moves import (
     REROUTES,
@@ -21,7 +22,6 @@ from mmstab.planner.searches.roadmap.moves import (
     ground_move,
     ground_move_steps,
 )
-from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.runs.online.moves_ahead import MovesAhead
 
 POSE = np.array([[0.0, 0.0, 0.0]])  # beside the kerb

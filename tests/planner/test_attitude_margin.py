@@ -1,7 +1,7 @@
 """planner.attitude_margin: the arm clears the ground through the body's tilts (pitch, roll).
 
 A point's least height over the tilts up to θ about B's origin is ``z cos θ − ρ sin θ``
-(mmstab.model.ground.tilted_height); checked by hand, against rotated points, on a plane
+(mmstab.model.plane_clearance.tilted_height); checked by hand, against rotated points, on a plane
 (a posture that clears without the margin fails with it by the amount computed by hand)
 and by plans beside a kerb and on bumps whose postures clear the ground densely at every
 sampled tilt.
@@ -17,9 +17,9 @@ from test_under_arm import GROUND, TOL, _map, _poses, _settings, dense_heights
 from mmstab.cli import main
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
-from mmstab.model.ground import tilted_height
+from mmstab.model.plane_clearance import tilted_height
+from mmstab.planner.ground.under_arm import GroundUnderArm, arm_pieces
 from mmstab.planner.searches.roadmap import solve_roadmap_sequence
-from mmstab.planner.under_arm import GroundUnderArm, arm_pieces
 from mmstab.stability.static import mu_max
 from mmstab.workspace import build_workspace
 from mmstab.workspace.roadmap import build_roadmap

@@ -24,7 +24,7 @@ from mmstab.model import collision_distance
 from mmstab.model.collision import CollisionChecker
 from mmstab.planner import candidates as candidates_module
 from mmstab.planner import plan_problem
-from mmstab.planner import under_arm as under_arm_module
+from mmstab.planner.ground import under_arm as under_arm_module
 from mmstab.workspace import load_or_build_workspace
 
 COARSE = [10, 8, 8, 8]

@@ -13,7 +13,7 @@ import yaml
 from test_route_plan import ROOT
 
 from mmstab.core.problem import problem_from_dict
-from mmstab.model.ground import arm_ground_clearance
+from mmstab.model.plane_clearance import arm_ground_clearance
 from mmstab.planner import PlannerSettings, plan_route
 from mmstab.planner.searches.roadmap import solve_roadmap_sequence
 from mmstab.stability.static import mu_max

@@ -10,7 +10,7 @@ from test_turret_window import coarse  # noqa: F401  (module fixture: coarse pro
 
 from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance, lowest_along_moves
+from mmstab.model.plane_clearance import arm_ground_clearance, lowest_along_moves
 from mmstab.model.reach import joint_reach
 from mmstab.planner import PlannerSettings, gravity_body_at, pose_fitness, solve_path
 from mmstab.planner.regions import as_region

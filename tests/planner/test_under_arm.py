@@ -1,4 +1,4 @@
-"""planner.ground_clearance against the ground under the arm (mmstab.planner.under_arm).
+"""planner.ground_clearance against the ground under the arm (mmstab.planner.ground.under_arm).
 
 On a plane the check is the support-plane check; on bumps and kerbs a dense independent
 check (points over every link's collision shape, the heightmap's own bilinear surface at
@@ -17,8 +17,8 @@ from conftest import PROBLEMS
 from mmstab.core.problem import load_problem
 from mmstab.model.parts import Box
 from mmstab.planner import PlannerSettings
+from mmstab.planner.ground.under_arm import SWEEP, GroundUnderArm
 from mmstab.planner.searches.roadmap import solve_roadmap_sequence
-from mmstab.planner.under_arm import SWEEP, GroundUnderArm
 from mmstab.stability.static import mu_max
 from mmstab.terrain.generators import (
     Grid,
@@ -256,7 +256,7 @@ def test_kept_pieces_added_in_batches_equal_the_pieces_computed_at_once(robot, s
     (A batch's products may differ from another's in the last bit: the reference is built
     from the same batches, each row's new ones.)
     """
-    from mmstab.planner.under_arm import KeptPieces
+    from mmstab.planner.ground.under_arm import KeptPieces
 
     under = GroundUnderArm(robot, _map(robot, "flat"), _poses(1))
     kept = KeptPieces(under, small.nodes_q)

@@ -1,10 +1,11 @@
 """The ground under the arm's C kernel against its NumPy twin, on seeded random maps.
 
-The kernel (mmstab/planner/under_arm.c) follows :mod:`mmstab.planner.under_arm`'s NumPy
-functions operation for operation: the pieces' lowest points (over the attitude margin's
-tilts) come out bit for bit, their centres to 1 ulp (NumPy's matrix product may fuse
-multiply-adds), the heights above the ground bit for bit from the same pieces, and a
-route's plan is the same posture for posture and move for move.
+The kernel (mmstab/planner/ground/kernel.c) follows
+:mod:`mmstab.planner.ground.under_arm`'s NumPy functions operation for operation: the
+pieces' lowest points (over the attitude margin's tilts) come out bit for bit, their
+centres to 1 ulp (NumPy's matrix product may fuse multiply-adds), the heights above the
+ground bit for bit from the same pieces, and a route's plan is the same posture for
+posture and move for move.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def _route_poses(problem, spacing=0.5):
 
 @pytest.mark.parametrize("margin", MARGINS)
 def test_pieces_in_body_c_equals_numpy(robot, margin):
-    from mmstab.planner.under_arm import arm_pieces, pieces_in_body
+    from mmstab.planner.ground.under_arm import arm_pieces, pieces_in_body
 
     pieces = arm_pieces(robot)
     q = np.random.default_rng(7).uniform(robot.joint_lower, robot.joint_upper, (3000, 4))
@@ -46,7 +47,7 @@ def test_pieces_in_body_c_equals_numpy(robot, margin):
 
 @pytest.mark.parametrize("margin", MARGINS)
 def test_heights_c_equal_numpy_on_random_maps(robot, pairs, margin):
-    from mmstab.planner.under_arm import GroundUnderArm
+    from mmstab.planner.ground.under_arm import GroundUnderArm
 
     rng = np.random.default_rng(11)
     q = rng.uniform(robot.joint_lower, robot.joint_upper, (1500, 4))
@@ -76,7 +77,7 @@ def test_a_route_plans_the_same_with_the_kernel_and_its_twin(pairs, monkeypatch)
     """The plan's postures and moves identical, the kernel's against the NumPy twin's."""
     import mmstab.planner.searches.roadmap as search
     from mmstab import app
-    from mmstab.planner.under_arm import GroundUnderArm
+    from mmstab.planner.ground.under_arm import GroundUnderArm
 
     for problem in pairs[:2]:
         assert problem.section("planner")["attitude_margin"]  # every default check on

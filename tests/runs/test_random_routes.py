@@ -133,7 +133,7 @@ def pivots_of(problem: Problem) -> int:
 def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any]:
     """Plan and track one pair; the numbers the checks need, and timings [s]."""
     from mmstab import app
-    from mmstab.model.ground import arm_ground_clearance
+    from mmstab.model.plane_clearance import arm_ground_clearance
     from mmstab.outputs.tracking import self_collisions
     from mmstab.planner.searches.roadmap import NoPlanError
 
@@ -187,7 +187,7 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
 def moves_lowest(robot: Any, moves: Any) -> float:
     """The arm's lowest point above the support plane along the plan's moves [m] (60
     samples per straight piece; inf without moves)."""
-    from mmstab.model.ground import arm_ground_clearance
+    from mmstab.model.plane_clearance import arm_ground_clearance
 
     u, low = np.linspace(0.0, 1.0, 60)[:, None, None], np.inf
     for m in moves or ():

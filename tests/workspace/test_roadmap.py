@@ -245,7 +245,7 @@ def test_route_summary_reports_the_gap_to_the_per_pose_optima(tmp_path):
         os.chdir(cwd)
     q = s["quality"]
     poses = np.array([p["pose"] for p in s["poses"]])
-    from mmstab.model.ground import arm_ground_clearance
+    from mmstab.model.plane_clearance import arm_ground_clearance
 
     # the nodes the planner may choose: the stowed arm's component, the arm clear of the ground
     ground = problem.section("planner")["ground_clearance"]

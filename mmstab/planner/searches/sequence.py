@@ -21,9 +21,9 @@ moves are checked, colliding ones are forbidden, and the search repeats (as lazy
 the ramp's plan put the arm 7.9 cm below the plane the tracks rest on, and in MuJoCo the
 arm touched the ground. With ``planner.ground_clearance`` [m] (None: not checked), a
 candidate's arm keeps that height above the support plane z_B = 0
-(:func:`mmstab.model.ground.arm_ground_clearance`), and a move that dips below it is
+(:func:`mmstab.model.plane_clearance.arm_ground_clearance`), and a move that dips below it is
 forbidden like a colliding one, sampled by the roadmap's rule
-(:func:`mmstab.model.ground.lowest_along_moves`, ``CLEARANCE_STEP``).
+(:func:`mmstab.model.plane_clearance.lowest_along_moves`, ``CLEARANCE_STEP``).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from mmstab.core.files import PlanningError
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.ground import arm_ground_clearance, lowest_along_moves
+from mmstab.model.plane_clearance import arm_ground_clearance, lowest_along_moves
 from mmstab.model.reach import sampled_reach
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.fitness import Fitness, pose_fitness

@@ -22,8 +22,8 @@ from collections.abc import Callable, Generator
 
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.searches.roadmap.moves import Tries, ground_move_steps
-from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.roadmap import Roadmap
 
 #: Time a map that re-scored no pose spends on the moves ahead [s] (a step may run past

@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import LinearFitness
-from mmstab.planner.under_arm import GroundUnderArm, KeptPieces
-from mmstab.runs.online.arm_ground import MapGround
+from mmstab.planner.ground.map_ground import MapGround
+from mmstab.planner.ground.under_arm import GroundUnderArm, KeptPieces
 from mmstab.runs.online.replan_jobs import pause, stepped
 
 #: Nodes whose arm pieces one step of a re-plan computes (:class:`PausedPieces`).

@@ -18,7 +18,7 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
   their nodes (shortcut where free), so the arm's commanded moves are collision-free by
   construction, as offline;
 - the arm keeps ``planner.ground_clearance`` above the ground under it on the map
-  (:mod:`mmstab.runs.online.arm_ground`, through tilts of ``planner.attitude_margin``): a
+  (:mod:`mmstab.planner.ground.map_ground`, through tilts of ``planner.attitude_margin``): a
   pose is scored with that map's ground at it, and every map measures each planned pose's
   chosen node again; a node now too low re-scores its pose though its gravity stands;
 - a re-plan (the scoring and the choice after it) is computed on the data of the map that
@@ -40,13 +40,14 @@ from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import Candidates, NodeClearance, route_candidates
 from mmstab.planner.fitness import LinearFitness, pose_fitness, same_axes, support_polygons_at
+from mmstab.planner.ground.map_ground import ArmGround, MapGround
+from mmstab.planner.ground.under_arm import KeptPieces
 from mmstab.planner.grounded import shortcut_above
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.searches import roadmap as rp
 from mmstab.planner.searches.roadmap.moves import ground_move
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.under_arm import KeptPieces
-from mmstab.runs.online.arm_ground import ArmGround, MapGround, clearance_on, forbid_low
+from mmstab.runs.online.ground_choice import clearance_on, forbid_low
 from mmstab.runs.online.horizon import (
     HorizonPose,
     HorizonUpdate,

@@ -29,6 +29,7 @@ from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
 from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
 from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
+from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.grounded import ground_graph
 from mmstab.planner.motion import motion_cost, transitions
 from mmstab.planner.searches.base import PathChoice, PathTask, PoseChoice, PoseTask
@@ -42,7 +43,6 @@ from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' na
 )
 from mmstab.planner.searches.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
-from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap, load_or_build_roadmap
 

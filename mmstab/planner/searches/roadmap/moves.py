@@ -5,7 +5,7 @@ whole component), shortcut where the cut is free, on the nodes whose arm stays
 ``planner.ground_clearance`` above the support plane (:mod:`mmstab.planner.grounded`).
 
 **Ground under the arm.** With the ground under the arm at each pose
-(:class:`mmstab.planner.under_arm.GroundUnderArm`) a move into pose k's node is checked
+(:class:`mmstab.planner.ground.under_arm.GroundUnderArm`) a move into pose k's node is checked
 against the ground of both poses it joins (k − 1 and k; the first move of an open path:
 pose 0's): the arm moves while the base drives from one to the other, so every posture of
 the move must clear the ground at either end. A path whose nodes or sampled postures are too
@@ -27,8 +27,8 @@ from scipy.sparse.csgraph import dijkstra
 from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.grounded import ground_graph, shortcut_above_steps
-from mmstab.planner.under_arm import GroundUnderArm
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap
 

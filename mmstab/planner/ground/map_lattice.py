@@ -1,11 +1,19 @@
-"""A live map's ground on the lattice of :mod:`mmstab.planner.under_arm` (online).
+"""A live map's ground on the lattice of :mod:`mmstab.planner.ground.under_arm` (online).
 
 :class:`GroundUnderArm` samples a terrain's ground on a 1 cm lattice aligned to M, by tiles;
 on a live map (:class:`MapTiles`) an unknown (NaN) cell or one off the map's window makes
 its samples +inf, and :class:`FilledTiles` puts them at a pose's fill above its support
-plane (:mod:`mmstab.runs.online.arm_ground`). The samples are those of
+plane (:mod:`mmstab.planner.ground.map_ground`). The samples are those of
 :meth:`Heightmap.sample` (:func:`lattice_z`: the same arithmetic, separable), so the
 verification of one node (:meth:`MapGround.node_clear`) reads the values the scoring read.
+
+The tiles build the lattice by 64 x 64 samples wherever a piece is looked at (5 ms a
+scoring on the rough route, most of it on samples no piece's square needs);
+:class:`LatticePeaks` asks the C kernel (:func:`mmstab.planner.ground.kernel.lattice_peak_kernel`)
+for a block's max, a row's and a peak only where a piece asks, and keeps them for the pose
+(kept with the pose's state while its map stands). Same operations in the same order, so
+the same peaks (``tests/online/test_online_lattice.py``); without a C compiler the tiles
+answer.
 """
 
 from __future__ import annotations
@@ -14,8 +22,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray
-from mmstab.planner.under_arm import LATTICE, TILE, GroundTiles, PoseGround
-from mmstab.runs.online.lattice_c import LatticePeaks
+from mmstab.planner.ground.kernel import lattice_peak_kernel
+from mmstab.planner.ground.under_arm import (
+    BLOCK,
+    LATTICE,
+    TILE,
+    GroundTiles,
+    PoseGround,
+    plane_z,
+)
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 
@@ -109,6 +124,44 @@ def filled(z: FloatArray, plane: FloatArray, fill: float) -> FloatArray:
     return np.where(unknown, plane + fill, z) if unknown.any() else z
 
 
+class LatticePeaks:
+    """A pose's peaks of the rise on a map's lattice, computed where asked and kept.
+
+    Args:
+        hm: the map.
+        M_T_B: the pose's resting body pose in M (4, 4).
+        fill: the rise of an unknown sample above the support plane [m].
+        half: the peak's half-width [blocks].
+        centre: the arm's reach's centre in M (3,) [m].
+        radius: a radius [m] holding every piece's centre about it.
+    """
+
+    def __init__(
+        self, hm: Heightmap, M_T_B: FloatArray, fill: float, half: int, centre: FloatArray,
+        radius: float,
+    ) -> None:  # fmt: skip
+        self.elev = np.ascontiguousarray(hm.elevation, dtype=np.float64)
+        self.origin = np.ascontiguousarray(hm.origin, dtype=np.float64)
+        self.res = float(hm.resolution)
+        self.plane = np.ascontiguousarray(np.r_[M_T_B[:3, 2], M_T_B[:3, 3]], dtype=np.float64)
+        self.steps = np.array([LATTICE, fill], dtype=np.float64)
+        step = LATTICE * BLOCK
+        lo = np.floor((centre[:2] - radius) / step).astype(np.int64) - half - 1
+        hi = np.ceil((centre[:2] + radius) / step).astype(np.int64) + half + 1
+        n = hi - lo + 1
+        self.sizes = np.array([BLOCK, half, lo[0], lo[1], n[0], n[1]], dtype=np.int64)
+        self._cache: NDArray[np.float64] | None = None  # blocks, rows, peaks: on first use
+
+    def __call__(self, i: NDArray[np.intp], j: NDArray[np.intp]) -> FloatArray | None:
+        """The peaks [m] at lattice samples (i, j) (m,); None if one lies off the cache."""
+        if self._cache is None:
+            self._cache = np.full((3, int(self.sizes[5]), int(self.sizes[4])), np.nan)
+        return lattice_peak_kernel(
+            self.elev, self.origin, self.res, self.plane, self.steps, self.sizes, self._cache,
+            i, j,
+        )  # fmt: skip
+
+
 class MapPoseGround(PoseGround):
     """A pose's ground on a map, built only where the measured pieces reach.
 
@@ -116,7 +169,7 @@ class MapPoseGround(PoseGround):
     (``top``, the bound that clears high arms unlooked): 127,000 lattice samples, 7 ms. Here
     ``top`` is the map cells' bound over the reach (:meth:`MapGround.reach`, at least the
     samples' max), and the lattice is built around the pieces looked at; or, with
-    ``peaks`` (:mod:`mmstab.runs.online.lattice_c`), only its blocks the pieces need.
+    ``peaks`` (:mod:`mmstab.planner.ground.kernel`), only its blocks the pieces need.
     """
 
     #: the C kernel's peaks at this pose (None: the NumPy path, the tiles)
@@ -142,14 +195,3 @@ class MapPoseGround(PoseGround):
         bound = self.top
         super()._build(box)
         self.top = bound  # the bound over the whole reach, not this box's max
-
-
-def plane_z(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
-    """The support plane z_B = 0 of body pose(s) ``T`` (..., 4, 4) in M: z_M [m] at x, y [m].
-
-    The arithmetic of :class:`PoseGround`'s (the same values on the same samples).
-    """
-    n, o = T[..., :3, 2], T[..., :3, 3]
-    return np.asarray(
-        o[..., 2] - (n[..., 0] * (x - o[..., 0]) + n[..., 1] * (y - o[..., 1])) / n[..., 2]
-    )

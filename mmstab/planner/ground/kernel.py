@@ -1,12 +1,21 @@
-"""The ground under the arm's C kernel (``under_arm.c``), called through ctypes.
+"""The ground under the arm's one C kernel (``kernel.c``), called through ctypes.
 
-Two functions of :mod:`mmstab.planner.under_arm`, operation for operation: the arm's pieces
-in B for a batch of postures (:func:`mmstab.planner.under_arm.pieces_in_body`, the lowest
-point over the body's tilts up to the attitude margin) and one pose's least heights above
-the ground under the arm (:meth:`mmstab.planner.under_arm.PoseGround.heights`, on the
-pose's peak map built in NumPy). Compiled on first use (:mod:`mmstab.core.clib`); the NumPy
-functions stay as the independent twin (``GroundUnderArm(backend="numpy")``), equal to
-rounding (tests/planner/test_under_arm_kernel.py).
+Three functions of the check, each its NumPy twin operation for operation:
+
+- :func:`pieces_kernel`: the arm's pieces in B for a batch of postures
+  (:func:`mmstab.planner.ground.under_arm.pieces_in_body`, the lowest point over the body's
+  tilts up to the attitude margin);
+- :func:`heights_kernel`: one pose's least heights above the ground under the arm
+  (:meth:`mmstab.planner.ground.under_arm.PoseGround.heights`, on the pose's peak map built
+  in NumPy), the offline planner's;
+- :func:`lattice_peak_kernel`: on a live map, the peaks of the ground's rise computed only
+  where a piece asks and kept for the pose
+  (:class:`~mmstab.planner.ground.map_lattice.LatticePeaks`), the online loop's.
+
+Compiled on first use into one library (:mod:`mmstab.core.clib`); the NumPy functions stay
+as the independent twin (``GroundUnderArm(backend="numpy")``; online without a C compiler),
+equal bit for bit (tests/planner/test_under_arm_kernel.py,
+tests/online/test_online_lattice.py).
 """
 
 from __future__ import annotations
@@ -20,30 +29,43 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, compiled_library
+from mmstab.core.files import MmstabError
 
-UNDER_ARM_NAME = "mmstab_under_arm"  #: the library's name
-UNDER_ARM_SOURCE = Path(__file__).with_name("under_arm.c")  #: its C source
+KERNEL_NAME = "mmstab_ground"  #: the library's name
+KERNEL_SOURCE = Path(__file__).with_name("kernel.c")  #: its C source
 
 _D, _L, _long, _double = DOUBLES, LONGS, LONG, DOUBLE
 
 
 @lru_cache(maxsize=1)
-def _kernels() -> tuple[Any, Any]:
-    lib = ctypes.CDLL(str(compiled_library(UNDER_ARM_SOURCE, UNDER_ARM_NAME)))
+def _kernels() -> tuple[Any, Any, Any]:
+    lib = ctypes.CDLL(str(compiled_library(KERNEL_SOURCE, KERNEL_NAME)))
     pieces, heights = lib.mmstab_arm_pieces, lib.mmstab_arm_heights
+    peak = lib.mmstab_lattice_peak
     # frames n L link points radius mid P margin cm sm | low centre
     pieces.argtypes = [_D, _long, _long, _L, _D, _D, _D, _long, _long, _double, _double, _D, _D]
     # low centre n P T cos top above plane peak rows cols i0 j0 block reach lattice slack | h
     heights.argtypes = [_D, _D, _long, _long, _D, _double, _double, _double, _long, _D]
     heights.argtypes += [_long, _long, _long, _long, _long, _long, _double, _double, _D]
-    for f in (pieces, heights):
+    # elev ny nx origin res | plane steps sizes | blocks rows peaks | i j m out
+    peak.argtypes = [_D, _long, _long, _D, _double, _D, _D, _L, _D, _D, _D, _L, _L, _long, _D]
+    for f in (pieces, heights, peak):
         f.restype = ctypes.c_int
-    return pieces, heights
+    return pieces, heights, peak
 
 
 def load_kernels() -> None:
     """Compile (first use) and load the kernels now, not within a plan's first pose."""
     _kernels()
+
+
+def kernel_available() -> bool:
+    """Whether the kernel compiles and loads here (else the online loop takes NumPy's path)."""
+    try:
+        _kernels()
+    except (MmstabError, OSError):
+        return False
+    return True
 
 
 def pieces_kernel(
@@ -123,3 +145,41 @@ def heights_kernel(
         int(origin[0]), int(origin[1]), int(block), int(reach), float(lattice), float(slack), h,
     )  # fmt: skip
     return None if code else h
+
+
+def lattice_peak_kernel(
+    elev: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    res: float,
+    plane: NDArray[np.float64],
+    steps: NDArray[np.float64],
+    sizes: NDArray[np.int64],
+    cache: NDArray[np.float64],
+    i: NDArray[np.intp],
+    j: NDArray[np.intp],
+) -> NDArray[np.float64] | None:
+    """A live map's peaks of the rise at lattice samples (i, j) (m,) [m], kept in ``cache``.
+
+    Args:
+        elev: the map's elevation (ny, nx) [m], NaN: unknown.
+        origin: M (x, y) of the centre of cell [0, 0] [m].
+        res: the map's resolution [m/cell].
+        plane: the support plane: B's z axis and origin in M (6,) [-, m].
+        steps: the lattice's step [m] and the unknown's fill above the plane [m].
+        sizes: block, half (the peak's half-width [blocks]), the cached blocks' first (x, y)
+            and counts.
+        cache: blocks', rows' and peaks' maxima (3, rows, cols) [m], NaN: not yet (filled).
+        i: the samples' lattice index along x (m,).
+        j: along y (m,).
+
+    Returns:
+        None when a sample's square leaves the cached blocks (the caller takes NumPy's path).
+    """
+    out = np.empty(len(i))
+    ny, nx = elev.shape
+    code = _kernels()[2](
+        elev, ny, nx, origin, res, plane, steps, sizes, cache[0], cache[1], cache[2],
+        np.ascontiguousarray(i, dtype=np.int64), np.ascontiguousarray(j, dtype=np.int64),
+        len(i), out,
+    )  # fmt: skip
+    return out if code == 0 else None

@@ -6,7 +6,7 @@ body frame's z_B = 0 at any slope, so the lowest point of the arm's collision sh
 says whether a posture puts the arm into the ground. Used by the planner (the roadmap's
 eligible nodes and moves, ``method: sequence``'s candidates and moves,
 ``planner.ground_clearance``) and by the physics checks. It knows the support plane only;
-the ground under the arm at a pose is :mod:`mmstab.planner.under_arm`'s.
+the ground under the arm at a pose is :mod:`mmstab.planner.ground.under_arm`'s.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 The offline ``method: roadmap`` keeps the arm ``planner.ground_clearance`` above the terrain
 under it at every pose, through body tilts up to ``planner.attitude_margin``
-(:class:`mmstab.planner.under_arm.GroundUnderArm`). Online the same measure runs on each
+(:class:`mmstab.planner.ground.under_arm.GroundUnderArm`). Online the same measure runs on each
 map, at the horizon's poses rested on it (their ``M_T_B`` from the batched rest):
 
 - **scoring**: a pose (re-)scored on a map gets its candidates from ``route_candidates``
@@ -12,9 +12,9 @@ map, at the horizon's poses rested on it (their ``M_T_B`` from the batched rest)
   (:meth:`MapGround.node_clear`), one node per pose: first a bound from the map's cells (the
   ground's rise above the support plane is bilinear minus linear in each cell, so its max
   over a square lies at the corners of the cells the square meets), then, for the pieces
-  that bound does not clear, the scoring's own value (the max over the same lattice
-  samples and blocks), so a node the scoring took is not rejected by its check on the
-  same ground;
+  that bound does not clear, the scoring's own value (the pose's peak at the piece:
+  :meth:`PoseGround._peak_at`, the C kernel's or the tiles'), so a node the scoring took
+  is not rejected by its check on the same ground;
 - **unknown cells** (NaN in the map, or off its window) under the arm count as high as the
   highest mapped ground within the arm's reach at the pose (:meth:`MapGround.reach`: its
   largest rise above the support plane over the map's cells there, 0 at least): an arm
@@ -30,15 +30,20 @@ map, at the horizon's poses rested on it (their ``M_T_B`` from the batched rest)
 from __future__ import annotations
 
 import copy
-import dataclasses
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.candidates import NodeClearance
-from mmstab.planner.under_arm import (
+from mmstab.planner.ground.kernel import kernel_available
+from mmstab.planner.ground.map_lattice import (
+    FilledTiles,
+    LatticePeaks,
+    MapPoseGround,
+    MapTiles,
+)
+from mmstab.planner.ground.under_arm import (
     BLOCK,
     LATTICE,
     SLACK,
@@ -46,14 +51,6 @@ from mmstab.planner.under_arm import (
     KeptPieces,
     PiecesB,
     PoseGround,
-)
-from mmstab.runs.online.lattice_c import LatticePeaks, kernel_available
-from mmstab.runs.online.map_lattice import (
-    FilledTiles,
-    MapPoseGround,
-    MapTiles,
-    filled,
-    lattice_z,
     plane_z,
 )
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
@@ -239,10 +236,9 @@ class MapGround:
         ok = np.ones(n * P, dtype=bool)
         if doubt.size:
             ok[doubt] = self._lattice_test(
-                T[pose[doubt]],
+                [ks[x] for x in pose[doubt]],
                 c_M.reshape(-1, 3)[doubt],
                 lowest.ravel()[doubt],
-                fill[doubt],
                 ground,
             )
         clear = np.asarray(ok.reshape(n, P).all(axis=1))
@@ -277,94 +273,20 @@ class MapGround:
         return np.asarray(rise.reshape(flat).max(axis=1)), unknown.reshape(flat).any(axis=1)
 
     def _lattice_test(
-        self, T: FloatArray, c_M: FloatArray, lowest: FloatArray, fill: FloatArray, ground: float
+        self, ks: list[int], c_M: FloatArray, lowest: FloatArray, ground: float
     ) -> NDArray[np.bool_]:
-        """The scoring's test of pieces (centres (m, 3) [m] at poses (m, 4, 4)) on the lattice.
+        """The scoring's own test of pieces at poses ``ks`` (m,) (centres (m, 3) [m] in M).
 
-        The unknown ``fill`` (m,) [m] above the plane, as the scoring's.
-        :meth:`PoseGround.heights`' peak at a centre's sample is the max of the rise over
-        the blocks within ``ceil(cells / BLOCK)`` blocks of the sample's block.
+        Each piece's peak is its pose's (:meth:`PoseGround.heights`' value, the C kernel's
+        where it compiled, else the tiles'), its unknown filled as the scoring's; ``lowest``
+        (m,) [m]: the pieces' lowest points over the support plane, vertically.
         """
-        half = -(-self.arm.cells // BLOCK)
-        n = (2 * half + 1) * BLOCK
-        i = np.floor(c_M[:, 0] / LATTICE).astype(np.intp) // BLOCK - half
-        j = np.floor(c_M[:, 1] / LATTICE).astype(np.intp) // BLOCK - half
-        out = np.empty(len(c_M), dtype=bool)
-        for p in range(len(c_M)):
-            x = (i[p] * BLOCK + np.arange(n)) * LATTICE
-            y = (j[p] * BLOCK + np.arange(n)) * LATTICE
-            plane = plane_z(T[p], x[None, :], y[:, None])
-            peak = float((filled(lattice_z(self.hm, x, y), plane, fill[p]) - plane).max())
-            h = lowest[p] - peak if peak > SLACK else lowest[p]
-            out[p] = h >= ground - SLACK
-        return out
-
-
-def clearance_on(
-    base: NodeClearance, ground: MapGround, ks: list[int], kept: KeptPieces
-) -> NodeClearance:
-    """``base``'s test with the ground under the arm at poses ``ks`` (its pose i: ks[i]).
-
-    The reachable nodes' eligibility and their pieces in B (``kept``) are computed once for
-    the run; each pose's measures are its state's (learnt here, kept while it stands).
-    """
-    st = [ground.state(k) for k in ks]
-    known = {i: x.known for i, x in enumerate(st)}
-    low = {i: x.low for i, x in enumerate(st)}
-    clear = dataclasses.replace(base, under=ground.under(ks), excluded={}, _low=low, _known=known)
-    clear.__dict__.update(above=base.above, _eligible=base.eligible(), _pieces=kept)
-    return clear
-
-
-def forbid_low(
-    base: NodeClearance,
-    ground: MapGround,
-    kept: KeptPieces,
-    chain: list[int],
-    cand: NDArray[np.intp],
-    value: FloatArray,
-    allowed: list[NDArray[np.bool_]],
-    behind: bool,
-) -> None:
-    """Drop a re-choice's candidates too low on this map; forbid moves with an end too low.
-
-    A pose's kept candidates were measured on the map that scored it: measured again here
-    (free where its state stands). As offline
-    (:func:`mmstab.planner.searches.roadmap._forbid_low_ends`):
-    the arm moves while the base drives between two poses, so each end must clear both
-    poses' ground; with ``behind``, ``chain[0]``'s candidates must also clear the ground of
-    the pose before it (its node fixed).
-
-    Args:
-        base: the reachable nodes' test.
-        ground: this map's ground under the arm.
-        kept: the nodes' pieces in B.
-        chain: the consecutive poses chosen again.
-        cand: their candidates' reach rows (n, M).
-        value: their values (n, M), -inf where dropped (changed here).
-        allowed: per consecutive pair, the allowed moves (M, M) (changed here).
-        behind: pose ``chain[0] - 1`` has a node.
-    """
-    mapped = [k for k in [chain[0] - 1, *chain] if k in ground.M_T_B]
-    if not mapped:
-        return
-    clear = clearance_on(base, ground, mapped, kept)
-    at = {k: i for i, k in enumerate(mapped)}
-    rows: list[list[NDArray[np.intp]]] = [[] for _ in mapped]  # measured in one batch
-    for i, k in enumerate(chain):
-        for j in (k - 1, k, k + 1):
-            if j in at:
-                rows[at[j]].append(cand[i, np.isfinite(value[i])])
-    clear.measure([np.concatenate([np.zeros(0, dtype=np.intp), *r]) for r in rows])
-    for i, k in enumerate(chain):
-        if k in at:
-            f = np.flatnonzero(np.isfinite(value[i]))
-            value[i, f[~clear.at(at[k], cand[i, f])]] = -np.inf
-    if behind and chain[0] - 1 in at:
-        f = np.flatnonzero(np.isfinite(value[0]))
-        value[0, f[~clear.at(at[chain[0] - 1], cand[0, f])]] = -np.inf
-    for i, (ka, kb) in enumerate(zip(chain[:-1], chain[1:], strict=True)):
-        if ka in at and kb in at:
-            fa, fb = np.isfinite(value[i]), np.isfinite(value[i + 1])
-            allowed[i][fa] &= clear.at(at[kb], cand[i, fa])[:, None]
-            allowed[i][:, fb] &= clear.at(at[ka], cand[i + 1, fb])[None, :]
+        i = np.floor(c_M[:, 0] / LATTICE).astype(np.intp)
+        j = np.floor(c_M[:, 1] / LATTICE).astype(np.intp)
+        at = np.asarray(ks)
+        peak = np.empty(len(c_M))
+        for k in np.unique(at):
+            of = at == k
+            peak[of] = self.pose(int(k))._peak_at(i[of], j[of])
+        h = np.where(peak > SLACK, lowest - peak, lowest)
+        return np.asarray(h >= ground - SLACK)

@@ -1,7 +1,9 @@
 """The ground under the arm at each planned pose (``planner.ground_clearance`` on terrain).
 
-:func:`mmstab.model.ground.arm_ground_clearance` measures the arm against the support plane
-z_B = 0; on uneven ground the terrain under the arm rises above that plane (a kerb, a bump).
+:func:`mmstab.model.plane_clearance.arm_ground_clearance` measures the arm against the
+support plane z_B = 0; on uneven ground the terrain under the arm rises above that plane (a
+kerb, a bump); the online loop runs this same check on each live map
+(:mod:`mmstab.planner.ground.map_ground`).
 Here a pose's check reads the terrain through its interface only (``M_T_B``, ``G_T_M``,
 ``surface_G``, ``bounds``): the height of an arm point above the ground is its z in the map
 frame M less the ground's z_M at the point's map x, y (vertical in M).
@@ -36,9 +38,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
-from mmstab.model.ground import tilted_height
+from mmstab.model.plane_clearance import tilted_height
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.arm_pieces import ArmPieces, arm_pieces, arm_reach
+from mmstab.planner.ground.arm_pieces import ArmPieces, arm_pieces, arm_reach
 from mmstab.terrain import Terrain
 
 #: Lattice step of the ground's samples in M [m] (the shipped maps' cells are multiples).
@@ -73,12 +75,12 @@ def pieces_in_body(
     """Each piece's lowest point z_B and centre in B for postures (n, 4) [rad].
 
     ``margin`` [rad]: the lowest over the body's tilts up to it (:func:`tilted_height`).
-    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.under_arm_c`, its twin).
+    ``backend``: ``numpy`` (here) or ``c`` (:mod:`mmstab.planner.ground.kernel`, its twin).
     """
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     frames = robot.kinematics.link_frames(q)  # (n, links, 4, 4)
     if backend == "c":
-        from mmstab.planner.under_arm_c import pieces_kernel
+        from mmstab.planner.ground.kernel import pieces_kernel
 
         return PiecesB(*pieces_kernel(frames, pieces.link, pieces.points, pieces.radius, margin))
     low = np.empty((len(q), len(pieces.link)))
@@ -96,6 +98,18 @@ def pieces_in_body(
         for r in range(3):
             centre[:, at, r] = R[:, r] @ mid[at].T + t[:, r, None]
     return PiecesB(low, centre)
+
+
+def plane_z(T: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
+    """The support plane z_B = 0 of body pose(s) ``T`` (..., 4, 4) in M: z_M [m] at x, y [m].
+
+    One arithmetic for every user (:meth:`PoseGround._build`, the live map's fill and cells'
+    bound), so the same values on the same samples.
+    """
+    n, o = T[..., :3, 2], T[..., :3, 3]
+    return np.asarray(
+        o[..., 2] - (n[..., 0] * (x - o[..., 0]) + n[..., 1] * (y - o[..., 1])) / n[..., 2]
+    )
 
 
 class GroundTiles:
@@ -154,12 +168,9 @@ class PoseGround:
 
     def _build(self, box: tuple[int, int, int, int]) -> None:
         """The rise's max over squares about every sample of tiles ``box``."""
-        n, o = self.M_T_B[:3, 2], self.M_T_B[:3, 3]
-        x = (box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE
-        y = (box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE
-        # the support plane z_B = 0 in M: z = o_z − (n_x (x − o_x) + n_y (y − o_y)) / n_z
-        plane = o[2] - (n[0] * (x[None, :] - o[0]) + n[1] * (y[:, None] - o[1])) / n[2]
-        rise = self.tiles.z_M(box) - plane
+        x = np.asarray((box[0] * TILE + np.arange((box[1] - box[0] + 1) * TILE)) * LATTICE, float)
+        y = np.asarray((box[2] * TILE + np.arange((box[3] - box[2] + 1) * TILE)) * LATTICE, float)
+        rise = self.tiles.z_M(box) - plane_z(self.M_T_B, x[None, :], y[:, None])
         self.box = box
         # the max over blocks of BLOCK x BLOCK samples, then over the squares of blocks that
         # hold every sample's square (module text): the squares widened by < BLOCK steps
@@ -201,7 +212,7 @@ class PoseGround:
         """
         self._cover()
         if self.backend == "c" and len(body.low):
-            from mmstab.planner.under_arm_c import heights_kernel
+            from mmstab.planner.ground.kernel import heights_kernel
 
             h_c = heights_kernel(
                 body.low, body.centre, self.M_T_B, self.top, above, plane, self.peak,
@@ -237,9 +248,10 @@ class GroundUnderArm:
         poses: base poses (K, 3) in M [m, m, rad].
         M_T_B: their resting body poses in M (K, 4, 4), if known (else rested here).
         margin: the body's tilt in motion the arm must clear the ground through [rad]
-            (``planner.attitude_margin``, :func:`mmstab.model.ground.tilted_height`); 0: none.
+            (``planner.attitude_margin``,
+            :func:`mmstab.model.plane_clearance.tilted_height`); 0: none.
         backend: ``c``: the pieces and heights by the C kernel
-            (:mod:`mmstab.planner.under_arm_c`); ``numpy``: its twin, here.
+            (:mod:`mmstab.planner.ground.kernel`); ``numpy``: its twin, here.
     """
 
     def __init__(
