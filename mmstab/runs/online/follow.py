@@ -166,6 +166,8 @@ class Follower:
         #: none yet) as soon as the step has them, before the answer's untimed extras (the
         #: live node publishes the command there: mmstab.runs.online.node)
         self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
+        #: the loop thread's processor time of the last update's timed part [s]
+        self.cpu_time = 0.0
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
@@ -217,13 +219,15 @@ class Follower:
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
         com_target = arm_com if target is None else target  # None: hold the arm's CoM
         qdot, status = self._step(pose, ref_pose, q, com_target, q_ref, u.time)
-        latency = time.perf_counter() - t0
+        latency, cpu = time.perf_counter() - t0, time.thread_time() - cpu0
         if self.on_command is not None:  # out before the spare time's work (not timed)
             self.on_command(qdot, None if q_ref is None else np.array(q_ref))
         if isinstance(self.horizon, RoadmapHorizon):  # the queued re-plans, the moves ahead
-            t1 = time.perf_counter()
+            t1, cpu1 = time.perf_counter(), time.thread_time()
             self.horizon.spare(cpu0 + (self.horizon.jobs.budget or 0.0))
             latency += time.perf_counter() - t1
+            cpu += time.thread_time() - cpu1
+        self.cpu_time = cpu
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
         flags: tuple[str, ...] = ()
         if covered:  # for the run's recording, outside the timed update
