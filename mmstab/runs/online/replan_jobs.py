@@ -42,7 +42,7 @@ from greenlet import greenlet
 #: a step may run past it.
 UPDATE_BUDGET = 0.007
 #: Maps after its trigger on which a deferred re-plan lands.
-LAND_AFTER = 20
+LAND_AFTER = 8
 #: The horizon's first poses (the one behind the robot, the next two ahead): a re-plan of
 #: a pose without a valid landed plan lands before the pose is among them.
 NEAR_POSES = 3
