@@ -225,7 +225,13 @@ class RoadmapHorizon:
         arm_com: FloatArray,
         arm_q: FloatArray,
     ) -> HorizonUpdate:
-        """Re-score the poses whose ground changed, then choose again from the first of them.
+        """Queue the re-plans of the poses whose ground changed; land those due.
+
+        A re-plan scores the poses, then chooses again from the first of them
+        (:meth:`_replan`); it is computed in the maps' spare time (:meth:`spare`) and lands
+        :data:`~mmstab.runs.online.replan_jobs.LAND_AFTER` maps later, or at once when one
+        of its poses without a valid landed plan is among the horizon's first
+        :data:`~mmstab.runs.online.replan_jobs.NEAR_POSES` (module text).
 
         Args:
             terrain: the latest map (the ground under the arm; the rests are ``rested``).
@@ -241,7 +247,7 @@ class RoadmapHorizon:
         valid: set[int] = set()  # re-scored for their mapped reach, their landed node clear
         if ground is not None:
             again, mapped = self._recheck(ground, changes.kept)
-            valid = mapped & set(self.nodes)
+            valid = (mapped & set(self.nodes)) - self.jobs.replacing()
             kept = tuple(k for k in changes.kept if k not in again | mapped)
             changes = HorizonUpdate(
                 tuple(k for k in ks if k not in kept and k not in changes.uncovered),
