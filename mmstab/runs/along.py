@@ -227,6 +227,8 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     stab, slip = summary["stability"], summary["slip"]
     tip_where = [[s[b["index"]], s[b["index"]]] for b in stab["unstable_poses"]]
     tip_where += [[x["start_s"], x["end_s"]] for x in stab.get("stretches", [])]
+    overturns = stab.get("climb_out", {}).get("stretches", [])
+    tip_where += [[x["start_s"], x["end_s"]] for x in overturns]
     slide_where = [[x["start_s"], x["end_s"]] for x in summary["risk"]["slides"]]
     climb = summary["climb"]
     stall_where = [
@@ -238,7 +240,9 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     worst = [b["mu"] for b in stab["unstable_poses"]]
     worst += [x["worst"] for x in stab.get("stretches", [])]
     tip = (
-        "holds" if stab["stable"] else ("tips" if min(worst, default=0.0) <= 0 else "below_margin")
+        "holds"
+        if stab["stable"]
+        else ("tips" if overturns or min(worst, default=0.0) <= 0 else "below_margin")
     )
     return {
         "tip": {"verdict": tip, "unsafe": not stab["stable"], "where": merged(tip_where),

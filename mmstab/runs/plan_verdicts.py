@@ -27,6 +27,7 @@ from mmstab.runs.along import (
     path_timing,
     sample_spacing,
 )
+from mmstab.runs.climb_out import climb_out_verdict
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.verdict import (
     climb_verdict,
@@ -86,9 +87,10 @@ def route_verdicts(
 
     Returns:
         ``mu_realised`` (K,) [N rad] (the realised postures' μ, one loaded batch),
-        ``stability``, ``slip``, ``climb``, ``high_centred``, ``along_path`` (the dense
-        samples' verdicts), ``slides`` (where the tracks slide, arc lengths [m]) and
-        ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
+        ``stability`` (with ``climb_out``: :func:`mmstab.runs.climb_out.climb_out_verdict`;
+        unstable where a climb overturns the robot), ``slip``, ``climb``, ``high_centred``,
+        ``along_path`` (the dense samples' verdicts), ``slides`` (where the tracks slide,
+        arc lengths [m]) and ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`).
     """
     realised = np.atleast_2d(robot.arm_com(np.nan_to_num(plan.postures)))
     mu_realised = loaded_mu(robot, terrain, plan.poses, realised)  # one case, one batch
@@ -115,6 +117,10 @@ def route_verdicts(
         for k in range(len(plan.s))
     ]  # fmt: skip
     stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
+    # climbs with the rear down, the arm on its posture reference (runs.climb_out)
+    stability["climb_out"] = climb_out_verdict(robot, terrain, route, along.poses, along.s, plan)
+    if stability["climb_out"]["overturns"]:
+        stability["stable"] = False
     out: dict[str, Any] = {
         "mu_realised": mu_realised,
         "stability": stability,
@@ -182,7 +188,8 @@ def lap_verdicts(
 def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
     """``mmstab plan``'s exit status for a plan's verdicts (no ``--allow-...`` option).
 
-    3 where a pose tips or falls below the margin, else 4 where the tracks slide, else 0.
+    3 where a pose tips or falls below the margin (or a climb overturns the robot: the
+    ``tip`` verdict), else 4 where the tracks slide, else 0.
     """
     if verdicts["tip"]["unsafe"]:
         return EXIT_UNSTABLE

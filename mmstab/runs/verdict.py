@@ -143,6 +143,16 @@ def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
             f"{verdict.get('acceleration_margin', 0.0):.3g} for the route's accelerations) "
             f"at {named}"
         )
+    parts += [
+        f"climbing a step with the rear down at s = {x['start_s']:.2f} m the robot goes over "
+        f"backwards before its CoM passes the edge (pitch {math.degrees(x['pitch_rad']):.0f} "
+        "deg; the arm's reference puts the CoM "
+        + (f"{-100 * x['com_ahead_of_rear_m']:.1f} cm behind the rear contact)"
+           if x["cause"] == "com behind the rear"
+           else f"{100 * x['com_behind_edge_m']:.1f} cm behind the edge as the rear wheel "
+           "meets the step's face)")
+        for x in verdict.get("climb_out", {}).get("stretches", [])[:LISTED_POSES]
+    ]  # fmt: skip
     return "; ".join(parts)
 
 
