@@ -183,7 +183,7 @@ class RoadmapHorizon:
         """The arm's pieces for the ground check (built once) and their kept body frames."""
         if self._arm is None:
             arm = ArmGround.of(self.robot, terrain, self.settings.attitude_margin or 0.0)
-            self._arm = arm, PausedPieces(arm.base, self.roadmap.nodes_q[self.reach])
+            self._arm = arm, PausedPieces(arm.base, self.roadmap.nodes_q)  # by node, as offline
         return self._arm
 
     def _candidates(
@@ -356,7 +356,7 @@ class RoadmapHorizon:
         ks = [k for k in kept if k in self.nodes and k not in replacing]
         again: set[int] = set()
         if ks:
-            rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
+            rows = np.asarray([self.nodes[k] for k in ks], dtype=np.intp)  # kept's rows: nodes
             clearance = self.settings.ground_clearance
             assert clearance is not None  # (no MapGround without it)
             clear = ground.node_clear(ks, rows, self._arm[1], clearance)
