@@ -78,7 +78,7 @@ def test_the_registries_name_the_default_lists(settings):
     assert DEFAULT_TASKS == ("base_point", "arm_com", "posture")
     assert [type(t) for t in build_tasks(settings)] == [BasePointTask, ArmCoMTask, PostureTask]
     assert build_tasks(settings)[0].offset == settings.base_offset  # type: ignore[attr-defined]
-    assert DEFAULT_LIMITS == ("joint_velocity", "joint_position") == tuple(LIMITS)
+    assert DEFAULT_LIMITS == ("joint_velocity", "joint_position", "yaw_rate") == tuple(LIMITS)
     assert [limit.name for limit in build_limits()] == list(DEFAULT_LIMITS)
     with pytest.raises(ValueError, match="joint_centring"):
         build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))  # not registered here

@@ -25,7 +25,7 @@ from typing import NamedTuple
 import casadi as ca
 
 from mmstab.control.layout import ControllerParams, StepReference
-from mmstab.control.limits import Limit, intersect
+from mmstab.control.limits import Limit, LimitContext, intersect
 from mmstab.control.tasks import Task, TaskModel, task_map
 from mmstab.model.robot import FloatArray
 
@@ -137,9 +137,9 @@ def build_qp(
     for o in objectives[1:]:
         H, g, cost0 = H + o.H, g + o.g, cost0 + o.cost0
     H = H + ca.diag(P.w_b)
-    lbx, ubx = intersect(limits, s, P)
     rate = {id(t): o.rate for t, o in zip(tasks, objectives, strict=True)}
     xi_dot_des = ca.vertcat(*(rate[id(t)] for t in xi_tasks))
+    lbx, ubx = intersect(limits, s, P, LimitContext(model, R, xi_dot_des))
     posture = [rate[id(t)] for t in tasks if t.slots.value and t.slots.value.field == "q_ref"]
     q_dot_posture = ca.vertcat(*posture) if posture else ca.SX.zeros(lay.arm)
     # the inputs: finite inputs give a finite H and g (short of overflow, which the
