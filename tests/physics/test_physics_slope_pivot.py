@@ -5,7 +5,7 @@ pivot at s ≈ 2.2 m. The plan accepts it: the skid model's slide of the pivot, 
 the reference's 1.6 s turn, stays within ``physics.slip_distance`` per ``slip_window``. In
 MuJoCo the tracks yaw at a fraction of their command, the heading lags, and without a bound
 the base point's rows then ask for a fast catch-up turn and an overshoot past the path:
-more turn in one second than the reference's, and the base slides over the bar. The
+about twice the reference's turn in one second, and the base slides over the bar. The
 yaw-rate limit (:class:`mmstab.control.limits.YawRateLimit`) keeps the commanded turn within
 the reference's rate plus a margin on slopes.
 """
@@ -58,28 +58,28 @@ def slope_pivot(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
         built = None if limits is None else build_limits(limits)
         step = build_controller(problem.robot, cs, limits=built).step
         runs[name] = run_closed_loop(problem, plan, step, cs, loop, state0)
-    ref, _ = problem.base_path.pose_rate(runs["bounded"].t / cs.lap_time)
-    return {"problem": problem, "loop": loop, "ref_heading": ref[:, 2], **runs}
+    return {"problem": problem, "loop": loop, **runs}
 
 
 def test_the_pivot_on_a_side_slope_holds(slope_pivot) -> None:
     run, loop = slope_pivot["bounded"], slope_pivot["loop"]
     assert run.tipped is None and run.slid is None and run.stalled is None
     assert int(np.sum(run.status != 0)) == 0
-    # the worst second's downhill drift within the bar (measured 2.7 cm; 6.6 cm unbounded)
+    # the worst second's downhill drift within the bar (measured 3.3 cm; 6.6 cm unbounded)
     assert loop.slip_window == 1.0 and loop.slip_distance == 0.05
     assert run.slip.max() < loop.slip_distance
-    # no more turn in any second than the reference puts there (measured 5.9° against 5.6°)
-    ref = window_turn(slope_pivot["ref_heading"], run.t, loop.slip_window)
-    assert np.degrees(ref) == pytest.approx(5.6, abs=0.5)
-    assert window_turn(run.state[:, 2], run.t, loop.slip_window) < 1.25 * ref
-    # and it still follows the route: the control point within 8 cm (measured 6.2 cm)
+    # no more turn in any second than the reference's (measured 7.6° against its 9.0°: the
+    # reference turns its 9° within a second; unbounded 17.7°)
+    ref = window_turn(run.heading_reference, run.t, loop.slip_window)
+    assert np.degrees(ref) == pytest.approx(9.0, abs=0.5)
+    assert window_turn(run.state[:, 2], run.t, loop.slip_window) < ref
+    # and it still follows the route: the control point within 8 cm (measured 5.6 cm)
     assert run.base_error.max() < 0.08 and run.base_error[-1] < 0.01
 
 
 def test_without_the_bound_the_loop_compresses_the_turn_and_slides(slope_pivot) -> None:
     """The mechanism the bound removes: 17.7° in the worst second, 6.6 cm of drift."""
     run, loop = slope_pivot["unbounded"], slope_pivot["loop"]
-    ref = window_turn(slope_pivot["ref_heading"], run.t, loop.slip_window)
-    assert window_turn(run.state[:, 2], run.t, loop.slip_window) > 2.5 * ref
+    ref = window_turn(run.heading_reference, run.t, loop.slip_window)
+    assert window_turn(run.state[:, 2], run.t, loop.slip_window) > 1.5 * ref
     assert run.slip.max() > loop.slip_distance and run.slid is not None
