@@ -93,7 +93,8 @@ def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel)
 
     One line per task and limit, in the QP's order (``controller_layout.h``'s comments):
     ``task base_point: xi_des[0:3] xi_dot_ref[0:3] kp[0:3] w_a[0:3] feedforward`` (a
-    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``.
+    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``
+    (a limit that reads the reference adds ``, reads ...``).
     """
     lines = []
     for t in tasks:
@@ -101,7 +102,8 @@ def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel)
         lines.append(f"task {t.name} ({t.rows(model)} rows): {' '.join(read)} feedforward")
     for limit in limits:
         start, stop = limit.rows(model.layout)
-        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]")
+        reads = f", reads {limit.reads}" if limit.reads else ""
+        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]{reads}")
     return lines
 
 

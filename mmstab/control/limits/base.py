@@ -41,6 +41,9 @@ class Limit(abc.ABC):
 
     #: The limit's name in the registry (:data:`mmstab.control.limits.LIMITS`).
     name: str
+    #: What it reads of the step's reference and task rates (``controller_layout.h``'s
+    #: comments; empty: the state and the parameters only).
+    reads: str = ""
 
     def rows(self, layout: Layout) -> tuple[int, int]:
         """The rows of q̇ (2 + n,) it bounds, (start, stop); every joint unless it says otherwise."""

@@ -34,6 +34,7 @@ class YawRateLimit(Limit):
     """|ω| ≤ |γ̇_ref| + margin on slopes ≥ ``min_slope``, as a box on the two sprockets."""
 
     name = "yaw_rate"
+    reads = "xi_dot_ref[2:3] ground xi_dot_des[0:2] qdot_max[0:2]"
 
     def __init__(self, margin: float = YAW_MARGIN, min_slope: float = YAW_MIN_SLOPE):
         """``margin`` [rad/s] beyond the reference's turn rate, from ``min_slope`` [rad] up."""
