@@ -16,8 +16,10 @@ on). Each pair runs in a fresh process, as ``mmstab plan`` would:
 - ``cmaes``: the per-pose CMA-ES, warm-started pose to pose (``method: cmaes``), ``--runs``
   times: the median of its warm-started poses' search times.
 
-Per pair the median over the runs; over the pairs the median of those. Wall times, with
-the load average before and after (a shared machine slows every figure).
+The one-off plan runs in ``--one-offs`` fresh processes per pair (the first also runs the
+repeats and the other methods): its figures are the median over them. Per pair the median
+over the runs; over the pairs the median of those. Wall and CPU times, with the load
+average before and after (a shared machine slows every figure).
 """
 
 from __future__ import annotations
@@ -110,6 +112,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=10, help="pairs 0 .. N-1")
     ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument(
+        "--one-offs", type=int, default=5, help="fresh processes per pair for the one-off plan"
+    )
     ap.add_argument("--out", default="results/bench/plan_random.json")
     ap.add_argument("--roadmap-only", action="store_true", help="no sequence, no CMA-ES")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
@@ -128,6 +133,13 @@ def main() -> None:
         cmd += ["--roadmap-only"] if args.roadmap_only else []
         proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
         r = json.loads(proc.stdout.strip().splitlines()[-1])
+        one_offs = [r["one_off"]]
+        for _ in range(args.one_offs - 1):  # the one-off alone, each in a fresh process
+            cmd = [sys.executable, __file__, "--one", str(k), "--runs", "1", "--roadmap-only"]
+            proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
+            one_offs.append(json.loads(proc.stdout.strip().splitlines()[-1])["one_off"])
+        r["one_off_runs"] = one_offs
+        r["one_off"] = {key: float(np.median([o[key] for o in one_offs])) for key in one_offs[0]}
         pairs.append(r)
         ms = r["ms_per_pose"]
         seq = "did not settle" if "sequence_failed" in r else _ms(ms["sequence"])
@@ -148,6 +160,7 @@ def main() -> None:
         "load_average_after": list(os.getloadavg()),
         "pairs": args.pairs,
         "runs": args.runs,
+        "one_offs": args.one_offs,
         "median_over_pairs": {
             "roadmap_one_off_ms_per_pose": float(
                 np.median([p["one_off"]["ms_per_pose"] for p in pairs])
@@ -176,7 +189,9 @@ def main() -> None:
     m = result["median_over_pairs"]
     print(
         f"bench-plan random routes ({args.pairs} pairs, median of {args.runs} runs each): "
-        f"roadmap one-off {m['roadmap_one_off_ms_per_pose']:.1f} ms/pose (fixed costs "
+        f"roadmap one-off {m['roadmap_one_off_ms_per_pose']:.1f} ms/pose, CPU "
+        f"{m['roadmap_one_off_cpu_ms_per_pose']:.1f} (median of {args.one_offs} processes; "
+        f"fixed costs "
         f"{m['roadmap_one_off_fixed_s']:.2f} s, worst {m['roadmap_one_off_fixed_s_max']:.2f}), "
         f"repeated {m['roadmap_ms_per_pose']:.1f} (CPU {m['roadmap_cpu_ms_per_pose']:.1f}); "
         f"sequence {_ms(m['sequence_ms_per_pose'])} "

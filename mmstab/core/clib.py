@@ -1,8 +1,9 @@
 """mmstab's own C, compiled on first use into a cached shared library.
 
-Four stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
+Five stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
 the resting pose of the base on a heightmap (``terrain/rest/kernel.c``), the bounds on the
-arm's collision distances (``model/collision_distance.c``) and the ground under the arm
+arm's collision distances (``model/collision_distance.c``), A* over the posture roadmap
+(``planner/searches/roadmap/astar.c``) and the ground under the arm
 (``planner/ground/kernel.c``: at a route's poses offline, on each live map online). Each
 is compiled once per source text and compile command with the system compiler and kept in
 the cache folder; the file name carries a hash of both, so an edited source is never

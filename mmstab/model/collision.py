@@ -473,9 +473,10 @@ class CollisionChecker:
             gaps = self._gaps(p)
             near = np.stack([gaps[:, self._gap_column[pr.name]] < need for pr in self.pairs], 1)
         order = sorted(range(len(self.pairs)), key=lambda i: isinstance(self.pairs[i].other, str))
+        some: NDArray[np.bool_] = np.asarray(near.any(axis=0))  # some posture near (unbounded)
         for index in order:
             pair = self.pairs[index]
-            if skip[index]:  # that far apart at every angle
+            if skip[index] or not some[index]:  # that far apart at every angle, or bounded
                 continue
             a = self._link_objs[pair.link]
             j = -1 if isinstance(pair.other, str) else pair.other

@@ -106,7 +106,10 @@ def solve_pose_by_pose(
     """:func:`solve_path` with a per-pose search: each pose from the one before."""
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
-    starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
+    # the paper's starts, once; with a turret window each pose's search moves them into
+    # its window (``CmaesSearch.starts``): a start far outside it left no sample in V
+    fixed = settings.seeding == "starts" and settings.turret_window is None
+    starts = start_coms(robot, region, settings.starts) if fixed else None
     previous_com, previous_q = robot.arm_com(robot.stowed), robot.stowed
     windowed = settings.turret_window is not None
     targets, postures, free = [], [], []

@@ -139,6 +139,18 @@ def contact_force_angle(
     return ContactStability(poly, float(np.min(theta) * np.linalg.norm(f)), line)
 
 
+def _cross_last(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross(a, b)`` along the last axis (3), the same floats without its axis moves."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
 def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> FloatArray:
     """Signed angles theta_j for many CoMs/forces against one ordered polygon.
 
@@ -160,7 +172,7 @@ def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> 
     d = p_next - g  # (B, n, 3)
     l_j = d - np.sum(d * a_hat, axis=-1, keepdims=True) * a_hat
     f_j = f - np.sum(f * a_hat, axis=-1, keepdims=True) * a_hat
-    sin_part = np.sum(np.cross(l_j, f_j) * a_hat, axis=-1)
+    sin_part = np.sum(_cross_last(l_j, f_j) * a_hat, axis=-1)
     cos_part = np.sum(l_j * f_j, axis=-1)
     out = np.arctan2(sin_part, cos_part)
     return out[0] if single else out

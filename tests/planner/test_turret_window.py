@@ -91,6 +91,23 @@ def test_turret_moves_at_most_the_window_and_the_lap_closes(coarse, method):  # 
     assert all(t.window is not None for t in plan.targets[1:])
 
 
+def test_the_papers_starts_move_into_each_poses_window(coarse):  # noqa: F811
+    """``seeding: starts`` under a window: each pose's starts lie in its window (link0 of
+    the starts 2.0 and 5.0 rad lay outside most windows, no CMA-ES sample fell in V)."""
+    problem, ws = coarse
+    robot = problem.robot
+    s = _settings(problem, ws, turret_window=WINDOW, seeding="starts", starts=(2.0, 5.0))
+    s = s._replace(sigma0=0.05, sigma0_unit="m", popsize=16, max_iterations=20)
+    poses = problem.circle.poses(s.poses)
+    plan = solve_path(robot, problem.terrain, ws, poses, s, _realise(ws), closed=True)
+    link0 = plan.postures[:, 0]
+    assert np.all(np.abs(np.diff(link0)) <= WINDOW + 1e-9), link0
+    for t in plan.targets[1:]:
+        assert t.window is not None
+        starts = np.array([r.start_com for r in t.runs])
+        assert windowed_region(ws, t.window).contains(starts).all()
+
+
 def test_cma_within_half_a_percent_of_the_windowed_exhaustive(coarse):  # noqa: F811
     problem, ws = coarse
     robot = problem.robot

@@ -345,3 +345,32 @@ def test_astar_moves_are_shortest_roadmap_paths(small):
         assert all(tuple(sorted(e)) in edges for e in zip(path[:-1], path[1:], strict=True))
         length = np.abs(np.diff(rm.nodes_q[path], axis=0)).sum()
         assert length == pytest.approx(dijkstra(rm.graph, indices=int(a))[b], rel=1e-12)
+
+
+def test_astar_in_c_finds_the_pythons_paths(small, monkeypatch):
+    """The C kernel against the Python loop, node for node: plain, masked, with a ground
+    threshold and with too few expansions (None from both)."""
+    from mmstab.planner.searches.roadmap import moves
+
+    _, rm = small
+    assert moves._astar_kernel() is not None  # the C kernel runs here
+    rng = np.random.default_rng(21)
+    ground = float(np.median(rm.node_ground))
+    comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    found = 0
+    for a, b in rng.choice(comp, (30, 2)):
+        path = moves.astar_python(rm, int(a), int(b))
+        masked = frozenset(int(n) for n in (path[1:-1] if path is not None else ()))
+        for g, m in ((None, frozenset()), (None, masked), (ground, frozenset())):
+            want = moves.astar_python(rm, int(a), int(b), g, m)
+            got = moves.astar(rm, int(a), int(b), g, m)
+            assert (got is None) == (want is None)
+            if want is not None:
+                found += 1
+                np.testing.assert_array_equal(got, want)
+    assert found >= 40
+    monkeypatch.setattr(moves, "ASTAR_EXPANSIONS", 3)  # the limit: neither reaches b
+    a, b = (int(x) for x in comp[[0, -1]])
+    assert moves.astar(rm, a, b) is None and moves.astar_python(rm, a, b) is None
+    arrays = moves._astar_arrays(rm, None)  # the work arrays are left clean
+    assert np.isinf(arrays["best"]).all() and not arrays["masked"].any()
