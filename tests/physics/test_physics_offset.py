@@ -86,8 +86,8 @@ def test_a_point_further_ahead_than_the_slide_takes_the_error_back(runs) -> None
     for run in (near, far):
         assert run.tipped is None and int(np.sum(run.status != 0)) == 0
     late = near.t > 1.0
-    # 0.2 m: the correction's turns slide the base 23 cm downhill within a second and the
-    # point's error doubles (20 cm); 0.6 m: 6 cm, and the point within 2.2 cm after 1 s
+    # 0.2 m: the correction's turns slide the CoM 19 cm downhill within a second and the
+    # point's error doubles (20 cm); 0.6 m: 5.0 cm, and the point within 2.2 cm after 1 s
     assert near.slid is not None and near.slip.max() > 0.15
     assert near.base_error[late].max() > 0.15
     assert far.slip.max() < 0.5 * near.slip.max()
@@ -100,7 +100,7 @@ def test_the_yaw_rate_limit_keeps_the_correction_from_sliding(runs) -> None:
     near, far = runs[0.2, True][1], runs[0.6, True][1]
     for run, unbounded in ((near, runs[0.2, False][1]), (far, runs[0.6, False][1])):
         assert run.tipped is None and int(np.sum(run.status != 0)) == 0
-        # measured 3.8 and 3.9 cm of drift in the worst second (23 and 6.0 cm unbounded)
+        # measured 3.1 and 3.2 cm of drift in the worst second (19 and 5.0 cm unbounded)
         assert run.slid is None and run.slip.max() < 0.05
         assert run.slip.max() < unbounded.slip.max()
         assert run.base_error[-1] < 0.01  # measured 8.8 and 1.3 mm after 5 s
