@@ -10,11 +10,18 @@ terrain (its per-pose search time, the resting pose included), and the whole off
 per pose. Medians over the repeats of each percentile.
 
 The slow maps: per repeat, the slowest 1 % of the updates (p99 is the least of them),
-each with what it did: the map's index (the first sets the horizon up), the poses it
-re-planned and left uncovered, and the garbage collector's time within it (``gc.callbacks``
-around ``Follower.update``); a cause per map (``first map``, ``re-plan``, ``garbage
-collection`` when the collector took half of it or more, else ``other``), the count of
-each among the slow maps, and the slowest map of the run with its cause.
+each with what it did: the map's index (the first sets the horizon up), the poses whose
+re-plan it triggered and the poses it left uncovered, the steps of queued re-plans it ran
+in its spare time and the steps it ran to land re-plans due on it
+(:mod:`mmstab.runs.online.replan_jobs`), the arm's moves it computed for the reference, the
+steps of the moves ahead, and the garbage collector's time within it (``gc.callbacks``
+around ``Follower.update``); a cause per map, the first that applies: ``first map``,
+``re-plan at once`` (a re-plan computed on its map: a pose near the robot without a valid
+plan), ``landing`` (a re-plan due on the map not computed yet), ``move`` (a move the
+reference needed), ``re-plan steps``, ``moves ahead``, ``garbage collection`` (half of the
+update or more), else ``other``; the count of each among the slow maps, and the slowest map
+of the run with its cause. ``startup_excluded``: the percentiles without the first map (the
+horizon's set-up, before the robot can move).
 """
 
 from __future__ import annotations
@@ -37,11 +44,19 @@ from mmstab.core.problem import load_problem  # noqa: E402
 from mmstab.outputs.online import offline_plan  # noqa: E402
 from mmstab.outputs.recording import record_route  # noqa: E402
 from mmstab.runs.online.follow import Follower  # noqa: E402
+from mmstab.runs.online.moves_ahead import MovesAhead  # noqa: E402
+from mmstab.runs.online.replan_jobs import Jobs  # noqa: E402
+from mmstab.runs.online.roadmap_horizon import RoadmapHorizon  # noqa: E402
 from mmstab.runs.online.run import follow_recording, summarize  # noqa: E402
 from mmstab.workspace import load_or_build_workspace  # noqa: E402
 
 #: Seconds the garbage collector ran, in total and during each update of the current run.
 GC_TOTAL, GC_PER_UPDATE = [0.0, 0.0], []  # [total, the running pass's start]
+#: Counts of what the current update did (:func:`_counted`), and per update of the run.
+WORK: dict[str, int] = {}
+WORK_PER_UPDATE: list[dict[str, int]] = []
+CPU_PER_UPDATE: list[float] = []  # the loop thread's processor time per update [s]
+KINDS = ("job_steps", "landing_steps", "at_once", "moves", "ahead_steps")
 
 
 def _gc_clock(phase: str, info: dict) -> None:
@@ -52,35 +67,87 @@ def _gc_clock(phase: str, info: dict) -> None:
 
 
 def _timed_update(update):
-    """``Follower.update`` that records the collector's time within each update."""
+    """``Follower.update`` that records the collector's time and the work within each update."""
 
     def wrapped(self, u):
         before = GC_TOTAL[0]
+        WORK.clear()
         step = update(self, u)
+        CPU_PER_UPDATE.append(self.cpu_time)  # the timed part's, as the latency
         GC_PER_UPDATE.append(GC_TOTAL[0] - before)
+        WORK_PER_UPDATE.append({k: WORK.get(k, 0) for k in KINDS})
         return step
 
     return wrapped
 
 
-def cause(index: int, step, gc_s: float) -> str:
+def _counted() -> None:
+    """Count the re-plans' steps (spare time, landing), the moves and the moves ahead."""
+    step, due, move, ahead = Jobs.step, Jobs.due, RoadmapHorizon._move, MovesAhead.advance
+    landing = [False]
+
+    def counted_step(self):
+        ran = step(self)
+        key = "landing_steps" if landing[0] else "job_steps"
+        WORK[key] = WORK.get(key, 0) + int(ran)
+        return ran
+
+    def counted_due(self, index, near, everything=False, touching=None):
+        landing[0] = True
+        try:
+            out = due(self, index, near, everything, touching)
+        finally:
+            landing[0] = False
+        if everything and out:
+            WORK["at_once"] = WORK.get("at_once", 0) + 1
+        return out
+
+    def counted_move(self, *args, **kwargs):
+        WORK["moves"] = WORK.get("moves", 0) + 1
+        return move(self, *args, **kwargs)
+
+    def counted_ahead(self, *args, **kwargs):
+        n = ahead(self, *args, **kwargs)
+        WORK["ahead_steps"] = WORK.get("ahead_steps", 0) + n
+        return n
+
+    Jobs.step, Jobs.due = counted_step, counted_due  # type: ignore[method-assign]
+    RoadmapHorizon._move = counted_move  # type: ignore[method-assign]
+    MovesAhead.advance = counted_ahead  # type: ignore[method-assign]
+
+
+def cause(index: int, step, gc_s: float, work: dict[str, int]) -> str:
     """What made an update slow (module text)."""
     if index == 0:
         return "first map"
-    if step.replanned:
-        return "re-plan"
+    if work["at_once"]:
+        return "re-plan at once"
+    if work["landing_steps"]:
+        return "landing"
+    if work["moves"]:
+        return "move"
+    if work["job_steps"]:
+        return "re-plan steps"
+    if work["ahead_steps"]:
+        return "moves ahead"
     if gc_s >= 0.5 * step.latency:
         return "garbage collection"
     return "other"
 
 
-def slow_maps(run, gc_per_update: list[float]) -> list[dict]:
+CAUSES = (
+    "first map", "re-plan at once", "landing", "move", "re-plan steps", "moves ahead",
+    "garbage collection", "other",
+)  # fmt: skip
+
+
+def slow_maps(run, gc_per_update: list[float], work: list[dict[str, int]]) -> list[dict]:
     """The slowest 1 % of a run's updates (at least one), slowest first, with their causes."""
     lat = np.array([x.latency for x in run.steps])
     count = max(1, int(np.ceil(0.01 * len(lat))))
     out = []
     for i in np.argsort(-lat)[:count]:
-        st, g = run.steps[int(i)], gc_per_update[int(i)]
+        st, g, w = run.steps[int(i)], gc_per_update[int(i)], work[int(i)]
         out.append(
             {
                 "index": int(i),
@@ -88,11 +155,23 @@ def slow_maps(run, gc_per_update: list[float]) -> list[dict]:
                 "latency_ms": 1e3 * float(st.latency),
                 "replanned_poses": int(st.replanned),
                 "uncovered_poses": int(st.uncovered),
+                **w,
                 "gc_ms": 1e3 * g,
-                "cause": cause(int(i), st, g),
+                "cause": cause(int(i), st, g, w),
             }
         )
     return out
+
+
+def latency_stats(latency_s: np.ndarray) -> dict[str, float]:
+    """p50, p99, max and mean [ms] of latencies [s]."""
+    ms = 1e3 * np.asarray(latency_s)
+    return {
+        "p50": float(np.percentile(ms, 50)),
+        "p99": float(np.percentile(ms, 99)),
+        "max": float(ms.max()),
+        "mean": float(ms.mean()),
+    }
 
 
 def main() -> None:
@@ -112,12 +191,19 @@ def main() -> None:
     ws = load_or_build_workspace(problem)
     gc.callbacks.append(_gc_clock)
     Follower.update = _timed_update(Follower.update)  # type: ignore[method-assign]
-    runs, offline_pose, offline_total, slow = [], [], [], []
+    _counted()
+    runs, offline_pose, offline_total, slow, rest, cpu, cpu_rest, first = ([] for _ in range(8))
     for _ in range(args.repeats):
         GC_PER_UPDATE.clear()
+        WORK_PER_UPDATE.clear()
+        CPU_PER_UPDATE.clear()
         run = follow_recording(problem, rec, ws)
+        cpu.append(latency_stats(np.array(CPU_PER_UPDATE)))
+        cpu_rest.append(latency_stats(np.array(CPU_PER_UPDATE[1:])))
         runs.append(summarize(run))
-        slow.append(slow_maps(run, list(GC_PER_UPDATE)))
+        rest.append(latency_stats(np.array([x.latency for x in run.steps[1:]])))
+        first.append(run.steps[0].latency)
+        slow.append(slow_maps(run, list(GC_PER_UPDATE), list(WORK_PER_UPDATE)))
         t0 = time.perf_counter()
         off = offline_plan(problem, run, ws)
         offline_total.append((time.perf_counter() - t0) / len(off.s))
@@ -131,6 +217,20 @@ def main() -> None:
         "online_latency_ms": {
             k: statistics.median(x[k] for x in lat) for k in ("p50", "p99", "max", "mean")
         },
+        "startup_excluded": {
+            "first_map_ms": 1e3 * statistics.median(first),
+            "latency_ms": {
+                k: statistics.median(x[k] for x in rest) for k in ("p50", "p99", "max", "mean")
+            },
+        },
+        # the same percentiles of the loop thread's processor time per map (what other
+        # processes on the shared core do not inflate), and without the first map
+        "online_cpu_ms": {
+            k: statistics.median(x[k] for x in cpu) for k in ("p50", "p99", "max", "mean")
+        },
+        "online_cpu_ms_startup_excluded": {
+            k: statistics.median(x[k] for x in cpu_rest) for k in ("p50", "p99", "max", "mean")
+        },
         "offline_ms_per_pose": {
             "search_median": 1e3 * statistics.median(offline_pose),
             "whole_plan_mean": 1e3 * statistics.median(offline_total),
@@ -138,10 +238,7 @@ def main() -> None:
         "targets_ms": {"p50": 2.0, "p99": 10.0},  # a map every 50-100 ms, an MPC at 4 ms
         "slow_maps": {
             "per_repeat": slow,
-            "causes": {
-                c: sum(m["cause"] == c for r in slow for m in r)
-                for c in ("first map", "re-plan", "garbage collection", "other")
-            },
+            "causes": {c: sum(m["cause"] == c for r in slow for m in r) for c in CAUSES},
             "slowest": max((m for r in slow for m in r), key=lambda m: m["latency_ms"]),
         },
         "repeats": args.repeats,
@@ -155,12 +252,16 @@ def main() -> None:
         f"{result['offline_ms_per_pose']['whole_plan_mean']:.2f} ms per pose (whole plan)"
     )
     w, c = result["slow_maps"]["slowest"], result["slow_maps"]["causes"]
+    x = result["startup_excluded"]["latency_ms"]
     print(
         f"online: max {result['online_latency_ms']['max']:.1f} ms; the slowest map: "
         f"{w['latency_ms']:.1f} ms, map {w['index']} ({w['cause']}: {w['replanned_poses']} "
         f"poses re-planned, gc {w['gc_ms']:.1f} ms); the slowest 1 % of maps by cause: "
-        + ", ".join(f"{k} {v}" for k, v in c.items())
+        + ", ".join(f"{k} {v}" for k, v in c.items() if v)
+        + f"; without the first map: p50 {x['p50']:.2f}, p99 {x['p99']:.2f}, max {x['max']:.1f} ms"
     )
+    y = result["online_cpu_ms"]
+    print(f"online CPU: p50 {y['p50']:.2f}, p99 {y['p99']:.2f}, max {y['max']:.1f} ms per map")
 
 
 if __name__ == "__main__":

@@ -154,6 +154,9 @@ class PhysicsRun:
         disagreement: first time the tilt off the predicted rest passed
             ``disagreement_angle`` [s], or None (a report: mmstab's rest and the simulated
             attitude disagree there; not a tip).
+        heading_reference: the reference heading the controller tracked at each sample
+            (ξ_des's heading row, the time law's and the governor's waits included) (N+1,)
+            [rad], or None.
     """
 
     t: FloatArray
@@ -182,6 +185,7 @@ class PhysicsRun:
     tip_cause: str | None = None
     disagreement: float | None = None
     body_G_T_B: FloatArray | None = None
+    heading_reference: FloatArray | None = None
 
 
 def map_pose(state: RobotState, M_T_G: FloatArray) -> FloatArray:
@@ -395,4 +399,5 @@ def _finish(
         real_time_factor=float(t[-1] / wall) if wall > 0 else float("inf"), wall_seconds=wall,
         base_origin_error=np.linalg.norm(states[:, :2] - origin_ref, axis=1),
         disagreement=float(t[off_rest[0]]) if len(off_rest) else None,
+        heading_reference=np.asarray(ref[:, 2], dtype=float),
     )  # fmt: skip

@@ -215,6 +215,12 @@ def placement_function() -> ca.Function:
     )
 
 
+@lru_cache(maxsize=16)
+def _placement_map(n: int) -> ca.Function:
+    """:func:`placement_function` mapped over ``n`` columns (built once per n: 0.2 ms)."""
+    return placement_function().map(n)
+
+
 class Placement(NamedTuple):
     """Body points placed in M (N, 3) [m] with their Jacobians (N, 3, 3)."""
 
@@ -248,7 +254,7 @@ def place_local(poses: ArrayLike, ground: ArrayLike, points_body: ArrayLike) -> 
     Gd, X = _rows(ground, n, "ground"), _rows(points_body, n, "points_body")
     if n == 0:
         return Placement(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)))
-    p, dpose, dpoint = placement_function().map(n)(P.T, Gd.T, X.T)
+    p, dpose, dpoint = _placement_map(n)(P.T, Gd.T, X.T)
     return Placement(
         np.asarray(p).T,
         np.asarray(dpose).reshape(3, n, 3).transpose(1, 0, 2),

@@ -36,6 +36,7 @@ from mmstab.control.controller import (
     build_controller,
     quiet_stdout,
 )
+from mmstab.control.limits import YawRateLimit
 from mmstab.control.reference import initial_state
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.core.problem import load_problem
@@ -116,7 +117,8 @@ def test_generated_step_equals_interpreted_on_1000_states(generated, problem, rn
     ext = generated.load(STEP_NAME)
     ctrl = build_controller(problem.robot, controller_settings(problem, generated.plugin))
     p = ctrl.params.pack()
-    worst, statuses = 0.0, []
+    tracks = problem.robot.base.tracks
+    worst, statuses, turn_bound = 0.0, [], 0
     with quiet_stdout():  # OSQP's polish line
         for state, ref in random_cases(problem.robot, rng, 1000):
             a = [np.asarray(v) for v in ctrl.step(state, ref, p)]
@@ -124,7 +126,12 @@ def test_generated_step_equals_interpreted_on_1000_states(generated, problem, rn
             assert a[1].item() == b[1].item()
             worst = max(worst, max(float(np.max(np.abs(x - y))) for x, y in zip(a, b, strict=True)))
             statuses.append(int(b[1].item()))
+            # the yaw-rate limit binds (ground of 10° or more): |ω| = |γ̇_ref| + margin
+            yaw = tracks.sprocket_radius * (b[0][1] - b[0][0]) / tracks.separation
+            at_bound = abs(abs(yaw) - abs(ref[8]) - YawRateLimit().margin) < 1e-6
+            turn_bound += bool(b[1].item() == 0 and at_bound)
     assert worst <= 1e-10
+    assert turn_bound > 50  # the generated step has the limit where the interpreted one does
     seen = set(statuses)  # the cases reach success and both pre-solve refusals
     assert {QPStatus.SUCCESS, QPStatus.INFEASIBLE, QPStatus.NONFINITE_INPUT} <= seen
     assert statuses.count(QPStatus.SUCCESS) > 500

@@ -78,7 +78,7 @@ def test_the_registries_name_the_default_lists(settings):
     assert DEFAULT_TASKS == ("base_point", "arm_com", "posture")
     assert [type(t) for t in build_tasks(settings)] == [BasePointTask, ArmCoMTask, PostureTask]
     assert build_tasks(settings)[0].offset == settings.base_offset  # type: ignore[attr-defined]
-    assert DEFAULT_LIMITS == ("joint_velocity", "joint_position") == tuple(LIMITS)
+    assert DEFAULT_LIMITS == ("joint_velocity", "joint_position", "yaw_rate") == tuple(LIMITS)
     assert [limit.name for limit in build_limits()] == list(DEFAULT_LIMITS)
     with pytest.raises(ValueError, match="joint_centring"):
         build_tasks(settings, (*DEFAULT_TASKS, "joint_centring"))  # not registered here
@@ -149,6 +149,7 @@ def test_the_c_header_names_each_task_s_slots_and_each_limit_s_rows(problem, set
         "task joint_centring (4 rows): - - posture_gain posture_weight feedforward",
         "limit joint_velocity: qdot[0:6]",
         "limit joint_position: qdot[2:6]",
+        "limit yaw_rate: qdot[0:2], reads xi_dot_ref[2:3] ground xi_dot_des[0:2] qdot_max[0:2]",
     ]
     plain, header = layout_header(settings.kkt_tol), layout_header(settings.kkt_tol, notes=notes)
     assert [line for line in header.splitlines() if "#define" in line] == [

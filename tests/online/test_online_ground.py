@@ -95,7 +95,14 @@ def follow(problem: mmstab.Problem, updates: list[MapUpdate]) -> Follower:
     f = build_follower(problem)
     for u in updates:
         f.update(u)
+    settle(f)
     return f
+
+
+def settle(f: Follower) -> None:
+    """Land the horizon's queued re-plans (as at the end of ``follow_recording``)."""
+    assert isinstance(f.horizon, RoadmapHorizon)
+    f.horizon.settle()
 
 
 @pytest.fixture(scope="module")
@@ -178,6 +185,7 @@ def planned_once_then_changed(scene: dict[str, Any], change: Any) -> tuple[Follo
     assert f.horizon.nodes[BUMP_K] == scene["plain"].horizon.nodes[BUMP_K]  # kept as planned
     for u in updates[first:]:
         f.update(with_heights(u, change))
+    settle(f)
     return f, updates[first].time
 
 

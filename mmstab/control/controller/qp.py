@@ -25,7 +25,7 @@ from typing import NamedTuple
 import casadi as ca
 
 from mmstab.control.layout import ControllerParams, StepReference
-from mmstab.control.limits import Limit, intersect
+from mmstab.control.limits import Limit, LimitContext, intersect
 from mmstab.control.tasks import Task, TaskModel, task_map
 from mmstab.model.robot import FloatArray
 
@@ -93,7 +93,8 @@ def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel)
 
     One line per task and limit, in the QP's order (``controller_layout.h``'s comments):
     ``task base_point: xi_des[0:3] xi_dot_ref[0:3] kp[0:3] w_a[0:3] feedforward`` (a
-    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``.
+    computed target or a zero rate shows as ``-``), ``limit joint_position: qdot[2:6]``
+    (a limit that reads the reference adds ``, reads ...``).
     """
     lines = []
     for t in tasks:
@@ -101,7 +102,8 @@ def slot_notes(tasks: Sequence[Task], limits: Sequence[Limit], model: TaskModel)
         lines.append(f"task {t.name} ({t.rows(model)} rows): {' '.join(read)} feedforward")
     for limit in limits:
         start, stop = limit.rows(model.layout)
-        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]")
+        reads = f", reads {limit.reads}" if limit.reads else ""
+        lines.append(f"limit {limit.name}: qdot[{start}:{stop}]{reads}")
     return lines
 
 
@@ -137,9 +139,9 @@ def build_qp(
     for o in objectives[1:]:
         H, g, cost0 = H + o.H, g + o.g, cost0 + o.cost0
     H = H + ca.diag(P.w_b)
-    lbx, ubx = intersect(limits, s, P)
     rate = {id(t): o.rate for t, o in zip(tasks, objectives, strict=True)}
     xi_dot_des = ca.vertcat(*(rate[id(t)] for t in xi_tasks))
+    lbx, ubx = intersect(limits, s, P, LimitContext(model, R, xi_dot_des))
     posture = [rate[id(t)] for t in tasks if t.slots.value and t.slots.value.field == "q_ref"]
     q_dot_posture = ca.vertcat(*posture) if posture else ca.SX.zeros(lay.arm)
     # the inputs: finite inputs give a finite H and g (short of overflow, which the

@@ -7,7 +7,9 @@ state and the parameters into their lower and upper bounds; the QP intersects th
 
 - :class:`JointVelocityLimit`: |q̇| ≤ q̇_max, every joint (sprockets and arm);
 - :class:`JointPositionLimit`: q_min ≤ q + q̇ dt ≤ q_max, the arm joints (the sprockets turn
-  freely).
+  freely);
+- :class:`YawRateLimit`: on a slope the commanded yaw rate within the reference's plus a
+  margin (a box on the two sprockets about the forward speed the base point asks for).
 
 :data:`LIMITS` names every limit, :data:`DEFAULT_LIMITS` is the controller's list; adding a
 limit is one module of this package and its class in :data:`LIMITS`.
@@ -17,9 +19,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mmstab.control.limits.base import Bounds, Limit, intersect
+from mmstab.control.limits.base import Bounds, Limit, LimitContext, intersect
 from mmstab.control.limits.joint_position import JointPositionLimit
 from mmstab.control.limits.joint_velocity import JointVelocityLimit
+from mmstab.control.limits.yaw_rate import YawRateLimit
 
 #: Every limit, by name.
 LIMITS: dict[str, type[Limit]] = {
@@ -27,10 +30,11 @@ LIMITS: dict[str, type[Limit]] = {
     for cls in (
         JointVelocityLimit,
         JointPositionLimit,
+        YawRateLimit,
     )
 }
 #: The controller's limits, in the order they are intersected.
-DEFAULT_LIMITS: tuple[str, ...] = ("joint_velocity", "joint_position")
+DEFAULT_LIMITS: tuple[str, ...] = ("joint_velocity", "joint_position", "yaw_rate")
 
 
 def build_limits(names: Sequence[str] = DEFAULT_LIMITS) -> list[Limit]:
@@ -52,6 +56,8 @@ __all__ = [
     "JointPositionLimit",
     "JointVelocityLimit",
     "Limit",
+    "LimitContext",
+    "YawRateLimit",
     "build_limits",
     "intersect",
 ]

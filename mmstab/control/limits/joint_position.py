@@ -5,7 +5,7 @@ from __future__ import annotations
 import casadi as ca
 
 from mmstab.control.layout import ARM, SPROCKETS, ControllerParams, Layout
-from mmstab.control.limits.base import Bounds, Limit
+from mmstab.control.limits.base import Bounds, Limit, LimitContext
 
 
 class JointPositionLimit(Limit):
@@ -17,7 +17,9 @@ class JointPositionLimit(Limit):
         """The arm joints' rows (the sprockets turn freely)."""
         return (SPROCKETS, layout.joints)
 
-    def bounds(self, state: ca.SX, params: ControllerParams) -> Bounds:
+    def bounds(
+        self, state: ca.SX, params: ControllerParams, context: LimitContext | None = None
+    ) -> Bounds:
         """Bounds on the arm joints (n,) [rad/s]."""
         q_arm = state[ARM]
         return Bounds((params.q_min - q_arm) / params.dt, (params.q_max - q_arm) / params.dt)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import casadi as ca
 
 from mmstab.control.layout import ControllerParams
-from mmstab.control.limits.base import Bounds, Limit
+from mmstab.control.limits.base import Bounds, Limit, LimitContext
 
 
 class JointVelocityLimit(Limit):
@@ -13,6 +13,8 @@ class JointVelocityLimit(Limit):
 
     name = "joint_velocity"
 
-    def bounds(self, state: ca.SX, params: ControllerParams) -> Bounds:
+    def bounds(
+        self, state: ca.SX, params: ControllerParams, context: LimitContext | None = None
+    ) -> Bounds:
         """(−q̇_max, q̇_max) (2 + n,) [rad/s]."""
         return Bounds(-params.qdot_max, params.qdot_max)

@@ -205,7 +205,7 @@ class MapGround:
     def node_clear(
         self, ks: list[int], rows: NDArray[np.intp], kept: KeptPieces, ground: float
     ) -> NDArray[np.bool_]:
-        """Whether each pose ``ks[i]``'s node (reach row ``rows[i]``) is ``ground`` [m] up.
+        """Whether each pose ``ks[i]``'s node (``kept``'s row ``rows[i]``) is ``ground`` [m] up.
 
         The cells' bound for every piece, the scoring's value for the pieces it leaves
         (module text); an answer kept with the pose's state. Sets :attr:`over_unknown`.

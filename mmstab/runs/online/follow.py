@@ -101,7 +101,8 @@ class FollowStep(NamedTuple):
         replanned: horizon poses re-planned on this map.
         uncovered: horizon poses the map does not cover.
         covered_ahead: the route planned on this map ahead of the robot [m].
-        latency: wall time of the update [s].
+        latency: wall time of the update [s] (the command's callback excluded: the spare
+            time's re-plan steps after it included).
         G_T_B: the resting pose on the map (4, 4) (NaN when not covered); computed after
             the timed part, for the recording of the run.
         polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
@@ -153,7 +154,9 @@ class Follower:
         self.robot = problem.robot
         self.friction = terrain_friction(problem.terrain)
         self.s_fine = np.arange(0.0, route.length + PROGRESS_STEP, PROGRESS_STEP)
-        self.xy_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose[:, :2]
+        # the route's poses there (the reference pose at a progress: as sampled alone)
+        self.pose_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose
+        self.xy_fine = self.pose_fine[:, :2]
         self.s: float | None = None
         self.q = np.array(self.robot.stowed, dtype=float)
         self.last_time: float | None = None
@@ -163,9 +166,15 @@ class Follower:
         #: none yet) as soon as the step has them, before the answer's untimed extras (the
         #: live node publishes the command there: mmstab.runs.online.node)
         self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
+        #: the loop thread's processor time of the last update's timed part [s]
+        self.cpu_time = 0.0
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
+        return float(min(self.s_fine[self._nearest(xy)], self.route.length))
+
+    def _nearest(self, xy: FloatArray) -> int:
+        """Index in :attr:`s_fine` of the route point nearest ``xy``, near the last progress."""
         if self.s is None:
             window = np.ones(len(self.s_fine), dtype=bool)
         else:
@@ -174,19 +183,20 @@ class Follower:
             )
         idx = np.flatnonzero(window)
         d = np.linalg.norm(self.xy_fine[idx] - xy, axis=1)
-        return float(min(self.s_fine[idx[int(np.argmin(d))]], self.route.length))
+        return int(idx[int(np.argmin(d))])
 
     def update(self, u: MapUpdate) -> FollowStep:
         """One map (module text)."""
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
         pose = u.odometry.pose
-        self.s = s = self.progress(pose[:2])
+        at = self._nearest(pose[:2])
+        self.s = s = float(min(self.s_fine[at], self.route.length))
         if u.joints is not None:  # the arm as measured, not as commanded
             self.q = np.array(u.joints.q, dtype=float)
         q = self.q.copy()
         ks = self.horizon.window(s, self.settings.horizon)
-        ref_pose = self.route.route.sample(np.array([s])).pose
+        ref_pose = self.pose_fine[at : at + 1]  # the route's pose at s
         # one rest for all: the robot, its reference pose, the horizon's poses
         rested = rest_where_covered(
             terrain, np.vstack([pose[None], ref_pose, self.horizon.poses_grid[ks]])
@@ -200,18 +210,24 @@ class Follower:
         g_now = rested.gravity_body[0]
         mu = float("nan")
         if covered:  # the one μ: this state's loaded support on this map
-            com = self.robot.arm_com(q)
-            mu = float(loaded_mu(self.robot, terrain, pose, com, q[None], strict=False)[0])
+            mu = float(loaded_mu(self.robot, terrain, pose, arm_com, q[None], strict=False)[0])
         tilt = float(support_tilt(g_now)[0]) if covered else float("nan")
         for i in (1, 0):  # the reference pose's ground, else the robot's, else the last
             if rested.covered[i]:
                 self.ground = rested.ground[i : i + 1]
                 break
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
-        qdot, status = self._step(pose, ref_pose, q, target, q_ref, u.time)
-        latency = time.perf_counter() - t0
-        if self.on_command is not None:
+        com_target = arm_com if target is None else target  # None: hold the arm's CoM
+        qdot, status = self._step(pose, ref_pose, q, com_target, q_ref, u.time)
+        latency, cpu = time.perf_counter() - t0, time.thread_time() - cpu0
+        if self.on_command is not None:  # out before the spare time's work (not timed)
             self.on_command(qdot, None if q_ref is None else np.array(q_ref))
+        if isinstance(self.horizon, RoadmapHorizon):  # the queued re-plans, the moves ahead
+            t1, cpu1 = time.perf_counter(), time.thread_time()
+            self.horizon.spare(cpu0 + (self.horizon.jobs.budget or 0.0))
+            latency += time.perf_counter() - t1
+            cpu += time.thread_time() - cpu1
+        self.cpu_time = cpu
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
         flags: tuple[str, ...] = ()
         if covered:  # for the run's recording, outside the timed update

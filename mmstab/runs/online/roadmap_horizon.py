@@ -20,11 +20,16 @@ node of the posture roadmap (:mod:`mmstab.workspace.roadmap`), chosen as the off
 - the arm keeps ``planner.ground_clearance`` above the ground under it on the map
   (:mod:`mmstab.planner.ground.map_ground`, through tilts of ``planner.attitude_margin``): a
   pose is scored with that map's ground at it, and every map measures each planned pose's
-  chosen node again; a node now too low re-scores its pose though its gravity stands.
+  chosen node again; a node now too low re-scores its pose though its gravity stands;
+- a re-plan (the scoring and the choice after it) is computed on the data of the map that
+  triggered it, in order, but a step at a time in the maps' spare time, and lands (becomes
+  the plan the step reads and the maps check) on a fixed later map, unless the step is
+  about to read a pose it replaces as invalid (:mod:`mmstab.runs.online.replan_jobs`).
 """
 
 from __future__ import annotations
 
+import time
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -34,7 +39,7 @@ from mmstab.core.files import MmstabError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.candidates import Candidates, NodeClearance, route_candidates
-from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
+from mmstab.planner.fitness import LinearFitness, pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.ground.map_ground import ArmGround, MapGround
 from mmstab.planner.ground.under_arm import KeptPieces
 from mmstab.planner.grounded import shortcut_above
@@ -51,6 +56,8 @@ from mmstab.runs.online.horizon import (
     sort_poses,
 )
 from mmstab.runs.online.moves_ahead import MOVE_BUDGET, MovesAhead
+from mmstab.runs.online.replan_jobs import LAND_AFTER, NEAR_POSES, Job, Jobs, pause
+from mmstab.runs.online.replan_steps import PausedFitness, PausedGround, PausedPieces
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.terrain.heightmap import Heightmap
@@ -74,6 +81,20 @@ class PoseCandidates(NamedTuple):
     value: FloatArray
     mu: FloatArray
     scored_at: float
+
+
+class Landed(NamedTuple):
+    """What a re-plan's choice sets, landed at once or later (:mod:`replan_jobs`).
+
+    Attributes:
+        nodes: the chosen node per pose.
+        plans: the plan per pose.
+        start_q: the arm's posture before the chain, when the pose before it has no node.
+    """
+
+    nodes: dict[int, int]
+    plans: dict[int, HorizonPose]
+    start_q: dict[int, FloatArray]
 
 
 class RoadmapHorizon:
@@ -110,9 +131,15 @@ class RoadmapHorizon:
         self.clear = NodeClearance(roadmap, self.reach, settings.ground_clearance)
         self.count = min(settings.sequence_candidates, len(self.reach))
         self.candidates: dict[int, PoseCandidates] = {}
+        # the landed plans: what the step reads and every map checks (replan_jobs)
         self.plans: dict[int, HorizonPose] = {}
         self.nodes: dict[int, int] = {}  # the chosen node per planned pose
         self.start_q: dict[int, FloatArray] = {}  # the arm's posture before an unplanned k-1
+        # the re-plans' answers as computed, in their order (landed or not)
+        self.chosen = Landed({}, {}, {})
+        self.known: dict[int, FloatArray] = {}  # the gravity each pose is (to be) scored on
+        self.jobs: Jobs[Landed] = Jobs()
+        self.maps = 0  # updates so far
         self._moves: dict[tuple[int, int], FloatArray] = {}
         self._checker = CollisionChecker(robot)
         self.ahead = MovesAhead(robot, roadmap, self._checker, settings.ground_clearance)
@@ -126,6 +153,7 @@ class RoadmapHorizon:
             "moves_plane_only": 0,
         }  # fmt: skip
         self._ground: MapGround | None = None  # the latest map's
+        self._spare: tuple[list[int], MapGround | None] = ([], None)  # for the spare time
 
     def warm_up(self, tilt: float = 0.3) -> None:
         """Score flat ground and ground tilted by ``tilt`` [rad] four ways, before the first map.
@@ -155,7 +183,7 @@ class RoadmapHorizon:
         """The arm's pieces for the ground check (built once) and their kept body frames."""
         if self._arm is None:
             arm = ArmGround.of(self.robot, terrain, self.settings.attitude_margin or 0.0)
-            self._arm = arm, KeptPieces(arm.base, self.roadmap.nodes_q[self.reach])
+            self._arm = arm, PausedPieces(arm.base, self.roadmap.nodes_q)  # by node, as offline
         return self._arm
 
     def _candidates(
@@ -173,11 +201,15 @@ class RoadmapHorizon:
         stowed = self.robot.arm_com(self.robot.stowed)
         d = self.view.diameter
         polys: list[Any] = [None] * len(gravity) if polygons is None else list(polygons)
-        fits = same_axes([
-            pose_fitness(self.robot, g, stowed, stab, self.mu_max, d, p).linear()
-            for g, p in zip(gravity, polys, strict=True)
-        ])  # fmt: skip
+        fits: list[LinearFitness] = [
+            PausedFitness(*f)
+            for f in same_axes([
+                pose_fitness(self.robot, g, stowed, stab, self.mu_max, d, p).linear()
+                for g, p in zip(gravity, polys, strict=True)
+            ])
+        ]  # fmt: skip
         v = self.view
+        pause()
         return route_candidates(fits, self.samples, v.bins, v.clusters, self.count, clear)
 
     def window(self, s_now: float, ahead: float) -> list[int]:
@@ -193,7 +225,13 @@ class RoadmapHorizon:
         arm_com: FloatArray,
         arm_q: FloatArray,
     ) -> HorizonUpdate:
-        """Re-score the poses whose ground changed, then choose again from the first of them.
+        """Queue the re-plans of the poses whose ground changed; land those due.
+
+        A re-plan scores the poses, then chooses again from the first of them
+        (:meth:`_replan`); it is computed in the maps' spare time (:meth:`spare`) and lands
+        :data:`~mmstab.runs.online.replan_jobs.LAND_AFTER` maps later, or at once when one
+        of its poses without a valid landed plan is among the horizon's first
+        :data:`~mmstab.runs.online.replan_jobs.NEAR_POSES` (module text).
 
         Args:
             terrain: the latest map (the ground under the arm; the rests are ``rested``).
@@ -203,38 +241,101 @@ class RoadmapHorizon:
             arm_com: the arm's CoM now, body frame [m].
             arm_q: the arm's posture now [rad].
         """
-        known = {k: c.gravity_body for k, c in self.candidates.items()}
-        changes = sort_poses(ks, rested, known, self.replan_tol)
+        self.maps += 1
+        changes = sort_poses(ks, rested, self.known, self.replan_tol)
         ground = self._ground = self._map_ground(terrain, ks, rested)
+        valid: set[int] = set()  # re-scored for their mapped reach, their landed node clear
         if ground is not None:
-            again = self._recheck(ground, changes.kept)
-            kept = tuple(k for k in changes.kept if k not in again)
+            again, mapped = self._recheck(ground, changes.kept)
+            valid = (mapped & set(self.nodes)) - self.jobs.replacing()
+            kept = tuple(k for k in changes.kept if k not in again | mapped)
             changes = HorizonUpdate(
                 tuple(k for k in ks if k not in kept and k not in changes.uncovered),
                 kept,
                 changes.uncovered,
             )
         replanned = list(changes.replanned)
+        near, at_once = set(ks[:NEAR_POSES]), False
+        for landed in self.jobs.due(self.maps, near):
+            self._land(landed)
         if replanned:
             g = rested.gravity_body[[ks.index(k) for k in replanned]]
-            # ranked on each pose's loaded support on this map (the offline planner's basis)
-            polygons = support_polygons_at(self.robot, terrain, self.poses_grid[replanned])
-            self._score(replanned, g, now, ground, polygons)
-            first = replanned[0]
-            if ground is not None and ks[0] < first - 1 and first - 1 in self.candidates:
-                first -= 1  # ahead of the robot: the move into ``first`` must clear both grounds
-            chain = [k for k in ks if k >= first and k in self.candidates]
-            chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
-            self._choose(chain, arm_q, now, ground)
-        elif ground is not None:  # time to spare: the next moves' paths and cuts (moves_ahead)
-            n = self.nodes
-            at = {(n[k - 1], n[k]): [k - 1, k] for k in ks if k - 1 in n and k in n}
-            self.ahead.want([p for p in at if p not in self._moves])
-            self.ahead.advance(
-                MOVE_BUDGET,
-                lambda p: ground.under(at[p]) if set(at[p]) <= set(ground.M_T_B) else None,
-            )
+            self.known.update(zip(replanned, g, strict=True))
+            self._note_reach(replanned, ground)
+            invalid = frozenset(replanned) - valid
+            compute = lambda: self._replan(terrain, ks, replanned, g, now, ground, arm_q)  # noqa: E731
+            touches = frozenset(k for k in ks if k >= replanned[0] - 1)
+            self.jobs.add(Job(compute, self.maps + LAND_AFTER, invalid, touches))
+            at_once = self.jobs.budget is None or bool(invalid & near)
+            if at_once:  # the step reads it soon: this one (and those before) now
+                for landed in self.jobs.due(self.maps, near, everything=True):
+                    self._land(landed)
+        self._spare = (ks, None if at_once else ground)
         return changes
+
+    def spare(self, until: float) -> None:
+        """The map's spare time, after its step: the re-plans' steps, else the moves ahead.
+
+        The queued re-plans' steps until ``until`` (:func:`time.thread_time` [s]; one step
+        at least); then, on a map that re-scored no pose at once, the moves ahead
+        (``moves_ahead``) for the time left, or :data:`MOVE_BUDGET` with no re-plan queued:
+        the moves between the landed nodes and between the re-plans' nodes not landed yet,
+        nearest first.
+        """
+        ks, ground = self._spare
+        queued = self.jobs.pending()
+        if queued:
+            self.jobs.advance(until)
+        left = until - time.thread_time() if queued else MOVE_BUDGET
+        if ground is None or left <= 0:
+            return
+        at: dict[tuple[int, int], list[int]] = {}
+        for k in ks:
+            for n in (self.nodes, self.chosen.nodes):
+                if k - 1 in n and k in n:
+                    at.setdefault((n[k - 1], n[k]), [k - 1, k])
+        self.ahead.want([p for p in at if p not in self._moves])
+        self.ahead.advance(
+            left, lambda p: ground.under(at[p]) if set(at[p]) <= set(ground.M_T_B) else None
+        )
+
+    def settle(self) -> None:
+        """Land every queued re-plan (at the end of a run)."""
+        for landed in self.jobs.due(self.maps, set(), everything=True):
+            self._land(landed)
+
+    def _land(self, landed: Landed) -> None:
+        """A re-plan's answers become the plans the step reads."""
+        self.nodes.update(landed.nodes)
+        self.plans.update(landed.plans)
+        self.start_q.update(landed.start_q)
+
+    def _replan(
+        self,
+        terrain: Terrain,
+        ks: list[int],
+        replanned: list[int],
+        gravity: FloatArray,
+        now: float,
+        ground: MapGround | None,
+        arm_q: FloatArray,
+    ) -> Landed:
+        """Score poses ``replanned`` on their map, then choose again from the first of them.
+
+        Args: as :meth:`update`'s on the map that triggered it; ``gravity`` (n, 3) [m/s^2]
+        of each pose there.
+        """
+        # ranked on each pose's loaded support on this map (the offline planner's basis)
+        polygons = support_polygons_at(self.robot, terrain, self.poses_grid[replanned])
+        pause()
+        self._score_only(replanned, gravity, now, ground, polygons)
+        pause()
+        first = replanned[0]
+        if ground is not None and ks[0] < first - 1 and first - 1 in self.candidates:
+            first -= 1  # ahead of the robot: the move into ``first`` must clear both grounds
+        chain = [k for k in ks if k >= first and k in self.candidates]
+        chain = chain[: next((i for i, k in enumerate(chain) if k != first + i), len(chain))]
+        return self._choose(chain, arm_q, now, ground)
 
     def _map_ground(self, terrain: Terrain, ks: list[int], rested: Rested) -> MapGround | None:
         """The ground under the arm at the covered horizon poses on this map (None: off)."""
@@ -242,15 +343,20 @@ class RoadmapHorizon:
             return None
         arm = self._arm_on(terrain)
         M_T_B = {k: rested.G_T_B[i] for i, k in enumerate(ks) if rested.covered[i]}
-        return MapGround(arm[0], terrain, M_T_B, len(self.reach), self._ground)  # M = G
+        return PausedGround(arm[0], terrain, M_T_B, len(self.reach), self._ground)  # M = G
 
-    def _recheck(self, ground: MapGround, kept: tuple[int, ...]) -> set[int]:
-        """The kept poses to score again: their node now too low, or their reach now mapped."""
+    def _recheck(self, ground: MapGround, kept: tuple[int, ...]) -> tuple[set[int], set[int]]:
+        """The kept poses to score again: their node now too low; their reach now mapped.
+
+        Their landed nodes are checked (the ones the step reads), but for the poses a queued
+        re-plan replaces as invalid (it lands before the step reads them).
+        """
         assert self._arm is not None
-        ks = [k for k in kept if k in self.nodes]
+        replacing = self.jobs.replacing()  # their landed node known too low: not again
+        ks = [k for k in kept if k in self.nodes and k not in replacing]
         again: set[int] = set()
         if ks:
-            rows = np.searchsorted(self.reach, [self.nodes[k] for k in ks])
+            rows = np.asarray([self.nodes[k] for k in ks], dtype=np.intp)  # kept's rows: nodes
             clearance = self.settings.ground_clearance
             assert clearance is not None  # (no MapGround without it)
             clear = ground.node_clear(ks, rows, self._arm[1], clearance)
@@ -259,7 +365,7 @@ class RoadmapHorizon:
             self.arm_ground["over_unknown"] += len(set(ground.over_unknown) - again)
         mapped = {k for k in kept if k in self.unknown and not ground.reach(k)[0]} - again
         self.arm_ground["unknown_rescored"] += len(mapped)
-        return again | mapped
+        return again, mapped
 
     def _score(
         self,
@@ -274,30 +380,50 @@ class RoadmapHorizon:
         With ``ground``: each node also ``ground_clearance`` above the map under the arm;
         ``polygons``: the poses' support polygons in B (None: the tracks' rectangle).
         """
+        self._note_reach(ks, ground)
+        self._score_only(ks, gravity, now, ground, polygons)
+
+    def _note_reach(self, ks: list[int], ground: MapGround | None) -> None:
+        """Note the poses ``ks`` scored with unknown cells in the arm's reach (scored again)."""
+        if ground is None or self._arm is None:
+            return
+        for k in ks:  # candidates cut to the mapped side: scored again once it is mapped
+            if ground.reach(k)[0]:
+                self.unknown.add(k)
+                self.arm_ground["reach_unknown"] += 1
+            else:
+                self.unknown.discard(k)
+
+    def _score_only(
+        self,
+        ks: list[int],
+        gravity: FloatArray,
+        now: float,
+        ground: MapGround | None = None,
+        polygons: list[FloatArray] | None = None,
+    ) -> None:
+        """:meth:`_score` without noting the unknown cells in reach."""
         clear = None
         if ground is not None and self._arm is not None:
             clear = clearance_on(self.clear, ground, ks, self._arm[1])
-            for k in ks:  # candidates cut to the mapped side: scored again once it is mapped
-                if ground.reach(k)[0]:
-                    self.unknown.add(k)
-                    self.arm_ground["reach_unknown"] += 1
-                else:
-                    self.unknown.discard(k)
+            pause()
         rows, value, mu = self._candidates(gravity, clear, polygons)
         for i, k in enumerate(ks):
             self.candidates[k] = PoseCandidates(gravity[i], rows[i], value[i], mu[i], now)
 
     def _choose(
         self, chain: list[int], arm_q: FloatArray, now: float, ground: MapGround | None = None
-    ) -> None:
+    ) -> Landed:
         """Choose the nodes of the consecutive poses ``chain`` after pose ``chain[0] - 1``.
 
-        With ``ground``: a move's ends must clear the ground at both poses it joins.
+        With ``ground``: a move's ends must clear the ground at both poses it joins. After
+        the re-plans before it (:attr:`chosen`); returns what it chose, to land.
         """
+        out = Landed({}, {}, {})
         cands = [self.candidates[k] for k in chain]
         cand = np.array([c.rows for c in cands])
         value = np.array([c.value for c in cands])
-        before = self.nodes.get(chain[0] - 1)
+        before = self.chosen.nodes.get(chain[0] - 1)
         cost = self.cost
         if before is None:  # from the arm as it is
             start = cost.point_of(self.robot, np.asarray(arm_q, dtype=float))
@@ -313,25 +439,30 @@ class RoadmapHorizon:
         motion, allowed = transitions(
             cost.points, turret, cand, pairs, cost.weight, window, cost.metric
         )
+        pause()
         if ground is not None:
-            behind = chain[0] - 1 in self.nodes  # its node fixed: chain[0] must clear its ground
+            behind = chain[0] - 1 in self.chosen.nodes  # its node fixed: must clear its ground
             assert self._arm is not None
             forbid_low(self.clear, ground, self._arm[1], chain, cand, value, allowed, behind)
+            pause()
         path, total = rp.best_sequence(value, motion, allowed, False)
         if not np.isfinite(total):  # keep the last plans; the loop reports the pose
-            return
+            return out
         if before is None:
-            self.start_q[chain[0]] = np.array(arm_q, dtype=float)
+            out.start_q[chain[0]] = np.array(arm_q, dtype=float)
         for i, k in enumerate(chain):
             row = int(cand[i, path[i]])
             node = int(self.reach[row])
             q = self.roadmap.nodes_q[node].copy()
             mu = float(cands[i].mu[path[i]])
-            self.nodes[k] = node
-            self.plans[k] = HorizonPose(
+            out.nodes[k] = node
+            out.plans[k] = HorizonPose(
                 k, float(self.s_grid[k]), self.poses_grid[k], cands[i].gravity_body,
                 self.samples[row].copy(), q, mu, True, now,
             )  # fmt: skip
+        for mine, new in zip(self.chosen, out, strict=True):
+            mine.update(new)  # type: ignore[attr-defined]
+        return out
 
     def move(self, k: int) -> FloatArray:
         """The arm's move into pose ``k``'s posture (n, 4) [rad], along the roadmap.
@@ -352,8 +483,21 @@ class RoadmapHorizon:
             head = np.zeros((0, self.roadmap.nodes_q.shape[1]))
         key = (a, b)
         if key not in self._moves:
-            self._moves[key] = self._move(a, b, [j for j in (k - 1, k) if j in self.nodes])
+            plane = self.arm_ground["moves_plane_only"]
+            moved = self._move(a, b, [j for j in (k - 1, k) if j in self.nodes])
+            if self.arm_ground["moves_plane_only"] > plane and self._land_touching({k - 1, k}):
+                # not taken: a queued re-plan chooses these poses again (landed now)
+                self.arm_ground["moves_plane_only"] = plane
+                return self.move(k)
+            self._moves[key] = moved
         return np.vstack([head, self._moves[key]])
+
+    def _land_touching(self, poses: set[int]) -> bool:
+        """Land the queued re-plans up to the last that may choose one of ``poses`` again."""
+        landed = self.jobs.due(self.maps, set(), touching=poses)
+        for x in landed:
+            self._land(x)
+        return bool(landed)
 
     def _move(self, a: int, b: int, ks: list[int]) -> FloatArray:
         """The roadmap move a -> b (n, 4) [rad], above the ground at poses ``ks`` if it can."""

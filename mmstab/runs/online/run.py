@@ -21,6 +21,7 @@ from mmstab.core.files import ConfigError
 from mmstab.core.problem import Problem
 from mmstab.runs.online.follow import FollowSettings, FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
+from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import map_updates
 from mmstab.runs.recording import RunFrames, joint_names
 from mmstab.workspace import Workspace
@@ -89,6 +90,8 @@ def follow_recording(
     finally:
         gc.unfreeze()
     h = follower.horizon
+    if isinstance(h, RoadmapHorizon):  # the re-plans queued at the end land (replan_jobs)
+        h.settle()
     counts = getattr(h, "arm_ground", None)
     return FollowRun(
         steps, dict(h.plans), skipped[0], h.s_grid, follower.friction,
