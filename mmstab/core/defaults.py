@@ -98,6 +98,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "tip_hold": 0.8,
         "slip_distance": 0.05,
         "slip_window": 1.0,
+        # share of slip_distance a route's turn may slide within slip_window: the plan slows
+        # the corners that would slide more (mmstab.runs.time_law; null: never slowed)
+        "slide_budget": 0.8,
         "check_dt": 0.02,
         "backend": "interpreted",
         "wheel": "sphere",
