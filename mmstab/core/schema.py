@@ -331,9 +331,9 @@ ONLINE = obj(
 # tilt off the predicted rest reported as a disagreement [rad], how long the contacts may lose
 # the support before it is a tip [s], the downhill drift [m] over a window [s] that is a
 # slide, the share of it a route's turn may use (the plan slows the turns that would use
-# more; null: none slowed), the period of those checks [s], the controller step's backend, the road wheels'
-# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices"), the
-# arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
+# more; null: none slowed), the period of those checks [s], the controller step's backend,
+# the road wheels' collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model
+# choices"), the arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
 # achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
 # governor (the base error [m] from which the reference slows, at which it stops, and the
 # wait [s] after which the run ends stalled; null: the reference runs on time).

@@ -9,7 +9,8 @@
   sensitive to a shared machine), ``route`` (length, which includes the pivot turns' track
   travel, duration, and how it turns at each corner: ``corners``, ``pivots``, the route
   check's lines; ``time_law``: the turns slowed so that they do not slide, each corner's
-  yaw rate before and after, ``slowed_turns`` its lines, :mod:`mmstab.runs.time_law`), the per-pose details and the stability verdict, and
+  yaw rate before and after, ``slowed_turns`` its lines, :mod:`mmstab.runs.time_law`),
+  the per-pose details and the stability verdict, and
   ``quality``: per pose the planned μ, the best μ over V's samples and (``method:
   roadmap``) over the roadmap's reachable postures, and the gaps (:func:`route_quality`);
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the

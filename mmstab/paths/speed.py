@@ -115,7 +115,7 @@ def pivot_limit(limits: SpeedLimits) -> float:
 def _limit_at(
     route: Route, limits: SpeedLimits, s: FloatArray, turns: tuple[TurnLimit, ...] = ()
 ) -> FloatArray:
-    """The speed allowed at arc lengths ``s`` [m] by the curvature, in a pivot, by ``turns`` [m/s]."""
+    """The speed allowed at arc lengths ``s`` [m]: curvature, pivot, ``turns`` [m/s]."""
     smp = route.sample(s)
     v = np.where(smp.pivot, pivot_limit(limits), curvature_limit(limits, smp.curvature))
     yaw_per_m = np.abs(smp.rate[:, 2])

@@ -41,6 +41,8 @@ if TYPE_CHECKING:
     from mmstab.planner import RoutePlan
     from mmstab.terrain.base import Terrain
 
+#: Samples of a corner per sample of the verdict's spacing (:func:`runs.along.sample_spacing`).
+SUBSAMPLE = 4
 #: The slowest a corner is turned [rad/s]: 90 degrees in 31 s. A turn that needs slower
 #: keeps this rate and its slide verdict says so.
 MIN_YAW_RATE = 0.05
@@ -86,8 +88,9 @@ def turn_limits(
     caps: list[TurnLimit] = []
     records: list[dict[str, Any]] = []
     for corner, s0, s1 in route.route.turn_spans:
-        n = max(int(np.ceil((s1 - s0) / spacing)), 2)
-        s = s0 + (s1 - s0) * (np.arange(n) + 0.5) / n  # inside the corner's arc or pivot
+        # a quarter of the verdict's spacing, both ends in (its worst heading may be one)
+        n = max(int(np.ceil(SUBSAMPLE * (s1 - s0) / spacing)), 8)
+        s = s0 + (s1 - s0) * np.linspace(0.0, 1.0 - 1e-9, n + 1)  # the end still the corner's
         smp = route.route.sample(s)
         com = robot.overall_com(com_plan[bracket(s_plan, s)[0]])
         # the twist per unit ds/dt (the model is homogeneous in the belts' speed)
@@ -132,8 +135,9 @@ def slowed_route(
     Returns:
         The route (``route`` itself when no corner is slowed) and ``slide_budget``,
         ``budget_m``, ``duration_before_s``, ``duration_s`` and ``corners``
-        (:func:`turn_limits`' records with ``yaw_rate_after`` [rad/s] and the corner's
-        time before and after, ``time_before_s``, ``time_after_s``).
+        (:func:`turn_limits`' records with ``yaw_rate_after`` [rad/s], the corner's time
+        before and after, ``time_before_s``, ``time_after_s``, and when the slowed route
+        reaches its start and end, ``start_t_s``, ``end_t_s`` [s]).
     """
     caps, records = turn_limits(robot, terrain, route, s_plan, target_com, settings)
     slowed = route.with_turn_limits(caps) if caps else route
@@ -141,6 +145,8 @@ def slowed_route(
         r["yaw_rate_after"] = slowed.yaw_rate_max(r["start_s"], r["end_s"])
         r["time_before_s"] = corner_time(route, r["start_s"], r["end_s"])
         r["time_after_s"] = corner_time(slowed, r["start_s"], r["end_s"])
+        r["start_t_s"], r["end_t_s"] = (float(x) for x in np.interp(
+            [r["start_s"], r["end_s"]], slowed.profile.s, slowed.profile.t))  # fmt: skip
     budget = settings.slide_budget
     return slowed, {
         "slide_budget": budget,
@@ -154,7 +160,7 @@ def slowed_route(
 def with_time_law(
     robot: Robot, terrain: Terrain, route: RoutePath, plan: RoutePlan, settings: VerdictSettings
 ) -> RoutePlan:
-    """``plan`` on the slowed route: its fractions on the slowed law, ``route`` and ``time_law`` set."""
+    """``plan`` on the slowed route: its fractions on that law, ``route``, ``time_law`` set."""
     slowed, law = slowed_route(robot, terrain, route, plan.s, plan.target_com, settings)
     fractions = np.asarray(slowed.fraction_of_s(plan.s), dtype=float)
     return plan._replace(fractions=fractions, route=slowed, time_law=law)
