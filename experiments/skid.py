@@ -23,7 +23,7 @@ import numpy as np
 
 from experiments import skid_rough
 from experiments.common import experiment_run
-from experiments.skid_measures import TURNING, median, per_radian
+from experiments.skid_measures import TURNING, downhill_beyond, median, per_radian
 from mmstab.core.files import ConfigError, read_yaml, write_figure, write_json
 from mmstab.physics.skid_sim import measure_twist
 from mmstab.stability.skid import skid_twist, track_patch
@@ -70,19 +70,19 @@ def run_cases(settings: dict[str, Any]) -> list[dict[str, Any]]:
                                   settle=sim["settle"], transient=sim["transient"],
                                   duration=sim["duration"])  # fmt: skip
                 p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
-                cases.append(_case(slope, heading, name, (v, w), m, p))
+                cases.append(_case(slope, heading, name, (v, w), m, p, com))
     return cases
 
 
-def _case(slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any) -> dict[str, Any]:
+def _case(
+    slope: float, heading: float, name: str, cmd: Any, m: Any, p: Any, com: Any
+) -> dict[str, Any]:
     g = m.gravity_body
     down = g[:2] / max(float(np.linalg.norm(g[:2])), 1e-12)
     v, w = cmd
-
-    def downhill(velocity: Any) -> float:  # beyond the commanded (v, 0)
-        return float((np.asarray(velocity) - [v, 0.0]) @ down)
-
-    mj, model = downhill(m.velocity_body), downhill(p.velocity_body[0])
+    # the CoM's velocity beyond the commanded (v, 0), downhill
+    mj = downhill_beyond(m.velocity_body, m.yaw_rate, com, v, down)
+    model = downhill_beyond(p.velocity_body[0], p.yaw_rate[0], com, v, down)
     return {
         "slope_deg": float(slope), "heading_deg": float(heading), "command": name,
         "speed": float(v), "yaw_rate_commanded": float(w),

@@ -6,11 +6,12 @@ displacement it gathered since it touched down. A belt that slips lengthwise (or
 all) keeps little sideways resistance in reserve, so the robot creeps downhill inside the
 static friction cone, faster the softer the belts' grip (the larger K). K is fitted here on
 ``make skid``'s cases (the training set: the ramp grid and the poses along ``rough.yaml``'s
-route; the validation routes are held out): the downhill velocity of B beyond the commanded
-(v, 0), MuJoCo's against the model's for the same belts, gravity in B and CoM, over the
-cases on a slope where the model's cone holds. K minimises the pinball loss at
-``quantile`` (the model under-predicts in about 1 - quantile of the cases), searched on a
-log grid; ``bootstrap`` resamples of the cases (seeded) give its spread.
+route; the validation routes are held out): the downhill velocity of the CoM (projected on
+the support plane) beyond the commanded (v, 0), MuJoCo's against the model's for the same
+belts, gravity in B and CoM, over the cases on a slope where the model's cone holds. K
+minimises the pinball loss at ``quantile`` (the model under-predicts in about 1 - quantile
+of the cases), searched on a log grid; ``bootstrap`` resamples of the cases (seeded) give
+its spread.
 
 Settings: ``problems/skid_fit.yaml``. Writes ``summary.json`` (K, the loss, the share of cases
 the model under-predicts by more than :data:`UNDER` per kind of case, the bootstrap's 5-95 %).
@@ -65,8 +66,8 @@ def training_cases(summary: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def model_downhill(robot: Any, friction: float, cases: list[dict[str, Any]], K: float) -> Any:
-    """The model's downhill velocity beyond (v, 0) per case at shear modulus K [m] (NaN: slides)."""
-    from mmstab.stability.skid import skid_twist, track_patch
+    """The model's CoM downhill velocity beyond (v, 0) per case at K [m] (NaN: slides)."""
+    from mmstab.stability.skid import point_velocity, skid_twist, track_patch
 
     patch, b = track_patch(robot), robot.base.tracks.separation
     com = robot.overall_com(robot.arm_com(robot.stowed))
@@ -76,7 +77,8 @@ def model_downhill(robot: Any, friction: float, cases: list[dict[str, Any]], K: 
     belts = np.c_[v - w * b / 2, v + w * b / 2]
     twist = skid_twist(patch, g, com, belts, friction, K)
     down = g[:, :2] / np.linalg.norm(g[:, :2], axis=1, keepdims=True)
-    return np.sum((twist.velocity_body - np.c_[v, np.zeros_like(v)]) * down, axis=1)
+    at_com = point_velocity(twist.velocity_body, twist.yaw_rate, com[:2])
+    return np.sum((at_com - np.c_[v, np.zeros_like(v)]) * down, axis=1)
 
 
 def pinball(residual: Any, quantile: float) -> Any:

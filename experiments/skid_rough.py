@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from experiments.skid_measures import TURNING, median, per_radian
+from experiments.skid_measures import TURNING, downhill_beyond, median, per_radian
 from mmstab.core.files import ConfigError, write_figure
 
 #: A turn counts toward uphill or downhill when the slope's in-plane gravity is at least
@@ -82,11 +82,11 @@ def run_cases(robot: Any, section: dict[str, Any], sim: dict[str, Any]) -> list[
             m = measure_twist_at(robot, ground.terrain, pose, belts, settle=sim["settle"],
                                  transient=sim["transient"], duration=sim["duration"])  # fmt: skip
             p = skid_twist(patch, m.gravity_body, com, belts, mu, shear)
-            cases.append(_case(float(s), pose, name, (float(v), float(w)), m, p))
+            cases.append(_case(float(s), pose, name, (float(v), float(w)), m, p, com))
     return cases
 
 
-def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any) -> dict[str, Any]:
+def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any, com: Any) -> dict[str, Any]:
     g = np.asarray(m.gravity_body, dtype=float)
     in_plane = float(np.linalg.norm(g[:2]))
     down = g[:2] / max(in_plane, 1e-12)
@@ -96,8 +96,8 @@ def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any) -> dict[str,
     if w != 0 and in_plane >= SLOPED * float(np.linalg.norm(g)):
         toward = "uphill" if w * g[1] < 0 else "downhill"
 
-    def downhill(velocity: Any) -> float:  # beyond the commanded (v, 0)
-        return float((np.asarray(velocity) - [v, 0.0]) @ down)
+    def downhill(velocity: Any, yaw_rate: Any) -> float:  # the CoM's, beyond (v, 0)
+        return downhill_beyond(velocity, yaw_rate, com, v, down)
 
     return {
         "s_m": s, "pose": [float(x) for x in pose], "command": name, "speed": v,
@@ -105,10 +105,11 @@ def _case(s: float, pose: Any, name: str, cmd: Any, m: Any, p: Any) -> dict[str,
         "tilt_deg": float(np.degrees(np.arccos(np.clip(-g[2] / np.linalg.norm(g), -1, 1)))),
         "gravity_body": g.tolist(),
         "mujoco": {"velocity_body": m.velocity_body.tolist(), "yaw_rate": m.yaw_rate,
-                   "downhill": downhill(m.velocity_body)},
+                   "downhill": downhill(m.velocity_body, m.yaw_rate)},
         "model": {"velocity_body": [_finite(x) for x in p.velocity_body[0]],
                   "yaw_rate": _finite(p.yaw_rate[0]),
-                  "downhill": _finite(downhill(p.velocity_body[0])), "holds": bool(p.holds[0])},
+                  "downhill": _finite(downhill(p.velocity_body[0], p.yaw_rate[0])),
+                  "holds": bool(p.holds[0])},
     }  # fmt: skip
 
 

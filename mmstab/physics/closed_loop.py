@@ -25,9 +25,9 @@ stop supporting it (their μ ≤ 0, or none, for ``tip_hold`` seconds) or its at
 the point of no return (the vertical through the CoM leaves the tracks' footprint); the
 chassis' tilt off its resting attitude on the terrain beyond ``disagreement_angle`` is a
 **disagreement** with mmstab's resting pose, reported, not a tip; **slid** when, over any
-``slip_window`` seconds, the base moved more than ``slip_distance`` *down the slope* beyond
-what the tracks commanded (the kinematic plant's motion from each simulated state;
-:func:`downhill_drift`).
+``slip_window`` seconds, the robot's CoM (projected on the support plane) moved more than
+``slip_distance`` *down the slope* beyond what the tracks commanded (the kinematic plant's
+motion from each simulated state; :func:`downhill_drift`).
 """
 
 from __future__ import annotations
@@ -372,9 +372,11 @@ def _finish(
     gravity = problem.terrain.gravity_body(states[:, :3])
     # mmstab's one μ at the simulated pose and posture (the loaded support of that state)
     q = states[:, -n:]
-    mu_pred = loaded_mu(robot, problem.terrain, states[:, :3], robot.arm_com(q), q, strict=False)
+    arm_com = robot.arm_com(q)
+    mu_pred = loaded_mu(robot, problem.terrain, states[:, :3], arm_com, q, strict=False)
     window = int(round(loop.slip_window / dt))
-    slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window)
+    com = robot.overall_com(arm_com)[: len(qdots)]  # the slide is the CoM's
+    slip = downhill_drift(build_plant(robot), gravity, states, qdots, dt, window, com)
     over = np.flatnonzero(slip > loop.slip_distance)
     off_rest = np.flatnonzero(np.nan_to_num(tilt) > loop.disagreement_angle)
     tau = t if tau is None else tau

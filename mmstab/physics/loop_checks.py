@@ -308,17 +308,22 @@ def downhill_drift(
     qdots: FloatArray,
     dt: float,
     window: int,
+    com_body: FloatArray,
 ) -> FloatArray:
-    """Base displacement down the slope beyond the commanded one, over ``window`` periods [m].
+    """The CoM's downhill motion beyond the commanded one, per ``window`` periods [m].
 
-    Each period's simulated motion and the kinematic plant's from the same simulated state
-    (what the tracks commanded), projected on the downhill direction at the pose (gravity in
-    B, turned by the heading into M's plane), each summed over the last ``window`` periods:
-    the drift is the simulated sum minus the commanded one, but never more than the simulated
-    sum itself (``min(A - C, A)``). A sliding robot moves downhill (A > 0) beyond the command;
-    the tracks' servo lag and skid in turns move it either way; tracks that slip while they
-    climb (a kerb) fall short of an uphill command (A - C > 0) while the base still moves
-    uphill (A < 0): no slide.
+    The point measured is the CoM's foot: the overall CoM (for each period's posture)
+    projected along z_B on the support plane, a body-fixed point carried from the period's
+    start to its end by the simulated base pose; the commanded motion is the kinematic
+    plant's from the same simulated state, for that point (the plant driving the point
+    along its heading: a command that pivots about it). Both are projected on the downhill
+    direction at the pose (gravity in B, turned by the heading into M's plane) and summed
+    over the last ``window`` periods: the drift is the simulated sum minus the commanded
+    one, but never more than the simulated sum itself (``min(A - C, A)``). A sliding robot
+    moves downhill (A > 0) beyond the command; a level pivot (about a point near the CoM)
+    barely moves it; the tracks' servo lag and skid in turns move it either way; tracks
+    that slip while they climb (a kerb) fall short of an uphill command (A - C > 0) while
+    the base still moves uphill (A < 0): no slide.
 
     Args:
         plant: :func:`mmstab.control.plant.build_plant` of the robot.
@@ -327,6 +332,8 @@ def downhill_drift(
         qdots: commanded joint speeds (N, 2 + n) [rad/s].
         dt: control period [s].
         window: periods summed.
+        com_body: the overall CoM in B at each period's start (N, 2) or (N, 3) (its x, y
+            used), or one (2,) [m].
     """
     n = len(qdots)
     pred = np.array(plant(states[:n].T, qdots.T, dt)).T  # each period from its own start
@@ -341,6 +348,11 @@ def downhill_drift(
         acc = np.concatenate([[0.0], np.cumsum(np.sum(motion * down, 1))])
         return np.asarray(acc - acc[lag])
 
-    simulated = windowed(states[1 : n + 1, :2] - states[:n, :2])
+    p = np.asarray(com_body, dtype=float)
+    p = np.broadcast_to(p[..., :2], (n, 2))
+    c1, s1 = np.cos(states[1 : n + 1, 2]), np.sin(states[1 : n + 1, 2])
+    start = np.c_[c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]]
+    end = np.c_[c1 * p[:, 0] - s1 * p[:, 1], s1 * p[:, 0] + c1 * p[:, 1]]
+    simulated = windowed(states[1 : n + 1, :2] + end - states[:n, :2] - start)
     commanded = windowed(pred[:, :2] - states[:n, :2])
     return np.minimum(simulated - commanded, simulated)

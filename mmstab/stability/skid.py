@@ -275,6 +275,22 @@ def _backtrack(
     return alpha
 
 
+def point_velocity(
+    velocity_body: ArrayLike, yaw_rate: ArrayLike, point_body: ArrayLike
+) -> FloatArray:
+    """The in-plane velocity of a body-fixed point, ``v + ω × p`` (N, 2) [m/s].
+
+    Args:
+        velocity_body: B's origin's velocity along x_B, y_B (N, 2) [m/s].
+        yaw_rate: ω (N,) [rad/s].
+        point_body: the point's x, y in B (N, 2) or (2,) [m].
+    """
+    v = np.atleast_2d(np.asarray(velocity_body, dtype=float))
+    w = np.asarray(yaw_rate, dtype=float).reshape(-1, 1)
+    p = np.broadcast_to(np.asarray(point_body, dtype=float), v.shape)
+    return np.asarray(v + w * np.c_[-p[:, 1], p[:, 0]])
+
+
 class TurnSlide(NamedTuple):
     """The downhill slide a path's motion costs, from :func:`skid_twist` (N samples).
 
@@ -322,11 +338,13 @@ def turn_slide(
     """The slide a path costs on a slope (module docstring): its velocity beyond the command.
 
     The belts run at the drive layer's speeds for the path's twist, ``v ∓ ω b / (2 η)``
-    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's velocity of B's origin
-    less the commanded one (v along x_B), projected on the downhill direction, is what
-    MuJoCo's "slid" measures (the motion beyond the kinematic track model's,
-    :func:`mmstab.physics.loop_checks.downhill_drift`): the slope's pull, the belts' creep
-    and, where the CoM is off the belts' centre, the level turn's own sideways skid. Where
+    (:func:`belts_for_twist`; η = 1: the kinematic ones); the model's velocity of the CoM's
+    foot (the overall CoM projected along z_B on the support plane, :func:`point_velocity`)
+    less the commanded one (v along x_B: a command that pivots about that point), projected
+    on the downhill direction, is what MuJoCo's "slid" measures (the motion beyond the
+    kinematic track model's, :func:`mmstab.physics.loop_checks.downhill_drift`): the slope's
+    pull and the belts' creep; a level pivot moves that point 1.5 cm per radian (MuJoCo's
+    1.8 cm with the arm stowed: it turns about a point a little ahead of it). Where
     the path turns its heading must turn as the path's does, so the slide per radian is
     that velocity over the model's yaw rate (at least :data:`TURN_FLOOR` times the path's:
     the tracks' turn deficit does not hide the slide) and the rate that times |ω|; at least
@@ -349,15 +367,21 @@ def turn_slide(
     twist = skid_twist(patch, gravity_body, com_body, belts, friction, shear_modulus)
     rigid = skid_twist(patch, gravity_body, com_body, belts, friction)
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
+    n = len(twist.yaw_rate)
+    com = np.broadcast_to(np.asarray(com_body, dtype=float), (n, 3))
     norm = np.linalg.norm(g[:, :2], axis=1, keepdims=True)
     down = np.divide(g[:, :2], norm, out=np.zeros_like(g[:, :2]), where=norm > 1e-12)
-    v = np.broadcast_to(np.asarray(speed, dtype=float), (len(twist.yaw_rate),))
-    beyond = np.sum((twist.velocity_body - np.c_[v, np.zeros_like(v)]) * down, 1)
+    v = np.broadcast_to(np.asarray(speed, dtype=float), (n,))
+
+    def at_com(t: SkidTwist) -> FloatArray:  # the velocity of the CoM's foot on the plane [m/s]
+        return point_velocity(t.velocity_body, t.yaw_rate, com[:, :2])
+
+    beyond = np.sum((at_com(twist) - np.c_[v, np.zeros_like(v)]) * down, 1)
     # the rigid model's slope part (the same belts and CoM on level ground taken off): where
     # the level turn's sideways skid points uphill it does not hide the slope's pull
     level = np.c_[np.zeros((len(g), 2)), -np.linalg.norm(g, axis=1)]
     flat = skid_twist(patch, level, com_body, belts, friction)
-    slope = np.sum((rigid.velocity_body - flat.velocity_body) * down, 1)
+    slope = np.sum((at_com(rigid) - at_com(flat)) * down, 1)
     turning = np.abs(w) > 1e-6
     floor = TURN_FLOOR * np.abs(w)
     with np.errstate(invalid="ignore"):  # NaN twist where the cone does not hold

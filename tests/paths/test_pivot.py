@@ -272,16 +272,16 @@ def test_plan_and_track_a_route_with_a_pivot_from_the_cli(tmp_path):
     problem = tmp_path / "pivot.yaml"
     problem.write_text(yaml.safe_dump(small_problem()))
     said = "route: corner 1 at (-0.20, -0.30) m: pivot turn of 90 deg left (turn_radius 0)"
-    # the pivot's sideways skid on this level, rough ground is motion beyond the command
-    # projected on the local downhill (5.2 cm in a second): a slide by the one definition
-    # the plan and MuJoCo share, which is not what this test is about
-    out = _cli(["plan", str(problem), "-o", "plan", "--allow-sliding"], tmp_path)
+    # the pivot on this level, rough ground: no slide (the CoM barely moves in a pivot)
+    out = _cli(["plan", str(problem), "-o", "plan"], tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
     assert said in out.stdout.splitlines()
     s = json.loads((tmp_path / "plan" / "summary.json").read_text())
     assert [c["kind"] for c in s["route"]["corners"]] == ["pivot"]
     assert s["route"]["pivots"] == [said.removeprefix("route: ")]
-    out = _cli(["track", str(problem), "-o", "track", "--allow-sliding"], tmp_path)
+    assert s["slip"]["turns"]["sliding_turns"] == []
+    assert 0.01 < s["slip"]["turns"]["slide_rate_max_m_s"] < 0.05  # 3.0 cm/s: the 1 cm bumps
+    out = _cli(["track", str(problem), "-o", "track"], tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
     assert said in out.stdout.splitlines()
     t = json.loads((tmp_path / "track" / "summary.json").read_text())

@@ -82,22 +82,24 @@ def test_the_generated_c_step_drives_the_same_run(ramp) -> None:
 def test_downhill_drift_by_hand() -> None:
     robot = mmstab.load_robot(ROOT / "problems" / "robots" / "cameleon.yaml")
     plant, dt, n = build_plant(robot), 0.01, 200
+    com = [0.05, -0.002]  # the CoM's x, y in B: the heading is constant here, it moves with B
     states = np.zeros((n + 1, 9))
     states[:, 2] = 0.3  # heading; the tracks commanded nothing
     gravity = np.tile([0.0, -1.0, -9.0], (n, 1))  # downhill = -y_B
     c, s = np.cos(0.3), np.sin(0.3)
     down = np.array([s, -c])  # -y_B in M
     states[:, :2] = np.arange(n + 1)[:, None] * 0.0005 * down  # 0.05 m/s downhill
-    drift = downhill_drift(plant, gravity, states, np.zeros((n, 6)), dt, 100)
+    drift = downhill_drift(plant, gravity, states, np.zeros((n, 6)), dt, 100, com)
     assert drift[100] == pytest.approx(0.05) and drift[-1] == pytest.approx(0.05)
-    uphill = downhill_drift(plant, gravity, states[::-1].copy(), np.zeros((n, 6)), dt, 100)
+    uphill = downhill_drift(plant, gravity, states[::-1].copy(), np.zeros((n, 6)), dt, 100, com)
     assert uphill[-1] == pytest.approx(-0.05)
     # driving as commanded is no drift
     qd = np.tile([2.0, 2.0, 0, 0, 0, 0], (n, 1))
     driven = [np.zeros(9)]
     for k in range(n):
         driven.append(np.array(plant(driven[-1], qd[k], dt)).ravel())
-    assert np.abs(downhill_drift(plant, gravity, np.array(driven), qd, dt, 100)).max() < 1e-12
+    driven_drift = downhill_drift(plant, gravity, np.array(driven), qd, dt, 100, com)
+    assert np.abs(driven_drift).max() < 1e-12
     # tracks commanded uphill at 0.05 m/s that slip and climb at half of it: no slide
     c_, s_ = np.cos(0.3 + np.pi / 2), np.sin(0.3 + np.pi / 2)  # +y_B = uphill, in M
     climb = states.copy()
@@ -105,12 +107,12 @@ def test_downhill_drift_by_hand() -> None:
     climb[:, 2] = 0.3 + np.pi / 2  # heading uphill: x_B = +y_B of the first case
     up = np.tile([-1.0, 0.0, -9.0], (n, 1))  # downhill = -x_B
     qd_up = np.tile([0.05 / robot.base.tracks.sprocket_radius] * 2 + [0.0] * 4, (n, 1))
-    slipping = downhill_drift(plant, up, climb, qd_up, dt, 100)
+    slipping = downhill_drift(plant, up, climb, qd_up, dt, 100, com)
     assert slipping[-1] == pytest.approx(-0.025)  # moved 2.5 cm uphill: A, not A - C
     # the same tracks sliding back at 0.05 m/s while commanded uphill: the 5 cm it slid
     back = climb.copy()
     back[:, :2] = -back[:, :2] * 2
-    assert downhill_drift(plant, up, back, qd_up, dt, 100)[-1] == pytest.approx(0.05)
+    assert downhill_drift(plant, up, back, qd_up, dt, 100, com)[-1] == pytest.approx(0.05)
 
 
 @pytest.mark.slow

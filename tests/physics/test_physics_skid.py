@@ -36,10 +36,12 @@ def both(robot, slope_deg: float, heading_deg: float, v: float, w: float):
     p = skid_twist(track_patch(robot), m.gravity_body, com, belts, MU)
     down = m.gravity_body[:2] / np.linalg.norm(m.gravity_body[:2])
 
-    def downhill(velocity):
-        return float((np.asarray(velocity) - [v, 0.0]) @ down)
+    def downhill(velocity, yaw_rate):  # the CoM's velocity beyond the commanded (v, 0)
+        at_com = np.asarray(velocity) + yaw_rate * np.r_[-com[1], com[0]]
+        return float((at_com - [v, 0.0]) @ down)
 
-    return (downhill(m.velocity_body), m.yaw_rate), (downhill(p.velocity_body[0]), p.yaw_rate[0])
+    mj = (downhill(m.velocity_body, m.yaw_rate), m.yaw_rate)
+    return mj, (downhill(p.velocity_body[0], p.yaw_rate[0]), p.yaw_rate[0])
 
 
 @pytest.mark.parametrize("slope, heading, v, w", [(25.0, 0.0, 0.0, 0.4), (31.5, 0.0, 0.25, 0.3),

@@ -52,14 +52,16 @@ def test_turns_are_named_by_the_side_they_swing_the_nose_to(robot):
     g = 9.81 * np.array([0.0, -np.sin(0.4), -np.cos(0.4)])
     twist = MeasuredTwist(np.array([0.25, -0.01]), 0.1, g)
     model = skid_twist(track_patch(robot), g, [0.0, 0.0, 0.1], (0.2, 0.3), 0.7)
-    left = _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), twist, model)
-    right = _case(1.0, (0, 0, 0), "arc_right", (0.25, -0.2), twist, model)
-    straight = _case(1.0, (0, 0, 0), "straight", (0.25, 0.0), twist, model)
+    c = (0.06, 0.0)  # the CoM's x, y in B
+    left = _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), twist, model, c)
+    right = _case(1.0, (0, 0, 0), "arc_right", (0.25, -0.2), twist, model, c)
+    straight = _case(1.0, (0, 0, 0), "straight", (0.25, 0.0), twist, model, c)
     assert (left["toward"], right["toward"], straight["toward"]) == ("uphill", "downhill", None)
     assert left["tilt_deg"] == pytest.approx(np.degrees(0.4))
-    assert left["mujoco"]["downhill"] == pytest.approx(0.01)  # (0.25, -0.01) less (0.25, 0)
+    # at the CoM: (0.25, -0.01) + 0.1 rad/s x (0.06, 0) = (0.25, -0.004), less (0.25, 0)
+    assert left["mujoco"]["downhill"] == pytest.approx(0.004)
     level = MeasuredTwist(np.array([0.25, 0.0]), 0.1, np.array([0.0, 0.0, -9.81]))
-    assert _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), level, model)["toward"] is None
+    assert _case(1.0, (0, 0, 0), "arc_left", (0.25, 0.2), level, model, c)["toward"] is None
 
 
 def test_route_poses_are_spaced_along_the_path():

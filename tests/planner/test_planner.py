@@ -151,8 +151,9 @@ def test_fig7_fig8_subprocess(tmp_path):
     path = write_problem(tmp_path, coarse_reliable)
     env = {**os.environ, "MPLBACKEND": "Agg"}
     for fig in ("fig7", "fig8"):
-        # fig8's lap on this coarse V turns with the arm where the belts' shear prices 5.4 cm
-        # of slide in a second (exit 4): the figure is what this test is about
+        # fig8's lap on this coarse V turns 108° on the ramp where the model prices 6.5 cm
+        # of slide in a second (exit 4; a slope's slide, not a pivot's swing): the figure is
+        # what this test is about
         extra = ["--allow-sliding"] if fig == "fig8" else []
         subprocess.run(
             [sys.executable, "-m", "mmstab", fig, str(path), "-o", str(tmp_path / fig), *extra],

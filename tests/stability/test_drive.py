@@ -60,7 +60,9 @@ def test_turn_slide_prices_the_belts_the_drive_commands(robot):
     half = w * patch.separation / (2 * eta)
     belts = [[v - half, v + half]]
     slope = skid_twist(patch, g, com, belts, 0.8)
-    down = np.sum((slope.velocity_body - [v, 0.0]) * [0.0, -1.0])  # beyond the command
+    # measured at the CoM's foot c: B's velocity plus ω × c, beyond the command
+    at_c = slope.velocity_body[0] + slope.yaw_rate[0] * np.r_[-com[1], com[0]]
+    down = np.sum((at_c - [v, 0.0]) * [0.0, -1.0])
     assert ts.turn_ratio[0] == pytest.approx(slope.yaw_rate[0] / w)
     assert ts.per_radian[0] == pytest.approx(max(down, 0.0) / abs(slope.yaw_rate[0]))
     assert ts.turn_ratio[0] > 0.9  # the widened differential turns at about the path's rate

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from mmstab.stability.skid import normal_loads, skid_twist, track_patch, turn_slide
+from mmstab.stability.skid import (
+    normal_loads,
+    point_velocity,
+    skid_twist,
+    track_patch,
+    turn_slide,
+)
 
 MU = 0.7
 
@@ -155,3 +161,66 @@ def test_a_dense_run_is_thinned_to_the_same_turn_verdict(robot):
     assert dense["slide_rate_max_m_s"] == pytest.approx(coarse["slide_rate_max_m_s"], rel=1e-9)
     assert dense["slide_rate_max_m_s"] > 0.05 and len(dense["sliding_turns"]) == 1
     assert dense["sliding_turns"][0]["last"] == len(t) - 1  # indices of the run's own samples
+
+
+def _old_per_radian(patch, g, com, w):
+    """The former measure: B's origin's downhill velocity per radian (rigid pivot)."""
+    tw = skid_twist(patch, g, com, np.c_[-w * patch.separation / 2, w * patch.separation / 2], MU)
+    down = g[:, :2] / np.linalg.norm(g[:, :2], axis=1, keepdims=True)
+    return np.sum(tw.velocity_body * down, 1) / np.abs(tw.yaw_rate)
+
+
+def test_a_level_pivot_barely_moves_the_com(patch, robot):
+    """The model's level pivot turns about a point 1.5 cm from the CoM's foot (docs/skid.md)."""
+    com = robot.overall_com(robot.arm_com(robot.stowed))  # 4.9 cm ahead
+    for w in (0.4, -0.4, 1.3):
+        tw = skid_twist(patch, [0, 0, -9.81], com, (-w * 0.21, w * 0.21), MU)
+        swing = point_velocity(tw.velocity_body, tw.yaw_rate, com[:2])[0] / tw.yaw_rate[0]
+        assert 0.01 < np.linalg.norm(swing) < 0.016  # per radian; B's origin: 6.3 cm
+        assert np.linalg.norm(tw.velocity_body[0] / tw.yaw_rate[0]) > 0.06
+    # the CoM on the belts' centre line: the pivot turns about it (symmetry)
+    tw = skid_twist(patch, [0, 0, -9.81], [0.0, 0.0, 0.2], (-0.1, 0.1), MU)
+    assert point_velocity(tw.velocity_body, tw.yaw_rate, [0.0, 0.0]) == pytest.approx(
+        np.zeros((1, 2)), abs=1e-9
+    )
+
+
+def test_a_pivot_on_nearly_level_ground_prices_the_tilt_not_the_swing(patch, robot):
+    """A 1° tilt in any direction: about the slope's (L/2) tan α / μ per radian, not B's swing."""
+    com = robot.overall_com(robot.arm_com(robot.stowed))
+    alpha = np.radians(1.0)
+    headings = np.radians(np.arange(0.0, 360.0, 30.0))
+    g = np.array([side_slope(alpha, h) for h in headings])
+    w = np.full(len(g), 0.8)
+    new = turn_slide(patch, g, com, np.zeros(len(g)), w, MU)
+    closed = patch.length / 2 * np.tan(alpha) / MU  # 0.87 cm per radian
+    # the tilt's slide (0.6-1.6 times the formula, by the heading) and at most the CoM's
+    # 1.5 cm per radian swing about the model's pivot centre
+    assert np.all(new.per_radian < 1.6 * closed + 0.015)
+    # the same pivot at B's origin swings 6.3 cm per radian: a 90° pivot in a second passed
+    # 5 cm "downhill" at the worst heading with no slope to slide on
+    old = _old_per_radian(patch, g, com, w)
+    assert old.max() * np.pi / 2 > 0.09 and new.per_radian.max() * np.pi / 2 < 0.045
+
+
+def test_a_side_slope_slide_keeps_its_size_at_the_centre(patch, robot):
+    """Left and right pivots on a side slope: each near (L/2) tan α / μ, not B's ± swing.
+
+    At B's origin the stowed CoM's 4.9 cm offset added ± ω x_com to the slide (left turns
+    swing B downhill, right ones uphill); at the CoM both turns slide the uniform-track
+    value within 15 % up to 20°.
+    """
+    com = robot.overall_com(robot.arm_com(robot.stowed))
+    for deg in (10.0, 20.0):
+        alpha = np.radians(deg)
+        g = np.array([side_slope(alpha)] * 2)
+        w = np.array([0.4, -0.4])
+        new = turn_slide(patch, g, com, [0.0, 0.0], w, MU).per_radian
+        closed = patch.length / 2 * np.tan(alpha) / MU
+        assert new == pytest.approx([closed, closed], rel=0.15)
+        old = _old_per_radian(patch, g, com, w)
+        # the two differ by the swing about the CoM, ω x_com per ω: B's origin 4.9 cm behind
+        # it moves downhill (-y) in a left turn, uphill in a right one (there the rigid
+        # model's slope part, the level pivot's own swing taken off, may price it more)
+        assert old[0] - new[0] == pytest.approx(com[0], abs=1e-4)
+        assert new[1] - old[1] >= com[0] - 1e-4

@@ -83,6 +83,7 @@ def test_driving_straight_inside_the_cone_creeps_downhill_more_with_k(patch):
 def test_the_shear_slides_no_less_than_coulomb_in_turns(patch):
     """Less friction mobilised at every contact for the same slip: the turns slide more."""
     com = [0.02, 0.0, 0.16]
+    # the slide is measured at the CoM's foot: B's velocity plus the yaw about it
     for deg in (5.0, 12.0, 20.0, 28.0):
         for heading in np.radians([0.0, 45.0, 135.0, 180.0, 270.0]):
             g = [side_slope(np.radians(deg), heading)] * 3
@@ -92,7 +93,9 @@ def test_the_shear_slides_no_less_than_coulomb_in_turns(patch):
             belts = belts_for_twist(v, w, patch.separation)
             a, b = skid_twist(patch, g, com, belts, MU), skid_twist(patch, LEVEL, com, belts, MU)
             down = g[0][:2] / np.linalg.norm(g[0][:2])
-            slide = np.maximum((a.velocity_body - b.velocity_body) @ down, 0.0)
+            dw = (a.yaw_rate - b.yaw_rate)[:, None]
+            dv = a.velocity_body - b.velocity_body + dw * [-com[1], com[0]]
+            slide = np.maximum(dv @ down, 0.0)
             old = slide / np.maximum(np.abs(a.yaw_rate), 0.5 * np.abs(w)) * np.abs(w)
             assert np.all(new.rate >= old - 1e-4), (deg, heading, old, new.rate)
             assert np.all(new.rate > 0)
