@@ -83,12 +83,13 @@ class Problem:
         return self.base_path if isinstance(self.base_path, RoutePath) else None
 
     def following(self, plan: Any) -> Problem:
-        """The problem on the time law a plan's fractions follow (its ``route``, if it has one).
+        """The problem on the time law a plan's fractions follow (its ``route`` or ``path``).
 
         A route plan slows the turns that would slide (:mod:`mmstab.runs.time_law`); the
         tracking run, MuJoCo's reference and the plan's verdicts then drive that route.
         """
-        route = getattr(plan, "route", None)
+        route = getattr(plan, "route", None)  # a RoutePlan's; mmstab.plan's PathPlan: its path
+        route = getattr(plan, "path", None) if route is None else route
         if not isinstance(route, RoutePath) or route is self.base_path:
             return self
         return dataclasses.replace(self, base_path=route)

@@ -147,6 +147,7 @@ def test_the_simulated_reference_turns_on_the_plan_s_law(robot, tmp_path):
     assert problem.following(namedtuple("Plan", "route")(None)) is problem
     following = problem.following(plan)
     assert following.base_path is slowed and following.route is slowed
+    assert problem.following(namedtuple("PathPlan", "path")(slowed)).base_path is slowed
     cs = controller_settings(following)
     assert cs.lap_time == slowed.lap_time and cs.duration == slowed.duration
     t_end = corner["end_t_s"]  # the plan's time at the pivot's end
