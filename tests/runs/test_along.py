@@ -112,8 +112,8 @@ def test_a_rest_that_cycles_on_the_rim_is_carried_by_both_triangles(robot):
 def turn_problem(tmp_path, slowed: bool = False):
     """A 68 deg pivot on a 10 deg plane map at friction 0.35: the poses hold, the turn slides.
 
-    ``slowed``: the plan slows the pivot to its slide budget (``physics.slide_budget``'s
-    default); else it turns at the tracks' speed (``slide_budget: null``) and slides.
+    ``slowed``: the plan slows the pivot to its slide budget (``physics.slide_budget: 0.8``);
+    else it turns at the tracks' speed (``slide_budget: null``, the default) and slides.
     """
     import yaml
 
@@ -129,8 +129,7 @@ def turn_problem(tmp_path, slowed: bool = False):
         "workspace": {"grid": [10, 8, 8, 8]},
         "planner": {"spacing": 0.5},
     }  # fmt: skip
-    if not slowed:
-        problem["physics"] = {"slide_budget": None}
+    problem["physics"] = {"slide_budget": 0.8 if slowed else None}
     path = tmp_path / "turn.yaml"
     path.write_text(yaml.safe_dump(problem))
     return path
@@ -170,7 +169,7 @@ def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, ca
 
 
 def test_the_sliding_pivot_slowed_to_its_budget_holds(tmp_path, capsys, monkeypatch):
-    """The same pivot with the default slide budget: turned slower, the same verdict passes."""
+    """The same pivot with a slide budget of 0.8: turned slower, the same verdict passes."""
     import json
 
     from mmstab.cli import main

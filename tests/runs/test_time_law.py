@@ -27,7 +27,7 @@ from mmstab.terrain import Ramp
 
 #: A pivot of 90 deg left at (1, 0): heading +x (across the ramp, which rises along +y) to +y.
 CORNER = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]
-SETTINGS = VerdictSettings()  # slip_distance 5 cm within 1 s, budget 0.8 of it
+SETTINGS = VerdictSettings(slide_budget=0.8)  # slip_distance 5 cm within 1 s, 0.8 of it
 
 
 def ramp_route(robot, waypoints, turn_radius: float = 0.0, speed: float = 0.25) -> RoutePath:
@@ -101,6 +101,7 @@ def test_no_budget_and_a_turn_that_does_not_slide_keep_today_s_timing(robot):
     route = ramp_route(robot, CORNER)
     s_plan, com = stowed(robot, route)
     off = VerdictSettings(slide_budget=None)
+    assert VerdictSettings().slide_budget is None  # the default: nothing slowed
     assert slowed_route(robot, ramp, route, s_plan, com, off)[0] is route
     # a 3 deg pivot slides less than the budget in all: kept
     small = ramp_route(robot, [[0.0, 0.0], [1.0, 0.0], [2.0, 0.05]])
