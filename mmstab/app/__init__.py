@@ -77,7 +77,8 @@ def plan(
 
     A closed path (the circle): ``planner.poses`` poses around it; an open one (a route):
     poses ``planner.spacing`` apart, warm-started (:func:`mmstab.planner.plan_problem`).
-    A route's turns that would slide are slowed (:mod:`mmstab.runs.time_law`): the plan's
+    With ``physics.slide_budget`` set, a route's turns that would slide are slowed
+    (:mod:`mmstab.runs.time_law`; the default, null, slows none): the plan's
     ``route`` is the route it is timed on (``problem.following(plan)`` drives it).
 
     Args:

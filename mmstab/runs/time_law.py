@@ -7,7 +7,8 @@ The speed profile (:mod:`mmstab.paths.speed`) turns each corner as fast as the t
 in their speed), so a turn at yaw rate ω slides about ``p ω`` per second, and within the slide
 verdict's window ``W`` (``physics.slip_window``) at most ``p ω W``. :func:`turn_limits`
 caps the yaw rate of each corner (pivot or arc) whose turn would slide more than the budget
-``B = slide_budget x slip_distance`` (``physics.slide_budget``, ``physics.slip_distance``)
+``B = slide_budget x slip_distance`` (``physics.slide_budget``, null by default: no caps;
+``physics.slip_distance``)
 within a window at ``ω = B / (p_max W)``, ``p_max`` the largest slide per radian over the
 corner with the plan's arm CoM (the one the verdict prices: the target CoM of the planned
 pose before each point); at least :data:`MIN_YAW_RATE`. A corner whose whole turn slides
