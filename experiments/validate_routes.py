@@ -163,6 +163,7 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         return record | {"plan": "no plan", "plan_exit": PLAN_VERDICTS["no plan"],
                          "plan_error": str(e), "mujoco": None}  # fmt: skip
     assert isinstance(plan, RoutePlan)  # a route's plan
+    problem = problem.following(plan)  # the route timed with its slowed turns
     margin = Settings.from_problem(problem).verdicts.margin
     s = route_summary(problem, plan, route_risk(plan, margin))
     verdict = plan_verdict_of(s)

@@ -77,6 +77,9 @@ def plan(
 
     A closed path (the circle): ``planner.poses`` poses around it; an open one (a route):
     poses ``planner.spacing`` apart, warm-started (:func:`mmstab.planner.plan_problem`).
+    With ``physics.slide_budget`` set, a route's turns that would slide are slowed
+    (:mod:`mmstab.runs.time_law`; the default, null, slows none): the plan's
+    ``route`` is the route it is timed on (``problem.following(plan)`` drives it).
 
     Args:
         problem: the problem (``planner``, ``workspace`` and ``path`` sections).
@@ -86,10 +89,16 @@ def plan(
     Raises:
         MmstabError: an empty workspace.
     """
-    from mmstab.planner import plan_problem
+    from mmstab.planner import RoutePlan, plan_problem
+    from mmstab.runs.time_law import with_time_law
 
     ws = ws if ws is not None else workspace(problem, progress=progress)
-    return plan_problem(problem, ws)
+    made = plan_problem(problem, ws)
+    route = problem.route
+    if isinstance(made, RoutePlan) and route is not None:
+        settings = Settings.from_problem(problem).verdicts
+        return with_time_law(problem.robot, problem.terrain, route, made, settings)
+    return made
 
 
 def stability_along(problem: Problem, poses: ArrayLike, arm_com_body: ArrayLike) -> StabilityCases:
@@ -185,6 +194,7 @@ def track(
         made = plan(problem, progress=progress)
         check_plan(plan_stability(problem, made), len(made.poses), allow_unstable)
         arm_plan = made
+    problem = problem.following(arm_plan)  # a route plan's slowed turns
     run = simulate(
         problem, arm_plan, step=step, duration=duration, progress=progress, initial_arm=initial_arm
     )

@@ -27,6 +27,7 @@ from mmstab.paths.route import RoutePath
 from mmstab.planner import Plan, RoutePlan
 from mmstab.planner.plan import plan_base_path, region_of
 from mmstab.runs.plan_verdicts import exit_status, lap_verdicts, route_verdicts
+from mmstab.runs.time_law import with_time_law
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.support import stability_along
 from mmstab.terrain import HeightmapTerrain
@@ -48,7 +49,8 @@ class PathPlan:
         robot: the robot planned for.
         terrain: the ground (a heightmap bound to the robot).
         path: the base's path (:class:`~mmstab.paths.circle.CirclePath` or
-            :class:`~mmstab.paths.route.RoutePath`).
+            :class:`~mmstab.paths.route.RoutePath`; a route with the turns that would slide
+            slowed, :mod:`mmstab.runs.time_law`).
         settings: every stage's settings used.
         s: arc length of each planned pose along the path (K,) [m].
         fractions: the path's (time) fraction at each pose (K,) [-].
@@ -196,6 +198,9 @@ def plan(
 def _route_plan(
     robot: Robot, terrain: Terrain, path: RoutePath, settings: Settings, stage: RoutePlan
 ) -> PathPlan:
+    # the turns that would slide slowed (mmstab.runs.time_law): the plan's path is that route
+    stage = with_time_law(robot, terrain, path, stage, settings.verdicts)
+    path = stage.route if stage.route is not None else path
     v = route_verdicts(robot, terrain, path, stage, settings.verdicts)
     return PathPlan(
         robot, terrain, path, settings, stage.s, stage.fractions, stage.poses,

@@ -177,6 +177,8 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
         f"stowed below the margin {r['margin']:g} where the planned arm is not: "
         f"{spans('saved_by_planning')}"
     )
+    for line in s["route"]["slowed_turns"]:  # the turns slowed so that they do not slide
+        print(f"plan: {line}")
     limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
     _climb_line(s["climb"], s["s"])
     high_centred_warning(s["high_centred"])

@@ -7,6 +7,7 @@ place where a problem's inputs are checked; stages read their section from
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Collection
 from dataclasses import dataclass
@@ -80,6 +81,18 @@ class Problem:
     def route(self) -> RoutePath | None:
         """The route of a route problem, else None."""
         return self.base_path if isinstance(self.base_path, RoutePath) else None
+
+    def following(self, plan: Any) -> Problem:
+        """The problem on the time law a plan's fractions follow (its ``route`` or ``path``).
+
+        A route plan slows the turns that would slide (:mod:`mmstab.runs.time_law`); the
+        tracking run, MuJoCo's reference and the plan's verdicts then drive that route.
+        """
+        route = getattr(plan, "route", None)  # a RoutePlan's; mmstab.plan's PathPlan: its path
+        route = getattr(plan, "path", None) if route is None else route
+        if not isinstance(route, RoutePath) or route is self.base_path:
+            return self
+        return dataclasses.replace(self, base_path=route)
 
     def size_estimates(self, duration: float | None = None) -> dict[str, Estimate]:
         """The size estimates of the stages (:func:`mmstab.core.sizes.estimates`), by section.

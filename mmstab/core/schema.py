@@ -330,9 +330,10 @@ ONLINE = obj(
 # control period [s], simulated time [s] (null: the controller's / the route's), the chassis
 # tilt off the predicted rest reported as a disagreement [rad], how long the contacts may lose
 # the support before it is a tip [s], the downhill drift [m] over a window [s] that is a
-# slide, the period of those checks [s], the controller step's backend, the road wheels'
-# collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model choices"), the
-# arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
+# slide, the share of it a route's turn may use (the plan slows the turns that would use
+# more; null: none slowed), the period of those checks [s], the controller step's backend,
+# the road wheels' collision shape, MuJoCo's integration step [s] (docs/physics.md, "Model
+# choices"), the arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
 # achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
 # governor (the base error [m] from which the reference slows, at which it stops, and the
 # wait [s] after which the run ends stalled; null: the reference runs on time).
@@ -343,6 +344,7 @@ PHYSICS_KEYS = obj(
     tip_hold={"type": "number", "minimum": 0, "maximum": 10},
     slip_distance=POS,
     slip_window=POS,
+    slide_budget={"oneOf": [{"type": "null"}, {**POS, "maximum": 1}]},
     check_dt=POS,
     backend={"enum": ["interpreted", "generated"]},
     wheel={"enum": ["sphere", "cylinder", "sphere_pair"]},

@@ -8,7 +8,9 @@
   wall time of a warm-started pose's search; ``cpu_ms_per_pose`` its CPU time, less
   sensitive to a shared machine), ``route`` (length, which includes the pivot turns' track
   travel, duration, and how it turns at each corner: ``corners``, ``pivots``, the route
-  check's lines), the per-pose details and the stability verdict, and
+  check's lines; ``time_law``: the turns slowed so that they do not slide, each corner's
+  yaw rate before and after, ``slowed_turns`` its lines, :mod:`mmstab.runs.time_law`),
+  the per-pose details and the stability verdict, and
   ``quality``: per pose the planned μ, the best μ over V's samples and (``method:
   roadmap``) over the roadmap's reachable postures, and the gaps (:func:`route_quality`);
 - ``route_mu.png``: μ along the route, planned / stowed / arm removed, the margin and the
@@ -39,6 +41,7 @@ from mmstab.runs.along import Along
 from mmstab.runs.plan_verdicts import plan_along as robot_plan_along
 from mmstab.runs.plan_verdicts import route_verdicts
 from mmstab.runs.recording import frames_at, write_run
+from mmstab.runs.time_law import describe_time_law
 from mmstab.stability.static import mu_max
 
 #: Robot snapshots drawn in the 3-D figure.
@@ -47,7 +50,7 @@ SNAPSHOTS = 6
 
 def plan_along(problem: Problem, plan: RoutePlan) -> Along:
     """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
-    route = problem.route
+    route = problem.following(plan).route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
     return robot_plan_along(problem.robot, problem.terrain, route, plan)
@@ -62,6 +65,7 @@ def route_summary(
     :func:`mmstab.plan` returns).
     """
     robot = problem.robot
+    problem = problem.following(plan)  # its turns slowed where they would slide
     route = problem.route
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
@@ -98,6 +102,8 @@ def route_summary(
             "max_curvature_per_m": route.route.max_curvature,
             "speed_max_m_s": float(route.profile.v.max()),
             **route_corners(problem),
+            "time_law": plan.time_law or {},
+            "slowed_turns": describe_time_law(plan.time_law or {}),
         },
         "mu_max": mu_max(robot),
         "s": plan.s.tolist(),
@@ -206,6 +212,7 @@ def run_route_plan(
     plan = make_plan(problem)
     if not isinstance(plan, RoutePlan):
         raise MmstabError(f"{problem.path}: path: not a route")
+    problem = problem.following(plan)  # the route timed with its slowed turns
     risk = route_risk(plan, Settings.from_problem(problem).verdicts.margin)
     d = output_dir(out, "plan")
     along = plan_along(problem, plan)

@@ -77,13 +77,14 @@ def simulate_run(problem: Problem, loop: LoopSettings, arm_plan: Any = None) -> 
         loop: the loop's settings (:func:`loop_settings`, maybe changed).
         arm_plan: the problem's plan (:func:`mmstab.app.plan`); None: planned here.
     """
+    arm_plan = plan(problem) if arm_plan is None else arm_plan
+    problem = problem.following(arm_plan)  # a route plan's slowed turns (runs.time_law)
     cs = controller_settings(problem)
     if loop.backend == "generated":
         step = generated_step(problem).function
         cs = dataclasses.replace(cs, plugin=Settings.from_problem(problem).codegen.plugin)
     else:
         step = build_controller(problem.robot, cs).step
-    arm_plan = plan(problem) if arm_plan is None else arm_plan
     if loop.arm == "stowed":
         arm_plan = stowed_plan(problem.robot, arm_plan)
     state0 = initial_state(problem.base_path, problem.robot.stowed)
@@ -112,7 +113,9 @@ def run_simulate(
         loop = dataclasses.replace(loop, duration=float(duration))
     if arm is not None:
         loop = dataclasses.replace(loop, arm=arm)
-    run = simulate_run(problem, loop)
+    arm_plan = plan(problem)
+    problem = problem.following(arm_plan)  # the route timed with its slowed turns
+    run = simulate_run(problem, loop, arm_plan)
     d = output_dir(out, "physics")
     summary = summarize(run, loop)
     summary["backend"], summary["arm"] = loop.backend, loop.arm

@@ -57,6 +57,7 @@ def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path)
     from mmstab.outputs.simulate import loop_settings, place_events, simulate_run, summarize
     from mmstab.outputs.simulate_figure import write_run_figure
 
+    problem = problem.following(plan)  # MuJoCo's reference on the plan's (slowed) time law
     loop = loop_settings(problem)
     run = simulate_run(problem, loop, plan)
     sim = summarize(run, loop)

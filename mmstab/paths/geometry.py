@@ -178,6 +178,15 @@ class Route:
         rows = [starts[k : k + 2] for k, p in enumerate(self.pieces) if isinstance(p, Pivot)]
         return np.array(rows, dtype=float).reshape(-1, 2)
 
+    @property
+    def turn_spans(self) -> tuple[tuple[Corner, float, float], ...]:
+        """Each turning corner with where its arc or pivot starts and ends [m]."""
+        starts = self.starts
+        spans = [(starts[k], starts[k + 1]) for k, p in enumerate(self.pieces)
+                 if not isinstance(p, Line)]  # fmt: skip
+        turning = [c for c in self.corners if c.turn != 0]
+        return tuple((c, float(a), float(b)) for c, (a, b) in zip(turning, spans, strict=True))
+
     def report(self) -> list[str]:
         """One line per pivot turn: the route check's account of what it did."""
         return [c.describe(self.turn_radius) for c in self.corners if c.pivot]

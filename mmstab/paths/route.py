@@ -39,7 +39,7 @@ from mmstab.model.robot import Robot
 from mmstab.paths.base import PathSample
 from mmstab.paths.geometry import FloatArray, Pivot, Route
 from mmstab.paths.io import PlannedRoute, Waypoints, read_waypoints_csv, route_from_section
-from mmstab.paths.speed import SpeedLimits, SpeedProfile
+from mmstab.paths.speed import SpeedLimits, SpeedProfile, TurnLimit, speed_profile
 from mmstab.terrain.base import Terrain
 
 #: Defaults of the optional keys of a route's ``path:`` section [m/s^2].
@@ -72,11 +72,36 @@ class RoutePath:
         profile: the speed profile along it.
         limits: the speed limits the profile keeps (None: not known; the verdicts then take
             :data:`ROUTE_DEFAULTS`' accelerations).
+        turn_limits: yaw-rate caps on some corners the profile keeps
+            (:func:`mmstab.paths.speed.speed_profile`; :meth:`with_turn_limits`).
     """
 
     route: Route
     profile: SpeedProfile
     limits: SpeedLimits | None = None
+    turn_limits: tuple[TurnLimit, ...] = ()
+
+    def with_turn_limits(self, turns: tuple[TurnLimit, ...]) -> RoutePath:
+        """The same route with its profile rebuilt under ``turns`` (and its own limits).
+
+        Raises:
+            ValueError: the route's speed limits are not known, or a yaw rate not > 0.
+        """
+        if self.limits is None:
+            raise ValueError("a route without its speed limits cannot be slowed in turns")
+        turns = tuple(TurnLimit(*map(float, t)) for t in turns)
+        profile = speed_profile(self.route, self.limits, turns=turns)
+        return RoutePath(self.route, profile, self.limits, turns)
+
+    def yaw_rate_max(self, start_s: float, end_s: float) -> float:
+        """The largest |yaw rate| of the reference between two arc lengths [m] [rad/s]."""
+        p = self.profile
+        inside = (p.s[:-1] >= start_s - 1e-9) & (p.s[1:] <= end_s + 1e-9)
+        if not inside.any():
+            return 0.0
+        # d yaw / ds at each interval's midpoint (an arc's own, not its neighbour line's)
+        yaw = np.abs(self.route.sample(0.5 * (p.s[:-1] + p.s[1:])[inside]).rate[:, 2])
+        return float(np.max(np.maximum(p.v[:-1][inside], p.v[1:][inside]) * yaw))
 
     @property
     def duration(self) -> float:

@@ -13,6 +13,12 @@ so ``v = ds/dt`` is each track's speed (in opposite directions) and the base's y
 both ends: the tracks reverse one side there), the tracks run at most ``speed`` in it (as on
 a line; ``speed`` is within ``headroom`` of their limit), and ``acceleration`` bounds their
 change of speed. There is no lateral acceleration: the base centre stands still.
+
+**Turn limits.** A :class:`TurnLimit` caps the base's yaw rate over a stretch of arc length
+(a corner, pivot or arc): there ``v <= yaw_rate / |d yaw / ds|`` (``pivot_radius x
+yaw_rate`` in a pivot, ``yaw_rate / |kappa|`` on an arc). They are data: the stability
+layer decides them (a turn slowed so that it does not slide, ``mmstab.runs.time_law``);
+without any, the profile is the speeds' alone.
 """
 
 from __future__ import annotations
@@ -42,6 +48,20 @@ class SpeedLimits(NamedTuple):
     track_speed: float
     track_separation: float
     headroom: float = 0.8
+
+
+class TurnLimit(NamedTuple):
+    """A cap on the base's yaw rate over a stretch of the route (one corner).
+
+    Attributes:
+        start_s: where the stretch starts [m] (the route's parameter).
+        end_s: where it ends [m].
+        yaw_rate: the largest |yaw rate| there [rad/s] (> 0).
+    """
+
+    start_s: float
+    end_s: float
+    yaw_rate: float
 
 
 class SpeedProfile(NamedTuple):
@@ -92,10 +112,18 @@ def pivot_limit(limits: SpeedLimits) -> float:
     return min(limits.speed, straight_limit(limits))
 
 
-def _limit_at(route: Route, limits: SpeedLimits, s: FloatArray) -> FloatArray:
-    """The speed allowed at arc lengths ``s`` [m] by the curvature, or in a pivot [m/s]."""
+def _limit_at(
+    route: Route, limits: SpeedLimits, s: FloatArray, turns: tuple[TurnLimit, ...] = ()
+) -> FloatArray:
+    """The speed allowed at arc lengths ``s`` [m]: curvature, pivot, ``turns`` [m/s]."""
     smp = route.sample(s)
-    return np.where(smp.pivot, pivot_limit(limits), curvature_limit(limits, smp.curvature))
+    v = np.where(smp.pivot, pivot_limit(limits), curvature_limit(limits, smp.curvature))
+    yaw_per_m = np.abs(smp.rate[:, 2])
+    for turn in turns:
+        inside = (s >= turn.start_s) & (s <= turn.end_s) & (yaw_per_m > 0)
+        cap = turn.yaw_rate / np.where(inside, yaw_per_m, 1.0)
+        v = np.where(inside, np.minimum(v, cap), v)
+    return v
 
 
 def _stations(route: Route, ds: float) -> tuple[FloatArray, FloatArray]:
@@ -114,12 +142,19 @@ def _stations(route: Route, ds: float) -> tuple[FloatArray, FloatArray]:
     return s, rest
 
 
-def speed_profile(route: Route, limits: SpeedLimits, ds: float = 0.01) -> SpeedProfile:
+def speed_profile(
+    route: Route, limits: SpeedLimits, ds: float = 0.01, turns: tuple[TurnLimit, ...] = ()
+) -> SpeedProfile:
     """The speed profile of ``route`` under ``limits``, sampled every ``ds`` [m] or finer.
 
+    ``turns``: yaw-rate caps over stretches of the route (module text); none: the speeds'.
+
     Raises:
-        ValueError: ``limits.speed`` above what the tracks allow on a straight line.
+        ValueError: ``limits.speed`` above what the tracks allow on a straight line, or a
+            turn limit's yaw rate not > 0.
     """
+    if any(not t.yaw_rate > 0 for t in turns):
+        raise ValueError(f"a turn limit's yaw rate must be > 0 rad/s: {turns}")
     if limits.speed > straight_limit(limits) + 1e-12:
         raise ValueError(
             f"speed {limits.speed:.3f} m/s is above the tracks' {straight_limit(limits):.3f} m/s "
@@ -129,8 +164,8 @@ def speed_profile(route: Route, limits: SpeedLimits, ds: float = 0.01) -> SpeedP
     # the limit over each interval: arcs start/end exactly at piece boundaries, so take the
     # tighter of the two ends and the interval's midpoint
     mid = 0.5 * (s[:-1] + s[1:])
-    v_mid = _limit_at(route, limits, mid)
-    v_cap = _limit_at(route, limits, s)
+    v_mid = _limit_at(route, limits, mid, turns)
+    v_cap = _limit_at(route, limits, s, turns)
     v_cap[:-1] = np.minimum(v_cap[:-1], v_mid)
     v_cap[1:] = np.minimum(v_cap[1:], v_mid)
     v = v_cap.copy()

@@ -30,13 +30,14 @@ open path).
 from __future__ import annotations
 
 import time
-from typing import Literal, NamedTuple, cast
+from typing import Any, Literal, NamedTuple, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.paths.route import RoutePath
 from mmstab.planner.along_path import solve_path
 from mmstab.planner.fitness import Fitness, pose_fitness, support_polygons_at
 from mmstab.planner.pose import (
@@ -93,6 +94,10 @@ class RoutePlan(NamedTuple):
         fixed_seconds: wall time before the poses' search [s]: the caches loaded (or
             built) and what the search keeps between plans of a process
             (:func:`mmstab.planner.plan.plan_route`); 0 when not measured.
+        route: the route whose time law ``fractions`` follow, when it is not the problem's
+            own (its turns slowed: :mod:`mmstab.runs.time_law`); None: the problem's.
+        time_law: the account of the slowed turns (:func:`mmstab.runs.time_law.slowed_route`),
+            None when none was made.
     """
 
     s: FloatArray
@@ -114,6 +119,8 @@ class RoutePlan(NamedTuple):
     moves: tuple[FloatArray, ...] = ()
     mu_search: FloatArray = np.zeros(0)
     fixed_seconds: float = 0.0
+    route: RoutePath | None = None
+    time_law: dict[str, Any] | None = None
 
 
 def planned_com(robot: Robot, postures: ArrayLike, target_com: ArrayLike) -> FloatArray:

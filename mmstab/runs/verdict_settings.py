@@ -1,7 +1,7 @@
 """What a plan's verdicts read from a problem: the margin and the slide's limits.
 
 ``planner.margin`` (μ must exceed it [N rad]) and the ``physics:`` section's slide check
-(``slip_distance``, ``slip_window``, ``turn_ratio``): :class:`VerdictSettings`.
+(``slip_distance``, ``slip_window``, ``turn_ratio``, ``slide_budget``): :class:`VerdictSettings`.
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ class VerdictSettings:
             ratio) (``physics.turn_ratio``) [-].
         shear_modulus: the belts' shear modulus K of the skid-steer model
             (``physics.shear_modulus``) [m].
+        slide_budget: the share of ``slip_distance`` a route's turn may slide within
+            ``slip_window``; the plan slows the corners that would slide more
+            (``physics.slide_budget``, :mod:`mmstab.runs.time_law`; None: none slowed) [-].
     """
 
     margin: float = DEFAULT_MARGIN
@@ -36,6 +39,7 @@ class VerdictSettings:
     slip_window: float = SECTION_DEFAULTS["physics"]["slip_window"]
     turn_ratio: float | str = SECTION_DEFAULTS["physics"]["turn_ratio"]
     shear_modulus: float = SECTION_DEFAULTS["physics"]["shear_modulus"]
+    slide_budget: float | None = SECTION_DEFAULTS["physics"]["slide_budget"]
 
     @classmethod
     def from_sections(
@@ -43,10 +47,12 @@ class VerdictSettings:
     ) -> VerdictSettings:
         """Build from validated ``planner:`` and ``physics:`` sections."""
         ratio = physics.get("turn_ratio", cls.turn_ratio)
+        budget = physics.get("slide_budget", cls.slide_budget)
         return cls(
             margin=float(planner.get("margin", DEFAULT_MARGIN)),
             slip_distance=float(physics.get("slip_distance", cls.slip_distance)),
             slip_window=float(physics.get("slip_window", cls.slip_window)),
             turn_ratio=ratio if isinstance(ratio, str) else float(ratio),
             shear_modulus=float(physics.get("shear_modulus", cls.shear_modulus)),
+            slide_budget=None if budget is None else float(budget),
         )

@@ -287,11 +287,16 @@ def test_plan_and_track_a_route_with_a_pivot_from_the_cli(tmp_path):
     t = json.loads((tmp_path / "track" / "summary.json").read_text())
     assert t["qp_failures"] == 0 and t["pivots"] == s["route"]["pivots"]
     assert t["after_transient"]["base_error_max_m"] < 2e-3
-    # in the pivot the base stands on the corner and the tracks run opposite ways
+    # in the pivot the base stands on the corner and the tracks run opposite ways, on the
+    # plan's time law (its pivot slowed where it would slide: mmstab.runs.time_law)
     route = problem_from_dict(small_problem(), problem).route
     run = np.load(tmp_path / "track" / "run.npz")
     (s0, s1), *_ = route.route.pivot_spans
     t0, t1 = np.interp([s0, s1], route.profile.s, route.profile.t)
+    slowed = [c for c in s["route"]["time_law"]["corners"] if c["slowed"]]
+    if slowed:
+        assert slowed[0]["start_s"] == pytest.approx(s0) and slowed[0]["end_t_s"] > t1
+        t0, t1 = slowed[0]["start_t_s"], slowed[0]["end_t_s"]
     inside = (run["t"] > t0 + 0.2) & (run["t"] < t1 - 0.2)
     assert np.abs(run["state"][inside, :2] - [-0.2, -0.3]).max() < 1e-3
     left, right = run["qdot"][inside, 0], run["qdot"][inside, 1]

@@ -109,8 +109,12 @@ def test_a_rest_that_cycles_on_the_rim_is_carried_by_both_triangles(robot):
     assert loaded_support(robot, rigid, pose, robot.arm_com(q)).mu[0] < 0
 
 
-def turn_problem(tmp_path):
-    """A 68 deg pivot on a 10 deg plane map at friction 0.35: the poses hold, the turn slides."""
+def turn_problem(tmp_path, slowed: bool = False):
+    """A 68 deg pivot on a 10 deg plane map at friction 0.35: the poses hold, the turn slides.
+
+    ``slowed``: the plan slows the pivot to its slide budget (``physics.slide_budget: 0.8``);
+    else it turns at the tracks' speed (``slide_budget: null``, the default) and slides.
+    """
     import yaml
 
     problem = {
@@ -125,6 +129,7 @@ def turn_problem(tmp_path):
         "workspace": {"grid": [10, 8, 8, 8]},
         "planner": {"spacing": 0.5},
     }  # fmt: skip
+    problem["physics"] = {"slide_budget": 0.8 if slowed else None}
     path = tmp_path / "turn.yaml"
     path.write_text(yaml.safe_dump(problem))
     return path
@@ -161,6 +166,32 @@ def test_a_sliding_turn_is_one_verdict_in_text_json_and_exit_status(tmp_path, ca
     named = float(np.degrees(turn["turn_rad"]))
     assert 0.5 * corner < named <= corner + 1e-6
     assert f"turning {round(named)} deg there" in captured.err
+
+
+def test_the_sliding_pivot_slowed_to_its_budget_holds(tmp_path, capsys, monkeypatch):
+    """The same pivot with a slide budget of 0.8: turned slower, the same verdict passes."""
+    import json
+
+    from mmstab.cli import main
+
+    path = turn_problem(tmp_path, slowed=True)
+    monkeypatch.chdir(tmp_path)
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert (
+        s["slip"]["turns"]["sliding_turns"] == [] and s["verdicts"]["slide"]["verdict"] == "holds"
+    )
+    law = s["route"]["time_law"]
+    (corner,) = law["corners"]
+    assert corner["slowed"] and corner["waypoint"] == 1 and corner["kind"] == "pivot"
+    # the cap is the budget (0.8 x 5 cm in 1 s) over the corner's slide per radian
+    assert corner["yaw_rate_after"] == pytest.approx(0.04 / corner["slide_per_rad_m"], rel=1e-6)
+    assert corner["yaw_rate_after"] < 0.5 * corner["yaw_rate_before"]
+    assert law["duration_s"] > law["duration_before_s"] and law["budget_m"] == pytest.approx(0.04)
+    assert s["route"]["duration_s"] == law["duration_s"]
+    (line,) = s["route"]["slowed_turns"]
+    assert f"plan: {line}" in out.splitlines() and line.startswith("corner 1 at (0.50, -1.00) m")
 
 
 def test_stretches_are_merged_and_a_tip_below_the_margin_is_named_so():
