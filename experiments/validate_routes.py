@@ -339,6 +339,10 @@ def run_routes(
                       f"{'ditch ' if r['ditch'] else ''}{'kerb ' if r['kerb'] else ''}"
                       f"plan {r['plan']}, MuJoCo {r['mujoco']}", flush=True)  # fmt: skip
     summary = summarize_routes(settings, records, time.perf_counter() - t0)
+    drawn = {str(out / r["figure"]) for r in records if r.get("figure")}
+    for old in (out / "runs").glob("route*.png"):  # an earlier run's, of a route run again
+        if str(old) not in drawn and int(old.stem[5:]) in indices:
+            old.unlink()
     write_json(out / "summary.json", summary)
     write_figure(out / "validate_routes.png", draw(summary))
     return summary

@@ -108,7 +108,13 @@ def test_event_place_by_hand() -> None:
 def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     pytest.importorskip("mujoco")
     settings = load_settings(SETTINGS)
+    runs = tmp_path / "flat" / "runs"
+    runs.mkdir(parents=True)
+    for name in ("route00.png", "route05.png"):  # an earlier run's figures
+        (runs / name).write_bytes(b"")
     flat = run_routes(_flat(settings), tmp_path / "flat", [0])
+    # route 0 run again without a disagreement: its old figure goes; route 5's stays
+    assert not (runs / "route00.png").exists() and (runs / "route05.png").exists()
     ditch = run_routes(settings, tmp_path / "ditch", [1])
     records = flat["records"] + ditch["records"]
     # the confusion table, recounted from the records
