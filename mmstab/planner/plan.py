@@ -242,6 +242,17 @@ def freeze_long_lived() -> None:
         _FROZEN["done"] = True
 
 
+def unfreeze_long_lived() -> None:
+    """Give every frozen object back to the cycle collector; the next plan freezes again.
+
+    A loop that freezes its own set-up (:func:`gc.freeze` moves all live objects, the
+    planner's too) and ends with :func:`gc.unfreeze` calls this instead, so that the
+    planner's once-a-process freeze is not taken as done when nothing is frozen.
+    """
+    gc.unfreeze()
+    _FROZEN["done"] = False
+
+
 def plan_problem(
     problem: Problem, workspace: Workspace | None = None, progress: bool = False
 ) -> Plan | RoutePlan:

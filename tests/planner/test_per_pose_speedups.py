@@ -91,3 +91,14 @@ def test_the_long_lived_objects_are_frozen_once_a_process():
     kept = [[i] for i in range(100)]  # objects the collector tracks, made after the freeze
     freeze_long_lived()  # a second plan: nothing more frozen
     assert gc.get_freeze_count() == frozen and len(kept) == 100
+
+
+def test_a_loop_that_unfreezes_all_leaves_the_next_plan_to_freeze_again():
+    from mmstab.planner.plan import unfreeze_long_lived
+
+    freeze_long_lived()
+    assert gc.get_freeze_count() > 0
+    unfreeze_long_lived()  # as the online loop ends (it froze its own set-up)
+    assert gc.get_freeze_count() == 0
+    freeze_long_lived()  # the next plan in this process
+    assert gc.get_freeze_count() > 0

@@ -19,6 +19,7 @@ import numpy as np
 
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import Problem
+from mmstab.planner.plan import unfreeze_long_lived
 from mmstab.runs.online.follow import FollowSettings, FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
@@ -88,7 +89,7 @@ def follow_recording(
             if limit is not None and len(steps) >= limit:
                 break
     finally:
-        gc.unfreeze()
+        unfreeze_long_lived()
     h = follower.horizon
     if isinstance(h, RoadmapHorizon):  # the re-plans queued at the end land (replan_jobs)
         h.settle()
