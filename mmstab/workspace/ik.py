@@ -76,13 +76,14 @@ class PostureSolver:
                 lbx=self.robot.joint_lower,
                 ubx=self.robot.joint_upper,
             )
-        except RuntimeError:
+            raise_if_interrupted()  # CasADi's IPOPT interface swallows a Ctrl-C
+            return np.asarray(sol["x"]).ravel()
+        except (RuntimeError, SystemError):
             # a Ctrl-C that lands outside IPOPT's own callback comes back as CasADi's
-            # RuntimeError ("... KeyboardInterrupt"): it is still the user's Ctrl-C
+            # RuntimeError ("... KeyboardInterrupt"), or inside a SWIG call as a
+            # SystemError around it: it is still the user's Ctrl-C
             raise_if_interrupted()
             raise
-        raise_if_interrupted()  # CasADi's IPOPT interface swallows a Ctrl-C
-        return np.asarray(sol["x"]).ravel()
 
     def seeds(self, target_com: FloatArray, previous_q: FloatArray) -> list[FloatArray]:
         """The previous posture, then the postures of the nearest valid workspace CoMs."""

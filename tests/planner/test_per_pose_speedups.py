@@ -89,8 +89,8 @@ def test_the_long_lived_objects_are_frozen_once_a_process():
     frozen = gc.get_freeze_count()
     assert frozen > 0
     kept = [[i] for i in range(100)]  # objects the collector tracks, made after the freeze
-    freeze_long_lived()  # a second plan: nothing more frozen
-    assert gc.get_freeze_count() == frozen and len(kept) == 100
+    freeze_long_lived()  # a second plan: nothing more frozen (frozen objects may still die)
+    assert gc.get_freeze_count() <= frozen and len(kept) == 100
 
 
 def test_a_loop_that_unfreezes_all_leaves_the_next_plan_to_freeze_again():
