@@ -180,6 +180,8 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     t0 = time.perf_counter()
     run = simulate_run(problem, loop, plan)
     sim = summarize(run, loop)
+    route = problem.route
+    assert route is not None  # every problem here is a route
     outcome = outcome_of(sim)
     ok = np.isfinite(run.mu_simulated) & np.isfinite(run.mu_predicted)
     rel = np.abs(run.mu_simulated[ok] - run.mu_predicted[ok]) / np.abs(run.mu_predicted[ok])
@@ -187,7 +189,7 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         "mujoco": outcome,
         "sim_seconds": time.perf_counter() - t0,
         "simulated_s": sim["duration_s"],
-        "route_duration_s": problem.route.duration,
+        "route_duration_s": route.duration,
         "events": {key: sim[key] for key in ("tipped", "left_map", "slid", "stalled")},
         "disagreement": sim["disagreement"],
         "tilt_off_rest_max_rad": sim["tilt_off_rest_max_rad"],
