@@ -146,7 +146,7 @@ class Rocks(NamedTuple):
         mu: (N,) the lower μ of the pushed CoM on the caught supports [N rad] (NaN where
             not checked or nothing pushed; -inf where it tips).
         rock: (N,) the larger turn to a catch [rad].
-        drop: (N,) the larger drop of the CoM in a rock [m].
+        drop: (N,) the larger work of a rock (the CoM's fall under the tilted net force) [m].
         barrier: (N,) the lower energy stability margin of a caught support [m].
     """
 
@@ -242,7 +242,7 @@ def dense_verdicts(
         passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]);
         ``tip.rocks``: the stretches below the threshold where the robot rocks and holds
         (``worst`` μ at rest, the caught support's lowest pushed ``mu_rocked`` [N rad],
-        the largest turn ``rock_rad`` [rad], CoM ``drop_m`` against ``barrier_m`` [m]).
+        the largest turn ``rock_rad`` [rad], its work ``work_m`` against ``barrier_m`` [m]).
     """
     s, mu, tilt = along.s, along.mu, along.tilt
     friction = terrain_friction(terrain)
@@ -274,7 +274,7 @@ def dense_verdicts(
                     "worst": float(np.min(mu[a:b])),
                     "mu_rocked": float(np.fmin.reduce(rocks.mu[a:b])),
                     "rock_rad": float(np.fmax.reduce(rocks.rock[a:b])),
-                    "drop_m": float(np.fmax.reduce(rocks.drop[a:b])),
+                    "work_m": float(np.fmax.reduce(rocks.drop[a:b])),
                     "barrier_m": float(np.fmin.reduce(rocks.barrier[a:b])),
                 }
                 for a, b in true_runs(rocking)

@@ -18,12 +18,14 @@ in steps of :data:`STEP`, at most :data:`MAX_ROCK`); the support there is the ed
 ends, the candidates touching and the tracks' bottom run within the ground's compliance
 (as at a rest). The state holds if
 
-- a catch is found, and μ of the pushed CoM on the caught support exceeds ``margin``; and
-- the rock's drop of the CoM is below the energy the caught support needs to overturn:
-  the normalised energy stability margin ``min_j |R_j| (1 - cos theta_j) cos psi_j``
-  (Hirose, Tsukagoshi and Yoneda 2001; ``R_j`` the CoM's distance from edge j, ``psi_j``
-  the edge's inclination), so the rock's kinetic energy ``m g drop`` cannot carry the
-  robot over.
+- a catch is found where the pushed CoM is inside the caught support, and the turn's work
+  (the CoM's fall under the tilted net force, ``drop + (a / g) . travel`` in metres of
+  height) is below the energy the caught support needs to overturn about any edge but the
+  one it came over: ``|R_j| (1 - cos theta_j) cos psi_j`` (Hirose, Tsukagoshi and Yoneda
+  2001's normalised energy stability margin; ``R_j`` the CoM's distance from edge j,
+  ``psi_j`` the edge's inclination). Where either fails the base turns on about that
+  edge, to the next catch (:func:`rock`), up to :data:`MAX_ROCK` in all;
+- μ of the pushed CoM on the support that holds it exceeds ``margin``.
 
 The turn about the edge is explicit (not a new rest), so a rest that did not settle (its
 steps cycling between two triangles on a rim) is rocked the same way.
@@ -61,8 +63,10 @@ class Rock(NamedTuple):
         mu: (N,) the lowest μ of the pushed CoM on the support it rocks onto [N rad]
             (NaN: no edge pushed; -inf: it tips over).
         rock: (N,) the largest turn about an edge to its catch [rad].
-        drop: (N,) the largest drop of the CoM in a rock [m] (negative: it rises).
-        barrier: (N,) the lowest energy stability margin of a rocked rest [m].
+        drop: (N,) the largest work of a rock: the CoM's fall under the tilted net force
+            [m of height] (negative: it rises).
+        barrier: (N,) the lowest energy margin of a caught support (but the edge it came
+            over) [m].
     """
 
     holds: np.ndarray
@@ -94,11 +98,14 @@ def _support(ground: Terrain, pose: FloatArray, com_body: FloatArray) -> _Suppor
     return _Support(T, poly, com_G, np.asarray(axis_angles(poly, com_G, GRAVITY_G)))
 
 
-def energy_margin(poly: ArrayLike, com_G: ArrayLike, rocked: ArrayLike | None = None) -> float:
-    """The normalised energy stability margin [m]: the least CoM rise that overturns the base.
+def energy_margins(
+    poly: ArrayLike, com_G: ArrayLike, rocked: ArrayLike | None = None
+) -> FloatArray:
+    """Per edge, the CoM's rise that overturns the base about it [m] (m,).
 
-    ``min_j |R_j| (1 - cos theta_j) cos psi_j`` over the edges of the support polygon
-    (Hirose, Tsukagoshi and Yoneda 2001): ``R_j`` the CoM's perpendicular from edge j,
+    ``|R_j| (1 - cos theta_j) cos psi_j`` for edge j (from vertex j to j + 1) of the
+    support polygon (the normalised energy stability margin of Hirose, Tsukagoshi and
+    Yoneda 2001 is their least): ``R_j`` the CoM's perpendicular from the edge,
     ``theta_j`` its angle from the vertical plane through the edge (the force angle under
     gravity), ``psi_j`` the edge's inclination from the horizontal; 0 where ``theta_j <= 0``.
 
@@ -106,28 +113,30 @@ def energy_margin(poly: ArrayLike, com_G: ArrayLike, rocked: ArrayLike | None = 
         poly: ordered support vertices in G (m, 3) [m] (CCW seen from above).
         com_G: the CoM in G (3,) [m].
         rocked: the edge the base rocked about onto this support, its two ends (2, 3) [m]:
-            not counted (turned back over it, the base is back on the support it left).
+            inf (turned back over it, the base is back on the support it left).
     """
     p = np.asarray(poly, dtype=float)
     g = np.asarray(com_G, dtype=float)
-    a = np.roll(p, -1, axis=0) - p
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    q = np.roll(p, -1, axis=0)
+    a = (q - p) / np.linalg.norm(q - p, axis=1, keepdims=True)
     d = p - g
     r = np.linalg.norm(d - np.sum(d * a, axis=1, keepdims=True) * a, axis=1)
     theta = np.asarray(axis_angles(p, g, GRAVITY_G))
     cos_psi = np.sqrt(np.clip(1.0 - a[:, 2] ** 2, 0.0, 1.0))
     h = r * (1.0 - np.cos(np.clip(theta, 0.0, None))) * cos_psi
     if rocked is not None:
-        ends = np.asarray(rocked, dtype=float)
-        q = np.roll(p, -1, axis=0)
-        same = np.isclose(p, ends[0], atol=1e-9).all(axis=1) & np.isclose(
-            q, ends[1], atol=1e-9
-        ).all(axis=1)
-        same |= np.isclose(p, ends[1], atol=1e-9).all(axis=1) & np.isclose(
-            q, ends[0], atol=1e-9
-        ).all(axis=1)
-        h = np.where(same, np.inf, h)
-    return float(np.min(h))
+        e0, e1 = np.asarray(rocked, dtype=float)
+
+        def at(x: FloatArray, e: FloatArray) -> np.ndarray:
+            return np.isclose(x, e, atol=1e-9).all(axis=1)
+
+        h = np.where((at(p, e0) & at(q, e1)) | (at(p, e1) & at(q, e0)), np.inf, h)
+    return h
+
+
+def energy_margin(poly: ArrayLike, com_G: ArrayLike, rocked: ArrayLike | None = None) -> float:
+    """The normalised energy stability margin [m]: the least of :func:`energy_margins`."""
+    return float(np.min(energy_margins(poly, com_G, rocked)))
 
 
 def axis_rotation(axis: ArrayLike, angle: float) -> FloatArray:
@@ -142,12 +151,12 @@ class Catch(NamedTuple):
 
     Attributes:
         angle: the turn [rad].
-        R: the turn as a rotation in G about the edge (3, 3).
+        T: the turned base's G_T_B (4, 4).
         poly: the caught support, ordered vertices in G (m, 3) [m].
     """
 
     angle: float
-    R: FloatArray
+    T: FloatArray
     poly: FloatArray
 
 
@@ -157,11 +166,13 @@ def catch(ground: Terrain, T: ArrayLike, p0: ArrayLike, p1: ArrayLike) -> Catch 
     The edge is one of the support polygon's, counter-clockwise seen from above, so the
     outside is on its right and a positive turn about ``p1 - p0`` lowers it. Candidates
     more than :data:`BEYOND` outside the edge are lowered in steps of :data:`STEP` up to
-    :data:`MAX_ROCK`; the first step where one reaches the ground is the catch.
+    :data:`MAX_ROCK`; the first step where one reaches the ground is the catch, and the
+    support there is the edge's ends, the candidates touching (within the step's travel)
+    and the tracks' bottom run within the ground's compliance.
 
     Args:
         ground: a heightmap ground bound to the robot.
-        T: G_T_B of the rested base (4, 4).
+        T: G_T_B of the base (4, 4).
         p0: the edge's first end in G (3,) [m].
         p1: its second end in G (3,) [m].
 
@@ -177,25 +188,102 @@ def catch(ground: Terrain, T: ArrayLike, p0: ArrayLike, p1: ArrayLike) -> Catch 
     axis = (p1 - p0) / np.linalg.norm(p1 - p0)
     outward = np.cross(axis, _UP)
     outward /= np.linalg.norm(outward)
-    beyond = (X - p0) @ outward > BEYOND
-    if not beyond.any():
+    rel = X[(X - p0) @ outward > BEYOND] - p0
+    if len(rel) == 0:
         return None
     angles = np.arange(1, int(np.ceil(MAX_ROCK / STEP)) + 1) * STEP
-    rel = X[beyond] - p0
-    for angle in angles:
-        R = axis_rotation(axis, float(angle))
-        Y = rel @ R.T + p0
-        gap = Y[:, 2] - hm.sample(Y[:, :2]).height
-        if np.nanmin(gap, initial=np.inf) > 0:
-            continue
-        Z = (X - p0) @ R.T + p0
-        gap_all = Z[:, 2] - hm.sample(Z[:, :2]).height
-        tol = max(settings.contact_tol, np.linalg.norm(rel, axis=1).max() * STEP)
-        bearing = (gap_all <= tol) | (c.compliant & (gap_all <= settings.compliance))
-        points = np.vstack([Z[bearing & np.isfinite(gap_all)], p0, p1])
-        poly, line = support_vertices(points, GRAVITY_G)
-        return None if line else Catch(float(angle), R, poly)
-    return None
+    Rs = np.stack([axis_rotation(axis, float(x)) for x in angles])  # (A, 3, 3)
+    Y = np.einsum("aij,kj->aki", Rs, rel) + p0
+    gap = Y[..., 2] - hm.sample(Y[..., :2]).height
+    met = np.flatnonzero((np.nan_to_num(gap, nan=np.inf) <= 0).any(axis=1))
+    if met.size == 0:
+        return None
+    k = int(met[0])
+    R = Rs[k]
+    turned = np.eye(4)
+    turned[:3, :3] = R @ T[:3, :3]
+    turned[:3, 3] = R @ (T[:3, 3] - p0) + p0
+    Z = (X - p0) @ R.T + p0
+    gap_all = Z[:, 2] - hm.sample(Z[:, :2]).height
+    tol = max(settings.contact_tol, float(np.linalg.norm(rel, axis=1).max()) * STEP)
+    bearing = np.isfinite(gap_all) & (
+        (gap_all <= tol) | (c.compliant & (gap_all <= settings.compliance))
+    )
+    poly, line = support_vertices(np.vstack([Z[bearing], p0, p1]), GRAVITY_G)
+    return None if line else Catch(float(angles[k]), turned, poly)
+
+
+class Rocked(NamedTuple):
+    """Where a push across an edge ends: the base caught by a support that holds the push.
+
+    Attributes:
+        angle: the turn from the rest [rad] (the turns about each edge in turn, summed).
+        T: the caught base's G_T_B (4, 4).
+        poly: its support, ordered vertices in G (m, 3) [m].
+        com_G: the CoM there in G (3,) [m].
+        shift: the push's move of the CoM, in G (3,) [m].
+        edge: the last edge turned about, its two ends in G (2, 3) [m].
+        work: the CoM's fall under the tilted net force in the turn [m of height].
+        barrier: the caught support's least energy margin to overturn [m] (all edges but
+            ``edge``; > ``work``).
+    """
+
+    angle: float
+    T: FloatArray
+    poly: FloatArray
+    com_G: FloatArray
+    shift: FloatArray
+    edge: FloatArray
+    work: float
+    barrier: float
+
+
+def rock(
+    ground: Terrain, T: ArrayLike, com_G: ArrayLike, push_G: ArrayLike, p0: ArrayLike, p1: ArrayLike
+) -> Rocked | None:
+    """Push the base across its edge ``p0 -> p1``; let it turn until a support holds the push.
+
+    The push ``push_G`` (``a / g`` along the base's horizontal acceleration, the edge's
+    outward normal) tilts the net force: the CoM acts as if moved ``h push_G`` (``h``: its
+    height above the edge). The base turns about the edge to its catch (:func:`catch`).
+    There it holds if the moved CoM is inside the caught support and the turn's work,
+    ``drop + push_G . travel`` of the CoM (its fall under the tilted net force, in metres
+    of height), is below the support's :func:`energy_margins` about each edge but the one
+    it came over; else it turns on about the edge it is outside of (or whose margin the
+    work exceeds), up to :data:`MAX_ROCK` in all.
+
+    Args:
+        ground: a heightmap ground bound to the robot.
+        T: G_T_B of the rested base (4, 4).
+        com_G: the CoM in G (3,) [m].
+        push_G: the push as a ratio of gravity, horizontal in G (3,) [-].
+        p0: the edge's first end in G (3,) [m].
+        p1: its second end in G (3,) [m].
+
+    Returns:
+        The caught state, or None: it turns past :data:`MAX_ROCK` (it tips over).
+    """
+    T = np.asarray(T, dtype=float)
+    start = np.asarray(com_G, dtype=float)
+    com = start.copy()
+    push = np.asarray(push_G, dtype=float)
+    shift = max(float(start[2] - (p0[2] + p1[2]) / 2), 0.0) * push  # the CoM's, in G [m]
+    edge = np.array([p0, p1], dtype=float)
+    angle = 0.0
+    while True:
+        caught = catch(ground, T, edge[0], edge[1])
+        if caught is None or angle + caught.angle > MAX_ROCK:
+            return None
+        R = caught.T[:3, :3] @ T[:3, :3].T
+        com = R @ (com - edge[0]) + edge[0]
+        T, angle = caught.T, angle + caught.angle
+        theta = np.asarray(axis_angles(caught.poly, com + shift, GRAVITY_G))
+        work = float(start[2] - com[2] + push @ (com - start))
+        margins = energy_margins(caught.poly, com + shift, edge)
+        if theta.min() > 0 and work < margins.min():
+            return Rocked(angle, T, caught.poly, com, shift, edge, work, float(margins.min()))
+        j = int(np.argmin(theta)) if theta.min() <= 0 else int(np.argmin(margins))
+        edge = np.array([caught.poly[j], caught.poly[(j + 1) % len(caught.poly)]])
 
 
 def rock_over(
@@ -229,7 +317,7 @@ def rock_over(
     weight = robot.total_mass * float(np.linalg.norm(GRAVITY_G))
     holds = np.ones(n, dtype=bool)
     pushed = np.zeros(n, dtype=int)
-    mu, rock, drop, barrier = (np.full(n, np.nan) for _ in range(4))
+    mu, turn, drop, barrier = (np.full(n, np.nan) for _ in range(4))
     for i in range(n):
         first = _support(ground, P[i], com_B[i])
         if first is None:  # tips over (or a line) at rest already: no rock to find
@@ -240,21 +328,18 @@ def rock_over(
             p0, p1 = poly[j], poly[(j + 1) % len(poly)]
             outward = np.cross(p1 - p0, _UP)
             outward /= np.linalg.norm(outward)
-            height = max(float(first.com_G[2] - (p0[2] + p1[2]) / 2), 0.0)
             pushed[i] += 1
-            caught = catch(ground, T1, p0, p1)
+            caught = rock(ground, T1, first.com_G, push * outward, p0, p1)
             if caught is None:
                 holds[i], mu[i] = False, -np.inf
                 break
-            real_G = caught.R @ (first.com_G - p0) + p0
-            pushed_G = real_G + height * push * outward  # the push: horizontal, in G
+            pushed_G = caught.com_G + caught.shift
             mu_j = float(np.min(axis_angles(caught.poly, pushed_G, GRAVITY_G)) * weight)
-            drop_j = float(first.com_G[2] - real_G[2])
-            barrier_j = energy_margin(caught.poly, real_G, (p0, p1))
+            drop_j, barrier_j = caught.work, caught.barrier
             mu[i] = np.fmin(mu[i], mu_j)
-            rock[i] = np.fmax(rock[i], caught.angle)
+            turn[i] = np.fmax(turn[i], caught.angle)
             drop[i] = np.fmax(drop[i], drop_j)
             barrier[i] = np.fmin(barrier[i], barrier_j)
-            if not (mu_j > margin and drop_j < barrier_j):
+            if not mu_j > margin:  # (rock holds the work below the barrier)
                 holds[i] = False
-    return Rock(holds, pushed, mu, rock, drop, barrier)
+    return Rock(holds, pushed, mu, turn, drop, barrier)
