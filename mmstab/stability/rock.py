@@ -128,7 +128,7 @@ def energy_margins(
         e0, e1 = np.asarray(rocked, dtype=float)
 
         def at(x: FloatArray, e: FloatArray) -> np.ndarray:
-            return np.isclose(x, e, atol=1e-9).all(axis=1)
+            return np.asarray(np.isclose(x, e, atol=1e-9).all(axis=1))
 
         h = np.where((at(p, e0) & at(q, e1)) | (at(p, e1) & at(q, e0)), np.inf, h)
     return h
@@ -267,8 +267,8 @@ def rock(
     start = np.asarray(com_G, dtype=float)
     com = start.copy()
     push = np.asarray(push_G, dtype=float)
-    shift = max(float(start[2] - (p0[2] + p1[2]) / 2), 0.0) * push  # the CoM's, in G [m]
     edge = np.array([p0, p1], dtype=float)
+    shift = max(float(start[2] - edge[:, 2].mean()), 0.0) * push  # the CoM's, in G [m]
     angle = 0.0
     while True:
         caught = catch(ground, T, edge[0], edge[1])
