@@ -206,6 +206,10 @@ def rock_samples(
     return out
 
 
+def _finite(x: Any) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
 def _stretches(mask: np.ndarray, s: FloatArray, values: FloatArray, worst: Any, by: Any) -> list:
     return [
         {
@@ -242,7 +246,8 @@ def dense_verdicts(
         passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]);
         ``tip.rocks``: the stretches below the threshold where the robot rocks and holds
         (``worst`` μ at rest, the caught support's lowest pushed ``mu_rocked`` [N rad],
-        the largest turn ``rock_rad`` [rad], its work ``work_m`` against ``barrier_m`` [m]).
+        the largest turn ``rock_rad`` [rad] (0: the push leaves the CoM inside), its work
+        ``work_m`` against ``barrier_m`` [m] (None: no turn)).
     """
     s, mu, tilt = along.s, along.mu, along.tilt
     friction = terrain_friction(terrain)
@@ -275,7 +280,7 @@ def dense_verdicts(
                     "mu_rocked": float(np.fmin.reduce(rocks.mu[a:b])),
                     "rock_rad": float(np.fmax.reduce(rocks.rock[a:b])),
                     "work_m": float(np.fmax.reduce(rocks.drop[a:b])),
-                    "barrier_m": float(np.fmin.reduce(rocks.barrier[a:b])),
+                    "barrier_m": _finite(np.fmin.reduce(rocks.barrier[a:b])),
                 }
                 for a, b in true_runs(rocking)
             ],

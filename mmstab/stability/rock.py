@@ -12,11 +12,12 @@ there. Only a push across an edge of the support it rocks onto can overturn it.
 the net force by ``atan(a / g)``: its line through the CoM meets the ground ``h a / g``
 beyond the CoM's vertical (``h``: the CoM's height above the edge), as if the CoM stood
 that far out under plain gravity (the zero-moment point). For each edge whose share
-``theta_j |f|`` of μ is at or below ``threshold``, the rested base is turned about that
-edge, outward, until the first contact candidate beyond it meets the ground (the catch,
-in steps of :data:`STEP`, at most :data:`MAX_ROCK`); the support there is the edge's two
-ends, the candidates touching and the tracks' bottom run within the ground's compliance
-(as at a rest). The state holds if
+``theta_j |f|`` of μ is at or below ``threshold`` and that the push moves the CoM across
+(where it does not, the base stays and μ of the pushed CoM about that edge must exceed
+``margin``), the rested base is turned about that edge, outward, until the first contact
+candidate beyond it meets the ground (the catch, in steps of :data:`STEP`, at most
+:data:`MAX_ROCK`); the support there is the edge's two ends, the candidates touching and
+the tracks' bottom run within the ground's compliance (as at a rest). The state holds if
 
 - a catch is found where the pushed CoM is inside the caught support, and the turn's work
   (the CoM's fall under the tilted net force, ``drop + (a / g) . travel`` in metres of
@@ -62,11 +63,12 @@ class Rock(NamedTuple):
         pushed: (N,) edges pushed across.
         mu: (N,) the lowest μ of the pushed CoM on the support it rocks onto [N rad]
             (NaN: no edge pushed; -inf: it tips over).
-        rock: (N,) the largest turn about an edge to its catch [rad].
+        rock: (N,) the largest turn about an edge to its catch [rad] (0: pushed, the CoM
+            stays inside; NaN: nothing pushed).
         drop: (N,) the largest work of a rock: the CoM's fall under the tilted net force
             [m of height] (negative: it rises).
         barrier: (N,) the lowest energy margin of a caught support (but the edge it came
-            over) [m].
+            over) [m] (NaN: no turn).
     """
 
     holds: np.ndarray
@@ -329,17 +331,23 @@ def rock_over(
             outward = np.cross(p1 - p0, _UP)
             outward /= np.linalg.norm(outward)
             pushed[i] += 1
+            height = max(float(first.com_G[2] - (p0[2] + p1[2]) / 2), 0.0)
+            theta = axis_angles(poly, first.com_G + height * push * outward, GRAVITY_G)[j]
+            if theta > 0:  # the pushed CoM stays inside: no rock, the margin is this edge's
+                mu[i] = np.fmin(mu[i], float(theta) * weight)
+                turn[i], drop[i] = np.fmax(turn[i], 0.0), np.fmax(drop[i], 0.0)
+                holds[i] &= bool(theta * weight > margin)
+                continue
             caught = rock(ground, T1, first.com_G, push * outward, p0, p1)
             if caught is None:
                 holds[i], mu[i] = False, -np.inf
                 break
             pushed_G = caught.com_G + caught.shift
             mu_j = float(np.min(axis_angles(caught.poly, pushed_G, GRAVITY_G)) * weight)
-            drop_j, barrier_j = caught.work, caught.barrier
             mu[i] = np.fmin(mu[i], mu_j)
             turn[i] = np.fmax(turn[i], caught.angle)
-            drop[i] = np.fmax(drop[i], drop_j)
-            barrier[i] = np.fmin(barrier[i], barrier_j)
+            drop[i] = np.fmax(drop[i], caught.work)
+            barrier[i] = np.fmin(barrier[i], caught.barrier)
             if not mu_j > margin:  # (rock holds the work below the barrier)
                 holds[i] = False
     return Rock(holds, pushed, mu, turn, drop, barrier)

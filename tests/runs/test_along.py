@@ -334,9 +334,9 @@ def test_a_low_mu_about_a_diagonal_rocks_a_low_mu_at_a_track_edge_tips(robot):
     """The dense tip verdict with the rock check (:func:`rock_samples`), by construction.
 
     On the saddle ``z = 0.2 x y`` the base rests on its high diagonal (front-left, rear-right)
-    with the CoM moved near it: μ there is below the threshold, and pushed across it the base
-    turns onto the opposite corner, which holds it. On flat ground with the CoM 5 mm inside
-    the right track's outer edge nothing is beyond that edge: the sample tips.
+    with the CoM moved near it: μ there is below the threshold, and pushed across it (at
+    1 m/s^2) the base turns onto the opposite corner, which holds it. On flat ground with
+    the CoM 5 mm inside the right track's outer edge nothing is beyond that edge: it tips.
     """
     from mmstab.runs.along import rock_samples
     from mmstab.terrain.rest import RestSettings
@@ -357,7 +357,7 @@ def test_a_low_mu_about_a_diagonal_rocks_a_low_mu_at_a_track_edge_tips(robot):
         s = np.array([0.0, 0.05])
         poses = np.zeros((2, 3))
         along = along_path(robot, terrain, poses, s, s, np.tile(arm, (2, 1)))
-        rocks = rock_samples(robot, terrain, along, s, np.tile(arm, (2, 1)), 60.0, 0.0, 0.3)
+        rocks = rock_samples(robot, terrain, along, s, np.tile(arm, (2, 1)), 60.0, 0.0, 1.0)
         return along, rocks, dense_verdicts(terrain, along, 0.0, 60.0, rocks)["tip"]
 
     along, rocks, tip = verdict(0.2 * X * Y, arm_for(0.038), 0.0)

@@ -106,7 +106,11 @@ def test_a_balanced_diagonal_holds_the_push_a_track_edge_does_not(robot):
     arm = arm_for(robot, ys[int(np.argmin(mus))])
     mu, threshold = min(mus), 60.0
     assert 0 < mu < threshold
+    # at 0.3 m/s^2 the pushed CoM stays inside (μ about the diagonal 16 N rad): no turn;
+    # at 1 m/s^2 (0.1 g) it crosses, and the base turns onto a support that holds it
     r = rock_over(robot, saddle, np.zeros((1, 3)), arm[None], PUSH, threshold, 0.0)
+    assert r.holds[0] and r.pushed[0] == 1 and r.rock[0] == 0 and 0 < r.mu[0] < mu - 10
+    r = rock_over(robot, saddle, np.zeros((1, 3)), arm[None], 0.1, threshold, 0.0)
     assert r.holds[0] and r.pushed[0] == 1
     assert r.mu[0] > 0 and 0 < r.rock[0] <= np.radians(10.5)  # at most to the far corner
     assert r.drop[0] < r.barrier[0]  # the rock's work cannot carry it over
@@ -114,6 +118,12 @@ def test_a_balanced_diagonal_holds_the_push_a_track_edge_does_not(robot):
     assert not rock_over(
         robot, saddle, np.zeros((1, 3)), arm[None], PUSH, threshold, r.mu[0]
     ).holds[0]
+    # a push that does not move the CoM across the edge turns nothing: with a margin of
+    # 250 N rad the edge's own pushed μ binds (about 1.7 deg, 17 N rad, below the rest's)
+    arm_in = arm_for(robot, 0.030)
+    mu_in = float(support(saddle, robot.overall_com(arm_in))[3].min() * weight)
+    r = rock_over(robot, saddle, np.zeros((1, 3)), arm_in[None], PUSH, 300.0, 250.0)
+    assert not r.holds[0] and r.rock[0] == 0 and 0 < r.mu[0] < mu_in - 10
     # flat ground, the CoM 5 mm inside the right track's outer edge: nothing beyond it
     flat = ground(lambda x, y: 0.0 * x, robot, compliance=0.02)
     arm = arm_for(robot, -B + 0.005)
