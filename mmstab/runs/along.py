@@ -12,7 +12,9 @@ worse of the two counts), and checks there what the tracking run and the robot m
   acceleration the robot turns onto a support that holds (:func:`rock_samples`,
   :mod:`mmstab.stability.rock`: a diagonal between two track corners on bumps, a rim);
 - **slide**: the support's tilt beyond ``atan(friction)`` (the friction cone,
-  :mod:`mmstab.stability.slip`);
+  :mod:`mmstab.stability.slip`), priced as the slide it costs within the slip window at
+  the path's time law (:func:`mmstab.stability.slip.cone_slide`): a stretch slides when
+  that exceeds the slip distance (a stop on it, the route's ends included, always does);
 - **high-centred**: the chassis among the loaded contacts (a warning: stuck, not unsafe).
 
 Each failing stretch says where (arc lengths [m]), which limit and by how much.
@@ -28,7 +30,7 @@ from numpy.typing import ArrayLike
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.rock import rock_over
-from mmstab.stability.slip import slip_limit, terrain_friction
+from mmstab.stability.slip import cone_slide, slip_limit, terrain_friction
 from mmstab.stability.support import is_heightmap, loaded_support
 from mmstab.terrain.base import GRAVITY_G, Terrain
 
@@ -222,12 +224,36 @@ def _stretches(mask: np.ndarray, s: FloatArray, values: FloatArray, worst: Any, 
     ]
 
 
+class ConeTiming(NamedTuple):
+    """When the path reaches its samples and the slide that counts (:func:`dense_verdicts`).
+
+    Attributes:
+        times: (N,) the time law's time at each sample [s] (:func:`path_timing`).
+        distance: a slide beyond this within ``window`` slides [m] (``physics.slip_distance``).
+        window: [s] (``physics.slip_window``).
+    """
+
+    times: FloatArray
+    distance: float
+    window: float
+
+
+def _priced(stretches: list, mask: np.ndarray, priced: Any) -> list:
+    if priced is None:
+        return stretches
+    for x, (a, b) in zip(stretches, true_runs(mask), strict=True):
+        x["slide_m"] = _finite(np.max(priced.slide[a:b]))  # None: at rest on it
+        x["duration_s"] = _finite(np.sum(priced.dwell[a:b]))
+    return stretches
+
+
 def dense_verdicts(
     terrain: Terrain,
     along: Along,
     margin: float,
     accelerating: float = 0.0,
     rocks: Rocks | None = None,
+    timing: ConeTiming | None = None,
 ) -> dict[str, Any]:
     """Tip, slide and high-centred stretches of the samples (``summary.json``'s ``along_path``).
 
@@ -238,12 +264,18 @@ def dense_verdicts(
         accelerating: ... plus this [N rad] (:func:`acceleration_margin`) ...
         rocks: ... unless the robot rocks onto a support that holds there
             (:func:`rock_samples`; ``None``: no sample rocks).
+        timing: the samples' times and the slide's limits: a stretch beyond the friction
+            cone slides when its slide within the window exceeds the distance
+            (:func:`mmstab.stability.slip.cone_slide`); ``None``: every such sample slides.
 
     Returns:
         ``spacing_m``, ``samples``, ``mu_min`` [N rad], ``tilt_max`` [rad], and per limit
         (``tip``, ``slide``, ``high_centred``) whether it binds and its ``stretches``: arc
         lengths [m], the worst value there (μ [N rad], tilt [rad]) and by how much it
         passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]);
+        ``slide.stretches`` (with ``timing``) those beyond the cone whose ``slide_m`` within
+        the window exceeds the distance [m] (``duration_s``: the time on them [s]),
+        ``slide.passed`` those beyond it that slide less;
         ``tip.rocks``: the stretches below the threshold where the robot rocks and holds
         (``worst`` μ at rest, the caught support's lowest pushed ``mu_rocked`` [N rad],
         the largest turn ``rock_rad`` [rad] (0: the push leaves the CoM inside), its work
@@ -257,7 +289,16 @@ def dense_verdicts(
     low = known & ~(mu > threshold)
     rocking = low & (rocks.holds if rocks is not None else False)
     tips = low & ~rocking
-    slides = np.isfinite(tilt) & (tilt > critical)
+    beyond = np.isfinite(tilt) & (tilt > critical)
+    slides, priced, passed = beyond, None, []
+    if timing is not None:
+        priced = cone_slide(tilt, timing.times, friction, timing.window)
+        runs = true_runs(beyond)
+        slides = np.zeros_like(beyond)
+        for a, b in runs:
+            if np.max(priced.slide[a:b]) > timing.distance:
+                slides[a:b] = True
+        passed = [(a, b) for a, b in runs if not slides[a]]
     return {
         "spacing_m": float(np.median(np.diff(s))) if len(s) > 1 else 0.0,
         "samples": int(len(s)),
@@ -289,7 +330,21 @@ def dense_verdicts(
             "binds": bool(slides.any()),
             "critical_tilt": critical,
             "friction": friction,
-            "stretches": _stretches(slides, s, tilt, np.max, lambda w: w - critical),
+            "stretches": _priced(
+                _stretches(slides, s, tilt, np.max, lambda w: w - critical), slides, priced
+            ),
+            "passed": [
+                {
+                    "start_s": float(s[a]),
+                    "end_s": float(s[b - 1]),
+                    "worst": float(np.max(tilt[a:b])),
+                    "by": float(np.max(tilt[a:b]) - critical),
+                    "slide_m": float(np.max(priced.slide[a:b])),
+                    "duration_s": float(np.sum(priced.dwell[a:b])),
+                }
+                for a, b in passed
+                if priced is not None
+            ],  # fmt: skip
         },
         "high_centred": {
             "binds": bool(along.high_centred.any()),
