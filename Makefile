@@ -336,7 +336,7 @@ kerb: setup
 .PHONY: ditch
 ditch: setup
 	$(MMSTAB) plan problems/ditch.yaml -o results/ditch --verify
-	$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif
+	-$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif
 
 ## 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json
