@@ -51,3 +51,55 @@ def test_each_pivot_of_a_route_takes_the_plans_com_there(robot) -> None:
     want = pivot_centre(robot, robot.overall_com(np.array([fwd, back])))
     np.testing.assert_allclose(got, want, atol=1e-12)
     assert got[0] > 0.05 and got[1] < -0.05
+
+
+@pytest.mark.parametrize("bad", [0.8, -0.6, "centre", None])
+def test_bad_pivot_centre_exits_2_naming_file_and_field(tmp_path, capsys, bad) -> None:
+    from conftest import write_problem
+
+    from mmstab.cli import main
+
+    path = write_problem(
+        tmp_path, lambda p, r: p.setdefault("physics", {}).update(pivot_centre=bad)
+    )
+    assert main(["simulate", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and str(path) in err and "physics.pivot_centre" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_loop_turns_the_routes_pivots_as_set(tmp_path) -> None:
+    """``physics.pivot_centre``: read from the problem; 0 and a circle leave the path alone."""
+    from conftest import write_problem
+
+    from mmstab.core.problem import load_problem, problem_from_dict
+    from mmstab.outputs.simulate import loop_settings
+    from mmstab.physics.closed_loop import pivoting
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    assert loop_settings(load_problem(write_problem(tmp_path / "a"))).pivot_centre == "auto"
+    set_ = write_problem(
+        tmp_path / "b", lambda p, r: p.setdefault("physics", {}).update(pivot_centre=0.05)
+    )
+    ramp = load_problem(set_)
+    assert loop_settings(ramp).pivot_centre == 0.05
+    assert pivoting(ramp, None, 0.05) is ramp  # the ramp's circle has no pivot
+    data = {
+        "robot": str(ROOT / "problems" / "robots" / "cameleon.yaml"),
+        "terrain": {"generate": {"kind": "plane", "slope": 0.0, "azimuth": 0.0, "seed": 1,
+                                 "size": [5.0, 5.0], "resolution": 0.05}},
+        "path": {"waypoints": [[-1.2, 0.0], [0.0, 0.0], [0.0, 1.2]], "speed": 0.25,
+                 "turn_radius": 0.0},
+    }  # fmt: skip
+    problem = problem_from_dict(data, tmp_path / "route.yaml")
+    stowed = problem.robot.arm_com(problem.robot.stowed)
+    plan = SimpleNamespace(fractions=np.array([0.0, 0.5]), target_com=np.tile(stowed, (2, 1)))
+    assert pivoting(problem, plan, 0.0) is problem
+    for centre, want in ((0.1, 0.1), ("auto", 0.063)):
+        turned = pivoting(problem, plan, centre).base_path
+        (s0, s1), *_ = turned.route.pivot_spans
+        pose = turned.route.sample([s0, s1]).pose
+        np.testing.assert_allclose(pose[:, :2], [[-want, 0.0], [0.0, -want]], atol=1e-3)
+        # the same time (to the speed profile's grid: 0.25 ms here)
+        assert turned.duration == pytest.approx(problem.base_path.duration, abs=1e-3)
