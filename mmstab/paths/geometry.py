@@ -418,9 +418,10 @@ def shift_pivot_centres(route: Route, centres: ArrayLike) -> Route:
                 and isinstance(after, Line) and after.length > -centre + MIN_SEGMENT)  # fmt: skip
         if not fits or centre == 0.0:
             continue
-        assert isinstance(before, Line) and isinstance(after, Line)
+        pivot = pieces[k]
+        assert isinstance(before, Line) and isinstance(after, Line) and isinstance(pivot, Pivot)
         pieces[k - 1] = before._replace(length=before.length - centre)
-        pieces[k] = pieces[k]._replace(centre=float(centre))
+        pieces[k] = pivot._replace(centre=float(centre))
         pieces[k + 1] = after._replace(
             start=after.start - after.direction * centre, length=after.length + centre
         )
