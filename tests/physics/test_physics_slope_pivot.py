@@ -65,7 +65,8 @@ def test_the_pivot_on_a_side_slope_holds(slope_pivot) -> None:
     run, loop = slope_pivot["bounded"], slope_pivot["loop"]
     assert run.tipped is None and run.slid is None and run.stalled is None
     assert int(np.sum(run.status != 0)) == 0
-    # the worst second's downhill drift within the bar (measured 3.5 cm; 7.2 cm unbounded)
+    # the worst second's downhill drift within the bar (measured 3.5 cm; unbounded
+    # about B's origin, 7.2 cm)
     assert loop.slip_window == 1.0 and loop.slip_distance == 0.05
     assert run.slip.max() < loop.slip_distance
     # no more turn in any second than the reference's (measured 7.6° against its 9.0°: the
