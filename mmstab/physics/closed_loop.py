@@ -144,9 +144,10 @@ class PhysicsRun:
             ``check_dt``; NaN between): mmstab's workspace checks the arm against the
             robot's body only, so a planned posture may reach into the ground.
         base_origin_error: the body origin's distance from the reference pose's in M's x-y
-            plane [m]: the controller tracks the control point ``base_offset`` ahead, so a
-            base that drives crabbed (its heading turned off the path's to hold a side
-            slope) has its origin off the path by about offset · sin(crab) more.
+            plane [m] (a route's pivots about their centres, ``pivot_centre``): the
+            controller tracks the control point ``base_offset`` ahead, so a base that drives
+            crabbed (its heading turned off the path's to hold a side slope) has its origin
+            off the path by about offset · sin(crab) more.
         timing: the arm's time law's report (:meth:`mmstab.control.timing.TimeLaw.summary`),
             None when ``controller.dynamic_fraction`` is null.
         reference_wait_s: how long the reference waited for the base in all [s]
