@@ -18,11 +18,13 @@ turns about that point on the waypoint (:meth:`mmstab.paths.route.RoutePath.with
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.paths.route import RoutePath
 from mmstab.stability.skid import skid_twist, track_patch
@@ -66,3 +68,23 @@ def route_pivot_centres(robot: Robot, path: RoutePath, plan: Any) -> FloatArray:
     arm = np.column_stack([np.interp(u, f, target[:, i]) for i in range(3)])
     com = robot.overall_com(arm).reshape(len(spans), 2, 3).mean(axis=1)
     return pivot_centre(robot, com)
+
+
+def pivoting(problem: Problem, plan: Any, centre: float | str) -> Problem:
+    """The problem with its route's pivots about their centres (``physics.pivot_centre``).
+
+    ``auto``: each pivot about the skid model's centre for the plan's CoM there
+    (:func:`route_pivot_centres`); a number: every pivot about the point
+    that far ahead of B's origin [m]; 0, or a path without pivots: the problem as it is.
+    """
+    path = problem.base_path
+    if not isinstance(path, RoutePath) or path.limits is None or not len(path.route.pivot_spans):
+        return problem
+    spans = len(path.route.pivot_spans)
+    if centre == "auto":
+        centres = route_pivot_centres(problem.robot, path, plan)
+    else:
+        centres = np.full(spans, float(centre))
+    if not np.any(centres):
+        return problem
+    return dataclasses.replace(problem, base_path=path.with_pivot_centres(centres))

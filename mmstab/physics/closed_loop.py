@@ -41,7 +41,7 @@ import numpy as np
 
 from mmstab.control.approach import arm_references, run_reference
 from mmstab.control.layout import ControllerParams
-from mmstab.control.pivot import route_pivot_centres
+from mmstab.control.pivot import pivoting
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
@@ -350,26 +350,6 @@ def run_closed_loop(
         tip_cause=cause,
         body_G_T_B=frames_at_checks(checks, m),
     )
-
-
-def pivoting(problem: Problem, plan: Any, centre: float | str) -> Problem:
-    """The problem with its route's pivots about their centres (``LoopSettings.pivot_centre``).
-
-    ``auto``: each pivot about the skid model's centre for the plan's CoM there
-    (:func:`mmstab.control.pivot.route_pivot_centres`); a number: every pivot about the point
-    that far ahead of B's origin [m]; 0, or a path without pivots: the problem as it is.
-    """
-    path = problem.base_path
-    if not isinstance(path, RoutePath) or path.limits is None or not len(path.route.pivot_spans):
-        return problem
-    spans = len(path.route.pivot_spans)
-    if centre == "auto":
-        centres = route_pivot_centres(problem.robot, path, plan)
-    else:
-        centres = np.full(spans, float(centre))
-    if not np.any(centres):
-        return problem
-    return dataclasses.replace(problem, base_path=path.with_pivot_centres(centres))
 
 
 def frames_at_checks(checks: TipCheck, m: int) -> FloatArray:

@@ -72,9 +72,9 @@ def test_the_loop_turns_the_routes_pivots_as_set(tmp_path) -> None:
     """``physics.pivot_centre``: read from the problem; 0 and a circle leave the path alone."""
     from conftest import write_problem
 
+    from mmstab.control.pivot import pivoting
     from mmstab.core.problem import load_problem, problem_from_dict
     from mmstab.outputs.simulate import loop_settings
-    from mmstab.physics.closed_loop import pivoting
 
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()

@@ -24,11 +24,11 @@ from conftest import ROOT
 
 from mmstab import app
 from mmstab.control.controller import build_controller
-from mmstab.control.pivot import pivot_centre
+from mmstab.control.pivot import pivot_centre, pivoting
 from mmstab.control.reference import initial_state
 from mmstab.core.problem import problem_from_dict
 from mmstab.outputs.simulate import controller_settings, loop_settings, stowed_plan
-from mmstab.physics.closed_loop import pivoting, run_closed_loop
+from mmstab.physics.closed_loop import run_closed_loop
 
 pytestmark = [pytest.mark.mujoco, pytest.mark.slow]
 

@@ -21,11 +21,12 @@ from test_random_routes import COARSE, pair_problem
 
 from mmstab import app
 from mmstab.control.controller import build_controller
+from mmstab.control.pivot import pivoting
 from mmstab.control.reference import initial_state
 from mmstab.core.defaults import HEIGHTMAP_ROUTE_PLANNER, with_defaults
 from mmstab.core.problem import load_problem
 from mmstab.outputs.simulate import controller_settings, loop_settings
-from mmstab.physics.closed_loop import pivoting, run_closed_loop
+from mmstab.physics.closed_loop import run_closed_loop
 
 ROUTE = {"waypoints": [[0.0, 0.0], [3.0, 0.0]], "speed": 0.2}
 HEIGHTMAP = {"generate": {"kind": "rough", "seed": 1, "size": [8.0, 6.0], "resolution": 0.05}}
