@@ -133,12 +133,14 @@ def cone_slide(
     t = np.asarray(times, dtype=float)
     g = float(np.linalg.norm(GRAVITY_G))
     excess = np.where(np.isfinite(th), g * (np.sin(th) - friction * np.cos(th)), -g * friction)
+    if th.size == 0:
+        return ConeSlide(excess, np.zeros(0), np.zeros(0))
     mid = (t[1:] + t[:-1]) / 2
     start = np.r_[-np.inf if rests else t[0], mid]
     end = np.r_[mid, np.inf if rests else t[-1]]
     dwell = end - start
     n = len(th)
-    if n == 0 or not (excess > 0).any():
+    if not (excess > 0).any():
         return ConeSlide(excess, dwell, np.zeros(n))
     if rests and (excess[0] > 0 or excess[-1] > 0):  # at rest on it: the slide never stops
         first = excess[0] > 0
@@ -146,8 +148,8 @@ def cone_slide(
         slide[0 if first else -1] = np.inf
         if first and excess[-1] > 0:
             slide[-1] = np.inf
-        inner = cone_slide(th[1:-1], t[1:-1], friction, window, rests=False).slide if n > 2 else []
-        slide[1:-1] = inner
+        if n > 2:
+            slide[1:-1] = cone_slide(th[1:-1], t[1:-1], friction, window, rests=False).slide
         return ConeSlide(excess, dwell, slide)
     # a cell of infinite dwell inside the cone holds (the slide stops there)
     dt = np.where(np.isfinite(dwell), dwell, 0.0)

@@ -418,3 +418,16 @@ def test_a_low_mu_about_a_diagonal_rocks_a_low_mu_at_a_track_edge_tips(robot):
     along, rocks, tip = verdict(0.0 * X, arm_for(-0.255), 0.02)
     assert (along.mu < 60).all() and rocks.checked.all() and not rocks.holds.any()
     assert tip["binds"] and tip["rocks"] == [] and (rocks.mu == -np.inf).all()
+
+
+def test_a_routes_cone_check_at_its_planned_poses_counts_at_its_ends_only():
+    """The path passes its interior planned poses (the dense samples price them); it rests
+    at the first and the last."""
+    from mmstab.runs.plan_verdicts import passed_poses
+
+    bad = [{"index": k, "pose": [0.0, 0.0, 0.0], "tilt": 0.7} for k in (1, 2)]
+    inner = passed_poses({"slides": True, "sliding_poses": bad}, 4)
+    assert not inner["slides"] and inner["sliding_poses"] == []
+    assert [b["index"] for b in inner["passed_poses"]] == [1, 2]
+    ends = passed_poses({"slides": True, "sliding_poses": [*bad, {**bad[0], "index": 3}]}, 4)
+    assert ends["slides"] and [b["index"] for b in ends["sliding_poses"]] == [3]
