@@ -73,6 +73,34 @@ def test_heights_c_equal_numpy_on_random_maps(robot, pairs, margin):
     assert low_seen > 100  # the ground rules some postures out: both paths say which
 
 
+@pytest.mark.parametrize("margin", MARGINS)
+def test_heights_of_kept_rows_equal_those_of_their_pieces(robot, pairs, margin):
+    """The kernel reading the kept pieces by row (no copy) gives the copied pieces' heights."""
+    from mmstab.planner.ground.under_arm import GroundUnderArm, KeptPieces
+
+    rng = np.random.default_rng(12)
+    q = rng.uniform(robot.joint_lower, robot.joint_upper, (2000, 4))
+    problem = pairs[1]
+    poses = _route_poses(problem)
+    kernel = GroundUnderArm(robot, problem.terrain, poses, margin=margin, backend="c")
+    twin = GroundUnderArm(robot, problem.terrain, poses, margin=margin, backend="numpy")
+    kept = KeptPieces(kernel, q)
+    kept.add(rng.permutation(2000)[:700])  # kept out of order, then more on demand
+    low_seen = 0
+    for k in range(len(poses)):
+        rows = rng.integers(0, 2000, 400)  # repeats, any order
+        view, copied = kept.view(rows), kept(rows)
+        assert np.array_equal(copied.low, kernel.body(q[rows]).low)
+        for above, plane in ((np.inf, False), (0.05, False), (0.05, True)):
+            h = kernel.poses[k].heights(copied, above, plane)
+            assert np.array_equal(kernel.poses[k].heights(view, above, plane), h)
+            assert np.array_equal(twin.poses[k].heights(view, above, plane), h)  # NumPy's
+        clear = kernel.clear(k, q[rows], 0.05, view)
+        assert np.array_equal(clear, twin.clear(k, q[rows], 0.05, copied))
+        low_seen += int((~clear).sum())
+    assert low_seen > 50
+
+
 def test_a_route_plans_the_same_with_the_kernel_and_its_twin(pairs, monkeypatch):
     """The plan's postures and moves identical, the kernel's against the NumPy twin's."""
     import mmstab.planner.searches.roadmap as search

@@ -64,7 +64,8 @@ int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
     return 0;
 }
 
-/* One pose: low (n, P) and centre (n, P, 3) from mmstab_arm_pieces; T the pose's M_T_B
+/* One pose: low (m, P) and centre (m, P, 3) from mmstab_arm_pieces, posture k's at row
+ * at[k] (at NULL: row k); T the pose's M_T_B
  * (4, 4); cos_tilt its z-z entry; top the peak map's max [m]; above [m]: pieces that high
  * over the highest ground are not looked at closer; plane: pieces over ground not above
  * the support plane are +inf (left to the plane check); peak (rows, cols) with block (0, 0)
@@ -73,8 +74,8 @@ int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
  * path would widen the map otherwise); slack [m].
  * Out: h (n,) [m]. Returns 1 when a piece's square lies outside the peak map (nothing
  * meaningful written then: the caller covers more ground and calls again). */
-int mmstab_arm_heights(const double *low, const double *centre, long n, long P,
-                       const double *T, double cos_tilt, double top, double above,
+int mmstab_arm_heights(const double *low, const double *centre, const long *at, long n,
+                       long P, const double *T, double cos_tilt, double top, double above,
                        long plane, const double *peak, long rows, long cols, long i0,
                        long j0, long block, long reach, double lattice, double slack,
                        double *h)
@@ -82,11 +83,12 @@ int mmstab_arm_heights(const double *low, const double *centre, long n, long P,
     const double base = top > 0.0 ? top : 0.0;
     for (long k = 0; k < n; k++) {
         double least = INFINITY;
+        const long r = at ? at[k] : k; /* the posture's row of low and centre */
         for (long p = 0; p < P; p++) {
-            double lowest = low[k * P + p] / cos_tilt;
+            double lowest = low[r * P + p] / cos_tilt;
             double v = lowest - base;
             if (v < above) {
-                const double *c = centre + (k * P + p) * 3;
+                const double *c = centre + (r * P + p) * 3;
                 double x = c[0] * T[0] + c[1] * T[1] + c[2] * T[2] + T[3];
                 double y = c[0] * T[4] + c[1] * T[5] + c[2] * T[6] + T[7];
                 long i = (long)floor(x / lattice) - i0, j = (long)floor(y / lattice) - j0;
