@@ -46,6 +46,32 @@ def test_pieces_in_body_c_equals_numpy(robot, margin):
 
 
 @pytest.mark.parametrize("margin", MARGINS)
+def test_pieces_of_postures_sharing_their_first_joints(robot, margin):
+    """Postures on a lattice, sorted: the kernel reuses a link's pieces where its frame repeats.
+
+    The reused values are those computed: bit for bit the NumPy twin's, sorted or not.
+    """
+    from mmstab.planner.ground.under_arm import arm_pieces, pieces_in_body
+
+    pieces = arm_pieces(robot)
+    rng = np.random.default_rng(8)
+    lo, hi = robot.joint_lower, robot.joint_upper
+    axes = [np.linspace(lo[j], hi[j], n) for j, n in enumerate((6, 5, 4))]
+    q = np.stack([rng.choice(a, 3000) for a in axes] + [rng.uniform(lo[3], hi[3], 3000)], 1)
+    q[::7, 3] = q[1::7, 3][: len(q[::7])]  # some whole postures repeated too
+    q = q[np.lexsort(q.T[::-1])]
+    twin = pieces_in_body(robot, pieces, q, margin, "numpy")
+    kernel = pieces_in_body(robot, pieces, q, margin, "c")
+    assert np.array_equal(kernel.low, twin.low)
+    assert np.allclose(kernel.centre, twin.centre, rtol=0.0, atol=1e-15)
+    shuffled = rng.permutation(len(q))  # no repeats next to each other: each computed
+    alone = pieces_in_body(robot, pieces, q[shuffled], margin, "c")
+    assert np.array_equal(alone.low, kernel.low[shuffled])
+    assert np.array_equal(alone.centre, kernel.centre[shuffled])
+    assert (np.diff(q[:, 0]) == 0).mean() > 0.9  # the first joint repeats: reuse is tested
+
+
+@pytest.mark.parametrize("margin", MARGINS)
 def test_heights_c_equal_numpy_on_random_maps(robot, pairs, margin):
     from mmstab.planner.ground.under_arm import GroundUnderArm
 

@@ -25,18 +25,32 @@
  */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Link frames (n, L, 4, 4) row-major; pieces: link (P,), points (P, 8, 3), radius (P,),
  * mid (P, 3) (the points' mean); margin: 0 for z itself, else cos and sin of it.
- * Out: low (n, P) [m], centre (n, P, 3) [m]. */
+ * Out: low (n, P) [m], centre (n, P, 3) [m].
+ *
+ * A piece whose link's frame is the previous posture's, bit for bit (postures that share
+ * their first joints, taken in order), gets the previous posture's values: the same
+ * arithmetic on the same numbers. */
 int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
                       const double *points, const double *radius, const double *mid,
                       long P, long margin, double cm, double sm, double *low,
                       double *centre)
 {
     for (long k = 0; k < n; k++) {
+        int same = 0;
         for (long p = 0; p < P; p++) {
             const double *F = frames + (k * L + link[p]) * 16;
+            if (k > 0 && (p == 0 || link[p] != link[p - 1])) /* the frame's rows 0-2 */
+                same = memcmp(F, F - L * 16, 12 * sizeof(double)) == 0;
+            if (same) {
+                low[k * P + p] = low[(k - 1) * P + p];
+                for (int r = 0; r < 3; r++)
+                    centre[(k * P + p) * 3 + r] = centre[((k - 1) * P + p) * 3 + r];
+                continue;
+            }
             const double *pt = points + p * 24;
             double lo = INFINITY;
             for (int m = 0; m < 8; m++) {

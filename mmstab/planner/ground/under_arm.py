@@ -412,6 +412,9 @@ class KeptPieces:
         """Compute the pieces of ``rows`` not kept yet, in one batch."""
         new = np.unique(rows[self.slot[rows] < 0])  # those not kept, ascending
         if new.size:
+            # by their joint angles, the first first: postures sharing their first joints
+            # come together and the kernel reuses those links' pieces (the same values)
+            new = new[np.lexsort(self.postures[new].T[::-1])]
             body = self.under.body(self.postures[new])
             end = self.size + len(new)
             if end > len(self.low):  # the kept rows copied, the new room left untouched
