@@ -137,9 +137,9 @@ def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
     pad = np.full((2, w + 1), -np.inf)
     zpad = np.concatenate([pad, z, pad], axis=1)  # window k holds samples k - w - 1 ...
     windows = np.lib.stride_tricks.sliding_window_view(zpad, 2 * w + 1, axis=1)[:, :rolls]
-    sin_roll = np.ones(windows.shape[:2])
-    R = sin_roll.shape[1]
-    at = _lifted_rolls(z, R, r, w) if lift.max() <= r else np.ones(sin_roll.shape, bool)
+    R = int(windows.shape[1])  # the rolls (fewer where the samples end first)
+    sin_roll = np.ones((2, R))
+    at = _lifted_rolls(z, R, r, w) if lift.max() <= r else np.ones((2, R), bool)
     t, k = np.nonzero(at)
     centre = windows[t, k] + lift  # (rolls computed, 2w + 1)
     j = centre.argmax(axis=-1)
@@ -150,7 +150,7 @@ def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
     with np.errstate(invalid="ignore"):
         sin_roll[at] = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
     m = int(sin_roll.argmin())
-    return float(sin_roll.ravel()[m]), float((m % sin_roll.shape[1]) * SAMPLE_STEP)
+    return float(sin_roll.ravel()[m]), float((m % R) * SAMPLE_STEP)
 
 
 def _lifted_rolls(z: FloatArray, rolls: int, r: float, w: int) -> NDArray[np.bool_]:
