@@ -10,11 +10,16 @@ not: it falls as the turn gets faster. What the route's time law
 ratio MuJoCo / model over the cases that turn slower than ``slow_yaw_rate``. Its largest
 value bounds ``physics.slide_budget`` (the share of ``slip_distance`` a slowed turn's model
 slide may use): ``slide_budget <= 1 / ratio`` keeps MuJoCo's slide within the distance
-wherever the model's error is no worse than on this grid.
+wherever the model's error is no worse than on this grid. The faster turns are the
+verdict's: a pivot faster than the tracks turn lasts longer than the path's (MuJoCo turns at
+the tracks' rate and slides per second about as the model does at it), and the largest
+ratio of the slides per second, MuJoCo over the model, bounds from below the margin
+:data:`mmstab.runs.verdict.TRACKS_TIME_MARGIN` the verdict puts on such turns.
 
 Settings: ``problems/skid_rates.yaml``. Writes ``summary.json`` (every case; per command the
 median MuJoCo yaw rate and the ratio's median and range; over the slow cases the ratio's
-largest value, its case and ``budget_bound``).
+largest value, its case and ``budget_bound``; over the fast ones the slide per second's
+ratio, its median and largest).
 """
 
 from __future__ import annotations
@@ -55,7 +60,8 @@ def ratios(cases: list[dict[str, Any]]) -> list[dict[str, Any]]:
             continue
         out.append({k: c[k] for k in ("slope_deg", "heading_deg", "command")}
                    | {"yaw_rate": abs(mj["yaw_rate"]), "mujoco_m_rad": a, "model_m_rad": b,
-                      "ratio": a / b})  # fmt: skip
+                      "ratio": a / b,
+                      "per_second_ratio": mj["downhill"] / model["downhill"]})  # fmt: skip
     return out
 
 
@@ -90,6 +96,10 @@ def summarize(settings: dict[str, Any], cases: list[dict[str, Any]]) -> dict[str
             "cases": len(fast),
             "ratio_median": float(np.median([x["ratio"] for x in fast])) if fast else None,
             "ratio_max": max((x["ratio"] for x in fast), default=None),
+            "per_second_ratio_median": float(np.median([x["per_second_ratio"] for x in fast]))
+            if fast
+            else None,
+            "per_second_ratio_max": max((x["per_second_ratio"] for x in fast), default=None),
         },
         "rated": rated,
     }
