@@ -25,6 +25,7 @@ from mmstab.runs.along import (
     dense_verdicts,
     limit_verdicts,
     path_timing,
+    rock_samples,
     sample_spacing,
 )
 from mmstab.runs.climb_out import climb_out_verdict
@@ -108,8 +109,16 @@ def route_verdicts(
     slip["slides"] = bool(slip["slides"]) or bool(turning["sliding_turns"])
     # between the planned poses: every few cm, the arm in the postures it moves between
     along = plan_along(robot, terrain, route, plan) if along is None else along
-    accelerating = acceleration_margin(robot.total_mass, route_acceleration(route))
-    dense = dense_verdicts(terrain, along, settings.margin, accelerating)
+    acceleration = route_acceleration(route)
+    accelerating = acceleration_margin(robot.total_mass, acceleration)
+    # where μ is low about an edge inside the footprint, the push rocks it onto the next one
+    from mmstab.planner.along_route import planned_com
+
+    threshold = settings.margin + accelerating
+    planned = planned_com(robot, plan.postures, plan.target_com)
+    rocks = rock_samples(robot, terrain, along, plan.s, planned, threshold, settings.margin,
+                         acceleration)  # fmt: skip
+    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks)
     slip = with_stretches(slip, dense, "slide", "slides")
     poses = [
         {"pose": plan.poses[k], "mu_planned": float(plan.mu_planned[k]),

@@ -296,8 +296,10 @@ def test_a_physics_event_is_placed_on_the_route():
 
 
 @pytest.mark.slow
-def test_the_users_ditch_is_named_between_the_poses(tmp_path):
-    """problems/ditch.yaml: the planning poses straddle the ditch; the dense check names it."""
+def test_the_users_ditch_rocks_between_the_poses(tmp_path):
+    """problems/ditch.yaml: the poses straddle the ditch; the dense check finds μ low there
+    about an edge the base rocks over (MuJoCo crosses without tipping), so no tip: the
+    plan refuses the route for its slide."""
     import json
     import subprocess
     import sys
@@ -311,17 +313,64 @@ def test_the_users_ditch_is_named_between_the_poses(tmp_path):
          "-o", str(tmp_path)],
         capture_output=True, text=True, cwd=ROOT, timeout=600,
     )  # fmt: skip
-    assert r.returncode == 3, r.stderr  # unstable
+    assert r.returncode == 4, r.stderr  # slides
     s = json.loads((tmp_path / "summary.json").read_text())
-    tip = s["verdicts"]["tip"]
-    assert tip["verdict"] == "below_margin" and tip["unsafe"]
-    # the ditch lies across x in [-0.3, 0.3] m: the stretch named is in it (the body origin
-    # within the track's half length of it)
-    ((s0, s1),) = tip["where"]
+    assert s["verdicts"]["tip"]["verdict"] == "holds" and s["verdicts"]["slide"]["unsafe"]
+    # the ditch lies across x in [-0.3, 0.3] m: the rock is in it (the body origin within
+    # the track's half length of it), μ below what the accelerations need (17.6 N rad),
+    # a fraction of a degree's turn onto a support that holds the push
+    (rock,) = s["along_path"]["tip"]["rocks"]
     path = load_problem(ROOT / "problems" / "ditch.yaml").base_path
     u = np.linspace(0.0, 1.0, 20001)
     x = np.asarray(path.pose_at(u))[:, 0]
-    x_named = np.interp([s0, s1], np.asarray(path.s_at(u)), x)
-    assert np.all(np.abs(x_named) < 0.3 + 0.35) and tip["mu_min"] < 17.6
+    x_named = np.interp([rock["start_s"], rock["end_s"]], np.asarray(path.s_at(u)), x)
+    assert np.all(np.abs(x_named) < 0.3 + 0.35)
+    assert rock["worst"] < s["stability"]["along_threshold"] < 300 < rock["mu_rocked"]
+    assert rock["rock_rad"] < np.radians(1) and rock["work_m"] < rock["barrier_m"]
     assert min(s["mu_planned"]) > 400  # every planning pose is well clear: the poses miss it
-    assert f"s = {s0:.2f}" in r.stderr
+
+
+def test_a_low_mu_about_a_diagonal_rocks_a_low_mu_at_a_track_edge_tips(robot):
+    """The dense tip verdict with the rock check (:func:`rock_samples`), by construction.
+
+    On the saddle ``z = 0.2 x y`` the base rests on its high diagonal (front-left, rear-right)
+    with the CoM moved near it: μ there is below the threshold, and pushed across it (at
+    1 m/s^2) the base turns onto the opposite corner, which holds it. On flat ground with
+    the CoM 5 mm inside the right track's outer edge nothing is beyond that edge: it tips.
+    """
+    from mmstab.runs.along import rock_samples
+    from mmstab.terrain.rest import RestSettings
+
+    x = np.arange(-1.5, 1.5 + 1e-9, 0.01)
+    X, Y = np.meshgrid(x, x)
+    m_arm = robot.total_mass - robot.base.mass
+
+    def arm_for(y_overall):  # the arm CoM in B that puts the overall CoM at y [m]
+        arm = np.array(robot.arm_com(robot.stowed), dtype=float)
+        arm[1] = (robot.total_mass * y_overall - robot.base.mass * robot.base.com[1]) / m_arm
+        return arm
+
+    def verdict(z, arm, compliance):
+        hm = Heightmap.build(z, 0.01, [x[0], x[0]], "test")
+        terrain = HeightmapTerrain(hm, settings=RestSettings(compliance=compliance))
+        terrain = terrain.with_robot(robot)
+        s = np.array([0.0, 0.05])
+        poses = np.zeros((2, 3))
+        along = along_path(robot, terrain, poses, s, s, np.tile(arm, (2, 1)))
+        rocks = rock_samples(robot, terrain, along, s, np.tile(arm, (2, 1)), 60.0, 0.0, 1.0)
+        return along, rocks, dense_verdicts(terrain, along, 0.0, 60.0, rocks)["tip"]
+
+    along, rocks, tip = verdict(0.2 * X * Y, arm_for(0.038), 0.0)
+    assert (along.mu < 60).all() and rocks.checked.all() and rocks.holds.all()
+    assert not tip["binds"] and tip["stretches"] == []
+    (rocked,) = tip["rocks"]
+    assert [rocked["start_s"], rocked["end_s"]] == [0.0, 0.05]
+    assert rocked["worst"] == pytest.approx(np.min(along.mu))
+    assert rocked["mu_rocked"] > 0 and rocked["work_m"] < rocked["barrier_m"]
+    assert 0 < rocked["rock_rad"] < np.radians(10.5)  # at most onto the far corner
+    # without the rock check the same samples tip
+    hm = Heightmap.build(0.2 * X * Y, 0.01, [x[0], x[0]], "test")
+    assert dense_verdicts(HeightmapTerrain(hm), along, 0.0, 60.0)["tip"]["binds"]
+    along, rocks, tip = verdict(0.0 * X, arm_for(-0.255), 0.02)
+    assert (along.mu < 60).all() and rocks.checked.all() and not rocks.holds.any()
+    assert tip["binds"] and tip["rocks"] == [] and (rocks.mu == -np.inf).all()
