@@ -106,7 +106,17 @@ class PoseState:
         checked: per reach row checked by :meth:`MapGround.node_clear`: (clear, over unknown).
     """
 
-    __slots__ = ("key", "cells", "reach", "M_T_B", "_build", "_ground", "known", "low", "checked")
+    __slots__ = (
+        "key",
+        "cells",
+        "reach",
+        "M_T_B",
+        "_build",
+        "_ground",
+        "_rows",
+        "_measured",
+        "checked",
+    )
 
     def __init__(
         self,
@@ -120,8 +130,24 @@ class PoseState:
         self.key, self.cells, self.reach, self.M_T_B = key, cells, reach, M_T_B
         self._build: Callable[[], PoseGround] | None = build
         self._ground: PoseGround | None = None
-        self.known, self.low = np.zeros(rows, bool), np.zeros(rows, bool)
+        self._rows = rows
+        self._measured: tuple[NDArray[np.bool_], NDArray[np.bool_]] | None = None
         self.checked: dict[int, tuple[bool, bool]] = {}
+
+    def _masks(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        if self._measured is None:  # a scoring's (the roadmap's reach: 2 x 262,000 rows)
+            self._measured = np.zeros(self._rows, bool), np.zeros(self._rows, bool)
+        return self._measured
+
+    @property
+    def known(self) -> NDArray[np.bool_]:
+        """Per reach row: measured at this pose (N,) (made on first use, then the same)."""
+        return self._masks()[0]
+
+    @property
+    def low(self) -> NDArray[np.bool_]:
+        """Per reach row: measured too low (N,) (made on first use, then the same)."""
+        return self._masks()[1]
 
     @property
     def ground(self) -> PoseGround:
@@ -156,6 +182,7 @@ class MapGround:
         self.states: dict[int, PoseState] = {}
         self.previous = {} if previous is None else previous.states
         self.over_unknown: list[int] = []  # the poses node_clear found over unknown cells
+        self._at = np.rint(self.hm.origin / self.hm.resolution).astype(int)  # its global cells
 
     def state(self, k: int) -> PoseState:
         """Pose ``k``'s state on this map: the last map's if nothing changed under the arm."""
@@ -169,7 +196,7 @@ class MapGround:
         edge = bool(lo[0] < 0 or lo[1] < 0 or hi[0] >= nx or hi[1] >= ny)
         lo, hi = np.maximum(lo, 0), np.minimum(hi, [nx - 1, ny - 1])
         z = self.hm.elevation[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-        at = np.rint(self.hm.origin / self.hm.resolution).astype(int)  # the map's global cells
+        at = self._at  # the map's global cells
         key = ((*(lo + at), *(hi + at)), edge)
         old = self.previous.get(k)
         if (

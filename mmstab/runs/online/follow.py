@@ -176,19 +176,17 @@ class Follower:
     def _nearest(self, xy: FloatArray) -> int:
         """Index in :attr:`s_fine` of the route point nearest ``xy``, near the last progress."""
         if self.s is None:
-            window = np.ones(len(self.s_fine), dtype=bool)
-        else:
-            window = (self.s_fine >= self.s - PROGRESS_BACK) & (
-                self.s_fine <= self.s + PROGRESS_AHEAD
-            )
-        idx = np.flatnonzero(window)
-        d = np.linalg.norm(self.xy_fine[idx] - xy, axis=1)
-        return int(idx[int(np.argmin(d))])
+            lo, hi = 0, len(self.s_fine)
+        else:  # s_fine ascends: the window [s - back, s + ahead] is one slice
+            lo = int(np.searchsorted(self.s_fine, self.s - PROGRESS_BACK, side="left"))
+            hi = int(np.searchsorted(self.s_fine, self.s + PROGRESS_AHEAD, side="right"))
+        d = np.linalg.norm(self.xy_fine[lo:hi] - xy, axis=1)
+        return lo + int(np.argmin(d))
 
     def update(self, u: MapUpdate) -> FollowStep:
         """One map (module text)."""
         t0, cpu0 = time.perf_counter(), time.thread_time()
-        terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
+        terrain = HeightmapTerrain(u.grid.heightmap, self.robot, friction=self.friction)  # bound
         pose = u.odometry.pose
         at = self._nearest(pose[:2])
         self.s = s = float(min(self.s_fine[at], self.route.length))
