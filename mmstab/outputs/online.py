@@ -138,6 +138,60 @@ def compare(
     }
 
 
+def along_route(
+    problem: Problem, run: FollowRun, offline: OfflinePlan | None = None
+) -> dict[str, Any] | None:
+    """μ along the way on the true ground: the loop's states, and the offline plan there.
+
+    The loop's μ (``mu_min``) is each covered map's state (the odometry pose, the arm's
+    posture then) on that map; ``mu_planned_min`` only the planned poses' (``planner.spacing``
+    apart). Here the same states rest on the problem's own terrain (one state, one μ: the
+    difference is the map's), and the offline plan is taken at the same poses as its dense
+    verdicts take it (the arm in the two planned postures it moves between, the worse
+    counts; ``offline_plan``, when its postures are kept). None: no covered map.
+
+    Args:
+        problem: the followed problem (its terrain: the true ground).
+        run: the online run.
+        offline: the offline plan on the run's planning grid.
+    """
+    st = [x for x in run.steps if x.covered and np.isfinite(x.mu)]
+    if not st:
+        return None
+    robot = problem.robot
+    poses = np.array([x.pose for x in st])
+    q = np.array([x.q for x in st])
+    s = np.array([x.s for x in st])
+    mu_map = np.array([x.mu for x in st])
+    mu_true = loaded_mu(robot, problem.terrain, poses, robot.arm_com(q), q, strict=False)
+
+    def at(i: int, **more: float) -> dict[str, Any]:
+        return {"time_s": st[i].time, "s_m": float(s[i]), **{k: float(v) for k, v in more.items()}}
+
+    i, j = int(np.argmin(mu_map)), int(np.nanargmin(mu_true))
+    diff = mu_map - mu_true
+    out: dict[str, Any] = {
+        "maps": len(st),
+        "lowest_on_map": at(i, mu_map=mu_map[i], mu_true_ground=mu_true[i]),
+        "lowest_on_true_ground": at(j, mu_true_ground=mu_true[j], mu_map=mu_map[j]),
+        "map_minus_true_ground": {
+            "median": float(np.nanmedian(diff)),
+            "p5": float(np.nanpercentile(diff, 5)),
+            "p95": float(np.nanpercentile(diff, 95)),
+        },
+    }
+    if offline is not None and offline.postures is not None and len(offline.s) > 1:
+        after = np.clip(np.searchsorted(offline.s, s, side="right"), 1, len(offline.s) - 1)
+        worse = np.full(len(st), np.inf)
+        for k in (after - 1, after):
+            qk = offline.postures[k]
+            mu_k = loaded_mu(robot, problem.terrain, poses, robot.arm_com(qk), qk, strict=False)
+            worse = np.fmin(worse, mu_k)
+        m = int(np.nanargmin(worse))
+        out["offline_plan"] = at(m, mu_true_ground=worse[m])
+    return out
+
+
 def run_follow(
     problem: Problem,
     recording: str | os.PathLike[str],
@@ -160,6 +214,7 @@ def run_follow(
         "online": problem.section("online"),
         "planner": problem.section("planner"),
     }
+    offline = None
     if run.plans:
         t1 = time.perf_counter()
         offline = offline_plan(problem, run, workspace)
@@ -169,6 +224,7 @@ def run_follow(
         summary["offline"]["wall_seconds"] = time.perf_counter() - t1
         _figure(out / "online.png", run, offline)
         _snapshot(out / "online_map.png", problem, run, recording)
+    summary["along_route"] = along_route(problem, run, offline)
     frames = run_frames(run)
     if len(frames.t):
         write_run(out / "online.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
