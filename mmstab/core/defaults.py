@@ -113,6 +113,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         # experiment's MuJoCo runs (results/skid_fit/summary.json: shear_modulus_m)
         "shear_modulus": 0.0041,
         "governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 10.0},
+        # a route's pivots turn about the skid model's pivot centre for the plan's CoM there
+        # (mmstab.control.pivot), or about a point this far ahead of B's origin [m] (0: the origin)
+        "pivot_centre": "auto",
     },
     "online": {
         "map_topic": "/elevation_mapping/elevation_map",

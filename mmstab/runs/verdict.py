@@ -393,6 +393,15 @@ def climb_verdict(
     }
 
 
+def _cone_slide_words(stretch: Mapping[str, Any]) -> str:
+    """What a stretch beyond the friction cone slides within the window (when priced)."""
+    if "slide_m" not in stretch:
+        return ""
+    if stretch["slide_m"] is None:
+        return ", at rest on it (it slides indefinitely)"
+    return f", {100 * stretch['slide_m']:.1f} cm in {stretch['duration_s']:.2f} s there"
+
+
 def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
     """One line naming the poses where the tracks slide, and the turns that slide."""
     bad = verdict["sliding_poses"]
@@ -413,6 +422,7 @@ def describe_sliding(verdict: Mapping[str, Any], total: int) -> str:
     if between:
         named = "; ".join(
             f"s = {x['start_s']:.2f}-{x['end_s']:.2f} m: tilt {math.degrees(x['worst']):.1f} deg"
+            + _cone_slide_words(x)
             for x in between[:LISTED_POSES]
         )
         parts.append(
