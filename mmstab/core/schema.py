@@ -336,7 +336,8 @@ ONLINE = obj(
 # choices"), the arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
 # achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
 # governor (the base error [m] from which the reference slows, at which it stops, and the
-# wait [s] after which the run ends stalled; null: the reference runs on time).
+# wait [s] after which the run ends stalled; null: the reference runs on time); how far the
+# road wheels may drop below their bump stops [m] (0: stiff wheels).
 PHYSICS_KEYS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -352,6 +353,7 @@ PHYSICS_KEYS = obj(
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
     shear_modulus={"type": "number", "minimum": 0, "maximum": 1},
+    suspension_travel={"type": "number", "minimum": 0, "maximum": 0.2, "unit": "m"},
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
 )
 # ``tip_angle``: the former name of ``disagreement_angle``, still read from older files

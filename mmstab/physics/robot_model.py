@@ -105,8 +105,8 @@ class ModelSettings:
     suspension_damping: float = 1.0
     suspension_armature: float = 0.2
     suspension_travel: float = 0.0
-    travel_force: float = 0.05
-    travel_damping: float = 5.0
+    travel_force: float = 0.01
+    travel_damping: float = 0.5
     track_kv: float = 2000.0
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
