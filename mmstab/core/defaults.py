@@ -99,9 +99,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "slip_distance": 0.05,
         "slip_window": 1.0,
         # share of slip_distance a route's turn may slide within slip_window: the plan slows
-        # the corners that would slide more (mmstab.runs.time_law; e.g. 0.8). null: none
-        # slowed, the default: in MuJoCo 12 of the 18 validation routes whose pivots slid
-        # still slide with the pivot slowed (docs/routes.md), so the plan would accept them
+        # the corners that would slide more (mmstab.runs.time_law; e.g. 0.5: at most 0.63 by
+        # `make skid-rates`). null: none slowed, the default: with 0.5 or 0.8 some accepted
+        # validation routes still slide in MuJoCo (docs/routes.md)
         "slide_budget": None,
         "check_dt": 0.02,
         "backend": "interpreted",
