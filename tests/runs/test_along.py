@@ -456,3 +456,31 @@ def test_a_routes_cone_check_at_its_planned_poses_counts_at_its_ends_only():
     assert [b["index"] for b in inner["passed_poses"]] == [1, 2]
     ends = passed_poses({"slides": True, "sliding_poses": [*bad, {**bad[0], "index": 3}]}, 4)
     assert ends["slides"] and [b["index"] for b in ends["sliding_poses"]] == [3]
+
+
+@pytest.mark.mujoco
+@pytest.mark.slow
+def test_the_users_ditch_arm_on_the_ground_is_refused_by_verify(tmp_path):
+    """problems/ditch.yaml with --verify: the plan accepts it, but climbing out over the far
+    rim MuJoCo's body rolls ~33 deg off the predicted rest and the arm's wrist touches the
+    slope behind: plan --verify exits 5 naming it, as simulate does (make ditch)."""
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    r = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
+         "-o", str(tmp_path), "--verify"],
+        capture_output=True, text=True, cwd=ROOT, timeout=900,
+    )  # fmt: skip
+    assert r.returncode == 5, r.stderr
+    assert "in MuJoCo it touches the ground (arm_ground_contact at 17.76 s" in r.stderr
+    v = json.loads((tmp_path / "summary.json").read_text())["verify"]
+    assert (v["plan"], v["mujoco"], v["agree"]) == ("accepted", "touches the ground", False)
+    contact = v["events"]["arm_ground_contact"]
+    assert contact["first_time_s"] == pytest.approx(17.76, abs=0.05)
+    assert contact["s_m"] == pytest.approx(3.58, abs=0.05)  # past the ditch's far rim
+    assert np.degrees(contact["tilt_off_rest_rad"]) == pytest.approx(32.9, abs=1.0)
+    assert all(v["events"][k] is None for k in ("tipped", "left_map", "slid"))
