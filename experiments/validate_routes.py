@@ -36,7 +36,7 @@ import yaml
 from experiments.common import experiment_run
 from mmstab.app.settings import Settings
 from mmstab.core.files import read_yaml, validate, write_figure, write_json
-from mmstab.outputs.verify import OUTCOMES, PLAN_VERDICTS, outcome_of, plan_verdict_of
+from mmstab.outputs.verify import EVENTS, OUTCOMES, PLAN_VERDICTS, outcome_of, plan_verdict_of
 
 _RANGE = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
 _P = {"type": "number", "minimum": 0, "maximum": 1}
@@ -190,7 +190,7 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         "sim_seconds": time.perf_counter() - t0,
         "simulated_s": sim["duration_s"],
         "route_duration_s": route.duration,
-        "events": {key: sim[key] for key in ("tipped", "left_map", "slid", "stalled")},
+        "events": {key: sim[key] for key in EVENTS},
         "disagreement": sim["disagreement"],
         "tilt_off_rest_max_rad": sim["tilt_off_rest_max_rad"],
         "mu_predicted_median": float(np.median(run.mu_predicted[ok])) if ok.any() else None,
@@ -208,7 +208,9 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         "qp_failures": sim["qp_failures"],
     }
     if outcome != "holds":  # where the run failed: near the ditch, the kerb, the corner?
-        t_event = min(e["time_s"] for e in record["events"].values() if e is not None)
+        t_event = min(
+            e.get("time_s", e.get("first_time_s")) for e in record["events"].values() if e
+        )
         k_event = min(int(np.searchsorted(run.t, t_event)), len(run.t) - 1)
         record["event_place"] = event_place(data, run.state[k_event, :2])
     if settings.get("runs_figures", True) and (verdict == "accepted") != (outcome == "holds"):

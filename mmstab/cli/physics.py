@@ -97,9 +97,12 @@ def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | Non
     a = s["arm_ground_contact"]
     if a is None:
         return None
+    where = f" at s = {a['s_m']:.2f} m" if a.get("s_m") is not None else ""
+    tilt = a.get("tilt_off_rest_rad")
+    attitude = "" if tilt is None else f", the body {tilt * 57.29578:.1f} deg off its rest"
     line = (
-        f"the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s "
-        f"({100 * a['fraction_of_checks']:.1f} % of the checks)"
+        f"the arm touches the ground in MuJoCo from {a['first_time_s']:.2f} s{where} "
+        f"({100 * a['fraction_of_checks']:.1f} % of the checks{attitude})"
     )
     return report("arm collision", line, "--allow-collision", args.allow_collision,
                   EXIT_ARM_COLLISION)  # fmt: skip

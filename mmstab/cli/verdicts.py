@@ -123,8 +123,9 @@ def limits_line(command: str, verdicts: dict[str, Any], spacing: float) -> None:
 def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | None:
     """``plan --verify``: MuJoCo's outcome beside the plan's verdict, one line.
 
-    An accepted plan that tips (exit 3), slides or leaves the map (exit 4) in MuJoCo is not
-    accepted: physics is the referee where the model is unsure. A refused plan keeps its
+    An accepted plan that tips (exit 3), slides or leaves the map (exit 4) or touches the
+    ground with the arm (exit 5, as ``mmstab simulate``) in MuJoCo is not accepted: physics
+    is the referee where the model is unsure. A refused plan keeps its
     status; a stall is a warning.
     """
     if verify is None:
@@ -133,7 +134,8 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
     events = {k: e for k, e in v["events"].items() if e is not None}
     when = (
         ", ".join(
-            f"{k} at {e['time_s']:.2f} s" + (f" (s = {e['s_m']:.2f} m)" if "s_m" in e else "")
+            f"{k} at {e.get('time_s', e.get('first_time_s')):.2f} s"
+            + (f" (s = {e['s_m']:.2f} m)" if "s_m" in e else "")
             for k, e in events.items()
         )
         or "no event"
@@ -154,4 +156,6 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
         return status
     line = f"mmstab accepted the route but in MuJoCo it {v['mujoco']} ({when}); see {v['run']}"
     print(f"mmstab: physics disagrees: {line}", file=sys.stderr)
+    if v["mujoco"] == "touches the ground":  # an arm link on the ground: simulate's exit 5
+        return EXIT_ARM_COLLISION
     return EXIT_UNSTABLE if v["mujoco"] == "tips" else EXIT_SLIDES

@@ -172,6 +172,8 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         else {
             "first_time_s": float(run.t[touching[0]]),
             "fraction_of_checks": float(len(touching) / checked.sum()),
+            # the body's attitude then, off mmstab's predicted rest [rad] (NaN: off the map)
+            "tilt_off_rest_rad": _nanmax(run.tilt_error[touching[:1]]),
         },
         "mu_predicted_min": float(np.min(run.mu_predicted)),
         "mu_simulated_min": float(np.nanmin(run.mu_simulated)),
@@ -193,17 +195,19 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
 def place_events(summary: dict[str, Any], run: PhysicsRun, path: Any) -> None:
     """Add where each event of ``summary`` happened (in place).
 
-    The body origin ``xy_m`` (x, y) in M [m] at the event's time and, on a route, ``s_m``:
-    the distance along it of the path's nearest point [m], as the plan's verdicts name places.
+    The body origin ``xy_m`` (x, y) in M [m] at the event's time (``time_s``; the arm's
+    first ground contact's ``first_time_s``) and, on a route, ``s_m``: the distance along
+    it of the path's nearest point [m], as the plan's verdicts name places.
     """
     u = np.linspace(0.0, 1.0, 4001)
     on_route = hasattr(path, "s_at")
     xy_path = np.asarray(path.pose_at(u))[:, :2] if on_route else None
-    for key in ("tipped", "slid", "left_map", "stalled", "disagreement"):
+    for key in ("tipped", "slid", "left_map", "stalled", "disagreement", "arm_ground_contact"):
         event = summary.get(key)
         if event is None:
             continue
-        k = min(int(np.searchsorted(run.t, event["time_s"])), len(run.t) - 1)
+        when = event["time_s"] if "time_s" in event else event["first_time_s"]
+        k = min(int(np.searchsorted(run.t, when)), len(run.t) - 1)
         xy = run.state[k, :2]
         event["xy_m"] = [float(xy[0]), float(xy[1])]
         if xy_path is not None:

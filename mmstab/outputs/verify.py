@@ -2,8 +2,10 @@
 
 mmstab's verdict on the plan (accepted, or refused: it tips below the margin, or it slides)
 is set beside MuJoCo's outcome of the same plan run with the controller in the loop (it
-holds, tips, leaves the map, slides or stalls: :mod:`mmstab.physics.closed_loop`), and the
-two agree when an accepted plan holds and a refused one fails. The run's summary and its
+holds, tips, leaves the map, slides, touches the ground with the arm or stalls:
+:mod:`mmstab.physics.closed_loop`), and the two agree when an accepted plan holds and a
+refused one fails. An arm link on the ground is an outcome as ``mmstab simulate``'s exit 5
+is: an accepted route whose arm touches the ground in physics is not safe. The run's summary and its
 figure go to ``verify/`` beside the plan's.
 """
 
@@ -20,7 +22,9 @@ from mmstab.core.problem import Problem
 #: mmstab plan's verdicts and their exit statuses.
 PLAN_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "no plan": 6}
 #: MuJoCo's outcomes, the first event of a run that counts, in this order.
-OUTCOMES = ("tips", "leaves the map", "slides", "stalls", "holds")
+OUTCOMES = ("tips", "leaves the map", "slides", "touches the ground", "stalls", "holds")
+#: The run summary's event of each outcome but ``holds`` (:data:`OUTCOMES`' order).
+EVENTS = ("tipped", "left_map", "slid", "arm_ground_contact", "stalled")
 
 
 def plan_verdict_of(summary: dict[str, Any]) -> str:
@@ -34,7 +38,7 @@ def plan_verdict_of(summary: dict[str, Any]) -> str:
 
 def outcome_of(s: dict[str, Any]) -> str:
     """MuJoCo's outcome of a ``mmstab simulate`` summary (:data:`OUTCOMES`' order)."""
-    for name, key in zip(OUTCOMES, ("tipped", "left_map", "slid", "stalled"), strict=False):
+    for name, key in zip(OUTCOMES, EVENTS, strict=False):
         if s[key] is not None:
             return name
     return "holds"
@@ -72,7 +76,7 @@ def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path)
         "plan": verdict,
         "mujoco": outcome,
         "agree": (verdict == "accepted") == (outcome == "holds"),
-        "events": {k: sim[k] for k in ("tipped", "left_map", "slid", "stalled")},
+        "events": {k: sim[k] for k in EVENTS},
         "disagreement": sim["disagreement"],
         "mu_relative_difference_median": float(np.median(rel)) if ok.any() else None,
         "base_error_max_m": sim["base_error_max_m"],

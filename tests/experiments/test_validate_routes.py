@@ -127,7 +127,8 @@ def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     f = flat["records"][0]
     assert f["slope_deg"] == 0.0 and f["ditch"] is None and f["kerb"] is None
     assert (f["plan"], f["plan_exit"], f["mujoco"]) == ("accepted", 0, "holds")
-    assert f["events"] == {"tipped": None, "left_map": None, "slid": None, "stalled": None}
+    assert f["events"] == {"tipped": None, "left_map": None, "slid": None,
+                           "arm_ground_contact": None, "stalled": None}  # fmt: skip
     assert f["disagreement"] is None and f["qp_failures"] == 0
     assert f["base_origin_error_max_m"] < 0.10 and f["base_error_max_m"] < 0.10
     assert f["simulated_s"] >= f["route_duration_s"] - 0.01  # the whole route driven

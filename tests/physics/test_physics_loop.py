@@ -161,6 +161,8 @@ def test_cli_simulate_arm_on_the_ground_is_exit_5(tmp_path: Path) -> None:
     assert r.stderr.count("\n") == 1 and "mmstab: arm collision: the arm touches" in r.stderr
     s = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert s["tipped"] is None and 0.3 < s["arm_ground_contact"]["first_time_s"] < 0.8
+    # the body then on its predicted rest (the arm dives into the ramp, the body holds)
+    assert 0.0 <= s["arm_ground_contact"]["tilt_off_rest_rad"] < 0.05
     allow = [*cmd, "-o", str(tmp_path / "b"), "--allow-collision"]
     allowed = subprocess.run(allow, capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
     assert allowed.returncode == 0 and "mmstab: warning: the arm touches" in allowed.stderr

@@ -257,12 +257,14 @@ def test_stretches_are_merged_and_a_tip_below_the_margin_is_named_so():
 
 
 def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
-    from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+    from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
     from mmstab.cli.verdicts import verify_status
 
     def v(plan, mujoco, event=None):
-        events = dict.fromkeys(("tipped", "left_map", "slid", "stalled"))
-        if event:
+        events = dict.fromkeys(("tipped", "left_map", "slid", "arm_ground_contact", "stalled"))
+        if event == "arm_ground_contact":  # its time is the first contact's
+            events[event] = {"first_time_s": 17.76, "fraction_of_checks": 0.003, "s_m": 3.6}
+        elif event:
             events[event] = {"time_s": 3.0, "xy_m": [0.5, 0.1], "s_m": 1.25}
         agree = (plan == "accepted") == (mujoco == "holds")
         return {"plan": plan, "mujoco": mujoco, "agree": agree, "events": events,
@@ -279,6 +281,11 @@ def test_verify_status_lets_physics_refuse_an_accepted_route(capsys):
     out = capsys.readouterr()
     assert "physics disagrees: mmstab accepted the route but in MuJoCo it tips" in out.err
     assert "DISAGREE" in out.out and "slides (slid at 3.00 s (s = 1.25 m))" in out.out
+    touched = v("accepted", "touches the ground", "arm_ground_contact")
+    assert verify_status(touched, None) == EXIT_ARM_COLLISION == 5  # as simulate's exit
+    assert "in MuJoCo it touches the ground (arm_ground_contact at 17.76 s (s = 3.60 m))" in (
+        capsys.readouterr().err
+    )
 
 
 @pytest.mark.mujoco
@@ -306,6 +313,21 @@ def test_plan_verify_runs_the_route_in_mujoco(tmp_path, capsys, monkeypatch):
     assert f"verify in MuJoCo ({sim['duration_s']:.1f} s): {v['mujoco']}" in capsys.readouterr().out
 
 
+def test_an_arm_on_the_ground_is_a_mujoco_outcome():
+    """MuJoCo's outcome of a run summary: the arm on the ground after tips, slides, before
+    a stall; with none of them it holds (simulate exits 5 on the same contact)."""
+    from mmstab.outputs.verify import EVENTS, OUTCOMES, outcome_of
+
+    none = dict.fromkeys(EVENTS)
+    contact = {"first_time_s": 17.76, "fraction_of_checks": 0.003}
+    assert outcome_of(none) == "holds"
+    assert outcome_of(none | {"arm_ground_contact": contact}) == "touches the ground"
+    both = none | {"arm_ground_contact": contact, "stalled": {"time_s": 30.0}}
+    assert outcome_of(both) == "touches the ground"
+    assert outcome_of(both | {"slid": {"time_s": 20.0}}) == "slides"
+    assert OUTCOMES[: len(EVENTS)].index("touches the ground") == EVENTS.index("arm_ground_contact")
+
+
 def test_a_physics_event_is_placed_on_the_route():
     """An event's body origin and its distance along the route, by hand on an L route."""
     from types import SimpleNamespace
@@ -322,9 +344,12 @@ def test_a_physics_event_is_placed_on_the_route():
     state = np.zeros((11, 7))
     state[:, :2] = [[0.4 * k, 0.0] for k in range(5)] + [[2.0, 0.2 * k] for k in range(6)]
     run = SimpleNamespace(t=t, state=state)
-    summary = {"tipped": {"time_s": 2.0}, "slid": {"time_s": 8.0}, "left_map": None}
+    summary = {"tipped": {"time_s": 2.0}, "slid": {"time_s": 8.0}, "left_map": None,
+               "arm_ground_contact": {"first_time_s": 3.0, "fraction_of_checks": 0.1}}  # fmt: skip
     place_events(summary, run, path)
     assert summary["tipped"]["xy_m"] == [0.8, 0.0] and summary["left_map"] is None
+    assert summary["arm_ground_contact"]["xy_m"] == pytest.approx([1.2, 0.0])  # its first, 3 s
+    assert summary["arm_ground_contact"]["s_m"] == pytest.approx(1.2, abs=0.01)
     assert summary["tipped"]["s_m"] == pytest.approx(0.8, abs=0.01)  # on the first leg
     # (2.0, 0.6) on the second leg: 1.7 m to the arc, a quarter circle of 0.3 m, 0.3 m on
     assert summary["slid"]["xy_m"] == pytest.approx([2.0, 0.6])
@@ -431,3 +456,31 @@ def test_a_routes_cone_check_at_its_planned_poses_counts_at_its_ends_only():
     assert [b["index"] for b in inner["passed_poses"]] == [1, 2]
     ends = passed_poses({"slides": True, "sliding_poses": [*bad, {**bad[0], "index": 3}]}, 4)
     assert ends["slides"] and [b["index"] for b in ends["sliding_poses"]] == [3]
+
+
+@pytest.mark.mujoco
+@pytest.mark.slow
+def test_the_users_ditch_arm_on_the_ground_is_refused_by_verify(tmp_path):
+    """problems/ditch.yaml with --verify: the plan accepts it, but climbing out over the far
+    rim MuJoCo's body rolls ~33 deg off the predicted rest and the arm's wrist touches the
+    slope behind: plan --verify exits 5 naming it, as simulate does (make ditch)."""
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    r = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
+         "-o", str(tmp_path), "--verify"],
+        capture_output=True, text=True, cwd=ROOT, timeout=900,
+    )  # fmt: skip
+    assert r.returncode == 5, r.stderr
+    assert "in MuJoCo it touches the ground (arm_ground_contact at 17.76 s" in r.stderr
+    v = json.loads((tmp_path / "summary.json").read_text())["verify"]
+    assert (v["plan"], v["mujoco"], v["agree"]) == ("accepted", "touches the ground", False)
+    contact = v["events"]["arm_ground_contact"]
+    assert contact["first_time_s"] == pytest.approx(17.76, abs=0.05)
+    assert contact["s_m"] == pytest.approx(3.58, abs=0.05)  # past the ditch's far rim
+    assert np.degrees(contact["tilt_off_rest_rad"]) == pytest.approx(32.9, abs=1.0)
+    assert all(v["events"][k] is None for k in ("tipped", "left_map", "slid"))
