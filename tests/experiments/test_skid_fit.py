@@ -26,12 +26,17 @@ def test_pinball_minimiser_is_the_quantile():
 
 @pytest.mark.slow
 def test_fit_is_reproducible_and_the_default_is_its_value():
-    settings = load_settings(SETTINGS)
-    settings["bootstrap"] = 30  # the resamples are seeded: two runs draw the same
-    a, b = fit(settings), fit(settings)
-    assert a == b
+    """The committed settings fit again to the committed summary, every number of it.
+
+    The summary was written by another process (make skid-fit): the bootstrap's seeded
+    resamples give its 5-95 % again. (One fit: the model's grid costs 7.5 s a fit, the
+    resamples next to nothing; two fits in one process compared less.)
+    """
+    a = fit(load_settings(SETTINGS))
     committed = json.loads((ROOT / "results" / "skid_fit" / "summary.json").read_text())
     assert a["shear_modulus_m"] == pytest.approx(committed["shear_modulus_m"], rel=1e-12)
+    assert a["bootstrap_p5_p95_m"] == committed["bootstrap_p5_p95_m"]
+    assert json.loads(json.dumps(a)) == {k: committed[k] for k in a}
     default = SECTION_DEFAULTS["physics"]["shear_modulus"]
     assert default == pytest.approx(a["shear_modulus_m"], rel=0.02)
     # the fit does what it says: the model under-predicts fewer cases than rigid Coulomb
