@@ -6,7 +6,17 @@ import sys
 
 # One OpenBLAS thread per test process, set before NumPy loads it (subprocesses inherit it):
 # make test runs two workers on two cores, and OpenBLAS's threads on an oversubscribed
-# machine made each small LAPACK call wait 0.1-0.25 s (a 200-triangulation test: 21 s -> 0.5 s)
+# machine made each small LAPACK call wait 0.1-0.25 s (a 200-triangulation test: 21 s -> 0.5 s).
+# A pytest plugin that imports NumPy first defeats it (zarr's did: pyproject.toml's addopts
+# leaves it out; the SVD of a 100 x 2 array took 6 ms of CPU instead of 13 us): say so.
+if "numpy" in sys.modules and "OPENBLAS_NUM_THREADS" not in os.environ:
+    import warnings
+
+    warnings.warn(
+        "NumPy was imported before tests/conftest.py (a pytest plugin?): OpenBLAS keeps its "
+        "threads; set OPENBLAS_NUM_THREADS=1 or leave the plugin out (-p no:NAME)",
+        stacklevel=1,
+    )
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pathlib import Path
