@@ -465,14 +465,12 @@ class CollisionChecker:
         qa = np.atleast_2d(np.asarray(q, dtype=float))
         R, p = self.shape_poses(qa)
         request = fcl.DistanceRequest()
-        floors = self.turn_floors()
-        skip = np.array([floors.get(pr.name, -np.inf) >= need for pr in self.pairs])
+        skip, order = self._skipped(need)
         if collision_distance.available():  # every pair's bounds at once, in C
             near = collision_distance.pairs_near(self._table, R, p, need, skip, CULL_SLACK)
         else:
             gaps = self._gaps(p)
             near = np.stack([gaps[:, self._gap_column[pr.name]] < need for pr in self.pairs], 1)
-        order = sorted(range(len(self.pairs)), key=lambda i: isinstance(self.pairs[i].other, str))
         some: NDArray[np.bool_] = np.asarray(near.any(axis=0))  # some posture near (unbounded)
         for index in order:
             pair = self.pairs[index]
@@ -494,6 +492,21 @@ class CollisionChecker:
                     return False
                 safe_until = int(n) + 1 + int((d - need) / rate)
         return True
+
+    def _skipped(self, need: float) -> tuple[NDArray[np.int64], list[int]]:
+        """Pairs left out at ``need`` [m] (1: kept at every turn angle), the order (arm first).
+
+        Kept per ``need`` (the moves' checks ask one or two).
+        """
+        kept = self.__dict__.setdefault("_skip_by_need", {})
+        if need not in kept:
+            floors, pairs = self.turn_floors(), self.pairs
+            skip = np.array([floors.get(pr.name, -np.inf) >= need for pr in pairs], np.int64)
+            kept[need] = (
+                skip,
+                sorted(range(len(pairs)), key=lambda i: isinstance(pairs[i].other, str)),
+            )
+        return kept[need]
 
     def colliding_pairs(self, q: ArrayLike) -> list[str]:
         """Names of all pairs that intersect at one posture (FCL on every pair).

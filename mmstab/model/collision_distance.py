@@ -42,9 +42,9 @@ def _kernels() -> tuple[Any, Any, Any] | None:
     box.argtypes = [DOUBLES, DOUBLES, LONG, DOUBLES, DOUBLES, LONG, DOUBLES, DOUBLE, DOUBLES]
     seg.argtypes = [DOUBLES, DOUBLES, DOUBLES, DOUBLES, LONG, DOUBLES]
     # R p n L kind hl rad hb ball bc br bh P pa pb skip need slack_sphere slack | near
-    near.argtypes = [DOUBLES, DOUBLES, LONG, LONG, LONGS, DOUBLES, DOUBLES, DOUBLES, DOUBLES]
-    near.argtypes += [DOUBLES, DOUBLES, DOUBLES, LONG, LONGS, LONGS, LONGS, DOUBLE, DOUBLE]
-    near.argtypes += [DOUBLE, BYTES]
+    # (the table's arrays by address: converted once per table, _table_addresses)
+    near.argtypes = [DOUBLES, DOUBLES, LONG, LONG, *[ctypes.c_void_p] * 8, LONG]
+    near.argtypes += [ctypes.c_void_p, ctypes.c_void_p, LONGS, DOUBLE, DOUBLE, DOUBLE, BYTES]
     for f in (box, seg, near):
         f.restype = ctypes.c_int
     return box, seg, near
@@ -152,11 +152,34 @@ def pairs_near(
     n, L = p.shape[:2]
     P = len(table.link)
     out = np.zeros((n, P), dtype=np.uint8)
-    t = table
+    a = _table_addresses(table)
     kernels[2](
-        _c(R), _c(p), n, L, t.kind, t.half_length, t.radius, t.box_half, t.ball,
-        t.base_centre, t.base_R, t.base_half, P, t.link, t.other,
+        _c(R), _c(p), n, L, *a[:8], P, *a[8:],
         np.ascontiguousarray(skip, dtype=np.int64), float(need), float(sphere_slack),
         SLACK, out,
     )  # fmt: skip
     return out.view(bool)
+
+
+#: Per table (by id, the table kept to check it): its arrays as the kernel reads them, and
+#: their addresses (a table's arrays are converted once, not at every call).
+_ADDRESSES: dict[int, tuple[PairTable, tuple[np.ndarray, ...], tuple[int, ...]]] = {}
+
+
+def _table_addresses(table: PairTable) -> tuple[int, ...]:
+    """The addresses of ``table``'s arrays in :func:`pairs_near`'s order (kind .. other)."""
+    kept = _ADDRESSES.get(id(table))
+    if kept is None or kept[0] is not table:
+        t = table
+        arrays = (
+            np.ascontiguousarray(t.kind, dtype=np.int64),
+            *(np.ascontiguousarray(x, dtype=np.float64) for x in (
+                t.half_length, t.radius, t.box_half, t.ball, t.base_centre, t.base_R,
+                t.base_half,
+            )),
+            np.ascontiguousarray(t.link, dtype=np.int64),
+            np.ascontiguousarray(t.other, dtype=np.int64),
+        )  # fmt: skip
+        kept = (table, arrays, tuple(int(x.ctypes.data) for x in arrays))
+        _ADDRESSES[id(table)] = kept
+    return kept[2]

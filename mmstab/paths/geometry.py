@@ -19,6 +19,7 @@ alike: the speed profile bounds the tracks with the same number (``mmstab.paths.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -74,15 +75,19 @@ class Pivot(NamedTuple):
     """A turn on the spot at a waypoint.
 
     Attributes:
-        point: the waypoint (2,) in M [m], where the base stands while it turns.
+        point: the waypoint (2,) in M [m], where the pivot centre stands while the base turns.
         radius: the pivot radius, half the track separation [m]: the route's parameter
             advances by ``radius · |turn|`` (the distance each track runs).
         turn: signed turn, + = left (counter-clockwise) [rad].
+        centre: the pivot centre's distance ahead of B's origin along x_B [m] (0: B's origin
+            turns on the waypoint; else the origin swings about the waypoint at that radius,
+            ``point − centre · [cos γ, sin γ]``; :func:`shift_pivot_centres`).
     """
 
     point: FloatArray
     radius: float
     turn: float
+    centre: float = 0.0
 
     @property
     def length(self) -> float:
@@ -213,10 +218,14 @@ class Route:
                 pose[rows, 2] = yaw0[k]
                 rate[rows] = [piece.direction[0], piece.direction[1], 0.0]
             elif isinstance(piece, Pivot):
-                sign = np.sign(piece.turn)
-                pose[rows, :2] = piece.point
-                pose[rows, 2] = yaw0[k] + sign * u / piece.radius
-                rate[rows] = [0.0, 0.0, sign / piece.radius]
+                sign, c = np.sign(piece.turn), piece.centre
+                yaw = yaw0[k] + sign * u / piece.radius
+                pose[rows, 0] = piece.point[0] - c * np.cos(yaw)
+                pose[rows, 1] = piece.point[1] - c * np.sin(yaw)
+                pose[rows, 2] = yaw
+                rate[rows, 0] = c * np.sin(yaw) * sign / piece.radius
+                rate[rows, 1] = -c * np.cos(yaw) * sign / piece.radius
+                rate[rows, 2] = sign / piece.radius
                 kappa[rows] = sign / piece.radius
                 pivot[rows] = True
             else:
@@ -373,3 +382,47 @@ def route_from_waypoints(
         corners=corners,
         turn_radius=float(turn_radius),
     )
+
+
+def shift_pivot_centres(route: Route, centres: ArrayLike) -> Route:
+    """The route with each pivot turning about a point ``centres[i]`` ahead of B's origin.
+
+    A skid-steered base does not pivot about B's origin but about a point near its centre
+    of mass (the skid model's level pivot, :mod:`mmstab.stability.skid`); a pivot about the
+    origin is then a reference it cannot follow. Here that point stands on the waypoint:
+    the line before the pivot ends ``c`` short of the waypoint (B's origin stops there, the
+    pivot centre on the waypoint), the origin swings about the waypoint at radius ``c``
+    while the heading turns, and the line after starts ``c`` behind the waypoint on the
+    next leg's line. The legs stay on the waypoints' lines; the route's length is the same
+    (the line before loses ``c``, the one after gains it), so only the pivot's span moves,
+    by ``−c`` in arc length. A negative ``c`` (the centre behind the origin) overshoots the
+    waypoint instead.
+
+    Args:
+        route: a route (its pivots at centre 0).
+        centres: one distance per pivot piece, in driving order [m]; a pivot whose
+            neighbours are not lines longer than ``|c|`` (an arc beside it) keeps centre 0.
+
+    Raises:
+        ValueError: not one centre per pivot.
+    """
+    c = np.asarray(centres, dtype=float).ravel()
+    at = [k for k, p in enumerate(route.pieces) if isinstance(p, Pivot)]
+    if len(c) != len(at):
+        raise ValueError(f"{len(c)} pivot centres for the route's {len(at)} pivots")
+    pieces = list(route.pieces)
+    for k, centre in zip(at, c, strict=True):
+        before = pieces[k - 1] if k > 0 else None
+        after = pieces[k + 1] if k + 1 < len(pieces) else None
+        fits = (isinstance(before, Line) and before.length > centre + MIN_SEGMENT
+                and isinstance(after, Line) and after.length > -centre + MIN_SEGMENT)  # fmt: skip
+        if not fits or centre == 0.0:
+            continue
+        pivot = pieces[k]
+        assert isinstance(before, Line) and isinstance(after, Line) and isinstance(pivot, Pivot)
+        pieces[k - 1] = before._replace(length=before.length - centre)
+        pieces[k] = pivot._replace(centre=float(centre))
+        pieces[k + 1] = after._replace(
+            start=after.start - after.direction * centre, length=after.length + centre
+        )
+    return dataclasses.replace(route, pieces=tuple(pieces))

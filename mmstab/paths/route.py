@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.model.robot import Robot
 from mmstab.paths.base import PathSample
-from mmstab.paths.geometry import FloatArray, Pivot, Route
+from mmstab.paths.geometry import FloatArray, Pivot, Route, shift_pivot_centres
 from mmstab.paths.io import PlannedRoute, Waypoints, read_waypoints_csv, route_from_section
 from mmstab.paths.speed import SpeedLimits, SpeedProfile, TurnLimit, speed_profile
 from mmstab.terrain.base import Terrain
@@ -92,6 +92,27 @@ class RoutePath:
         turns = tuple(TurnLimit(*map(float, t)) for t in turns)
         profile = speed_profile(self.route, self.limits, turns=turns)
         return RoutePath(self.route, profile, self.limits, turns)
+
+    def with_pivot_centres(self, centres: ArrayLike) -> RoutePath:
+        """The route with its pivots about points ``centres`` [m] ahead of B's origin.
+
+        :func:`mmstab.paths.geometry.shift_pivot_centres`; the profile is rebuilt under the
+        same limits, a turn cap on a pivot moved with the pivot's span (by ``−c``).
+
+        Raises:
+            ValueError: the route's speed limits are not known, or not one centre per pivot.
+        """
+        if self.limits is None:
+            raise ValueError("a route without its speed limits cannot move its pivots")
+        route = shift_pivot_centres(self.route, centres)
+        old, new = self.route.pivot_spans, route.pivot_spans
+        turns = []
+        for t in self.turn_limits:
+            on = np.flatnonzero((old[:, 0] <= t.start_s + 1e-9) & (t.end_s <= old[:, 1] + 1e-9))
+            shift = float(new[on[0], 0] - old[on[0], 0]) if len(on) else 0.0
+            turns.append(TurnLimit(t.start_s + shift, t.end_s + shift, t.yaw_rate))
+        profile = speed_profile(route, self.limits, turns=tuple(turns))
+        return RoutePath(route, profile, self.limits, tuple(turns))
 
     def yaw_rate_max(self, start_s: float, end_s: float) -> float:
         """The largest |yaw rate| of the reference between two arc lengths [m] [rad/s]."""

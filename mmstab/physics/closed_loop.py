@@ -41,9 +41,11 @@ import numpy as np
 
 from mmstab.control.approach import arm_references, run_reference
 from mmstab.control.layout import ControllerParams
+from mmstab.control.pivot import pivoting
 from mmstab.control.plant import build_plant
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
+from mmstab.paths.route import RoutePath
 from mmstab.physics.governor import GovernorSettings, ReferenceClock
 from mmstab.physics.loop_checks import (
     TipCheck,
@@ -81,6 +83,11 @@ class LoopSettings:
             pivot (:mod:`mmstab.stability.drive`); 1: the belts at r θ̇.
         governor: the reference waits for a base that falls behind
             (:mod:`mmstab.physics.governor`); None: the reference runs on time.
+        suspension_travel: how far each road wheel may drop below its bump stop [m]
+            (:class:`~mmstab.physics.robot_model.ModelSettings`; 0: stiff wheels).
+        pivot_centre: where a route's pivots turn: ``auto``, about the skid model's pivot
+            centre for the plan's CoM there (:mod:`mmstab.control.pivot`), or a distance
+            ahead of B's origin [m] (0: about the origin, as the planned route).
     """
 
     control_dt: float = 0.004
@@ -96,12 +103,15 @@ class LoopSettings:
     arm: str = "planned"
     turn_ratio: float | str = 1.0
     governor: GovernorSettings | None = GovernorSettings()
+    suspension_travel: float = 0.0
+    pivot_centre: float | str = "auto"
 
     def model_settings(self) -> ModelSettings:
-        """The MuJoCo model's numbers with this section's wheel shape and step."""
+        """The MuJoCo model's numbers with this section's wheel shape, step and travel."""
         base = ModelSettings()
         solref = (max(base.solref[0], 2.5 * self.timestep), base.solref[1])
-        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref)
+        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref,
+                             suspension_travel=self.suspension_travel)  # fmt: skip
 
 
 @dataclass
@@ -138,9 +148,10 @@ class PhysicsRun:
             ``check_dt``; NaN between): mmstab's workspace checks the arm against the
             robot's body only, so a planned posture may reach into the ground.
         base_origin_error: the body origin's distance from the reference pose's in M's x-y
-            plane [m]: the controller tracks the control point ``base_offset`` ahead, so a
-            base that drives crabbed (its heading turned off the path's to hold a side
-            slope) has its origin off the path by about offset · sin(crab) more.
+            plane [m] (a route's pivots about their centres, ``pivot_centre``): the
+            controller tracks the control point ``base_offset`` ahead, so a base that drives
+            crabbed (its heading turned off the path's to hold a side slope) has its origin
+            off the path by about offset · sin(crab) more.
         timing: the arm's time law's report (:meth:`mmstab.control.timing.TimeLaw.summary`),
             None when ``controller.dynamic_fraction`` is null.
         reference_wait_s: how long the reference waited for the base in all [s]
@@ -274,6 +285,15 @@ def run_closed_loop(
         model_settings: the MuJoCo model's numbers (default: ``loop.model_settings()``).
     """
     robot, n = problem.robot, problem.robot.arm_joints
+    pivoted = pivoting(problem, plan, loop.pivot_centre)
+    if pivoted is not problem:  # the route's period and length, as settings_for_path sets them
+        old, new = problem.base_path, pivoted.base_path
+        assert isinstance(old, RoutePath) and isinstance(new, RoutePath)
+        own = ctrl_settings.lap_time == old.lap_time  # a route's own period, not a setting's
+        period = new.lap_time if own else ctrl_settings.lap_time
+        length = new.duration if ctrl_settings.duration == old.duration else ctrl_settings.duration
+        ctrl_settings = dataclasses.replace(ctrl_settings, lap_time=period, duration=length)
+        problem = pivoted
     sim = build_sim(problem, state0, model_settings or loop.model_settings())
     substeps = max(int(round(loop.control_dt / sim.model.opt.timestep)), 1)
     dt = substeps * sim.model.opt.timestep

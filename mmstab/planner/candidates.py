@@ -303,7 +303,7 @@ class NodeClearance:
         for k, x in enumerate(todo):
             if x.size:
                 q = self.roadmap.nodes_q[self.reach[x]]
-                clear = self.under.clear(k, q, self.ground, self._pieces(self.reach[x]))
+                clear = self.under.clear(k, q, self.ground, self._pieces.view(self.reach[x]))
                 self._known[k][x] = True
                 if not clear.all():
                     self._low[k][x[~clear]] = True

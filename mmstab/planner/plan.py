@@ -12,6 +12,7 @@ import gc
 import time
 
 from mmstab.core.files import MmstabError
+from mmstab.core.heap import keep_freed_memory
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.paths.base import BasePath
@@ -197,10 +198,11 @@ def prepare_search(
     nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, A*'s
     arrays of that graph, the compiled kernels loaded (the moves' clearance bounds, A*, the
     ground under the arm), the robot's turn floors
-    (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`) and the objects alive then
-    frozen (:func:`freeze_long_lived`); a route's poses then cost only their own search, and
-    a one-off plan reports these fixed costs apart (``RoutePlan.fixed_seconds``). Other
-    methods: nothing more.
+    (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`), the objects alive then
+    frozen (:func:`freeze_long_lived`) and the C heap's freed blocks kept for reuse
+    (:func:`mmstab.core.heap.keep_freed_memory`); a route's poses then cost only their own
+    search, and a one-off plan reports these fixed costs apart
+    (``RoutePlan.fixed_seconds``). Other methods: nothing more.
     """
     if terrain is not None and poses is not None and len(poses):
         terrain.gravity_body(poses)
@@ -222,6 +224,7 @@ def prepare_search(
     collision_distance.available()
     load_kernels()
     freeze_long_lived()
+    keep_freed_memory()
 
 
 #: Whether :func:`freeze_long_lived` has run in this process.

@@ -7,9 +7,14 @@ contact spacing) with the arm in each of the two planned postures it moves betwe
 worse of the two counts), and checks there what the tracking run and the robot meet:
 
 - **tip**: mmstab's one μ (:mod:`mmstab.stability.support`) at or below the plan's margin
-  plus what the route's own accelerations take off it (:func:`acceleration_margin`);
+  plus what the route's own accelerations take off it (:func:`acceleration_margin`), unless
+  the edges it is low about are rocking edges: pushed across them by the route's
+  acceleration the robot turns onto a support that holds (:func:`rock_samples`,
+  :mod:`mmstab.stability.rock`: a diagonal between two track corners on bumps, a rim);
 - **slide**: the support's tilt beyond ``atan(friction)`` (the friction cone,
-  :mod:`mmstab.stability.slip`);
+  :mod:`mmstab.stability.slip`), priced as the slide it costs within the slip window at
+  the path's time law (:func:`mmstab.stability.slip.cone_slide`): a stretch slides when
+  that exceeds the slip distance (a stop on it, the route's ends included, always does);
 - **high-centred**: the chassis among the loaded contacts (a warning: stuck, not unsafe).
 
 Each failing stretch says where (arc lengths [m]), which limit and by how much.
@@ -24,8 +29,9 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.stability.slip import slip_limit, terrain_friction
-from mmstab.stability.support import loaded_support
+from mmstab.stability.rock import rock_over
+from mmstab.stability.slip import cone_slide, slip_limit, terrain_friction
+from mmstab.stability.support import is_heightmap, loaded_support
 from mmstab.terrain.base import GRAVITY_G, Terrain
 
 #: Largest arc length between two checked samples [m] (the maps' cells are 2-5 cm; the
@@ -133,6 +139,79 @@ def along_path(
     )
 
 
+class Rocks(NamedTuple):
+    """The samples whose low μ was checked for a rock (:func:`rock_samples`), N samples.
+
+    Attributes:
+        checked: (N,) μ at or below the threshold: pushed across its weak edges.
+        holds: (N,) checked, and both postures rock onto a support that holds.
+        mu: (N,) the lower μ of the pushed CoM on the caught supports [N rad] (NaN where
+            not checked or nothing pushed; -inf where it tips).
+        rock: (N,) the larger turn to a catch [rad].
+        drop: (N,) the larger work of a rock (the CoM's fall under the tilted net force) [m].
+        barrier: (N,) the lower energy stability margin of a caught support [m].
+    """
+
+    checked: np.ndarray
+    holds: np.ndarray
+    mu: FloatArray
+    rock: FloatArray
+    drop: FloatArray
+    barrier: FloatArray
+
+
+def rock_samples(
+    robot: Robot,
+    terrain: Terrain,
+    along: Along,
+    s_plan: ArrayLike,
+    arm_com_plan: ArrayLike,
+    threshold: float,
+    margin: float,
+    acceleration: float,
+) -> Rocks:
+    """Push the samples at or below ``threshold`` across their weak edges (both postures).
+
+    On a heightmap only: on a plane every bottom-run contact bears, the support is the
+    tracks' rectangle and a push across its edge is a tip (nothing is checked).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        along: the samples (:func:`along_path`).
+        s_plan: the planned poses' arc lengths (K,) [m].
+        arm_com_plan: the planned arm CoM at each planned pose, body frame (K, 3) [m].
+        threshold: μ at or below this [N rad] is checked (the margin plus
+            :func:`acceleration_margin`).
+        margin: the pushed μ on the caught support must exceed this [N rad].
+        acceleration: the route's largest acceleration [m/s^2] (the push, ``a / g``).
+    """
+    n = len(along.s)
+    checked = np.isfinite(along.mu) & ~(along.mu > threshold)
+    if not is_heightmap(terrain):
+        checked[:] = False
+    out = Rocks(checked, np.zeros(n, dtype=bool), *(np.full(n, np.nan) for _ in range(4)))
+    idx = np.flatnonzero(checked)
+    if idx.size == 0:
+        return out
+    arm = np.asarray(arm_com_plan, dtype=float)
+    before, after = bracket(s_plan, along.s[idx])
+    push = acceleration / float(np.linalg.norm(GRAVITY_G))
+    poses, arms = np.vstack([along.poses[idx]] * 2), np.vstack([arm[before], arm[after]])
+    r = rock_over(robot, terrain, poses, arms, push, threshold, margin)
+    m = idx.size
+    out.holds[idx] = r.holds[:m] & r.holds[m:]
+    out.mu[idx] = np.fmin(r.mu[:m], r.mu[m:])
+    out.rock[idx] = np.fmax(r.rock[:m], r.rock[m:])
+    out.drop[idx] = np.fmax(r.drop[:m], r.drop[m:])
+    out.barrier[idx] = np.fmin(r.barrier[:m], r.barrier[m:])
+    return out
+
+
+def _finite(x: Any) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
 def _stretches(mask: np.ndarray, s: FloatArray, values: FloatArray, worst: Any, by: Any) -> list:
     return [
         {
@@ -145,8 +224,36 @@ def _stretches(mask: np.ndarray, s: FloatArray, values: FloatArray, worst: Any, 
     ]
 
 
+class ConeTiming(NamedTuple):
+    """When the path reaches its samples and the slide that counts (:func:`dense_verdicts`).
+
+    Attributes:
+        times: (N,) the time law's time at each sample [s] (:func:`path_timing`).
+        distance: a slide beyond this within ``window`` slides [m] (``physics.slip_distance``).
+        window: [s] (``physics.slip_window``).
+    """
+
+    times: FloatArray
+    distance: float
+    window: float
+
+
+def _priced(stretches: list, mask: np.ndarray, priced: Any) -> list:
+    if priced is None:
+        return stretches
+    for x, (a, b) in zip(stretches, true_runs(mask), strict=True):
+        x["slide_m"] = _finite(np.max(priced.slide[a:b]))  # None: at rest on it
+        x["duration_s"] = _finite(np.sum(priced.dwell[a:b]))
+    return stretches
+
+
 def dense_verdicts(
-    terrain: Terrain, along: Along, margin: float, accelerating: float = 0.0
+    terrain: Terrain,
+    along: Along,
+    margin: float,
+    accelerating: float = 0.0,
+    rocks: Rocks | None = None,
+    timing: ConeTiming | None = None,
 ) -> dict[str, Any]:
     """Tip, slide and high-centred stretches of the samples (``summary.json``'s ``along_path``).
 
@@ -154,21 +261,44 @@ def dense_verdicts(
         terrain: the ground (its ``friction``).
         along: the samples (:func:`along_path`).
         margin: μ must exceed this [N rad] (``planner.margin``) ...
-        accelerating: ... plus this [N rad] (:func:`acceleration_margin`).
+        accelerating: ... plus this [N rad] (:func:`acceleration_margin`) ...
+        rocks: ... unless the robot rocks onto a support that holds there
+            (:func:`rock_samples`; ``None``: no sample rocks).
+        timing: the samples' times and the slide's limits: a stretch beyond the friction
+            cone slides when its slide within the window exceeds the distance
+            (:func:`mmstab.stability.slip.cone_slide`); ``None``: every such sample slides.
 
     Returns:
         ``spacing_m``, ``samples``, ``mu_min`` [N rad], ``tilt_max`` [rad], and per limit
         (``tip``, ``slide``, ``high_centred``) whether it binds and its ``stretches``: arc
         lengths [m], the worst value there (μ [N rad], tilt [rad]) and by how much it
-        passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]).
+        passes the limit (``by``: margin - μ [N rad], tilt - atan(friction) [rad]);
+        ``slide.stretches`` (with ``timing``) those beyond the cone whose ``slide_m`` within
+        the window exceeds the distance [m] (``duration_s``: the time on them [s]),
+        ``slide.passed`` those beyond it that slide less;
+        ``tip.rocks``: the stretches below the threshold where the robot rocks and holds
+        (``worst`` μ at rest, the caught support's lowest pushed ``mu_rocked`` [N rad],
+        the largest turn ``rock_rad`` [rad] (0: the push leaves the CoM inside), its work
+        ``work_m`` against ``barrier_m`` [m] (None: no turn)).
     """
     s, mu, tilt = along.s, along.mu, along.tilt
     friction = terrain_friction(terrain)
     critical = float(np.arctan(friction))
     known = np.isfinite(mu)
     threshold = margin + accelerating
-    tips = known & ~(mu > threshold)
-    slides = np.isfinite(tilt) & (tilt > critical)
+    low = known & ~(mu > threshold)
+    rocking = low & (rocks.holds if rocks is not None else False)
+    tips = low & ~rocking
+    beyond = np.isfinite(tilt) & (tilt > critical)
+    slides, priced, passed = beyond, None, []
+    if timing is not None:
+        priced = cone_slide(tilt, timing.times, friction, timing.window)
+        runs = true_runs(beyond)
+        slides = np.zeros_like(beyond)
+        for a, b in runs:
+            if np.max(priced.slide[a:b]) > timing.distance:
+                slides[a:b] = True
+        passed = [(a, b) for a, b in runs if not slides[a]]
     return {
         "spacing_m": float(np.median(np.diff(s))) if len(s) > 1 else 0.0,
         "samples": int(len(s)),
@@ -181,12 +311,40 @@ def dense_verdicts(
             "acceleration_margin": float(accelerating),
             "threshold": float(threshold),
             "stretches": _stretches(tips, s, mu, np.min, lambda w: threshold - w),
+            "rocks": []
+            if rocks is None
+            else [
+                {
+                    "start_s": float(s[a]),
+                    "end_s": float(s[b - 1]),
+                    "worst": float(np.min(mu[a:b])),
+                    "mu_rocked": float(np.fmin.reduce(rocks.mu[a:b])),
+                    "rock_rad": float(np.fmax.reduce(rocks.rock[a:b])),
+                    "work_m": float(np.fmax.reduce(rocks.drop[a:b])),
+                    "barrier_m": _finite(np.fmin.reduce(rocks.barrier[a:b])),
+                }
+                for a, b in true_runs(rocking)
+            ],
         },
         "slide": {
             "binds": bool(slides.any()),
             "critical_tilt": critical,
             "friction": friction,
-            "stretches": _stretches(slides, s, tilt, np.max, lambda w: w - critical),
+            "stretches": _priced(
+                _stretches(slides, s, tilt, np.max, lambda w: w - critical), slides, priced
+            ),
+            "passed": [
+                {
+                    "start_s": float(s[a]),
+                    "end_s": float(s[b - 1]),
+                    "worst": float(np.max(tilt[a:b])),
+                    "by": float(np.max(tilt[a:b]) - critical),
+                    "slide_m": float(np.max(priced.slide[a:b])),
+                    "duration_s": float(np.sum(priced.dwell[a:b])),
+                }
+                for a, b in passed
+                if priced is not None
+            ],  # fmt: skip
         },
         "high_centred": {
             "binds": bool(along.high_centred.any()),

@@ -19,12 +19,14 @@ from mmstab.core.masks import true_runs
 from mmstab.paths.route import ROUTE_DEFAULTS, RoutePath
 from mmstab.runs.along import (
     Along,
+    ConeTiming,
     acceleration_margin,
     along_path,
     bracket,
     dense_verdicts,
     limit_verdicts,
     path_timing,
+    rock_samples,
     sample_spacing,
 )
 from mmstab.runs.climb_out import climb_out_verdict
@@ -98,7 +100,7 @@ def route_verdicts(
     # (a pivot's slide falls in the second the pivot takes, :func:`path_timing`)
     dense_poses, dense_s, times = path_timing(route, sample_spacing(terrain))
     dense_com = np.asarray(plan.target_com)[bracket(plan.s, dense_s)[0]]
-    slip = slip_verdict(terrain, plan.poses)
+    slip = passed_poses(slip_verdict(terrain, plan.poses), len(plan.s))
     turning = turn_slip(terrain, dense_poses, robot_turn_check(robot, settings, dense_com, times))
     turning["sliding_turns"] = [
         x | {"start_s": float(dense_s[x["first"]]), "end_s": float(dense_s[x["last"]])}
@@ -108,8 +110,19 @@ def route_verdicts(
     slip["slides"] = bool(slip["slides"]) or bool(turning["sliding_turns"])
     # between the planned poses: every few cm, the arm in the postures it moves between
     along = plan_along(robot, terrain, route, plan) if along is None else along
-    accelerating = acceleration_margin(robot.total_mass, route_acceleration(route))
-    dense = dense_verdicts(terrain, along, settings.margin, accelerating)
+    acceleration = route_acceleration(route)
+    accelerating = acceleration_margin(robot.total_mass, acceleration)
+    # where μ is low about an edge inside the footprint, the push rocks it onto the next one
+    from mmstab.planner.along_route import planned_com
+
+    threshold = settings.margin + accelerating
+    planned = planned_com(robot, plan.postures, plan.target_com)
+    rocks = rock_samples(robot, terrain, along, plan.s, planned, threshold, settings.margin,
+                         acceleration)  # fmt: skip
+    timing = None  # the cone's passes priced at the time law (the same samples)
+    if len(times) == len(along.s):
+        timing = ConeTiming(times, settings.slip_distance, settings.slip_window)
+    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
     slip = with_stretches(slip, dense, "slide", "slides")
     poses = [
         {"pose": plan.poses[k], "mu_planned": float(plan.mu_planned[k]),
@@ -196,6 +209,22 @@ def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
     if verdicts["slide"]["unsafe"]:
         return EXIT_SLIDES
     return 0
+
+
+def passed_poses(slip: dict[str, Any], count: int) -> dict[str, Any]:
+    """A route's cone check at its planned poses: the ends only (the robot rests there).
+
+    The path passes its other planned poses at its time law; the dense samples price the
+    supports beyond the cone there (:func:`mmstab.stability.slip.cone_slide`). Those poses
+    move to ``passed_poses`` (index, pose, tilt [rad]).
+    """
+    out = dict(slip)
+    bad = out.get("sliding_poses", [])
+    ends = {0, count - 1}
+    out["sliding_poses"] = [b for b in bad if b["index"] in ends]
+    out["passed_poses"] = [b for b in bad if b["index"] not in ends]
+    out["slides"] = bool(out["sliding_poses"])
+    return out
 
 
 def with_stretches(

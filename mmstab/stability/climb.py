@@ -123,6 +123,11 @@ def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
     a window of samples about k); the normal at the touching sample rises θ above the
     horizontal, sin θ = (centre − z_j) / r.
 
+    A roll whose centre stays at or below r rests on the plane (sin θ = 1): a sample lifts
+    the wheel above r only if it lies above the plane and within
+    ``sqrt(r² − (r − z_j)²)`` of the wheel (:func:`_lifted_rolls`), so only the rolls
+    near such samples are computed; the others are 1 as the whole computation gives.
+
     Returns:
         (the smallest sin θ over both tracks and every roll; the roll where it occurs [m]).
     """
@@ -132,16 +137,47 @@ def _worst_contact(z: FloatArray, rolls: int, r: float) -> tuple[float, float]:
     pad = np.full((2, w + 1), -np.inf)
     zpad = np.concatenate([pad, z, pad], axis=1)  # window k holds samples k - w - 1 ...
     windows = np.lib.stride_tricks.sliding_window_view(zpad, 2 * w + 1, axis=1)[:, :rolls]
-    centre = windows + lift  # (2, R, 2w + 1)
+    R = int(windows.shape[1])  # the rolls (fewer where the samples end first)
+    sin_roll = np.ones((2, R))
+    at = _lifted_rolls(z, R, r, w) if lift.max() <= r else np.ones((2, R), bool)
+    t, k = np.nonzero(at)
+    centre = windows[t, k] + lift  # (rolls computed, 2w + 1)
     j = centre.argmax(axis=-1)
-    top = np.take_along_axis(centre, j[..., None], -1)[..., 0]
-    touch = np.take_along_axis(windows, j[..., None], -1)[..., 0]
+    top = centre[np.arange(len(j)), j]
+    touch = zpad[t, k + j]  # the window's j-th sample
     # a sample at or above the centre pushes the wheel down: a wall (sin θ <= 0, no climb);
     # with no ground in the window (off the map: -inf) top - touch is NaN but unused
     with np.errstate(invalid="ignore"):
-        sin_roll = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
-    k = int(sin_roll.argmin())
-    return float(sin_roll.ravel()[k]), float((k % sin_roll.shape[1]) * SAMPLE_STEP)
+        sin_roll[at] = np.where(top <= r, 1.0, np.clip((top - touch) / r, -1.0, 1.0))
+    m = int(sin_roll.argmin())
+    return float(sin_roll.ravel()[m]), float((m % R) * SAMPLE_STEP)
+
+
+def _lifted_rolls(z: FloatArray, rolls: int, r: float, w: int) -> NDArray[np.bool_]:
+    """Which rolls (2, ``rolls``) a sample of z (2, S) [m] may lift above r (the others not).
+
+    A sample at or below the plane (z ≤ 0) adds at most r (every lift is at most r); one
+    above it at z < r lifts the wheel above r only within ``sqrt(r² − (r − z)²)`` of it (the
+    lift's circle), two samples (1 mm) more for round-off; one at r or higher (or NaN)
+    anywhere in the window. Sample j lies in roll k's window ``(j + 1 − k)`` samples from
+    its middle; w: the window's half-width [samples].
+    """
+    reach = np.full(z.shape, -1, dtype=np.intp)  # half-width in samples, -1: lifts nowhere
+    up = ~(z <= 0.0)  # NaN too
+    zu = z[up]
+    below = zu < r  # the others: anywhere in the window
+    half = np.sqrt(np.maximum(r**2 - (r - np.where(below, zu, r)) ** 2, 0.0)) / SAMPLE_STEP
+    reach[up] = np.where(below, np.floor(half).astype(np.intp) + 2, w + 1)
+    out = np.zeros((2, rolls), dtype=bool)
+    for t in range(2):
+        j = np.flatnonzero(reach[t] >= 0)
+        if not j.size:
+            continue
+        lo = np.clip(j + 1 - reach[t, j], 0, rolls)
+        hi = np.clip(j + 2 + reach[t, j], 0, rolls)  # exclusive
+        mark = np.bincount(lo, minlength=rolls + 1) - np.bincount(hi, minlength=rolls + 1)
+        out[t] = np.cumsum(mark[:rolls]) > 0
+    return out
 
 
 def climb_limit(

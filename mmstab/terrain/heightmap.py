@@ -142,14 +142,7 @@ class Heightmap:
         Args:
             xy: query points (..., 2) in G [m].
         """
-        p = np.asarray(xy, dtype=np.float64)
-        ny, nx = self.shape
-        u = (p[..., 0] - self.origin[0]) / self.resolution
-        v = (p[..., 1] - self.origin[1]) / self.resolution
-        eps = 1e-9  # the far edge is inside (rounding of a query exactly on it)
-        inside = (u >= -eps) & (u <= nx - 1 + eps) & (v >= -eps) & (v <= ny - 1 + eps)
-        ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
-        iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
+        u, v, ix, iy, inside = self._cells(xy)
         height, dh_dx, dh_dy = self._bilinear(u, v, ix, iy)
         valid = inside & np.isfinite(height)
         if not valid.all():
@@ -158,6 +151,21 @@ class Heightmap:
             dh_dx = np.where(bad, np.nan, dh_dx)
             dh_dy = np.where(bad, np.nan, dh_dy)
         return HeightSample(height, dh_dx, dh_dy, valid)
+
+    def _cells(self, xy: ArrayLike) -> tuple[FloatArray, FloatArray, Any, Any, Any]:
+        """Grid coordinates u, v [cells] of points (..., 2) in G [m], lower-left cells, on map.
+
+        The lower-left cells are clipped into the map; ``inside``: the points on it.
+        """
+        p = np.asarray(xy, dtype=np.float64)
+        ny, nx = self.shape
+        u = (p[..., 0] - self.origin[0]) / self.resolution
+        v = (p[..., 1] - self.origin[1]) / self.resolution
+        eps = 1e-9  # the far edge is inside (rounding of a query exactly on it)
+        inside = (u >= -eps) & (u <= nx - 1 + eps) & (v >= -eps) & (v <= ny - 1 + eps)
+        ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
+        iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
+        return u, v, ix, iy, inside
 
     def sample_rows(
         self, x: FloatArray, y: FloatArray, slopes: bool = True
@@ -237,9 +245,12 @@ class Heightmap:
         Raises:
             OffMapError: a point is off the map or on an unknown cell.
         """
-        s = self.sample(xy)
-        self.check(s, xy)
-        return s.height
+        u, v, ix, iy, inside = self._cells(xy)
+        height = self._bilinear(u, v, ix, iy, slopes=False)[0]  # :meth:`sample`'s heights
+        valid = inside & np.isfinite(height)
+        if not valid.all():
+            self.check(HeightSample(height, height, height, valid), xy)  # raises
+        return height
 
     def normal(self, xy: ArrayLike) -> FloatArray:
         """Upward unit normal of the bilinear surface at points (..., 2) -> (..., 3).

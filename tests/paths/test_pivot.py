@@ -302,3 +302,75 @@ def test_plan_and_track_a_route_with_a_pivot_from_the_cli(tmp_path):
     left, right = run["qdot"][inside, 0], run["qdot"][inside, 1]
     assert np.all(left < 0) and np.all(right > 0)
     assert run["state"][-1, 2] == pytest.approx(np.pi / 2, abs=1e-2)
+
+
+# ------------------------------------------------------------------------- the pivot centre
+def test_a_pivot_about_a_point_ahead_by_hand():
+    """90 deg left at (2, 0) about a point c = 0.1 m ahead of B's origin.
+
+    The origin stops c short of the corner (1.9, 0), swings about the corner at radius c
+    (at 45 deg: (2 − c cos 45°, −c sin 45°)) and leaves from c behind it on the next leg's
+    line, (2, −0.1); the route's length and the pivot's own length are unchanged.
+    """
+    from mmstab.paths.geometry import shift_pivot_centres
+
+    c, quarter = 0.1, R_PIVOT * np.pi / 2
+    old = route_from_waypoints(SQUARE[:3], 0.0, pivot_radius=R_PIVOT)
+    route = shift_pivot_centres(old, [c])
+    assert route.length == pytest.approx(old.length, abs=1e-12)
+    assert [p.length for p in route.pieces] == pytest.approx([1.9, quarter, 2.1], abs=1e-12)
+    np.testing.assert_allclose(route.pivot_spans, [[1.9, 1.9 + quarter]], atol=1e-12)
+    smp = route.sample([1.9, 1.9 + quarter / 2, 1.9 + quarter, 1.9 + quarter + 2.1])
+    h = np.sqrt(0.5) * c
+    want = [[1.9, 0, 0], [2 - h, -h, np.pi / 4], [2, -c, np.pi / 2], [2, 2, np.pi / 2]]
+    np.testing.assert_allclose(smp.pose, want, atol=1e-12)
+    # every pose c behind the corner along its heading: the point c ahead stands on it
+    s = np.linspace(1.9, 1.9 + quarter, 21)
+    pose = route.sample(s).pose
+    ahead = pose[:, :2] + c * np.column_stack([np.cos(pose[:, 2]), np.sin(pose[:, 2])])
+    np.testing.assert_allclose(ahead, np.tile([2.0, 0.0], (21, 1)), atol=1e-12)
+    # d pose / ds against central differences, through the pivot and across its ends
+    s = np.linspace(0.5, route.length - 0.5, 401)
+    e = 1e-6
+    fd = (route.sample(s + e).pose - route.sample(s - e).pose) / (2 * e)
+    np.testing.assert_allclose(route.sample(s).rate, fd, atol=1e-6)
+    # continuous: no step in the pose anywhere (the largest step of a fine sampling)
+    fine = route.sample(np.linspace(0, route.length, 20001)).pose
+    assert np.abs(np.diff(fine, axis=0)).max() < 2 * route.length / 20000 / R_PIVOT
+
+
+def test_a_centre_behind_the_origin_overshoots_the_corner_and_arcs_are_left_alone():
+    from mmstab.paths.geometry import shift_pivot_centres
+
+    route = shift_pivot_centres(
+        route_from_waypoints(SQUARE[:3], 0.0, pivot_radius=R_PIVOT), [-0.08]
+    )
+    start = route.sample(route.pivot_spans[0, 0]).pose[0]
+    np.testing.assert_allclose(start, [2.08, 0.0, 0.0], atol=1e-12)
+    with pytest.raises(ValueError, match="2 pivot centres for the route's 1 pivots"):
+        shift_pivot_centres(route, [0.1, 0.1])
+    # a route of arcs only: nothing to move
+    arcs = route_from_waypoints(SQUARE, 0.5, pivot_radius=R_PIVOT)
+    assert shift_pivot_centres(arcs, []).pieces == arcs.pieces
+
+
+def test_a_route_path_with_pivot_centres_keeps_its_time_and_moves_its_turn_caps():
+    from mmstab.paths.speed import TurnLimit
+
+    plain = route_path(SQUARE, 0.0)
+    path = RoutePath(plain.route, plain.profile, LIMITS)
+    (s0, s1), *_ = path.route.pivot_spans
+    capped = path.with_turn_limits((TurnLimit(s0, s1, 0.5),))
+    moved = capped.with_pivot_centres([0.1, 0.05, -0.05])
+    assert moved.length == pytest.approx(path.length, abs=1e-12)
+    # the legs are long enough to cruise: a leg c shorter and the next c longer take as long
+    assert moved.duration == pytest.approx(capped.duration, abs=1e-6)  # the profile's grid
+    (m0, m1), *_ = moved.route.pivot_spans
+    assert moved.turn_limits == (TurnLimit(m0, m1, 0.5),)
+    assert (m0, m1) == pytest.approx((s0 - 0.1, s1 - 0.1), abs=1e-12)
+    # the pivot's timing is the capped one's, 0.1 m earlier along the leg
+    assert moved.yaw_rate_max(m0, m1) == pytest.approx(capped.yaw_rate_max(s0, s1), rel=1e-9)
+    u = np.linspace(0.01, 0.79, 300)
+    h = 1e-7
+    fd = (moved.pose_at(u + h) - moved.pose_at(u - h)) / (2 * h)
+    np.testing.assert_allclose(moved.pose_rate(u).rate, fd, atol=2e-4 * moved.lap_time)

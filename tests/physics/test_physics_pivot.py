@@ -15,6 +15,7 @@ Both transients fade once the route drives on along the next leg.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from conftest import ROOT
 
 from mmstab import app
 from mmstab.control.controller import build_controller
+from mmstab.control.pivot import pivot_centre, pivoting
 from mmstab.control.reference import initial_state
 from mmstab.core.problem import problem_from_dict
 from mmstab.outputs.simulate import controller_settings, loop_settings, stowed_plan
@@ -33,8 +35,8 @@ pytestmark = [pytest.mark.mujoco, pytest.mark.slow]
 TURN = np.radians(60.0)
 
 
-@pytest.fixture(scope="module")
-def pivot(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, object, object]:
+def _pivot_run(tmp: Path, centre: float | str) -> tuple[object, object, object]:
+    """(problem, controller settings, run) of the pivot, its centre ``centre`` (the loop's)."""
     leg = 1.2
     data = {
         "robot": str(ROOT / "problems" / "robots" / "cameleon.yaml"),
@@ -45,21 +47,35 @@ def pivot(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, object, obj
                  "speed": 0.25, "turn_radius": 0.0},
         "workspace": {"grid": [10, 8, 8, 8]},
     }  # fmt: skip
-    problem = problem_from_dict(data, Path(tmp_path_factory.mktemp("pivot")) / "pivot.yaml")
+    problem = problem_from_dict(data, tmp / "pivot.yaml")
     cs = controller_settings(problem)
     plan = stowed_plan(problem.robot, app.plan(problem))
     state0 = initial_state(problem.base_path, problem.robot.stowed)
     step = build_controller(problem.robot, cs).step
-    run = run_closed_loop(problem, plan, step, cs, loop_settings(problem), state0)
-    return problem, cs, run
+    loop = dataclasses.replace(loop_settings(problem), pivot_centre=centre)
+    run = run_closed_loop(problem, plan, step, cs, loop, state0)
+    turned = pivoting(problem, plan, centre)  # the route the run's reference followed
+    return turned, controller_settings(turned), run
+
+
+@pytest.fixture(scope="module")
+def pivot(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, object, object]:
+    """The pivot about B's origin (``physics.pivot_centre: 0``)."""
+    return _pivot_run(Path(tmp_path_factory.mktemp("pivot")), 0.0)
+
+
+@pytest.fixture(scope="module")
+def pivot_auto(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, object, object]:
+    """The pivot about the skid model's centre (``physics.pivot_centre: auto``, the default)."""
+    return _pivot_run(Path(tmp_path_factory.mktemp("pivot_auto")), "auto")
 
 
 def _pivot_rows(problem, cs, run) -> tuple[np.ndarray, np.ndarray]:
-    """The reference pose at each sample, and where the reference pivots (v = 0, ω ≠ 0)."""
-    value, rate = problem.base_path.pose_rate(run.t / cs.lap_time)
-    speed = np.hypot(rate[:, 0], rate[:, 1]) / cs.lap_time
+    """The reference pose at each sample, and where the reference pivots (its pivot, ω ≠ 0)."""
+    path, u = problem.base_path, run.t / cs.lap_time
+    value, rate = path.pose_rate(u)
     yaw_rate = rate[:, 2] / cs.lap_time
-    return value, (np.abs(yaw_rate) > 1e-3) & (speed < 1e-6)
+    return value, (np.abs(yaw_rate) > 1e-3) & path.route.sample(path.s_at(u)).pivot
 
 
 def test_the_pivot_is_tracked_and_the_origin_comes_back(pivot) -> None:
@@ -105,6 +121,7 @@ def test_mujoco_turns_slower_than_the_belts_and_about_the_centre_of_mass(pivot) 
     com = problem.robot.overall_com(problem.robot.arm_com(problem.robot.stowed))
     assert 0.03 < icr[0] < 0.11 and abs(icr[1]) < 0.04
     assert abs(icr[0] - com[0]) < 0.04
+    assert abs(icr[0] - pivot_centre(problem.robot, com)[0]) < 0.02  # the skid model's 6.3 cm
     # the two mechanisms bound the origin's error: the chord it sweeps about that centre and
     # the control point's offset times the heading lag (6.9 + 4.9 cm against 7.5 cm)
     ref, _ = _pivot_rows(problem, cs, run)
@@ -112,3 +129,26 @@ def test_mujoco_turns_slower_than_the_belts_and_about_the_centre_of_mass(pivot) 
     chord = 2 * np.hypot(*icr) * np.sin(TURN / 2)
     assert chord > 0.6 * run.base_origin_error.max()
     assert run.base_origin_error.max() < chord + cs.base_offset * lag
+
+
+def test_about_its_pivot_centre_the_base_follows_the_pivot(pivot, pivot_auto) -> None:
+    """The reference pivots about the skid model's centre (6.3 cm ahead, on the corner).
+
+    B's origin stops 6.3 cm short of the corner and swings about it: the base's own pivot,
+    so the origin stays on its reference (measured 2.0 cm, against 7.5 cm about the origin;
+    the heading lags as much, 0.25 rad: the base turns about the point the reference does).
+    """
+    problem, cs, run = pivot_auto
+    assert run.tipped is None and run.slid is None and run.stalled is None
+    ref, pivoting_rows = _pivot_rows(problem, cs, run)
+    assert np.degrees(np.ptp(ref[pivoting_rows, 2])) == pytest.approx(60.0, abs=1.0)
+    # the reference's origin swings about the corner at the model's radius
+    c = pivot_centre(
+        problem.robot, problem.robot.overall_com(problem.robot.arm_com(problem.robot.stowed))
+    )[0]
+    ahead = ref[pivoting_rows, :2] + c * np.column_stack(
+        [np.cos(ref[pivoting_rows, 2]), np.sin(ref[pivoting_rows, 2])]
+    )
+    np.testing.assert_allclose(ahead, 0.0, atol=1e-9)
+    assert run.base_origin_error.max() < 0.03
+    assert run.base_origin_error.max() < 0.5 * pivot[2].base_origin_error.max()

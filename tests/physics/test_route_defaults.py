@@ -21,6 +21,7 @@ from test_random_routes import COARSE, pair_problem
 
 from mmstab import app
 from mmstab.control.controller import build_controller
+from mmstab.control.pivot import pivoting
 from mmstab.control.reference import initial_state
 from mmstab.core.defaults import HEIGHTMAP_ROUTE_PLANNER, with_defaults
 from mmstab.core.problem import load_problem
@@ -88,13 +89,17 @@ def test_a_random_route_in_mujoco_does_not_tip_nor_touch_the_ground(k, tmp_path,
     cs, loop = controller_settings(problem), loop_settings(problem)
     state0 = initial_state(problem.base_path, problem.robot.stowed)
     run = run_closed_loop(problem, plan, build_controller(problem.robot, cs).step, cs, loop, state0)
-    assert problem.route is not None  # the whole route: no tip stopped the run
+    driven = pivoting(problem, plan, loop.pivot_centre).route  # its pivots about their centres
+    assert driven is not None  # the whole route: no tip stopped the run
     added = 0.0 if run.timing is None else run.timing["run_time_added_s"]  # the arm's time law
-    assert run.t[-1] == pytest.approx(problem.route.duration + added, abs=2 * loop.control_dt)
+    waited = run.reference_wait_s  # the governor's (route 1: 12 ms, its base 25 cm behind)
+    assert run.t[-1] == pytest.approx(driven.duration + added + waited, abs=2 * loop.control_dt)
     assert run.tipped is None and run.disagreement is None
     assert np.nanmax(run.tilt_error) < loop.disagreement_angle
     assert run.arm_ground is not None and np.isfinite(run.arm_ground).sum() > 1000
     assert np.nansum(run.arm_ground == 1) == 0
     assert int(np.sum(run.status != 0)) == 0
-    # the base lags (10.4 and 18.3 cm at worst), the arm keeps its planned posture
-    assert run.base_error.max() < 0.25
+    # the base lags (10.4 and 25.8 cm at worst: route 1 slides on its second pivot's slope,
+    # 19.8 cm in a second; 18.1 cm and 9.8 cm with its pivots about B's origin), the arm
+    # keeps its planned posture
+    assert run.base_error.max() < 0.3

@@ -251,12 +251,13 @@ def test_a_move_through_nodes_too_low_is_searched_again_without_them(robot, smal
 
 
 def test_kept_pieces_added_in_batches_equal_the_pieces_computed_at_once(robot, small):
-    """KeptPieces grows its arrays by doubling: every row's pieces stay those of its batch.
+    """KeptPieces makes room for FIRST_ROWS, then grows by doubling: every row's pieces stay
+    those of its batch.
 
     (A batch's products may differ from another's in the last bit: the reference is built
     from the same batches, each row's new ones.)
     """
-    from mmstab.planner.ground.under_arm import KeptPieces
+    from mmstab.planner.ground.under_arm import FIRST_ROWS, KeptPieces
 
     under = GroundUnderArm(robot, _map(robot, "flat"), _poses(1))
     kept = KeptPieces(under, small.nodes_q)
@@ -277,7 +278,7 @@ def test_kept_pieces_added_in_batches_equal_the_pieces_computed_at_once(robot, s
         body = under.body(small.nodes_q[new])
         low[new], centre[new], seen[new] = body.low, body.centre, True
     rows = np.flatnonzero(seen)[::-1]
-    assert kept.size == len(rows) <= len(kept.low) < 2 * len(rows)
+    assert kept.size == len(rows) <= len(kept.low) == min(n, FIRST_ROWS)  # room at once
     got = kept(rows)
     np.testing.assert_array_equal(got.low, low[rows])
     np.testing.assert_array_equal(got.centre, centre[rows])

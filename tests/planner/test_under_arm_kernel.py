@@ -46,6 +46,32 @@ def test_pieces_in_body_c_equals_numpy(robot, margin):
 
 
 @pytest.mark.parametrize("margin", MARGINS)
+def test_pieces_of_postures_sharing_their_first_joints(robot, margin):
+    """Postures on a lattice, sorted: the kernel reuses a link's pieces where its frame repeats.
+
+    The reused values are those computed: bit for bit the NumPy twin's, sorted or not.
+    """
+    from mmstab.planner.ground.under_arm import arm_pieces, pieces_in_body
+
+    pieces = arm_pieces(robot)
+    rng = np.random.default_rng(8)
+    lo, hi = robot.joint_lower, robot.joint_upper
+    axes = [np.linspace(lo[j], hi[j], n) for j, n in enumerate((6, 5, 4))]
+    q = np.stack([rng.choice(a, 3000) for a in axes] + [rng.uniform(lo[3], hi[3], 3000)], 1)
+    q[::7, 3] = q[1::7, 3][: len(q[::7])]  # some whole postures repeated too
+    q = q[np.lexsort(q.T[::-1])]
+    twin = pieces_in_body(robot, pieces, q, margin, "numpy")
+    kernel = pieces_in_body(robot, pieces, q, margin, "c")
+    assert np.array_equal(kernel.low, twin.low)
+    assert np.allclose(kernel.centre, twin.centre, rtol=0.0, atol=1e-15)
+    shuffled = rng.permutation(len(q))  # no repeats next to each other: each computed
+    alone = pieces_in_body(robot, pieces, q[shuffled], margin, "c")
+    assert np.array_equal(alone.low, kernel.low[shuffled])
+    assert np.array_equal(alone.centre, kernel.centre[shuffled])
+    assert (np.diff(q[:, 0]) == 0).mean() > 0.9  # the first joint repeats: reuse is tested
+
+
+@pytest.mark.parametrize("margin", MARGINS)
 def test_heights_c_equal_numpy_on_random_maps(robot, pairs, margin):
     from mmstab.planner.ground.under_arm import GroundUnderArm
 
@@ -71,6 +97,34 @@ def test_heights_c_equal_numpy_on_random_maps(robot, pairs, margin):
         c, d = kernel.sweep_clear(ks, path, np.full(4, 0.8), 0.05)
         assert np.array_equal(a, c) and np.array_equal(b, d)
     assert low_seen > 100  # the ground rules some postures out: both paths say which
+
+
+@pytest.mark.parametrize("margin", MARGINS)
+def test_heights_of_kept_rows_equal_those_of_their_pieces(robot, pairs, margin):
+    """The kernel reading the kept pieces by row (no copy) gives the copied pieces' heights."""
+    from mmstab.planner.ground.under_arm import GroundUnderArm, KeptPieces
+
+    rng = np.random.default_rng(12)
+    q = rng.uniform(robot.joint_lower, robot.joint_upper, (2000, 4))
+    problem = pairs[1]
+    poses = _route_poses(problem)
+    kernel = GroundUnderArm(robot, problem.terrain, poses, margin=margin, backend="c")
+    twin = GroundUnderArm(robot, problem.terrain, poses, margin=margin, backend="numpy")
+    kept = KeptPieces(kernel, q)
+    kept.add(rng.permutation(2000)[:700])  # kept out of order, then more on demand
+    low_seen = 0
+    for k in range(len(poses)):
+        rows = rng.integers(0, 2000, 400)  # repeats, any order
+        view, copied = kept.view(rows), kept(rows)
+        assert np.array_equal(copied.low, kernel.body(q[rows]).low)
+        for above, plane in ((np.inf, False), (0.05, False), (0.05, True)):
+            h = kernel.poses[k].heights(copied, above, plane)
+            assert np.array_equal(kernel.poses[k].heights(view, above, plane), h)
+            assert np.array_equal(twin.poses[k].heights(view, above, plane), h)  # NumPy's
+        clear = kernel.clear(k, q[rows], 0.05, view)
+        assert np.array_equal(clear, twin.clear(k, q[rows], 0.05, copied))
+        low_seen += int((~clear).sum())
+    assert low_seen > 50
 
 
 def test_a_route_plans_the_same_with_the_kernel_and_its_twin(pairs, monkeypatch):

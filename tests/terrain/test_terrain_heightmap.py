@@ -228,3 +228,33 @@ def test_fast_row_sampler_matches_the_checked_one(rng):
     assert valid.tolist() == [True, True, True, False, True]
     for a, b in ((h, s.height), (hx, s.dh_dx), (hy, s.dh_dy)):
         np.testing.assert_allclose(a[valid], b[valid], atol=1e-12)
+
+
+def test_height_alone_equals_the_sample_height_bit_for_bit() -> None:
+    """``Heightmap.height`` (no slopes computed) gives ``sample``'s heights, the same floats.
+
+    Seeded rough maps of 2 and 5 cm cells, points inside (on cell corners and edges too)
+    and at the far edge; a point off the map or on an unknown cell raises as before.
+    """
+    import numpy as np
+    import pytest
+
+    from mmstab.terrain.heightmap import Heightmap, OffMapError
+
+    rng = np.random.default_rng(2024)
+    for res in (0.02, 0.05):
+        elev = rng.normal(0.0, 0.03, (80, 120))
+        hm = Heightmap.build(elev, res, (-1.3, -0.7))
+        x0, x1, y0, y1 = hm.bounds
+        xy = np.stack([rng.uniform(x0, x1, 5000), rng.uniform(y0, y1, 5000)], axis=1)
+        corners = np.stack([hm.x[rng.integers(0, 120, 200)], hm.y[rng.integers(0, 80, 200)]], 1)
+        edge = np.array([[x1, y1], [x0, y1], [x1, y0]])
+        for pts in (xy, corners, edge, xy[:40].reshape(5, 8, 2), xy[0]):
+            h = hm.height(pts)
+            assert np.array_equal(h, hm.sample(pts).height) and np.shape(h) == pts.shape[:-1]
+        with pytest.raises(OffMapError, match="off the map"):
+            hm.height(np.array([[x1 + 0.1, y0]]))
+        hole = elev.copy()
+        hole[40, 60] = np.nan
+        with pytest.raises(OffMapError, match="unknown"):
+            Heightmap.build(hole, res, (-1.3, -0.7)).height(np.array([[hm.x[60], hm.y[40]]]))

@@ -25,18 +25,32 @@
  */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Link frames (n, L, 4, 4) row-major; pieces: link (P,), points (P, 8, 3), radius (P,),
  * mid (P, 3) (the points' mean); margin: 0 for z itself, else cos and sin of it.
- * Out: low (n, P) [m], centre (n, P, 3) [m]. */
+ * Out: low (n, P) [m], centre (n, P, 3) [m].
+ *
+ * A piece whose link's frame is the previous posture's, bit for bit (postures that share
+ * their first joints, taken in order), gets the previous posture's values: the same
+ * arithmetic on the same numbers. */
 int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
                       const double *points, const double *radius, const double *mid,
                       long P, long margin, double cm, double sm, double *low,
                       double *centre)
 {
     for (long k = 0; k < n; k++) {
+        int same = 0;
         for (long p = 0; p < P; p++) {
             const double *F = frames + (k * L + link[p]) * 16;
+            if (k > 0 && (p == 0 || link[p] != link[p - 1])) /* the frame's rows 0-2 */
+                same = memcmp(F, F - L * 16, 12 * sizeof(double)) == 0;
+            if (same) {
+                low[k * P + p] = low[(k - 1) * P + p];
+                for (int r = 0; r < 3; r++)
+                    centre[(k * P + p) * 3 + r] = centre[((k - 1) * P + p) * 3 + r];
+                continue;
+            }
             const double *pt = points + p * 24;
             double lo = INFINITY;
             for (int m = 0; m < 8; m++) {
@@ -64,7 +78,8 @@ int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
     return 0;
 }
 
-/* One pose: low (n, P) and centre (n, P, 3) from mmstab_arm_pieces; T the pose's M_T_B
+/* One pose: low (m, P) and centre (m, P, 3) from mmstab_arm_pieces, posture k's at row
+ * at[k] (at NULL: row k); T the pose's M_T_B
  * (4, 4); cos_tilt its z-z entry; top the peak map's max [m]; above [m]: pieces that high
  * over the highest ground are not looked at closer; plane: pieces over ground not above
  * the support plane are +inf (left to the plane check); peak (rows, cols) with block (0, 0)
@@ -73,8 +88,8 @@ int mmstab_arm_pieces(const double *frames, long n, long L, const long *link,
  * path would widen the map otherwise); slack [m].
  * Out: h (n,) [m]. Returns 1 when a piece's square lies outside the peak map (nothing
  * meaningful written then: the caller covers more ground and calls again). */
-int mmstab_arm_heights(const double *low, const double *centre, long n, long P,
-                       const double *T, double cos_tilt, double top, double above,
+int mmstab_arm_heights(const double *low, const double *centre, const long *at, long n,
+                       long P, const double *T, double cos_tilt, double top, double above,
                        long plane, const double *peak, long rows, long cols, long i0,
                        long j0, long block, long reach, double lattice, double slack,
                        double *h)
@@ -82,11 +97,12 @@ int mmstab_arm_heights(const double *low, const double *centre, long n, long P,
     const double base = top > 0.0 ? top : 0.0;
     for (long k = 0; k < n; k++) {
         double least = INFINITY;
+        const long r = at ? at[k] : k; /* the posture's row of low and centre */
         for (long p = 0; p < P; p++) {
-            double lowest = low[k * P + p] / cos_tilt;
+            double lowest = low[r * P + p] / cos_tilt;
             double v = lowest - base;
             if (v < above) {
-                const double *c = centre + (k * P + p) * 3;
+                const double *c = centre + (r * P + p) * 3;
                 double x = c[0] * T[0] + c[1] * T[1] + c[2] * T[2] + T[3];
                 double y = c[0] * T[4] + c[1] * T[5] + c[2] * T[6] + T[7];
                 long i = (long)floor(x / lattice) - i0, j = (long)floor(y / lattice) - j0;

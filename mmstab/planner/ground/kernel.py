@@ -47,8 +47,9 @@ def _kernels() -> tuple[Any, Any, Any, Any]:
     peak, peak_map = lib.mmstab_lattice_peak, lib.mmstab_peak_map
     # frames n L link points radius mid P margin cm sm | low centre
     pieces.argtypes = [_D, _long, _long, _L, _D, _D, _D, _long, _long, _double, _double, _D, _D]
-    # low centre n P T cos top above plane peak rows cols i0 j0 block reach lattice slack | h
-    heights.argtypes = [_D, _D, _long, _long, _D, _double, _double, _double, _long, _D]
+    # low centre at n P T cos top above plane peak rows cols i0 j0 block reach lattice slack | h
+    heights.argtypes = [_D, _D, ctypes.c_void_p, _long, _long, _D, _double, _double, _double]
+    heights.argtypes += [_long, _D]
     heights.argtypes += [_long, _long, _long, _long, _long, _long, _double, _double, _D]
     # elev ny nx origin res | plane steps sizes | blocks rows peaks | i j m out
     peak.argtypes = [_D, _long, _long, _D, _double, _D, _D, _L, _D, _D, _D, _L, _L, _long, _D]
@@ -122,12 +123,13 @@ def heights_kernel(
     reach: int,
     lattice: float,
     slack: float,
+    rows: NDArray[np.intp] | None = None,
 ) -> NDArray[np.float64] | None:
     """One pose's least height of each posture above the ground under the arm (n,) [m].
 
     Args:
-        low: the pieces' lowest z_B (n, P) [m].
-        centre: their centres in B (n, P, 3) [m].
+        low: the pieces' lowest z_B (m, P) [m].
+        centre: their centres in B (m, P, 3) [m].
         M_T_B: the pose's resting body pose in M (4, 4).
         top: the peak map's max [m].
         above: pieces this far over the highest ground are not looked at closer [m].
@@ -138,17 +140,24 @@ def heights_kernel(
         reach: a piece's square must lie this many samples inside the map.
         lattice: the lattice step [m].
         slack: round-off allowance [m].
+        rows: the postures' rows of ``low`` and ``centre`` (n,); None: all m, in order
+            (the rows read where they are: no copy of the pieces).
 
     Returns:
         None when some piece's square leaves the map (the caller widens it).
     """
     lo = np.ascontiguousarray(low, dtype=np.float64)
-    n, P = lo.shape
+    m, P = lo.shape
+    at = None if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
+    if at is not None and len(at) and not (0 <= int(at.min()) and int(at.max()) < m):
+        raise IndexError(f"heights_kernel: rows outside the {m} rows of the pieces")
+    n = m if at is None else len(at)
     T = np.ascontiguousarray(M_T_B, dtype=np.float64)
     pk = np.ascontiguousarray(peak, dtype=np.float64)
     h = np.empty(n)
     code = _kernels()[1](
-        lo, np.ascontiguousarray(centre, dtype=np.float64), n, P, T, float(T[2, 2]),
+        lo, np.ascontiguousarray(centre, dtype=np.float64),
+        None if at is None else at.ctypes.data, n, P, T, float(T[2, 2]),
         float(top), float(above), int(plane), pk, pk.shape[0], pk.shape[1],
         int(origin[0]), int(origin[1]), int(block), int(reach), float(lattice), float(slack), h,
     )  # fmt: skip

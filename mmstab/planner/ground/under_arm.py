@@ -54,6 +54,8 @@ SLACK = 1e-9
 BLOCK = 2
 #: Lattice samples along a tile's edge (the ground is sampled by tiles, kept for a route).
 TILE = 64
+#: Rows of arm pieces :class:`KeptPieces` makes room for at first (1.3 kB a row, 43 MB).
+FIRST_ROWS = 32768
 #: Who computes the pieces, the peak maps and the heights: the C kernel (default) or its NumPy twin.
 Backend = Literal["c", "numpy"]
 
@@ -63,6 +65,21 @@ class PiecesB(NamedTuple):
 
     low: FloatArray
     centre: FloatArray
+
+
+class KeptRows(NamedTuple):
+    """Pieces of n postures read where they are kept (:meth:`KeptPieces.view`).
+
+    Posture i's pieces are row ``at[i]`` of ``low`` (m, P) [m] and ``centre`` (m, P, 3) [m].
+    """
+
+    low: FloatArray
+    centre: FloatArray
+    at: NDArray[np.intp]
+
+    def pieces(self) -> PiecesB:
+        """The rows' pieces copied out (n, P) and (n, P, 3)."""
+        return PiecesB(self.low[self.at], self.centre[self.at])
 
 
 def pieces_in_body(
@@ -237,25 +254,32 @@ class PoseGround:
         self._cover()
         return self.top
 
-    def heights(self, body: PiecesB, above: float = -np.inf, plane: bool = False) -> FloatArray:
+    def heights(
+        self, body: PiecesB | KeptRows, above: float = -np.inf, plane: bool = False
+    ) -> FloatArray:
         """Each posture's least height above the ground under the arm (n,) [m] (module text).
 
         A lower bound: a piece is ``z_low / c − max(r, 0)`` up. Pieces at least ``above``
         [m] over the highest ground in reach are not looked at closer (where the answer is
         ``above`` or more it is only that). ``plane``: the pieces over ground not above the
         support plane are left to the plane check (+inf; a move's samples, module text).
+        ``body``: the postures' pieces, or their rows where they are kept (the C kernel
+        reads them there; the same values).
         """
         self._cover()
-        if self.backend == "c" and len(body.low):
+        rows = body.at if isinstance(body, KeptRows) else None
+        if self.backend == "c" and len(body.low) and (rows is None or len(rows)):
             from mmstab.planner.ground.kernel import heights_kernel
 
             h_c = heights_kernel(
                 body.low, body.centre, self.M_T_B, self.top, above, plane, self.peak,
                 (self.box[0] * TILE, self.box[2] * TILE), BLOCK, self.cells + 2 * BLOCK,
-                LATTICE, SLACK,
+                LATTICE, SLACK, rows,
             )  # fmt: skip
             if h_c is not None:
                 return h_c  # else a square leaves the map: widened below, as NumPy does
+        if isinstance(body, KeptRows):
+            body = body.pieces()
         lowest = body.low / self.cos_tilt
         h = lowest - max(self.top, 0.0)
         look = np.flatnonzero(h.ravel() < above)
@@ -335,7 +359,7 @@ class GroundUnderArm:
         return np.asarray((lowest - self.drop) / pose.cos_tilt - max(pose.highest, 0.0) >= ground)
 
     def clear(
-        self, k: int, postures: ArrayLike, ground: float, body: PiecesB | None = None
+        self, k: int, postures: ArrayLike, ground: float, body: PiecesB | KeptRows | None = None
     ) -> NDArray[np.bool_]:
         """Whether each posture (n, 4) [rad] keeps the arm ``ground`` [m] up at pose ``k``."""
         b = self.body(postures) if body is None else body
@@ -388,10 +412,14 @@ class KeptPieces:
         """Compute the pieces of ``rows`` not kept yet, in one batch."""
         new = np.unique(rows[self.slot[rows] < 0])  # those not kept, ascending
         if new.size:
+            # by their joint angles, the first first: postures sharing their first joints
+            # come together and the kernel reuses those links' pieces (the same values)
+            new = new[np.lexsort(self.postures[new].T[::-1])]
             body = self.under.body(self.postures[new])
             end = self.size + len(new)
             if end > len(self.low):  # the kept rows copied, the new room left untouched
-                size = max(end, 2 * len(self.low))
+                # room for FIRST_ROWS at once: pages are only taken as rows are written
+                size = max(end, 2 * len(self.low), min(len(self.postures), FIRST_ROWS))
                 grown = [np.empty((size, *a.shape[1:])) for a in (self.low, self.centre)]
                 for g, a in zip(grown, (self.low, self.centre), strict=True):
                     g[: self.size] = a[: self.size]
@@ -402,8 +430,12 @@ class KeptPieces:
 
     def __call__(self, rows: NDArray[np.intp]) -> PiecesB:
         """The pieces of ``rows`` (n,)."""
+        return self.view(rows).pieces()
+
+    def view(self, rows: NDArray[np.intp]) -> KeptRows:
+        """The pieces of ``rows`` (n,) where they are kept (no copy)."""
         at = self.slot[rows]
         if (at < 0).any():
             self.add(rows)
             at = self.slot[rows]
-        return PiecesB(self.low[at], self.centre[at])
+        return KeptRows(self.low, self.centre, at)
