@@ -6,7 +6,17 @@ import sys
 
 # One OpenBLAS thread per test process, set before NumPy loads it (subprocesses inherit it):
 # make test runs two workers on two cores, and OpenBLAS's threads on an oversubscribed
-# machine made each small LAPACK call wait 0.1-0.25 s (a 200-triangulation test: 21 s -> 0.5 s)
+# machine made each small LAPACK call wait 0.1-0.25 s (a 200-triangulation test: 21 s -> 0.5 s).
+# A pytest plugin that imports NumPy first defeats it (zarr's did: pyproject.toml's addopts
+# leaves it out; the SVD of a 100 x 2 array took 6 ms of CPU instead of 13 us): say so.
+if "numpy" in sys.modules and "OPENBLAS_NUM_THREADS" not in os.environ:
+    import warnings
+
+    warnings.warn(
+        "NumPy was imported before tests/conftest.py (a pytest plugin?): OpenBLAS keeps its "
+        "threads; set OPENBLAS_NUM_THREADS=1 or leave the plugin out (-p no:NAME)",
+        stacklevel=1,
+    )
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pathlib import Path
@@ -17,6 +27,17 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# With PYTHONDONTWRITEBYTECODE set (some sandboxes and CI images set it), every test worker
+# and every command a test starts compiled mmstab from source again, and the test that
+# imports each module alone compiled a module's chain once per module (18.7 s -> 8.4 s of
+# CPU with the bytecode cached). The tests write their bytecode to build/pycache (git-ignored,
+# nothing in the source folders) for this process and the processes it starts.
+if sys.dont_write_bytecode or os.environ.get("PYTHONDONTWRITEBYTECODE"):
+    _PYCACHE = str(ROOT / "build" / "pycache")
+    sys.dont_write_bytecode = False
+    sys.pycache_prefix = os.environ["PYTHONPYCACHEPREFIX"] = _PYCACHE
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 PROBLEMS = ROOT / "problems"
 #: The tests' cache folder (workspaces, roadmaps, compiled C): the repository's own
 #: results/workspace, built on first use in a fresh clone, never the user's cache folder;

@@ -25,13 +25,29 @@ def test_pinball_minimiser_is_the_quantile():
 
 
 @pytest.mark.slow
-def test_fit_is_reproducible_and_the_default_is_its_value():
+def test_fit_is_reproducible_and_the_default_is_its_value(monkeypatch):
+    """The committed settings fit again to the committed summary, every number of it.
+
+    The summary was written by another process (make skid-fit). One fit: the model's grid
+    costs 7.5 s a fit, the resamples next to nothing. The 5-95 % of K over the resamples
+    are grid values that other seeds give too, so the resamples' generator is checked to be
+    the settings' seeded one.
+    """
+    seeds = []
+    default_rng = np.random.default_rng
+
+    def seeded(*args, **kwargs):
+        seeds.append(args[0] if args else kwargs.get("seed"))
+        return default_rng(*args, **kwargs)
+
+    monkeypatch.setattr(np.random, "default_rng", seeded)
     settings = load_settings(SETTINGS)
-    settings["bootstrap"] = 30  # the resamples are seeded: two runs draw the same
-    a, b = fit(settings), fit(settings)
-    assert a == b
+    a = fit(settings)
+    assert settings["seed"] in seeds  # (loading the problem seeds its own generators)
     committed = json.loads((ROOT / "results" / "skid_fit" / "summary.json").read_text())
     assert a["shear_modulus_m"] == pytest.approx(committed["shear_modulus_m"], rel=1e-12)
+    assert a["bootstrap_p5_p95_m"] == committed["bootstrap_p5_p95_m"]
+    assert json.loads(json.dumps(a)) == {k: committed[k] for k in a}
     default = SECTION_DEFAULTS["physics"]["shear_modulus"]
     assert default == pytest.approx(a["shear_modulus_m"], rel=0.02)
     # the fit does what it says: the model under-predicts fewer cases than rigid Coulomb
