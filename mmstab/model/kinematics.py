@@ -16,6 +16,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.model import frames as frames_c
+
 if TYPE_CHECKING:
     from mmstab.model.parts import ArmLink, FloatArray
 
@@ -83,6 +85,7 @@ class ArmKinematics:
         self._dh_gain = np.stack([one, -ca_, sa, a, one, ca_, -sa, a], axis=1)
         zero, d = np.zeros(len(self.links)), np.array([link.d for link in self.links])
         self._dh_rest = np.stack([zero, sa, ca_, d, zero, zero, zero, one], axis=1)
+        self._fast: bool | None = None  # link_frames in C: not yet checked
         T = ca.SX(self.mount_T)
         self.B_T_R: list[ca.SX] = []
         for i, link in enumerate(self.links):
@@ -109,6 +112,9 @@ class ArmKinematics:
     def link_frames(self, q: ArrayLike) -> FloatArray:
         """Link frames B_T_R_i for many postures at once.
 
+        In C where it gives NumPy's numbers bit for bit on this machine
+        (:mod:`mmstab.model.frames`, checked once per kinematics), else NumPy's products.
+
         Args:
             q: joint angles (N, 4) or (4,) [rad].
 
@@ -118,6 +124,28 @@ class ArmKinematics:
         qa = np.asarray(q, dtype=float)
         single = qa.ndim == 1
         qa = np.atleast_2d(qa)
+        if self._fast is None:
+            sample = frames_c.sample_postures(len(self.links))
+            key = b"".join(x.tobytes() for x in (self._dh_gain, self._dh_rest, self.mount_T))
+            self._fast = frames_c.agrees(
+                b"frames" + key, lambda: self._frames_c(sample), lambda: self._frames_np(sample)
+            )
+        out = self._frames_c(qa) if self._fast else None
+        if out is None:
+            out = self._frames_np(qa)
+        return out[0] if single else out
+
+    def _trig(self, qa: FloatArray) -> FloatArray:
+        """Each joint's (cos, sin) of its angle plus offset (n, links, 2)."""
+        theta = qa[:, : len(self.links)] + self._theta_offset
+        return np.stack((np.cos(theta), np.sin(theta)), axis=2)
+
+    def _frames_c(self, qa: FloatArray) -> FloatArray | None:
+        """:meth:`link_frames` of (n, 4) postures in C; None: no kernel."""
+        return frames_c.link_frames(self._trig(qa), self._dh_gain, self._dh_rest, self.mount_T)
+
+    def _frames_np(self, qa: FloatArray) -> FloatArray:
+        """:meth:`link_frames` of (n, 4) postures with NumPy's batched products (n, 4, 4, 4)."""
         n, links = qa.shape[0], len(self.links)
         if n > FEW_POSTURES:  # link after link: contiguous arrays, fewer cache misses
             T = np.broadcast_to(self.mount_T, (n, 4, 4))
@@ -125,12 +153,10 @@ class ArmKinematics:
             for i, link in enumerate(self.links):
                 T = T @ dh_np(qa[:, i] + link.theta_offset, link.a, link.alpha, link.d)
                 frames.append(T)
-            out = np.stack(frames, axis=1)
-            return out[0] if single else out
+            return np.stack(frames, axis=1)
         # every link's DH transform at once, the same numbers as dh_np's: its first two rows
         # a cosine or sine times a constant, the last two constants
-        theta = qa[:, :links] + self._theta_offset
-        trig = np.stack((np.cos(theta), np.sin(theta)), axis=2)  # (n, links, 2)
+        trig = self._trig(qa)
         D = np.empty((n, links, 16))
         np.multiply(np.take(trig, self._dh_trig, axis=2), self._dh_gain, out=D[:, :, :8])
         D[:, :, 8:] = self._dh_rest
@@ -139,7 +165,7 @@ class ArmKinematics:
         T = np.broadcast_to(self.mount_T, (n, 4, 4))
         for i in range(links):  # the same 4x4 products (BLAS's), written in place
             T = np.matmul(T, D4[:, i], out=out[:, i])
-        return out[0] if single else out
+        return out
 
     def link_coms(self, q: ArrayLike) -> FloatArray:
         """Per-link CoMs in B: (N, 4, 3) or (4, 3) [m]."""
