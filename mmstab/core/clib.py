@@ -1,8 +1,10 @@
 """mmstab's own C, compiled on first use into a cached shared library.
 
-Five stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
-the resting pose of the base on a heightmap (``terrain/rest/kernel.c``), the bounds on the
-arm's collision distances (``model/collision_distance.c``), A* over the posture roadmap
+Six stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
+the resting pose of the base on a heightmap (``terrain/rest/kernel.c``), the arm's link
+frames and link shapes' poses (``model/frames.c``: BLAS's products, checked bit for bit
+against NumPy's before use), the bounds on the arm's collision distances
+(``model/collision_distance.c``), A* over the posture roadmap
 (``planner/searches/roadmap/astar.c``) and the ground under the arm
 (``planner/ground/kernel.c``: at a route's poses offline, on each live map online). Each
 is compiled once per source text and compile command with the system compiler and kept in
@@ -39,10 +41,10 @@ def array_pointer(dtype: Any) -> type[ctypes.c_void_p]:
 
     class ArrayPointer(ctypes.c_void_p):
         @classmethod
-        def from_param(cls, obj: Any) -> ctypes.c_void_p:
+        def from_param(cls, obj: Any) -> ArrayPointer:
             if not isinstance(obj, np.ndarray) or obj.dtype != kind or not obj.flags.c_contiguous:
                 raise TypeError(f"a C-contiguous {kind} array expected, not {type(obj)}")
-            return ctypes.c_void_p(obj.ctypes.data)
+            return cls(obj.ctypes.data)
 
     ArrayPointer.__name__ = f"ArrayPointer_{kind}"
     return ArrayPointer
