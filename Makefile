@@ -168,6 +168,13 @@ skid: setup
 skid-fit: setup
 	$(PY) -m experiments.skid_fit problems/skid_fit.yaml
 
+## the skid-steer model's slide per radian against the turn rate in MuJoCo: its error in the
+## route time law's slowed turns bounds physics.slide_budget -> results/skid_rates/summary.json
+## (docs/skid.md; about two minutes)
+.PHONY: skid-rates
+skid-rates: setup
+	$(PY) -m experiments.skid_rates problems/skid_rates.yaml
+
 ## trajectory tracking (paper Section II-E, Fig. 9-12): one run, four figures; benchmark
 .PHONY: tracking fig9 fig10 fig11 fig12 bench-track
 tracking: setup

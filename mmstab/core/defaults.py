@@ -99,9 +99,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "slip_distance": 0.05,
         "slip_window": 1.0,
         # share of slip_distance a route's turn may slide within slip_window: the plan slows
-        # the corners that would slide more (mmstab.runs.time_law; e.g. 0.8). null: none
-        # slowed, the default: in MuJoCo 12 of the 18 validation routes whose pivots slid
-        # still slide with the pivot slowed (docs/routes.md), so the plan would accept them
+        # the corners that would slide more (mmstab.runs.time_law; e.g. 0.5: at most 0.63 by
+        # `make skid-rates`). null: none slowed, the default: with 0.5 or 0.8 some accepted
+        # validation routes still slide in MuJoCo (docs/routes.md)
         "slide_budget": None,
         "check_dt": 0.02,
         "backend": "interpreted",
@@ -112,6 +112,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         # the belts' Wong-Chiang shear modulus K [m], fitted by `make skid-fit` on the skid
         # experiment's MuJoCo runs (results/skid_fit/summary.json: shear_modulus_m)
         "shear_modulus": 0.0041,
+        # how far each MuJoCo road wheel may drop below its bump stop [m]: 0, stiff wheels;
+        # terrain.compliance (0.02) is the support mmstab assumes (docs/validation.md)
+        "suspension_travel": 0.0,
         "governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 10.0},
         # a route's pivots turn about the skid model's pivot centre for the plan's CoM there
         # (mmstab.control.pivot), or about a point this far ahead of B's origin [m] (0: the origin)

@@ -336,9 +336,10 @@ ONLINE = obj(
 # choices"), the arm: the plan's postures or held stowed, the drive layer's turn ratio (level-ground
 # achieved / kinematic yaw rate, in (0, 1]; auto: the skid model's pivot), and the reference
 # governor (the base error [m] from which the reference slows, at which it stops, and the
-# wait [s] after which the run ends stalled; null: the reference runs on time), and where a
+# wait [s] after which the run ends stalled; null: the reference runs on time), where a
 # route's pivots turn (auto: the skid model's pivot centre for the plan's CoM; or a distance
-# ahead of B's origin [m], 0: about the origin).
+# ahead of B's origin [m], 0: about the origin), and how far the road wheels may drop below
+# their bump stops [m] (0: stiff wheels).
 PHYSICS_KEYS = obj(
     control_dt={"type": "number", "exclusiveMinimum": 0, "maximum": 0.1},
     duration={"oneOf": [{"type": "null"}, POS]},
@@ -354,6 +355,7 @@ PHYSICS_KEYS = obj(
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
     shear_modulus={"type": "number", "minimum": 0, "maximum": 1},
+    suspension_travel={"type": "number", "minimum": 0, "maximum": 0.2, "unit": "m"},
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
     pivot_centre={
         "oneOf": [{"const": "auto"}, {"type": "number", "minimum": -0.5, "maximum": 0.5}]

@@ -138,6 +138,99 @@ def compare(
     }
 
 
+class AlongRoute(NamedTuple):
+    """μ at the covered maps' states (n,) [N rad], on their maps and on the true ground.
+
+    Attributes:
+        time: the maps' times [s].
+        s: the robot's progress [m].
+        mu_map: the loop's μ (the state on its map).
+        mu_true: the same states on the problem's terrain.
+        mu_offline: the offline plan at the same poses on it, the worse of the two planned
+            postures about ``s`` (None: its postures not kept).
+    """
+
+    time: np.ndarray
+    s: np.ndarray
+    mu_map: np.ndarray
+    mu_true: np.ndarray
+    mu_offline: np.ndarray | None
+
+
+def along_states(
+    problem: Problem, run: FollowRun, offline: OfflinePlan | None = None
+) -> AlongRoute | None:
+    """:class:`AlongRoute` of a run (None: no covered map); :func:`along_route` tells it."""
+    st = [x for x in run.steps if x.covered and np.isfinite(x.mu)]
+    if not st:
+        return None
+    robot = problem.robot
+    poses = np.array([x.pose for x in st])
+    q = np.array([x.q for x in st])
+    s = np.array([x.s for x in st])
+    mu_true = loaded_mu(robot, problem.terrain, poses, robot.arm_com(q), q, strict=False)
+    worse = None
+    if offline is not None and offline.postures is not None and len(offline.s) > 1:
+        after = np.clip(np.searchsorted(offline.s, s, side="right"), 1, len(offline.s) - 1)
+        worse = np.full(len(st), np.inf)
+        for k in (after - 1, after):
+            qk = offline.postures[k]
+            mu_k = loaded_mu(robot, problem.terrain, poses, robot.arm_com(qk), qk, strict=False)
+            worse = np.fmin(worse, mu_k)
+    return AlongRoute(
+        np.array([x.time for x in st]), s, np.array([x.mu for x in st]), mu_true, worse
+    )
+
+
+def along_route(
+    problem: Problem, run: FollowRun, offline: OfflinePlan | None = None
+) -> dict[str, Any] | None:
+    """μ along the way on the true ground: the loop's states, and the offline plan there.
+
+    The loop's μ (``mu_min``) is each covered map's state (the odometry pose, the arm's
+    posture then) on that map; ``mu_planned_min`` only the planned poses' (``planner.spacing``
+    apart). Here the same states rest on the problem's own terrain (one state, one μ: the
+    difference is the map's), and the offline plan is taken at the same poses as its dense
+    verdicts take it (the arm in the two planned postures it moves between, the worse
+    counts; ``offline_plan``, when its postures are kept). None: no covered map.
+
+    Args:
+        problem: the followed problem (its terrain: the true ground).
+        run: the online run.
+        offline: the offline plan on the run's planning grid.
+    """
+    a = along_states(problem, run, offline)
+    return None if a is None else along_summary(a)
+
+
+def along_summary(a: AlongRoute) -> dict[str, Any]:
+    """``summary.json``'s ``along_route`` (:func:`along_route`)."""
+
+    def at(i: int, **more: float) -> dict[str, Any]:
+        return {
+            "time_s": float(a.time[i]),
+            "s_m": float(a.s[i]),
+            **{k: float(v) for k, v in more.items()},
+        }
+
+    i, j = int(np.argmin(a.mu_map)), int(np.nanargmin(a.mu_true))
+    diff = a.mu_map - a.mu_true
+    out: dict[str, Any] = {
+        "maps": len(a.s),
+        "lowest_on_map": at(i, mu_map=a.mu_map[i], mu_true_ground=a.mu_true[i]),
+        "lowest_on_true_ground": at(j, mu_true_ground=a.mu_true[j], mu_map=a.mu_map[j]),
+        "map_minus_true_ground": {
+            "median": float(np.nanmedian(diff)),
+            "p5": float(np.nanpercentile(diff, 5)),
+            "p95": float(np.nanpercentile(diff, 95)),
+        },
+    }
+    if a.mu_offline is not None:
+        m = int(np.nanargmin(a.mu_offline))
+        out["offline_plan"] = at(m, mu_true_ground=a.mu_offline[m])
+    return out
+
+
 def run_follow(
     problem: Problem,
     recording: str | os.PathLike[str],
@@ -160,6 +253,7 @@ def run_follow(
         "online": problem.section("online"),
         "planner": problem.section("planner"),
     }
+    offline = None
     if run.plans:
         t1 = time.perf_counter()
         offline = offline_plan(problem, run, workspace)
@@ -167,7 +261,10 @@ def run_follow(
         summary["offline"] = compare(run, offline, gravity, settings.replan_tol)
         summary["offline"]["seconds_per_pose"] = float(np.median(offline.search_seconds))
         summary["offline"]["wall_seconds"] = time.perf_counter() - t1
-        _figure(out / "online.png", run, offline)
+    along = along_states(problem, run, offline)
+    summary["along_route"] = None if along is None else along_summary(along)
+    if offline is not None:
+        _figure(out / "online.png", run, offline, along)
         _snapshot(out / "online_map.png", problem, run, recording)
     frames = run_frames(run)
     if len(frames.t):
@@ -210,16 +307,21 @@ def write_replay(out: Path, problem: Problem, run: FollowRun) -> None:
     save_settings(out, problem, online_replay=True)
 
 
-def _figure(path: Path, run: FollowRun, offline: OfflinePlan) -> None:
+def _figure(path: Path, run: FollowRun, offline: OfflinePlan, along: AlongRoute | None) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
     s = np.array([x.s for x in run.steps])
-    a.plot(s, [x.mu for x in run.steps], lw=1, label="online: mu now (posture now)")
+    a.plot(s, [x.mu for x in run.steps], lw=1, label="online: mu now (posture now, its map)")
+    if along is not None:
+        a.plot(along.s, along.mu_true, lw=0.8, alpha=0.8, label="the same states, true ground")
+        if along.mu_offline is not None:
+            a.plot(along.s, along.mu_offline, lw=0.8, alpha=0.8,
+                   label="offline plan there (worse posture)")  # fmt: skip
     ks = sorted(run.plans)
     a.plot([run.plans[k].s for k in ks], [run.plans[k].mu for k in ks], "o", ms=3,
            label="online: planned")  # fmt: skip
-    a.plot(offline.s, offline.mu_planned, "-", lw=1, label="offline plan")
+    a.plot(offline.s, offline.mu_planned, "-", lw=1, label="offline plan (planned poses)")
     a.plot(offline.s, offline.mu_stowed, ":", lw=1, label="arm stowed")
     a.set(xlabel="route progress s [m]", ylabel="mu [N rad]", title="stability along the route")
     a.legend(fontsize=7)

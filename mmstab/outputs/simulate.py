@@ -51,6 +51,7 @@ def loop_settings(problem: Problem) -> LoopSettings:
         arm=str(s["arm"]),
         turn_ratio=s["turn_ratio"] if s["turn_ratio"] == "auto" else float(s["turn_ratio"]),
         governor=None if s["governor"] is None else GovernorSettings(**s["governor"]),
+        suspension_travel=float(s["suspension_travel"]),
         pivot_centre=s["pivot_centre"] if s["pivot_centre"] == "auto" else float(s["pivot_centre"]),
     )
 

@@ -83,6 +83,8 @@ class LoopSettings:
             pivot (:mod:`mmstab.stability.drive`); 1: the belts at r θ̇.
         governor: the reference waits for a base that falls behind
             (:mod:`mmstab.physics.governor`); None: the reference runs on time.
+        suspension_travel: how far each road wheel may drop below its bump stop [m]
+            (:class:`~mmstab.physics.robot_model.ModelSettings`; 0: stiff wheels).
         pivot_centre: where a route's pivots turn: ``auto``, about the skid model's pivot
             centre for the plan's CoM there (:mod:`mmstab.control.pivot`), or a distance
             ahead of B's origin [m] (0: about the origin, as the planned route).
@@ -101,13 +103,15 @@ class LoopSettings:
     arm: str = "planned"
     turn_ratio: float | str = 1.0
     governor: GovernorSettings | None = GovernorSettings()
+    suspension_travel: float = 0.0
     pivot_centre: float | str = "auto"
 
     def model_settings(self) -> ModelSettings:
-        """The MuJoCo model's numbers with this section's wheel shape and step."""
+        """The MuJoCo model's numbers with this section's wheel shape, step and travel."""
         base = ModelSettings()
         solref = (max(base.solref[0], 2.5 * self.timestep), base.solref[1])
-        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref)
+        return ModelSettings(wheel=self.wheel, timestep=self.timestep, solref=solref,
+                             suspension_travel=self.suspension_travel)  # fmt: skip
 
 
 @dataclass

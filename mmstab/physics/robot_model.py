@@ -4,7 +4,7 @@ Tree (frames as in ``docs/design.md``, "Frames"; the body frame B is MuJoCo's bo
 
     base (free joint; carries the chassis box "body")
     ├── track_left, track_right       welded at the track boxes' poses
-    │   └── wheel_<side>_NN           road wheels: suspension slide (z) + hinge (y), driven
+    │   └── wheel_<side>_NN           road wheels: [drop,] suspension slides (z), hinge (y)
     ├── flipper_left, flipper_right   welded at the flippers' angle
     └── arm_<link 0> ─ … ─ arm_<link 3> [─ payload]
         hinge joints with position servos; each body's frame IS mmstab's DH frame R_i
@@ -75,6 +75,15 @@ class ModelSettings:
         suspension_damping: damping ratio of a wheel spring with its share of the mass [-].
         suspension_armature: reflected mass on each wheel's spring joint [kg] (lets a
             4 ms step integrate the 0.18 kg wheel on its spring without chatter).
+        suspension_travel: how far each wheel may drop below its bump stop [m] (0: none,
+            the default). A wheel over a dip up to this deep is pressed onto it by a small
+            drop force while the chassis rests on the others' stops: the support mmstab's
+            ``terrain.compliance`` assumes (the bottom run within it of the ground bears).
+        travel_force: the force pressing a wheel that left its stop onto the ground, as a
+            share of the mean wheel load [-]; :class:`~mmstab.physics.robot_sim.RobotSim`
+            applies it with the wheel's weight taken off (the chassis carries it, as the
+            rigid robot does), so a wheel leaves its stop only when it bears less than this.
+        travel_damping: damping of a wheel's drop [N s/m].
         track_kv: velocity-servo gain of each wheel at the rim [N/(m/s)].
         wheel_armature: reflected rotor inertia of each wheel joint [kg m^2].
         arm_kp: position-servo stiffness of every arm joint [N m/rad].
@@ -95,6 +104,9 @@ class ModelSettings:
     suspension_deflection: float = 0.001
     suspension_damping: float = 1.0
     suspension_armature: float = 0.2
+    suspension_travel: float = 0.0
+    travel_force: float = 0.01
+    travel_damping: float = 0.5
     track_kv: float = 2000.0
     wheel_armature: float = 0.05
     arm_kp: float = 2000.0
@@ -185,6 +197,13 @@ def _wheel_xml(name: str, k: int, wheels: Wheels, robot: Robot, s: ModelSettings
     x, n = float(wheels.x[k]), 2 * len(wheels.x)
     outer = 1.0 if "left" in name else -1.0  # the left track's outer edge is at +y_B
     joints = []
+    if s.suspension_travel > 0:  # no spring: the wheel drops by its weight, stops at 0
+        joints.append(
+            f'<joint name="{name}_zdrop" type="slide" axis="0 0 1" '
+            f'damping="{s.travel_damping!r}" range="{_f([-s.suspension_travel, 0.0])}" '
+            f'solreflimit="{_f(s.solref)}" solimplimit="{_f(s.solimp)}" '
+            f'armature="{s.suspension_armature!r}"/>'
+        )
     if s.suspension_deflection > 0:
         stiff = robot.total_mass * float(-GRAVITY_G[2]) / n / s.suspension_deflection
         damp = 2 * s.suspension_damping * np.sqrt(stiff * robot.total_mass / n)
@@ -349,7 +368,7 @@ def build_robot_mjcf(
     n = len(track_wheels(robot, s).x)
     asset, ground_geom = ground_xml(ground)
     T = start_pose(robot, ground, pose, s.drop_height)
-    joints_per_wheel = 2 if s.suspension_deflection > 0 else 1
+    joints_per_wheel = 1 + (s.suspension_deflection > 0) + (s.suspension_travel > 0)
     qpos = np.concatenate([T[:3, 3], _quat(T[:3, :3]), np.zeros(2 * n * joints_per_wheel), q])
     ctrl = np.concatenate([np.zeros(2 * n), q])
     base = "\n".join("      " + line for line in _base_xml(robot, s, payload))

@@ -3,7 +3,9 @@
 :class:`RobotSim` compiles the whole robot on its ground, starts it at the model's keyframe
 and advances it for a given time with constant commands: left/right track speeds [m/s]
 (every wheel's velocity servo of a side) and arm joint targets [rad] (the position
-servos). By default each arm joint also gets the torque that holds its subtree against
+servos). With ``ModelSettings.suspension_travel`` each wheel's drop joint gets its bias
+force (the wheel's weight carried by the chassis) less the drop force that presses it onto
+the ground. By default each arm joint also gets the torque that holds its subtree against
 gravity and the base's motion (``qfrc_bias``, recomputed every step, fed forward as a
 generalized force: an internal torque between link and parent, as a real joint controller's
 gravity feed-forward), so the servo's stiffness alone does not let the arm sag.
@@ -98,6 +100,11 @@ class RobotSim:
         joints = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
         self.arm_qpos = np.array([m.jnt_qposadr[j] for j in joints])
         self.arm_dof = np.array([m.jnt_dofadr[j] for j in joints])
+        drops = [j for j in range(m.njnt) if m.joint(j).name.endswith("_zdrop")]
+        self.drop_dof = np.array([m.jnt_dofadr[j] for j in drops], dtype=int)
+        n_wheels = max(len(drops), 1)
+        mean_load = robot.total_mass * float(-GRAVITY_G[2]) / n_wheels
+        self.drop_force = self.settings.travel_force * mean_load
         self.arm_ctrl = np.array(
             [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in names]
         )
@@ -150,12 +157,17 @@ class RobotSim:
         if arm_q_target is not None:
             d.ctrl[self.arm_ctrl] = arm_q_target
         damping = 0.0 if arm_qdot is None else self.settings.arm_kv * np.asarray(arm_qdot)
+        drop = self.drop_dof if len(self.drop_dof) else None
         if not self.gravity_feedforward:
             d.qfrc_applied[self.arm_dof] = damping
+            if drop is not None:
+                d.qfrc_applied[drop] = d.qfrc_bias[drop] - self.drop_force
             mujoco.mj_step(m, d, nstep=n)
             return
         for _ in range(n):
             d.qfrc_applied[self.arm_dof] = d.qfrc_bias[self.arm_dof] + damping
+            if drop is not None:  # a dropping wheel: its weight on the body, pressed down
+                d.qfrc_applied[drop] = d.qfrc_bias[drop] - self.drop_force
             mujoco.mj_step(m, d)
 
     def settle(self, duration: float = 1.0, pieces: int = 20) -> RobotState:

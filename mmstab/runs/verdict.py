@@ -284,14 +284,54 @@ def robot_turn_check(
                      period, ratio, settings.shear_modulus)  # fmt: skip
 
 
+#: The slide of a turn the closed loop takes longer over than the path (:func:`turn_time`) times
+#: this: at the tracks' rate MuJoCo's fast pivots slide up to 1.045 times the model's per
+#: second (``make skid-rates``: ``fast.per_second_ratio_max``), so the verdict's error on
+#: them goes the safe way on that grid.
+TRACKS_TIME_MARGIN = 1.05
+
+
+def turn_time(turn: Any, dt: Any, turn_ratio: Any, bounded: Any = True) -> Any:
+    """How long the closed loop takes to turn a segment's heading change (N,) [s].
+
+    The path asks for ``turn`` [rad] in ``dt`` [s], a yaw rate ω. Skid-steered, the heading
+    turns at the model's share of what the belts command (``turn_ratio``: the model's yaw
+    rate over the path's, at least :data:`mmstab.stability.skid.TURN_FLOOR`); the controller
+    raises the command to keep up, but on a slope no further than ω plus its yaw margin
+    (:mod:`mmstab.control.limits.yaw_rate`). So the heading turns at
+    ``min(ω, share (ω + margin))``: a slow turn at the path's rate, a pivot faster than the
+    tracks give over longer than the path's time law says (``make skid-rates``: MuJoCo's
+    pivots commanded at 1.2 rad/s turn at 0.62 and slide per second as the model does).
+    Where the controller is not ``bounded`` (ground below the limit's slope) the path's time.
+
+    Args:
+        turn: heading change per segment (N,) [rad].
+        dt: the path's time for it (N,) [s].
+        turn_ratio: the model's yaw rate over the path's (N,) [-] (NaN: none).
+        bounded: the controller's yaw-rate limit applies there (N,) or one [-].
+    """
+    from mmstab.control.limits.yaw_rate import YAW_MARGIN
+    from mmstab.stability.skid import TURN_FLOOR
+
+    ratio = np.abs(np.asarray(turn_ratio, dtype=float))
+    share = np.maximum(np.where(np.isfinite(ratio), ratio, 1.0), TURN_FLOOR)
+    angle = np.abs(np.asarray(turn, dtype=float))
+    rate = angle / np.asarray(dt, dtype=float)
+    achieved = np.minimum(rate, share * (rate + YAW_MARGIN))
+    took = np.where((angle > 1e-6) & np.asarray(bounded), angle / np.maximum(achieved, 1e-12), dt)
+    return np.maximum(dt, took)
+
+
 def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
     """The downhill slide the motion between consecutive poses costs (:mod:`..skid`).
 
     Each segment costs the skid-steer model's downhill motion beyond the commanded one (the
     worse of its two end poses, the belts at the segment's forward speed and turn rate): its
     slide per radian times the heading change, or on a straight segment the belts' creep
-    times the segment's time; spread over that time (poses denser than
-    :data:`TURN_SAMPLES_PER_WINDOW` per window are thinned first). A segment slides when the
+    times the segment's time; spread over the time the tracks take for it
+    (:func:`turn_time`: a pivot faster than the tracks turn lasts longer than the path's
+    time law says; poses denser than :data:`TURN_SAMPLES_PER_WINDOW` per window are thinned
+    first). A segment slides when the
     slide within any ``check.window`` ending in it exceeds ``check.distance`` (the closed
     loop's "slid", :func:`mmstab.physics.loop_checks.downhill_drift`: the same quantity and
     threshold); a run of such segments is a sliding turn. Poses beyond the friction cone
@@ -303,6 +343,7 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
         ``distance_m``, ``window_s``, ``slide_rate_max_m_s`` and ``sliding_turns`` (first and
         last pose, the turn [rad], the largest slide within a window [m]).
     """
+    from mmstab.control.limits.yaw_rate import YAW_MIN_SLOPE
     from mmstab.core.masks import true_runs
     from mmstab.stability.skid import track_patch, turn_slide
 
@@ -321,18 +362,24 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
     heading = np.c_[np.cos(P[:n, 2]), np.sin(P[:n, 2])]
     travel = np.sum((P[after, :2] - P[:n, :2]) * heading, 1)
     dt_seg = np.maximum(t_end - t[:n], 1e-9)
-    patch, slide = track_patch(robot), np.zeros(n)
+    patch, slide, took = track_patch(robot), np.zeros(n), dt_seg.copy()
+    # where the controller's yaw-rate limit holds the turn (its ground's slope, at the pose)
+    bounded = -gravity[:, 2] / np.linalg.norm(gravity, axis=1) <= np.cos(YAW_MIN_SLOPE)
     for end in (np.arange(n), after):  # the worse of each segment's two end poses
         ts = turn_slide(patch, gravity[end], com[end], travel / dt_seg, turn / dt_seg, friction,
                         check.turn_ratio, check.shear_modulus)  # fmt: skip
         rate = np.where(np.isfinite(ts.per_radian) | (np.abs(turn) < 1e-6), ts.rate, 0.0)
         slide = np.maximum(slide, np.nan_to_num(rate, nan=0.0, posinf=0.0) * dt_seg)
-    # cumulative slide against time (piecewise linear); slide within the window ending at each end
-    T = np.r_[t[0], t_end]
+        took = np.maximum(took, turn_time(turn, dt_seg, ts.turn_ratio, bounded[end]))
+    slide = np.where(took > dt_seg * (1 + 1e-9), TRACKS_TIME_MARGIN * slide, slide)
+    # cumulative slide against the time the tracks take (piecewise linear); the slide within
+    # the window ending at each segment's end
+    T = np.r_[0.0, np.cumsum(took)]
     S = np.r_[0.0, np.cumsum(slide)]
-    if closed:  # a window may reach back over the loop's start
-        T, S = np.r_[T[:-1] - check.period, T], np.r_[S[:-1] - S[-1], S]
-    windowed = S[-len(slide) :] - np.interp(t_end - check.window, T, S)
+    if closed:  # a window may reach back over the loop's start (the loop as the tracks take it)
+        period = T[-1] + max(float(check.period or 0.0) - float(np.sum(dt_seg)), 0.0)
+        T, S = np.r_[T[:-1] - period, T], np.r_[S[:-1] - S[-1], S]
+    windowed = S[-len(slide) :] - np.interp(T[-len(slide) :] - check.window, T, S)
     turns = [
         {"first": int(keep[a]), "last": int(keep[b % len(P)]), "turn_rad": float(np.sum(turn[a:b])),
          "slide_in_window_m": float(windowed[a:b].max())}
@@ -342,7 +389,7 @@ def turn_slip(terrain: Terrain, poses: Any, check: TurnCheck) -> dict[str, Any]:
         "distance_m": check.distance,
         "window_s": check.window,
         "shear_modulus_m": check.shear_modulus,
-        "slide_rate_max_m_s": float(np.max(slide / dt_seg, initial=0.0)),
+        "slide_rate_max_m_s": float(np.max(slide / took, initial=0.0)),
         "criterion": "downhill motion beyond the command (skid-steer model) within the window "
         "<= distance",
         "sliding_turns": turns,

@@ -26,13 +26,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.dynamic import dynamic_force_angle
 from mmstab.stability.static import axis_angles, base_polygon, force_angle_batch
 from mmstab.terrain.base import GRAVITY_G, Terrain, as_poses
 from mmstab.terrain.polygon import support_vertices
+from mmstab.terrain.rest.types import RestPoses
 
 
 class LoadedSupport(NamedTuple):
@@ -78,6 +79,19 @@ def _wrench_body(robot: Robot, q: ArrayLike | None, n: int) -> tuple[FloatArray,
     return tool, wrench
 
 
+def state_load(
+    robot: Robot, arm_com_body: ArrayLike | None, q: ArrayLike | None, n: int
+) -> tuple[float, FloatArray, tuple[FloatArray, FloatArray] | None]:
+    """N states' mass [kg], overall CoM in B (N, 3) [m] and tool wrench (or None).
+
+    As :func:`loaded_support` takes them: ``arm_com_body`` None is the arm removed; the
+    wrench (the tool's points (N, 3) [m], wrenches (N, 6) [N, N m]) needs ``q`` [rad].
+    """
+    mass, com_B = _mass_com(robot, arm_com_body, n)
+    wrench = _wrench_body(robot, q, n) if arm_com_body is not None else None
+    return mass, com_B, wrench
+
+
 def loaded_support(
     robot: Robot,
     terrain: Terrain,
@@ -103,8 +117,7 @@ def loaded_support(
     """
     P = as_poses(poses)
     n = len(P)
-    mass, com_B = _mass_com(robot, arm_com_body, n)
-    wrench = _wrench_body(robot, q, n) if arm_com_body is not None else None
+    mass, com_B, wrench = state_load(robot, arm_com_body, q, n)
     false = np.zeros(n, dtype=bool)
     if not is_heightmap(terrain):
         g = np.asarray(terrain.gravity_body(P), dtype=float)
@@ -123,21 +136,53 @@ def loaded_support(
         ground = terrain.with_robot(robot, getattr(terrain, "flipper_angle", None))
     known = np.isfinite(com_B).all(axis=1)  # a posture not found (NaN) has no state
     rests = ground.rest(P[known], strict=strict, com_body=com_B[known])  # type: ignore[attr-defined]
-    points = ground.candidates.points  # type: ignore[attr-defined]
-    G_T_B = np.full((n, 4, 4), np.nan)
-    G_T_B[known] = rests.G_T_B
-    gravity = np.einsum("nji,j->ni", G_T_B[:, :3, :3], GRAVITY_G)
     index = np.full(n, -1)
     index[known] = np.arange(int(known.sum()))
+    return support_on_rests(ground, rests, index, mass, com_B, wrench)
+
+
+def support_on_rests(
+    ground: Terrain,
+    rests: RestPoses,
+    index: NDArray[np.intp],
+    mass: float,
+    com_body: FloatArray,
+    wrench: tuple[FloatArray, FloatArray] | None = None,
+) -> LoadedSupport:
+    """:func:`loaded_support` of N states on a heightmap from their rests, made elsewhere.
+
+    A caller that rests other poses on the same map rests the states in the same batch
+    (each pose's rest is its own: the rows are those of a rest alone) and gives them here.
+
+    Args:
+        ground: the heightmap bound to the robot (its contact candidates).
+        rests: the rests, each state's under its own overall CoM (``com_body``).
+        index: each state's row in ``rests`` (N,) (-1: no state, μ NaN).
+        mass: the states' mass [kg] (:func:`state_load`).
+        com_body: the states' overall CoM in B (N, 3) [m] (:func:`state_load`).
+        wrench: the tool's points in B (N, 3) [m] and wrenches (N, 6) [N, N m], or None
+            (:func:`state_load`).
+    """
+    n = len(index)
+    known = index >= 0
+    points = ground.candidates.points  # type: ignore[attr-defined]
+    G_T_B = np.full((n, 4, 4), np.nan)
+    G_T_B[known] = rests.G_T_B[index[known]]
+    gravity = np.einsum("nji,j->ni", G_T_B[:, :3, :3], GRAVITY_G)
     mu = np.full(n, np.nan)
     line = np.zeros(n, dtype=bool)
     tips, high, settled = (np.zeros(n, dtype=bool) for _ in range(3))
-    tips[known], high[known], settled[known] = rests.tips_over, rests.high_centred, rests.converged
-    line[known] = rests.line_contact
+    at = index[known]
+    tips[known], high[known], settled[known] = (
+        rests.tips_over[at],
+        rests.high_centred[at],
+        rests.converged[at],
+    )
+    line[known] = rests.line_contact[at]
     for i in np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3])):
         j = int(index[i])
         T = G_T_B[i]
-        com_G = T[:3, :3] @ com_B[i] + T[:3, 3]
+        com_G = T[:3, :3] @ com_body[i] + T[:3, 3]
         force_G = mass * GRAVITY_G
         poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
         line[i] |= on_line

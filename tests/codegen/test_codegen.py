@@ -126,7 +126,7 @@ def test_generated_step_equals_interpreted_on_1000_states(generated, problem, rn
             assert a[1].item() == b[1].item()
             worst = max(worst, max(float(np.max(np.abs(x - y))) for x, y in zip(a, b, strict=True)))
             statuses.append(int(b[1].item()))
-            # the yaw-rate limit binds (ground of 10° or more): |ω| = |γ̇_ref| + margin
+            # the yaw-rate limit binds (ground of 6° or more): |ω| = |γ̇_ref| + margin
             yaw = tracks.sprocket_radius * (b[0][1] - b[0][0]) / tracks.separation
             at_bound = abs(abs(yaw) - abs(ref[8]) - YawRateLimit().margin) < 1e-6
             turn_bound += bool(b[1].item() == 0 and at_bound)

@@ -405,3 +405,4 @@ def test_a_start_on_no_map_is_no_nan_in_the_summary(tmp_path: Path) -> None:
     assert "not on its map at 5 maps" in r.stdout and "mu min n/a" in r.stdout
     s = json.loads((out / "summary.json").read_text())
     assert s["updates"] == 5 and s["mu_min"] is None and s["tilt_max_rad"] is None
+    assert s["mu_min_at"] is None and s["along_route"] is None

@@ -30,6 +30,7 @@ map, at the horizon's poses rested on it (their ``M_T_B`` from the batched rest)
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -85,7 +86,7 @@ class ArmGround(NamedTuple):
         return cls(base, proto.cells, proto.reach, kernel_available())
 
 
-class PoseState(NamedTuple):
+class PoseState:
     """A pose's ground on a map, and what was measured on it.
 
     Kept for the next map while the pose rests the same (``M_T_B`` within :data:`SAME_REST`:
@@ -96,19 +97,65 @@ class PoseState(NamedTuple):
         key: the reach box's cells in the map's global lattice of cells, and the window's edge.
         cells: the heights of the reach box's cells [m] (NaN: unknown).
         reach: unknown within the reach, and the fill [m] (:meth:`MapGround.reach`).
-        ground: the pose's lattice (built where pieces were looked at).
+        M_T_B: the pose's resting body pose in M it was measured at (4, 4) [m].
+        ground: the pose's lattice (built where pieces were looked at), made on first use
+            by ``build`` (a map's check of the planned nodes mostly needs only its cells'
+            bound: the lattice's set-up was a fifth of that check).
         known: per reach row: measured at this pose (N,).
         low: per reach row: measured too low (N,).
         checked: per reach row checked by :meth:`MapGround.node_clear`: (clear, over unknown).
     """
 
-    key: tuple[tuple[int, ...], bool]
-    cells: FloatArray
-    reach: tuple[bool, float]
-    ground: PoseGround
-    known: NDArray[np.bool_]
-    low: NDArray[np.bool_]
-    checked: dict[int, tuple[bool, bool]]
+    __slots__ = (
+        "key",
+        "cells",
+        "reach",
+        "M_T_B",
+        "_build",
+        "_ground",
+        "_rows",
+        "_measured",
+        "checked",
+    )
+
+    def __init__(
+        self,
+        key: tuple[tuple[int, ...], bool],
+        cells: FloatArray,
+        reach: tuple[bool, float],
+        M_T_B: FloatArray,
+        build: Callable[[], PoseGround],
+        rows: int,
+    ) -> None:
+        self.key, self.cells, self.reach, self.M_T_B = key, cells, reach, M_T_B
+        self._build: Callable[[], PoseGround] | None = build
+        self._ground: PoseGround | None = None
+        self._rows = rows
+        self._measured: tuple[NDArray[np.bool_], NDArray[np.bool_]] | None = None
+        self.checked: dict[int, tuple[bool, bool]] = {}
+
+    def _masks(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        if self._measured is None:  # a scoring's (the roadmap's reach: 2 x 262,000 rows)
+            self._measured = np.zeros(self._rows, bool), np.zeros(self._rows, bool)
+        return self._measured
+
+    @property
+    def known(self) -> NDArray[np.bool_]:
+        """Per reach row: measured at this pose (N,) (made on first use, then the same)."""
+        return self._masks()[0]
+
+    @property
+    def low(self) -> NDArray[np.bool_]:
+        """Per reach row: measured too low (N,) (made on first use, then the same)."""
+        return self._masks()[1]
+
+    @property
+    def ground(self) -> PoseGround:
+        """The pose's lattice on the map that measured it (built once, on first use)."""
+        if self._ground is None:
+            assert self._build is not None
+            self._ground, self._build = self._build(), None
+        return self._ground
 
 
 class MapGround:
@@ -135,6 +182,7 @@ class MapGround:
         self.states: dict[int, PoseState] = {}
         self.previous = {} if previous is None else previous.states
         self.over_unknown: list[int] = []  # the poses node_clear found over unknown cells
+        self._at = np.rint(self.hm.origin / self.hm.resolution).astype(int)  # its global cells
 
     def state(self, k: int) -> PoseState:
         """Pose ``k``'s state on this map: the last map's if nothing changed under the arm."""
@@ -148,13 +196,13 @@ class MapGround:
         edge = bool(lo[0] < 0 or lo[1] < 0 or hi[0] >= nx or hi[1] >= ny)
         lo, hi = np.maximum(lo, 0), np.minimum(hi, [nx - 1, ny - 1])
         z = self.hm.elevation[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-        at = np.rint(self.hm.origin / self.hm.resolution).astype(int)  # the map's global cells
+        at = self._at  # the map's global cells
         key = ((*(lo + at), *(hi + at)), edge)
         old = self.previous.get(k)
         if (
             old is not None
             and old.key == key
-            and np.abs(old.ground.M_T_B - T).max() <= SAME_REST
+            and np.abs(old.M_T_B - T).max() <= SAME_REST
             and np.array_equal(old.cells, z, equal_nan=True)
         ):
             self.states[k] = old
@@ -165,15 +213,17 @@ class MapGround:
         rise = z - plane_z(T, x[None, :], y[:, None])
         known = np.isfinite(rise)
         top = max(float(rise[known].max()) if known.any() else 0.0, 0.0)
-        ground = MapPoseGround(FilledTiles(self.tiles, T, top), T, self.arm.cells, self.arm.reach)  # type: ignore[arg-type]
-        ground.top = top
-        if self.arm.kernel:
-            half = -(-self.arm.cells // BLOCK)
-            ground.peaks = LatticePeaks(self.hm, T, top, half, centre, self.arm.reach[1])
-        n = self.rows
-        st = PoseState(
-            key, z, (edge or not known.all(), top), ground, np.zeros(n, bool), np.zeros(n, bool), {}
-        )
+        tiles, hm, arm = self.tiles, self.hm, self.arm
+
+        def build() -> PoseGround:  # this map's lattice at the pose (the same whenever built)
+            ground = MapPoseGround(FilledTiles(tiles, T, top), T, arm.cells, arm.reach)  # type: ignore[arg-type]
+            ground.top = top
+            if arm.kernel:
+                half = -(-arm.cells // BLOCK)
+                ground.peaks = LatticePeaks(hm, T, top, half, centre, arm.reach[1])
+            return ground
+
+        st = PoseState(key, z, (edge or not known.all(), top), T, build, self.rows)
         self.states[k] = st
         return st
 
@@ -225,7 +275,7 @@ class MapGround:
         self, ks: list[int], body: PiecesB, ground: float
     ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Per pose ``ks[i]`` and posture (pieces row i): clear, and over unknown cells."""
-        T = np.stack([self.state(k).ground.M_T_B for k in ks])  # (n, 4, 4): the state's rest
+        T = np.stack([self.state(k).M_T_B for k in ks])  # (n, 4, 4): the state's rest
         lowest = body.low / T[:, 2, 2, None]  # (n, P)
         c_M = np.einsum("nij,npj->npi", T[:, :3, :3], body.centre) + T[:, None, :3, 3]
         n, P = lowest.shape

@@ -23,6 +23,7 @@ on the clock, so the same recording gives the same commands and μ; only ``laten
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -38,12 +39,11 @@ from mmstab.model.robot import FloatArray
 from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
-from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rest_where_covered
+from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rested_rows
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import MapUpdate
 from mmstab.stability.slip import support_tilt, terrain_friction
-from mmstab.stability.support import loaded_mu
-from mmstab.terrain import place_local
+from mmstab.stability.support import state_load, support_on_rests
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace import Workspace
 
@@ -176,19 +176,17 @@ class Follower:
     def _nearest(self, xy: FloatArray) -> int:
         """Index in :attr:`s_fine` of the route point nearest ``xy``, near the last progress."""
         if self.s is None:
-            window = np.ones(len(self.s_fine), dtype=bool)
-        else:
-            window = (self.s_fine >= self.s - PROGRESS_BACK) & (
-                self.s_fine <= self.s + PROGRESS_AHEAD
-            )
-        idx = np.flatnonzero(window)
-        d = np.linalg.norm(self.xy_fine[idx] - xy, axis=1)
-        return int(idx[int(np.argmin(d))])
+            lo, hi = 0, len(self.s_fine)
+        else:  # s_fine ascends: the window [s - back, s + ahead] is one slice
+            lo = int(np.searchsorted(self.s_fine, self.s - PROGRESS_BACK, side="left"))
+            hi = int(np.searchsorted(self.s_fine, self.s + PROGRESS_AHEAD, side="right"))
+        d = np.linalg.norm(self.xy_fine[lo:hi] - xy, axis=1)
+        return lo + int(np.argmin(d))
 
     def update(self, u: MapUpdate) -> FollowStep:
         """One map (module text)."""
         t0, cpu0 = time.perf_counter(), time.thread_time()
-        terrain = HeightmapTerrain(u.grid.heightmap, friction=self.friction).with_robot(self.robot)
+        terrain = HeightmapTerrain(u.grid.heightmap, self.robot, friction=self.friction)  # bound
         pose = u.odometry.pose
         at = self._nearest(pose[:2])
         self.s = s = float(min(self.s_fine[at], self.route.length))
@@ -197,11 +195,14 @@ class Follower:
         q = self.q.copy()
         ks = self.horizon.window(s, self.settings.horizon)
         ref_pose = self.pose_fine[at : at + 1]  # the route's pose at s
-        # one rest for all: the robot, its reference pose, the horizon's poses
-        rested = rest_where_covered(
-            terrain, np.vstack([pose[None], ref_pose, self.horizon.poses_grid[ks]])
-        )
         arm_com = np.asarray(self.robot.arm_com(q), dtype=float)
+        # one rest for all: the robot, its reference pose, the horizon's poses (under the
+        # bound robot's CoM), and the state now under its own (its μ's loaded support)
+        P = np.vstack([pose[None], ref_pose, self.horizon.poses_grid[ks]])
+        mass, com_now, wrench = state_load(self.robot, arm_com, q[None], 1)
+        com = np.vstack([np.broadcast_to(terrain.com_body, (len(P), 3)), com_now])
+        rests = terrain.rest(np.vstack([P, pose[None]]), strict=False, com_body=com)
+        rested = rested_rows(rests, len(P))
         horizon = Rested(
             rested.covered[2:], rested.gravity_body[2:], rested.ground[2:], rested.G_T_B[2:]
         )
@@ -209,8 +210,9 @@ class Follower:
         covered = bool(rested.covered[0])
         g_now = rested.gravity_body[0]
         mu = float("nan")
-        if covered:  # the one μ: this state's loaded support on this map
-            mu = float(loaded_mu(self.robot, terrain, pose, arm_com, q[None], strict=False)[0])
+        if covered:  # the one μ: this state's loaded support on this map (loaded_mu's)
+            now = support_on_rests(terrain, rests, np.array([len(P)]), mass, com_now, wrench)
+            mu = float(now.mu[0])
         tilt = float(support_tilt(g_now)[0]) if covered else float("nan")
         for i in (1, 0):  # the reference pose's ground, else the robot's, else the last
             if rested.covered[i]:
@@ -293,9 +295,41 @@ def step_target(
             controller tracks it in B (``arm_com_frame: body``).
     """
     points = np.array([[settings.base_offset, 0.0, 0.0], com_body])
-    placed = place_local(np.repeat(ref_pose, 2, axis=0), np.repeat(ground, 2, axis=0), points)
-    com = com_body if settings.arm_com_frame == "body" else placed.points[1]
-    return np.concatenate([placed.points[0, :2], ref_pose[0, 2:], com])
+    placed = place_two(ref_pose[0], ground[0], points)  # place_local's, to the bit
+    com = com_body if settings.arm_com_frame == "body" else placed[1]
+    return np.concatenate([placed[0, :2], ref_pose[0, 2:], com])
+
+
+def place_two(pose: FloatArray, ground: FloatArray, points_body: FloatArray) -> FloatArray:
+    """Two body points (2, 3) [m] placed in M at ``pose`` on its local ``ground``.
+
+    :func:`~mmstab.terrain.place_local`'s placement (``place_local_sx``: ``[x, y, z] +
+    Rz(yaw) Ry(-pitch) Rx(roll) p``) in scalar arithmetic, its products and sums in the
+    expression's order: the same numbers to the bit (tested), without its Jacobians and
+    CasADi's call (50 -> 3 us per map).
+
+    Args:
+        pose: (x, y, yaw) (3,) [m, m, rad] in M.
+        ground: its local ground (z, roll, pitch) (3,) [m, rad, rad].
+        points_body: (2, 3) in B [m].
+    """
+    x, y, yaw = (float(v) for v in pose)
+    z, roll, pitch = (float(v) for v in ground)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), -math.sin(pitch)  # Ry(-pitch), as local_rotation_sx
+    R = (
+        (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        (-sp, cp * sr, cp * cr),
+    )
+    o = (x, y, z)
+    return np.array(
+        [
+            [o[i] + (R[i][0] * p[0] + R[i][1] * p[1] + R[i][2] * p[2]) for i in range(3)]
+            for p in np.asarray(points_body, dtype=float).tolist()
+        ]
+    )
 
 
 def build_follower(problem: Problem, workspace: Workspace | None = None) -> Follower:

@@ -38,6 +38,7 @@ from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.terrain import Terrain
 from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.terrain.rest.types import RestPoses
 
 
 class HorizonPose(NamedTuple):
@@ -102,11 +103,14 @@ def rest_where_covered(terrain: HeightmapTerrain, poses: FloatArray) -> Rested:
     A pose off the window or on unknown cells is not covered (NaN); each pose's rest is its
     own, so the others come out as if rested alone.
     """
-    n = len(poses)
+    return rested_rows(terrain.rest(poses, strict=False), len(poses))
+
+
+def rested_rows(r: RestPoses, n: int) -> Rested:
+    """The first ``n`` rows of a batched rest (``strict=False``) as :class:`Rested`."""
     covered, gravity, ground = np.zeros(n, bool), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     G_T_B = np.full((n, 4, 4), np.nan)
-    r = terrain.rest(poses, strict=False)
-    idx = np.flatnonzero(np.isfinite(r.z))
+    idx = np.flatnonzero(np.isfinite(r.z[:n]))
     covered[idx] = True
     gravity[idx] = np.einsum("nji,j->ni", r.G_T_B[idx, :3, :3], GRAVITY_G)
     ground[idx] = np.stack([r.z[idx], r.roll[idx], r.pitch[idx]], axis=1)

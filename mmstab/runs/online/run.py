@@ -144,6 +144,7 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "covered_ahead_m": {"min": float(ahead.min()), "median": float(np.median(ahead))},
         # null (JSON has no NaN) when no map covered the robot
         "mu_min": float(np.nanmin(mu)) if covered.any() else None,
+        "mu_min_at": _lowest(run) if covered.any() else None,
         "mu_planned_min": float(min(p.mu for p in run.plans.values())) if run.plans else None,
         "planned_poses": len(run.plans),
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
@@ -161,6 +162,26 @@ def summarize(run: FollowRun) -> dict[str, Any]:
             "critical_tilt_rad": critical,
             "maps": len(sliding),
         },
+    }
+
+
+def _lowest(run: FollowRun) -> dict[str, Any]:
+    """Where the loop's lowest μ was: the map, its time [s], progress [m], the grid poses about it.
+
+    ``mu_min`` is over every covered map (the state then, on that map): a rigid base on rough
+    ground changes its loaded contacts within centimetres, so it lies between the planned
+    poses ``mu_planned_min`` is taken over (``planner.spacing`` apart), as a rule.
+    """
+    mu = np.array([x.mu for x in run.steps])
+    i = int(np.nanargmin(mu))
+    x = run.steps[i]
+    after = int(np.searchsorted(run.s_grid, x.s, side="right"))
+    return {
+        "map": i,
+        "time_s": x.time,
+        "s_m": x.s,
+        "between_poses": [after - 1, after] if 0 < after < len(run.s_grid) else [after - 1],
+        "mu_planned": x.mu_planned,
     }
 
 
