@@ -8,6 +8,7 @@ from conftest import ROOT
 
 from mmstab.model import frames
 from mmstab.model.collision import CollisionChecker
+from mmstab.model.kinematics import dh_np
 from mmstab.model.robot import load_robot
 
 ROBOTS = ["cameleon", "cameleon_6dof", "cameleon_long_arm"]
@@ -57,7 +58,11 @@ def test_disagreeing_or_missing_kernel_keeps_numpys_path(monkeypatch):
     assert not frames._agrees(lambda: None, lambda: a)  # no kernel
     robot = load_robot(ROOT / "problems" / "robots" / "cameleon.yaml")
     q = _postures(np.random.default_rng(4), 50, 4)
-    want = robot.kinematics._frames_np(q)
+    T, chain = np.broadcast_to(robot.kinematics.mount_T, (len(q), 4, 4)), []
+    for i, link in enumerate(robot.kinematics.links):  # link after link, dh_np's transforms
+        T = T @ dh_np(q[:, i] + link.theta_offset, link.a, link.alpha, link.d)
+        chain.append(T)
+    want = np.stack(chain, axis=1)
     monkeypatch.setattr(frames, "_kernels", lambda: None)
     monkeypatch.setattr(frames, "_AGREED", {})
     kin = load_robot(ROOT / "problems" / "robots" / "cameleon.yaml").kinematics
