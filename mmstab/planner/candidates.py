@@ -372,9 +372,10 @@ def route_candidates(
             kept, kept_for = proof_order(cl, eligible, bounds[0]), eligible.copy()
         union, tau, reaches = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
         more = []
+        union_bins, union_bad = bins[union], ~eligible[union]
         for k, fit in enumerate(fits):
-            sub = union[reaches[k]]  # the rest lie below the threshold: never in ``top``
-            bad, sub_bins = ~eligible[sub], bins[sub]
+            at = np.flatnonzero(reaches[k])  # the rest lie below the threshold: never in ``top``
+            sub, bad, sub_bins = union[at], union_bad[at], union_bins[at]
             v = scored_values(fit, samples, sub, scored[k], kept_v[k])
             scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf
@@ -422,6 +423,14 @@ def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArra
     The same answer as :func:`mmstab.planner.searches.sequence._diverse_top` (ties by row order),
     without a Python loop over the bins.
     """
+    leaders = bin_leaders(values, bins, count)
+    if leaders is not None:  # the rows ranked past the picks' ranks in their bins left out
+        return leaders[_spread_top(values[leaders], bins[leaders], count)]
+    return _spread_top(values, bins, count)
+
+
+def _spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp]:
+    """:func:`spread_top` of every row given."""
     order = np.argsort(-values, kind="stable")
     b = bins[order]
     if len(b) and 0 <= b.min() and b.max() < 256:  # a radix sort: the same stable order
@@ -435,6 +444,36 @@ def spread_top(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArra
         order, rank = order[keep], rank[keep]
     chosen = order[np.lexsort((-values[order], rank))][:count]
     return chosen[np.argsort(-values[chosen], kind="stable")]
+
+
+def bin_leaders(values: FloatArray, bins: NDArray[np.intp], count: int) -> NDArray[np.intp] | None:
+    """Rows (ascending) holding :func:`spread_top`'s picks, or None: take every row.
+
+    The picks rank at most c in their bins (by value, from 0), c the smallest r with
+    Σ_b min(r + 1, n_b) ≥ ``count``; a row below its bin's (c + 1)-th largest value ranks
+    past c. The rows kept keep their ranks (every row above one in its bin is kept), so
+    :func:`spread_top` of them picks the same rows in the same order. None when no row
+    can be left out, the bins are not 0..255, a value is NaN, or the bins are so uneven that
+    the padded (bins x largest bin) table costs more than the sort it saves.
+    """
+    n = len(values)
+    if n <= count or count <= 0 or bins.min() < 0 or bins.max() >= 256:
+        return None
+    b = bins.astype(np.uint8)
+    n_b = np.bincount(b)
+    width = int(n_b.max())
+    if len(n_b) * width > 4 * n or bool(np.isnan(values).any()):
+        return None
+    covered = np.minimum(np.arange(1, width + 1)[:, None], n_b[None, :]).sum(axis=1)
+    c = int(np.searchsorted(covered, count))  # covered[r]: rows ranked at most r
+    if c + 1 >= width:
+        return None
+    by_bin = np.argsort(b, kind="stable")
+    sb = b[by_bin]
+    pad = np.full((len(n_b), width), -np.inf)
+    pad[sb, np.arange(n) - np.r_[0, np.cumsum(n_b)[:-1]][sb]] = values[by_bin]
+    least = np.partition(pad, width - c - 1, axis=1)[:, width - c - 1]  # (c + 1)-th largest
+    return np.flatnonzero(values >= least[b])
 
 
 def among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.bool_]:
@@ -459,9 +498,12 @@ def scored_values(
         before: rows valued before.
         values: their values [-].
     """
-    at = np.minimum(np.searchsorted(before, rows), max(len(before) - 1, 0))
-    old = before[at] == rows if len(before) else np.zeros(len(rows), dtype=bool)
-    v = np.empty(len(rows))
-    v[old] = values[at[old]]
-    v[~old] = fit(samples[rows[~old]])
+    if len(before) == 0:
+        return np.asarray(fit(samples[rows]))
+    at = np.searchsorted(before, rows)
+    np.minimum(at, len(before) - 1, out=at)
+    new = np.flatnonzero(before[at] != rows)
+    v = values[at]  # the new rows' overwritten below
+    if new.size:
+        v[new] = fit(samples[rows[new]])
     return v

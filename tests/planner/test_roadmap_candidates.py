@@ -188,3 +188,20 @@ def test_culled_clearance_is_exact_below_the_cut(robot, nodes):
         np.testing.assert_array_equal(culled[below], exact[below])
         assert np.all(culled[~below] >= cut)
         assert np.all(culled[~below] <= exact[~below] + 1e-12)
+
+
+def test_spread_top_of_the_bins_leaders_equals_spread_top_of_every_row():
+    """bin_leaders leaves rows out only when spread_top's picks are the same, same order."""
+    from mmstab.planner.candidates import _spread_top, bin_leaders
+
+    rng = np.random.default_rng(7)
+    filtered = 0
+    for i in range(2000):
+        n, n_bins = int(rng.integers(0, 700)), int(rng.integers(1, 30))
+        v = rng.integers(0, 12, n).astype(float) if i % 2 else rng.normal(size=n)
+        v[rng.random(n) < 0.1] = -np.inf  # too close or too low
+        bins = rng.integers(0, n_bins, n)
+        count = int(rng.integers(1, 300))
+        filtered += bin_leaders(v, bins, count) is not None
+        assert np.array_equal(spread_top(v, bins, count), _spread_top(v, bins, count))
+    assert filtered > 1000  # the shortcut taken in most cases
