@@ -365,6 +365,7 @@ def route_candidates(
     rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
     ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
     bounds = cluster_bounds(cl, fits)
+    slot, hit = np.full(len(samples), -1, dtype=np.intp), np.zeros(len(samples), dtype=bool)
     scored, kept_v, kept_for = [_NONE] * K, [_NO_V] * K, np.zeros(0, dtype=bool)
     while True:
         eligible, low = clear.eligible(), clear.low(K)
@@ -376,10 +377,13 @@ def route_candidates(
         for k, fit in enumerate(fits):
             at = np.flatnonzero(reaches[k])  # the rest lie below the threshold: never in ``top``
             sub, bad, sub_bins = union[at], union_bad[at], union_bins[at]
-            v = scored_values(fit, samples, sub, scored[k], kept_v[k])
+            v = scored_values(fit, samples, sub, scored[k], kept_v[k], slot)
             scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf
-            v[among(sub, low[k])] = -np.inf  # too low above the ground at this pose
+            if len(low[k]):  # too low above the ground at this pose
+                hit[low[k]] = True
+                v[hit[sub]] = -np.inf
+                hit[low[k]] = False
             top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
             n = len(pick)  # < count only when fewer nodes than count are eligible
@@ -483,13 +487,17 @@ def among(rows: NDArray[np.intp], sorted_rows: NDArray[np.intp]) -> NDArray[np.b
 
 
 def scored_values(
-    fit: LinearFitness, samples: FloatArray, rows: NDArray[np.intp], before: NDArray[np.intp],
+    fit: LinearFitness,
+    samples: FloatArray,
+    rows: NDArray[np.intp],
+    before: NDArray[np.intp],
     values: FloatArray,
-) -> FloatArray:  # fmt: skip
-    """Eq. 6's values [-] of reach rows ``rows`` (ascending), each scored once a search.
+    slot: NDArray[np.intp],
+) -> FloatArray:
+    """Eq. 6's values [-] of reach rows ``rows`` (distinct), each scored once a search.
 
     A row's value does not depend on the rows scored with it, so those of ``before``
-    (ascending, the last round's) are taken from their ``values``.
+    (distinct, the last round's) are taken from their ``values``.
 
     Args:
         fit: Eq. 6 at the pose.
@@ -497,13 +505,15 @@ def scored_values(
         rows: the rows to value.
         before: rows valued before.
         values: their values [-].
+        slot: -1 per reach row (N,), scratch: each of ``before``'s index there meanwhile.
     """
     if len(before) == 0:
         return np.asarray(fit(samples[rows]))
-    at = np.searchsorted(before, rows)
-    np.minimum(at, len(before) - 1, out=at)
-    new = np.flatnonzero(before[at] != rows)
-    v = values[at]  # the new rows' overwritten below
+    slot[before] = np.arange(len(before))
+    at = slot[rows]
+    slot[before] = -1
+    new = np.flatnonzero(at < 0)
+    v = values[at]  # the new rows' (at -1) overwritten below
     if new.size:
         v[new] = fit(samples[rows[new]])
     return v
