@@ -129,16 +129,17 @@ def cluster_bounds(cl: NodeClusters, fits: list[LinearFitness]) -> tuple[FloatAr
     c = centre @ cg
     c += np.stack([f.cos_offset for f in fits]).astype(f32)[:, None, :]
     theta = np.arctan2(s, c)
-    rho = np.hypot(s, c)
+    rho = np.hypot(s, c, out=c)  # in place: the same values, fewer (K, C, n) arrays
     gain = np.sqrt(np.sum(sg**2, axis=1) + np.sum(cg**2, axis=1))  # (K, n)
-    delta = cl.radius.astype(f32)[None, :, None] * gain[:, None, :]
+    delta = np.multiply(cl.radius.astype(f32)[None, :, None], gain[:, None, :], out=s)
     bounded = delta < rho
     np.divide(delta, rho, out=delta, where=bounded)
-    spread = np.arcsin(np.minimum(delta, f32(1.0)))
+    spread = np.arcsin(np.minimum(delta, f32(1.0), out=delta), out=delta)
     spread += f32(ANGLE_SLACK)
-    bounded &= (theta - spread > -np.pi) & (theta + spread <= np.pi)
-    unbounded = ~bounded
-    upper, lower = theta + spread, theta - spread
+    upper = np.add(theta, spread, out=rho)
+    lower = np.subtract(theta, spread, out=theta)
+    bounded &= (lower > -np.pi) & (upper <= np.pi)
+    unbounded = np.logical_not(bounded, out=bounded)
     np.copyto(upper, f32(np.pi), where=unbounded)
     np.copyto(lower, f32(-np.pi), where=unbounded)
     upper, lower = _min_last(upper), _min_last(lower)
