@@ -159,14 +159,16 @@ class LinearFitness(NamedTuple):
         out = np.empty(len(coms))
         for s in range(0, len(coms), BLOCK):
             c = coms[s : s + BLOCK]
-            theta = np.arctan2(
-                c @ self.sin_gain + self.sin_offset, c @ self.cos_gain + self.cos_offset
-            )
+            sin, cos = c @ self.sin_gain, c @ self.cos_gain
+            sin += self.sin_offset  # in place: the same sums, fewer arrays
+            cos += self.cos_offset
+            theta = np.arctan2(sin, cos, out=sin)
             least = out[s : s + BLOCK]  # theta.min(axis=1), a column at a time (faster)
             least[:] = theta[:, 0]
             for j in range(1, theta.shape[1]):
                 np.minimum(least, theta[:, j], out=least)
-        return out * self.force
+        out *= self.force
+        return out
 
     def __call__(self, com_body: ArrayLike) -> FloatArray:
         """Eq. 6 fitness of arm CoMs (N, 3) [m] -> (N,)."""
