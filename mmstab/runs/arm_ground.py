@@ -78,7 +78,8 @@ def _turns(z: FloatArray) -> FloatArray:
     step = np.arccos(np.clip(np.sum(z[1:] * z[:-1], axis=1), -1.0, 1.0))
     step = np.nan_to_num(step, nan=0.0)
     out = np.zeros(len(z))
-    out[1:], out[:-1] = step, np.fmax(out[:-1], step)
+    out[1:] = step
+    out[:-1] = np.fmax(out[:-1], step)
     return out
 
 
