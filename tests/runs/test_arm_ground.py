@@ -62,3 +62,40 @@ def test_a_contact_is_where_the_arm_is_below_the_ground():
     assert (x["start_s"], x["end_s"], x["at_s"]) == (0.05, 0.10, 0.10)
     assert x["worst"] == -0.02 and x["by"] == 0.02
     assert x["attitude"] == "rocked" and x["turn_rad"] == 0.3
+
+
+@pytest.mark.slow
+def test_route29_arm_meets_the_ground_where_the_body_rocks_over_a_crest(tmp_path):
+    # route 29 of make validate-routes (12.4 deg slope, 3.5 cm bumps): MuJoCo's forearm
+    # touches the ground at 4.96 s, the body 0.2 rad off its rest over a crest
+    import yaml
+    from conftest import ROOT
+
+    from experiments.validate_routes import load_settings, route_problem
+    from mmstab.app.api import plan as make_plan
+    from mmstab.core.problem import load_problem
+    from mmstab.runs.along import sample_spacing
+    from mmstab.runs.arm_ground import arm_ground_record
+    from mmstab.runs.high_centred import path_samples
+
+    settings = load_settings(ROOT / "problems" / "validate_routes.yaml")
+    path = tmp_path / "route29.yaml"
+    path.write_text(yaml.safe_dump(route_problem(settings, 29)))
+    problem = load_problem(path)
+    plan = make_plan(problem)
+    assert plan.accepted
+    poses, s = path_samples(plan.path, sample_spacing(plan.terrain))
+    record = arm_ground_record(plan.robot, plan.terrain, plan.path, plan.stage, poses, s)
+    # with the planned postures: the rest flips by 0.149 rad at s 1.09 (16.4 -> 8.1 deg
+    # of tilt); turned over the crest 0.32 rad, the arm is 2.1 cm in the ground there
+    planned = record["planned"]
+    assert planned["contact"]
+    first = planned["stretches"][0]
+    assert first["at_s"] == pytest.approx(1.09, abs=0.03)
+    assert first["attitude"] == "rocked"
+    assert -0.035 < first["worst"] < -0.01  # measured -0.021 m
+    assert first["turn_rad"] == pytest.approx(0.32, abs=0.03)
+    assert planned["height_min_m"] > 0.02  # at the rests: 3.2 cm (the planner's 5 at its poses)
+    # the plan's posture reference has the arm elsewhere there: clear by 6.8 cm at worst
+    assert not record["reference"]["contact"]
+    assert record["reference"]["rocked_height_min_m"] > 0.05
