@@ -122,7 +122,7 @@ def arm_ground_along(
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     q = np.atleast_2d(np.asarray(postures, dtype=float))
     n = len(P)
-    out = ArmGround(*(np.full(n, np.nan) for _ in range(3)), np.zeros(n))
+    out = ArmGround(np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.zeros(n))
     if n == 0 or not is_heightmap(terrain):
         return out
     ground = terrain
