@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
+from conftest import ROOT
 
 from mmstab.runs.arm_ground import FLIP, ArmGround, arm_ground_along, arm_ground_verdict
 from mmstab.stability.rock import STEP
@@ -70,8 +72,6 @@ def test_a_contact_is_where_the_arm_is_below_the_ground():
 def test_route29_arm_meets_the_ground_where_the_body_rocks_over_a_crest(tmp_path):
     # route 29 of make validate-routes (12.4 deg slope, 3.5 cm bumps): MuJoCo's forearm
     # touches the ground at 4.96 s, the body 0.2 rad off its rest over a crest
-    import yaml
-    from conftest import ROOT
 
     from experiments.validate_routes import load_settings, route_problem
     from mmstab.app.api import plan as make_plan
@@ -101,3 +101,25 @@ def test_route29_arm_meets_the_ground_where_the_body_rocks_over_a_crest(tmp_path
     # the plan's posture reference has the arm elsewhere there: clear by 6.8 cm at worst
     assert not record["reference"]["contact"]
     assert record["reference"]["rocked_height_min_m"] > 0.05
+
+
+def test_the_record_is_opt_in(tmp_path) -> None:
+    import subprocess
+    import sys
+
+    from mmstab.core.defaults import SECTION_DEFAULTS
+    from mmstab.runs.verdict_settings import VerdictSettings
+
+    assert SECTION_DEFAULTS["physics"]["arm_over_crests"] is False
+    assert VerdictSettings.from_sections({}, {}).arm_over_crests is False
+    assert VerdictSettings.from_sections({}, {"arm_over_crests": True}).arm_over_crests is True
+    data = yaml.safe_load((ROOT / "problems" / "rough.yaml").read_text())
+    data["robot"] = str(ROOT / "problems" / "robots" / "cameleon.yaml")
+    data.setdefault("physics", {})["arm_over_crests"] = 1.0
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    proc = subprocess.run([sys.executable, "-m", "mmstab", "plan", str(path)],
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 2
+    line = proc.stderr.strip()
+    assert "\n" not in line and "physics.arm_over_crests" in line
