@@ -30,9 +30,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.dynamic import dynamic_force_angle
-from mmstab.stability.static import axis_angles, base_polygon, force_angle_batch
+from mmstab.stability.static import (
+    axis_angles,
+    base_polygon,
+    force_angle_batch,
+    padded_axis_angles,
+)
 from mmstab.terrain.base import GRAVITY_G, Terrain, as_poses
 from mmstab.terrain.polygon import support_vertices
+from mmstab.terrain.polygon_batch import hulls_along_batch
 from mmstab.terrain.rest.types import RestPoses
 
 
@@ -179,11 +185,23 @@ def support_on_rests(
         rests.converged[at],
     )
     line[known] = rests.line_contact[at]
-    for i in np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3])):
+    rows = np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3]))
+    force_G = mass * GRAVITY_G
+    R, t = G_T_B[rows, :3, :3], G_T_B[rows, :3, 3]  # the per-state code's products, stacked
+    coms_G = (R @ com_body[rows][..., None])[..., 0] + t
+    hulls = hulls_along_batch(
+        np.asarray(points, dtype=float)[None] @ np.swapaxes(R, 1, 2) + t[:, None, :],
+        rests.bearing[index[rows]],
+        force_G,
+    )
+    # a polygon found at once and a plain gravity load (or a line): μ for all of them
+    fast = hulls.ok & ((wrench is None) | line[rows])
+    theta = padded_axis_angles(hulls.vertices[fast], hulls.count[fast], coms_G[fast], force_G)
+    mu[rows[fast]] = np.min(theta, axis=1) * np.linalg.norm(force_G)
+    for i in rows[~fast]:
         j = int(index[i])
         T = G_T_B[i]
         com_G = T[:3, :3] @ com_body[i] + T[:3, 3]
-        force_G = mass * GRAVITY_G
         poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
         line[i] |= on_line
         if len(poly) == 0:
