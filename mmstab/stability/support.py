@@ -189,9 +189,13 @@ def support_on_rests(
     force_G = mass * GRAVITY_G
     R, t = G_T_B[rows, :3, :3], G_T_B[rows, :3, 3]  # the per-state code's products, stacked
     coms_G = (R @ com_body[rows][..., None])[..., 0] + t
+    bearing = rests.bearing[index[rows]]  # each state's bearing candidates, first
+    m = bearing.sum(axis=1)
+    order = np.argsort(~bearing, axis=1, kind="stable")[:, : int(m.max(initial=0))]
+    body = np.asarray(points, dtype=float)[order]
     hulls = hulls_along_batch(
-        np.asarray(points, dtype=float)[None] @ np.swapaxes(R, 1, 2) + t[:, None, :],
-        rests.bearing[index[rows]],
+        body @ np.swapaxes(R, 1, 2) + t[:, None, :],
+        np.arange(order.shape[1])[None, :] < m[:, None],
         force_G,
     )
     # a polygon found at once and a plain gravity load (or a line): μ for all of them

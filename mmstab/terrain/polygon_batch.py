@@ -130,11 +130,12 @@ def _chunk(
             break
     good &= h >= 3
     hh = np.maximum(h, 1)
-    ring = np.arange(k)[None, :] < hh[:, None]
-    a_i = idx[:, :k]
-    b_i = np.take_along_axis(idx, np.where(ring, np.arange(1, k + 1)[None, :], 0), axis=1)
+    H = int(hh.max())  # the edges: at most the longest ring's
+    ring = np.arange(H)[None, :] < hh[:, None]
+    a_i = idx[:, :H]
+    b_i = np.take_along_axis(idx, np.where(ring, np.arange(1, H + 1)[None, :], 0), axis=1)
     # every point strictly left of every edge, or on its line strictly between its ends
-    ax, ay = np.take_along_axis(x, a_i, 1), np.take_along_axis(y, a_i, 1)  # (n, k)
+    ax, ay = np.take_along_axis(x, a_i, 1), np.take_along_axis(y, a_i, 1)  # (n, H)
     dx, dy = np.take_along_axis(x, b_i, 1) - ax, np.take_along_axis(y, b_i, 1) - ay
     px, py = x[:, None, :] - ax[..., None], y[:, None, :] - ay[..., None]  # [n, edge, o]
     cross = dx[..., None] * py - dy[..., None] * px
@@ -146,10 +147,10 @@ def _chunk(
     on = (np.abs(cross) <= 1e-13 * s2) & (t > 1e-9) & (t < 1 - 1e-9)
     clean = (cross > 1e-9 * s2) | on | end | ~valid[:, None, :]
     good &= (clean | ~ring[..., None]).all(axis=(1, 2))
-    verts = np.take_along_axis(P, a_i[..., None], axis=1)  # (n, k, 3)
+    verts = np.take_along_axis(P, a_i[..., None], axis=1)  # (n, H, 3)
     nxt3 = np.take_along_axis(P, b_i[..., None], axis=1)
     short = ring & (np.linalg.norm(nxt3 - verts, axis=2) < tol)
     good &= ~short.any(axis=1)
-    out[:, :k] = np.where((ring & good[:, None])[..., None], verts, np.nan)
+    out[:, :H] = np.where((ring & good[:, None])[..., None], verts, np.nan)
     count[:] = np.where(good, h, 0)
     ok[:] = good
