@@ -200,7 +200,7 @@ def support_on_rests(
     )
     # a polygon found at once and a plain gravity load (or a line): μ for all of them
     fast = hulls.ok & ((wrench is None) | line[rows])
-    theta = padded_axis_angles(hulls.vertices[fast], hulls.count[fast], coms_G[fast], force_G)
+    theta = padded_axis_angles(hulls.vertices[fast], hulls.n_vertices[fast], coms_G[fast], force_G)
     mu[rows[fast]] = np.min(theta, axis=1) * np.linalg.norm(force_G)
     for i in rows[~fast]:
         j = int(index[i])

@@ -1,20 +1,23 @@
 """Many support hulls seen along one direction at once (the along-samples path).
 
 :func:`hulls_along_batch` gives, for N point sets, the polygon
-:func:`mmstab.terrain.polygon.hull_along` gives for each (after :func:`merge_close`), up to
-where its vertex list starts: a hull edge i -> j is a pair with every other point strictly
-to its left (seen along the direction), tested for all pairs at once. The force-angle μ on a
-polygon is the minimum over its edges of a per-edge angle, so it does not depend on which
-vertex the list starts at, as long as :func:`merge_close` drops nothing (which vertex it
-keeps of a close pair does depend on the start). Where the answer could differ from the
-per-set code, a set is flagged not ``ok`` and its caller runs :func:`hull_along` on it:
+:func:`mmstab.terrain.polygon.hull_along` gives for each, up to where its vertex list
+starts: all sets are wrapped at once (gift wrapping from the lowest-left point, the
+smallest left turn, the farthest of equal turns), then each ring is checked. The
+force-angle μ on a polygon is the minimum over its edges of a per-edge angle, so it does
+not depend on the vertex the list starts at, as long as
+:func:`mmstab.terrain.polygon.merge_close` drops nothing (which vertex of a close pair it
+keeps does depend on the start). A set is flagged not ``ok``, for its caller to run
+:func:`hull_along` on it, unless:
 
-- fewer than 3 points, or a pair whose other points are within ``1e-9`` of the set's size
-  squared of its line (collinear or duplicate points seen along the direction: Qhull's
-  choice among them is its own);
-- a hull vertex with another point closer than ``MIN_EDGE`` in 3-D (the merge could act);
-- a nearly collinear set (the ratio of the 2-D spread's principal axes below ``1e-6``; the
-  per-set code raises below ``1e-9``).
+- it has 3 points or more whose 2-D spread is not nearly a line (the ratio of the
+  covariance's eigenvalues, in closed form, above 1e-12; ``hull_along`` raises below
+  1e-18, its SVD's 1e-9 squared);
+- every other point is strictly left of every ring edge (by 1e-9 of the set's size
+  squared) or on the edge's line (within 1e-13, rounding) strictly between its ends: the
+  ring is Qhull's hull but for points on an edge's line, which Qhull may keep as vertices
+  and which change no axis beyond rounding;
+- no two consecutive ring vertices are closer than ``tol`` in 3-D (the merge would act).
 """
 
 from __future__ import annotations
@@ -37,14 +40,14 @@ class BatchHulls(NamedTuple):
 
     Attributes:
         vertices: (N, H, 3) [m] the hull vertices, CCW about -direction, the first
-            ``count[i]`` rows of row i valid (the rest NaN).
-        count: (N,) vertices per hull.
+            ``n_vertices[i]`` rows of row i valid (the rest NaN).
+        n_vertices: (N,) vertices per hull.
         ok: (N,) the hull is the per-set one up to its start vertex; False: run
             :func:`mmstab.terrain.polygon.hull_along` on that set.
     """
 
     vertices: FloatArray
-    count: NDArray[np.intp]
+    n_vertices: NDArray[np.intp]
     ok: NDArray[np.bool_]
 
 

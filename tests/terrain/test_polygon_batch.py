@@ -63,7 +63,7 @@ def test_batch_hulls_give_the_per_set_mu(direction):
         if not hulls.ok[i]:
             continue
         answered += 1
-        got = hulls.vertices[i, : hulls.count[i]]
+        got = hulls.vertices[i, : hulls.n_vertices[i]]
         # the same vertices in the same cyclic order, but for points Qhull keeps on an
         # edge's line (within its rounding): they change no axis beyond rounding
         start = int(np.flatnonzero((ref == got[0]).all(axis=1))[0])
@@ -73,7 +73,7 @@ def test_batch_hulls_give_the_per_set_mu(direction):
         exact += len(ref) == len(got)
         mu_ref = np.min(axis_angles(ref, com[i], f)) * np.linalg.norm(f)
         theta = padded_axis_angles(
-            hulls.vertices[i : i + 1], hulls.count[i : i + 1], com[i : i + 1], f
+            hulls.vertices[i : i + 1], hulls.n_vertices[i : i + 1], com[i : i + 1], f
         )
         assert abs(np.min(theta) * np.linalg.norm(f) - mu_ref) <= 1e-12, i
     assert answered >= 150  # the tracks' grids and scattered sets are answered
@@ -90,7 +90,7 @@ def test_degenerate_sets_are_left_to_the_reference():
         assert not hulls_along_batch(pts, mask, f).ok[0]
     square = np.array([[[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]])
     h = hulls_along_batch(square, np.ones((1, 4), bool), f)
-    assert h.ok[0] and h.count[0] == 4
+    assert h.ok[0] and h.n_vertices[0] == 4
     # CCW about up (+z): the signed area is positive
     v = h.vertices[0, :4, :2]
     assert 0.5 * np.sum(
