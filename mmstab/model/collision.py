@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.core.masks import true_runs
 from mmstab.model import collision_distance
+from mmstab.model import frames as frames_c
 from mmstab.model.collision_bounds import FLOOR_STEPS, turn_floor
 from mmstab.model.parts import BASE_PARTS as PARTS_OF_BASE
 from mmstab.model.robot import Box, FloatArray, Geometry, Robot
@@ -140,6 +141,9 @@ class CollisionChecker:
         shape_T = np.stack([geometry_pose(link.geometry) for link in robot.links])
         self._link_R_shape = shape_T[:, :3, :3]  # (4, 3, 3)
         self._link_p_shape = shape_T[:, :3, 3]  # (4, 3)
+        self._c_R_shape = np.ascontiguousarray(self._link_R_shape, dtype=np.float64)
+        self._c_p_shape = np.ascontiguousarray(self._link_p_shape, dtype=np.float64)
+        self._fast: bool | None = None  # shape_poses in C: not yet checked
         self._link_radius = np.array([link.geometry.bounding_radius for link in robot.links])
         self._link_objs = [
             fcl.CollisionObject(fcl_geometry(link.geometry), fcl.Transform())
@@ -219,6 +223,20 @@ class CollisionChecker:
             R (N, 4, 3, 3) rotations and p (N, 4, 3) shape centres [m], body frame.
         """
         frames = self.kinematics.link_frames(q) if frames is None else frames
+        if self._fast is None:  # C where it gives NumPy's bits on this machine (frames.py)
+            sample = self.kinematics.link_frames(frames_c.sample_postures(len(self.robot.links)))
+            key = b"shapes" + self._c_R_shape.tobytes() + self._c_p_shape.tobytes()
+            self._fast = frames_c.agrees(
+                key, lambda: self._shape_poses_c(sample), lambda: self._shape_poses_np(sample)
+            )
+        out = self._shape_poses_c(frames) if self._fast else None
+        return self._shape_poses_np(frames) if out is None else out
+
+    def _shape_poses_c(self, frames: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        F = np.ascontiguousarray(frames, dtype=np.float64)
+        return frames_c.shape_poses(F, self._c_R_shape, self._c_p_shape)
+
+    def _shape_poses_np(self, frames: FloatArray) -> tuple[FloatArray, FloatArray]:
         R_link, p_link = frames[..., :3, :3], frames[..., :3, 3]
         R = R_link @ self._link_R_shape
         p = (R_link @ self._link_p_shape[:, :, None])[..., 0] + p_link

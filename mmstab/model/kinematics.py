@@ -16,6 +16,8 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.model import frames as frames_c
+
 if TYPE_CHECKING:
     from mmstab.model.parts import ArmLink, FloatArray
 
@@ -30,6 +32,11 @@ def dh_sx(theta: ca.SX, a: float, alpha: float, d: float) -> ca.SX:
         ca.horzcat(0, sa, ca_, d),
         ca.horzcat(0, 0, 0, 1),
     )
+
+
+#: :meth:`ArmKinematics.link_frames` of at most this many postures computes every link's DH
+#: transform in one go (fewer NumPy calls); of more, link after link (fewer cache misses).
+FEW_POSTURES = 1024
 
 
 def dh_np(theta: FloatArray, a: float, alpha: float, d: float) -> FloatArray:
@@ -69,6 +76,16 @@ class ArmKinematics:
         self._masses = np.array([link.mass for link in self.links])
         self._coms = np.array([link.com for link in self.links])  # (n, 3) in R_i
         self.q = ca.SX.sym("q", len(self.links))
+        # link_frames' DH transforms: entries 0-7 = (cos, sin)[_dh_trig] * _dh_gain, 8-15 rest
+        self._theta_offset = np.array([link.theta_offset for link in self.links])
+        self._dh_trig = np.array([0, 1, 1, 0, 1, 0, 0, 1])
+        ca_, sa = np.cos([lk.alpha for lk in self.links]), np.sin([lk.alpha for lk in self.links])
+        a = np.array([link.a for link in self.links])
+        one = np.ones(len(self.links))
+        self._dh_gain = np.stack([one, -ca_, sa, a, one, ca_, -sa, a], axis=1)
+        zero, d = np.zeros(len(self.links)), np.array([link.d for link in self.links])
+        self._dh_rest = np.stack([zero, sa, ca_, d, zero, zero, zero, one], axis=1)
+        self._fast: bool | None = None  # link_frames in C: not yet checked
         T = ca.SX(self.mount_T)
         self.B_T_R: list[ca.SX] = []
         for i, link in enumerate(self.links):
@@ -95,6 +112,9 @@ class ArmKinematics:
     def link_frames(self, q: ArrayLike) -> FloatArray:
         """Link frames B_T_R_i for many postures at once.
 
+        In C where it gives NumPy's numbers bit for bit on this machine
+        (:mod:`mmstab.model.frames`, checked once per kinematics), else NumPy's products.
+
         Args:
             q: joint angles (N, 4) or (4,) [rad].
 
@@ -104,13 +124,48 @@ class ArmKinematics:
         qa = np.asarray(q, dtype=float)
         single = qa.ndim == 1
         qa = np.atleast_2d(qa)
-        T = np.broadcast_to(self.mount_T, (qa.shape[0], 4, 4))
-        frames = []
-        for i, link in enumerate(self.links):
-            T = T @ dh_np(qa[:, i] + link.theta_offset, link.a, link.alpha, link.d)
-            frames.append(T)
-        out = np.stack(frames, axis=1)
+        if self._fast is None:
+            sample = frames_c.sample_postures(len(self.links))
+            key = b"".join(x.tobytes() for x in (self._dh_gain, self._dh_rest, self.mount_T))
+            self._fast = frames_c.agrees(
+                b"frames" + key, lambda: self._frames_c(sample), lambda: self._frames_np(sample)
+            )
+        out = self._frames_c(qa) if self._fast else None
+        if out is None:
+            out = self._frames_np(qa)
         return out[0] if single else out
+
+    def _trig(self, qa: FloatArray) -> FloatArray:
+        """Each joint's (cos, sin) of its angle plus offset (n, links, 2)."""
+        theta = qa[:, : len(self.links)] + self._theta_offset
+        return np.stack((np.cos(theta), np.sin(theta)), axis=2)
+
+    def _frames_c(self, qa: FloatArray) -> FloatArray | None:
+        """:meth:`link_frames` of (n, 4) postures in C; None: no kernel."""
+        return frames_c.link_frames(self._trig(qa), self._dh_gain, self._dh_rest, self.mount_T)
+
+    def _frames_np(self, qa: FloatArray) -> FloatArray:
+        """:meth:`link_frames` of (n, 4) postures with NumPy's batched products (n, 4, 4, 4)."""
+        n, links = qa.shape[0], len(self.links)
+        if n > FEW_POSTURES:  # link after link: contiguous arrays, fewer cache misses
+            T = np.broadcast_to(self.mount_T, (n, 4, 4))
+            frames = []
+            for i, link in enumerate(self.links):
+                T = T @ dh_np(qa[:, i] + link.theta_offset, link.a, link.alpha, link.d)
+                frames.append(T)
+            return np.stack(frames, axis=1)
+        # every link's DH transform at once, the same numbers as dh_np's: its first two rows
+        # a cosine or sine times a constant, the last two constants
+        trig = self._trig(qa)
+        D = np.empty((n, links, 16))
+        np.multiply(np.take(trig, self._dh_trig, axis=2), self._dh_gain, out=D[:, :, :8])
+        D[:, :, 8:] = self._dh_rest
+        D4 = D.reshape(n, links, 4, 4)
+        out = np.empty((n, links, 4, 4))
+        T = np.broadcast_to(self.mount_T, (n, 4, 4))
+        for i in range(links):  # the same 4x4 products (BLAS's), written in place
+            T = np.matmul(T, D4[:, i], out=out[:, i])
+        return out
 
     def link_coms(self, q: ArrayLike) -> FloatArray:
         """Per-link CoMs in B: (N, 4, 3) or (4, 3) [m]."""

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-from conftest import random_postures
+import pytest
+from conftest import ROOT, random_postures
 
+from mmstab.model.kinematics import FEW_POSTURES, dh_np
+from mmstab.model.robot import load_robot
 from mmstab.terrain import BasePose, Ramp, roll_pitch, rot_z
 
 
@@ -133,3 +136,30 @@ def test_a_robot_pickles_after_its_kinematics_were_built(robot) -> None:
     copy = pickle.loads(pickle.dumps(robot))
     assert "kinematics" not in copy.__dict__
     assert np.array_equal(copy.arm_com(q), com)
+
+
+def _frames_link_by_link(kin, q):
+    """The DH chain link after link (dh_np and one batched 4x4 product per link)."""
+    T, frames = np.broadcast_to(kin.mount_T, (len(q), 4, 4)), []
+    for i, link in enumerate(kin.links):
+        T = T @ dh_np(q[:, i] + link.theta_offset, link.a, link.alpha, link.d)
+        frames.append(T)
+    return np.stack(frames, axis=1)
+
+
+@pytest.mark.parametrize("name", ["cameleon", "cameleon_6dof"])
+def test_link_frames_bit_identical_to_link_by_link(name):
+    """Few postures take every link's DH transform at once: the same bits (signed zeros too)
+    as the chain link after link, on random, rounded, multiple-of-45° and zero postures,
+    at sizes on both sides of FEW_POSTURES."""
+    kin = load_robot(ROOT / "problems" / "robots" / f"{name}.yaml").kinematics
+    rng = np.random.default_rng(11)
+    for n in (1, 3, 8, 17, 333, FEW_POSTURES, FEW_POSTURES + 1, 3000):
+        for kind in range(4):
+            q = rng.uniform(-3.2, 3.2, (n, len(kin.links)))
+            q = [q, np.round(q, 2), np.round(q / (np.pi / 4)) * (np.pi / 4), 0 * q][kind]
+            got, want = kin.link_frames(q), _frames_link_by_link(kin, q)
+            assert got.shape == (n, len(kin.links), 4, 4)
+            assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+    q1 = rng.uniform(-3, 3, len(kin.links))
+    assert np.array_equal(kin.link_frames(q1), _frames_link_by_link(kin, q1[None])[0])

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, compiled_library
+from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, array_pointer, compiled_library
 from mmstab.core.files import MmstabError
 
 KERNEL_NAME = "mmstab_ground"  #: the library's name
@@ -56,7 +56,7 @@ def _kernels() -> tuple[Any, Any, Any, Any]:
     for f in (pieces, heights, peak):
         f.restype = ctypes.c_int
     # tiles ntx nty tile i0 j0 lattice T block half | rise blocks rows peak
-    _P = np.ctypeslib.ndpointer(dtype=np.uintp, flags="C_CONTIGUOUS")
+    _P = array_pointer(np.uintp)
     peak_map.argtypes = [_P, _long, _long, _long, _long, _long, _double, _D, _long, _long]
     peak_map.argtypes += [_D, _D, _D, _D]
     peak_map.restype = ctypes.c_double
