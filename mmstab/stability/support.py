@@ -202,11 +202,15 @@ def support_on_rests(
     fast = hulls.ok & ((wrench is None) | line[rows])
     theta = padded_axis_angles(hulls.vertices[fast], hulls.n_vertices[fast], coms_G[fast], force_G)
     mu[rows[fast]] = np.min(theta, axis=1) * np.linalg.norm(force_G)
-    for i in rows[~fast]:
+    for r in np.flatnonzero(~fast):  # per state: the batch's polygon where it has one
+        i = int(rows[r])
         j = int(index[i])
         T = G_T_B[i]
         com_G = T[:3, :3] @ com_body[i] + T[:3, 3]
-        poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
+        if hulls.ok[r]:
+            poly, on_line = hulls.vertices[r, : hulls.n_vertices[r]], False
+        else:
+            poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
         line[i] |= on_line
         if len(poly) == 0:
             continue
