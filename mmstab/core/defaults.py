@@ -103,6 +103,9 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         # `make skid-rates`). null: none slowed, the default: with 0.5 or 0.8 some accepted
         # validation routes still slide in MuJoCo (docs/routes.md)
         "slide_budget": None,
+        # the arm over crests measured along a route plan (a record, not a verdict; costs
+        # about a second a route): mmstab.runs.arm_ground
+        "arm_over_crests": False,
         "check_dt": 0.02,
         "backend": "interpreted",
         "wheel": "sphere",

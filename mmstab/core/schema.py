@@ -348,6 +348,7 @@ PHYSICS_KEYS = obj(
     slip_distance=POS,
     slip_window=POS,
     slide_budget={"oneOf": [{"type": "null"}, {**POS, "maximum": 1}]},
+    arm_over_crests={"type": "boolean"},
     check_dt=POS,
     backend={"enum": ["interpreted", "generated"]},
     wheel={"enum": ["sphere", "cylinder", "sphere_pair"]},

@@ -123,6 +123,11 @@ def route_verdicts(
     if len(times) == len(along.s):
         timing = ConeTiming(times, settings.slip_distance, settings.slip_window)
     dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
+    if settings.arm_over_crests:  # the arm against the ground at the rests and over crests
+        from mmstab.runs.arm_ground import arm_ground_record
+
+        dense["arm_ground"] = arm_ground_record(robot, terrain, route, plan, along.poses,
+                                                along.s, rocks.checked)  # fmt: skip
     slip = with_stretches(slip, dense, "slide", "slides")
     poses = [
         {"pose": plan.poses[k], "mu_planned": float(plan.mu_planned[k]),

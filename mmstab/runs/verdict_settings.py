@@ -32,6 +32,9 @@ class VerdictSettings:
         slide_budget: the share of ``slip_distance`` a route's turn may slide within
             ``slip_window``; the plan slows the corners that would slide more
             (``physics.slide_budget``, :mod:`mmstab.runs.time_law`; None: none slowed) [-].
+        arm_over_crests: measure the arm's height over the ground along a route plan, at
+            the rests and rocked over crests (``physics.arm_over_crests``,
+            :mod:`mmstab.runs.arm_ground`; a record, not a verdict).
     """
 
     margin: float = DEFAULT_MARGIN
@@ -40,6 +43,7 @@ class VerdictSettings:
     turn_ratio: float | str = SECTION_DEFAULTS["physics"]["turn_ratio"]
     shear_modulus: float = SECTION_DEFAULTS["physics"]["shear_modulus"]
     slide_budget: float | None = SECTION_DEFAULTS["physics"]["slide_budget"]
+    arm_over_crests: bool = SECTION_DEFAULTS["physics"]["arm_over_crests"]
 
     @classmethod
     def from_sections(
@@ -55,4 +59,5 @@ class VerdictSettings:
             turn_ratio=ratio if isinstance(ratio, str) else float(ratio),
             shear_modulus=float(physics.get("shear_modulus", cls.shear_modulus)),
             slide_budget=None if budget is None else float(budget),
+            arm_over_crests=bool(physics.get("arm_over_crests", cls.arm_over_crests)),
         )

@@ -86,8 +86,18 @@ class _Support(NamedTuple):
     theta: FloatArray  # (m,) force angles of the edges [rad]
 
 
-def _support(ground: Terrain, pose: FloatArray, com_body: FloatArray) -> _Support | None:
-    """The rest of one state and its loaded support, or None (tips over, off the map, a line)."""
+def rested_support(ground: Terrain, pose: FloatArray, com_body: FloatArray) -> _Support | None:
+    """The rest of one state and its loaded support, or None (tips over, off the map, a line).
+
+    Args:
+        ground: a heightmap ground bound to the robot.
+        pose: (x, y, yaw) in M [m, m, rad].
+        com_body: the overall CoM in B (3,) [m].
+
+    Returns:
+        ``T`` (G_T_B), ``poly`` (the ordered support vertices in G [m]), ``com_G`` [m] and
+        ``theta`` (the edges' force angles [rad]).
+    """
     r = ground.rest(pose[None], strict=False, com_body=com_body[None])  # type: ignore[attr-defined]
     T = r.G_T_B[0]
     if r.tips_over[0] or not np.isfinite(T).all():
@@ -321,7 +331,7 @@ def rock_over(
     pushed = np.zeros(n, dtype=int)
     mu, turn, drop, barrier = (np.full(n, np.nan) for _ in range(4))
     for i in range(n):
-        first = _support(ground, P[i], com_B[i])
+        first = rested_support(ground, P[i], com_B[i])
         if first is None:  # tips over (or a line) at rest already: no rock to find
             holds[i], mu[i] = False, -np.inf
             continue

@@ -178,6 +178,40 @@ def axis_angles(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> 
     return out[0] if single else out
 
 
+def padded_axis_angles(
+    vertices: FloatArray, count: ArrayLike, coms: FloatArray, net_force: ArrayLike
+) -> FloatArray:
+    """:func:`axis_angles` of N polygons at once, each against its own CoM.
+
+    Args:
+        vertices: (N, H, 3) [m] ordered polygons, the first ``count[i]`` rows of row i.
+        count: (N,) vertices per polygon (>= 2).
+        coms: (N, 3) [m] overall CoMs.
+        net_force: (3,) [N] the net force of all of them.
+
+    Returns:
+        (N, H) angles [rad], column j the axis from vertex j to vertex j+1 (cyclic within
+        ``count``); +inf past ``count`` (so a row's minimum is its polygon's).
+    """
+    p = np.asarray(vertices, dtype=float)
+    cnt = np.asarray(count, dtype=np.intp)
+    h = p.shape[1]
+    col = np.arange(h)[None, :]
+    inside = col < cnt[:, None]
+    nxt = np.where(col + 1 < cnt[:, None], col + 1, 0)
+    p_next = np.take_along_axis(p, nxt[..., None], axis=1)
+    f = np.asarray(net_force, dtype=float)
+    with np.errstate(invalid="ignore"):  # the padding (NaN) rows
+        a_hat = (p_next - p) / np.linalg.norm(p_next - p, axis=-1, keepdims=True)
+        d = p_next - np.asarray(coms, dtype=float)[:, None, :]
+        l_j = d - np.sum(d * a_hat, axis=-1, keepdims=True) * a_hat
+        f_j = f - np.sum(f * a_hat, axis=-1, keepdims=True) * a_hat
+        sin_part = np.sum(_cross_last(l_j, f_j) * a_hat, axis=-1)
+        cos_part = np.sum(l_j * f_j, axis=-1)
+        out = np.arctan2(sin_part, cos_part)
+    return np.where(inside, out, np.inf)
+
+
 def force_angle_batch(vertices: ArrayLike, coms: ArrayLike, net_forces: ArrayLike) -> ForceAngle:
     """Vectorised force-angle measure against one ordered polygon.
 

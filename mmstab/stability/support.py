@@ -30,9 +30,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.dynamic import dynamic_force_angle
-from mmstab.stability.static import axis_angles, base_polygon, force_angle_batch
+from mmstab.stability.static import (
+    axis_angles,
+    base_polygon,
+    force_angle_batch,
+    padded_axis_angles,
+)
 from mmstab.terrain.base import GRAVITY_G, Terrain, as_poses
 from mmstab.terrain.polygon import support_vertices
+from mmstab.terrain.polygon_batch import hulls_along_batch
 from mmstab.terrain.rest.types import RestPoses
 
 
@@ -179,12 +185,32 @@ def support_on_rests(
         rests.converged[at],
     )
     line[known] = rests.line_contact[at]
-    for i in np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3])):
+    rows = np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3]))
+    force_G = mass * GRAVITY_G
+    R, t = G_T_B[rows, :3, :3], G_T_B[rows, :3, 3]  # the per-state code's products, stacked
+    coms_G = (R @ com_body[rows][..., None])[..., 0] + t
+    bearing = rests.bearing[index[rows]]  # each state's bearing candidates, first
+    m = bearing.sum(axis=1)
+    order = np.argsort(~bearing, axis=1, kind="stable")[:, : int(m.max(initial=0))]
+    body = np.asarray(points, dtype=float)[order]
+    hulls = hulls_along_batch(
+        body @ np.swapaxes(R, 1, 2) + t[:, None, :],
+        np.arange(order.shape[1])[None, :] < m[:, None],
+        force_G,
+    )
+    # a polygon found at once and a plain gravity load (or a line): μ for all of them
+    fast = hulls.ok & ((wrench is None) | line[rows])
+    theta = padded_axis_angles(hulls.vertices[fast], hulls.n_vertices[fast], coms_G[fast], force_G)
+    mu[rows[fast]] = np.min(theta, axis=1) * np.linalg.norm(force_G)
+    for r in np.flatnonzero(~fast):  # per state: the batch's polygon where it has one
+        i = int(rows[r])
         j = int(index[i])
         T = G_T_B[i]
         com_G = T[:3, :3] @ com_body[i] + T[:3, 3]
-        force_G = mass * GRAVITY_G
-        poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
+        if hulls.ok[r]:
+            poly, on_line = hulls.vertices[r, : hulls.n_vertices[r]], False
+        else:
+            poly, on_line = support_vertices(rests.bearing_G(points, j), force_G)
         line[i] |= on_line
         if len(poly) == 0:
             continue

@@ -21,6 +21,16 @@ def _cross(a: ArrayLike, b: ArrayLike) -> FloatArray:
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
+def plane_axes(direction: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Unit axes (u, v) normal to ``direction`` (3,): (u, v, -direction) right-handed."""
+    d = np.asarray(direction, dtype=float)
+    up = -d / np.linalg.norm(d)
+    u = _cross(up, (1.0, 0.0, 0.0) if abs(up[0]) < 0.9 else (0.0, 1.0, 0.0))
+    u /= np.linalg.norm(u)
+    v = _cross(up, u)  # (u, v, up) right-handed: CCW in (u, v) is CCW about up
+    return u, v
+
+
 def hull_along(points: ArrayLike, direction: ArrayLike) -> FloatArray:
     """Hull vertices of ``points`` (n, 3) seen along ``direction`` (3,), CCW about -direction.
 
@@ -30,11 +40,7 @@ def hull_along(points: ArrayLike, direction: ArrayLike) -> FloatArray:
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
         raise ValueError(f"support points must be (n>=3, 3), got {pts.shape}")
-    d = np.asarray(direction, dtype=float)
-    up = -d / np.linalg.norm(d)
-    u = _cross(up, (1.0, 0.0, 0.0) if abs(up[0]) < 0.9 else (0.0, 1.0, 0.0))
-    u /= np.linalg.norm(u)
-    v = _cross(up, u)  # (u, v, up) right-handed: CCW in (u, v) is CCW about up
+    u, v = plane_axes(direction)
     rel = pts - pts.mean(axis=0)
     flat = np.stack([rel @ u, rel @ v], axis=1)
     _, sing, _ = np.linalg.svd(flat - flat.mean(axis=0))

@@ -197,3 +197,45 @@ def test_a_route_plan_reports_what_rest_gives_at_its_poses(tmp_path):
     np.testing.assert_allclose(plan.mu_stowed, stowed, rtol=0, atol=TOL)
     # the search's own basis is kept apart, and differs on this ground
     assert plan.mu_search.shape == plan.mu_planned.shape
+
+
+@pytest.mark.parametrize("wrench", [None, (15.0, -5.0, -40.0, 2.0, 1.0, -3.0)])
+def test_the_batched_hulls_give_the_per_state_mu(tmp_path, monkeypatch, wrench):
+    """μ along many states (hulls wrapped all at once) is the per-state hull_along's to 1e-12.
+
+    With a tool wrench too (the dynamic measure on the batch's polygon, per state).
+    """
+    import dataclasses
+
+    import mmstab.stability.support as support
+    from mmstab.terrain.polygon_batch import hulls_along_batch
+
+    rng = np.random.default_rng(11)
+    problem = ground_problem(rng, tmp_path)
+    robot, terrain = problem.robot, problem.terrain
+    if wrench is not None:
+        robot = dataclasses.replace(robot, tool_wrench=np.array(wrench))
+    poses, q = random_states(problem, rng, 60)
+    answered = []
+
+    def spy(*args, **kwargs):
+        hulls = hulls_along_batch(*args, **kwargs)
+        answered.append(hulls.ok.mean())
+        return hulls
+
+    monkeypatch.setattr(support, "hulls_along_batch", spy)
+    batched = loaded_support(robot, terrain, poses, robot.arm_com(q), q)
+    assert answered[0] > 0.8  # the batch answers most states
+
+    def none(*args, **kwargs):  # every state through the per-state hull_along
+        hulls = hulls_along_batch(*args, **kwargs)
+        return hulls._replace(ok=np.zeros_like(hulls.ok))
+
+    monkeypatch.setattr(support, "hulls_along_batch", none)
+    single = loaded_support(robot, terrain, poses, robot.arm_com(q), q)
+    np.testing.assert_allclose(batched.mu, single.mu, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(batched.line, single.line)
+    assert np.isfinite(batched.mu).sum() > 50
+    if wrench is not None:  # the wrench's measure, not gravity's alone
+        plain = loaded_support(problem.robot, terrain, poses, robot.arm_com(q), q).mu
+        assert np.nanmax(np.abs(plain - batched.mu)) > 1.0

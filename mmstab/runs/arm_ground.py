@@ -1,0 +1,256 @@
+"""The ground under the arm between the planned poses, at the attitudes the body takes there.
+
+The planner keeps the arm ``planner.ground_clearance`` above the ground at each planned
+pose, at the pose's predicted rest and through tilts of ``planner.attitude_margin``
+(:mod:`mmstab.planner.ground.under_arm`). Between the poses, over a bump's crest, the
+quasi-static rest flips from one support to the other (rear down to front down, or across
+a diagonal) within a few centimetres of travel; the robot does not jump between the two
+rests: it turns over the crest's support edge toward its CoM until the ground on the other
+side catches it, and may dwell there or overshoot the new rest. :func:`arm_ground_along`
+measures the arm's least height above the ground (the planner's own measure,
+:class:`mmstab.planner.ground.under_arm.GroundUnderArm`, no margin) at every dense sample
+of the path (:func:`mmstab.runs.along.path_timing`), with the arm on its posture reference
+there (:func:`reference_postures`, the CoM the rest carries with it):
+
+- at the sample's rest;
+- where the rest turns by more than ``planner.attitude_margin`` between neighbouring
+  samples (a flip), and where a rock was checked (:func:`mmstab.runs.along.rock_samples`):
+  also at the rocked attitude, the rest turned outward about its weakest support edge (the
+  least force angle: the edge the CoM leans over) until a contact beyond it meets the
+  ground (:func:`mmstab.stability.rock.catch`).
+
+A sample whose arm is below the ground (height < 0) is listed as a contact: where, how far
+in, at which attitude. :func:`arm_ground_record` takes two postures of the arm at each
+sample (the plan's posture reference, and the two planned postures it moves between) and
+``mmstab plan`` records both in ``summary.json`` (``along_path.arm_ground``); it is a
+record, not an exit status: with the planned postures it lists the sample where MuJoCo's
+forearm touches on route 29 of ``make validate-routes``, and also routes MuJoCo drives
+without a contact (``docs/stability.md``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.core.masks import true_runs
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.ground.under_arm import GroundUnderArm
+from mmstab.stability.rock import catch, rested_support
+from mmstab.stability.support import is_heightmap
+from mmstab.terrain.base import Terrain
+
+if TYPE_CHECKING:
+    from mmstab.paths.route import RoutePath
+    from mmstab.planner import RoutePlan
+
+
+#: A rest that turns more than this between neighbouring samples is a flip [rad] (3 deg:
+#: the validation problems' ``planner.attitude_margin``; the samples are 5 cm apart).
+FLIP = float(np.radians(3.0))
+
+
+class ArmGround(NamedTuple):
+    """The arm's least height above the ground at N path samples (its reference posture).
+
+    Attributes:
+        rest: at the samples' rests (N,) [m] (NaN: off the map or tips over).
+        rocked: at the rocked attitude (N,) [m] (NaN: not a flip or a rock, or not caught).
+        turn: the rock's turn from the rest to its catch (N,) [rad] (NaN: none).
+        flip: the rest's largest turn to a neighbouring sample's (N,) [rad].
+    """
+
+    rest: FloatArray
+    rocked: FloatArray
+    turn: FloatArray
+    flip: FloatArray
+
+    @property
+    def height(self) -> FloatArray:
+        """The lower of the two (N,) [m] (NaN where neither is known)."""
+        return np.asarray(np.fmin(self.rest, self.rocked))
+
+
+def _turns(z: FloatArray) -> FloatArray:
+    """Each sample's largest turn of B's z axis to a neighbour's (N,) [rad] (z: (N, 3))."""
+    step = np.arccos(np.clip(np.sum(z[1:] * z[:-1], axis=1), -1.0, 1.0))
+    step = np.nan_to_num(step, nan=0.0)
+    out = np.zeros(len(z))
+    out[1:] = step
+    out[:-1] = np.fmax(out[:-1], step)
+    return out
+
+
+def reference_postures(robot: Robot, plan: RoutePlan, route: RoutePath, s: ArrayLike) -> FloatArray:
+    """The arm's posture reference at arc lengths s (N,) [m]: postures (N, n) [rad].
+
+    The plan's postures joined by its moves along the route's time law
+    (:func:`mmstab.control.posture.build_posture_reference`, as
+    :func:`mmstab.runs.climb_out.reference_coms`); None where a posture is not realised.
+    """
+    from mmstab.control.posture import build_posture_reference
+
+    reference = build_posture_reference(robot, plan, 2, repair=False)
+    f = np.clip(np.asarray(route.fraction_of_s(np.asarray(s, dtype=float))), 0.0, 1.0 - 1e-12)
+    return np.asarray(reference(f).value, dtype=float)
+
+
+def arm_ground_along(
+    robot: Robot,
+    terrain: Terrain,
+    poses: ArrayLike,
+    postures: ArrayLike,
+    margin: float,
+    rocked: ArrayLike | None = None,
+) -> ArmGround:
+    """The arm's height above the ground at the samples' rests and rocked attitudes.
+
+    On a heightmap only (on a plane the support does not change along the path and the
+    planner's plane check holds at every sample): elsewhere every value is NaN.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: the path's samples (N, 3) of (x, y, yaw) in M [m, m, rad], in driving order.
+        postures: the arm's posture at each (N, n) [rad] (:func:`reference_postures`).
+        margin: a rest that turns more than this [rad] to a neighbouring sample's is a
+            flip (``planner.attitude_margin``).
+        rocked: (N,) samples where a rock was checked (:attr:`Rocks.checked`), if any.
+    """
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    q = np.atleast_2d(np.asarray(postures, dtype=float))
+    n = len(P)
+    out = ArmGround(np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan), np.zeros(n))
+    if n == 0 or not is_heightmap(terrain):
+        return out
+    ground = terrain
+    if getattr(terrain, "robot", None) is not robot:
+        ground = terrain.with_robot(robot, getattr(terrain, "flipper_angle", None))
+    com_B = np.atleast_2d(np.asarray(robot.overall_com(robot.arm_com(q)), dtype=float))
+    T = ground.rest(P, strict=False, com_body=com_B).G_T_B  # type: ignore[attr-defined]
+    ok = np.isfinite(T).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
+    out.flip[:] = _turns(T[:, :3, 2])
+    check = out.flip > margin
+    if rocked is not None:
+        check |= np.asarray(rocked, dtype=bool)
+    # the rocked attitudes: the rest turned over its weakest edge until caught
+    rows, turned, turn = [], [], []
+    for r in np.flatnonzero(check & ok):
+        first = rested_support(ground, P[r], com_B[r])
+        if first is None:
+            continue
+        j = int(np.argmin(first.theta))
+        c = catch(ground, first.T, first.poly[j], first.poly[(j + 1) % len(first.poly)])
+        if c is not None:
+            rows.append(r)
+            turned.append(c.T)
+            turn.append(c.angle)
+    at = np.concatenate([np.flatnonzero(ok), np.asarray(rows, dtype=np.intp)])
+    G_T_B = np.concatenate([T[ok], np.reshape(turned, (-1, 4, 4))])
+    M_T_B = np.linalg.inv(ground.G_T_M()) @ G_T_B
+    under = GroundUnderArm(robot, ground, P[at], M_T_B=M_T_B)
+    h = np.array([under.heights(k, q[at[k] : at[k] + 1])[0] for k in range(len(at))])
+    m = int(ok.sum())
+    out.rest[ok] = h[:m]
+    out.rocked[rows], out.turn[rows] = h[m:], turn
+    return out
+
+
+def arm_ground_verdict(arm: ArmGround, s: ArrayLike, margin: float) -> dict[str, Any]:
+    """Where the arm touches the ground along the path (``summary.json``'s ``arm_ground``).
+
+    Args:
+        arm: :func:`arm_ground_along`'s heights.
+        s: the samples' arc lengths (N,) [m].
+        margin: the flips' least turn [rad] (``planner.attitude_margin``).
+
+    Returns:
+        ``contact`` (bool), ``height_min_m`` (the least height at the rests, and
+        ``rocked_height_min_m`` at the rocked attitudes [m]; None: none), ``flips`` (samples
+        whose rest turns more than the margin to a neighbour's), ``rocked_samples``, and
+        ``stretches`` where the arm is below the ground: arc lengths [m], ``worst`` height
+        [m], ``by`` how far in [m], ``attitude`` (``rest`` or ``rocked``) and the rock's
+        ``turn_rad`` [rad] (None at a rest).
+    """
+    s_m = np.asarray(s, dtype=float)
+    h = arm.height
+    below = np.isfinite(h) & (h < 0.0)
+
+    def least(x: FloatArray) -> float | None:
+        return float(np.nanmin(x)) if np.isfinite(x).any() else None
+
+    stretches = []
+    for a, b in true_runs(below):
+        k = a + int(np.nanargmin(h[a:b]))
+        at_rest = bool(arm.rest[k] <= arm.rocked[k]) or not np.isfinite(arm.rocked[k])
+        stretches.append(
+            {
+                "start_s": float(s_m[a]),
+                "end_s": float(s_m[b - 1]),
+                "at_s": float(s_m[k]),
+                "worst": float(h[k]),
+                "by": float(-h[k]),
+                "attitude": "rest" if at_rest else "rocked",
+                "turn_rad": None if at_rest else float(arm.turn[k]),
+            }
+        )
+    return {
+        "contact": bool(stretches),
+        "height_min_m": least(arm.rest),
+        "rocked_height_min_m": least(arm.rocked),
+        "attitude_margin": float(margin),
+        "flips": int((arm.flip > margin).sum()),
+        "rocked_samples": int(np.isfinite(arm.rocked).sum()),
+        "stretches": stretches,
+    }
+
+
+def arm_ground_record(
+    robot: Robot,
+    terrain: Terrain,
+    route: RoutePath,
+    plan: RoutePlan,
+    poses: ArrayLike,
+    s: ArrayLike,
+    rocked: ArrayLike | None = None,
+) -> dict[str, Any]:
+    """The arm against the ground along a route plan (``summary.json``'s ``arm_ground``).
+
+    Two postures of the arm at each sample: the plan's posture reference there
+    (``reference``, :func:`reference_postures`) and the two planned postures it moves
+    between (``planned``, the worse of the two, as the dense μ takes them,
+    :func:`mmstab.runs.along.along_path`): the run's time law re-times the arm's moves
+    against the base, so the arm may still hold the posture before.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        route: the route planned.
+        plan: its plan (``s``, ``postures``, ``fractions``, ``moves``).
+        poses: the path's samples (N, 3) in M [m, m, rad], in driving order.
+        s: their arc lengths (N,) [m].
+        rocked: (N,) samples where a rock was checked, if any.
+
+    Returns:
+        ``reference`` and ``planned``: :func:`arm_ground_verdict` each.
+    """
+    from mmstab.runs.along import bracket
+
+    q = np.asarray(plan.postures, dtype=float)
+    s_m = np.asarray(s, dtype=float)
+    ref = arm_ground_along(robot, terrain, poses, reference_postures(robot, plan, route, s_m),
+                           FLIP, rocked)  # fmt: skip
+    before, after = bracket(plan.s, s_m)
+    a, b = (arm_ground_along(robot, terrain, poses, q[k], FLIP, rocked) for k in (before, after))
+    worse = ArmGround(
+        np.fmin(a.rest, b.rest),
+        np.fmin(a.rocked, b.rocked),
+        np.where(np.fmin(a.rocked, b.rocked) == a.rocked, a.turn, b.turn),
+        np.fmax(a.flip, b.flip),
+    )
+    return {
+        "reference": arm_ground_verdict(ref, s_m, FLIP),
+        "planned": arm_ground_verdict(worse, s_m, FLIP),
+    }
