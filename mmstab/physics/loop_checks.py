@@ -259,13 +259,14 @@ def predicted_path_slip(
 ) -> FloatArray:
     """Whether mmstab predicts the path slides (its turns or its cone), per sample (N,) bool.
 
-    The reference's base pose and rates (the control point ``base_offset`` [m] ahead, its
-    heading) give the path's forward speed and yaw rate; the skid-steer model
-    (:func:`mmstab.stability.skid.turn_slide`) the downhill slide rate at each ``every``-th
-    sample with the reference posture's CoM; a sample is flagged where the slide over the
-    last ``window`` [s] exceeds ``distance`` [m] (the loop's slip threshold). A reference pose
-    beyond the friction cone is flagged too (the path's own prediction; the loop's cone flag,
-    ``PhysicsRun.slip_predicted``, is at the simulated pose).
+    The plan's own turn verdict (:func:`mmstab.runs.verdict.turn_slip`: the skid-steer
+    model's slide at the turn rate the closed loop reaches, within ``window``) on the
+    reference's base poses (B's origin, the control point ``base_offset`` [m] behind) at
+    every ``every``-th sample, their times and the reference posture's arm CoM: the samples of
+    a sliding turn are flagged, and a reference pose beyond the friction cone (the path's own
+    prediction; the loop's cone flag, ``PhysicsRun.slip_predicted``, is at the simulated
+    pose). One verdict for the plan and the run: the same function, on the path as the
+    controller is given it.
 
     Args:
         problem: the problem (robot, terrain and its friction).
@@ -279,25 +280,21 @@ def predicted_path_slip(
         shear_modulus: the belts' shear modulus K [m] (``physics.shear_modulus``).
     """
     from mmstab.control.layout import StepReference
-    from mmstab.stability.skid import track_patch, turn_slide
-    from mmstab.stability.slip import terrain_friction
+    from mmstab.runs.verdict import TurnCheck, turn_slip
+    from mmstab.stability.slip import terrain_slip
 
     robot, r = problem.robot, StepReference.unpack(ref)
     idx = np.arange(0, len(ref), every)
-    xi, rate = np.asarray(r.xi_des)[idx], np.asarray(r.xi_dot_ref)[idx]
+    xi = np.asarray(r.xi_des)[idx]
     c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
     poses = np.c_[xi[:, 0] - base_offset * c, xi[:, 1] - base_offset * s, xi[:, 2]]
-    speed = rate[:, 0] * c + rate[:, 1] * s  # the point's speed along the heading = B's
-    com = robot.overall_com(np.atleast_2d(robot.arm_com(np.asarray(r.q_ref)[idx])))
-    slide = turn_slide(track_patch(robot), problem.terrain.gravity_body(poses), com, speed,
-                       rate[:, 2], terrain_friction(problem.terrain), turn_ratio,
-                       shear_modulus).rate  # fmt: skip
-    slide[~np.isfinite(slide)] = 1e3  # beyond the friction cone at the reference pose
-    step = every * dt
-    acc = np.concatenate([[0.0], np.cumsum(slide * step)])
-    lag = max(int(round(window / step)), 1)
-    k = np.arange(1, len(acc))
-    flags = (acc[k] - acc[np.maximum(k - lag, 0)]) > distance
+    arm_com = np.atleast_2d(robot.arm_com(np.asarray(r.q_ref)[idx]))
+    flags = np.asarray(terrain_slip(problem.terrain, poses).slides, bool).copy()
+    if len(poses) > 1:
+        check = TurnCheck(robot, arm_com, idx * dt, distance, window, None, turn_ratio,
+                          shear_modulus)  # fmt: skip
+        for turn in turn_slip(problem.terrain, poses, check)["sliding_turns"]:
+            flags[turn["first"] : turn["last"] + 1] = True
     return np.repeat(flags, every)[: len(ref)]
 
 
