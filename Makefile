@@ -125,6 +125,14 @@ bench-plan: setup
 	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
 	$(PY) benchmarks/plan_random.py --pairs 10 --runs 5
 
+## the random routes planned (roadmap) with the default attitude margin (3 deg) and with 12 deg,
+## one after the other -> results/bench/plan_random_{roadmap,rocking}.json (docs/validation.md)
+.PHONY: bench-plan-rocking
+bench-plan-rocking: setup
+	$(PY) benchmarks/plan_random.py --roadmap-only --out results/bench/plan_random_roadmap.json
+	$(PY) benchmarks/plan_random.py --roadmap-only --attitude-margin 0.21 \
+	  --out results/bench/plan_random_rocking.json
+
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json
 .PHONY: fidelity
 fidelity: setup
@@ -145,6 +153,13 @@ verdicts: setup
 VALIDATE_ROUTES ?= problems/validate_routes.yaml
 validate-routes: setup
 	$(PY) -m experiments.validate_routes $(VALIDATE_ROUTES)
+
+## the same routes planned with the arm clear through 12 deg of body tilt (planner.attitude_margin
+## 0.21 rad) -> results/validate_routes_rocking/summary.json (docs/validation.md)
+.PHONY: validate-routes-rocking
+validate-routes-rocking: setup
+	$(PY) -m experiments.validate_routes problems/validate_routes_rocking.yaml \
+	  -o results/validate_routes_rocking
 
 ## mmstab's mu on its loaded support against MuJoCo's robot settled at rest, for each
 ## compliance of the tracks' bottom run (12 seeded maps x 6 poses, about 2 minutes)

@@ -41,8 +41,16 @@ from common import machine_info
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def one(k: int, runs: int, methods: tuple[str, ...] = ("sequence", "cmaes")) -> dict[str, Any]:
-    """Pair ``k`` in this process: the one-off roadmap plan first, then the repeats."""
+def one(
+    k: int,
+    runs: int,
+    methods: tuple[str, ...] = ("sequence", "cmaes"),
+    attitude_margin: float | None = None,
+) -> dict[str, Any]:
+    """Pair ``k`` in this process: the one-off roadmap plan first, then the repeats.
+
+    ``attitude_margin`` [rad]: the problems' ``planner.attitude_margin`` instead of theirs.
+    """
     t0 = time.perf_counter()
     sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "runs")]
     from test_random_routes import pair_problem
@@ -55,6 +63,10 @@ def one(k: int, runs: int, methods: tuple[str, ...] = ("sequence", "cmaes")) -> 
     folder = Path(tempfile.mkdtemp(prefix="mmstab-bench-"))
     t0 = time.perf_counter()
     problem = load_problem(pair_problem(k, folder))
+    if attitude_margin is not None:
+        data = copy.deepcopy(problem.data)
+        data["planner"]["attitude_margin"] = attitude_margin
+        problem = problem_from_dict(data, problem.path)
     load_s = time.perf_counter() - t0
     t0, c0 = time.perf_counter(), time.process_time()
     plan = plan_problem(problem)
@@ -117,12 +129,14 @@ def main() -> None:
     )
     ap.add_argument("--out", default="results/bench/plan_random.json")
     ap.add_argument("--roadmap-only", action="store_true", help="no sequence, no CMA-ES")
+    ap.add_argument(
+        "--attitude-margin", type=float, help="planner.attitude_margin [rad] for every pair"
+    )
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one is not None:
-        print(
-            json.dumps(one(args.one, args.runs, () if args.roadmap_only else ("sequence", "cmaes")))
-        )
+        methods = () if args.roadmap_only else ("sequence", "cmaes")
+        print(json.dumps(one(args.one, args.runs, methods, args.attitude_margin)))
         return
     t_start = time.perf_counter()
     load_before = os.getloadavg()
@@ -131,11 +145,16 @@ def main() -> None:
     for k in range(args.pairs):
         cmd = [sys.executable, __file__, "--one", str(k), "--runs", str(args.runs)]
         cmd += ["--roadmap-only"] if args.roadmap_only else []
+        margin = (
+            [] if args.attitude_margin is None else ["--attitude-margin", str(args.attitude_margin)]
+        )
+        cmd += margin
         proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
         r = json.loads(proc.stdout.strip().splitlines()[-1])
         one_offs = [r["one_off"]]
         for _ in range(args.one_offs - 1):  # the one-off alone, each in a fresh process
             cmd = [sys.executable, __file__, "--one", str(k), "--runs", "1", "--roadmap-only"]
+            cmd += margin
             proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
             one_offs.append(json.loads(proc.stdout.strip().splitlines()[-1])["one_off"])
         r["one_off_runs"] = one_offs
@@ -161,6 +180,7 @@ def main() -> None:
         "pairs": args.pairs,
         "runs": args.runs,
         "one_offs": args.one_offs,
+        "attitude_margin": args.attitude_margin,
         "median_over_pairs": {
             "roadmap_one_off_ms_per_pose": float(
                 np.median([p["one_off"]["ms_per_pose"] for p in pairs])

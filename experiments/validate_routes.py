@@ -242,14 +242,33 @@ def _stats(values: list[float]) -> dict[str, Any]:
             "max": float(v.max())}  # fmt: skip
 
 
+def _off_path(record: dict[str, Any], tracking_m: float) -> bool:
+    """The body origin's largest error beyond ``tracking_m`` [m]."""
+    return (record["base_origin_error_max_m"] or 0.0) > tracking_m
+
+
 def bars(records: list[dict[str, Any]], b: dict[str, Any]) -> dict[str, Any]:
-    """The acceptance bars, each with its numbers and whether it holds."""
+    """The acceptance bars, each with its numbers and whether it holds.
+
+    A refused route fails when forced if MuJoCo's outcome is an event (tips, slides, stalls,
+    touches the ground, leaves the map) or if it holds but its body origin ends up farther
+    than the accepted routes' tracking bar from its reference (``off_path``): either way an
+    accepted route would have broken a bar. ``share_events`` counts the events alone.
+    ``accepted_on_slopes.drivable``: the routes up to the slope limit that MuJoCo holds on
+    their path (no event, within the tracking bar), the most a verdict could accept there
+    without an unsafe miss.
+    """
     accepted = [r for r in records if r["plan"] == "accepted"]
     refused = [r for r in records if r["plan"] != "accepted" and r["mujoco"] is not None]
     fail_acc = [r["route"] for r in accepted if r["mujoco"] != "holds"]
     fail_ref = [r for r in refused if r["mujoco"] != "holds"]
+    # a forced route MuJoCo drives without an event but tracks worse than an accepted route
+    # may be: accepting it would break the tracking bar, so the refusal stands
+    off_path = [r for r in refused if r["mujoco"] == "holds" and _off_path(r, b["tracking_m"])]
     slope = [r for r in records if r["slope_deg"] <= b["slope_limit_deg"]]
     slope_acc = [r for r in slope if r["plan"] == "accepted"]
+    # the most any verdict could accept there without a miss: MuJoCo holds them on the path
+    drivable = [r for r in slope if r["mujoco"] == "holds" and not _off_path(r, b["tracking_m"])]
     held = [r for r in accepted if r["mujoco"] == "holds"]
     origin = [r for r in held if r["base_origin_error_max_m"] > b["tracking_m"]]
     mu = [r for r in accepted if (r["mu_relative_difference_median"] or 0.0) > b["mu_relative"]]
@@ -257,11 +276,15 @@ def bars(records: list[dict[str, Any]], b: dict[str, Any]) -> dict[str, Any]:
         "accepted_never_fail": {"accepted": len(accepted), "fail_in_mujoco": len(fail_acc),
                                 "routes": fail_acc},
         "refused_fail_when_forced": {"refused": len(refused), "fail_in_mujoco": len(fail_ref),
-                                     "share": _share(len(fail_ref), len(refused)),
+                                     "off_path": [r["route"] for r in off_path],
+                                     "share": _share(len(fail_ref) + len(off_path), len(refused)),
+                                     "share_events": _share(len(fail_ref), len(refused)),
                                      "bar": b["refused_fail_share"]},
         "accepted_on_slopes": {"slope_limit_deg": b["slope_limit_deg"], "routes": len(slope),
                                "accepted": len(slope_acc),
                                "share": _share(len(slope_acc), len(slope)),
+                               "drivable": len(drivable),
+                               "drivable_share": _share(len(drivable), len(slope)),
                                "bar": b["accepted_share"]},
         "tracking_body_origin": {"bar_m": b["tracking_m"], "routes": len(held),
                                  "over": [r["route"] for r in origin]},

@@ -22,6 +22,7 @@ import yaml
 from experiments.validate_routes import (
     OUTCOMES,
     PLAN_VERDICTS,
+    bars,
     event_place,
     load_settings,
     route_problem,
@@ -105,6 +106,35 @@ def test_event_place_by_hand() -> None:
 
 @pytest.mark.mujoco
 @pytest.mark.slow
+def _record(k: int, plan: str, mujoco: str, error_m: float, slope: float = 10.0) -> dict:
+    return {"route": k, "plan": plan, "mujoco": mujoco, "base_origin_error_max_m": error_m,
+            "slope_deg": slope, "mu_relative_difference_median": 0.01}  # fmt: skip
+
+
+def test_bars_count_a_forced_route_off_the_path_as_failing() -> None:
+    """Refused routes: 1 slides, 1 holds 30 cm off its path, 2 hold on it -> 2 of 4 fail.
+
+    The accepted route that holds 30 cm off breaks the tracking bar instead (it is not a
+    refusal's fail); the events-only share is 1 of 4. Up to 20 deg, the routes MuJoCo holds on
+    their path (2 and 3) are the drivable ones.
+    """
+    b = load_settings(SETTINGS)["bars"]
+    records = [
+        _record(0, "slides", "slides", 0.4),
+        _record(1, "slides", "holds", 0.3),
+        _record(2, "slides", "holds", 0.05),
+        _record(3, "tips", "holds", b["tracking_m"]),  # at the bar: on the path
+        _record(4, "accepted", "holds", 0.3, slope=25.0),
+    ]
+    got = bars(records, b)
+    refused = got["refused_fail_when_forced"]
+    assert (refused["refused"], refused["fail_in_mujoco"], refused["off_path"]) == (4, 1, [1])
+    assert refused["share"] == pytest.approx(0.5) and refused["share_events"] == pytest.approx(0.25)
+    assert got["tracking_body_origin"]["over"] == [4] and not got["tracking_body_origin"]["holds"]
+    slopes = got["accepted_on_slopes"]
+    assert (slopes["routes"], slopes["accepted"], slopes["drivable"]) == (4, 0, 2)  # 2 and 3
+
+
 def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     pytest.importorskip("mujoco")
     settings = load_settings(SETTINGS)
