@@ -222,7 +222,7 @@ def with_defaults(data: dict[str, Any], arm_joints: int | None = None) -> dict[s
     heightmap = isinstance(terrain, dict) and ("generate" in terrain or "file" in terrain)
     if route and heightmap and isinstance(planner, (dict, type(None))):
         out["planner"] = {**HEIGHTMAP_ROUTE_PLANNER, **named}
-    for name in {*DEFAULT_SECTIONS, *SECTION_DEFAULTS}:
+    for name in dict.fromkeys([*DEFAULT_SECTIONS, *SECTION_DEFAULTS]):  # an order (a set has none)
         given = out.get(name, {})
         if isinstance(given, dict):
             default = {**DEFAULT_SECTIONS.get(name, {}), **SECTION_DEFAULTS.get(name, {})}
