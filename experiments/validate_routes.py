@@ -270,7 +270,7 @@ def bars(records: list[dict[str, Any]], b: dict[str, Any]) -> dict[str, Any]:
     # the most any verdict could accept there without a miss: MuJoCo holds them on the path
     drivable = [r for r in slope if r["mujoco"] == "holds" and not _off_path(r, b["tracking_m"])]
     held = [r for r in accepted if r["mujoco"] == "holds"]
-    origin = [r for r in held if r["base_origin_error_max_m"] > b["tracking_m"]]
+    origin = [r for r in held if _off_path(r, b["tracking_m"])]
     mu = [r for r in accepted if (r["mu_relative_difference_median"] or 0.0) > b["mu_relative"]]
     out = {
         "accepted_never_fail": {"accepted": len(accepted), "fail_in_mujoco": len(fail_acc),

@@ -280,8 +280,7 @@ def predicted_path_slip(
         shear_modulus: the belts' shear modulus K [m] (``physics.shear_modulus``).
     """
     from mmstab.control.layout import StepReference
-    from mmstab.runs.verdict import TurnCheck, turn_slip
-    from mmstab.stability.slip import terrain_slip
+    from mmstab.runs.verdict import TurnCheck, slip_verdict
 
     robot, r = problem.robot, StepReference.unpack(ref)
     idx = np.arange(0, len(ref), every)
@@ -289,12 +288,13 @@ def predicted_path_slip(
     c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
     poses = np.c_[xi[:, 0] - base_offset * c, xi[:, 1] - base_offset * s, xi[:, 2]]
     arm_com = np.atleast_2d(robot.arm_com(np.asarray(r.q_ref)[idx]))
-    flags = np.asarray(terrain_slip(problem.terrain, poses).slides, bool).copy()
-    if len(poses) > 1:
-        check = TurnCheck(robot, arm_com, idx * dt, distance, window, None, turn_ratio,
-                          shear_modulus)  # fmt: skip
-        for turn in turn_slip(problem.terrain, poses, check)["sliding_turns"]:
-            flags[turn["first"] : turn["last"] + 1] = True
+    check = TurnCheck(robot, arm_com, idx * dt, distance, window, None, turn_ratio,
+                      shear_modulus)  # fmt: skip
+    verdict = slip_verdict(problem.terrain, poses, check)  # the plan's: its cone and its turns
+    flags = np.zeros(len(poses), dtype=bool)
+    flags[[b["index"] for b in verdict["sliding_poses"]]] = True
+    for turn in verdict.get("turns", {}).get("sliding_turns", []):
+        flags[turn["first"] : turn["last"] + 1] = True
     return np.repeat(flags, every)[: len(ref)]
 
 
