@@ -84,6 +84,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "motion_cost": "joints",
         "ground_clearance": 0.02,
         "attitude_margin": None,
+        "turn_slide": None,
         "climb": True,
     },
     # body, not the paper's map: on a route a base lagging its reference dragged the map-frame

@@ -167,6 +167,9 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             # method roadmap on terrain: the arm clears the ground through the body's tilts
             # up to this [rad] about its origin; null: off (docs/roadmap.md)
             attitude_margin={"oneOf": [{"type": "null"}, angle(minimum=0, maximum=0.5)]},
+            # method roadmap on a route: the slide [m] a turn may cost with the chosen
+            # postures; null: off (docs/routes.md)
+            turn_slide={"oneOf": [{"type": "null"}, NONNEG]},
             climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),
         margin=NUM,  # optional: a plan is stable when every pose's mu > margin [N rad]; 0

@@ -103,16 +103,16 @@ def climb_exclusions(
     for k in np.flatnonzero(plan.constrained):
         climbs = plan.eligible(int(k), com) & eligible
         rows = np.flatnonzero(climbs)
-        if _any_stable(fits[k], arm_com_body, rows):
+        if any_stable(fits[k], arm_com_body, rows):
             out[int(k)] = eligible & ~climbs
     return out
 
 
-#: Rows per block of :func:`_any_stable` (the first block mostly holds a stable row).
+#: Rows per block of :func:`any_stable` (the first block mostly holds a stable row).
 STABLE_BLOCK = 2048
 
 
-def _any_stable(fit: Any, arm_com_body: FloatArray, rows: NDArray[np.intp]) -> bool:
+def any_stable(fit: Any, arm_com_body: FloatArray, rows: NDArray[np.intp]) -> bool:
     """Whether any of ``rows`` has μ > 0 under ``fit``: block by block, the first one ends it."""
     for s in range(0, len(rows), STABLE_BLOCK):
         if (fit.mu(arm_com_body[rows[s : s + STABLE_BLOCK]]) > 0).any():

@@ -69,6 +69,12 @@ class PlannerSettings(NamedTuple):
             none: off, on a route over a heightmap 0.0524).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
+        turn_slide: ``method: roadmap`` on a route: the slide [m] the skid-steer model may
+            price a turn at with the chosen postures; where a turn between two planned
+            poses slides more, both poses keep only postures whose turn does not, and the
+            path is searched again (:mod:`mmstab.planner.turning`); None: off (the
+            default; ``make validate-routes-rocking`` sets 0.04, under
+            ``physics.slip_distance``'s 0.05 that judges the plan).
         climb: ``method: roadmap`` on a route: at a pose whose front wheels run into a step
             before the next pose, and at that next pose, only postures whose overall CoM
             lets the tracks climb it (``mmstab.planner.climbing``); where no stable posture
@@ -100,6 +106,7 @@ class PlannerSettings(NamedTuple):
     motion_cost: str = "joints"
     ground_clearance: float | None = 0.02
     attitude_margin: float | None = None
+    turn_slide: float | None = None
     climb: bool = True
 
     @classmethod
@@ -136,6 +143,7 @@ class PlannerSettings(NamedTuple):
             attitude_margin=None
             if cfg["attitude_margin"] is None
             else float(cfg["attitude_margin"]),
+            turn_slide=None if cfg.get("turn_slide") is None else float(cfg["turn_slide"]),
             climb=bool(cfg["climb"]),
         )
 

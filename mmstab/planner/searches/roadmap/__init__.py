@@ -43,6 +43,7 @@ from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' na
 )
 from mmstab.planner.searches.sequence import _turret_bins, _viterbi
 from mmstab.planner.settings import PlannerSettings
+from mmstab.planner.turning import SlideLimit, slide_exclusions, turn_chords
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap, load_or_build_roadmap
 
@@ -71,6 +72,8 @@ class RoadmapSequence(NamedTuple):
         moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
             the start posture (open path) or from the last pose (closed).
         seconds: wall time [s].
+        turns: the turning chords that slid with the first choice and were searched again
+            (:func:`mmstab.planner.turning.slide_exclusions`' records).
     """
 
     nodes: NDArray[np.intp]
@@ -81,6 +84,7 @@ class RoadmapSequence(NamedTuple):
     total: float
     moves: tuple[FloatArray, ...]
     seconds: float
+    turns: tuple[dict[str, Any], ...] = ()
 
 
 def best_sequence(
@@ -312,6 +316,7 @@ def solve_roadmap_sequence(
     under: GroundUnderArm | None = None,
     climb: ClimbPlan | None = None,
     polygons: list[FloatArray] | None = None,
+    slide: SlideLimit | None = None,
 ) -> RoadmapSequence:
     """Choose one reachable roadmap node per pose (module text).
 
@@ -330,6 +335,9 @@ def solve_roadmap_sequence(
             (:func:`mmstab.planner.pose.support_polygons_at`); None: the tracks' rectangle.
         climb: the climb limit along the poses: at a constrained pose only nodes whose
             overall CoM lets the tracks climb its step (:mod:`mmstab.planner.climbing`).
+        slide: the slide limit at the turns: where the chosen postures' turn slides more,
+            the poses either side keep only postures whose turn does not, and the path is
+            searched again (:mod:`mmstab.planner.turning`).
 
     Raises:
         NoPlanError: some pose has no reachable stable posture (the message names it).
@@ -354,21 +362,44 @@ def solve_roadmap_sequence(
     clear = NodeClearance(roadmap, reach, ground, under)
     if climb is not None:
         clear.excluded.update(climb_exclusions(robot, climb, samples, clear.eligible(), fits))
-    cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
     span = (view.diameter, view.joint_span)
     cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
-    if not closed:
-        value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
-    motion, allowed = transitions(
-        cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight, settings.turret_window,
-        cost.metric,
-    )  # fmt: skip
-    _forbid_low_ends(clear, cand, value, allowed, pairs)
     mover = Mover(robot, roadmap, int(start), ground, under)
-    path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
-    if nodes is None:
-        raise _no_plan(value, allowed, poses, settings)
+
+    def search() -> tuple[Any, ...]:
+        cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
+        if not closed:
+            value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
+        motion, allowed = transitions(
+            cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight,
+            settings.turret_window, cost.metric,
+        )  # fmt: skip
+        _forbid_low_ends(clear, cand, value, allowed, pairs)
+        path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
+        if nodes is None:
+            raise _no_plan(value, allowed, poses, settings)
+        return cand, value, mu, motion, path, nodes, moves
+
+    cand, value, mu, motion, path, nodes, moves = search()
+    turns: list[dict[str, Any]] = []
+    if slide is not None and slide.chords:
+        chosen_com = samples[cand[np.arange(K), path]]
+        excluded, turns = slide_exclusions(
+            robot, slide.terrain, slide.chords, chosen_com, slide.limit, samples,
+            clear.eligible(), fits,
+        )  # fmt: skip
+        if excluded:  # the poses either side of a sliding turn: searched again
+            kept = dict(clear.excluded)
+            for k, mask in excluded.items():
+                clear.excluded[k] = clear.excluded[k] | mask if k in clear.excluded else mask
+            try:
+                cand, value, mu, motion, path, nodes, moves = search()
+            except NoPlanError:  # no path with them: the first answer, its turns reported
+                clear.excluded.clear()
+                clear.excluded.update(kept)
+                for t in turns:
+                    t["poses"] = []
     if not closed or K == 1:  # from the start posture itself onto its node
         first = np.vstack([start_q, moves[0]])
         moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
@@ -385,6 +416,7 @@ def solve_roadmap_sequence(
         total=float(fitness.sum()),
         moves=tuple(moves),
         seconds=time.perf_counter() - t0,
+        turns=tuple(turns),
     )
 
 
@@ -413,6 +445,11 @@ class RoadmapSearch:
         polygons = None
         if task.terrain is not None and task.poses is not None:  # the loaded support
             polygons = support_polygons_at(task.robot, task.terrain, task.poses)
+        slide = None
+        limit = task.settings.turn_slide
+        if limit is not None and task.terrain is not None and task.poses is not None:
+            chords = turn_chords(task.terrain, task.poses, task.closed)
+            slide = SlideLimit(task.terrain, chords, limit) if chords else None
         seq = solve_roadmap_sequence(
             task.robot,
             task.gravity_body,
@@ -424,6 +461,7 @@ class RoadmapSearch:
             under=under,
             climb=climb,
             polygons=polygons,
+            slide=slide,
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,

@@ -1,0 +1,177 @@
+"""planner.turn_slide: postures whose turns the skid-steer model does not price over the limit.
+
+Where the overall CoM sits changes a pivot's slide on a side slope (0.09-0.39 m/rad for the
+postures of one corner of validation route 26); the most stable posture is not the one that
+turns best. The turning chords come from the planned poses; a grid of overall CoMs prices
+every row (checked against the model per row); a search with the limit keeps the chosen
+postures' turns under it where a stable posture can, and without one keeps them all.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_under_arm import _map, _settings
+
+from mmstab.planner.ground.under_arm import GroundUnderArm
+from mmstab.planner.searches.roadmap import solve_roadmap_sequence
+from mmstab.planner.turning import (
+    GRID,
+    TURN_MIN,
+    SlideLimit,
+    TurnPricer,
+    slide_exclusions,
+    turn_chords,
+)
+from mmstab.stability.static import mu_max
+from mmstab.terrain.generators import Grid, plane
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.workspace import build_workspace
+from mmstab.workspace.roadmap import build_roadmap
+
+LIMIT = 0.07  # the tests' limit on an 8.6 deg plane [m] (the default is 0.04)
+
+
+@pytest.fixture(scope="module")
+def small(robot):
+    return build_roadmap(robot, build_workspace(robot, (10, 8, 8, 8), progress=False))
+
+
+def _pivot(heading0: float, turn: float) -> np.ndarray:
+    """Two poses up to a pivot, three after it (headings [rad]), 0.4 m apart."""
+    a = np.array([[-0.8, 0.0], [-0.4, 0.0], [0.0, 0.0]])
+    d = np.array([np.cos(heading0 + turn), np.sin(heading0 + turn)])
+    b = np.array([0.4, 0.8])[:, None] * d
+    return np.r_[np.c_[a, np.full(3, heading0)], np.c_[b, np.full(2, heading0 + turn)]]
+
+
+def test_the_chords_that_turn(robot):
+    terrain = _map(robot, "tilted")
+    poses = _pivot(0.3, 1.0)
+    (chord,) = turn_chords(terrain, poses, closed=False)
+    assert (chord.first, chord.last) == (2, 3) and chord.turn == pytest.approx(1.0)
+    # the gravity at the chord's middle, at the headings across the turn
+    mid = (poses[2, :2] + poses[3, :2]) / 2
+    want = terrain.gravity_body(np.array([[*mid, 0.3], [*mid, 0.8], [*mid, 1.3]]))
+    np.testing.assert_allclose(chord.gravity_body, want)
+    straight = poses.copy()
+    straight[:, 2] = 0.3
+    assert turn_chords(terrain, straight, closed=False) == []
+    # a loop closes with the chord back to the first pose (1 rad back: a turn too)
+    loop = turn_chords(terrain, poses, closed=True)
+    assert [c.first for c in loop] == [2, 4] and loop[1].turn == pytest.approx(-1.0)
+    assert loop[1].poses(len(poses)) == [4, 0]
+    # a pivot the planned poses fall inside: its chords turning the same way are one turn
+    inside = np.insert(poses, 3, [0.0, 0.0, 0.7], axis=0)
+    (split,) = turn_chords(terrain, inside, closed=False)
+    assert (split.first, split.last) == (2, 4) and split.turn == pytest.approx(1.0)
+    assert split.poses(len(inside)) == [2, 3, 4]
+    # ... also across a loop's seam (the first chord and the last turn the same way)
+    seam = turn_chords(terrain, np.roll(inside, -3, axis=0), closed=True)
+    assert [(c.first, c.last, round(c.turn, 6)) for c in seam] == [(5, 7, 1.0), (2, 3, -1.0)]
+    small_turn = poses.copy()
+    small_turn[3:, 2] = 0.3 + TURN_MIN / 2
+    assert turn_chords(terrain, small_turn, closed=False) == []
+
+
+def test_the_grid_prices_rows_as_the_model_does(robot, small):
+    terrain = _map(robot, "tilted")
+    (chord,) = turn_chords(terrain, _pivot(0.3, 1.0), closed=False)
+    pricer = TurnPricer(robot, terrain)
+    rng = np.random.default_rng(7)
+    rows = rng.choice(len(small.nodes_q), 60, replace=False)
+    com = robot.overall_com(robot.arm_com(small.nodes_q[rows]))
+    grid = pricer.grid_slide(chord, 1, com)
+    exact = np.nan_to_num(pricer.per_radian(chord.gravity_body[1], com), nan=np.inf) * 1.0
+    finite = np.isfinite(exact)
+    assert finite.mean() > 0.9
+    # trilinear over a GRID x GRID x 2 grid: within 12 % of the model's (measured 10 %, 3 cm
+    # on 22-41 cm), 6 mm in the median
+    error = np.abs(grid[finite] - exact[finite])
+    assert np.all(error < 0.12 * exact[finite]) and np.median(error) < 0.008
+    assert np.ptp(exact[finite]) > 0.03  # and the CoM matters by more than that
+    # the chord's worst heading is the largest of its headings' prices
+    slide, worst = pricer.slide(chord, com[:2])
+    per = [
+        np.nan_to_num(pricer.per_radian(g, com[:2]), nan=np.inf).max() for g in chord.gravity_body
+    ]
+    assert worst == int(np.argmax(per)) and slide == pytest.approx(max(per) * 1.0)
+    assert GRID == 3
+
+
+def _gentle(robot) -> HeightmapTerrain:
+    """An 8.6 deg plane: a half-radian pivot slides from 4.7 cm as the CoM goes (median 6.5)."""
+    return HeightmapTerrain(plane(Grid.of_size((6.0, 6.0), 0.04), 0.15, 0.7)).with_robot(robot)
+
+
+def _plan(robot, small, terrain, poses, limit):
+    g = terrain.gravity_body(poses)
+    under = GroundUnderArm(robot, terrain, poses)
+    slide = (
+        None if limit is None else SlideLimit(terrain, turn_chords(terrain, poses, False), limit)
+    )
+    s = _settings(0.05)
+    return solve_roadmap_sequence(robot, g, small, s, mu_max(robot), False, poses, under=under,
+                                  slide=slide)  # fmt: skip
+
+
+def test_a_search_with_the_limit_turns_under_it_where_a_stable_posture_can(robot, small):
+    # an 8.6 deg plane; a pivot of half a radian across the slope: the most stable
+    # postures slide 11.9 cm there; a limit of 7 cm (some stable postures turn within it)
+    terrain = _gentle(robot)
+    poses = _pivot(0.3, 0.5)
+    (chord,) = turn_chords(terrain, poses, closed=False)
+    pricer = TurnPricer(robot, terrain)
+    free = _plan(robot, small, terrain, poses, None)
+    held = _plan(robot, small, terrain, poses, LIMIT)
+    before = pricer.slide(chord, robot.overall_com(free.com[2:4]))[0]
+    after = pricer.slide(chord, robot.overall_com(held.com[2:4]))[0]
+    assert before > LIMIT  # the most stable postures slide in the pivot
+    (record,) = held.turns
+    assert (record["first"], record["last"]) == (2, 3)
+    assert record["slide_m"] == pytest.approx(before)
+    assert record["poses"] == [2, 3]
+    assert after <= LIMIT * 1.12  # the grid's error allowed (12 %)
+    assert after < before
+    assert held.total <= free.total + 1e-9  # a limit only removes candidates
+    # away from the turn the choice is the search's own
+    assert np.all(held.mu > 0)
+
+
+def test_no_stable_posture_under_the_limit_keeps_them_all(robot, small):
+    terrain = _gentle(robot)
+    poses = _pivot(0.3, 0.5)
+    chords = turn_chords(terrain, poses, closed=False)
+    free = _plan(robot, small, terrain, poses, None)
+    g = terrain.gravity_body(poses)
+    # a limit no posture turns within: nothing excluded, the record says so
+    rows = np.arange(len(small.nodes_q))
+    fits = [type("Fit", (), {"mu": staticmethod(lambda c: np.ones(len(c)))})() for _ in g]
+    excluded, records = slide_exclusions(robot, terrain, chords, free.com, 1e-6,
+                                         robot.arm_com(small.nodes_q), np.ones(len(rows), bool),
+                                         fits)  # fmt: skip
+    assert excluded == {} and records[0]["poses"] == []
+    held = _plan(robot, small, terrain, poses, 1e-6)
+    np.testing.assert_array_equal(held.nodes, free.nodes)
+
+
+def test_the_limit_is_off_by_default_and_checked(tmp_path, capsys):
+    from conftest import PROBLEMS, write_problem
+
+    from mmstab.cli import main
+    from mmstab.core.files import ConfigError
+    from mmstab.core.problem import load_problem
+    from mmstab.planner import PlannerSettings
+
+    kerb = load_problem(PROBLEMS / "kerb.yaml")  # a route over a heightmap: every default
+    assert PlannerSettings.from_section(kerb.section("planner")).turn_slide is None
+    path = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", -0.04))
+    with pytest.raises(ConfigError) as info:
+        load_problem(path)
+    assert info.value.field == "planner.turn_slide"
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "planner.turn_slide" in err and str(path) in err
+    assert not (tmp_path / "out").exists()  # nothing half-written
+    ok = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", 0.04))
+    assert PlannerSettings.from_section(load_problem(ok).section("planner")).turn_slide == 0.04
