@@ -125,12 +125,13 @@ bench-plan: setup
 	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
 	$(PY) benchmarks/plan_random.py --pairs 10 --runs 5
 
-## the random routes planned (roadmap) with the default attitude margin (3 deg) and with 12 deg,
-## one after the other -> results/bench/plan_random_{roadmap,rocking}.json (docs/validation.md)
+## the random routes planned (roadmap) with the defaults (3 deg attitude margin, no slide limit
+## at the turns) and as make validate-routes-rocking plans (12 deg, turn_slide 0.04 m), one
+## after the other -> results/bench/plan_random_{roadmap,rocking}.json (docs/validation.md)
 .PHONY: bench-plan-rocking
 bench-plan-rocking: setup
 	$(PY) benchmarks/plan_random.py --roadmap-only --out results/bench/plan_random_roadmap.json
-	$(PY) benchmarks/plan_random.py --roadmap-only --attitude-margin 0.21 \
+	$(PY) benchmarks/plan_random.py --roadmap-only --attitude-margin 0.21 --turn-slide 0.04 \
 	  --out results/bench/plan_random_rocking.json
 
 ## paper claims vs saved results (run fig6, fig8, tracking first) -> results/fidelity/summary.json

@@ -46,10 +46,12 @@ def one(
     runs: int,
     methods: tuple[str, ...] = ("sequence", "cmaes"),
     attitude_margin: float | None = None,
+    turn_slide: float | None = None,
 ) -> dict[str, Any]:
     """Pair ``k`` in this process: the one-off roadmap plan first, then the repeats.
 
-    ``attitude_margin`` [rad]: the problems' ``planner.attitude_margin`` instead of theirs.
+    ``attitude_margin`` [rad] and ``turn_slide`` [m]: the problems' ``planner`` keys instead
+    of theirs (None: theirs).
     """
     t0 = time.perf_counter()
     sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "runs")]
@@ -63,9 +65,11 @@ def one(
     folder = Path(tempfile.mkdtemp(prefix="mmstab-bench-"))
     t0 = time.perf_counter()
     problem = load_problem(pair_problem(k, folder))
-    if attitude_margin is not None:
+    named = {"attitude_margin": attitude_margin, "turn_slide": turn_slide}
+    named = {key: value for key, value in named.items() if value is not None}
+    if named:
         data = copy.deepcopy(problem.data)
-        data["planner"]["attitude_margin"] = attitude_margin
+        data["planner"].update(named)
         problem = problem_from_dict(data, problem.path)
     load_s = time.perf_counter() - t0
     t0, c0 = time.perf_counter(), time.process_time()
@@ -132,11 +136,12 @@ def main() -> None:
     ap.add_argument(
         "--attitude-margin", type=float, help="planner.attitude_margin [rad] for every pair"
     )
+    ap.add_argument("--turn-slide", type=float, help="planner.turn_slide [m] for every pair")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one is not None:
         methods = () if args.roadmap_only else ("sequence", "cmaes")
-        print(json.dumps(one(args.one, args.runs, methods, args.attitude_margin)))
+        print(json.dumps(one(args.one, args.runs, methods, args.attitude_margin, args.turn_slide)))
         return
     t_start = time.perf_counter()
     load_before = os.getloadavg()
@@ -148,6 +153,7 @@ def main() -> None:
         margin = (
             [] if args.attitude_margin is None else ["--attitude-margin", str(args.attitude_margin)]
         )
+        margin += [] if args.turn_slide is None else ["--turn-slide", str(args.turn_slide)]
         cmd += margin
         proc = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True)
         r = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -181,6 +187,7 @@ def main() -> None:
         "runs": args.runs,
         "one_offs": args.one_offs,
         "attitude_margin": args.attitude_margin,
+        "turn_slide": args.turn_slide,
         "median_over_pairs": {
             "roadmap_one_off_ms_per_pose": float(
                 np.median([p["one_off"]["ms_per_pose"] for p in pairs])
