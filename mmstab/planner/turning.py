@@ -8,20 +8,22 @@ arm stowed and 0.09 with the arm reaching ahead and uphill; MuJoCo's downhill dr
 pivot with the arm held at each: 5.0 (the planned postures), 3.0 and 2.5 cm. The most stable
 posture is not the one that turns best on a side slope.
 
-So after the search, at each turning chord (planned pose k to pose k + 1, their headings
-more than :data:`TURN_MIN` apart) the planner prices the turn with the chosen postures: the
-whole heading change as a pivot (the belts' speed does not change the slide per radian;
-a pivot at the reference's rates turns a corner of up to 75 deg within the slide verdict's
-1 s window), at the gravity of :data:`HEADINGS` headings swept across the turn at the
-chord's middle, with the CoM of pose k's posture and of pose k + 1's (the posture
-reference moves between them around the corner). A chord whose turn slides more than
-``planner.turn_slide`` [m] constrains both poses: their eligible rows are priced on a grid of
+So after the search, at each turn of the planned poses (:func:`turn_chords`: consecutive
+chords, pose k to pose k + 1, whose headings differ by more than :data:`TURN_MIN` and turn
+the same way; a pivot the poses fall inside is one turn) the planner prices the turn with
+the chosen postures: the whole heading change as a pivot (the belts' speed does not change
+the slide per radian; a pivot at the reference's rates turns a corner of up to 75 deg
+within the slide verdict's 1 s window), at the gravity of :data:`HEADINGS` headings swept
+across the turn midway between its end poses, with the CoMs of its poses' postures (the
+posture reference moves between them around the corner). A turn that slides more than
+``planner.turn_slide`` [m] constrains its poses: their eligible rows are priced on a grid of
 overall CoMs (:data:`GRID` x :data:`GRID` over the rows' x, y; their lowest and highest z;
 trilinear between) at the worst heading, and rows that slide more are excluded
 (:attr:`mmstab.planner.candidates.NodeClearance.excluded`, as the climb limit's), unless no
 stable row would remain (the pose keeps them all: the plan's slide verdict reports the
-turn). Then the path is searched again. Routes whose turns hold cost nothing more than the
-pricing (three model evaluations per turning chord).
+turn). Then the path is searched again. The turns are priced in one evaluation of the model,
+the grids of the sliding ones in another (its Newton iterations shared: about as long as
+one turn's); routes whose turns hold cost only the first.
 
 The plan's slide verdict (:func:`mmstab.runs.verdict.turn_slip`, the dense path at the
 closed loop's turn rate, the problem's ``physics.slip_distance``) stays the judge; this only
@@ -35,7 +37,6 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import RegularGridInterpolator
 
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray, Robot
@@ -162,33 +163,87 @@ class TurnPricer:
                         self.ratio, self.shear)  # fmt: skip
         return np.abs(np.asarray(ts.per_radian, dtype=float))
 
-    def slide(self, chord: TurnChord, com_body: FloatArray) -> tuple[float, int]:
-        """The chord's slide [m] with overall CoMs (M, 3) [m] (the worst), and its heading.
+    def slides(
+        self, chords: list[TurnChord], com_body: list[FloatArray]
+    ) -> list[tuple[float, int]]:
+        """Each turn's slide [m] with its overall CoMs (M, 3) [m] (the worst), and its heading.
 
-        NaN counts as sliding (beyond the friction cone: the cone's verdict).
+        All turns in one evaluation of the model (its iterations shared). NaN counts as
+        sliding (beyond the friction cone: the cone's verdict).
         """
-        com = np.atleast_2d(np.asarray(com_body, dtype=float))
-        H = len(chord.gravity_body)
-        p = self.per_radian(np.repeat(chord.gravity_body, len(com), axis=0), np.tile(com, (H, 1)))
-        p = np.nan_to_num(p, nan=np.inf).reshape(H, len(com)).max(axis=1)
-        worst = int(np.argmax(p))
-        return float(p[worst] * abs(chord.turn)), worst
+        coms = [np.atleast_2d(np.asarray(c, dtype=float)) for c in com_body]
+        g = [np.repeat(t.gravity_body, len(c), axis=0) for t, c in zip(chords, coms, strict=True)]
+        c = [np.tile(c, (len(t.gravity_body), 1)) for t, c in zip(chords, coms, strict=True)]
+        if not g:
+            return []
+        p = np.nan_to_num(self.per_radian(np.vstack(g), np.vstack(c)), nan=np.inf)
+        out, at = [], 0
+        for t, com in zip(chords, coms, strict=True):
+            H = len(t.gravity_body)
+            worst = p[at : at + H * len(com)].reshape(H, len(com)).max(axis=1)
+            at += H * len(com)
+            h = int(np.argmax(worst))
+            out.append((float(worst[h] * abs(t.turn)), h))
+        return out
 
-    def grid_slide(self, chord: TurnChord, heading: int, com_body: FloatArray) -> FloatArray:
-        """The chord's slide [m] for many overall CoMs (N, 3) [m], from a grid (module text)."""
+    def slide(self, chord: TurnChord, com_body: FloatArray) -> tuple[float, int]:
+        """:meth:`slides` of one turn."""
+        return self.slides([chord], [com_body])[0]
+
+    def grid_slides(
+        self, chords: list[TurnChord], headings: list[int], com_body: FloatArray
+    ) -> list[FloatArray]:
+        """Each turn's slide [m] for many overall CoMs (N, 3) [m], from a grid (module text).
+
+        The grids of all turns in one evaluation of the model; trilinear between its nodes
+        (the nodes span the CoMs' extent; an axis the CoMs do not spread along has one).
+        """
         com = np.asarray(com_body, dtype=float)
         lo, hi = com.min(axis=0), com.max(axis=0)
-        axes = [np.linspace(lo[i], hi[i], GRID) if hi[i] - lo[i] > 1e-9 else None for i in (0, 1)]
-        axes.append(np.array([lo[2], hi[2]]) if hi[2] - lo[2] > 1e-9 else None)
-        if any(a is None for a in axes):  # a flat spread: price them one by one
-            p = self.per_radian(chord.gravity_body[heading], com)
-            return np.nan_to_num(p, nan=np.inf) * abs(chord.turn)
-        X, Y, Z = np.meshgrid(*[a for a in axes if a is not None], indexing="ij")
-        nodes = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
-        p = self.per_radian(chord.gravity_body[heading], nodes)
-        p = np.nan_to_num(p, nan=1e3).reshape(X.shape)  # beyond the cone: far over any limit
-        table = RegularGridInterpolator(tuple(a for a in axes if a is not None), p)
-        return np.asarray(table(com)) * abs(chord.turn)
+        counts = [GRID, GRID, 2]
+        axes = [np.linspace(lo[i], hi[i], n) if hi[i] - lo[i] > 1e-9 else lo[i : i + 1]
+                for i, n in enumerate(counts)]  # fmt: skip
+        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        g = [
+            np.broadcast_to(t.gravity_body[h], nodes.shape)
+            for t, h in zip(chords, headings, strict=True)
+        ]
+        if not g:
+            return []
+        p = self.per_radian(np.vstack(g), np.tile(nodes, (len(chords), 1)))
+        p = np.nan_to_num(p, nan=1e3)  # beyond the cone: far over any limit
+        shape = tuple(len(a) for a in axes)
+        # each CoM's cell and its weights along every axis (an axis of one node: weight 1)
+        index, weight = [], []
+        for i, a in enumerate(axes):
+            if len(a) == 1:
+                index.append(np.zeros(len(com), dtype=np.intp))
+                weight.append(np.zeros(len(com)))
+                continue
+            f = (com[:, i] - a[0]) / (a[1] - a[0])
+            j = np.clip(np.floor(f).astype(np.intp), 0, len(a) - 2)
+            index.append(j)
+            weight.append(np.clip(f - j, 0.0, 1.0))
+        out = []
+        for t, table in zip(chords, p.reshape(len(chords), *shape), strict=True):
+            value = np.zeros(len(com))
+            for corner in np.ndindex(2, 2, 2):
+                w, at = np.ones(len(com)), []
+                for i, c in enumerate(corner):
+                    if shape[i] == 1:
+                        if c:
+                            w = w * 0.0
+                        at.append(index[i])
+                        continue
+                    w = w * (weight[i] if c else 1.0 - weight[i])
+                    at.append(index[i] + c)
+                value += w * table[tuple(at)]
+            out.append(value * abs(t.turn))
+        return out
+
+    def grid_slide(self, chord: TurnChord, heading: int, com_body: FloatArray) -> FloatArray:
+        """:meth:`grid_slides` of one turn."""
+        return self.grid_slides([chord], [heading], com_body)[0]
 
 
 def slide_exclusions(
@@ -226,14 +281,16 @@ def slide_exclusions(
     K = len(chosen)
     out: dict[int, NDArray[np.bool_]] = {}
     records: list[dict[str, Any]] = []
+    priced = pricer.slides(chords, [chosen[t.poses(K)] for t in chords])
+    sliding = [(t, h, x) for t, (x, h) in zip(chords, priced, strict=True) if x > limit]
+    if not sliding:
+        return out, records
     rows = np.flatnonzero(eligible)
     com_rows = robot.overall_com(np.asarray(arm_com_rows, dtype=float)[rows])
-    for chord in chords:
+    grids = pricer.grid_slides([t for t, _, _ in sliding], [h for _, h, _ in sliding], com_rows)
+    for (chord, _, slide), grid in zip(sliding, grids, strict=True):
         ends = chord.poses(K)
-        slide, heading = pricer.slide(chord, chosen[ends])
-        if slide <= limit:
-            continue
-        over = pricer.grid_slide(chord, heading, com_rows) > limit
+        over = grid > limit
         constrained = []
         for k in ends:
             mask = out.get(k, np.zeros(len(eligible), dtype=bool)).copy()

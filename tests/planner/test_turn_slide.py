@@ -104,6 +104,21 @@ def _gentle(robot) -> HeightmapTerrain:
     return HeightmapTerrain(plane(Grid.of_size((6.0, 6.0), 0.04), 0.15, 0.7)).with_robot(robot)
 
 
+def test_all_turns_at_once_price_as_each_alone(robot, small):
+    terrain = _map(robot, "tilted")
+    loop = turn_chords(terrain, _pivot(0.3, 1.0), closed=True)
+    pricer = TurnPricer(robot, terrain)
+    rng = np.random.default_rng(3)
+    com = robot.overall_com(robot.arm_com(small.nodes_q[rng.choice(len(small.nodes_q), 40)]))
+    together = pricer.slides(loop, [com[:2], com[2:5]])
+    alone = [pricer.slide(loop[0], com[:2]), pricer.slide(loop[1], com[2:5])]
+    for (a, ha), (b, hb) in zip(together, alone, strict=True):
+        assert ha == hb and a == pytest.approx(b, rel=1e-6)
+    grids = pricer.grid_slides(loop, [0, 2], com)
+    for t, h, grid in zip(loop, [0, 2], grids, strict=True):
+        np.testing.assert_allclose(grid, pricer.grid_slide(t, h, com), rtol=1e-6)
+
+
 def _plan(robot, small, terrain, poses, limit):
     g = terrain.gravity_body(poses)
     under = GroundUnderArm(robot, terrain, poses)
