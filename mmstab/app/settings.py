@@ -70,7 +70,7 @@ class Settings:
         """Build from a validated problem mapping (every section filled in)."""
         planner = data["planner"]
         return cls(
-            planner=PlannerSettings.from_section(dict(planner)),
+            planner=PlannerSettings.from_section(dict(planner), data.get("physics")),
             spacing=float(planner.get("spacing", DEFAULT_SPACING)),
             workspace=WorkspaceSettings.from_section(data["workspace"]),
             controller=ControllerSettings.from_section(data["controller"]),

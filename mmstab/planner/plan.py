@@ -62,7 +62,7 @@ def plan_path(problem: Problem, workspace: Workspace | None = None, progress: bo
         progress: show progress bars.
     """
     ws, region = problem_region(problem, workspace, progress)
-    settings = PlannerSettings.from_section(problem.section("planner"))
+    settings = PlannerSettings.from_section(problem.section("planner"), problem.section("physics"))
     return plan_circle(problem.robot, problem.terrain, problem.circle, ws, region, settings,
                        str(problem.path))  # fmt: skip
 
@@ -117,7 +117,7 @@ def plan_route(
     t0 = time.perf_counter()
     ws, region = problem_region(problem, workspace, progress)
     section = problem.section("planner")
-    settings = PlannerSettings.from_section(section)
+    settings = PlannerSettings.from_section(section, problem.section("physics"))
     spacing = float(section.get("spacing", DEFAULT_SPACING))
     return plan_route_path(problem.robot, problem.terrain, route, ws, region, settings, spacing,
                            t0)  # fmt: skip

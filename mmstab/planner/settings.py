@@ -75,6 +75,9 @@ class PlannerSettings(NamedTuple):
             path is searched again (:mod:`mmstab.planner.turning`); None: off (the
             default; ``make validate-routes-rocking`` sets 0.04, under
             ``physics.slip_distance``'s 0.05 that judges the plan).
+        slide_model: the skid-steer model's constants ``turn_slide`` prices with, the
+            problem's ``physics.shear_modulus`` [m] and ``physics.turn_ratio`` (a number or
+            ``auto``), as its slide verdict does (:meth:`from_section`'s ``physics``).
         climb: ``method: roadmap`` on a route: at a pose whose front wheels run into a step
             before the next pose, and at that next pose, only postures whose overall CoM
             lets the tracks climb it (``mmstab.planner.climbing``); where no stable posture
@@ -108,12 +111,28 @@ class PlannerSettings(NamedTuple):
     attitude_margin: float | None = None
     turn_slide: float | None = None
     climb: bool = True
+    slide_model: tuple[float, float | str] = (
+        float(SECTION_DEFAULTS["physics"]["shear_modulus"]),
+        SECTION_DEFAULTS["physics"]["turn_ratio"],
+    )
 
     @classmethod
-    def from_section(cls, cfg: dict[str, Any]) -> PlannerSettings:
-        """Build from a validated ``planner`` section (omitted new keys: their defaults)."""
+    def from_section(
+        cls, cfg: dict[str, Any], physics: dict[str, Any] | None = None
+    ) -> PlannerSettings:
+        """Build from a validated ``planner`` section (omitted new keys: their defaults).
+
+        ``physics``: the problem's ``physics`` section, for :attr:`slide_model` (None: its
+        defaults).
+        """
         cfg = {**SECTION_DEFAULTS["planner"], **cfg}
+        phys = {**SECTION_DEFAULTS["physics"], **(physics or {})}
+        ratio = phys["turn_ratio"]
         return cls(
+            slide_model=(
+                float(phys["shear_modulus"]),
+                ratio if isinstance(ratio, str) else float(ratio),
+            ),
             w_stability=float(cfg["w_stability"]),
             w_motion=float(cfg["w_motion"]),
             poses=int(cfg["poses"]),

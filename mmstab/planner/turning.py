@@ -28,7 +28,8 @@ one turn's); routes whose turns hold cost only the first.
 The plan's slide verdict (:func:`mmstab.runs.verdict.turn_slip`, the dense path at the
 closed loop's turn rate, the problem's ``physics.slip_distance``) stays the judge; this only
 steers the choice toward postures that pass it, so the limit sits below the verdict's 5 cm.
-The model's constants are the defaults of ``physics`` (shear modulus, drive ratio).
+The model's constants are the problem's (``physics.shear_modulus``, ``physics.turn_ratio``:
+:attr:`mmstab.planner.PlannerSettings.slide_model`), as the verdict's.
 """
 
 from __future__ import annotations
@@ -127,11 +128,13 @@ class SlideLimit(NamedTuple):
         terrain: the ground.
         chords: the turning chords of the planned poses (:func:`turn_chords`).
         limit: the slide a turn may cost [m] (``planner.turn_slide``).
+        model: the skid-steer model's constants (:class:`TurnPricer`); None: the defaults.
     """
 
     terrain: Terrain
     chords: list[TurnChord]
     limit: float
+    model: tuple[float, float | str] | None = None
 
 
 class TurnPricer:
@@ -140,14 +143,20 @@ class TurnPricer:
     Args:
         robot: the robot.
         terrain: the ground (its friction).
+        model: the belts' shear modulus [m] and the drive ratio (a number or ``auto``):
+            ``physics.shear_modulus``, ``physics.turn_ratio``
+            (:attr:`mmstab.planner.PlannerSettings.slide_model`); default their defaults.
     """
 
-    def __init__(self, robot: Robot, terrain: Terrain) -> None:
+    def __init__(
+        self, robot: Robot, terrain: Terrain, model: tuple[float, float | str] | None = None
+    ) -> None:
         physics = SECTION_DEFAULTS["physics"]
+        shear, ratio = (physics["shear_modulus"], physics["turn_ratio"]) if model is None else model
         self.robot, self.patch = robot, track_patch(robot)
         self.friction = terrain_friction(terrain)
-        self.ratio = resolve_turn_ratio(robot, physics["turn_ratio"])
-        self.shear = float(physics["shear_modulus"])
+        self.ratio = resolve_turn_ratio(robot, ratio)
+        self.shear = float(shear)
 
     def per_radian(self, gravity_body: FloatArray, com_body: FloatArray) -> FloatArray:
         """|slide per radian| of a pivot (N,) [m/rad] (NaN: beyond the cone or not settled).
@@ -255,6 +264,7 @@ def slide_exclusions(
     arm_com_rows: FloatArray,
     eligible: NDArray[np.bool_],
     fits: list[Any],
+    model: tuple[float, float | str] | None = None,
 ) -> tuple[dict[int, NDArray[np.bool_]], list[dict[str, Any]]]:
     """The rows each pose by a turn that slides with the chosen postures may not choose.
 
@@ -270,13 +280,14 @@ def slide_exclusions(
         arm_com_rows: the rows' arm CoMs, body frame (N, 3) [m].
         eligible: the rows any pose may choose (N,).
         fits: Eq. 6 per pose (their ``mu``).
+        model: the skid-steer model's constants (:class:`TurnPricer`); None: the defaults.
 
     Returns:
         The exclusions (pose -> the eligible rows it may not choose), and per sliding chord
         a record: ``first`` pose, ``turn_rad``, ``slide_m`` with the chosen postures, the
         poses constrained.
     """
-    pricer = TurnPricer(robot, terrain)
+    pricer = TurnPricer(robot, terrain, model)
     chosen = robot.overall_com(np.asarray(chosen_arm_com, dtype=float))
     K = len(chosen)
     out: dict[int, NDArray[np.bool_]] = {}

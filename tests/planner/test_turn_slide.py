@@ -190,3 +190,28 @@ def test_the_limit_is_off_by_default_and_checked(tmp_path, capsys):
     assert not (tmp_path / "out").exists()  # nothing half-written
     ok = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", 0.04))
     assert PlannerSettings.from_section(load_problem(ok).section("planner")).turn_slide == 0.04
+
+
+def test_the_limit_prices_with_the_problems_slide_model(robot, tmp_path):
+    from conftest import write_problem
+
+    from mmstab.app.settings import Settings
+    from mmstab.core.problem import load_problem
+    from mmstab.planner import PlannerSettings
+
+    def physics(p, r):
+        p.setdefault("physics", {}).update(shear_modulus=0.02, turn_ratio="auto")
+
+    problem = load_problem(write_problem(tmp_path, physics))
+    planner, phys = problem.section("planner"), problem.section("physics")
+    settings = PlannerSettings.from_section(planner, phys)
+    assert settings.slide_model == (0.02, "auto")
+    assert Settings.from_problem(problem).planner.slide_model == (0.02, "auto")
+    assert PlannerSettings.from_section(planner).slide_model == (0.0041, 1.0)  # the defaults
+    # the pricer takes them: a softer belt (larger shear modulus) prices another slide
+    terrain = _gentle(robot)
+    (chord,) = turn_chords(terrain, _pivot(0.3, 0.5), closed=False)
+    com = robot.overall_com(robot.arm_com(robot.stowed))[None]
+    default = TurnPricer(robot, terrain).slide(chord, com)[0]
+    assert TurnPricer(robot, terrain, (0.0041, 1.0)).slide(chord, com)[0] == default
+    assert TurnPricer(robot, terrain, settings.slide_model).slide(chord, com)[0] != default

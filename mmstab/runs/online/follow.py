@@ -348,7 +348,8 @@ def build_follower(problem: Problem, workspace: Workspace | None = None) -> Foll
     section = problem.section("planner")
     s_grid = route_samples(route.length, float(section.get("spacing", DEFAULT_SPACING)))
     settings = FollowSettings.of(problem)
-    planner, poses = PlannerSettings.from_section(section), route.route.sample(s_grid).pose
+    planner = PlannerSettings.from_section(section, problem.section("physics"))
+    poses = route.route.sample(s_grid).pose
     horizon: HorizonPlanner | RoadmapHorizon
     if settings.planner == "roadmap":
         roadmap = load_or_build_roadmap(problem.robot, ws)

@@ -387,7 +387,7 @@ def solve_roadmap_sequence(
         chosen_com = samples[cand[np.arange(K), path]]
         excluded, turns = slide_exclusions(
             robot, slide.terrain, slide.chords, chosen_com, slide.limit, samples,
-            clear.eligible(), fits,
+            clear.eligible(), fits, slide.model,
         )  # fmt: skip
         if excluded:  # the poses either side of a sliding turn: searched again
             kept = dict(clear.excluded)
@@ -449,7 +449,8 @@ class RoadmapSearch:
         limit = task.settings.turn_slide
         if limit is not None and task.terrain is not None and task.poses is not None:
             chords = turn_chords(task.terrain, task.poses, task.closed)
-            slide = SlideLimit(task.terrain, chords, limit) if chords else None
+            model = task.settings.slide_model
+            slide = SlideLimit(task.terrain, chords, limit, model) if chords else None
         seq = solve_roadmap_sequence(
             task.robot,
             task.gravity_body,
