@@ -101,6 +101,25 @@ def write_problem(tmp_path: Path, edit=None, name: str = "problem.yaml") -> Path
     return path
 
 
+def assert_bad_planner_key(tmp_path: Path, capsys, key: str, value: Any) -> Path:
+    """``planner.<key>: value`` is bad input: ConfigError naming the field, ``mmstab plan``
+    exits 2 with one line naming the file and the field, and writes nothing."""
+    from mmstab.cli import main
+    from mmstab.core.files import ConfigError
+    from mmstab.core.problem import load_problem
+
+    path = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__(key, value))
+    with pytest.raises(ConfigError) as info:
+        load_problem(path)
+    assert info.value.field == f"planner.{key}"
+    out = tmp_path / "out"
+    assert main(["plan", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"planner.{key}" in err and str(path) in err
+    assert not out.exists()  # nothing half-written
+    return path
+
+
 #: The first release's planner search (the plan the tracking tests were written for; the
 #: default search of problems/ramp.yaml now differs, docs/planner.md).
 FIRST_RELEASE_PLANNER = {

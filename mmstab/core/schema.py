@@ -168,7 +168,7 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
             # up to this [rad] about its origin; null: off (docs/roadmap.md)
             attitude_margin={"oneOf": [{"type": "null"}, angle(minimum=0, maximum=0.5)]},
             # method roadmap on a route: the slide [m] a turn may cost with the chosen
-            # postures; null: off (docs/routes.md)
+            # postures; null: off (docs/roadmap.md)
             turn_slide={"oneOf": [{"type": "null"}, NONNEG]},
             climb={"type": "boolean"},  # the climb limit at a route's steps (roadmap)
         ),

@@ -14,6 +14,13 @@ from typing import Any, NamedTuple
 
 from mmstab.core.defaults import SECTION_DEFAULTS
 
+#: ``physics``' defaults of the skid-steer model ``planner.turn_slide`` prices with: the belts'
+#: shear modulus [m] and the drive ratio (:attr:`PlannerSettings.slide_model`).
+DEFAULT_SLIDE_MODEL: tuple[float, float | str] = (
+    float(SECTION_DEFAULTS["physics"]["shear_modulus"]),
+    SECTION_DEFAULTS["physics"]["turn_ratio"],
+)
+
 
 class PlannerSettings(NamedTuple):
     """The ``planner`` section of a problem (see ``problems/ramp.yaml``).
@@ -111,10 +118,7 @@ class PlannerSettings(NamedTuple):
     attitude_margin: float | None = None
     turn_slide: float | None = None
     climb: bool = True
-    slide_model: tuple[float, float | str] = (
-        float(SECTION_DEFAULTS["physics"]["shear_modulus"]),
-        SECTION_DEFAULTS["physics"]["turn_ratio"],
-    )
+    slide_model: tuple[float, float | str] = DEFAULT_SLIDE_MODEL
 
     @classmethod
     def from_section(

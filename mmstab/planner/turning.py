@@ -38,14 +38,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import map_coordinates
 
-from mmstab.core.defaults import SECTION_DEFAULTS
+from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.climbing import any_stable
+from mmstab.planner.settings import DEFAULT_SLIDE_MODEL
 from mmstab.stability.drive import resolve_turn_ratio
 from mmstab.stability.skid import track_patch, turn_slide
 from mmstab.stability.slip import terrain_friction
-from mmstab.terrain.base import Terrain
+from mmstab.terrain.base import Terrain, wrap_angle
 
 #: A chord whose headings differ by less is no turn [rad].
 TURN_MIN = 0.05
@@ -92,33 +94,29 @@ def turn_chords(terrain: Terrain, poses: ArrayLike, closed: bool) -> list[TurnCh
     """
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     K = len(P)
-    n = K if closed and K > 1 else K - 1
-    turn = np.array(
-        [np.angle(np.exp(1j * (P[(k + 1) % K, 2] - P[k, 2]))) for k in range(max(n, 0))]
-    )
+    k = np.arange(K if closed and K > 1 else max(K - 1, 0))
+    turn = wrap_angle(P[(k + 1) % K, 2] - P[k, 2])
     sign = np.where(np.abs(turn) > TURN_MIN, np.sign(turn), 0.0)
-    runs: list[list[int]] = []
-    for k in range(len(sign)):
-        if sign[k] == 0:
-            continue
-        if runs and runs[-1][-1] == k - 1 and sign[k - 1] == sign[k]:
-            runs[-1].append(k)
-        else:
-            runs.append([k])
+    runs = sorted(list(range(a, b)) for s in (1.0, -1.0) for a, b in true_runs(sign == s))
+    n = len(k)
     if closed and len(runs) > 1 and runs[0][0] == 0 and runs[-1][-1] == n - 1:
         if sign[0] == sign[n - 1]:  # a turn across the loop's seam
             runs[0] = runs.pop() + runs[0]
-    out = []
-    for run in runs:
-        a, b = P[run[0]], P[(run[-1] + 1) % K]
-        total = float(turn[run].sum())
-        f = np.linspace(0.0, 1.0, HEADINGS)
-        mid = (a[:2] + b[:2]) / 2
-        samples = np.c_[np.broadcast_to(mid, (HEADINGS, 2)), a[2] + f * total]
-        g = np.asarray(terrain.gravity_body(samples), dtype=float)
-        last = run[-1] + 1 if run[-1] + 1 > run[0] else run[-1] + 1 + K
-        out.append(TurnChord(run[0], last, total, g))
-    return out
+    if not runs:
+        return []
+    f = np.linspace(0.0, 1.0, HEADINGS)
+    totals = [float(turn[run].sum()) for run in runs]
+    samples = np.vstack([
+        np.c_[np.broadcast_to((P[run[0], :2] + P[(run[-1] + 1) % K, :2]) / 2, (HEADINGS, 2)),
+              P[run[0], 2] + f * total]
+        for run, total in zip(runs, totals, strict=True)
+    ])  # fmt: skip
+    g = np.asarray(terrain.gravity_body(samples), dtype=float).reshape(len(runs), HEADINGS, 3)
+    # a run across the seam ends past the last pose: its last pose index counts on from K
+    return [
+        TurnChord(run[0], run[-1] + 1 + (K if run[-1] < run[0] else 0), total, gk)
+        for run, total, gk in zip(runs, totals, g, strict=True)
+    ]
 
 
 class SlideLimit(NamedTuple):
@@ -151,8 +149,7 @@ class TurnPricer:
     def __init__(
         self, robot: Robot, terrain: Terrain, model: tuple[float, float | str] | None = None
     ) -> None:
-        physics = SECTION_DEFAULTS["physics"]
-        shear, ratio = (physics["shear_modulus"], physics["turn_ratio"]) if model is None else model
+        shear, ratio = DEFAULT_SLIDE_MODEL if model is None else model
         self.robot, self.patch = robot, track_patch(robot)
         self.friction = terrain_friction(terrain)
         self.ratio = resolve_turn_ratio(robot, ratio)
@@ -221,34 +218,14 @@ class TurnPricer:
             return []
         p = self.per_radian(np.vstack(g), np.tile(nodes, (len(chords), 1)))
         p = np.nan_to_num(p, nan=1e3)  # beyond the cone: far over any limit
-        shape = tuple(len(a) for a in axes)
-        # each CoM's cell and its weights along every axis (an axis of one node: weight 1)
-        index, weight = [], []
-        for i, a in enumerate(axes):
-            if len(a) == 1:
-                index.append(np.zeros(len(com), dtype=np.intp))
-                weight.append(np.zeros(len(com)))
-                continue
-            f = (com[:, i] - a[0]) / (a[1] - a[0])
-            j = np.clip(np.floor(f).astype(np.intp), 0, len(a) - 2)
-            index.append(j)
-            weight.append(np.clip(f - j, 0.0, 1.0))
-        out = []
-        for t, table in zip(chords, p.reshape(len(chords), *shape), strict=True):
-            value = np.zeros(len(com))
-            for corner in np.ndindex(2, 2, 2):
-                w, at = np.ones(len(com)), []
-                for i, c in enumerate(corner):
-                    if shape[i] == 1:
-                        if c:
-                            w = w * 0.0
-                        at.append(index[i])
-                        continue
-                    w = w * (weight[i] if c else 1.0 - weight[i])
-                    at.append(index[i] + c)
-                value += w * table[tuple(at)]
-            out.append(value * abs(t.turn))
-        return out
+        tables = p.reshape(len(chords), *(len(a) for a in axes))
+        # each CoM's place on the grid in nodes (an axis of one node: 0), trilinear between
+        at = np.stack([(com[:, i] - a[0]) / (a[1] - a[0]) if len(a) > 1 else np.zeros(len(com))
+                       for i, a in enumerate(axes)])  # fmt: skip
+        return [
+            map_coordinates(table, at, order=1, mode="nearest") * abs(t.turn)
+            for t, table in zip(chords, tables, strict=True)
+        ]
 
     def grid_slide(self, chord: TurnChord, heading: int, com_body: FloatArray) -> FloatArray:
         """:meth:`grid_slides` of one turn."""

@@ -11,11 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import write_problem
 from test_under_arm import GROUND, TOL, _map, _poses, _settings, dense_heights
 
-from mmstab.cli import main
-from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem
 from mmstab.model.plane_clearance import tilted_height
 from mmstab.planner.ground.under_arm import GroundUnderArm, arm_pieces
@@ -123,7 +120,7 @@ def test_a_plan_clears_the_ground_through_the_tilts(robot, small, kind):
 
 
 def test_the_margin_is_off_by_default_and_checked(tmp_path, capsys):
-    from conftest import RAMP_YAML
+    from conftest import RAMP_YAML, assert_bad_planner_key
 
     from mmstab.planner import PlannerSettings
 
@@ -131,10 +128,4 @@ def test_the_margin_is_off_by_default_and_checked(tmp_path, capsys):
         PlannerSettings.from_section(load_problem(RAMP_YAML).section("planner")).attitude_margin
         is None
     )
-    path = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("attitude_margin", -0.1))
-    with pytest.raises(ConfigError) as info:
-        load_problem(path)
-    assert info.value.field == "planner.attitude_margin"
-    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "planner.attitude_margin" in err and str(path) in err
+    assert_bad_planner_key(tmp_path, capsys, "attitude_margin", -0.1)

@@ -171,23 +171,14 @@ def test_no_stable_posture_under_the_limit_keeps_them_all(robot, small):
 
 
 def test_the_limit_is_off_by_default_and_checked(tmp_path, capsys):
-    from conftest import PROBLEMS, write_problem
+    from conftest import PROBLEMS, assert_bad_planner_key, write_problem
 
-    from mmstab.cli import main
-    from mmstab.core.files import ConfigError
     from mmstab.core.problem import load_problem
     from mmstab.planner import PlannerSettings
 
     kerb = load_problem(PROBLEMS / "kerb.yaml")  # a route over a heightmap: every default
     assert PlannerSettings.from_section(kerb.section("planner")).turn_slide is None
-    path = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", -0.04))
-    with pytest.raises(ConfigError) as info:
-        load_problem(path)
-    assert info.value.field == "planner.turn_slide"
-    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "planner.turn_slide" in err and str(path) in err
-    assert not (tmp_path / "out").exists()  # nothing half-written
+    assert_bad_planner_key(tmp_path, capsys, "turn_slide", -0.04)
     ok = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", 0.04))
     assert PlannerSettings.from_section(load_problem(ok).section("planner")).turn_slide == 0.04
 

@@ -390,14 +390,11 @@ def solve_roadmap_sequence(
             clear.eligible(), fits, slide.model,
         )  # fmt: skip
         if excluded:  # the poses either side of a sliding turn: searched again
-            kept = dict(clear.excluded)
             for k, mask in excluded.items():
                 clear.excluded[k] = clear.excluded[k] | mask if k in clear.excluded else mask
             try:
                 cand, value, mu, motion, path, nodes, moves = search()
             except NoPlanError:  # no path with them: the first answer, its turns reported
-                clear.excluded.clear()
-                clear.excluded.update(kept)
                 for t in turns:
                     t["poses"] = []
     if not closed or K == 1:  # from the start posture itself onto its node
