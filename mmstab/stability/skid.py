@@ -27,11 +27,15 @@ Coulomb friction, the arm still. Checked against the whole robot in MuJoCo in
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
+from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.slip import slip_limit
 
@@ -39,6 +43,10 @@ from mmstab.stability.slip import slip_limit
 BELT_SAMPLES = 40
 _EPS = (1e-1, 1e-2, 1e-3, 1e-4)  # continuation of the regularisation, relative to the belt speed
 _TOL = 1e-9
+_ITERATIONS, _BACKTRACKS = 60, 8  # Newton's steps per regularisation; halvings of a step
+_CONVERGED = 1e-6  # the residual a twist must reach at the last regularisation
+#: The Newton loop's C source (:func:`skid_twist`'s default; NumPy's loop without a compiler)
+KERNEL_SOURCE = Path(__file__).with_name("skid.c")
 #: the slide per radian divides by the model's yaw rate but at least this share of the path's:
 #: up a grade with the load on the inner belt the rigid Coulomb model stops turning where
 #: MuJoCo's sprung wheels still turn (a 1.5 m arc up 5.7°: 0.05 against 0.17 rad/s), and a
@@ -205,6 +213,7 @@ def skid_twist(
     belt_speeds: ArrayLike,
     friction: float,
     shear_modulus: float = 0.0,
+    backend: Literal["c", "numpy"] = "c",
 ) -> SkidTwist:
     """The steady twist for belt speeds on a plane (module docstring).
 
@@ -216,6 +225,8 @@ def skid_twist(
             forward.
         friction: Coulomb coefficient of belts on ground [-] (> 0).
         shear_modulus: Wong-Chiang's shear deformation modulus K [m] (0: rigid Coulomb).
+        backend: ``c``: Newton's loop in C (``skid.c``, row by row; NumPy's without a C
+            compiler); ``numpy``: here, all rows at once (the twins agree to round-off).
     """
     g = np.atleast_2d(np.asarray(gravity_body, dtype=float))
     belts = np.atleast_2d(np.asarray(belt_speeds, dtype=float))
@@ -236,19 +247,65 @@ def skid_twist(
     z = commanded * np.array([1.0, 1.0, 0.5]) / scale  # turns at about half the command
     u = belts / scale
     tau, K = contact_time(patch, u), float(shear_modulus)
-    for eps in _EPS:
-        for _ in range(60):
-            F, J = _forces(patch, loads, u, z, eps, tau, K)
-            r = F + load
-            if np.all(np.abs(r[holds]) < _TOL):
-                break
-            step = np.linalg.solve(J + 1e-12 * np.eye(3), -r[:, :, None])[:, :, 0]
-            z = z + _backtrack(patch, loads, u, z, step, load, eps, tau, K)[:, None] * step
-    converged = np.all(np.abs(_forces(patch, loads, u, z, _EPS[-1], tau, K)[0] + load) < 1e-6, 1)
     moving = np.abs(belts).max(1) > 1e-9
+    solved = None
+    if backend == "c":
+        solved = _newton_c(patch, loads, u, z, load, tau, K, holds, moving)
+    if solved is not None:
+        z, converged = solved
+    else:
+        for eps in _EPS:
+            for _ in range(_ITERATIONS):
+                F, J = _forces(patch, loads, u, z, eps, tau, K)
+                r = F + load
+                if np.all(np.abs(r[holds]) < _TOL):
+                    break
+                step = np.linalg.solve(J + 1e-12 * np.eye(3), -r[:, :, None])[:, :, 0]
+                z = z + _backtrack(patch, loads, u, z, step, load, eps, tau, K)[:, None] * step
+        F = _forces(patch, loads, u, z, _EPS[-1], tau, K)[0]
+        converged = np.all(np.abs(F + load) < _CONVERGED, 1)
     z = np.where(moving[:, None], z * scale, 0.0)
     z[~(holds & (converged | ~moving))] = np.nan
     return SkidTwist(z[:, :2], z[:, 2], holds, commanded)
+
+
+@lru_cache(maxsize=1)
+def _kernel() -> Any:
+    """The compiled ``mmstab_skid_twist`` (``skid.c``), or None (no C compiler)."""
+    try:
+        return kernel_function(KERNEL_SOURCE, "mmstab_skid_twist", [
+            LONG, LONG, DOUBLES, DOUBLES, LONGS, DOUBLE, DOUBLES, DOUBLES, DOUBLES, DOUBLES,
+            DOUBLES, BYTES, BYTES, DOUBLE, DOUBLES, LONG, DOUBLE, LONG, LONG, DOUBLE, BYTES,
+        ])  # fmt: skip
+    except (MmstabError, OSError):
+        return None
+
+
+def _newton_c(
+    patch: TrackPatch,
+    loads: FloatArray,
+    u: FloatArray,
+    z: FloatArray,
+    load: FloatArray,
+    tau: FloatArray,
+    shear: float,
+    holds: NDArray[np.bool_],
+    moving: NDArray[np.bool_],
+) -> tuple[FloatArray, NDArray[np.bool_]] | None:
+    """:func:`skid_twist`'s Newton loop in C, row by row (None: no compiler)."""
+    f = _kernel()
+    if f is None:
+        return None
+    n, S = loads.shape
+    c = np.ascontiguousarray
+    out = c(z, dtype=float).copy()
+    converged = np.zeros(n, dtype=np.uint8)
+    f(n, S, c(patch.x, dtype=float), c(patch.y, dtype=float), c(patch.side, dtype=np.int64),
+      float(patch.length), c(loads, dtype=float), c(u, dtype=float), out, c(load, dtype=float),
+      c(tau, dtype=float), c(holds, dtype=np.uint8), c(moving, dtype=np.uint8), shear,
+      np.asarray(_EPS, dtype=float), len(_EPS), _TOL, _ITERATIONS, _BACKTRACKS, _CONVERGED,
+      converged)  # fmt: skip
+    return out, converged.astype(bool)
 
 
 def _backtrack(
@@ -265,7 +322,7 @@ def _backtrack(
     """Per-sample step lengths that reduce the residual (halving from 1, at most 8 times)."""
     r0 = np.sum((_forces(patch, loads, u, z, eps, tau, shear)[0] + load) ** 2, 1)
     alpha = np.ones(len(z))
-    for _ in range(8):
+    for _ in range(_BACKTRACKS):
         moved = z + alpha[:, None] * step
         r = np.sum((_forces(patch, loads, u, moved, eps, tau, shear)[0] + load) ** 2, 1)
         worse = r > r0
