@@ -185,6 +185,7 @@ def scored_rows(
     eligible_members, order = proof_order(cl, eligible, lower) if kept is None else kept
     members = np.tile(eligible_members, (len(fits), 1))
     for k, rows in enumerate(low or ()):  # the proofs count each pose's eligible rows
+        rows = rows[eligible[rows]]  # a row found low, then too close, counted once
         members[k] -= np.bincount(cl.cluster_of[rows], minlength=members.shape[1])
     counted = np.cumsum(np.take_along_axis(members, order, axis=1), axis=1)
     full = np.flatnonzero(np.diff(cl.bin_start) > 0)
@@ -349,6 +350,8 @@ def route_candidates(
     cl: NodeClusters,
     count: int,
     clear: NodeClearance,
+    before: Candidates | None = None,
+    changed: NDArray[np.intp] | None = None,
 ) -> Candidates:
     """Every pose's ``count`` best clear nodes spread over the turret bins (module text).
 
@@ -361,31 +364,48 @@ def route_candidates(
         clear: the clearance test; a chosen node measured too close (or, at its pose, too
             low above the ground) is dropped and the choice is made again, until every
             finite choice is clear.
+        before: the candidates of a search before (None: none).
+        changed: with ``before``, the poses whose exclusions changed since: only they are
+            chosen again, the others' candidates kept (None: all chosen again).
+
+    A pose's choice depends on its own fitness, exclusions and rows found too low only, so
+    each round chooses again only at the poses whose choice held a row found too low (the
+    others' choices stand: the same answer as choosing every pose again).
     """
     K, rank = len(fits), rank_bound(cl.bin_rows, count)
-    rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
+    if before is None:
+        rows, value = np.empty((K, count), dtype=np.intp), np.empty((K, count))
+        todo = np.arange(K)
+    else:
+        rows, value = before.rows.copy(), before.value.copy()
+        todo = np.unique(np.asarray(changed if changed is not None else np.arange(K), np.intp))
+    redone = np.zeros(K, dtype=bool)  # the poses chosen again (their mu recomputed)
     ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
-    bounds = cluster_bounds(cl, fits)
+    bounds_all = cluster_bounds(cl, fits)
     slot, hit = np.full(len(samples), -1, dtype=np.intp), np.zeros(len(samples), dtype=bool)
     scored, kept_v, kept_for = [_NONE] * K, [_NO_V] * K, np.zeros(0, dtype=bool)
-    while True:
-        eligible, low = clear.eligible(), clear.low(K)
-        if not np.array_equal(eligible, kept_for):  # the proofs' order kept while it stands
-            kept, kept_for = proof_order(cl, eligible, bounds[0]), eligible.copy()
-        union, tau, reaches = scored_rows(cl, fits, eligible, rank, low, bounds, kept)
-        more = []
+    order: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    while len(todo):
+        redone[todo] = True
+        eligible, low_all = clear.eligible(), clear.low(K)
+        if order is None or not np.array_equal(eligible, kept_for):  # kept while it stands
+            order, kept_for = proof_order(cl, eligible, bounds_all[0]), eligible.copy()
+        fits_todo, low = [fits[k] for k in todo], [low_all[k] for k in todo]
+        bounds, kept = (bounds_all[0][todo], bounds_all[1][todo]), (order[0], order[1][todo])
+        union, tau, reaches = scored_rows(cl, fits_todo, eligible, rank, low, bounds, kept)
+        more = [_NONE] * K
         union_bins, union_bad = bins[union], ~eligible[union]
-        for k, fit in enumerate(fits):
-            at = np.flatnonzero(reaches[k])  # the rest lie below the threshold: never in ``top``
+        for j, (k, fit) in enumerate(zip(todo, fits_todo, strict=True)):
+            at = np.flatnonzero(reaches[j])  # the rest lie below the threshold: never in ``top``
             sub, bad, sub_bins = union[at], union_bad[at], union_bins[at]
             v = scored_values(fit, samples, sub, scored[k], kept_v[k], slot)
             scored[k], kept_v[k] = sub, v.copy()  # a row's value is computed once a search
             v[bad] = -np.inf
-            if len(low[k]):  # too low above the ground at this pose
-                hit[low[k]] = True
+            if len(low[j]):  # too low above the ground at this pose
+                hit[low[j]] = True
                 v[hit[sub]] = -np.inf
-                hit[low[k]] = False
-            top = np.flatnonzero(v >= tau[k, sub_bins] - BOUND_SLACK)  # the rest rank >= R
+                hit[low[j]] = False
+            top = np.flatnonzero(v >= tau[j, sub_bins] - BOUND_SLACK)  # the rest rank >= R
             pick = top[spread_top(v[top], sub_bins[top], count)]
             n = len(pick)  # < count only when fewer nodes than count are eligible
             rows[k, n:], value[k, n:] = sub[pick[0]] if n else 0, -np.inf
@@ -395,17 +415,21 @@ def route_candidates(
                 best = np.sort(
                     best[np.argpartition(-v[best], count * ahead[k])[: count * ahead[k]]]
                 )
-            more.append(sub[best])
+            more[k] = sub[best]
         finite = np.isfinite(value)
         near = clear(np.unique(rows[finite])).all()  # both tests learn what they measure
         clear.measure(more)
-        low = clear.low(K)
-        deep = np.array([among(rows[k, finite[k]], low[k]).any() for k in range(K)], bool)
+        low_all = clear.low(K)
+        deep = np.array([among(rows[k, finite[k]], low_all[k]).any() for k in range(K)], bool)
         if near and not deep.any():
             break
         ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
-    mu = np.stack([fit.mu(samples[r]) for fit, r in zip(fits, rows, strict=True)])
-    return Candidates(rows, np.where(mu > 0, value, -np.inf), mu)
+        todo = np.flatnonzero(deep) if near else np.arange(K)
+    mu = np.empty(rows.shape) if before is None else before.mu.copy()
+    for k in np.flatnonzero(redone):
+        mu[k] = fits[k].mu(samples[rows[k]])
+        value[k] = np.where(mu[k] > 0, value[k], -np.inf)
+    return Candidates(rows, value, mu)
 
 
 # The rows a pose's candidates are picked from: the rank bound of the picks within their

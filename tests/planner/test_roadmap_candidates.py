@@ -143,6 +143,49 @@ def test_candidates_with_rows_too_low_at_some_poses_equal_scoring_every_node(rob
     assert sum(len(x) for x in clear.low(len(fits))) > 0  # some picks were found too low
 
 
+class FakeExcluding(FakePoseClearance):
+    """FakePoseClearance with per-pose exclusions (the climb and slide limits' masks)."""
+
+    excluded: dict[int, np.ndarray] = {}
+
+    def low(self, poses):
+        low = super().low(poses)
+        return [np.union1d(x, self.excluded.get(k, x[:0])) for k, x in enumerate(low)]
+
+
+def test_candidates_chosen_again_at_changed_poses_equal_scoring_every_node(robot, nodes):
+    """A second search after new exclusions at some poses chooses only those again."""
+    coms, bins, _ = nodes
+    rng = np.random.default_rng(11)
+    fits = _fits(robot, coms, rng, 8)
+    cl = node_clusters(coms, bins, TURRET_BINS, 0.04)
+    count = 64
+    best = [np.argsort(-f(coms))[:1500] for f in fits]
+    too_low = [rng.choice(b, int(rng.integers(0, 800)), replace=False) for b in best]
+    too_close = rng.choice(len(coms), len(coms) // 40, replace=False)
+    clear = FakeExcluding(too_close, len(coms), too_low)
+    first = route_candidates(fits, coms, bins, cl, count, clear)
+    changed = np.array([2, 5])
+    # the first picks' better half excluded there: the choice must change
+    clear.excluded = {int(k): first.rows[k][np.isfinite(first.value[k])][: count // 2]
+                      for k in changed}  # fmt: skip
+    kept = first._replace(value=first.value.copy())
+    got = route_candidates(fits, coms, bins, cl, count, clear, kept, changed)
+    for k, fit in enumerate(fits):
+        out = np.union1d(too_low[k], clear.excluded.get(k, too_low[k][:0]))
+        rows, value = _reference(
+            fit, coms, bins, count, FakeClearance(np.union1d(too_close, out), len(coms))
+        )
+        np.testing.assert_array_equal(got.rows[k], rows)
+        mu = fit.mu(coms[rows])
+        np.testing.assert_array_equal(got.value[k], np.where(mu > 0, value, -np.inf))
+        np.testing.assert_array_equal(got.mu[k], mu)
+        if k not in changed:
+            np.testing.assert_array_equal(got.rows[k], first.rows[k])
+        else:
+            assert not np.array_equal(got.rows[k], first.rows[k])
+
+
 def test_cluster_bounds_hold_for_every_member(robot, nodes):
     coms, bins, _ = nodes
     fits = _fits(robot, coms, np.random.default_rng(9), 6)

@@ -26,7 +26,13 @@ from numpy.typing import NDArray
 from mmstab.core.files import MmstabError, PlanningError
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters, route_candidates
+from mmstab.planner.candidates import (
+    Candidates,
+    NodeClearance,
+    NodeClusters,
+    node_clusters,
+    route_candidates,
+)
 from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
 from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.ground.under_arm import GroundUnderArm
@@ -367,8 +373,16 @@ def solve_roadmap_sequence(
     pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
     mover = Mover(robot, roadmap, int(start), ground, under)
 
-    def search() -> tuple[Any, ...]:
-        cand, value, mu = route_candidates(fits, samples, view.bins, view.clusters, M, clear)
+    kept: list[Candidates] = []  # the first search's candidates, as chosen
+
+    def search(changed: NDArray[np.intp] | None = None) -> tuple[Any, ...]:
+        found = route_candidates(
+            fits, samples, view.bins, view.clusters, M, clear,
+            kept[0] if kept else None, changed,
+        )  # fmt: skip
+        if not kept:
+            kept.append(found._replace(value=found.value.copy()))
+        cand, value, mu = found
         if not closed:
             value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
         motion, allowed = transitions(
@@ -392,8 +406,9 @@ def solve_roadmap_sequence(
         if excluded:  # the poses either side of a sliding turn: searched again
             for k, mask in excluded.items():
                 clear.excluded[k] = clear.excluded[k] | mask if k in clear.excluded else mask
-            try:
-                cand, value, mu, motion, path, nodes, moves = search()
+            try:  # the other poses' candidates stand (route_candidates)
+                changed = np.fromiter(excluded, dtype=np.intp)
+                cand, value, mu, motion, path, nodes, moves = search(changed)
             except NoPlanError:  # no path with them: the first answer, its turns reported
                 for t in turns:
                     t["poses"] = []
