@@ -282,3 +282,40 @@ def test_kept_pieces_added_in_batches_equal_the_pieces_computed_at_once(robot, s
     got = kept(rows)
     np.testing.assert_array_equal(got.low, low[rows])
     np.testing.assert_array_equal(got.centre, centre[rows])
+
+
+def test_nodes_found_too_low_are_masked_for_the_next_moves_between_the_same_poses(robot, small):
+    """``known``: what one move found too low the next masks once its first path dips."""
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.planner.searches.roadmap.moves import _path_nodes, ground_move
+
+    terrain = _map(robot, "kerb")
+    under = GroundUnderArm(robot, terrain, np.array([[0.0, 0.0, 0.0]]))  # beside the kerb
+    up = np.flatnonzero(small.node_ground >= GROUND)
+    clear = np.zeros(len(small.nodes_q), dtype=bool)
+    clear[up] = under.clear(0, small.nodes_q[up], GROUND)
+    rng = np.random.default_rng(6)
+    checker = CollisionChecker(robot)
+    known: set[int] = set()
+    dipped = straight = 0
+    for a, b in rng.choice(np.flatnonzero(clear), (400, 2)):
+        plain = _path_nodes(small, int(a), int(b), None, GROUND)
+        if plain is None:
+            continue
+        alone = ground_move(robot, small, checker, int(a), int(b), GROUND, under, (0,))
+        shared = ground_move(robot, small, checker, int(a), int(b), GROUND, under, (0,),
+                             known=known)  # fmt: skip
+        assert not clear[list(known)].any()  # only nodes too low at the pose are kept
+        nodes_ok, steps_ok = under.sweep_clear((0,), small.nodes_q[plain], small.reach, GROUND)
+        if nodes_ok.all() and steps_ok.all():  # a first path that clears: the same move
+            straight += 1
+            assert (alone is None) == (shared is None)
+            if alone is not None:
+                np.testing.assert_array_equal(shared, alone)
+        else:
+            dipped += 1
+        if shared is not None:
+            assert _move_lowest(robot, terrain, under, (0,), shared) >= GROUND - SWEEP
+        if dipped >= 4 and straight >= 4:
+            break
+    assert dipped >= 4 and straight >= 4 and len(known) > 0

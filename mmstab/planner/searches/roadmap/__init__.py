@@ -165,6 +165,7 @@ class Mover:
         self.checker = CollisionChecker(robot)  # the staircase's corners cut where free
         self.tree = start_tree(roadmap, start, ground)
         self.kept: dict[tuple[int, int, tuple[int, ...]], FloatArray | None] = {}
+        self.low: dict[tuple[int, ...], set[int]] = {}  # nodes found too low, per pair of poses
 
     def moves(self, nodes: NDArray[np.intp], closed: bool) -> tuple[list[FloatArray], list[int]]:
         """The moves into ``nodes`` (K,), and the pairs with none (-1: the first, from start)."""
@@ -177,9 +178,10 @@ class Mover:
             ks = ((K - 1 if loop else 0), 0) if k == 0 else (k - 1, k)
             key = (int(a), int(b), ks)
             if key not in self.kept:
+                poses = tuple(sorted(set(ks)))
                 self.kept[key] = ground_move(
                     self.robot, self.roadmap, self.checker, int(a), int(b), self.ground,
-                    self.under, tuple(sorted(set(ks))), self.tree,
+                    self.under, poses, self.tree, known=self.low.setdefault(poses, set()),
                 )  # fmt: skip
             move = self.kept[key]
             if move is None:

@@ -10,7 +10,10 @@ against the ground of both poses it joins (k − 1 and k; the first move of an o
 pose 0's): the arm moves while the base drives from one to the other, so every posture of
 the move must clear the ground at either end. A path whose nodes or sampled postures are too
 low is searched again without those nodes (a masked A*), at most :data:`REROUTES` times; a
-shortcut that is too low is not taken. When no path clears both grounds,
+shortcut that is too low is not taken; the nodes found too low at a pair of poses are kept
+(:class:`~mmstab.planner.searches.roadmap.Mover`) and masked at the first search again of
+the next move between them: near a ditch with a 12° ``attitude_margin`` a move otherwise
+found the same low nodes again, move after move. When no path clears both grounds,
 :func:`ground_move` answers None and the caller forbids that pair of nodes and chooses again.
 """
 
@@ -257,14 +260,18 @@ def ground_move(
     ks: tuple[int, ...] = (),
     tree: tuple[int, NDArray[np.int32]] | None = None,
     tries: Tries | None = None,
+    known: set[int] | None = None,
 ) -> FloatArray | None:
     """The move a -> b (n, 4) [rad] that keeps the arm ``ground`` [m] up (module text).
 
     Above the support plane always; with ``under``, above the ground under the arm at
     every pose of ``ks`` too. None: no roadmap path a -> b found that does. ``tries``: the
-    paths and cuts of a, b computed before (:func:`ground_move_steps`), if any.
+    paths and cuts of a, b computed before (:func:`ground_move_steps`), if any. ``known``:
+    the nodes found too low at the poses ``ks`` by earlier moves (and here: added to).
     """
-    steps = ground_move_steps(robot, roadmap, checker, a, b, ground, under, ks, tree, tries)
+    steps = ground_move_steps(
+        robot, roadmap, checker, a, b, ground, under, ks, tree, tries, known
+    )  # fmt: skip
     return drain(steps)
 
 
@@ -284,11 +291,15 @@ def ground_move_steps(
     ks: tuple[int, ...] = (),
     tree: tuple[int, NDArray[np.int32]] | None = None,
     tries: Tries | None = None,
+    known: set[int] | None = None,
 ) -> Generator[None, None, FloatArray | None]:
     """:func:`ground_move`, a step at a time (a path, a cut test); its tries kept in ``tries``.
 
     With the tries of an earlier run (the same a, b, ``ground``, ``tree``), only the checks
-    against the ground under the arm run again where the same nodes are masked.
+    against the ground under the arm run again where the same nodes are masked. ``known``
+    (the nodes earlier moves between the same poses found too low): once the first path
+    is too low, they are masked with the nodes found here (a move whose first path clears
+    the ground is the same with or without them), and the nodes found here are added.
     """
     tries = {} if tries is None else tries
 
@@ -320,6 +331,9 @@ def ground_move_steps(
         low = {int(n) for n in nodes[~node_ok]}
         if a in low or b in low:
             return None
+        if known is not None:  # too low at these poses for any move between them
+            known |= low
+            low |= known - {a, b}
         for i in np.flatnonzero(~seg_ok):  # an edge between clear nodes dips: mask its inner ends
             ends = {int(n) for n in nodes[i : i + 2]} - {a, b}
             if not ends:
