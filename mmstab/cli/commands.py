@@ -20,6 +20,7 @@ from mmstab.cli.verdicts import (
     slides_status,
     timing_line,
     tipped_status,
+    turn_slide_line,
     verify_status,
 )
 
@@ -180,6 +181,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     for line in s["route"]["slowed_turns"]:  # the turns slowed so that they do not slide
         print(f"plan: {line}")
     limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
+    turn_slide_line("plan", s.get("turn_slide"))
     _climb_line(s["climb"], s["s"])
     high_centred_warning(s["high_centred"])
     status = plan_status(s, args) or slides_status(s, args)

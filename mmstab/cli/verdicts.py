@@ -120,6 +120,25 @@ def limits_line(command: str, verdicts: dict[str, Any], spacing: float) -> None:
     print(f"{command}: verdicts along the path (every {100 * spacing:.0f} cm): " + "; ".join(parts))
 
 
+def turn_slide_line(command: str, turn_slide: dict[str, Any] | None) -> None:
+    """``planner.turn_slide``: the turns priced over the limit with the first search's postures.
+
+    Each turn's span, its heading change, the model's price [cm] and the poses that chose
+    again (none: no plan keeps it within the limit, the first choice stands).
+    """
+    if not turn_slide or turn_slide.get("limit_m") is None:
+        return
+    parts = [
+        f"s = {t['start_s']:.2f}-{t['end_s']:.2f} m ({t['turn_rad']:.2f} rad) priced "
+        f"{100 * t['slide_m']:.1f} cm, "
+        + (f"poses {', '.join(map(str, t['poses']))} chose again" if t["poses"]
+           else "no plan within the limit: the first choice kept")
+        for t in turn_slide["turns"]
+    ]  # fmt: skip
+    said = "; ".join(parts) if parts else "every turn of the planned poses within it"
+    print(f"{command}: turn slide limit {100 * turn_slide['limit_m']:g} cm: {said}")
+
+
 def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | None:
     """``plan --verify``: MuJoCo's outcome beside the plan's verdict, one line.
 

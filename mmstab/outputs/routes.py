@@ -131,6 +131,13 @@ def route_summary(
         "high_centred": v["high_centred"],
         "along_path": v["along_path"],
         "verdicts": v["verdicts"],
+        "turn_slide": {
+            "limit_m": plan.settings.turn_slide,
+            "turns": [
+                t | {"start_s": float(plan.s[t["first"]]), "end_s": float(plan.s[t["last"]])}
+                for t in plan.turns
+            ],
+        },  # fmt: skip
     }
     return out
 

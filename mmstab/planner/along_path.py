@@ -11,7 +11,7 @@ robot starts with its arm folded.
 from __future__ import annotations
 
 import time
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -47,6 +47,7 @@ class Plan(NamedTuple):
         settings: the settings used.
         moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) where the
             search gives one (``method: roadmap``), else empty.
+        turns: the turns the slide limit constrained (:class:`~.searches.base.PathChoice`).
     """
 
     poses: FloatArray
@@ -58,6 +59,7 @@ class Plan(NamedTuple):
     targets: tuple[PoseTarget, ...]
     settings: PlannerSettings
     moves: tuple[FloatArray, ...] = ()
+    turns: tuple[dict[str, Any], ...] = ()
 
 
 def solve_path(
@@ -195,4 +197,5 @@ def solve_whole_path(
         targets=targets,
         settings=settings,
         moves=choice.moves,
+        turns=choice.turns,
     )

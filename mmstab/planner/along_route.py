@@ -98,6 +98,8 @@ class RoutePlan(NamedTuple):
             own (its turns slowed: :mod:`mmstab.runs.time_law`); None: the problem's.
         time_law: the account of the slowed turns (:func:`mmstab.runs.time_law.slowed_route`),
             None when none was made.
+        turns: the turns ``planner.turn_slide`` priced over its limit and the poses it
+            constrained (:class:`mmstab.planner.searches.base.PathChoice`); empty: none.
     """
 
     s: FloatArray
@@ -121,6 +123,7 @@ class RoutePlan(NamedTuple):
     fixed_seconds: float = 0.0
     route: RoutePath | None = None
     time_law: dict[str, Any] | None = None
+    turns: tuple[dict[str, Any], ...] = ()
 
 
 def planned_com(robot: Robot, postures: ArrayLike, target_com: ArrayLike) -> FloatArray:
@@ -463,4 +466,5 @@ def _solve_route_whole(
         settings=settings,
         moves=plan.moves,
         mu_search=search,
+        turns=plan.turns,
     )

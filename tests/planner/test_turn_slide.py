@@ -208,3 +208,47 @@ def test_the_limit_prices_with_the_problems_slide_model(robot, tmp_path):
     assert TurnPricer(robot, terrain, (0.0041, 1.0)).slide(chord, com)[0] == default
     soft = TurnPricer(robot, terrain, settings.slide_model).slide(chord, com)[0]
     assert soft == pytest.approx(1.044 * default, rel=2e-3)
+
+
+def test_plan_reports_the_turns_the_limit_constrained(tmp_path, capsys):
+    """``mmstab plan``: summary.json's ``turn_slide`` and its text line name each turn priced
+    over the limit, where it is, and the poses that chose again."""
+    import copy
+    import json
+    import sys
+
+    import yaml
+    from conftest import ROOT
+
+    from mmstab.cli import main
+
+    sys.path.insert(0, str(ROOT / "tests" / "runs"))
+    from test_random_routes import pair_problem
+
+    path = pair_problem(1, tmp_path)  # a 16-pose random route with two turns on a slope
+    data = copy.deepcopy(yaml.safe_load(path.read_text()))
+    data.setdefault("planner", {})["turn_slide"] = 0.12
+    path.write_text(yaml.safe_dump(data))
+    main(["plan", str(path), "-o", str(tmp_path / "out"), "--allow-sliding", "--allow-unstable"])
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    turns = s["turn_slide"]["turns"]
+    assert s["turn_slide"]["limit_m"] == 0.12 and len(turns) == 2
+    for t in turns:
+        assert t["slide_m"] > 0.12 and t["poses"] == list(range(t["first"], t["last"] + 1))
+        assert (t["start_s"], t["end_s"]) == (s["s"][t["first"]], s["s"][t["last"]])
+    line = [x for x in capsys.readouterr().out.splitlines() if "turn slide limit" in x]
+    assert line == [
+        "plan: turn slide limit 12 cm: "
+        + "; ".join(
+            f"s = {t['start_s']:.2f}-{t['end_s']:.2f} m ({t['turn_rad']:.2f} rad) priced "
+            f"{100 * t['slide_m']:.1f} cm, poses {', '.join(map(str, t['poses']))} chose again"
+            for t in turns
+        )
+    ]
+    # off: the key says so and no line
+    data["planner"]["turn_slide"] = None
+    path.write_text(yaml.safe_dump(data))
+    main(["plan", str(path), "-o", str(tmp_path / "off"), "--allow-sliding", "--allow-unstable"])
+    off = json.loads((tmp_path / "off" / "summary.json").read_text())["turn_slide"]
+    assert off == {"limit_m": None, "turns": []}
+    assert "turn slide limit" not in capsys.readouterr().out

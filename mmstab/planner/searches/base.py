@@ -21,7 +21,7 @@ and 4 are :mod:`mmstab.planner.pose` and :mod:`mmstab.planner.along_path`.
 
 from __future__ import annotations
 
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -172,6 +172,10 @@ class PathChoice(NamedTuple):
         mu: force-angle measure per pose (K,) [N rad].
         moves: the arm's path into each pose's posture (K arrays (n, 4) [rad]) where the
             search knows one (``roadmap``), else empty: straight joint-space moves.
+        turns: the turns ``planner.turn_slide`` priced over its limit (``roadmap``): per
+            turn its ``first`` and ``last`` pose, ``turn_rad``, the slide ``slide_m`` [m]
+            with the first search's postures, the ``poses`` constrained (empty: none could
+            be, the first answer kept).
     """
 
     target_com: FloatArray
@@ -179,6 +183,7 @@ class PathChoice(NamedTuple):
     fitness: FloatArray
     mu: FloatArray
     moves: tuple[FloatArray, ...] = ()
+    turns: tuple[dict[str, Any], ...] = ()
 
 
 @runtime_checkable

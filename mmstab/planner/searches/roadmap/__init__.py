@@ -480,5 +480,5 @@ class RoadmapSearch:
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
-            moves=seq.moves,
+            moves=seq.moves, turns=seq.turns,
         )  # fmt: skip
