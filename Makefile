@@ -184,6 +184,12 @@ skid: setup
 skid-fit: setup
 	$(PY) -m experiments.skid_fit problems/skid_fit.yaml
 
+## the drive layer (physics.turn_ratio: 1, auto, 0.54) in MuJoCo: level turns, the 12 seeded
+## random route pairs, the shipped routes -> results/drive/summary.json (docs/skid.md; minutes)
+.PHONY: drive
+drive: setup
+	$(PY) -m experiments.drive problems/drive.yaml
+
 ## the skid-steer model's slide per radian against the turn rate in MuJoCo: its error in the
 ## route time law's slowed turns bounds physics.slide_budget -> results/skid_rates/summary.json
 ## (docs/skid.md; about two minutes)
