@@ -210,6 +210,11 @@ def problem_from_dict(
     check_arm_joints(p, data, robot.arm_joints, sections)
     check_problem(p, data, force_size=force_size, sections=sections)
     c = data["path"]
+    planner = data.get("planner", {})
+    if planner.get("turn_slide") is not None and (sections is None or "planner" in sections):
+        if not is_route(c) or planner.get("method") != "roadmap":  # else it would do nothing
+            raise ConfigError(p, "planner.turn_slide", "applies to a route planned with "
+                              f"method: roadmap (method is {planner.get('method')})")  # fmt: skip
     # a misspelt ``waypoints`` would make a circle missing its ``center``: name the key
     check_known_keys(p, "path", c, PATH_KEYS)
     if is_route(c):

@@ -171,16 +171,30 @@ def test_no_stable_posture_under_the_limit_keeps_them_all(robot, small):
 
 
 def test_the_limit_is_off_by_default_and_checked(tmp_path, capsys):
-    from conftest import PROBLEMS, assert_bad_planner_key, write_problem
+    import yaml
+    from conftest import PROBLEMS, assert_bad_planner_key
 
+    from mmstab.core.files import ConfigError
     from mmstab.core.problem import load_problem
     from mmstab.planner import PlannerSettings
 
     kerb = load_problem(PROBLEMS / "kerb.yaml")  # a route over a heightmap: every default
     assert PlannerSettings.from_section(kerb.section("planner")).turn_slide is None
     assert_bad_planner_key(tmp_path, capsys, "turn_slide", -0.04)
-    ok = write_problem(tmp_path, lambda p, r: p["planner"].__setitem__("turn_slide", 0.04))
-    assert PlannerSettings.from_section(load_problem(ok).section("planner")).turn_slide == 0.04
+    assert_bad_planner_key(tmp_path, capsys, "turn_slide", 0.04)  # a circle: no route to price
+    data = yaml.safe_load((PROBLEMS / "kerb.yaml").read_text())
+    data["robot"] = str(PROBLEMS / "robots" / "cameleon.yaml")
+    for method, ok in (("roadmap", True), ("cmaes", False)):  # only the roadmap's search
+        data["planner"].update(turn_slide=0.04, method=method)
+        path = tmp_path / f"kerb_{method}.yaml"
+        path.write_text(yaml.safe_dump(data))
+        if ok:
+            settings = PlannerSettings.from_section(load_problem(path).section("planner"))
+            assert settings.turn_slide == 0.04
+        else:
+            with pytest.raises(ConfigError, match="method: roadmap") as info:
+                load_problem(path)
+            assert info.value.field == "planner.turn_slide"
 
 
 def test_the_limit_prices_with_the_problems_slide_model(robot, tmp_path):
