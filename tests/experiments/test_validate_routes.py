@@ -104,11 +104,10 @@ def test_event_place_by_hand() -> None:
     assert event_place(data, [0.0, 0.0])["to_ditch_m"] is None
 
 
-@pytest.mark.mujoco
-@pytest.mark.slow
 def _record(k: int, plan: str, mujoco: str, error_m: float, slope: float = 10.0) -> dict:
     return {"route": k, "plan": plan, "mujoco": mujoco, "base_origin_error_max_m": error_m,
-            "slope_deg": slope, "mu_relative_difference_median": 0.01}  # fmt: skip
+            "slope_deg": slope, "mu_relative_difference_median": 0.01,
+            "mu_predicted_median": 500.0, "mu_simulated_median": 500.0 - k}  # fmt: skip
 
 
 def test_bars_count_a_forced_route_off_the_path_as_failing() -> None:
@@ -133,8 +132,12 @@ def test_bars_count_a_forced_route_off_the_path_as_failing() -> None:
     assert got["tracking_body_origin"]["over"] == [4] and not got["tracking_body_origin"]["holds"]
     slopes = got["accepted_on_slopes"]
     assert (slopes["routes"], slopes["accepted"], slopes["drivable"]) == (4, 0, 2)  # 2 and 3
+    mu = got["mu_median_relative"]  # the accepted route: medians 500 and 496
+    assert mu["over"] == [] and mu["of_medians_max"] == pytest.approx(4 / 500)
 
 
+@pytest.mark.mujoco
+@pytest.mark.slow
 def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     pytest.importorskip("mujoco")
     settings = load_settings(SETTINGS)
