@@ -37,7 +37,7 @@ from typing import Any
 import yaml
 
 from experiments.common import experiment_run
-from mmstab.core.files import read_yaml, validate, write_json
+from mmstab.core.files import MmstabError, read_yaml, validate, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 _RATIO = {"oneOf": [{"type": "number", "exclusiveMinimum": 0, "maximum": 1},
@@ -146,6 +146,8 @@ def _mmstab(*args: str) -> int:
 
 def _simulated(out: Path, status: int) -> dict[str, Any]:
     """What a run's ``summary.json`` says: the events and errors the docs compare."""
+    if not (out / "summary.json").is_file():  # the run did not finish: name it, not a KeyError
+        raise MmstabError(f"{out}: mmstab simulate exited {status} without a summary")
     s = json.loads((out / "summary.json").read_text())
     arm = s.get("arm_ground_contact") or {}
 
@@ -170,6 +172,8 @@ def run_job(job: tuple[str, str, Path, Path, str, bool]) -> tuple[str, str, dict
     """One variant of one pair or route: plan (pairs) and simulate; its record."""
     variant, name, problem, out, arm, plan = job
     record: dict[str, Any] = {}
+    for old in (out / "plan" / "summary.json", out / "physics" / "summary.json"):
+        old.unlink(missing_ok=True)  # an earlier run's: never read as this one's
     if plan:  # the plan's turn verdicts (a route it refuses is planned all the same)
         _mmstab("plan", str(problem), "-o", str(out / "plan"), "--allow-sliding",
                 "--allow-unstable")  # fmt: skip

@@ -121,16 +121,22 @@ def test_branch_and_bound_candidates_equal_scoring_every_node(robot, nodes, size
         np.testing.assert_array_equal(got.value[k], np.where(mu > 0, value, -np.inf))
 
 
+def _low_poses(robot, coms, seed: int, poses: int, best: int, low: int):
+    """Seeded poses' fits, each with up to ``low`` of its ``best`` rows too low, and the rows
+    too close (a fortieth)."""
+    rng = np.random.default_rng(seed)
+    fits = _fits(robot, coms, rng, poses)
+    tops = [np.argsort(-f(coms))[:best] for f in fits]  # too low: many of each pose's best
+    too_low = [rng.choice(b, int(rng.integers(0, low)), replace=False) for b in tops]
+    return fits, too_low, rng.choice(len(coms), len(coms) // 40, replace=False)
+
+
 def test_candidates_with_rows_too_low_at_some_poses_equal_scoring_every_node(robot, nodes):
     """Per-pose eligibility (the ground under the arm): each pose's proofs count its own rows."""
     coms, bins, _ = nodes
-    rng = np.random.default_rng(8)
-    fits = _fits(robot, coms, rng, 10)
+    fits, too_low, too_close = _low_poses(robot, coms, 8, 10, 2000, 1500)
     cl = node_clusters(coms, bins, TURRET_BINS, 0.04)
     count = 96
-    best = [np.argsort(-f(coms))[:2000] for f in fits]  # too low: many of each pose's best
-    too_low = [rng.choice(b, int(rng.integers(0, 1500)), replace=False) for b in best]
-    too_close = rng.choice(len(coms), len(coms) // 40, replace=False)
     clear = FakePoseClearance(too_close, len(coms), too_low)
     got = route_candidates(fits, coms, bins, cl, count, clear)
     for k, fit in enumerate(fits):
@@ -156,13 +162,9 @@ class FakeExcluding(FakePoseClearance):
 def test_candidates_chosen_again_at_changed_poses_equal_scoring_every_node(robot, nodes):
     """A second search after new exclusions at some poses chooses only those again."""
     coms, bins, _ = nodes
-    rng = np.random.default_rng(11)
-    fits = _fits(robot, coms, rng, 8)
+    fits, too_low, too_close = _low_poses(robot, coms, 11, 8, 1500, 800)
     cl = node_clusters(coms, bins, TURRET_BINS, 0.04)
     count = 64
-    best = [np.argsort(-f(coms))[:1500] for f in fits]
-    too_low = [rng.choice(b, int(rng.integers(0, 800)), replace=False) for b in best]
-    too_close = rng.choice(len(coms), len(coms) // 40, replace=False)
     clear = FakeExcluding(too_close, len(coms), too_low)
     first = route_candidates(fits, coms, bins, cl, count, clear)
     changed = np.array([2, 5])
@@ -170,7 +172,16 @@ def test_candidates_chosen_again_at_changed_poses_equal_scoring_every_node(robot
     clear.excluded = {int(k): first.rows[k][np.isfinite(first.value[k])][: count // 2]
                       for k in changed}  # fmt: skip
     kept = first._replace(value=first.value.copy())
-    got = route_candidates(fits, coms, bins, cl, count, clear, kept, changed)
+
+    class Untouched(type(fits[0])):  # the other poses' fits: their bounds only, no value
+        def __call__(self, com_body):
+            raise AssertionError("an unchanged pose was scored again")
+
+        def mu(self, com_body):
+            raise AssertionError("an unchanged pose's mu was computed again")
+
+    guarded = [f if k in changed else Untouched(*f) for k, f in enumerate(fits)]
+    got = route_candidates(guarded, coms, bins, cl, count, clear, kept, changed)
     for k, fit in enumerate(fits):
         out = np.union1d(too_low[k], clear.excluded.get(k, too_low[k][:0]))
         rows, value = _reference(

@@ -78,8 +78,8 @@ class RoadmapSequence(NamedTuple):
         moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
             the start posture (open path) or from the last pose (closed).
         seconds: wall time [s].
-        turns: the turning chords that slid with the first choice and were searched again
-            (:func:`mmstab.planner.turning.slide_exclusions`' records).
+        turns: the turns priced over ``planner.turn_slide`` with the first choice, and the
+            poses that chose again (:func:`mmstab.planner.turning.slide_exclusions`' records).
     """
 
     nodes: NDArray[np.intp]
