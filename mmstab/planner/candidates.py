@@ -39,7 +39,8 @@ from numpy.typing import NDArray
 from mmstab.core.defaults import SECTION_DEFAULTS
 from mmstab.model.robot import FloatArray
 from mmstab.planner.fitness import LinearFitness
-from mmstab.planner.ground.under_arm import GroundUnderArm, KeptPieces
+from mmstab.planner.ground.under_arm import SLACK, GroundUnderArm, KeptPieces
+from mmstab.planner.grounded import node_lowest
 from mmstab.workspace.roadmap import MOVE_CLEARANCE, Roadmap
 
 #: Edge of the arm-CoM voxel that groups nodes into clusters [m]: 4 cm, 5,755 clusters on
@@ -277,6 +278,7 @@ class NodeClearance:
         """Per pose, the eligible rows it may not choose: too low there, or ``excluded``."""
         out = []
         for k in range(poses):  # kept until pose k learns a low row or its exclusion changes
+            self._start(k)
             kept = self._low_rows.get(k)
             if kept is not None and kept[0] is self.excluded.get(k):
                 out.append(kept[1])
@@ -290,15 +292,12 @@ class NodeClearance:
         """Measure each pose's ``rows`` against the ground under the arm there (learnt)."""
         if self.under is None or self.ground is None:
             return
-        n = len(self.reach)
         for k in range(len(rows)):
-            if k not in self._known:
-                self._known[k], self._low[k] = np.zeros(n, bool), np.zeros(n, bool)
+            self._start(k)
         todo = [_distinct(x[~self._known[k][x]]) for k, x in enumerate(rows)]
         for k, x in enumerate(todo):  # high above the highest ground in reach: clear
             if x.size:
-                lowest = self.roadmap.node_ground[self.reach[x]]
-                sure = self.under.surely_clear(k, lowest, self.ground)
+                sure = self.under.surely_clear(k, self._lowest[0][x], self.ground)
                 self._known[k][x[sure]] = True
                 todo[k] = x[~sure]
         self._pieces.add(self.reach[np.concatenate([np.zeros(0, dtype=np.intp), *todo])])
@@ -310,6 +309,33 @@ class NodeClearance:
                 if not clear.all():
                     self._low[k][x[~clear]] = True
                     self._low_rows.pop(k, None)
+
+    @functools.cached_property
+    def _lowest(self) -> tuple[FloatArray, NDArray[np.intp]]:
+        """Per reach row its pieces' least z_B over the tilts [m]; the rows that may be low.
+
+        A row whose pieces' least z_B, over the pose's cos_tilt, is below the clearance is
+        too low at that pose whatever the ground (the measure takes a piece's height above
+        the ground as at most that), and only rows below the clearance in z_B can be.
+        """
+        assert self.under is not None and self.ground is not None
+        lowest = node_lowest(self.roadmap, self.under)[self.reach]
+        return lowest, np.flatnonzero(~(lowest >= self.ground - SLACK))  # NaN: maybe
+
+    def _start(self, k: int) -> None:
+        """Pose k's rows known before measuring: those too low there (:attr:`_lowest`).
+
+        The same answers as measuring them, learnt at once: without them a search measured
+        hundreds of thousands of such rows a route, chosen and found low round after round.
+        """
+        if k in self._known or self.under is None or self.ground is None:
+            return
+        n = len(self.reach)
+        known, low = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        lowest, maybe = self._lowest
+        sure = maybe[lowest[maybe] / self.under.poses[k].cos_tilt < self.ground - SLACK]
+        known[sure] = low[sure] = True  # the measure's own test
+        self._known[k], self._low[k] = known, low
 
     def at(self, k: int, rows: NDArray[np.intp]) -> NDArray[np.bool_]:
         """Whether the rows (M,) keep the arm ``ground`` up at pose ``k`` (measured, learnt)."""

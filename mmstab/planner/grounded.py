@@ -11,6 +11,7 @@ under the arm at the poses a move joins is :mod:`mmstab.planner.searches.roadmap
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Generator
 from typing import NamedTuple
 
@@ -23,6 +24,7 @@ from mmstab.core.steps import drain
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.plane_clearance import lowest_along_moves
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import CLEARANCE_STEP, Roadmap
 
@@ -70,6 +72,42 @@ def ground_graph(roadmap: Roadmap, ground: float | None) -> Graph:
         graph = csr_matrix((a["data"], a["indices"], a["indptr"]), shape=(n, n))
         kept[ground] = Graph(graph, a["component"])
     return kept[ground]
+
+
+#: Postures per batch of :func:`node_lowest` (the pieces of a batch: 1.3 kB a posture).
+LOWEST_CHUNK = 16384
+
+
+def node_lowest(roadmap: Roadmap, under: GroundUnderArm) -> FloatArray:
+    """Each node's arm pieces' least z_B over the body's tilts (N,) [m], kept.
+
+    The least of ``under``'s pieces' lowest points (:meth:`GroundUnderArm.body`: the
+    tilts up to its ``margin``, the pieces its backend computes) at each node's posture:
+    pose-independent, so a route's search knows from it, before measuring, which nodes are
+    too low above the ground at a pose, and which surely clear it
+    (:class:`mmstab.planner.candidates.NodeClearance`). Computed once per roadmap, margin
+    and pieces (0.5 s on the default grid) and kept, in memory and beside the roadmap's
+    cache file (:mod:`mmstab.workspace.kept`).
+    """
+    kept = getattr(roadmap, "_node_lowest", None)
+    if kept is None:
+        kept = {}
+        object.__setattr__(roadmap, "_node_lowest", kept)
+    pieces = under.pieces
+    digest = hashlib.sha1(usedforsecurity=False)
+    for a in (pieces.link, pieces.points, pieces.radius):
+        digest.update(np.ascontiguousarray(a).tobytes())
+    key = f"lowest-{under.margin!r}-{under.backend}-{digest.hexdigest()[:12]}"
+    if key not in kept:
+        q = roadmap.nodes_q
+
+        def compute() -> dict[str, np.ndarray]:
+            parts = [under.body(q[c : c + LOWEST_CHUNK]).low.min(axis=1, initial=np.inf)
+                     for c in range(0, len(q), LOWEST_CHUNK)]  # fmt: skip
+            return {"lowest": np.concatenate(parts) if parts else np.zeros(0)}
+
+        kept[key] = kept_arrays(roadmap, key, compute)["lowest"]
+    return np.asarray(kept[key])
 
 
 def stays_above(robot: Robot, roadmap: Roadmap, q: FloatArray, ground: float) -> bool:

@@ -196,8 +196,10 @@ def prepare_search(
 
     ``method: roadmap``: the roadmap (its cache file), the start node's component on the
     nodes ``ground_clearance`` up (its graph, clusters) and its shortest-path tree, A*'s
-    arrays of that graph, the compiled kernels loaded (the moves' clearance bounds, A*, the
-    ground under the arm), the robot's turn floors
+    arrays of that graph, with a terrain the nodes' least arm height over the tilts of
+    ``attitude_margin`` (:func:`mmstab.planner.grounded.node_lowest`), the compiled
+    kernels loaded (the moves' clearance bounds, A*, the ground under the arm), the
+    robot's turn floors
     (:meth:`mmstab.model.collision.CollisionChecker.turn_floors`), the objects alive then
     frozen (:func:`freeze_long_lived`) and the C heap's freed blocks kept for reuse
     (:func:`mmstab.core.heap.keep_freed_memory`); a route's poses then cost only their own
@@ -220,6 +222,13 @@ def prepare_search(
     component_view(robot, roadmap, start, settings.ground_clearance)
     start_tree(roadmap, start, settings.ground_clearance)
     prepare_astar(roadmap, settings.ground_clearance)
+    ground = settings.ground_clearance is not None
+    if ground and terrain is not None and poses is not None and len(poses):  # under the arm
+        from mmstab.planner.ground.under_arm import GroundUnderArm
+        from mmstab.planner.grounded import node_lowest
+
+        margin = settings.attitude_margin or 0.0
+        node_lowest(roadmap, GroundUnderArm(robot, terrain, poses[:1], margin=margin))
     CollisionChecker(robot).turn_floors()
     collision_distance.available()
     load_kernels()

@@ -331,10 +331,6 @@ class GroundUnderArm:
         # one square for every piece: the largest ball and a sweep, one step more (module text)
         cells = int(np.ceil((float(self.pieces.ball.max()) + SWEEP) / LATTICE)) + 1
         reach = arm_reach(robot, self.pieces)
-        # the most a tilt lowers an arm point: z (1 − cos θ) + ρ sin θ ≤ its distance D times
-        # (1 − cos θ + sin θ), D ≤ the turret's distance + the arm's reach
-        far = float(np.linalg.norm(reach[0])) + reach[1]
-        self.drop = far * (1.0 - np.cos(self.margin) + np.sin(self.margin))
         self.poses = [PoseGround(tiles, T[k], cells, reach, backend=backend) for k in range(len(T))]
 
     def __len__(self) -> int:
@@ -350,13 +346,16 @@ class GroundUnderArm:
         return self.poses[k].heights(b, np.inf)
 
     def surely_clear(self, k: int, lowest: FloatArray, ground: float) -> NDArray[np.bool_]:
-        """Whether arms whose lowest points are ``lowest`` (n,) [m] above z_B = 0 clear pose k.
+        """Whether arms whose pieces' least z_B is ``lowest`` (n,) [m] surely clear pose k.
 
-        Above the ground's highest rise within the arm's reach (less the most a tilt of
-        ``margin`` lowers an arm point): no need to look closer.
+        ``lowest``: the least over the pieces of their lowest points over the tilts
+        (:meth:`body`; a roadmap's nodes': :func:`mmstab.planner.grounded.node_lowest`).
+        :meth:`heights` takes a piece at least ``z_low / c − max(top, 0)`` up, ``top`` the
+        ground's highest rise within the arm's reach (each step rounded the same way), so
+        these arms pass :meth:`clear` without a closer look.
         """
         pose = self.poses[k]
-        return np.asarray((lowest - self.drop) / pose.cos_tilt - max(pose.highest, 0.0) >= ground)
+        return np.asarray(lowest / pose.cos_tilt - max(pose.highest, 0.0) >= ground - SLACK)
 
     def clear(
         self, k: int, postures: ArrayLike, ground: float, body: PiecesB | KeptRows | None = None
