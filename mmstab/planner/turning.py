@@ -34,12 +34,17 @@ The model's constants are the problem's (``physics.shear_modulus``, ``physics.tu
 
 from __future__ import annotations
 
+import ctypes
+import functools
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import map_coordinates
 
+from mmstab.core.clib import DOUBLE, DOUBLES, LONG, LONGS, compiled_library
+from mmstab.core.files import MmstabError
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.climbing import any_stable
@@ -205,20 +210,10 @@ class TurnPricer:
         (the nodes span the CoMs' extent; an axis the CoMs do not spread along has one).
         """
         com = np.asarray(com_body, dtype=float)
-        lo, hi = com.min(axis=0), com.max(axis=0)
-        counts = [GRID, GRID, 2]
-        axes = [np.linspace(lo[i], hi[i], n) if hi[i] - lo[i] > 1e-9 else lo[i : i + 1]
-                for i, n in enumerate(counts)]  # fmt: skip
-        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        g = [
-            np.broadcast_to(t.gravity_body[h], nodes.shape)
-            for t, h in zip(chords, headings, strict=True)
-        ]
-        if not g:
+        if not chords:
             return []
-        p = self.per_radian(np.vstack(g), np.tile(nodes, (len(chords), 1)))
-        p = np.nan_to_num(p, nan=1e3)  # beyond the cone: far over any limit
-        tables = p.reshape(len(chords), *(len(a) for a in axes))
+        axes = _grid_axes(com.min(axis=0), com.max(axis=0))
+        tables = self._tables(chords, headings, axes)
         # each CoM's place on the grid in nodes (an axis of one node: 0), trilinear between
         at = np.stack([(com[:, i] - a[0]) / (a[1] - a[0]) if len(a) > 1 else np.zeros(len(com))
                        for i, a in enumerate(axes)])  # fmt: skip
@@ -227,9 +222,78 @@ class TurnPricer:
             for t, table in zip(chords, tables, strict=True)
         ]
 
+    def grid_slides_of_rows(
+        self, chords: list[TurnChord], headings: list[int], arm_com: FloatArray,
+        rows: NDArray[np.intp],
+    ) -> list[FloatArray]:  # fmt: skip
+        """:meth:`grid_slides` of the overall CoMs of arm CoMs ``arm_com[rows]`` (N, 3) [m] in B.
+
+        In C (``turning.c``: the overall CoMs, their extent and the trilinear read, two
+        passes over the rows and no temporaries; 260k rows a route), else in NumPy. The twins
+        agree to round-off (``tests/planner/test_turn_slide.py``).
+        """
+        kernels = _turn_kernels()
+        robot = self.robot
+        if kernels is None or not chords or not len(rows):
+            return self.grid_slides(chords, headings, robot.overall_com(arm_com[rows]))
+        extent, trilinear = kernels
+        arm = np.ascontiguousarray(arm_com, dtype=float)
+        at = np.ascontiguousarray(rows, dtype=np.int64)
+        masses = np.array([robot.arm_mass, robot.base.mass], dtype=float)
+        base = np.ascontiguousarray(robot.base.com, dtype=float)
+        total = float(robot.total_mass)
+        lo, hi = np.empty(3), np.empty(3)
+        extent(len(at), at, arm, masses, base, total, lo, hi)
+        axes = _grid_axes(lo, hi)
+        tables = np.ascontiguousarray(self._tables(chords, headings, axes), dtype=float)
+        nodes = np.array([len(a) for a in axes], dtype=np.int64)
+        a0 = np.array([a[0] for a in axes], dtype=float)
+        da = np.array([a[1] - a[0] if len(a) > 1 else 1.0 for a in axes], dtype=float)
+        scale = np.array([abs(t.turn) for t in chords], dtype=float)
+        out = np.empty((len(chords), len(at)))
+        trilinear(len(at), at, arm, masses, base, total, len(chords), tables, nodes, a0, da,
+                  scale, out)  # fmt: skip
+        return list(out)
+
+    def _tables(
+        self, chords: list[TurnChord], headings: list[int], axes: list[FloatArray]
+    ) -> FloatArray:
+        """Each turn's slide per radian [m/rad] on the grid's nodes (C, n_x, n_y, n_z)."""
+        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        g = [
+            np.broadcast_to(t.gravity_body[h], nodes.shape)
+            for t, h in zip(chords, headings, strict=True)
+        ]
+        p = self.per_radian(np.vstack(g), np.tile(nodes, (len(chords), 1)))
+        p = np.nan_to_num(p, nan=1e3)  # beyond the cone: far over any limit
+        return p.reshape(len(chords), *(len(a) for a in axes))
+
     def grid_slide(self, chord: TurnChord, heading: int, com_body: FloatArray) -> FloatArray:
         """:meth:`grid_slides` of one turn."""
         return self.grid_slides([chord], [heading], com_body)[0]
+
+
+def _grid_axes(lo: FloatArray, hi: FloatArray) -> list[FloatArray]:
+    """The grid's nodes along each axis over the CoMs' extent ``lo`` .. ``hi`` (3,) [m]."""
+    counts = [GRID, GRID, 2]
+    return [np.linspace(lo[i], hi[i], n) if hi[i] - lo[i] > 1e-9 else lo[i : i + 1]
+            for i, n in enumerate(counts)]  # fmt: skip
+
+
+@functools.lru_cache(maxsize=1)
+def _turn_kernels() -> tuple[Any, Any] | None:
+    """The compiled ``turning.c`` (its extent and trilinear read), or None (no C compiler)."""
+    try:
+        lib = ctypes.CDLL(str(compiled_library(Path(__file__).with_name("turning.c"), "turning")))
+    except (MmstabError, OSError):
+        return None
+    extent, trilinear = lib.mmstab_turn_extent, lib.mmstab_turn_trilinear
+    extent.argtypes = [LONG, LONGS, DOUBLES, DOUBLES, DOUBLES, DOUBLE, DOUBLES, DOUBLES]
+    trilinear.argtypes = [LONG, LONGS, DOUBLES, DOUBLES, DOUBLES, DOUBLE, LONG, DOUBLES, LONGS,
+                          DOUBLES, DOUBLES, DOUBLES, DOUBLES]  # fmt: skip
+    for f in (extent, trilinear):
+        f.restype = ctypes.c_int
+    return extent, trilinear
 
 
 def slide_exclusions(
@@ -274,8 +338,9 @@ def slide_exclusions(
     if not sliding:
         return out, records
     rows = np.flatnonzero(eligible)
-    com_rows = robot.overall_com(np.asarray(arm_com_rows, dtype=float)[rows])
-    grids = pricer.grid_slides([t for t, _, _ in sliding], [h for _, h, _ in sliding], com_rows)
+    grids = pricer.grid_slides_of_rows(
+        [t for t, _, _ in sliding], [h for _, h, _ in sliding], arm_com_rows, rows
+    )
     for (chord, _, slide), grid in zip(sliding, grids, strict=True):
         ends = chord.poses(K)
         over = grid > limit

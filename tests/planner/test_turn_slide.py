@@ -119,6 +119,34 @@ def test_all_turns_at_once_price_as_each_alone(robot, small):
         np.testing.assert_allclose(grid, pricer.grid_slide(t, h, com), rtol=1e-6)
 
 
+@pytest.mark.parametrize("spread", ["every axis", "one z"])
+def test_the_c_grid_read_is_the_numpy_one(robot, small, spread, monkeypatch):
+    """turning.c (the rows' overall CoMs, their extent, the trilinear read) against NumPy
+    (Robot.overall_com, scipy's map_coordinates): to round-off, rows at the grid's corners
+    and edges among them, two turns at once."""
+    from mmstab.planner import turning
+
+    terrain = _map(robot, "tilted")
+    loop = turn_chords(terrain, _pivot(0.3, 1.0), closed=True)
+    pricer = TurnPricer(robot, terrain)
+    rng = np.random.default_rng(11)
+    arm = robot.arm_com(small.nodes_q)
+    if spread == "one z":  # every row at one height: the z axis has one node
+        arm[:, 2] = 0.25
+    rows = np.sort(rng.choice(len(arm), 500, replace=False))
+    lo, hi = (np.argmin(arm[:, 0]), np.argmax(arm[:, 0])), (np.argmin(arm[:, 1]),)
+    rows = np.union1d(rows, [*lo, *hi])  # the extent's own rows: the grid's edges
+    assert turning._turn_kernels() is not None
+    c = pricer.grid_slides_of_rows(loop, [0, 2], arm, rows)
+    numpy = pricer.grid_slides(loop, [0, 2], robot.overall_com(arm[rows]))
+    for a, b in zip(c, numpy, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+        assert np.ptp(b) > 0.01  # the rows' prices differ: the read is not a constant
+    monkeypatch.setattr(turning, "_turn_kernels", lambda: None)  # no compiler: NumPy's
+    for a, b in zip(pricer.grid_slides_of_rows(loop, [0, 2], arm, rows), numpy, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def _plan(robot, small, terrain, poses, limit):
     g = terrain.gravity_body(poses)
     under = GroundUnderArm(robot, terrain, poses)
