@@ -369,6 +369,24 @@ class Candidates(NamedTuple):
     mu: FloatArray
 
 
+@dataclasses.dataclass
+class SearchMemo:
+    """What the searches of one route share (its poses' fits, clusters and rows fixed).
+
+    Attributes:
+        bounds: :func:`cluster_bounds` at the route's poses (None: not computed yet).
+        order: :func:`proof_order` of them for the eligible rows ``order_for``.
+        order_for: the eligible rows ``order`` was computed for.
+        scored: per pose, the rows valued last (ascending) and their values: a row's value
+            does not depend on the search, so a later search looks them up.
+    """
+
+    bounds: tuple[FloatArray, FloatArray] | None = None
+    order: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    order_for: NDArray[np.bool_] | None = None
+    scored: list[tuple[NDArray[np.intp], FloatArray]] = dataclasses.field(default_factory=list)
+
+
 def route_candidates(
     fits: list[LinearFitness],
     samples: FloatArray,
@@ -378,6 +396,7 @@ def route_candidates(
     clear: NodeClearance,
     before: Candidates | None = None,
     changed: NDArray[np.intp] | None = None,
+    memo: SearchMemo | None = None,
 ) -> Candidates:
     """Every pose's ``count`` best clear nodes spread over the turret bins (module text).
 
@@ -393,6 +412,7 @@ def route_candidates(
         before: the candidates of a search before (None: none).
         changed: with ``before``, the poses whose exclusions changed since: only they are
             chosen again, the others' candidates kept (None: all chosen again).
+        memo: what the route's searches share (kept in it; None: this search's own).
 
     A pose's choice depends on its own fitness, exclusions and rows found too low only, so
     each round chooses again only at the poses whose choice held a row found too low (the
@@ -407,15 +427,22 @@ def route_candidates(
         todo = np.unique(np.asarray(changed if changed is not None else np.arange(K), np.intp))
     redone = np.zeros(K, dtype=bool)  # the poses chosen again (their mu recomputed)
     ahead = np.full(K, 4)  # the next best measured too, more where picks were too low
-    bounds_all = cluster_bounds(cl, fits)
+    memo = SearchMemo() if memo is None else memo
+    if memo.bounds is None:
+        memo.bounds = cluster_bounds(cl, fits)
+    if not memo.scored:
+        memo.scored = [(_NONE, _NO_V)] * K
+    bounds_all = memo.bounds
     slot, hit = np.full(len(samples), -1, dtype=np.intp), np.zeros(len(samples), dtype=bool)
-    scored, kept_v, kept_for = [_NONE] * K, [_NO_V] * K, np.zeros(0, dtype=bool)
-    order: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    scored, kept_v = [r for r, _ in memo.scored], [v for _, v in memo.scored]
     while len(todo):
         redone[todo] = True
         eligible, low_all = clear.eligible(), clear.low(K)
-        if order is None or not np.array_equal(eligible, kept_for):  # kept while it stands
-            order, kept_for = proof_order(cl, eligible, bounds_all[0]), eligible.copy()
+        order = memo.order
+        stands = memo.order_for is not None and np.array_equal(eligible, memo.order_for)
+        if order is None or not stands:  # kept while the eligible rows stand
+            order = memo.order = proof_order(cl, eligible, bounds_all[0])
+            memo.order_for = eligible.copy()
         fits_todo, low = [fits[k] for k in todo], [low_all[k] for k in todo]
         bounds, kept = (bounds_all[0][todo], bounds_all[1][todo]), (order[0], order[1][todo])
         union, tau, reaches = scored_rows(cl, fits_todo, eligible, rank, low, bounds, kept)
@@ -451,6 +478,7 @@ def route_candidates(
             break
         ahead = np.where(deep, np.minimum(2 * ahead, 32), ahead)
         todo = np.flatnonzero(deep) if near else np.arange(K)
+    memo.scored = list(zip(scored, kept_v, strict=True))
     mu = np.empty(rows.shape) if before is None else before.mu.copy()
     for k in np.flatnonzero(redone):
         mu[k] = fits[k].mu(samples[rows[k]])
