@@ -141,6 +141,22 @@ class Terrain(Protocol):
         ...
 
 
+@runtime_checkable
+class GridHeights(Protocol):
+    """A ground that gives its heights on a grid at once (a heightmap): optional.
+
+    A lattice of map points costs such a ground its grid's rows, not its points; users
+    that sample many (the ground under the arm) ask for it where the ground offers it.
+    """
+
+    def height_grid_M(self, x: FloatArray, y: FloatArray) -> FloatArray:
+        """The ground's z_M [m] at map x (n,) [m] times y (m,) [m]: (m, n).
+
+        The values :meth:`Terrain.surface_G` gives at those points, written in M.
+        """
+        ...
+
+
 # ------------------------------------------------------------------------------ poses
 def as_poses(poses: ArrayLike) -> FloatArray:
     """Poses as an (N, 3) float array; raise ``ValueError`` for any other shape."""

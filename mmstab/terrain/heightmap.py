@@ -252,6 +252,37 @@ class Heightmap:
             self.check(HeightSample(height, height, height, valid), xy)  # raises
         return height
 
+    def height_grid(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """:meth:`height` on the grid of x (n,) times y (m,) in G [m] -> (m, n) [m].
+
+        The same arithmetic as :meth:`height` at each point (the lower row's and the upper
+        row's interpolation along x, then along y), each map row interpolated along x once.
+
+        Raises:
+            OffMapError: a point is off the map or on an unknown cell.
+        """
+        xa, ya = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        ny, nx = self.shape
+        u = (xa - self.origin[0]) / self.resolution
+        v = (ya - self.origin[1]) / self.resolution
+        eps = 1e-9  # as _cells
+        inside = bool(((u >= -eps) & (u <= nx - 1 + eps)).all()) and bool(
+            ((v >= -eps) & (v <= ny - 1 + eps)).all()
+        )
+        ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
+        iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
+        if not inside or not len(ix) or not len(iy):
+            return self.height(np.stack(np.meshgrid(xa, ya), axis=-1))  # raises, or empty
+        first = int(iy.min())
+        rows = self.elevation[first : int(iy.max()) + 2]
+        h0, h1 = rows[:, ix], rows[:, ix + 1]
+        along = h0 + (u - ix) * (h1 - h0)  # every row's h00 + fx ax of _bilinear
+        low, up = along[iy - first], along[iy + 1 - first]
+        height = low + (v - iy)[:, None] * (up - low)
+        if not np.isfinite(height).all():
+            return self.height(np.stack(np.meshgrid(xa, ya), axis=-1))  # raises
+        return np.asarray(height)
+
     def normal(self, xy: ArrayLike) -> FloatArray:
         """Upward unit normal of the bilinear surface at points (..., 2) -> (..., 3).
 

@@ -157,6 +157,13 @@ class HeightmapTerrain:
         z = self.heightmap.height(np.stack([xb.ravel(), yb.ravel()], axis=1)).reshape(xb.shape)
         return np.stack([xb, yb, z], axis=-1)
 
+    def height_grid_M(self, x: FloatArray, y: FloatArray) -> FloatArray:
+        """The ground's z [m] at x (n,) [m] times y (m,) [m] (M is G): (m, n).
+
+        :meth:`surface_G`'s heights (:meth:`Heightmap.height_grid`: a lattice costs its rows).
+        """
+        return self.heightmap.height_grid(x, y)
+
     def rest(
         self, poses: ArrayLike, strict: bool = True, com_body: ArrayLike | None = None
     ) -> RestPoses:

@@ -246,3 +246,34 @@ def _tile_alone(tiles, ti, tj):
     if b is not None:
         X, Y = np.clip(X, b[0], b[1]), np.clip(Y, b[2], b[3])
     return tiles.terrain.surface_G(X, Y) @ tiles.M_T_G[2, :3] + tiles.M_T_G[2, 3]
+
+
+def test_a_heightmaps_tiles_from_its_grid_heights_equal_its_points(robot):
+    """GroundTiles asks a ground that gives heights on a grid (a heightmap) for a tile's rows
+    at once: the same tiles as sampling its points (surface_G, written in M)."""
+    from mmstab.planner.ground.under_arm import GroundTiles
+    from mmstab.terrain.base import GridHeights
+    from mmstab.terrain.generators import Grid, bumps
+    from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+
+    terrain = HeightmapTerrain(bumps(Grid.of_size((4.0, 3.0), 0.05), 0.08, 0.6,
+                                     np.random.default_rng(5))).with_robot(robot)  # fmt: skip
+    assert isinstance(terrain, GridHeights)
+
+    class PointsOnly:  # the same ground without the grid method
+        def __init__(self, t):
+            self.t, self.bounds = t, t.bounds
+
+        def G_T_M(self):
+            return self.t.G_T_M()
+
+        def surface_G(self, x, y):
+            return self.t.surface_G(x, y)
+
+    keys = [(i, j) for i in range(-4, 4) for j in range(-3, 3)]  # past the map's edges too
+    fast, slow = GroundTiles(terrain), GroundTiles(PointsOnly(terrain))  # type: ignore[arg-type]
+    fast._sample(keys)
+    slow._sample(keys)
+    for key in keys:
+        np.testing.assert_array_equal(fast.tiles[key], slow.tiles[key])
+    assert len(set(np.round(fast.tiles[(0, 0)].ravel(), 6))) > 100  # the bumps, not a plane

@@ -42,6 +42,7 @@ from mmstab.model.plane_clearance import tilted_height
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.ground.arm_pieces import ArmPieces, arm_pieces, arm_reach
 from mmstab.terrain import Terrain
+from mmstab.terrain.base import GridHeights
 
 #: Lattice step of the ground's samples in M [m] (the shipped maps' cells are multiples).
 LATTICE = 0.01
@@ -152,6 +153,13 @@ class GroundTiles:
         at = np.asarray(keys, dtype=np.intp).reshape(-1, 2)
         x = (at[:, :1] * TILE + np.arange(TILE)) * LATTICE  # (k, TILE)
         y = (at[:, 1:] * TILE + np.arange(TILE)) * LATTICE
+        if isinstance(self.terrain, GridHeights):  # the same values, a tile's rows at once
+            b = self.terrain.bounds
+            if b is not None:
+                x, y = np.clip(x, b[0], b[1]), np.clip(y, b[2], b[3])
+            for key, xk, yk in zip(keys, x, y, strict=True):
+                self._keep(key, self.terrain.height_grid_M(xk, yk))
+            return
         shape = (len(at), TILE, TILE)  # each tile (y, x) as numpy.meshgrid lays it
         X, Y = np.broadcast_to(x[:, None, :], shape), np.broadcast_to(y[:, :, None], shape)
         b = self.terrain.bounds
@@ -160,9 +168,12 @@ class GroundTiles:
         p_G = self.terrain.surface_G(X, Y)
         z = p_G @ self.M_T_G[2, :3] + self.M_T_G[2, 3]  # a tile's (TILE, 3) @ (3,) each
         for key, tile in zip(keys, z, strict=True):
-            self.tiles[key] = np.ascontiguousarray(tile)
-            if not np.isfinite(tile).all():
-                self.nonfinite.add(key)
+            self._keep(key, tile)
+
+    def _keep(self, key: tuple[int, int], tile: FloatArray) -> None:
+        self.tiles[key] = np.ascontiguousarray(tile)
+        if not np.isfinite(tile).all():
+            self.nonfinite.add(key)
 
     def mosaic(self, box: tuple[int, int, int, int]) -> list[list[FloatArray]]:
         """The tiles ``box = (ti0, ti1, tj0, tj1)`` (inclusive), by rows along y."""
