@@ -9,6 +9,7 @@ wins; if none is collision-free the best one is returned and flagged.
 
 from __future__ import annotations
 
+import functools
 from typing import Any, NamedTuple
 
 import casadi as ca
@@ -48,11 +49,21 @@ class PostureSolver:
         self.valid_q = (
             np.empty((0, robot.arm_joints)) if workspace is None else np.asarray(workspace.valid_q)
         )
-        valid_com = np.asarray(workspace.valid_com) if len(self.valid_q) else None
-        self._tree = None if valid_com is None else run_interruptibly(cKDTree, valid_com)
+        self._valid_com = np.asarray(workspace.valid_com) if len(self.valid_q) else None
         self.n_seeds = seeds
-        kin = robot.kinematics
-        target, q_ref = ca.SX.sym("target", 3), ca.SX.sym("q_ref", robot.arm_joints)
+
+    # Built at the first solve: a plan whose postures are the roadmap's nodes solves none
+    # (the k-d tree over V's CoMs alone took 65 ms of every such plan).
+    @functools.cached_property
+    def _tree(self) -> cKDTree | None:
+        if self._valid_com is None:
+            return None
+        return run_interruptibly(cKDTree, self._valid_com)
+
+    @functools.cached_property
+    def _nlp(self) -> Any:
+        kin = self.robot.kinematics
+        target, q_ref = ca.SX.sym("target", 3), ca.SX.sym("q_ref", self.robot.arm_joints)
         nlp = {
             "x": kin.q,
             "p": ca.vertcat(target, q_ref),
@@ -63,7 +74,7 @@ class PostureSolver:
             "print_time": False,
             "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12, "max_iter": 200},
         }
-        self._nlp = ca.nlpsol("arm_com_ik", "ipopt", nlp, opts)
+        return ca.nlpsol("arm_com_ik", "ipopt", nlp, opts)
 
     def solve(self, target_com: FloatArray, seed: FloatArray, q_ref: FloatArray) -> FloatArray:
         """One IPOPT solve from ``seed`` (n,) staying near ``q_ref`` (n,) [rad]."""

@@ -377,13 +377,12 @@ def solve_roadmap_sequence(
     mover = Mover(robot, roadmap, int(start), ground, under)
 
     kept: list[Candidates] = []  # the first search's candidates, as chosen
-    memo = SearchMemo()  # the clusters' bounds, their order, the rows valued: shared
+
+    memo = SearchMemo()  # what the searches share: the clusters' bounds, the rows valued
 
     def search(changed: NDArray[np.intp] | None = None) -> tuple[Any, ...]:
-        found = route_candidates(
-            fits, samples, view.bins, view.clusters, M, clear,
-            kept[0] if kept else None, changed, memo,
-        )  # fmt: skip
+        found = route_candidates(fits, samples, view.bins, view.clusters, M, clear,
+                                 kept[0] if kept else None, changed, memo)  # fmt: skip
         if not kept:
             kept.append(found._replace(value=found.value.copy()))
         cand, value, mu = found
