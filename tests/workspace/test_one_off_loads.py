@@ -1,6 +1,10 @@
-"""The IK after the planner (mmstab.workspace.ik.PostureSolver) builds its seeds' k-d tree
-and its NLP at the first solve: a plan over the roadmap, whose postures are its nodes,
-solves none and builds neither (the tree alone took 65 ms of every such plan)."""
+"""What a one-off command loads: only what it uses, read fast.
+
+The IK after the planner (mmstab.workspace.ik.PostureSolver) builds its seeds' k-d tree and
+its NLP at the first solve: a plan over the roadmap, whose postures are its nodes, solves
+none and builds neither (the tree alone took 65 ms of every such plan). A workspace's
+arrays are kept uncompressed beside its cache file and read back equal.
+"""
 
 from __future__ import annotations
 
@@ -43,3 +47,24 @@ def test_a_roadmap_plan_builds_neither(tmp_path, monkeypatch):
     monkeypatch.setattr(ik, "cKDTree", refuse)
     plan = plan_problem(problem, ws)
     assert len(plan.s) >= 10 and np.isfinite(plan.mu_planned).all()
+
+
+def test_a_workspace_read_back_from_its_kept_arrays_equals_the_one_written(robot, tmp_path):
+    """load_workspace keeps the .npz's arrays uncompressed beside it: the second read maps
+    them, and both equal what was written; a file of another version is still refused."""
+    import dataclasses
+
+    from mmstab.core.files import write_npz
+    from mmstab.workspace.cache import WORKSPACE_VERSION, load_workspace, save_workspace
+
+    ws = build_workspace(robot, (10, 8, 8, 8), progress=False)
+    path = save_workspace(tmp_path / "ws.npz", ws)
+    first, second = load_workspace(path), load_workspace(path)
+    assert (tmp_path / "ws" / "arrays" / "valid_com.npy").is_file()
+    for f in dataclasses.fields(ws):
+        for got in (first, second):
+            np.testing.assert_array_equal(getattr(got, f.name), getattr(ws, f.name))
+    arrays = {f.name: getattr(ws, f.name) for f in dataclasses.fields(ws)}
+    old = write_npz(tmp_path / "old.npz", version=WORKSPACE_VERSION - 1, **arrays)
+    with pytest.raises(ValueError, match="workspace cache version"):
+        load_workspace(old)
