@@ -235,7 +235,9 @@ class NodeClearance:
     (the ground under the arm at each of the route's poses,
     :class:`mmstab.planner.ground.under_arm.GroundUnderArm`) a node must also keep its arm
     ``ground`` above the terrain under it at the pose it is chosen for: measured lazily for
-    the nodes chosen (:meth:`measure`), those found too low at pose k learnt (:meth:`low`).
+    the nodes chosen (:meth:`measure`), those found too low at pose k learnt (:meth:`low`);
+    the nodes too low there whatever the ground, and those that surely clear it, are known
+    before measuring from their pieces' least z_B (:func:`mmstab.planner.grounded.node_lowest`).
     ``excluded`` holds other per-pose tests, known for every row at once: pose k's mask of
     the eligible rows it may not choose (the climb limit, :mod:`mmstab.planner.climbing`).
     """
