@@ -158,14 +158,20 @@ class Heightmap:
         The lower-left cells are clipped into the map; ``inside``: the points on it.
         """
         p = np.asarray(xy, dtype=np.float64)
-        ny, nx = self.shape
-        u = (p[..., 0] - self.origin[0]) / self.resolution
-        v = (p[..., 1] - self.origin[1]) / self.resolution
+        u, ix, in_x = self._axis(p[..., 0], 0)
+        v, iy, in_y = self._axis(p[..., 1], 1)
+        return u, v, ix, iy, in_x & in_y
+
+    def _axis(self, c: FloatArray, axis: int) -> tuple[FloatArray, Any, Any]:
+        """Grid coordinates [cells] of G coordinates ``c`` [m] along x (0) or y (1).
+
+        With each one's lower cell (clipped into the map) and whether it lies on the map.
+        """
+        n = self.shape[1 - axis]
+        u = (c - self.origin[axis]) / self.resolution
         eps = 1e-9  # the far edge is inside (rounding of a query exactly on it)
-        inside = (u >= -eps) & (u <= nx - 1 + eps) & (v >= -eps) & (v <= ny - 1 + eps)
-        ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
-        iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
-        return u, v, ix, iy, inside
+        inside = (u >= -eps) & (u <= n - 1 + eps)
+        return u, np.clip(np.floor(u), 0, n - 2).astype(np.intp), inside
 
     def sample_rows(
         self, x: FloatArray, y: FloatArray, slopes: bool = True
@@ -262,16 +268,8 @@ class Heightmap:
             OffMapError: a point is off the map or on an unknown cell.
         """
         xa, ya = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-        ny, nx = self.shape
-        u = (xa - self.origin[0]) / self.resolution
-        v = (ya - self.origin[1]) / self.resolution
-        eps = 1e-9  # as _cells
-        inside = bool(((u >= -eps) & (u <= nx - 1 + eps)).all()) and bool(
-            ((v >= -eps) & (v <= ny - 1 + eps)).all()
-        )
-        ix = np.clip(np.floor(u), 0, nx - 2).astype(np.intp)
-        iy = np.clip(np.floor(v), 0, ny - 2).astype(np.intp)
-        if not inside or not len(ix) or not len(iy):
+        (u, ix, in_x), (v, iy, in_y) = self._axis(xa, 0), self._axis(ya, 1)
+        if not (in_x.all() and in_y.all()) or not len(ix) or not len(iy):
             return self.height(np.stack(np.meshgrid(xa, ya), axis=-1))  # raises, or empty
         first = int(iy.min())
         rows = self.elevation[first : int(iy.max()) + 2]
