@@ -125,7 +125,7 @@ bench-plan: setup
 	$(PY) benchmarks/plan_route.py problems/rough.yaml --rebuild-roadmap
 	$(PY) benchmarks/plan_random.py --pairs 10 --runs 5
 
-## the random routes planned (roadmap) with the defaults (3 deg attitude margin, no slide limit
+## the random routes planned (roadmap) with the defaults (12 deg attitude margin, no slide limit
 ## at the turns) and as make validate-routes-rocking plans (12 deg, turn_slide 0.04 m), one
 ## after the other -> results/bench/plan_random_{roadmap,rocking}.json (docs/validation.md)
 .PHONY: bench-plan-rocking
@@ -155,8 +155,8 @@ VALIDATE_ROUTES ?= problems/validate_routes.yaml
 validate-routes: setup
 	$(PY) -m experiments.validate_routes $(VALIDATE_ROUTES)
 
-## the same routes planned with the arm clear through 12 deg of body tilt (planner.attitude_margin
-## 0.21 rad) -> results/validate_routes_rocking/summary.json (docs/validation.md)
+## the same routes planned with the slide limit at the turns too (planner.turn_slide 0.04 m)
+## -> results/validate_routes_rocking/summary.json (docs/validation.md)
 .PHONY: validate-routes-rocking
 validate-routes-rocking: setup
 	$(PY) -m experiments.validate_routes problems/validate_routes_rocking.yaml \
@@ -322,8 +322,8 @@ rough: setup
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. rough.yaml slides
 ## where mmstab says so (--allow-sliding); the kerb's planned arm keeps off the ground through the
 ## body's rocking (planner.attitude_margin; without it the wrist grazed the kerb's top, exit 5),
-## make still goes on ("-") if it does not; dem.yaml's lap slides, stalls high-centred and
-## its arm touches the ground while it slides (exit 5, "-" too); docs/physics.md.
+## make still goes on ("-") if it does not; dem.yaml's lap stalls high-centred on the ditch's
+## far edge ("-" too); docs/physics.md.
 .PHONY: physics bench-physics
 physics: setup
 	$(MMSTAB) simulate problems/ramp.yaml -o results/physics

@@ -73,7 +73,7 @@ class PlannerSettings(NamedTuple):
             ``ground_clearance`` through the body's tilts (pitch, roll) of up to this
             [rad] about its origin, at the planned poses and the moves' ends
             (:func:`mmstab.model.plane_clearance.tilted_height`); None: off (a file that names
-            none: off, on a route over a heightmap 0.0524).
+            none: off, on a route over a heightmap 0.21: 12 deg).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
         turn_slide: ``method: roadmap`` on a route: the slide [m] the skid-steer model may

@@ -47,7 +47,7 @@ def test_defaults_follow_the_path_and_the_terrain():
     assert kerb.route is not None
     d = Settings.defaults(kerb.robot, kerb.terrain, kerb.base_path)
     assert d.planner.method == "roadmap"  # a route that names no method
-    assert d.planner.ground_clearance == 0.05 and d.planner.attitude_margin == 0.0524
+    assert d.planner.ground_clearance == 0.05 and d.planner.attitude_margin == 0.21
     ramp = load_problem(RAMP_YAML)
     assert Settings.defaults(ramp.robot, ramp.terrain, ramp.base_path) == Settings()
 

@@ -1,7 +1,7 @@
 """The defaults that keep a route's arm off the ground in MuJoCo (docs/physics.md).
 
 ``controller.arm_com_frame`` defaults to ``body``; a route over a heightmap that names no
-``planner.ground_clearance`` / ``planner.attitude_margin`` gets 0.05 m / 0.0524 rad
+``planner.ground_clearance`` / ``planner.attitude_margin`` gets 0.05 m / 0.21 rad (12 deg)
 (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`); the shipped problems name what
 their committed numbers were made with. The MuJoCo test runs two of the tests' seeded
 random routes (``tests/runs/test_random_routes.py``, coarse grid) whole: with the defaults of
@@ -53,11 +53,11 @@ def test_the_arm_com_frame_defaults_to_body_and_the_ramp_keeps_map():
 
 
 def test_a_route_over_a_heightmap_keeps_the_arm_higher():
-    assert HEIGHTMAP_ROUTE_PLANNER == {"ground_clearance": 0.05, "attitude_margin": 0.0524}
+    assert HEIGHTMAP_ROUTE_PLANNER == {"ground_clearance": 0.05, "attitude_margin": 0.21}
     on_map = _planner(HEIGHTMAP, ROUTE)
-    assert (on_map["ground_clearance"], on_map["attitude_margin"]) == (0.05, 0.0524)
+    assert (on_map["ground_clearance"], on_map["attitude_margin"]) == (0.05, 0.21)
     assert on_map["method"] == "roadmap"
-    assert _planner({"file": "dem.tif"}, ROUTE, {"margin": 5.0})["attitude_margin"] == 0.0524
+    assert _planner({"file": "dem.tif"}, ROUTE, {"margin": 5.0})["attitude_margin"] == 0.21
     # what the file names wins, null (off) included
     named = _planner(HEIGHTMAP, ROUTE, {"ground_clearance": 0.08, "attitude_margin": None})
     assert (named["ground_clearance"], named["attitude_margin"]) == (0.08, None)
@@ -84,7 +84,7 @@ def test_a_random_route_in_mujoco_does_not_tip_nor_touch_the_ground(k, tmp_path,
     problem = load_problem(pair_problem(k, tmp_path, COARSE))
     planner = problem.section("planner")
     assert problem.section("controller")["arm_com_frame"] == "body"
-    assert (planner["ground_clearance"], planner["attitude_margin"]) == (0.05, 0.0524)
+    assert (planner["ground_clearance"], planner["attitude_margin"]) == (0.05, 0.21)
     plan = app.plan(problem, ws=app.workspace(problem, progress=False, cache_dir=cache))
     cs, loop = controller_settings(problem), loop_settings(problem)
     state0 = initial_state(problem.base_path, problem.robot.stowed)

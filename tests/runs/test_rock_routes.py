@@ -21,9 +21,14 @@ from mmstab import app
 from mmstab.outputs.routes import route_summary
 from mmstab.planner import route_risk
 
+#: The 3 deg attitude margin these routes were planned and refereed with (the default before
+#: 12 deg): the plans whose physics this module checks.
+THREE_DEG = {"attitude_margin": 0.0524}
+
 
 def summary_of(k: int, tmp_path) -> dict:
     data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), k)
+    data["planner"] = {**data.get("planner", {}), **THREE_DEG}
     path = tmp_path / f"route{k:02d}.yaml"
     path.write_text(yaml.safe_dump(data))
     problem = mmstab.load_problem(path)
