@@ -106,6 +106,32 @@ def test_route29_arm_meets_the_ground_where_the_body_rocks_over_a_crest(tmp_path
     assert record["reference"]["rocked_height_min_m"] > 0.05
 
 
+@pytest.mark.slow
+def test_route29_default_margin_keeps_the_arm_clear_turned_over_the_crests(tmp_path):
+    # the same route with the default 12 deg attitude margin: the record's own rocking (the
+    # body turned over each crest, up to 0.32 rad above) leaves the planned arm clear
+    from experiments.validate_routes import load_settings, route_problem
+    from mmstab.app.api import plan as make_plan
+    from mmstab.core.problem import load_problem
+    from mmstab.runs.along import sample_spacing
+    from mmstab.runs.arm_ground import arm_ground_record
+    from mmstab.runs.high_centred import path_samples
+
+    settings = load_settings(ROOT / "problems" / "validate_routes.yaml")
+    path = tmp_path / "route29.yaml"
+    path.write_text(yaml.safe_dump(route_problem(settings, 29)))
+    problem = load_problem(path)
+    assert problem.section("planner")["attitude_margin"] == 0.21
+    plan = make_plan(problem)
+    assert plan.accepted
+    poses, s = path_samples(plan.path, sample_spacing(plan.terrain))
+    record = arm_ground_record(plan.robot, plan.terrain, plan.path, plan.stage, poses, s)
+    planned = record["planned"]
+    assert not planned["contact"] and planned["stretches"] == []
+    assert planned["rocked_height_min_m"] > 0.1  # measured 11.8 cm (3 deg: -2.1 cm)
+    assert planned["height_min_m"] > 0.1  # at the rests: 11.4 cm (3 deg: 3.2 cm)
+
+
 def test_the_record_is_opt_in(tmp_path) -> None:
     import subprocess
     import sys
