@@ -1,13 +1,13 @@
 """Benchmark: the online loop's latency per map beside the offline planner.
 
-Usage: ``python benchmarks/bench_online.py [PROBLEM.yaml] [--recording FILE] [--repeats N]``;
-writes ``results/bench/online.json``. The recording (``mmstab record``, written if missing)
-is followed ``repeats`` times on one core (the process pinned to one CPU, BLAS threads 1);
-per map: the update's wall time (rest of the robot, its reference and the horizon on the
-map, re-plan of the poses whose ground changed, one controller step). Beside it, in the
-same run, the offline warm-started planner on the same route poses on the problem's own
-terrain (its per-pose search time, the resting pose included), and the whole offline plan
-per pose. Medians over the repeats of each percentile.
+Usage: ``python benchmarks/bench_online.py [PROBLEM.yaml] [--recording FILE] [--repeats N]
+[--attitude-margin RAD] [--out FILE]``; writes ``results/bench/online.json``. The recording
+(``mmstab record``, written if missing) is followed ``repeats`` times on one core (the
+process pinned to one CPU, BLAS threads 1); per map: the update's wall time (rest of the
+robot, its reference and the horizon on the map, re-plan of the poses whose ground changed,
+one controller step). Beside it, in the same run, the offline warm-started planner on the
+same route poses on the problem's own terrain (its per-pose search time, the resting pose
+included), and the whole offline plan per pose. Medians over the repeats of each percentile.
 
 The slow maps: per repeat, the slowest 1 % of the updates (p99 is the least of them),
 each with what it did: the map's index (the first sets the horizon up), the poses whose
@@ -27,6 +27,7 @@ horizon's set-up, before the robot can move).
 from __future__ import annotations
 
 import argparse
+import copy
 import gc
 import os
 import statistics
@@ -40,7 +41,7 @@ import numpy as np  # noqa: E402
 from common import machine_info  # noqa: E402
 
 from mmstab.core.files import write_json  # noqa: E402
-from mmstab.core.problem import load_problem  # noqa: E402
+from mmstab.core.problem import load_problem, problem_from_dict  # noqa: E402
 from mmstab.outputs.online import offline_plan  # noqa: E402
 from mmstab.outputs.recording import record_route  # noqa: E402
 from mmstab.runs.online.follow import Follower  # noqa: E402
@@ -181,10 +182,17 @@ def main() -> None:
     ap.add_argument("--recording", default="results/online/rough.mcap")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default="results/bench/online.json")
+    ap.add_argument(
+        "--attitude-margin", type=float, help="planner.attitude_margin [rad] instead of the file's"
+    )
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     problem = load_problem(args.problem)
+    if args.attitude_margin is not None:  # as a file naming it would plan
+        data = copy.deepcopy(problem.data)
+        data["planner"]["attitude_margin"] = args.attitude_margin
+        problem = problem_from_dict(data, problem.path)
     rec = Path(args.recording)
     if not rec.exists():
         record_route(problem, rec)
@@ -211,6 +219,7 @@ def main() -> None:
     lat = [r["latency_ms"] for r in runs]
     result = {
         "problem": args.problem,
+        "attitude_margin": problem.section("planner")["attitude_margin"],
         "recording": str(rec),
         "updates": runs[0]["updates"],
         "replanned_poses": runs[0]["replanned_poses"],
