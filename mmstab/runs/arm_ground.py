@@ -13,8 +13,8 @@ of the path (:func:`mmstab.runs.along.path_timing`), with the arm on its posture
 there (:func:`reference_postures`, the CoM the rest carries with it):
 
 - at the sample's rest;
-- where the rest turns by more than ``planner.attitude_margin`` between neighbouring
-  samples (a flip), and where a rock was checked (:func:`mmstab.runs.along.rock_samples`):
+- where the rest turns by more than :data:`FLIP` between neighbouring samples (a flip),
+  and where a rock was checked (:func:`mmstab.runs.along.rock_samples`):
   also at the rocked attitude, the rest turned outward about its weakest support edge (the
   least force angle: the edge the CoM leans over) until a contact beyond it meets the
   ground (:func:`mmstab.stability.rock.catch`).
@@ -47,8 +47,9 @@ if TYPE_CHECKING:
     from mmstab.planner import RoutePlan
 
 
-#: A rest that turns more than this between neighbouring samples is a flip [rad] (3 deg:
-#: the validation problems' ``planner.attitude_margin``; the samples are 5 cm apart).
+#: A rest that turns more than this between neighbouring samples is a flip [rad] (3 deg
+#: between samples 5 cm apart: the rest has gone over a crest or an edge, not followed a
+#: slope; it is not ``planner.attitude_margin``, which the planner keeps the arm clear through).
 FLIP = float(np.radians(3.0))
 
 
@@ -102,7 +103,7 @@ def arm_ground_along(
     terrain: Terrain,
     poses: ArrayLike,
     postures: ArrayLike,
-    margin: float,
+    flip: float,
     rocked: ArrayLike | None = None,
 ) -> ArmGround:
     """The arm's height above the ground at the samples' rests and rocked attitudes.
@@ -115,8 +116,8 @@ def arm_ground_along(
         terrain: the ground.
         poses: the path's samples (N, 3) of (x, y, yaw) in M [m, m, rad], in driving order.
         postures: the arm's posture at each (N, n) [rad] (:func:`reference_postures`).
-        margin: a rest that turns more than this [rad] to a neighbouring sample's is a
-            flip (``planner.attitude_margin``).
+        flip: a rest that turns more than this [rad] to a neighbouring sample's is a
+            flip (:data:`FLIP`).
         rocked: (N,) samples where a rock was checked (:attr:`Rocks.checked`), if any.
     """
     P = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -132,7 +133,7 @@ def arm_ground_along(
     T = ground.rest(P, strict=False, com_body=com_B).G_T_B  # type: ignore[attr-defined]
     ok = np.isfinite(T).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
     out.flip[:] = _turns(T[:, :3, 2])
-    check = out.flip > margin
+    check = out.flip > flip
     if rocked is not None:
         check |= np.asarray(rocked, dtype=bool)
     # the rocked attitudes: the rest turned over its weakest edge until caught
@@ -158,18 +159,18 @@ def arm_ground_along(
     return out
 
 
-def arm_ground_verdict(arm: ArmGround, s: ArrayLike, margin: float) -> dict[str, Any]:
+def arm_ground_verdict(arm: ArmGround, s: ArrayLike, flip: float) -> dict[str, Any]:
     """Where the arm touches the ground along the path (``summary.json``'s ``arm_ground``).
 
     Args:
         arm: :func:`arm_ground_along`'s heights.
         s: the samples' arc lengths (N,) [m].
-        margin: the flips' least turn [rad] (``planner.attitude_margin``).
+        flip: the flips' least turn [rad] (:data:`FLIP`).
 
     Returns:
         ``contact`` (bool), ``height_min_m`` (the least height at the rests, and
-        ``rocked_height_min_m`` at the rocked attitudes [m]; None: none), ``flips`` (samples
-        whose rest turns more than the margin to a neighbour's), ``rocked_samples``, and
+        ``rocked_height_min_m`` at the rocked attitudes [m]; None: none), ``flip_rad``,
+        ``flips`` (samples whose rest turns more than it to a neighbour's), ``rocked_samples``, and
         ``stretches`` where the arm is below the ground: arc lengths [m], ``worst`` height
         [m], ``by`` how far in [m], ``attitude`` (``rest`` or ``rocked``) and the rock's
         ``turn_rad`` [rad] (None at a rest).
@@ -200,8 +201,8 @@ def arm_ground_verdict(arm: ArmGround, s: ArrayLike, margin: float) -> dict[str,
         "contact": bool(stretches),
         "height_min_m": least(arm.rest),
         "rocked_height_min_m": least(arm.rocked),
-        "attitude_margin": float(margin),
-        "flips": int((arm.flip > margin).sum()),
+        "flip_rad": float(flip),
+        "flips": int((arm.flip > flip).sum()),
         "rocked_samples": int(np.isfinite(arm.rocked).sum()),
         "stretches": stretches,
     }
