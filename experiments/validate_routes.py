@@ -137,6 +137,23 @@ def event_place(data: dict[str, Any], xy: Any) -> dict[str, float | None]:
     return out
 
 
+def worst_window_turn(t: Any, heading: Any, window: float) -> float:
+    """The most the heading turns within any ``window`` [s] of a run [rad].
+
+    Args:
+        t: sample times (N,) [s], evenly spaced.
+        heading: the heading at each (N,) [rad] (unwrapped here).
+        window: the slide verdict's window [s] (``physics.slip_window``).
+    """
+    h = np.unwrap(np.asarray(heading, dtype=float))
+    if len(h) < 2:
+        return 0.0
+    w = max(int(round(window / float(t[1] - t[0]))), 1)
+    if len(h) <= w:
+        return float(np.ptp(h))
+    return float(np.max(np.abs(h[w:] - h[:-w])))
+
+
 def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     """Plan and simulate route k (the pool's job): its record."""
     settings, k, out = task
@@ -204,6 +221,14 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         if run.base_origin_error is None
         else float(np.median(run.base_origin_error)),
         "downhill_drift_max_m": sim["downhill_drift_max_m"],
+        # the heading's most in one slide window: MuJoCo's base and its reference (the
+        # verdict prices a turn's slide at the path's rate)
+        "turn_in_window_rad": {
+            "mujoco": worst_window_turn(run.t, run.state[:, 2], loop.slip_window),
+            "reference": None
+            if run.heading_reference is None
+            else worst_window_turn(run.t, run.heading_reference, loop.slip_window),
+        },
         "arm_ground_contact": sim["arm_ground_contact"],
         "qp_failures": sim["qp_failures"],
     }
@@ -234,12 +259,12 @@ def _share(n: int, total: int) -> float | None:
     return n / total if total else None
 
 
-def _stats(values: list[float]) -> dict[str, Any]:
+def _stats(values: list[float | None]) -> dict[str, Any]:
     v = np.asarray([x for x in values if x is not None], dtype=float)
     if not v.size:
         return {"n": 0}
-    return {"n": int(v.size), "median": float(np.median(v)), "p90": float(np.percentile(v, 90)),
-            "max": float(v.max())}  # fmt: skip
+    return {"n": int(v.size), "min": float(v.min()), "median": float(np.median(v)),
+            "p90": float(np.percentile(v, 90)), "max": float(v.max())}  # fmt: skip
 
 
 def _off_path(record: dict[str, Any], tracking_m: float) -> bool:
@@ -305,6 +330,13 @@ def bars(records: list[dict[str, Any]], b: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _turn_ratio(record: dict[str, Any]) -> float | None:
+    """MuJoCo's most turn in a slide window over its reference's (None: under 0.1 rad)."""
+    turn = record.get("turn_in_window_rad") or {}
+    ref = turn.get("reference")
+    return None if ref is None or ref < 0.1 else float(turn["mujoco"] / ref)
+
+
 def summarize_routes(
     settings: dict[str, Any], records: list[dict[str, Any]], seconds: float
 ) -> dict[str, Any]:
@@ -330,6 +362,12 @@ def summarize_routes(
                 "base_error_median_m",
             )
         },  # fmt: skip
+        # MuJoCo's most turn in a slide window over its reference's, by MuJoCo's outcome
+        # (routes whose reference turns 0.1 rad or more in a window)
+        "turn_in_window_ratio": {
+            o: _stats([_turn_ratio(r) for r in sim if r["mujoco"] == o])
+            for o in ("holds", "slides")
+        },
         "disagreements": sum(r.get("disagreement") is not None for r in sim),
         "tip_causes": {
             c: sum((r["events"]["tipped"] or {}).get("cause") == c for r in sim)

@@ -110,6 +110,17 @@ def _record(k: int, plan: str, mujoco: str, error_m: float, slope: float = 10.0)
             "mu_predicted_median": 500.0, "mu_simulated_median": 500.0 - k}  # fmt: skip
 
 
+def test_worst_window_turn_by_hand() -> None:
+    from experiments.validate_routes import worst_window_turn
+
+    t = np.arange(0.0, 6.0, 0.01)
+    # 0.5 rad/s for 2 s from t = 1 s, across +-pi: 0.5 rad in the worst second
+    heading = np.angle(np.exp(1j * (np.pi - 0.3 + 0.5 * np.clip(t - 1.0, 0.0, 2.0))))
+    assert worst_window_turn(t, heading, 1.0) == pytest.approx(0.5, abs=1e-9)
+    assert worst_window_turn(t, heading, 3.0) == pytest.approx(1.0, abs=1e-9)  # all of it
+    assert worst_window_turn(t, np.zeros_like(t), 1.0) == 0.0
+
+
 def test_bars_count_a_forced_route_off_the_path_as_failing() -> None:
     """Refused routes: 1 slides, 1 holds 30 cm off its path, 2 hold on it -> 2 of 4 fail.
 
