@@ -372,5 +372,18 @@ def test_astar_in_c_finds_the_pythons_paths(small, monkeypatch):
     monkeypatch.setattr(moves, "ASTAR_EXPANSIONS", 3)  # the limit: neither reaches b
     a, b = (int(x) for x in comp[[0, -1]])
     assert moves.astar(rm, a, b) is None and moves.astar_python(rm, a, b) is None
+    # past the limit the whole component is searched: a shortest path that avoids the
+    # masked nodes too (their edges removed; an explicit zero would be a free edge)
+    plain = moves._path_nodes(rm, a, b, None, None)
+    masked = frozenset(int(n) for n in plain[1:-1:2])
+    detour = moves._path_nodes(rm, a, b, None, None, masked)
+    assert detour is not None and not masked & set(detour.tolist())
+    monkeypatch.setattr(moves, "ASTAR_EXPANSIONS", 10**7)  # A* itself: the same length
+    again = moves.astar(rm, a, b, None, masked)
+
+    def length(p: np.ndarray) -> float:
+        return float(np.abs(np.diff(rm.nodes_q[p], axis=0)).sum())
+
+    assert again is not None and length(detour) == pytest.approx(length(again), rel=1e-12)
     arrays = moves._astar_arrays(rm, None)  # the work arrays are left clean
     assert np.isinf(arrays["best"]).all() and not arrays["masked"].any()

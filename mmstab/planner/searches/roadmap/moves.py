@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from mmstab.core.clib import compiled_library
@@ -219,9 +220,7 @@ def _path_nodes(
             return path
         graph = ground_graph(roadmap, ground).graph
         if masked:  # the whole component without the masked nodes
-            keep = np.ones(graph.shape[0])
-            keep[list(masked)] = 0.0
-            graph = graph.multiply(keep[:, None]).multiply(keep[None, :]).tocsr()
+            graph = without_nodes(graph, masked)
         pred = dijkstra(graph, indices=a, return_predecessors=True)[1]
     if pred[b] < 0:
         return None
@@ -229,6 +228,21 @@ def _path_nodes(
     while out[-1] != a:
         out.append(int(pred[out[-1]]))
     return np.array(out[::-1], dtype=np.intp)
+
+
+def without_nodes(graph: csr_matrix, nodes: frozenset[int]) -> csr_matrix:
+    """The graph without the edges into or out of ``nodes`` (removed, not set to 0).
+
+    csgraph takes an explicit zero for an edge of no length: through the nodes to avoid.
+    """
+    keep = np.ones(graph.shape[0], dtype=bool)
+    keep[np.fromiter(nodes, dtype=np.intp, count=len(nodes))] = False
+    nnz = int(graph.indptr[-1])  # the arrays may hold more (duplicates summed at the build)
+    indices, data = graph.indices[:nnz], graph.data[:nnz]
+    edge = np.repeat(keep, np.diff(graph.indptr)) & keep[indices]
+    out = csr_matrix((np.where(edge, data, 0.0), indices, graph.indptr), shape=graph.shape)
+    out.eliminate_zeros()
+    return out
 
 
 def roadmap_move(
