@@ -376,8 +376,12 @@ def test_astar_in_c_finds_the_pythons_paths(small, monkeypatch):
     # masked nodes too (their edges removed; an explicit zero would be a free edge)
     plain = moves._path_nodes(rm, a, b, None, None)
     masked = frozenset(int(n) for n in plain[1:-1:2])
+    graph = rm.graph
+    kept = (graph.indptr.copy(), graph.indices.copy(), graph.data.copy())
     detour = moves._path_nodes(rm, a, b, None, None, masked)
     assert detour is not None and not masked & set(detour.tolist())
+    for before, now in zip(kept, (graph.indptr, graph.indices, graph.data), strict=True):
+        np.testing.assert_array_equal(now, before)  # the kept graph is left whole
     monkeypatch.setattr(moves, "ASTAR_EXPANSIONS", 10**7)  # A* itself: the same length
     again = moves.astar(rm, a, b, None, masked)
 
@@ -387,3 +391,27 @@ def test_astar_in_c_finds_the_pythons_paths(small, monkeypatch):
     assert again is not None and length(detour) == pytest.approx(length(again), rel=1e-12)
     arrays = moves._astar_arrays(rm, None)  # the work arrays are left clean
     assert np.isinf(arrays["best"]).all() and not arrays["masked"].any()
+
+
+def test_no_path_is_proved_without_the_whole_component(small, monkeypatch):
+    """A move whose end the masked nodes wall in: A* from either side empties its open list
+    (proved, in C and in Python alike), so the whole component is not searched."""
+    from mmstab.planner.searches.roadmap import moves
+
+    _, rm = small
+    comp = np.flatnonzero(rm.component == np.bincount(rm.component).argmax())
+    a, b = (int(x) for x in comp[[0, -1]])
+    g = rm.graph
+    wall_b = frozenset(int(n) for n in g.indices[g.indptr[b] : g.indptr[b + 1]])
+    wall_a = frozenset(int(n) for n in g.indices[g.indptr[a] : g.indptr[a + 1]])
+    for search in (moves.astar_search, moves.astar_python_search):
+        assert search(rm, a, b, None, wall_a)[0] is None and search(rm, a, b, None, wall_a)[1]
+        assert search(rm, b, a, None, wall_b)[1]  # b's side, searched from b
+        path, proved = search(rm, a, b)
+        assert path is not None and not proved
+    monkeypatch.setattr(moves, "dijkstra", None)  # the component search would fail here
+    monkeypatch.setattr(moves, "ASTAR_EXPANSIONS", 50)  # a's side reaches the limit
+    assert moves.astar_search(rm, a, b, None, wall_b) == (None, False)
+    assert moves._path_nodes(rm, a, b, None, None, wall_b) is None
+    assert moves._path_nodes(rm, a, b, None, None, wall_a) is None
+    assert moves._path_nodes(rm, a, b, None, None, wall_b | {b}) is None

@@ -12,7 +12,8 @@
  * best (N, +inf) and parent (N) are the caller's work arrays: every entry this call
  * touches is set back to +inf before it returns, so they are reused call after call.
  * masked: N bytes (1: never entered) or NULL.
- * Out: path (at most N nodes, a -> b); returns its length, 0 when no path was found,
+ * Out: path (at most N nodes, a -> b); returns its length, 0 when the expansions ran out
+ * before b, -2 when the open list emptied first (b cannot be reached: no path, proved),
  * -1 when memory ran out. */
 #include <math.h>
 #include <stdlib.h>
@@ -130,6 +131,8 @@ long mmstab_astar(const long *indptr, const long *indices, const double *weights
             }
         }
     }
+    if (!found && size == 0)
+        length = -2; /* every node a reaches expanded, b not among them */
     if (found) { /* b back to a, then reversed */
         long n = b;
         path[length++] = n;

@@ -136,9 +136,23 @@ def astar(
     In C (``astar.c``, the same operations in the same order: the same path as
     :func:`astar_python`), 10x faster; in Python without a C compiler.
     """
+    return astar_search(roadmap, a, b, ground, masked)[0]
+
+
+def astar_search(
+    roadmap: Roadmap,
+    a: int,
+    b: int,
+    ground: float | None = None,
+    masked: frozenset[int] = frozenset(),
+) -> tuple[NDArray[np.intp] | None, bool]:
+    """:func:`astar`'s path, and whether "no path" is proved (every node a reaches expanded).
+
+    A search that stops at ``ASTAR_EXPANSIONS`` proves nothing (False).
+    """
     kernel = _astar_kernel()
     if kernel is None:
-        return astar_python(roadmap, a, b, ground, masked)
+        return astar_python_search(roadmap, a, b, ground, masked)
     w = _astar_arrays(roadmap, ground)
     q = w["q"]
     mask = w["masked"]
@@ -153,9 +167,9 @@ def astar(
         )  # fmt: skip
     finally:
         mask[held] = 0
-    if n < 0:
+    if n == -1:
         raise MemoryError("astar: the kernel ran out of memory")
-    return w["path"][:n].astype(np.intp) if n else None
+    return (w["path"][:n].astype(np.intp) if n > 0 else None), n == -2
 
 
 def astar_python(
@@ -166,6 +180,17 @@ def astar_python(
     masked: frozenset[int] = frozenset(),
 ) -> NDArray[np.intp] | None:
     """:func:`astar` in Python (the reference of its C kernel; used without a compiler)."""
+    return astar_python_search(roadmap, a, b, ground, masked)[0]
+
+
+def astar_python_search(
+    roadmap: Roadmap,
+    a: int,
+    b: int,
+    ground: float | None = None,
+    masked: frozenset[int] = frozenset(),
+) -> tuple[NDArray[np.intp] | None, bool]:
+    """:func:`astar_search` in Python."""
     # each expanded node's row as Python lists (the loop's cheapest reads), not the whole
     # graph converted at once (0.5-0.8 s, most of a cold plan's search on kerb.yaml)
     g, nodes_q = ground_graph(roadmap, ground).graph, roadmap.nodes_q
@@ -183,13 +208,13 @@ def astar_python(
     heap = [(h(a), 0.0, a)]
     for _ in range(ASTAR_EXPANSIONS):
         if not heap:
-            return None
+            return None, True
         _, neg_g, n = heapq.heappop(heap)
         if n == b:
             out = [b]
             while out[-1] != a:
                 out.append(parent[out[-1]])
-            return np.array(out[::-1], dtype=np.intp)
+            return np.array(out[::-1], dtype=np.intp), False
         if -neg_g > best[n]:
             continue  # a stale entry
         lo, hi = ptr[n], ptr[n + 1]
@@ -198,7 +223,7 @@ def astar_python(
             if cost < best.get(m, np.inf) and m not in masked:
                 best[m], parent[m] = cost, n
                 heapq.heappush(heap, (cost + h(m), -cost, m))
-    return None
+    return None, not heap
 
 
 def _path_nodes(
@@ -215,9 +240,14 @@ def _path_nodes(
     if tree is not None and tree[0] == a and not masked:
         pred = tree[1]
     else:
-        path = astar(roadmap, a, b, ground, masked)
+        path, none = astar_search(roadmap, a, b, ground, masked)
         if path is not None:
             return path
+        # no path when either side's search empties its open list (the graph is
+        # undirected): a cornered node is proved so in a few expansions, where the
+        # whole component's search takes 40 ms (a move whose ends the low nodes wall in)
+        if none or b in masked or astar_search(roadmap, b, a, ground, masked - {a})[1]:
+            return None
         graph = ground_graph(roadmap, ground).graph
         if masked:  # the whole component without the masked nodes
             graph = without_nodes(graph, masked)
@@ -240,7 +270,11 @@ def without_nodes(graph: csr_matrix, nodes: frozenset[int]) -> csr_matrix:
     nnz = int(graph.indptr[-1])  # the arrays may hold more (duplicates summed at the build)
     indices, data = graph.indices[:nnz], graph.data[:nnz]
     edge = np.repeat(keep, np.diff(graph.indptr)) & keep[indices]
-    out = csr_matrix((np.where(edge, data, 0.0), indices, graph.indptr), shape=graph.shape)
+    # copies: eliminate_zeros compacts indices and indptr in place, and a csr_matrix made
+    # from arrays shares them (the kept ground graph would lose edges and misalign weights)
+    out = csr_matrix(
+        (np.where(edge, data, 0.0), indices.copy(), graph.indptr.copy()), shape=graph.shape
+    )
     out.eliminate_zeros()
     return out
 
