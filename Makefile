@@ -365,15 +365,13 @@ kerb: setup
 ## a user's ditch (problems/ditch.yaml, its ground from problems/terrains/make_ditch.py):
 ## planned with every verdict and run in MuJoCo beside it (the plan accepts it: the ditch's low μ
 ## is a rock onto the next support, not a tip; its one sample beyond the friction cone is passed
-## in 0.2 s, a 1.8 cm slide; but in MuJoCo the body rolls ~30° past its predicted rest climbing
-## out and the arm touches the ground, so plan --verify and simulate both exit 5, expected here),
-## and the physics run replayed -> results/ditch/ (docs/verdicts.md, "A user's ditch")
+## in 0.2 s, a 1.8 cm slide; MuJoCo's robot, its wheels given the support mmstab assumes, holds:
+## plan --verify and simulate exit 0), and the physics run replayed -> results/ditch/
+## (docs/verdicts.md, "A user's ditch")
 .PHONY: ditch
 ditch: setup
-	$(MMSTAB) plan problems/ditch.yaml -o results/ditch --verify; s=$$?; test $$s -eq 5 \
-	  || { echo "make ditch: plan --verify exited $$s, expected 5 (arm on the ground)"; exit 1; }
-	$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif; s=$$?; test $$s -eq 5 \
-	  || { echo "make ditch: simulate exited $$s, expected 5 (arm on the ground)"; exit 1; }
+	$(MMSTAB) plan problems/ditch.yaml -o results/ditch --verify
+	$(MMSTAB) simulate problems/ditch.yaml -o results/ditch/physics --gif
 
 ## 20 seeded random routes over 20 seeded random heightmaps, planned on the posture
 ## roadmap and tracked (docs/routes.md, "Random routes") -> results/random_routes/summary.json

@@ -118,7 +118,7 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
         "shear_modulus": 0.0041,
         # how far each MuJoCo road wheel may drop below its bump stop [m]: 0, stiff wheels;
         # terrain.compliance (0.02) is the support mmstab assumes (docs/validation.md)
-        "suspension_travel": 0.0,
+        "suspension_travel": "auto",
         "governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 10.0},
         # a route's pivots turn about the skid model's pivot centre for the plan's CoM there
         # (mmstab.control.pivot), or about a point this far ahead of B's origin [m] (0: the origin)

@@ -359,7 +359,9 @@ PHYSICS_KEYS = obj(
     arm={"enum": ["planned", "stowed"]},
     turn_ratio={"oneOf": [{"const": "auto"}, {**POS, "maximum": 1}]},
     shear_modulus={"type": "number", "minimum": 0, "maximum": 1},
-    suspension_travel={"type": "number", "minimum": 0, "maximum": 0.2, "unit": "m"},
+    suspension_travel={
+        "oneOf": [{"const": "auto"}, {"type": "number", "minimum": 0, "maximum": 0.2, "unit": "m"}]
+    },
     governor={"oneOf": [{"type": "null"}, obj(slow=POS, stop=POS, wait_limit=NONNEG)]},
     pivot_centre={
         "oneOf": [{"const": "auto"}, {"type": "number", "minimum": -0.5, "maximum": 0.5}]

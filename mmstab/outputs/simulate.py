@@ -31,6 +31,7 @@ from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.tracking.simulation import settings_for_path
 from mmstab.stability.drive import resolve_turn_ratio
+from mmstab.stability.support import is_heightmap
 
 
 def loop_settings(problem: Problem) -> LoopSettings:
@@ -51,9 +52,24 @@ def loop_settings(problem: Problem) -> LoopSettings:
         arm=str(s["arm"]),
         turn_ratio=s["turn_ratio"] if s["turn_ratio"] == "auto" else float(s["turn_ratio"]),
         governor=None if s["governor"] is None else GovernorSettings(**s["governor"]),
-        suspension_travel=float(s["suspension_travel"]),
+        suspension_travel=suspension_travel(problem),
         pivot_centre=s["pivot_centre"] if s["pivot_centre"] == "auto" else float(s["pivot_centre"]),
     )
+
+
+def suspension_travel(problem: Problem) -> float:
+    """``physics.suspension_travel`` [m]; ``auto``: the support mmstab assumes on this ground.
+
+    On a heightmap the tracks' bottom runs bear load within ``terrain.compliance`` of the
+    ground, so MuJoCo's wheels may drop that far below their stops; on a plane the support
+    is the rigid track rectangle: stiff wheels (0).
+    """
+    value = problem.section("physics")["suspension_travel"]
+    if value != "auto":
+        return float(value)
+    settings = getattr(problem.terrain, "settings", None)
+    compliance = getattr(settings, "compliance", None)
+    return 0.0 if compliance is None or not is_heightmap(problem.terrain) else float(compliance)
 
 
 def controller_settings(problem: Problem) -> ControllerSettings:

@@ -84,7 +84,8 @@ class LoopSettings:
         governor: the reference waits for a base that falls behind
             (:mod:`mmstab.physics.governor`); None: the reference runs on time.
         suspension_travel: how far each road wheel may drop below its bump stop [m]
-            (:class:`~mmstab.physics.robot_model.ModelSettings`; 0: stiff wheels).
+            (:class:`~mmstab.physics.robot_model.ModelSettings`; 0: stiff wheels; a
+            problem's ``auto``: :func:`mmstab.outputs.simulate.suspension_travel`).
         pivot_centre: where a route's pivots turn: ``auto``, about the skid model's pivot
             centre for the plan's CoM there (:mod:`mmstab.control.pivot`), or a distance
             ahead of B's origin [m] (0: about the origin, as the planned route).

@@ -102,3 +102,28 @@ def test_with_travel_the_ramp_still_tips_at_the_rigid_prediction(setting, off_de
     state = sim.step((0.0, 0.0), None, 2.0)
     tilt = np.degrees(np.arccos(np.clip(state.G_T_B[:3, 2] @ ramp.G_T_M()[:3, 2], -1, 1)))
     assert tilt > 10.0 if tips else tilt < 2.0
+
+
+def test_the_travel_by_default_is_the_support_mmstab_assumes_on_that_ground():
+    """``physics.suspension_travel: auto`` (the default): the terrain's compliance on a
+    heightmap, stiff wheels on a plane (mmstab's support there is the track rectangle);
+    a number is kept; anything else is refused at the boundary."""
+    import copy
+
+    from mmstab.core.files import MmstabError
+    from mmstab.core.problem import load_problem, problem_from_dict
+    from mmstab.outputs.simulate import loop_settings
+
+    ramp, ditch = load_problem(PROBLEMS / "ramp.yaml"), load_problem(PROBLEMS / "ditch.yaml")
+    assert ditch.section("physics")["suspension_travel"] == "auto"
+    assert loop_settings(ditch).suspension_travel == ditch.terrain.settings.compliance == 0.02
+    assert loop_settings(ramp).suspension_travel == 0.0
+    for terrain, travel in (({**ditch.data["terrain"], "compliance": 0.005}, "auto"),
+                            (ditch.data["terrain"], 0.01)):  # fmt: skip
+        data = copy.deepcopy(ditch.data)
+        data["terrain"], data["physics"] = terrain, {"suspension_travel": travel}
+        got = loop_settings(problem_from_dict(data, ditch.path)).suspension_travel
+        assert got == (0.005 if travel == "auto" else 0.01)
+    data = {**copy.deepcopy(ditch.data), "physics": {"suspension_travel": "stiff"}}
+    with pytest.raises(MmstabError, match="suspension_travel"):
+        problem_from_dict(data, ditch.path).section("physics")
