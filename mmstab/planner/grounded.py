@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Generator
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -136,10 +136,18 @@ def shortcut_above(
 
 
 def shortcut_above_steps(
-    robot: Robot, roadmap: Roadmap, checker: CollisionChecker, q: FloatArray, ground: float | None
+    robot: Robot,
+    roadmap: Roadmap,
+    checker: CollisionChecker,
+    q: FloatArray,
+    ground: float | None,
+    memo: dict[Any, bool] | None = None,
 ) -> Generator[None, None, FloatArray]:
-    """:func:`shortcut_above` of postures q (n, 4) [rad], ``ground`` [m], a cut at a time."""
-    short = yield from roadmap.shortcut_steps(checker, q)
+    """:func:`shortcut_above` of postures q (n, 4) [rad], ``ground`` [m], a cut at a time.
+
+    ``memo``: the cuts tested before (``Roadmap.shortcut_steps``).
+    """
+    short = yield from roadmap.shortcut_steps(checker, q, memo=memo)
     if ground is None or stays_above(robot, roadmap, short, ground):
         return short
     return np.atleast_2d(np.asarray(q, dtype=float)).copy()

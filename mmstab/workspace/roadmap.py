@@ -195,18 +195,29 @@ class Roadmap:
         return drain(self.shortcut_steps(checker, q, clearance))
 
     def shortcut_steps(
-        self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE
+        self,
+        checker: CollisionChecker,
+        q: ArrayLike,
+        clearance: float = MOVE_CLEARANCE,
+        memo: dict[Any, bool] | None = None,
     ) -> Generator[None, None, FloatArray]:
         """:meth:`shortcut`, a step at a time: it yields after each cut it tests.
 
         Returns the same path; a caller may spread the tests over time (:func:`drain`).
+        ``memo``: the straight moves tested by earlier calls with the same ``checker``
+        (the caller's; paths that share postures test the same cuts).
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
+        memo = {} if memo is None else memo
 
         def ok(a: FloatArray, b: FloatArray) -> bool:
-            if clearance <= 0:
-                return self.move_is_free(checker, a, b)
-            return self.move_is_clear(checker, a, b, clearance)
+            key = (a.tobytes(), b.tobytes(), clearance)
+            if key not in memo:
+                if clearance <= 0:
+                    memo[key] = self.move_is_free(checker, a, b)
+                else:
+                    memo[key] = self.move_is_clear(checker, a, b, clearance)
+            return memo[key]
 
         keep, i = [0], 0
         while i < len(qa) - 1:

@@ -319,3 +319,39 @@ def test_nodes_found_too_low_are_masked_for_the_next_moves_between_the_same_pose
         if dipped >= 4 and straight >= 4:
             break
     assert dipped >= 4 and straight >= 4 and len(known) > 0
+
+
+def test_sweeps_and_cuts_kept_between_calls_give_the_answers_computed_afresh(robot, small):
+    """A move's reroutes keep the segments swept at its poses and the cuts tested: paths
+    that share postures (and one of no length) get the answers of fresh calls."""
+    from mmstab.core.steps import drain
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.planner.searches.roadmap.moves import _path_nodes
+
+    terrain = _map(robot, "kerb")
+    under = GroundUnderArm(robot, terrain, np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.2]]))
+    rng = np.random.default_rng(11)
+    checker = CollisionChecker(robot)
+    swept: dict = {}
+    cuts: dict = {}
+    low = paths = 0
+    for a, b in rng.choice(np.flatnonzero(small.node_ground >= GROUND), (300, 2)):
+        plain = _path_nodes(small, int(a), int(b), None, GROUND)
+        if plain is None or len(plain) < 3:
+            continue
+        paths += 1
+        q = small.nodes_q[plain]
+        q = np.vstack([q[:2], q[1:]])  # a posture twice: a segment of no length
+        for part in (q, q[: max(2, len(q) // 2)], q[len(q) // 3 :]):  # shared postures
+            fresh = under.sweep_clear((0, 1), part, small.reach, GROUND)
+            kept = under.sweep_clear((0, 1), part, small.reach, GROUND, swept)
+            for f, k in zip(fresh, kept, strict=True):
+                np.testing.assert_array_equal(k, f)
+            low += int((~fresh[0]).sum() + (~fresh[1]).sum())
+            np.testing.assert_array_equal(
+                drain(small.shortcut_steps(checker, part, memo=cuts)),
+                small.shortcut(checker, part),
+            )
+        if low >= 3 and paths >= 10:
+            break
+    assert low >= 3 and paths >= 10

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -376,7 +376,12 @@ class GroundUnderArm:
         return np.asarray(self.poses[k].heights(b, ground) >= ground - SLACK)
 
     def sweep_clear(
-        self, ks: tuple[int, ...], q: ArrayLike, reach: FloatArray, ground: float
+        self,
+        ks: tuple[int, ...],
+        q: ArrayLike,
+        reach: FloatArray,
+        ground: float,
+        memo: dict[Any, Any] | None = None,
     ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Whether the polyline of postures q (n, 4) [rad] keeps the arm ``ground`` [m] up.
 
@@ -384,24 +389,41 @@ class GroundUnderArm:
         between samples (``reach`` (4,) [m]: the bound Σ_j reach_j |Δq_j|). Returns per
         posture (n,) and per segment (n − 1,) whether it does. With a ``margin`` the
         pieces over the plane are checked here too (the plane check does not know it).
+        ``memo``: the answers of earlier calls with the same ``ks`` and ``ground`` (the
+        caller's, kept between them): a segment seen before is not sampled again. A
+        posture's answer is its segment's last sample's, so the answers are the same.
         """
         qa = np.atleast_2d(np.asarray(q, dtype=float))
-        parts, seg = [qa[:1]], [np.array([-1])]
-        for i, (a, b) in enumerate(zip(qa[:-1], qa[1:], strict=True)):
-            n = int(np.ceil(float(reach @ np.abs(b - a)) / SWEEP))
-            parts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
-            seg.append(np.full(n, i))
-        samples, of = np.vstack(parts), np.concatenate(seg)
-        body = self.body(samples)
-        plane = self.margin == 0.0
-        ok = np.all(
-            [self.poses[k].heights(body, ground, plane) >= ground - SLACK for k in ks], axis=0
-        )
-        ends = np.r_[0, np.cumsum([len(x) for x in parts])[1:] - 1]  # the postures' samples
-        bad = of[~ok]
-        seg_ok = np.ones(len(qa) - 1, dtype=bool)
-        seg_ok[bad[bad >= 0]] = False
-        return ok[ends], seg_ok
+        memo = {} if memo is None else memo
+        keys = [qa[0].tobytes()] + [
+            (a.tobytes(), b.tobytes()) for a, b in zip(qa[:-1], qa[1:], strict=True)
+        ]
+        todo = [i for i, key in enumerate(keys) if key not in memo]
+        if todo:
+            parts, seg = [], []
+            for i in todo:  # 0: the first posture; i: segment i - 1, ending at posture i
+                if i == 0:
+                    parts.append(qa[:1])
+                    seg.append(np.array([0]))
+                    continue
+                a, b = qa[i - 1], qa[i]
+                n = max(int(np.ceil(float(reach @ np.abs(b - a)) / SWEEP)), 1)
+                parts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+                seg.append(np.full(n, i))
+            samples, of = np.vstack(parts), np.concatenate(seg)
+            body = self.body(samples)
+            plane = self.margin == 0.0
+            ok = np.all(
+                [self.poses[k].heights(body, ground, plane) >= ground - SLACK for k in ks],
+                axis=0,
+            )
+            last = np.cumsum([len(x) for x in parts]) - 1
+            for j, i in enumerate(todo):  # (the whole segment clears, its end clears)
+                memo[keys[i]] = (bool(ok[of == i].all()), bool(ok[last[j]]))
+        answers = [memo[key] for key in keys]
+        node_ok = np.array([answers[0][1]] + [a[1] for a in answers[1:]], dtype=bool)
+        seg_ok = np.array([a[0] for a in answers[1:]], dtype=bool)
+        return node_ok, seg_ok
 
 
 class KeptPieces:

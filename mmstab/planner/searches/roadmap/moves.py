@@ -360,10 +360,14 @@ def ground_move_steps(
     def cut(m: frozenset[int]) -> Generator[None, None, FloatArray]:
         if len(tries[m]) < 2:
             q = roadmap.nodes_q[tries[m][0]]
-            tries[m].append((yield from shortcut_above_steps(robot, roadmap, checker, q, ground)))
+            cut_q = yield from shortcut_above_steps(robot, roadmap, checker, q, ground, cuts)
+            tries[m].append(cut_q)
         return tries[m][1]
 
     masked: frozenset[int] = frozenset()
+    # this move's segments checked at ks and cuts tested (a reroute's path repeats most)
+    swept: dict[Any, Any] = {}
+    cuts: dict[Any, bool] = {}
     nodes = yield from path(masked)
     if under is None or ground is None or nodes is None:
         return None if nodes is None else (yield from cut(masked))
@@ -371,9 +375,9 @@ def ground_move_steps(
         q = roadmap.nodes_q[nodes]
         short = yield from cut(masked)
         same = len(short) == len(q) and np.array_equal(short, q)
-        if not same and under.sweep_clear(ks, short, roadmap.reach, ground)[1].all():
+        if not same and under.sweep_clear(ks, short, roadmap.reach, ground, swept)[1].all():
             return short  # the cut clears the ground: the path it cut is not needed
-        node_ok, seg_ok = under.sweep_clear(ks, q, roadmap.reach, ground)
+        node_ok, seg_ok = under.sweep_clear(ks, q, roadmap.reach, ground, swept)
         if seg_ok.all() and node_ok.all():
             return q
         low = {int(n) for n in nodes[~node_ok]}
