@@ -103,12 +103,14 @@ def write_run(path: str | os.PathLike[str], robot: Robot, frames: RunFrames, mu_
             t = float(t)
             w.write("/joint_states", TOPICS["/joint_states"], t,
                     _joint_state(store, ros1, t, names, frames.q[i]))  # fmt: skip
-            transforms = [transform_stamped(store, ros1, t, ODOM, BASE, frames.G_T_B[i])]
-            transforms += [
-                transform_stamped(store, ros1, t, BASE, f"arm_frame_{j}", B_T_R[i, j])
-                for j in range(len(names))
-            ]
-            w.write("/tf", TOPICS["/tf"], t, store.types[TOPICS["/tf"]](transforms=transforms))
+            if np.isfinite(frames.G_T_B[i]).all():  # no pose where the ground was unknown
+                transforms = [transform_stamped(store, ros1, t, ODOM, BASE, frames.G_T_B[i])]
+                transforms += [
+                    transform_stamped(store, ros1, t, BASE, f"arm_frame_{j}", B_T_R[i, j])
+                    for j in range(len(names))
+                ]
+                tf = store.types[TOPICS["/tf"]](transforms=transforms)
+                w.write("/tf", TOPICS["/tf"], t, tf)
             w.write("/mu", TOPICS["/mu"], t, store.types[TOPICS["/mu"]](data=float(frames.mu[i])))
             if len(frames.polygons[i]):
                 marker = _polygon(store, ros1, t, frames.polygons[i], frames.mu[i], mu_max)

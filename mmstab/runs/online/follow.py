@@ -232,7 +232,9 @@ class Follower:
         self.cpu_time = cpu
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
         flags: tuple[str, ...] = ()
-        if covered:  # for the run's recording, outside the timed update
+        # for the run's recording, outside the timed update; the state under its own CoM may
+        # rest on an unknown cell where the bound robot's CoM did not (its row NaN above)
+        if covered and np.isfinite(rests.G_T_B[len(P)]).all():
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
             G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
         return FollowStep(
