@@ -351,11 +351,13 @@ bench-node: ros
 
 ## latency per map of mmstab follow (one core) beside the offline planner -> results/bench/online.json;
 ## the same route with the arm kept clear through 12 deg of body tilt (a heightmap route's default
-## margin; rough.yaml names none) -> results/bench/online_margin.json
+## margin; rough.yaml names none) -> results/bench/online_margin.json; the 48 routes of
+## make validate-routes (user-like ground), each recorded and followed -> online_routes.json
 bench-online: setup
 	$(PY) benchmarks/bench_online.py problems/rough.yaml --recording results/online/rough.mcap
 	$(PY) benchmarks/bench_online.py problems/rough.yaml --recording results/online/rough.mcap \
 	  --attitude-margin 0.21 --out results/bench/online_margin.json
+	$(PY) benchmarks/bench_online_routes.py
 
 kerb: setup
 	$(MMSTAB) plan problems/kerb.yaml -o results/kerb/plan --allow-unstable --allow-sliding

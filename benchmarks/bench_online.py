@@ -1,7 +1,9 @@
 """Benchmark: the online loop's latency per map beside the offline planner.
 
 Usage: ``python benchmarks/bench_online.py [PROBLEM.yaml] [--recording FILE] [--repeats N]
-[--attitude-margin RAD] [--out FILE]``; writes ``results/bench/online.json``. The recording
+[--attitude-margin RAD] [--validation-route K] [--out FILE]``; writes
+``results/bench/online.json``. ``--validation-route K``: route K of ``make validate-routes``
+(user-like ground: ditches, kerbs, bumps) instead of a problem file. The recording
 (``mmstab record``, written if missing) is followed ``repeats`` times on one core (the
 process pinned to one CPU, BLAS threads 1); per map: the update's wall time (rest of the
 robot, its reference and the horizon on the map, re-plan of the poses whose ground changed,
@@ -31,6 +33,7 @@ import copy
 import gc
 import os
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -50,6 +53,8 @@ from mmstab.runs.online.replan_jobs import Jobs  # noqa: E402
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon  # noqa: E402
 from mmstab.runs.online.run import follow_recording, summarize  # noqa: E402
 from mmstab.workspace import load_or_build_workspace  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: Seconds the garbage collector ran, in total and during each update of the current run.
 GC_TOTAL, GC_PER_UPDATE = [0.0, 0.0], []  # [total, the running pass's start]
@@ -175,19 +180,51 @@ def latency_stats(latency_s: np.ndarray) -> dict[str, float]:
     }
 
 
+def validation_route(k: int) -> str:
+    """Route ``k`` of ``make validate-routes`` written as a problem file (a temporary folder)."""
+    import tempfile
+
+    import yaml
+
+    sys.path.insert(0, str(ROOT))
+    from experiments.validate_routes import load_settings, route_problem
+
+    data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), k)
+    path = Path(tempfile.mkdtemp(prefix="mmstab-bench-")) / f"route{k:02d}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
 def main() -> None:
     """Follow the recording ``--repeats`` times, plan offline beside it, write the JSON."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("problem", nargs="?", default="problems/rough.yaml")
-    ap.add_argument("--recording", default="results/online/rough.mcap")
+    ap.add_argument(
+        "--recording", help="default: results/online/rough.mcap; a validation route's: its own"
+    )
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default="results/bench/online.json")
     ap.add_argument(
         "--attitude-margin", type=float, help="planner.attitude_margin [rad] instead of the file's"
     )
+    ap.add_argument(
+        "--validation-route",
+        type=int,
+        help="route K of make validate-routes (problems/validate_routes.yaml) instead of PROBLEM",
+    )
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    name = args.problem
+    if args.validation_route is not None:
+        args.problem = validation_route(args.validation_route)
+        name = f"problems/validate_routes.yaml route {args.validation_route}"
+    if args.recording is None:
+        args.recording = (
+            "results/online/rough.mcap"
+            if args.validation_route is None
+            else str(Path(args.problem).with_suffix(".mcap"))  # recorded here, not kept
+        )
     problem = load_problem(args.problem)
     if args.attitude_margin is not None:  # as a file naming it would plan
         data = copy.deepcopy(problem.data)
@@ -218,7 +255,7 @@ def main() -> None:
         offline_pose.append(float(np.median(off.search_seconds)))
     lat = [r["latency_ms"] for r in runs]
     result = {
-        "problem": args.problem,
+        "problem": name,
         "attitude_margin": problem.section("planner")["attitude_margin"],
         "recording": str(rec),
         "updates": runs[0]["updates"],
