@@ -267,7 +267,7 @@ def without_nodes(graph: csr_matrix, nodes: frozenset[int]) -> csr_matrix:
     """
     keep = np.ones(graph.shape[0], dtype=bool)
     keep[np.fromiter(nodes, dtype=np.intp, count=len(nodes))] = False
-    nnz = int(graph.indptr[-1])  # the arrays may hold more (duplicates summed at the build)
+    nnz = int(graph.indptr[-1])  # a csr_matrix's arrays may be longer than its entries
     indices, data = graph.indices[:nnz], graph.data[:nnz]
     edge = np.repeat(keep, np.diff(graph.indptr)) & keep[indices]
     # copies: eliminate_zeros compacts indices and indptr in place, and a csr_matrix made
