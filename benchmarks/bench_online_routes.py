@@ -16,21 +16,15 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
-import tempfile
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-import yaml  # noqa: E402
+from bench_online import validation_route  # noqa: E402
 from common import machine_info  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from experiments.validate_routes import load_settings, route_problem  # noqa: E402
 from mmstab.core.files import write_json  # noqa: E402
 from mmstab.core.problem import load_problem  # noqa: E402
 from mmstab.outputs.recording import record_route  # noqa: E402
@@ -39,10 +33,9 @@ from mmstab.runs.online.run import follow_recording  # noqa: E402
 TARGET_P99_MS = 10.0
 
 
-def route_latency(settings: dict, k: int, folder: Path) -> dict:
+def route_latency(k: int) -> dict:
     """Route ``k`` recorded and followed: its per-map latency without the first map [ms]."""
-    path = folder / f"route{k:02d}.yaml"
-    path.write_text(yaml.safe_dump(route_problem(settings, k)))
+    path = Path(validation_route(k))
     problem = load_problem(path)
     rec = path.with_suffix(".mcap")
     record_route(problem, rec)
@@ -66,9 +59,7 @@ def main() -> None:
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    settings = load_settings(ROOT / "problems" / "validate_routes.yaml")
-    folder = Path(tempfile.mkdtemp(prefix="mmstab-bench-"))
-    routes = [route_latency(settings, k, folder) for k in range(args.routes)]
+    routes = [route_latency(k) for k in range(args.routes)]
     p99 = [r["p99"] for r in routes]
     result = {
         "settings": "problems/validate_routes.yaml",

@@ -67,9 +67,9 @@ def suspension_travel(problem: Problem) -> float:
     value = problem.section("physics")["suspension_travel"]
     if value != "auto":
         return float(value)
-    settings = getattr(problem.terrain, "settings", None)
-    compliance = getattr(settings, "compliance", None)
-    return 0.0 if compliance is None or not is_heightmap(problem.terrain) else float(compliance)
+    if not is_heightmap(problem.terrain):
+        return 0.0
+    return float(problem.terrain.settings.compliance)  # type: ignore[attr-defined]
 
 
 def controller_settings(problem: Problem) -> ControllerSettings:

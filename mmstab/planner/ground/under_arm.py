@@ -400,28 +400,26 @@ class GroundUnderArm:
         ]
         todo = [i for i, key in enumerate(keys) if key not in memo]
         if todo:
-            parts, seg = [], []
+            parts = []
             for i in todo:  # 0: the first posture; i: segment i - 1, ending at posture i
                 if i == 0:
                     parts.append(qa[:1])
-                    seg.append(np.array([0]))
                     continue
                 a, b = qa[i - 1], qa[i]
                 n = max(int(np.ceil(float(reach @ np.abs(b - a)) / SWEEP)), 1)
                 parts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
-                seg.append(np.full(n, i))
-            samples, of = np.vstack(parts), np.concatenate(seg)
-            body = self.body(samples)
+            body = self.body(np.vstack(parts))
             plane = self.margin == 0.0
             ok = np.all(
                 [self.poses[k].heights(body, ground, plane) >= ground - SLACK for k in ks],
                 axis=0,
             )
-            last = np.cumsum([len(x) for x in parts]) - 1
+            ends = np.cumsum([len(x) for x in parts])
+            whole = np.logical_and.reduceat(ok, np.r_[0, ends[:-1]])  # every part non-empty
             for j, i in enumerate(todo):  # (the whole segment clears, its end clears)
-                memo[keys[i]] = (bool(ok[of == i].all()), bool(ok[last[j]]))
+                memo[keys[i]] = (bool(whole[j]), bool(ok[ends[j] - 1]))
         answers = [memo[key] for key in keys]
-        node_ok = np.array([answers[0][1]] + [a[1] for a in answers[1:]], dtype=bool)
+        node_ok = np.array([a[1] for a in answers], dtype=bool)  # posture 0's: its own sample
         seg_ok = np.array([a[0] for a in answers[1:]], dtype=bool)
         return node_ok, seg_ok
 
