@@ -7,6 +7,8 @@
   (the default backend);
 - :mod:`~mmstab.terrain.rest.numpy_path` on :mod:`~mmstab.terrain.rest.geometry`: the
   NumPy path, the kernel's independent twin;
+- :mod:`~mmstab.terrain.rest.polish`: the poses the rounds did not settle, taken to the
+  minimum of the CoM's height;
 - :mod:`~mmstab.terrain.rest.result`: attitudes into :class:`RestPoses`, off-map errors.
 """
 

@@ -27,7 +27,9 @@ gravity line of the CoM passes through their triangle: the quasi-static rest tha
 explicit tipping about support edges reaches (as Oehler & von Stryk's contact estimation
 for tracked robots). On a plane it is exact in a few rounds. Long steps are shortened so
 the rest is approached from one side (an overshoot could tip a marginally stable robot);
-a roll or pitch beyond ``max_tilt`` means the robot tips over.
+a roll or pitch beyond ``max_tilt`` means the robot tips over. Where a contact on a kerb's
+edge or a ditch's rim makes the rounds cycle and stop short, the pose is taken to the
+minimum of the CoM's height instead (:mod:`mmstab.terrain.rest.polish`).
 
 **Speed.** The first rounds use a sparse subset of the candidates; the rounds after that
 use each pose's highest candidates only, checked against all at the end, with a re-solve
@@ -51,6 +53,7 @@ from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.rest.geometry import coarse_subset, footprint_corners
 from mmstab.terrain.rest.kernel import KernelRests, rest_kernel
 from mmstab.terrain.rest.numpy_path import numpy_rests
+from mmstab.terrain.rest.polish import polish
 from mmstab.terrain.rest.result import raise_off_map, rest_result
 from mmstab.terrain.rest.types import RestPoses, RestSettings
 
@@ -98,6 +101,10 @@ def rest_poses(
         )
     else:
         raise ValueError(f"RestSettings.backend: {settings.backend!r} is not 'c' or 'numpy'")
+    if settings.polish:  # the rows the rounds did not settle: V's minimum (polish.py)
+        att, f, converged, tips = polish(
+            heightmap, c, com, p, att, f, valid, converged, tips, settings
+        )
     if strict and not valid.all():
         raise_off_map(heightmap, c, p[:, :2], p[:, 2], att, valid)
     return rest_result(c, p, att, f, valid, converged, tips, iterations, part, settings, compliant)

@@ -27,11 +27,9 @@ class RestSettings(NamedTuple):
             robot up. Other candidates (arcs, flippers, chassis) carry load only when they
             touch. On a plane the bottom runs all touch, so the support is the ramp's.
         line_width: touching contacts within this of one line are a line contact [m].
-        cycle_tol: a rest that did not settle (its Newton steps cycle between two supporting
-            triangles: a contact on a ditch's rim or a kerb's edge, where the ground's slope
-            jumps under it, with the damped steps frozen within a fraction of a degree) is
-            carried by every candidate within this of the highest lift [m]: the triangles it
-            rocks between.
+        cycle_tol: a rest that neither the rounds nor the polish settled is carried by
+            every candidate within this of the highest lift [m]: the triangles it rocks
+            between.
         approach: Newton steps longer than this [rad] are shortened ...
         approach_factor: ... by this factor (approach the rest without overshooting it).
         coarse_spacing: the first rounds use candidates this far apart [m] ...
@@ -43,6 +41,8 @@ class RestSettings(NamedTuple):
             ``tol_step``).
         active_tol: a left-out candidate higher than the subset's highest by more than
             this [m] sends the pose to another pass.
+        polish: take the rows the rounds did not settle to the potential energy's minimum
+            (:mod:`mmstab.terrain.rest.polish`); ``False``: leave them as the rounds end.
         backend: ``"c"`` the compiled kernel (:mod:`mmstab.terrain.rest.kernel`, the default),
             ``"numpy"`` the vectorised NumPy path here: the same algorithm, kept as its
             independent twin (the tests hold one against the other).
@@ -63,6 +63,7 @@ class RestSettings(NamedTuple):
     active_candidates: int = 24
     final_step: float = 1e-6
     active_tol: float = 1e-10
+    polish: bool = True
     backend: str = "c"
 
 
