@@ -87,9 +87,9 @@ def test_a_ditch_between_two_planned_poses_is_found(robot):
 
 
 def test_the_ditchs_nose_down_sample_is_priced_at_the_time_law(robot):
-    """At friction 0.7 one sample (s = 0.70 m) pitches 41.0 deg nose down: beyond the cone
-    (35.0 deg) by 6 deg, 1.26 m/s^2 of excess. Passed at 0.25 m/s it costs 2.5 cm while on it
-    and a 0.8 cm coast on the 15 deg slope after: it holds; at 0.1 m/s 15.8 cm: it slides."""
+    """At friction 0.7 one sample (s = 0.70 m) pitches 40.6 deg nose down: beyond the cone
+    (35.0 deg) by 5.6 deg, 1.17 m/s^2 of excess. Passed at 0.25 m/s it costs 2.3 cm while on it
+    and a 0.7 cm coast on the 15 deg slope after: it holds; at 0.1 m/s it slides."""
     from mmstab.runs.along import ConeTiming
 
     terrain = HeightmapTerrain(ditch_ground(np.random.default_rng(7))).with_robot(robot)
@@ -98,7 +98,7 @@ def test_the_ditchs_nose_down_sample_is_priced_at_the_time_law(robot):
     poses = np.c_[-0.8 + s, np.full_like(s, -0.8), np.zeros_like(s)]
     along = along_path(robot, terrain, poses, s, np.array([0.0, 1.6]), np.tile(stowed, (2, 1)))
     beyond = np.flatnonzero(along.tilt > np.arctan(0.7))
-    assert beyond.tolist() == [14] and np.degrees(along.tilt[14]) == pytest.approx(41.04, abs=0.01)
+    assert beyond.tolist() == [14] and np.degrees(along.tilt[14]) == pytest.approx(40.59, abs=0.01)
     g, th, nxt = 9.81, along.tilt[14], along.tilt[15]
     a, d = g * (np.sin(th) - 0.7 * np.cos(th)), g * (0.7 * np.cos(nxt) - np.sin(nxt))
     fast = dense_verdicts(terrain, along, 0.0, timing=ConeTiming(s / 0.25, 0.05, 1.0))["slide"]
@@ -108,11 +108,11 @@ def test_the_ditchs_nose_down_sample_is_priced_at_the_time_law(robot):
     assert passed["duration_s"] == pytest.approx(0.2)
     want = 0.5 * a * 0.2**2 + (a * 0.2) ** 2 / (2 * d)  # the pass, then its coast to a stop
     assert passed["slide_m"] == pytest.approx(want, rel=1e-9)
-    assert 0.032 < want < 0.05
+    assert 0.029 < want < 0.05
     slow = dense_verdicts(terrain, along, 0.0, timing=ConeTiming(s / 0.1, 0.05, 1.0))["slide"]
     assert slow["binds"] and slow["passed"] == []
     (stretch,) = slow["stretches"]
-    assert stretch["slide_m"] > 0.5 * a * 0.5**2 > 0.15 and stretch["duration_s"] == pytest.approx(
+    assert stretch["slide_m"] > 0.5 * a * 0.5**2 > 0.14 and stretch["duration_s"] == pytest.approx(
         0.5
     )
     # stopped on it (the route's end there): it slides however fast it came
@@ -122,26 +122,40 @@ def test_the_ditchs_nose_down_sample_is_priced_at_the_time_law(robot):
     assert stop["binds"] and stop["stretches"][0]["slide_m"] is None  # at rest: no bound
 
 
-def test_a_rest_that_cycles_on_the_rim_is_carried_by_both_triangles(robot):
-    """The track run's state at the far rim: the steps cycle between two triangles."""
+def test_a_rest_that_cycles_on_the_rim_settles_at_the_energy_minimum(robot):
+    """The track run's state at the far rim: the Newton rounds cycle between two triangles;
+    the polish settles it at the CoM's lowest attitude, standing on both rims."""
+    from mmstab.terrain.rest.polish import energy
+
     terrain = HeightmapTerrain(ditch_ground(np.random.default_rng(7))).with_robot(robot)
     pose = np.array([-0.05145186, -0.81029017, 0.19739475])
     q = np.array([1.48695085, -0.19979983, 0.24162407, -0.25352201])
     com = robot.overall_com(robot.arm_com(q))
     for backend in ("c", "numpy"):
-        ground = HeightmapTerrain(
-            terrain.heightmap, settings=RestSettings(backend=backend)
-        ).with_robot(robot)
-        r = ground.rest(pose, com_body=com)
-        assert not r.converged[0] and not r.tips_over[0]
-        front = r.bearing[0] & (ground.candidates.points[:, 0] > 0.2)
+        rounds, polished = (
+            HeightmapTerrain(
+                terrain.heightmap, settings=RestSettings(backend=backend, polish=polish)
+            ).with_robot(robot)
+            for polish in (False, True)
+        )
+        r0, r = rounds.rest(pose, com_body=com), polished.rest(pose, com_body=com)
+        assert not r0.converged[0] and not r0.tips_over[0]  # the rounds cycle
+        assert r.converged[0] and not r.tips_over[0]
+        front = r.bearing[0] & (polished.candidates.points[:, 0] > 0.2)
         assert front.any()  # the far rim carries load, not only the near rim's wheels
-        mu = loaded_support(robot, ground, pose, robot.arm_com(q)).mu[0]
-        assert 0 < mu < 100  # balanced across the rim: positive, and small
-    # without the cycle's contacts the near rim alone would say it tips (a false verdict)
-    rigid = HeightmapTerrain(terrain.heightmap, settings=RestSettings(cycle_tol=0.0)).with_robot(
-        robot
-    )
+        hm, c = terrain.heightmap, polished.candidates.points
+        v0, v = (
+            float(energy(hm, c, com, pose, np.array([[x.roll[0], x.pitch[0]]]))[0]) for x in (r0, r)
+        )
+        assert v < v0  # lower than where the rounds stopped
+        mu = loaded_support(robot, polished, pose, robot.arm_com(q)).mu[0]
+        assert mu > 100  # held on both rims
+        # where the rounds stop, the cycle's contacts balance it (small, positive); without
+        # them the near rim alone would say it tips (a false verdict)
+        assert 0 < loaded_support(robot, rounds, pose, robot.arm_com(q)).mu[0] < 100
+    rigid = HeightmapTerrain(
+        terrain.heightmap, settings=RestSettings(cycle_tol=0.0, polish=False)
+    ).with_robot(robot)
     assert loaded_support(robot, rigid, pose, robot.arm_com(q)).mu[0] < 0
 
 
