@@ -24,8 +24,11 @@ stays unsettled.
 
 from __future__ import annotations
 
+from itertools import combinations
+
 import numpy as np
 from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.rest.geometry import heights, jacobian, lift, rotations
@@ -55,6 +58,95 @@ def energy(
     return np.where(valid, f.max(axis=1) + R[:, 2, :] @ com, np.inf)
 
 
+#: Pieces above which :func:`box_minimax` hands the programme to HiGHS (the vertices grow as
+#: the cube of the pieces; HiGHS costs about a millisecond a call whatever their number).
+MAX_PIECES = 32
+#: The index triples of m pieces, m <= MAX_PIECES.
+TRIPLES = {
+    m: np.array(list(combinations(range(m), 3)), dtype=int).reshape(-1, 3)
+    for m in range(MAX_PIECES + 1)
+}
+
+
+def upper_hull(J: FloatArray, a: FloatArray) -> BoolArray:
+    """(K,) the pieces ``a_k + J_k . d`` that are the largest at some d: upper-hull vertices.
+
+    The largest piece at d maximises ``(d, 1) . (J_k, a_k)``, so it is a vertex of a facet of
+    the points' hull whose normal points up; a degenerate set (Qhull cannot build its hull:
+    fewer than 5 points, or all on a plane) keeps every piece.
+    """
+    keep = np.ones(len(a), dtype=bool)
+    if len(a) < 5:
+        return keep
+    try:
+        hull = ConvexHull(np.c_[J, a])
+    except QhullError:
+        return keep
+    keep[:] = False
+    keep[np.unique(hull.simplices[hull.equations[:, 2] > 0])] = True
+    return keep
+
+
+def box_minimax(
+    a: FloatArray, J: FloatArray, g: FloatArray, delta: float
+) -> tuple[FloatArray, float]:
+    """``min over |d_i| <= delta of max_k (a_k + J_k . d) + g . d``: the step and its value.
+
+    A convex piecewise-linear function of two variables takes its least value over the box at
+    a vertex of its pieces' arrangement: a corner of the box, where two pieces meet on an
+    edge of it, or where three meet. Only pieces that can be the largest somewhere in the box
+    are kept (their range over the box reaches the largest lower bound, and the point
+    ``(J_k, a_k)`` is a vertex of the points' upper hull, :func:`upper_hull`); the vertices
+    are enumerated and the least kept. Beyond :data:`MAX_PIECES` pieces HiGHS solves the linear
+    programme in ``(d, t)`` instead (the test holds one against the other).
+
+    Args:
+        a: (K,) the pieces' values at d = 0 [m].
+        J: (K, 2) their gradients [m/rad].
+        g: (2,) the linear term's gradient [m/rad].
+        delta: the box's half-width [rad] (> 0).
+    """
+    reach = np.abs(J).sum(axis=1) * delta
+    keep = a + reach >= np.max(a - reach) - 1e-15
+    keep &= upper_hull(J, a)
+    a, J = a[keep], J[keep]
+    m = len(a)
+    if m > MAX_PIECES:
+        lp = linprog(
+            [g[0], g[1], 1.0], A_ub=np.c_[J, -np.ones(m)], b_ub=-a,
+            bounds=[(-delta, delta), (-delta, delta), (None, None)], method="highs",
+        )  # fmt: skip
+        return np.asarray(lp.x[:2], dtype=float), float(lp.fun)
+    points = [np.array([[-delta, -delta], [-delta, delta], [delta, -delta], [delta, delta]])]
+    if m > 1:
+        i, j = np.triu_indices(m, 1)
+        n, c = J[i] - J[j], a[j] - a[i]  # the pieces i, j meet on n . d = c
+        for axis in (0, 1):  # ... which crosses the edges d_axis = +-delta
+            other = 1 - axis
+            ok = np.abs(n[:, other]) > 1e-300
+            for side in (-delta, delta):
+                d = np.empty((int(ok.sum()), 2))
+                d[:, axis] = side
+                d[:, other] = (c[ok] - n[ok, axis] * side) / n[ok, other]
+                points.append(d)
+    if m > 2:
+        tri = TRIPLES[m]
+        A = np.stack([J[tri[:, 0]] - J[tri[:, 1]], J[tri[:, 0]] - J[tri[:, 2]]], axis=1)
+        b = np.stack([a[tri[:, 1]] - a[tri[:, 0]], a[tri[:, 2]] - a[tri[:, 0]]], axis=1)
+        det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+        ok = np.abs(det) > 1e-300
+        A, b, det = A[ok], b[ok], det[ok]
+        x = (A[:, 1, 1] * b[:, 0] - A[:, 0, 1] * b[:, 1]) / det  # Cramer's rule
+        y = (A[:, 0, 0] * b[:, 1] - A[:, 1, 0] * b[:, 0]) / det
+        points.append(np.stack([x, y], axis=1))
+    d = np.concatenate(points)
+    d = d[(np.abs(d) <= delta * (1 + 1e-12)).all(axis=1)]
+    d = np.clip(d, -delta, delta)
+    value = (d @ J.T + a).max(axis=1) + d @ g
+    k = int(np.argmin(value))
+    return d[k], float(value[k])
+
+
 def lowest(
     hm: Heightmap, c: FloatArray, com: FloatArray, pose: FloatArray, att: FloatArray
 ) -> tuple[FloatArray, bool]:
@@ -76,16 +168,10 @@ def lowest(
         f, _, grad, ok, m = lift(hm, c, com[None], pose[None, :2], pose[None, 2], a[None])
         z = float(f[0].max())
         J = jacobian(hm, m, pose[None, :2], every)[0]  # (K, 2), the ground's slope included
-        # min over (d, t) of t + g.d with f_k + J_k d <= t and |d_i| <= delta
-        lp = linprog(
-            [grad[0, 0], grad[0, 1], 1.0],
-            A_ub=np.c_[J, -np.ones(len(J))], b_ub=-f[0],
-            bounds=[(-delta, delta), (-delta, delta), (None, None)], method="highs",
-        )  # fmt: skip
-        predicted = z - lp.fun if lp.status == 0 else 0.0
-        if lp.status != 0 or predicted <= FLAT:
+        d, model = box_minimax(f[0], J, grad[0], delta)  # the model's best step in the box
+        predicted = z - model
+        if not predicted > FLAT:
             return a, True
-        d = lp.x[:2]
         v_new = float(energy(hm, c, com, pose, (a + d)[None])[0])
         rho = (v - v_new) / predicted
         if rho > 0.1:
