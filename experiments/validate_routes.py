@@ -11,7 +11,9 @@ ditches and kerbs across the route), each written as a problem file and then
 - **simulated** as ``mmstab simulate`` runs it (the plan's arm, the controller in the loop),
   every route whatever the plan's verdict (a refused one forced, as ``--allow-sliding`` and
   ``--allow-unstable`` would): MuJoCo's outcome, the first of ``tips``, ``leaves the map``,
-  ``slides``, ``stalls`` (the reference gave up waiting: stuck, high-centred) and ``holds``.
+  ``slides``, ``stalls`` (the reference gave up waiting: stuck, high-centred) and ``holds``;
+- with ``track: true``, also **tracked** as ``mmstab track`` tracks it: its verdict
+  (``accepted``, ``tips``, ``slides``, ``arm collision``) beside the plan's and MuJoCo's.
 
 Writes ``summary.json`` (settings, per-route records, the confusion table plan x MuJoCo,
 μ predicted against simulated on the loaded contacts, the tracking errors of the accepted
@@ -65,6 +67,8 @@ SCHEMA = _obj(
               refused_fail_share=_P, accepted_share=_P, slope_limit_deg={"type": "number"}),
     runs_figures={"type": "boolean"},
 )  # fmt: skip
+# optional: also run ``mmstab track`` on each route (its verdict beside the plan's)
+SCHEMA["properties"]["track"] = {"type": "boolean"}
 
 
 def load_settings(path: str | Path) -> dict[str, Any]:
@@ -180,6 +184,10 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         return record | {"plan": "no plan", "plan_exit": PLAN_VERDICTS["no plan"],
                          "plan_error": str(e), "mujoco": None}  # fmt: skip
     assert isinstance(plan, RoutePlan)  # a route's plan
+    if settings.get("track", False):  # mmstab track's verdict on the same plan
+        from mmstab.outputs.tracking import track_verdict
+
+        record["track"] = track_verdict(problem, plan)
     problem = problem.following(plan)  # the route timed with its slowed turns
     margin = Settings.from_problem(problem).verdicts.margin
     s = route_summary(problem, plan, route_risk(plan, margin))
@@ -374,10 +382,29 @@ def summarize_routes(
             for c in ("support lost", "overturned")
         },  # fmt: skip
         "bars": bars(records, settings["bars"]),
+        **({"track": track_agreement(records)} if settings.get("track", False) else {}),
         "seconds": seconds,
         "settings": {k: v for k, v in settings.items() if k != "robot_path"},
         "records": records,
     }
+
+
+def track_agreement(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """``mmstab track``'s verdicts against the plan's and MuJoCo's (routes with a plan).
+
+    ``disagrees``: each route where track's verdict is not the plan's, with MuJoCo's outcome.
+    """
+    from mmstab.outputs.tracking import TRACK_VERDICTS
+
+    both = [r for r in records if "track" in r]
+    return {
+        "routes": len(both),
+        "verdicts": {v: sum(r["track"] == v for r in both) for v in TRACK_VERDICTS},
+        "agrees_with_plan": sum(r["track"] == r["plan"] for r in both),
+        "tips_where_mujoco_tips": sum(r["track"] == "tips" and r["mujoco"] == "tips" for r in both),
+        "disagrees": [{"route": r["route"], "plan": r["plan"], "track": r["track"],
+                       "mujoco": r["mujoco"]} for r in both if r["track"] != r["plan"]],
+    }  # fmt: skip
 
 
 def run_routes(
@@ -407,7 +434,9 @@ def run_routes(
                 records.append(r)
                 print(f"route {r['route']:2d}: slope {r['slope_deg']:4.1f} deg "
                       f"{'ditch ' if r['ditch'] else ''}{'kerb ' if r['kerb'] else ''}"
-                      f"plan {r['plan']}, MuJoCo {r['mujoco']}", flush=True)  # fmt: skip
+                      f"plan {r['plan']}, "
+                      f"{'track ' + r['track'] + ', ' if 'track' in r else ''}"
+                      f"MuJoCo {r['mujoco']}", flush=True)  # fmt: skip
     summary = summarize_routes(settings, records, time.perf_counter() - t0)
     drawn = {str(out / r["figure"]) for r in records if r.get("figure")}
     for old in (out / "runs").glob("route*.png"):  # an earlier run's, of a route run again

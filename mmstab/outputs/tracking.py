@@ -84,8 +84,7 @@ def run_tracking(
         allow_unstable=allow_unstable,
     )
     d = output_dir(out, "tracking")
-    keep = _samples(run, SAVE_EVERY_S)
-    collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
+    keep, collisions, slip = run_checks(problem, run)
     _fig9(d, problem, run)
     _fig10(d, run, collisions["intervals_s"])
     _fig11(d, run)
@@ -95,10 +94,6 @@ def run_tracking(
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
-    arm_com = problem.robot.arm_com(run.state[keep, 5:])
-    slip = slip_verdict(
-        problem.terrain, run.state[keep, :3], turn_check(problem, arm_com, run.t[keep])
-    )
     summary |= {"slip": slip} | route_corners(problem)
     save_settings(
         d,
@@ -112,6 +107,53 @@ def run_tracking(
     )
     write_json(d / "summary.json", summary)
     return summary
+
+
+def run_checks(
+    problem: Problem, run: TrackingRun
+) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any]]:
+    """The verdicts beside ``run.tipped``: the saved samples, arm self-collision, slip.
+
+    Returns:
+        The indices of the samples kept (every ``SAVE_EVERY_S``), the arm self-collision
+        record (``summary.json``'s ``arm_self_collision``) and the slip verdict (``slip``),
+        both checked at those samples.
+    """
+    keep = _samples(run, SAVE_EVERY_S)
+    collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
+    arm_com = problem.robot.arm_com(run.state[keep, 5:])
+    slip = slip_verdict(
+        problem.terrain, run.state[keep, :3], turn_check(problem, arm_com, run.t[keep])
+    )
+    return keep, collisions, slip
+
+
+def track_verdict(problem: Problem, plan: TrackingPlan | None = None) -> str:
+    """``mmstab track``'s verdict on a problem, without its files (one of :data:`TRACK_VERDICTS`).
+
+    As the command decides its exit status: ``tips`` (3: the plan is unstable, or the run
+    tips), else ``slides`` (4), else ``arm collision`` (5), else ``accepted`` (0).
+
+    Args:
+        problem: the problem.
+        plan: its arm plan (:func:`mmstab.app.plan`; made here when None).
+    """
+    from mmstab.core.files import UnstableError
+
+    try:
+        problem, plan, run = track(problem, plan, progress=False, allow_unstable=False)
+    except UnstableError:
+        return "tips"
+    _, collisions, slip = run_checks(problem, run)
+    if run.tipped is not None:
+        return "tips"
+    if slip["slides"]:
+        return "slides"
+    return "accepted" if collisions["verdict"]["safe"] else "arm collision"
+
+
+#: ``mmstab track``'s verdicts, and its exit status for each.
+TRACK_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "arm collision": 5}
 
 
 def _write_arrays(d: Path, plan: TrackingPlan, run: TrackingRun, keep: NDArray[np.int_]) -> None:

@@ -147,6 +147,23 @@ def test_bars_count_a_forced_route_off_the_path_as_failing() -> None:
     assert mu["over"] == [] and mu["of_medians_max"] == pytest.approx(4 / 500)
 
 
+def test_track_agreement_counts_by_hand() -> None:
+    """Three routes with a track verdict (one off the plan's), one without: counted."""
+    from experiments.validate_routes import track_agreement
+
+    records = [
+        {"route": 0, "plan": "accepted", "track": "accepted", "mujoco": "holds"},
+        {"route": 1, "plan": "slides", "track": "tips", "mujoco": "holds"},
+        {"route": 2, "plan": "tips", "track": "tips", "mujoco": "tips"},
+        {"route": 3, "plan": "no plan", "mujoco": None},
+    ]
+    got = track_agreement(records)
+    assert got["routes"] == 3 and got["agrees_with_plan"] == 2
+    assert got["verdicts"] == {"accepted": 1, "tips": 2, "slides": 0, "arm collision": 0}
+    assert got["tips_where_mujoco_tips"] == 1
+    assert got["disagrees"] == [{"route": 1, "plan": "slides", "track": "tips", "mujoco": "holds"}]
+
+
 @pytest.mark.mujoco
 @pytest.mark.slow
 def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
@@ -159,7 +176,7 @@ def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     flat = run_routes(_flat(settings), tmp_path / "flat", [0])
     # route 0 run again without a disagreement: its old figure goes; route 5's stays
     assert not (runs / "route00.png").exists() and (runs / "route05.png").exists()
-    ditch = run_routes(settings, tmp_path / "ditch", [1])
+    ditch = run_routes({**settings, "track": False}, tmp_path / "ditch", [1])
     records = flat["records"] + ditch["records"]
     # the confusion table, recounted from the records
     for s in (flat, ditch):
@@ -177,6 +194,9 @@ def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
     assert f["base_origin_error_max_m"] < 0.10 and f["base_error_max_m"] < 0.10
     assert f["simulated_s"] >= f["route_duration_s"] - 0.01  # the whole route driven
     assert flat["bars"]["accepted_never_fail"]["holds"]
+    assert f["track"] == "accepted"  # mmstab track on the same plan: one answer
+    assert flat["track"]["agrees_with_plan"] == 1 and flat["track"]["disagrees"] == []
+    assert "track" not in ditch["records"][0] and "track" not in ditch
     # the route's plan by `mmstab plan` itself: the same exit status
     problem = tmp_path / "flat" / f["problem"]
     cmd = [sys.executable, "-m", "mmstab", "plan", str(problem), "-o", str(tmp_path / "plan")]
