@@ -29,6 +29,7 @@ from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turret import Window, turret_window
 from mmstab.planner.wrench import with_tool_wrench
 from mmstab.stability.static import mu_max as stowed_flat_mu
+from mmstab.stability.support import loaded_mu
 from mmstab.terrain import Terrain
 
 #: Largest CoM error of a realised target [m] before the fallback to a sample.
@@ -217,7 +218,42 @@ def solve_pose(
         None if polygons is None else polygons[0],
     )
     task = PoseTask(robot, candidates, fitness, settings, rng, starts)
-    return choose_at_pose(task, pose, window, t0)
+    target = choose_at_pose(task, pose, window, t0)
+    if polygons is not None and robot.tool_wrench is None:
+        target = previous_if_steadier(robot, terrain, task, target, previous_com)
+    return target
+
+
+def previous_if_steadier(
+    robot: Robot, terrain: Terrain, task: PoseTask, target: PoseTarget, previous_com: ArrayLike
+) -> PoseTarget:
+    """The previous arm CoM instead of the search's where mmstab's one μ prefers it.
+
+    On a heightmap the search ranks arm CoMs on the support the robot stands on with the arm
+    stowed (one polygon for every candidate: fast); the chosen CoM rests on its own, on
+    the contacts its load puts down (:mod:`mmstab.stability.support`), and that μ is the one
+    the plan reports. Where the previous CoM has at least the chosen one's μ there, it is the
+    better answer to Eq. 6 too (as steady, and no motion), so it is kept.
+
+    Args:
+        robot: the robot.
+        terrain: the ground (a heightmap).
+        task: the pose's task (its fitness scores the answer).
+        target: the search's answer.
+        previous_com: the arm CoM at the previous pose, body frame (3,) [m].
+    """
+    previous = np.asarray(previous_com, dtype=float)
+    if np.array_equal(previous, target.target_com):
+        return target
+    poses = np.tile(target.pose, (2, 1))
+    mu = loaded_mu(robot, terrain, poses, np.vstack([target.target_com, previous]), strict=False)
+    if not mu[1] >= mu[0]:  # NaN (no rest) keeps the search's answer
+        return target
+    return target._replace(
+        target_com=previous,
+        fitness=float(task.fitness(previous)[0]),
+        mu=float(task.fitness.mu(previous)[0]),
+    )
 
 
 def fall_back_to_a_sample(
