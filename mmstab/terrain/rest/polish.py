@@ -14,12 +14,15 @@ contacts they end on (μ < 0 for a robot that stands).
 sequential linear programming in a trust region (the classic method for a maximum of smooth
 functions): at ``a``, each lift and the CoM's height linearised (the ground's slope under
 each candidate included), the step ``d`` within ``|d| <= delta`` that minimises
-``max_k (f_k + J_k d) + g . d`` is a linear programme in ``(d, t)``; the step is taken if
-``V`` falls by at least a tenth of what the model predicts, and ``delta`` shrinks otherwise.
-It ends where the model predicts no decrease (a stationary point of ``V``: the CoM above the
-triangle, or the edge, the touching candidates span), which is the rest the rounds were
-looking for; a row that does not end within :data:`MAX_ROUNDS` keeps the rounds' answer and
-stays unsettled.
+``max_k (f_k + J_k d) + g . d`` is a linear programme in ``(d, t)`` (:func:`box_minimax`);
+the step is taken if ``V`` falls by at least a tenth of what the model predicts, and
+``delta`` shrinks otherwise. It ends where the model predicts no decrease: a stationary
+point of ``V``. With the touching contacts on smooth ground that is the rounds' own fixed
+point (the CoM above the triangle, or the edge, they span). With a contact on a steep face
+the minimum lets it slide down the face, and the contacts there may not hold the CoM
+(μ < 0 at a settled rest): the robot would rock off the pose, which the plan's rock check
+(:mod:`mmstab.stability.rock`) judges. A row that does not end within :data:`MAX_ROUNDS`
+keeps the rounds' answer and stays unsettled.
 """
 
 from __future__ import annotations
