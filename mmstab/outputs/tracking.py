@@ -20,6 +20,7 @@ from mmstab.core.files import write_figure, write_json, write_npz
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.outputs.common import output_dir, route_corners, save_settings
+from mmstab.planner import Plan, RoutePlan
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.tracking import (
     JOINT_NAMES,
@@ -128,7 +129,7 @@ def run_checks(
     return keep, collisions, slip
 
 
-def track_verdict(problem: Problem, plan: TrackingPlan | None = None) -> str:
+def track_verdict(problem: Problem, plan: Plan | RoutePlan | None = None) -> str:
     """``mmstab track``'s verdict on a problem, without its files (one of :data:`TRACK_VERDICTS`).
 
     As the command decides its exit status: ``tips`` (3: the plan is unstable, or the run
@@ -136,17 +137,22 @@ def track_verdict(problem: Problem, plan: TrackingPlan | None = None) -> str:
 
     Args:
         problem: the problem.
-        plan: its arm plan (:func:`mmstab.app.plan`; made here when None).
+        plan: its arm plan (:func:`mmstab.app.plan`; made here when None). A given plan is
+            checked as the command checks the plan it makes (``plan_stability``).
     """
+    from mmstab.app import plan as plan_of
     from mmstab.core.files import UnstableError
+    from mmstab.runs.verdict import check_plan, plan_stability
 
+    made = plan_of(problem) if plan is None else plan
     try:
-        problem, plan, run = track(problem, plan, progress=False, allow_unstable=False)
+        check_plan(plan_stability(problem, made), len(made.poses), False)
     except UnstableError:
         return "tips"
-    _, collisions, slip = run_checks(problem, run)
+    problem, _, run = track(problem, made, progress=False)
     if run.tipped is not None:
         return "tips"
+    _, collisions, slip = run_checks(problem, run)
     if slip["slides"]:
         return "slides"
     return "accepted" if collisions["verdict"]["safe"] else "arm collision"

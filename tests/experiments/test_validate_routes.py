@@ -210,3 +210,24 @@ def test_a_coarse_subset_plans_and_runs_in_mujoco(tmp_path) -> None:
         assert d["mu_simulated_min"] <= 0 or d["events"]["tipped"]["cause"] == "overturned"
     assert all((tmp_path / x).exists() for x in ("flat/summary.json", "ditch/validate_routes.png"))
     assert len(records) == 2
+
+
+def test_track_verdict_checks_a_given_plan_as_the_command_checks_its_own(monkeypatch) -> None:
+    """``mmstab track`` refuses an unstable plan before driving it (exit 3); the verdict of a
+    plan handed in is the same, and nothing is tracked."""
+    import mmstab.app
+    import mmstab.runs.verdict as verdict
+    from mmstab.outputs.tracking import track_verdict
+
+    class Given:
+        poses = np.zeros((4, 3))
+
+    monkeypatch.setattr(verdict, "plan_stability", lambda problem, plan: {"stable": False})
+    monkeypatch.setattr(verdict, "describe_plan_verdict", lambda v, total: "unstable")
+
+    def never(*args, **kwargs):
+        raise AssertionError("an unstable plan was tracked")
+
+    monkeypatch.setattr(mmstab.outputs.tracking, "track", never)
+    monkeypatch.setattr(mmstab.app, "plan", never)
+    assert track_verdict(object(), Given()) == "tips"  # type: ignore[arg-type]

@@ -119,6 +119,8 @@ def box_minimax(
             [g[0], g[1], 1.0], A_ub=np.c_[J, -np.ones(m)], b_ub=-a,
             bounds=[(-delta, delta), (-delta, delta), (None, None)], method="highs",
         )  # fmt: skip
+        if lp.status != 0:  # HiGHS gave up: no step (the caller reads it as stationary)
+            return np.zeros(2), float(a.max())
         return np.asarray(lp.x[:2], dtype=float), float(lp.fun)
     points = [np.array([[-delta, -delta], [-delta, delta], [delta, -delta], [delta, delta]])]
     if m > 1:
