@@ -145,8 +145,8 @@ def route_summary(
 def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
     """Per pose: the searched μ, the best μ over V's samples and the roadmap's reachable ones.
 
-    All on the basis the search ranks arm CoMs on (``RoutePlan.mu_search``: each pose's
-    support polygon at the stowed arm's rest), so the gap is the search's own.
+    All on the basis the search ranks arm CoMs on (each pose's support polygon at the
+    stowed arm's rest), so the gap is the search's own.
 
     The optima are exhaustive (every sample scored at the pose, :func:`mmstab.planner.best_mu`);
     the roadmap's (its nodes in the stowed arm's component, :mod:`mmstab.workspace.roadmap`,
@@ -176,8 +176,12 @@ def route_quality(problem: Problem, plan: RoutePlan) -> dict[str, Any]:
         )
 
     opt_v = optima(samples)
-    # the search's gap is measured on the basis it ranks on (``RoutePlan.mu_search``)
-    searched = plan.mu_search
+    # the planned CoMs on that basis too: where the roadmap ranked a pose on the one μ
+    # (mmstab.planner.searches.roadmap.OneMu) its ``mu_search`` is not on it
+    searched = np.array([
+        best_mu(robot, g, c[None], p)[0]
+        for g, c, p in zip(gravity, plan.target_com, polys, strict=True)
+    ])  # fmt: skip
     out: dict[str, Any] = {"mu_searched": searched.tolist(), "mu_optimum_V": opt_v.tolist()}
     gaps = {"V": (opt_v - searched) / np.abs(opt_v)}
     if plan.settings.method == "roadmap":

@@ -25,19 +25,12 @@ from numpy.typing import NDArray
 
 from mmstab.core.files import MmstabError
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.planner.candidates import (
-    Candidates,
-    NodeClearance,
-    NodeClusters,
-    SearchMemo,
-    node_clusters,
-    route_candidates,
-)
+from mmstab.planner.candidates import NodeClearance, NodeClusters, node_clusters
 from mmstab.planner.climbing import ClimbPlan, climb_exclusions, climb_plan
 from mmstab.planner.fitness import pose_fitness, same_axes, support_polygons_at
 from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.grounded import ground_graph
-from mmstab.planner.motion import motion_cost, transitions
+from mmstab.planner.motion import motion_cost
 from mmstab.planner.searches.base import PathChoice, PathTask, PoseChoice, PoseTask
 from mmstab.planner.searches.exhaustive import ExhaustiveSearch
 from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' names, as before)
@@ -50,14 +43,14 @@ from mmstab.planner.searches.roadmap.moves import (  # noqa: F401 (the moves' na
 from mmstab.planner.searches.roadmap.rounds import (  # noqa: F401 (the search's names, as before)
     Mover,
     NoPlanError,
-    _choose,
-    _forbid_low_ends,
-    _no_plan,
+    OneMu,
+    Rounds,
     best_sequence,
 )
 from mmstab.planner.searches.sequence import _turret_bins
 from mmstab.planner.settings import PlannerSettings
 from mmstab.planner.turning import SlideLimit, slide_exclusions, turn_chords
+from mmstab.terrain import Terrain
 from mmstab.workspace.kept import kept_arrays
 from mmstab.workspace.roadmap import Roadmap, load_or_build_roadmap
 
@@ -73,7 +66,8 @@ class RoadmapSequence(NamedTuple):
         postures: their postures (K, 4) [rad].
         com: their arm CoMs, body frame (K, 3) [m].
         fitness: Eq. 6 per pose, the previous pose's choice as previous CoM (K,).
-        mu: force-angle measure per pose [N rad] (K,).
+        mu: force-angle measure per pose [N rad] (K,), on the basis the pose was ranked
+            on (the stowed arm's support, or the one μ: :class:`~.rounds.OneMu`).
         total: the sum of ``fitness``.
         moves: the roadmap path into each pose's posture (K arrays (n, 4) [rad]): from
             the start posture (open path) or from the last pose (closed).
@@ -178,6 +172,7 @@ def solve_roadmap_sequence(
     climb: ClimbPlan | None = None,
     polygons: list[FloatArray] | None = None,
     slide: SlideLimit | None = None,
+    terrain: Terrain | None = None,
 ) -> RoadmapSequence:
     """Choose one reachable roadmap node per pose (module text).
 
@@ -199,6 +194,13 @@ def solve_roadmap_sequence(
         slide: the slide limit at the turns: where the chosen postures' turn slides more,
             the poses either side keep only postures whose turn does not, and the path is
             searched again (:mod:`mmstab.planner.turning`).
+        terrain: the ground the poses rest on, with ``polygons``: the candidates are ranked
+            on the stowed arm's support (one polygon per pose: fast), and where a chosen
+            posture's μ on its own loaded support (the one μ the plan reports,
+            :func:`mmstab.stability.support.loaded_mu`) falls more than
+            :data:`~.rounds.ONE_MU_SLACK` below that and the stowed arm's, the pose's
+            candidates are ranked on their one μ and the path is searched again
+            (:class:`~.rounds.OneMu`).
 
     Raises:
         NoPlanError: some pose has no reachable stable posture (the message names it).
@@ -223,37 +225,17 @@ def solve_roadmap_sequence(
     clear = NodeClearance(roadmap, reach, ground, under)
     if climb is not None:
         clear.excluded.update(climb_exclusions(robot, climb, samples, clear.eligible(), fits))
-    span = (view.diameter, view.joint_span)
-    cost = motion_cost(roadmap.nodes_q[reach], samples, span, settings)
-    pairs = [(k, k + 1) for k in range(K - 1)] + ([(K - 1, 0)] if closed and K > 1 else [])
-    mover = Mover(robot, roadmap, int(start), ground, under)
-
-    kept: list[Candidates] = []  # the first search's candidates, as chosen
-
-    memo = SearchMemo()  # what the searches share: the clusters' bounds, the rows valued
-
-    def search(changed: NDArray[np.intp] | None = None) -> tuple[Any, ...]:
-        found = route_candidates(fits, samples, view.bins, view.clusters, M, clear,
-                                 kept[0] if kept else None, changed, memo)  # fmt: skip
-        if not kept:
-            kept.append(found._replace(value=found.value.copy()))
-        cand, value, mu = found
-        if not closed:
-            value[0] -= cost.from_point(cand[0], cost.point_of(robot, start_q))
-        motion, allowed = transitions(
-            cost.points, roadmap.nodes_q[reach, 0], cand, pairs, cost.weight,
-            settings.turret_window, cost.metric,
-        )  # fmt: skip
-        _forbid_low_ends(clear, cand, value, allowed, pairs)
-        path, nodes, moves = _choose(value, motion, allowed, pairs, closed, cand, reach, mover)
-        if nodes is None:
-            raise _no_plan(value, allowed, poses, settings)
-        return cand, value, mu, motion, path, nodes, moves
-
-    cand, value, mu, motion, path, nodes, moves = search()
+    cost = motion_cost(roadmap.nodes_q[reach], samples, (diameter, view.joint_span), settings)
+    stowed_mu = np.array([f.mu(stowed)[0] for f in fits])  # on its own support: the one μ
+    one = OneMu(robot, terrain if polygons is not None else None, poses, samples,
+                stab.w_stability / mu_max, stowed_mu)  # fmt: skip
+    rounds = Rounds(fits, view, M, clear, cost, closed, Mover(robot, roadmap, int(start), ground,
+                    under), one, cost.point_of(robot, start_q), roadmap.nodes_q[reach, 0],
+                    settings, poses)  # fmt: skip
+    got = rounds.on_one_mu(rounds.search())
     turns: list[dict[str, Any]] = []
     if slide is not None and slide.chords:
-        chosen_com = samples[cand[np.arange(K), path]]
+        chosen_com = samples[got.cand[np.arange(K), got.path]]
         excluded, turns = slide_exclusions(
             robot, slide.terrain, slide.chords, chosen_com, slide.limit, samples,
             clear.eligible(), fits, slide.model,
@@ -262,24 +244,24 @@ def solve_roadmap_sequence(
             for k, mask in excluded.items():
                 clear.excluded[k] = clear.excluded[k] | mask if k in clear.excluded else mask
             try:  # the other poses' candidates stand (route_candidates)
-                changed = np.fromiter(excluded, dtype=np.intp)
-                cand, value, mu, motion, path, nodes, moves = search(changed)
+                got = rounds.on_one_mu(rounds.search(np.fromiter(excluded, dtype=np.intp)))
             except NoPlanError:  # no path with them: the first answer, its turns reported
                 for t in turns:
                     t["poses"] = []
+    moves, path = got.moves, got.path
     if not closed or K == 1:  # from the start posture itself onto its node
         first = np.vstack([start_q, moves[0]])
         moves[0] = first if np.linalg.norm(first[1] - first[0]) > 1e-12 else first[1:]
-    chosen = cand[np.arange(K), path]
-    fitness = value[np.arange(K), path].copy()
-    for i, (a, b) in enumerate(pairs):
-        fitness[b] -= motion[i][path[a], path[b]]
+    chosen = got.cand[np.arange(K), path]
+    fitness = got.value[np.arange(K), path].copy()
+    for i, (a, b) in enumerate(rounds.pairs):
+        fitness[b] -= got.motion[i][path[a], path[b]]
     return RoadmapSequence(
-        nodes=nodes,
-        postures=roadmap.nodes_q[nodes].copy(),
+        nodes=got.nodes,
+        postures=roadmap.nodes_q[got.nodes].copy(),
         com=samples[chosen].copy(),
         fitness=fitness,
-        mu=mu[np.arange(K), path].copy(),
+        mu=got.mu[np.arange(K), path].copy(),
         total=float(fitness.sum()),
         moves=tuple(moves),
         seconds=time.perf_counter() - t0,
@@ -330,6 +312,7 @@ class RoadmapSearch:
             climb=climb,
             polygons=polygons,
             slide=slide,
+            terrain=task.terrain,
         )
         return PathChoice(
             target_com=seq.com, postures=seq.postures, fitness=seq.fitness, mu=seq.mu,
