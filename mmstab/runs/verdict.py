@@ -8,7 +8,9 @@ weight acts outside the support polygon: the robot tips over. Two verdicts:
   realising it (``mu_planned``, ``mu_realised``). :func:`plan_verdict` works from the
   per-pose numbers a plan summary already holds, so the planner's loop is untouched;
   :func:`plan_stability` computes them for a plan that has no summary (the tracking run).
-- a **tracking run** tips at its first sample with μ < 0 (the arm as it moved); the
+- a **tracking run** tips where μ < 0 (the arm as it moved) for
+  :data:`mmstab.runs.tracking.simulation.TIP_HOLD` on end, at samples where the robot
+  does not rock onto a support that holds it (:func:`mmstab.stability.rock.rock_over`); the
   simulation stops there (:mod:`mmstab.runs.tracking`) and :func:`describe_tipping` says when
   and where.
 
@@ -87,9 +89,28 @@ def plan_verdict(poses: Sequence[Mapping[str, Any]], margin: float) -> dict[str,
 
 
 def plan_stability(problem: Problem, plan: Plan | RoutePlan) -> dict[str, Any]:
-    """:func:`robot_plan_stability` with the problem's ``planner.margin``."""
+    """:func:`robot_plan_stability` with the problem's ``planner.margin``.
+
+    A route's plan is also checked for climbs that overturn the robot backwards
+    (``climb_out``: :func:`mmstab.runs.climb_out.climb_out_verdict`, as ``mmstab plan``
+    judges it), along the route as it will be driven (its turns slowed where they slide).
+    """
+    from mmstab.planner import RoutePlan
+
     margin = planner_margin(problem.section("planner"))
-    return robot_plan_stability(problem.robot, problem.terrain, plan, margin)
+    verdict = robot_plan_stability(problem.robot, problem.terrain, plan, margin)
+    if isinstance(plan, RoutePlan) and problem.route is not None:
+        from mmstab.runs.along import sample_spacing
+        from mmstab.runs.climb_out import climb_out_verdict
+        from mmstab.runs.high_centred import path_samples
+
+        route = problem.following(plan).route
+        assert route is not None
+        poses, s = path_samples(route, sample_spacing(problem.terrain))
+        climb = climb_out_verdict(problem.robot, problem.terrain, route, poses, s, plan)
+        verdict = {**verdict, "climb_out": climb}
+        verdict["stable"] = verdict["stable"] and not climb["overturns"]
+    return verdict
 
 
 def robot_plan_stability(

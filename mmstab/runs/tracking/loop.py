@@ -46,8 +46,9 @@ def run_loop(
         steps: number of control periods.
         dt: control period [s] (for messages).
         progress: show a progress bar.
-        first_tip: states (m, 5 + n) -> index of the first that tips over, or None; checked
-            after every chunk of steps: the run stops at that sample (shorter arrays).
+        first_tip: states (m, 5 + n) -> index of the sample where the robot tips over, or
+            None; called on every chunk of steps in order (< 0: a sample of an earlier
+            chunk): the run stops at that sample (shorter arrays).
 
     Returns:
         (states (m+1, 5 + n), applied q̇ (m, 2 + n) [rad/s], statuses (m,), wall time [s]), m = steps
