@@ -9,8 +9,10 @@ plan's climb-out check finds a climb that overturns it (MuJoCo overturns there).
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -78,6 +80,11 @@ def test_a_state_that_rocks_onto_a_holding_support_is_not_tipping(route30) -> No
     assert not watch.tipping(state[None])[0]  # it rocks onto a support that holds it
     watch.rocks = False
     assert watch.tipping(state[None])[0]
+    # with a tool wrench the rock check (the weight alone) does not excuse it
+    robot = dataclasses.replace(route30.robot, tool_wrench=np.zeros(6))
+    pulled = SimpleNamespace(robot=robot, terrain=route30.terrain, route=route30.route)
+    watch = TipWatch(pulled, 1e-3, 100)
+    assert not watch.rocks and watch.tipping(state[None])[0]
 
 
 def test_track_refuses_a_plan_whose_climb_overturns_the_robot(tmp_path) -> None:

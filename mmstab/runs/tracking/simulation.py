@@ -192,8 +192,9 @@ TIP_HOLD = 0.05
 class TipWatch:
     """The tracking run's tip-over check, chunk after chunk (``run_loop``'s ``first_tip``).
 
-    A sample is tipping where μ < 0 with the arm as it moved (the one μ) and, on a heightmap,
-    the robot pushed by the route's acceleration does not rock onto a support that holds it
+    A sample is tipping where μ < 0 with the arm as it moved (the one μ) and, on a heightmap
+    and without a tool wrench (the rock check pushes the weight alone), the robot pushed by
+    the route's acceleration does not rock onto a support that holds it
     (:func:`mmstab.stability.rock.rock_over`, the check ``mmstab plan`` makes along the
     path). The run tips where tipping samples last :data:`TIP_HOLD` on end (or to the run's
     end) and stops at the first of them.
@@ -212,7 +213,8 @@ class TipWatch:
         self.hold = max(int(round(TIP_HOLD / dt)), 1)
         self.seen = 0  # chunk samples checked so far
         self.start: int | None = None  # the ongoing tipping stretch's first sample
-        self.rocks = is_heightmap(problem.terrain)
+        # the rock check pushes the robot's weight alone: with a tool wrench, μ < 0 decides
+        self.rocks = is_heightmap(problem.terrain) and problem.robot.tool_wrench is None
         route = getattr(problem, "route", None)
         acceleration = route_acceleration(route) if route is not None else 0.0
         self.push = acceleration / float(np.linalg.norm(GRAVITY_G))

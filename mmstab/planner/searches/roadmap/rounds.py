@@ -73,12 +73,12 @@ class OneMu:
 
     The search ranks a pose's candidates on the stowed arm's support (one polygon for all:
     fast). Each chosen posture is rested on its own (:func:`mmstab.stability.support.loaded_mu`,
-    the μ the plan reports); where that falls more than :data:`ONE_MU_SLACK` below its
-    rank, the pose's :data:`ONE_MU_BLOCK` best candidates not rested yet are rested too,
-    every rested candidate is ranked on its one μ, and the path is searched again; a pose
-    whose choice falls a second time has all its candidates rested. Each (pose, node) is
-    rested once, so the rounds end: every choice is at most :data:`ONE_MU_SLACK` below its
-    rank.
+    the μ the plan reports); where that falls more than :data:`ONE_MU_SLACK` below both
+    its rank and the stowed arm's μ, the pose's :data:`ONE_MU_BLOCK` best candidates not
+    rested yet are rested too, every rested candidate is ranked on its one μ, and the path
+    is searched again; a pose whose choice falls a second time has all its candidates
+    rested. Each (pose, node) is rested once, so the rounds end: no choice is more than
+    :data:`ONE_MU_SLACK` below the lower of its rank and the stowed arm's μ.
     """
 
     def __init__(
