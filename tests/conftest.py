@@ -101,6 +101,17 @@ def write_problem(tmp_path: Path, edit=None, name: str = "problem.yaml") -> Path
     return path
 
 
+def validation_route_file(k: int, directory: Path) -> Path:
+    """Route k of ``make validate-routes`` (its seeded map and route) as a problem file."""
+    sys.path.insert(0, str(ROOT))
+    from experiments.validate_routes import load_settings, route_problem
+
+    data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), k)
+    path = directory / f"route{k:02d}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
 def assert_bad_planner_key(tmp_path: Path, capsys, key: str, value: Any) -> Path:
     """``planner.<key>: value`` is bad input: ConfigError naming the field, ``mmstab plan``
     exits 2 with one line naming the file and the field, and writes nothing."""

@@ -10,30 +10,19 @@ its own (-174.5 N rad at pose 3, with +192.4 for the stowed arm).
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-import yaml
+from conftest import validation_route_file
 
 import mmstab.planner.searches.roadmap.rounds as roadmap_search
 from mmstab.app import plan as make_plan
 from mmstab.core.problem import load_problem
 from mmstab.stability.support import loaded_mu
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
 def route20(tmp_path_factory):
-    sys.path.insert(0, str(ROOT))
-    from experiments.validate_routes import load_settings, route_problem
-
-    data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), 20)
-    path = tmp_path_factory.mktemp("route20") / "route20.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return load_problem(path)
+    return load_problem(validation_route_file(20, tmp_path_factory.mktemp("route20")))
 
 
 def test_no_chosen_posture_falls_below_its_rank_and_the_stowed_arm(route20) -> None:

@@ -10,28 +10,19 @@ plan's climb-out check finds a climb that overturns it (MuJoCo overturns there).
 from __future__ import annotations
 
 import dataclasses
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import yaml
+from conftest import validation_route_file
 
 from mmstab.core.problem import load_problem
 from mmstab.runs.tracking.simulation import TIP_HOLD, TipWatch, mu_with_arm
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def validation_route(k: int, directory: Path):
-    sys.path.insert(0, str(ROOT))
-    from experiments.validate_routes import load_settings, route_problem
-
-    data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), k)
-    path = directory / f"route{k:02d}.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return load_problem(path)
+    return load_problem(validation_route_file(k, directory))
 
 
 class Scripted(TipWatch):

@@ -7,28 +7,20 @@ its path with seeded arm CoMs.
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import yaml
+from conftest import validation_route_file
 
 from mmstab.core.problem import load_problem
 from mmstab.terrain.rest import rest_poses
 from mmstab.terrain.rest.polish import energy
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
 def kerb_and_ditch(tmp_path_factory):
-    sys.path.insert(0, str(ROOT))
-    from experiments.validate_routes import load_settings, route_problem
-
-    data = route_problem(load_settings(ROOT / "problems" / "validate_routes.yaml"), 10)
-    path = tmp_path_factory.mktemp("route10") / "route10.yaml"
-    path.write_text(yaml.safe_dump(data))
+    path = validation_route_file(10, tmp_path_factory.mktemp("route10"))
+    data = yaml.safe_load(path.read_text())
     problem = load_problem(path)
     ground = problem.terrain.with_robot(problem.robot)
     rng = np.random.default_rng(0)

@@ -375,15 +375,27 @@ def _diverse_top(
     return chosen[np.argsort(-values[chosen], kind="stable")]
 
 
-def _best(
-    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
+def best_sequence(
+    value: FloatArray,
+    motion: list[FloatArray],
+    allowed: list[NDArray[np.bool_]],
+    closed: bool,
+    starts: NDArray[np.intp] | None = None,
 ) -> tuple[NDArray[np.intp], float]:
-    """The best sequence; on a closed path, over the first pose's ``CLOSED_STARTS`` best starts."""
+    """Exact max of Σ value[k][c_k] − motion[k][c_{k−1}, c_k] over allowed moves.
+
+    Open: Viterbi. Closed (``motion``/``allowed`` have K entries, the last closing the loop):
+    Viterbi from each first candidate of ``starts`` in turn (default: every feasible one),
+    the closing move folded into the last pose's values; the first best wins a tie. Total
+    -inf when no sequence is allowed.
+    """
     K = len(value)
     if not closed or K == 1:
         return _viterbi(value, motion[: K - 1], allowed[: K - 1])
+    if starts is None:
+        starts = np.flatnonzero(np.isfinite(value[0]))
     best_path, best_total = np.zeros(K, dtype=np.intp), -np.inf
-    for start in np.argsort(-value[0], kind="stable")[:CLOSED_STARTS]:
+    for start in starts:
         v = value.copy()
         v[0] = -np.inf
         v[0, start] = value[0, start]
@@ -394,6 +406,14 @@ def _best(
         if total > best_total:
             best_path, best_total = path, total
     return best_path, best_total
+
+
+def _best(
+    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
+) -> tuple[NDArray[np.intp], float]:
+    """The best sequence; on a closed path, over the first pose's ``CLOSED_STARTS`` best starts."""
+    starts = np.argsort(-value[0], kind="stable")[:CLOSED_STARTS]
+    return best_sequence(value, motion, allowed, closed, starts)
 
 
 class SequenceSearch:

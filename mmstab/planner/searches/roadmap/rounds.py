@@ -21,7 +21,7 @@ from mmstab.planner.fitness import LinearFitness
 from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.planner.motion import transitions
 from mmstab.planner.searches.roadmap.moves import ground_move, start_tree
-from mmstab.planner.searches.sequence import _viterbi
+from mmstab.planner.searches.sequence import best_sequence
 from mmstab.planner.settings import PlannerSettings
 from mmstab.stability.support import loaded_mu
 from mmstab.terrain import Terrain
@@ -41,31 +41,6 @@ class NoPlanError(PlanningError):
     def __init__(self, message: str, pose_index: int):
         super().__init__(message)
         self.pose_index = pose_index
-
-
-def best_sequence(
-    value: FloatArray, motion: list[FloatArray], allowed: list[NDArray[np.bool_]], closed: bool
-) -> tuple[NDArray[np.intp], float]:
-    """Exact max of Σ value[k][c_k] − motion[k][c_{k−1}, c_k] over allowed moves.
-
-    Open: Viterbi. Closed (``motion``/``allowed`` have K entries, the last closing the loop):
-    Viterbi from every feasible first candidate in turn, the closing move folded into the
-    last pose's values. Total -inf when no sequence is allowed.
-    """
-    K = len(value)
-    if not closed or K == 1:
-        return _viterbi(value, motion[: K - 1], allowed[: K - 1])
-    best_path, best_total = np.zeros(K, dtype=np.intp), -np.inf
-    for start in np.flatnonzero(np.isfinite(value[0])):
-        v = np.full_like(value, -np.inf)
-        v[1:] = value[1:]
-        v[0, start] = value[0, start]
-        close = np.where(allowed[K - 1][:, start], -motion[K - 1][:, start], -np.inf)
-        v[K - 1] = v[K - 1] + close
-        path, total = _viterbi(v, motion[: K - 1], allowed[: K - 1])
-        if total > best_total:
-            best_path, best_total = path, total
-    return best_path, best_total
 
 
 class OneMu:
