@@ -38,9 +38,10 @@ STAGES = (
     ("candidates", "planner/candidates.py", "route_candidates"),
     ("node_ground_check", "planner/candidates.py", "measure"),
     ("motion_and_transitions", "planner/motion.py", "transitions"),
-    ("moves_and_their_ground_check", "planner/searches/roadmap/__init__.py", "moves"),
+    ("one_mu_rests", "planner/searches/roadmap/rounds.py", "mu"),
+    ("moves_and_their_ground_check", "planner/searches/roadmap/rounds.py", "moves"),
     ("moves_clearance_checks", "model/collision.py", "keeps_clearance"),
-    ("dynamic_programming", "planner/searches/roadmap/__init__.py", "best_sequence"),
+    ("dynamic_programming", "planner/searches/sequence.py", "best_sequence"),
     ("stability_along", "stability/support.py", "stability_along"),
     ("plan_total", "planner/plan.py", "plan_problem"),
 )

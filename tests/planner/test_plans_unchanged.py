@@ -7,7 +7,9 @@ by the planner as it was before the one-off plan's per-pose costs were cut; thei
 are kept in ``tests/planner/plans_reference.json``. The planner of today must give the
 same plans: the same verdict (a plan, or no plan at the same pose), postures, target CoMs,
 μ (planned, stowed, arm removed, on the search's basis), collision verdicts and moves, to
-the last bit (floats are stored by their ``repr``, which round-trips exactly).
+1e-9 (floats are stored by their ``repr``, which round-trips exactly; the rests are solved
+in batches, and a row's μ can differ in its last bits, 1e-13 N rad, with the rows it is
+batched with, so the search's order of rests is free to change).
 
 Write the file again (only when the plans are meant to change, and say why in
 CHANGELOG.md): ``PYTHONPATH=. python tests/planner/test_plans_unchanged.py --write``.
@@ -30,6 +32,8 @@ REFERENCE = Path(__file__).with_name("plans_reference.json")
 SEEDS = tuple(range(5100, 5112))
 #: The random routes of ``benchmarks/plan_random.py`` (pairs 0 .. 9), as they are.
 PAIRS = tuple(range(10))
+#: How far [the field's unit: m, rad, N rad] a plan may be from its reference.
+TOL = 1e-9
 CASES = [("map", k) for k in range(len(SEEDS))] + [("pair", k) for k in PAIRS]
 FIELDS = (
     "poses", "target_com", "postures", "mu_planned", "mu_stowed", "mu_removed", "mu_search",
@@ -116,10 +120,12 @@ def test_a_one_off_plan_is_the_plan_of_before_the_speed_ups(i, tmp_path):
         assert got["pose_index"] == want["pose_index"]
         return
     for name in FIELDS:
-        np.testing.assert_array_equal(np.array(got[name]), np.array(want[name]), err_msg=name)
+        a, b = np.array(got[name]), np.array(want[name])
+        assert a.shape == b.shape, name
+        np.testing.assert_allclose(a, b, rtol=0, atol=TOL, err_msg=name)
     assert len(got["moves"]) == len(want["moves"])
     for a, b in zip(got["moves"], want["moves"], strict=True):
-        np.testing.assert_array_equal(np.array(a), np.array(b))
+        np.testing.assert_allclose(np.array(a), np.array(b), rtol=0, atol=TOL)
 
 
 def test_the_reference_holds_plans_and_every_feature():

@@ -331,11 +331,32 @@ class Rounds:
         """The best sequence over these candidates, those rested ranked on the one μ."""
         self.one.revalue(cand, value, mu, start)
         _forbid_low_ends(self.clear, cand, value, allowed, self.pairs)
+        held = self._held(cand, value, mu, motion, allowed, start)
         path, nodes, moves = _choose(value, motion, allowed, self.pairs, self.closed, cand,
-                                     self.view.reach, self.mover)  # fmt: skip
+                                     self.view.reach, self.mover, held)  # fmt: skip
         if nodes is None:
             raise _no_plan(value, allowed, self.poses, self.settings)
         return Searched(cand, value, mu, motion, allowed, start, path, nodes, moves)
+
+    def _held(
+        self, cand: NDArray[np.intp], value: FloatArray, mu: FloatArray,
+        motion: list[FloatArray], allowed: list[NDArray[np.bool_]], start: FloatArray | None,
+    ) -> NDArray[np.intp] | None:  # fmt: skip
+        """The best sequence, chosen again without its moves until the one μ holds along it.
+
+        The moves (the costliest step) are found for this sequence only, not for the ones
+        the one μ turns down. None: no sequence (the caller says where).
+        """
+        path, total = best_sequence(value, motion, allowed, self.closed)
+        if self.one.terrain is None or not np.isfinite(total):
+            return path if np.isfinite(total) else None
+        while len(self.one.worse(cand, value, mu, path)):
+            self.one.revalue(cand, value, mu, start)
+            again, total = best_sequence(value, motion, allowed, self.closed)
+            if not np.isfinite(total):  # a guard, as in on_one_mu: the last sequence stands
+                return path
+            path = again
+        return path
 
     def on_one_mu(self, got: Searched) -> Searched:
         """Search again while a chosen posture's one μ falls below its rank (:class:`OneMu`).
