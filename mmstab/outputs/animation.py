@@ -7,6 +7,7 @@ run the tracking experiment first.
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -43,15 +44,20 @@ def stored_or_new_run(
 
 
 def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
-    """The ``tipped`` record of a stored run that ends where the robot would tip, or None.
+    """The ``tipped`` record of a stored run, or None: its ``summary.json``'s.
 
-    A run stops at its first sample with μ < 0 (:func:`mmstab.runs.tracking.simulate`) and the
-    stored arrays keep the last sample, so only the last can be negative.
+    The run's verdict is the tip rule's (:mod:`mmstab.runs.tip_rule`: μ < 0 held where no
+    rock catches it), which the stored μ alone does not show. A run stored without its
+    summary: its last sample, where a run that tips stops, if μ < 0 there.
 
     Args:
         run: the stored run.
         dt: its control period [s] (the problem's ``controller.dt``).
     """
+    summary = run.directory / "summary.json"
+    if summary.is_file():
+        record = json.loads(summary.read_text()).get("tipped")
+        return None if record is None else dict(record)
     mu = run.mu["planned"]
     if not mu[-1] < 0:
         return None

@@ -9,7 +9,7 @@ weight acts outside the support polygon: the robot tips over. Two verdicts:
   per-pose numbers a plan summary already holds, so the planner's loop is untouched;
   :func:`plan_stability` computes them for a plan that has no summary (the tracking run).
 - a **tracking run** tips where μ < 0 (the arm as it moved) for
-  :data:`mmstab.runs.tracking.simulation.TIP_HOLD` on end, at samples where the robot
+  :data:`mmstab.runs.tip_rule.TIP_HOLD` on end, at samples where the robot
   does not rock onto a support that holds it (:func:`mmstab.stability.rock.rock_over`); the
   simulation stops there (:mod:`mmstab.runs.tracking`) and :func:`describe_tipping` says when
   and where.

@@ -172,6 +172,12 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     assert a["tipped"]["time_s"] == pytest.approx(t["time_s"]) and a["tipped"]["mu"] < 0
     assert a["tipped"]["step"] == t["step"] and a["simulated_s"] == pytest.approx(t["time_s"])
     assert line.startswith("mmstab: unstable: the robot would tip over at t = ")
+    # the verdict is the run's (the tip rule's), not its last sample's μ: a run whose summary
+    # says it held renders without a tip, though its last μ is below 0
+    s["tipped"] = None
+    (out / "summary.json").write_text(json.dumps(s))
+    assert main(["animation", str(problem.path), "-o", str(out)]) == 0
+    assert json.loads((out / "animation.json").read_text())["tipped"] is None
 
 
 def test_tipping_at_the_start_is_refused_before_building(tmp_path):

@@ -67,15 +67,19 @@ def test_a_state_that_rocks_onto_a_holding_support_is_not_tipping(route30) -> No
     ])  # fmt: skip
     assert mu_with_arm(route30, state[None])[0] < -100.0  # the loaded contacts do not hold it
     watch = TipWatch(route30, 1e-3, 100)
-    assert watch.rocks and watch.push > 0 and watch.threshold > 0
+    rock = watch.rock
+    assert rock.applies(route30.terrain) and rock.push > 0 and rock.threshold > 0
     assert not watch.tipping(state[None])[0]  # it rocks onto a support that holds it
-    watch.rocks = False
-    assert watch.tipping(state[None])[0]
+    # the online loop asks the same check of its map (here the problem's ground)
+    arm = route30.robot.arm_com(state[None, 5:])
+    assert rock.holds(route30.terrain, state[None, :3], arm).tolist() == [True]
+    watch.rock = SimpleNamespace(holds=lambda terrain, p, a: np.zeros(len(p), dtype=bool))
+    assert watch.tipping(state[None])[0]  # without the rock check it tips
     # with a tool wrench the rock check (the weight alone) does not excuse it
     robot = dataclasses.replace(route30.robot, tool_wrench=np.zeros(6))
     pulled = SimpleNamespace(robot=robot, terrain=route30.terrain, route=route30.route)
     watch = TipWatch(pulled, 1e-3, 100)
-    assert not watch.rocks and watch.tipping(state[None])[0]
+    assert not watch.rock.applies(route30.terrain) and watch.tipping(state[None])[0]
 
 
 def test_track_refuses_a_plan_whose_climb_overturns_the_robot(tmp_path) -> None:

@@ -42,6 +42,7 @@ from mmstab.planner.settings import PlannerSettings
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rested_rows
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import MapUpdate
+from mmstab.runs.tip_rule import RockCheck
 from mmstab.stability.slip import support_tilt, terrain_friction
 from mmstab.stability.support import state_load, support_on_rests
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
@@ -114,6 +115,9 @@ class FollowStep(NamedTuple):
         q_ref: the planned posture the step steered toward [rad] (None: none planned yet).
         flags: the resting pose's flags on the map (``high_centred``, ``line_contact``, ...);
             computed after the timed part (empty when not covered).
+        rocks: μ < 0 here, and the robot pushed by the route's acceleration rocks onto a
+            support of this map that holds it: not tipping (:mod:`mmstab.runs.tip_rule`);
+            computed after the timed part, only where μ < 0.
     """
 
     time: float
@@ -136,6 +140,7 @@ class FollowStep(NamedTuple):
     measured: bool
     q_ref: FloatArray | None = None
     flags: tuple[str, ...] = ()
+    rocks: bool = False
 
 
 class Follower:
@@ -153,6 +158,7 @@ class Follower:
         self.controller, self.settings = controller, settings
         self.robot = problem.robot
         self.friction = terrain_friction(problem.terrain)
+        self.rock = RockCheck(self.robot, route)  # the runs' tip rule
         self.s_fine = np.arange(0.0, route.length + PROGRESS_STEP, PROGRESS_STEP)
         # the route's poses there (the reference pose at a progress: as sampled alone)
         self.pose_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose
@@ -237,10 +243,12 @@ class Follower:
         if covered and np.isfinite(rests.G_T_B[len(P)]).all():
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
             G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
+        rocks = covered and mu < 0 and bool(self.rock.holds(terrain, pose[None], arm_com[None])[0])
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
             tilt, g_now, u.joints is not None, None if q_ref is None else np.array(q_ref), flags,
+            rocks,
         )  # fmt: skip
 
     def _spacing(self) -> float:

@@ -25,6 +25,7 @@ from mmstab.runs.online.horizon import HorizonPose
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
 from mmstab.runs.online.stream import map_updates
 from mmstab.runs.recording import RunFrames, joint_names
+from mmstab.runs.tip_rule import first_tip
 from mmstab.workspace import Workspace
 
 
@@ -126,7 +127,10 @@ def summarize(run: FollowRun) -> dict[str, Any]:
     covered = np.array([x.covered for x in st])
     ahead = np.array([x.covered_ahead for x in st])
     status = np.array([x.status for x in st])
-    tipped = [x for x in st if x.covered and x.mu < 0]
+    # the runs' tip rule: μ < 0 that no rock catches, for TIP_HOLD on end (or to the end)
+    tip = first_tip(
+        np.array([x.time for x in st]), [x.covered and x.mu < 0 and not x.rocks for x in st]
+    )
     tilt = np.array([x.tilt for x in st])
     critical = float(np.arctan(run.friction))
     sliding = [x for x in st if x.covered and x.tilt > critical]
@@ -150,7 +154,7 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "planned_collision_free": int(sum(p.collision_free for p in run.plans.values())),
         "qp_failures": int((status != 0).sum()),
         "arm_ground": run.arm_ground,
-        "tipped": None if not tipped else {"time_s": tipped[0].time, "s_m": tipped[0].s},
+        "tipped": None if tip is None else {"time_s": st[tip].time, "s_m": st[tip].s},
         "tilt_max_rad": float(np.nanmax(tilt)) if covered.any() else None,
         "friction": run.friction,
         "slides": None

@@ -32,6 +32,7 @@ from mmstab.core.problem import Problem, Scene
 from mmstab.model.robot import FloatArray
 from mmstab.paths.base import BasePath
 from mmstab.paths.route import RoutePath
+from mmstab.runs.tip_rule import TIP_HOLD, RockCheck
 from mmstab.runs.tracking.backend import StepBackend, as_backend, build_advance
 from mmstab.runs.tracking.loop import describe_nonfinite, run_loop
 from mmstab.runs.tracking.run import (
@@ -43,10 +44,8 @@ from mmstab.runs.tracking.run import (
     check_plan,
     task_batch,
 )
-from mmstab.stability.rock import rock_over
-from mmstab.stability.support import is_heightmap, posture_mu, stability_along
+from mmstab.stability.support import posture_mu, stability_along
 from mmstab.terrain import wrap_angle
-from mmstab.terrain.base import GRAVITY_G
 
 
 def simulate(
@@ -182,22 +181,13 @@ def mu_with_arm(problem: Problem | Scene, states: FloatArray) -> FloatArray:
     return posture_mu(problem.robot, problem.terrain, states[:, :3], states[:, ARM])
 
 
-#: How long [s] μ may stay below 0 where the robot does not rock onto a support that holds
-#: it before a tracking run calls a tip. Shorter stretches are the rest flickering between
-#: supports while a contact crosses an edge of the map's cells (at most 11 ms on the runs
-#: of the 48 validation routes); a robot starting to tip stays there.
-TIP_HOLD = 0.05
-
-
 class TipWatch:
     """The tracking run's tip-over check, chunk after chunk (``run_loop``'s ``first_tip``).
 
-    A sample is tipping where μ < 0 with the arm as it moved (the one μ) and, on a heightmap
-    and without a tool wrench (the rock check pushes the weight alone), the robot pushed by
-    the route's acceleration does not rock onto a support that holds it
-    (:func:`mmstab.stability.rock.rock_over`, the check ``mmstab plan`` makes along the
-    path). The run tips where tipping samples last :data:`TIP_HOLD` on end (or to the run's
-    end) and stops at the first of them.
+    The rule of :mod:`mmstab.runs.tip_rule`, on the run's samples: a sample is tipping where
+    μ < 0 with the arm as it moved (the one μ) and no rock catches it (:class:`RockCheck`,
+    the check ``mmstab plan`` makes along the path). The run tips where tipping samples
+    last :data:`TIP_HOLD` on end (or to the run's end) and stops at the first of them.
 
     Args:
         problem: the problem (robot, ground, route).
@@ -206,29 +196,18 @@ class TipWatch:
     """
 
     def __init__(self, problem: Problem | Scene, dt: float, samples: int) -> None:
-        from mmstab.runs.along import acceleration_margin
-        from mmstab.runs.plan_verdicts import route_acceleration
-
         self.problem, self.samples = problem, samples
         self.hold = max(int(round(TIP_HOLD / dt)), 1)
         self.seen = 0  # chunk samples checked so far
         self.start: int | None = None  # the ongoing tipping stretch's first sample
-        # the rock check pushes the robot's weight alone: with a tool wrench, μ < 0 decides
-        self.rocks = is_heightmap(problem.terrain) and problem.robot.tool_wrench is None
-        route = getattr(problem, "route", None)
-        acceleration = route_acceleration(route) if route is not None else 0.0
-        self.push = acceleration / float(np.linalg.norm(GRAVITY_G))
-        self.threshold = acceleration_margin(problem.robot.total_mass, acceleration)
+        self.rock = RockCheck(problem.robot, getattr(problem, "route", None))
 
     def tipping(self, chunk: FloatArray) -> NDArray[np.bool_]:
         """Which of the states (m, 5 + n) are tipping (class text)."""
         bad = mu_with_arm(self.problem, chunk) < 0
-        if self.rocks and bad.any():
-            robot = self.problem.robot
-            arm = robot.arm_com(chunk[bad][:, ARM])
-            rock = rock_over(robot, self.problem.terrain, chunk[bad, :3], arm, self.push,
-                             self.threshold, 0.0)  # fmt: skip
-            bad[bad] = ~rock.holds
+        if bad.any():
+            arm = self.problem.robot.arm_com(chunk[bad][:, ARM])
+            bad[bad] = ~self.rock.holds(self.problem.terrain, chunk[bad, :3], arm)
         return bad
 
     def __call__(self, chunk: FloatArray) -> int | None:
