@@ -7,7 +7,7 @@
  * all of them where the check fails. Every function mirrors the NumPy function of the same
  * name, operation for operation, so both paths give the same rests to rounding (tested).
  *
- * No static state; the work arrays are allocated once per call (mmstab_rest).
+ * No static state; the work arrays are allocated once per call (mmstab_rest, mmstab_polish).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -464,6 +464,223 @@ int mmstab_rest(const double *elev, long ny, long nx, const double *origin, doub
         flags[3 * i + 1] = (unsigned char)s1.converged;
         flags[3 * i + 2] = (unsigned char)s1.tips;
         iterations[i] = it;
+    }
+    free(buf);
+    free(lbuf);
+    return 0;
+}
+
+/* ---- the polish (polish.py): the unsettled rows taken to the minimum of V --------------- */
+
+/* polish.py's constants */
+#define POLISH_MAX_ROUNDS 200
+#define POLISH_FIRST_DELTA 0.02
+#define POLISH_MAX_DELTA 0.1
+#define POLISH_FLAT 1e-13
+#define POLISH_SMALLEST_DELTA 1e-10
+/* pieces the step's minimax may take in (beyond: the row keeps the rounds' answer) */
+#define POLISH_MAX_PIECES 96
+
+typedef struct {
+    long K, cap;       /* candidates; the pieces' and the points' room */
+    double *f, *J;     /* (K), (K, 2): the lifts and their gradients at the attitude */
+    long *kept, *in;   /* the pieces the box can raise to the top; those taken in (S) */
+    double *px, *py, *pv; /* the arrangement's points in the box, max over S there */
+    long npts, ptcap;
+} Minimax;
+
+/* V [m] at attitude (roll, pitch): the highest lift plus the CoM's height; INFINITY where
+ * a candidate needs ground off the map (polish.py: energy) */
+static double energy(const Map *m, const double *c, long K, const double com[3],
+                     const double pose[3], double roll, double pitch, double *f)
+{
+    Rot r;
+    rotations(pose[2], roll, pitch, &r);
+    if (!heights(m, c, NULL, K, &r, pose[0], pose[1], f)) return INFINITY;
+    double top = -INFINITY;
+    for (long k = 0; k < K; ++k) top = f[k] > top ? f[k] : top;
+    return top + dot3(r.R[2], com);
+}
+
+static double piece(const Minimax *w, long k, double x, double y)
+{
+    return w->f[k] + (x * w->J[2 * k] + y * w->J[2 * k + 1]);
+}
+
+static int add_point(Minimax *w, double x, double y, double delta, long ns)
+{
+    double lim = delta * (1 + 1e-12);
+    if (!(fabs(x) <= lim && fabs(y) <= lim)) return 1;
+    if (w->npts == w->ptcap) return 0;
+    x = x < -delta ? -delta : (x > delta ? delta : x);
+    y = y < -delta ? -delta : (y > delta ? delta : y);
+    double v = -INFINITY;
+    for (long s = 0; s < ns; ++s) {
+        double p = piece(w, w->in[s], x, y);
+        v = p > v ? p : v;
+    }
+    w->px[w->npts] = x, w->py[w->npts] = y, w->pv[w->npts] = v;
+    ++w->npts;
+    return 1;
+}
+
+/* piece p taken into S (S holds ns pieces): the points raised to it, and the new points it
+ * makes with S's pieces (box_minimax's pairs on the box's edges and triples) */
+static int take_in(Minimax *w, long p, long ns, double delta)
+{
+    for (long i = 0; i < w->npts; ++i) {
+        double v = piece(w, p, w->px[i], w->py[i]);
+        w->pv[i] = v > w->pv[i] ? v : w->pv[i];
+    }
+    w->in[ns] = p;
+    const double *Jp = w->J + 2 * p;
+    for (long s = 0; s < ns; ++s) { /* p and q meet on n . d = cc */
+        long q = w->in[s];
+        double n0 = Jp[0] - w->J[2 * q], n1 = Jp[1] - w->J[2 * q + 1], cc = w->f[q] - w->f[p];
+        for (int axis = 0; axis < 2; ++axis) {
+            double na = axis ? n1 : n0, no = axis ? n0 : n1;
+            if (!(fabs(no) > 1e-300)) continue;
+            for (int side = -1; side <= 1; side += 2) {
+                double e = side * delta, o = (cc - na * e) / no;
+                if (!add_point(w, axis ? o : e, axis ? e : o, delta, ns + 1)) return 0;
+            }
+        }
+    }
+    for (long s = 0; s < ns; ++s) /* p, q, r meet at a point */
+        for (long t = s + 1; t < ns; ++t) {
+            long q = w->in[s], r = w->in[t];
+            double A00 = Jp[0] - w->J[2 * q], A01 = Jp[1] - w->J[2 * q + 1];
+            double A10 = Jp[0] - w->J[2 * r], A11 = Jp[1] - w->J[2 * r + 1];
+            double b0 = w->f[q] - w->f[p], b1 = w->f[r] - w->f[p];
+            double det = A00 * A11 - A01 * A10;
+            if (!(fabs(det) > 1e-300)) continue;
+            double x = (A11 * b0 - A01 * b1) / det, y = (A00 * b1 - A10 * b0) / det;
+            if (!add_point(w, x, y, delta, ns + 1)) return 0;
+        }
+    return 1;
+}
+
+/* min over |d_i| <= delta of max_k (f_k + J_k . d) + g . d (polish.py: box_minimax): the
+ * pieces the box can raise to the top kept; S grown from the piece highest at d = 0 by the
+ * piece highest at S's minimiser until none rises above S there (then the minimiser is the
+ * whole function's). 0: more pieces than the room. */
+static int box_minimax(Minimax *w, const double g[2], double delta, double d[2], double *value)
+{
+    long K = w->K, m = 0, top = 0;
+    double low = -INFINITY;
+    for (long k = 0; k < K; ++k) {
+        double reach = (fabs(w->J[2 * k]) + fabs(w->J[2 * k + 1])) * delta;
+        low = w->f[k] - reach > low ? w->f[k] - reach : low;
+    }
+    for (long k = 0; k < K; ++k) {
+        double reach = (fabs(w->J[2 * k]) + fabs(w->J[2 * k + 1])) * delta;
+        if (w->f[k] + reach >= low - 1e-15) {
+            if (m == 0 || w->f[k] > w->f[w->kept[top]]) top = m;
+            w->kept[m++] = k;
+        }
+    }
+    w->npts = 0;
+    for (int i = 0; i < 4; ++i) /* the box's corners */
+        add_point(w, (i & 2) ? delta : -delta, (i & 1) ? delta : -delta, delta, 0);
+    long ns = 0;
+    long p = w->kept[top];
+    for (;;) {
+        if (ns == w->cap || !take_in(w, p, ns, delta)) return 0;
+        ++ns;
+        long best = 0;
+        double bv = INFINITY;
+        for (long i = 0; i < w->npts; ++i) {
+            double v = w->pv[i] + (w->px[i] * g[0] + w->py[i] * g[1]);
+            if (v < bv) bv = v, best = i;
+        }
+        double x = w->px[best], y = w->py[best], hi = w->pv[best];
+        p = -1;
+        for (long j = 0; j < m; ++j) {
+            double v = piece(w, w->kept[j], x, y);
+            if (v > hi) hi = v, p = w->kept[j];
+        }
+        if (p < 0) {
+            d[0] = x, d[1] = y, *value = bv;
+            return 1;
+        }
+    }
+}
+
+/* the attitude of V's minimum reached from att (polish.py: lowest); 1: it ended there */
+static int lowest(const Map *m, const double *c, long K, const double com[3],
+                  const double pose[3], double att[2], Minimax *w, double *scratch)
+{
+    double a0 = att[0], a1 = att[1];
+    double v = energy(m, c, K, com, pose, a0, a1, scratch);
+    if (!isfinite(v)) return 0;
+    double delta = POLISH_FIRST_DELTA;
+    for (int round = 0; round < POLISH_MAX_ROUNDS; ++round) {
+        Rot r;
+        rotations(pose[2], a0, a1, &r);
+        heights(m, c, NULL, K, &r, pose[0], pose[1], w->f);
+        double z = -INFINITY;
+        for (long k = 0; k < K; ++k) {
+            z = w->f[k] > z ? w->f[k] : z;
+            jacobian(m, c + 3 * k, &r, pose[0], pose[1], w->J + 2 * k);
+        }
+        double g[2] = {dot3(r.dRr[2], com), dot3(r.dRp[2], com)};
+        double d[2], model;
+        if (!box_minimax(w, g, delta, d, &model)) break; /* no room: unsettled */
+        double predicted = z - model;
+        if (!(predicted > POLISH_FLAT)) {
+            att[0] = a0, att[1] = a1;
+            return 1;
+        }
+        double v_new = energy(m, c, K, com, pose, a0 + d[0], a1 + d[1], scratch);
+        double rho = (v - v_new) / predicted;
+        if (rho > 0.1) {
+            a0 += d[0], a1 += d[1], v = v_new;
+            double big = fabs(d[0]) > fabs(d[1]) ? fabs(d[0]) : fabs(d[1]);
+            if (rho > 0.75 && big >= 0.99 * delta)
+                delta = 2.0 * delta < POLISH_MAX_DELTA ? 2.0 * delta : POLISH_MAX_DELTA;
+        } else {
+            delta *= 0.25;
+            if (delta < POLISH_SMALLEST_DELTA) {
+                att[0] = a0, att[1] = a1;
+                return 1;
+            }
+        }
+    }
+    att[0] = a0, att[1] = a1;
+    return 0;
+}
+
+/* n poses taken to V's minimum from att (polish.py: polish's rows), in place: att (n, 2),
+ * and where it is reached with all its ground known, the lifts there f (n, K) and flags
+ * (n, 2): ended, tips (beyond max_tilt). com (n, 3), poses (n, 3) as mmstab_rest's.
+ * -1: out of memory. */
+int mmstab_polish(const double *elev, long ny, long nx, const double *origin, double res,
+                  const double *c, long K, const double *com, const double *poses, long n,
+                  double max_tilt, double *att, double *f, unsigned char *flags)
+{
+    Map m = {elev, ny, nx, origin[0], origin[1], res};
+    long cap = K < POLISH_MAX_PIECES ? K : POLISH_MAX_PIECES;
+    long ptcap = 4 + 4 * cap * (cap - 1) / 2 + cap * (cap - 1) * (cap - 2) / 6;
+    Minimax w = {K, cap, NULL, NULL, NULL, NULL, NULL, NULL, NULL, 0, ptcap};
+    double *buf = malloc(sizeof(double) * (size_t)(3 * K + 3 * ptcap));
+    long *lbuf = malloc(sizeof(long) * (size_t)(K + cap));
+    if (!buf || !lbuf) {
+        free(buf);
+        free(lbuf);
+        return -1;
+    }
+    w.f = buf, w.J = buf + K;
+    w.px = buf + 3 * K, w.py = w.px + ptcap, w.pv = w.py + ptcap;
+    w.kept = lbuf, w.in = lbuf + K;
+    for (long i = 0; i < n; ++i) {
+        double a[2] = {att[2 * i], att[2 * i + 1]}, *fi = f + K * i;
+        if (!lowest(&m, c, K, com + 3 * i, poses + 3 * i, a, &w, fi)) continue;
+        Rot r;
+        rotations(poses[3 * i + 2], a[0], a[1], &r);
+        if (!heights(&m, c, NULL, K, &r, poses[3 * i], poses[3 * i + 1], fi)) continue;
+        att[2 * i] = a[0], att[2 * i + 1] = a[1];
+        flags[2 * i] = 1;
+        flags[2 * i + 1] = (unsigned char)(fabs(a[0]) > max_tilt || fabs(a[1]) > max_tilt);
     }
     free(buf);
     free(lbuf);

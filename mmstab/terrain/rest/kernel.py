@@ -111,3 +111,61 @@ def rest_kernel(
         raise MemoryError("mmstab_rest: out of memory for its work arrays")
     b = flags.astype(bool)
     return KernelRests(att, f, b[:, 0], b[:, 1], b[:, 2], iterations.astype(np.int_))
+
+
+POLISH_NAME = "mmstab_polish"  #: the polish's C symbol (in the same source)
+
+
+@lru_cache(maxsize=1)
+def _polish_kernel() -> Any:
+    # elev ny nx origin res | c K com poses n max_tilt | att f flags
+    argtypes = [_D, _long, _long, _D, _double, _D, _long, _D, _D, _long, _double, _D, _D, _U8]
+    return kernel_function(REST_SOURCE, POLISH_NAME, argtypes)
+
+
+def polish_kernel(
+    elevation: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    resolution: float,
+    c: NDArray[np.float64],
+    com: NDArray[np.float64],
+    poses: NDArray[np.float64],
+    max_tilt: float,
+    att: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`mmstab.terrain.rest.polish.lowest` for n poses by the C kernel, and their lifts.
+
+    Args:
+        elevation: (ny, nx) heights [m] (as :func:`rest_kernel`).
+        origin: (2,) G (x, y) of the centre of cell [0, 0] [m].
+        resolution: cell size [m].
+        c: (K, 3) contact candidates in B [m].
+        com: (n, 3) overall CoM in B [m].
+        poses: (n, 3) of (x, y, yaw) in G [m, m, rad].
+        max_tilt: beyond this roll or pitch [rad] the robot tips.
+        att: (n, 2) the rounds' attitudes, where each starts [rad].
+
+    Returns:
+        attitudes (n, 2) [rad], lifts there (n, K) [m], ended (n,): V's minimum reached with
+        all its ground known (else the row is left as it was), tips (n,): beyond ``max_tilt``.
+
+    Raises:
+        MemoryError: the kernel could not allocate its work arrays.
+    """
+    elev = np.ascontiguousarray(elevation, dtype=np.float64)
+    ny, nx = elev.shape
+    cc = np.ascontiguousarray(c, dtype=np.float64)
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    n = p.shape[0]
+    g = np.ascontiguousarray(np.broadcast_to(com, (n, 3)), dtype=np.float64)
+    att_out = np.array(att, dtype=np.float64, order="C")
+    f = np.zeros((n, cc.shape[0]))
+    flags = np.zeros((n, 2), dtype=np.uint8)
+    code = _polish_kernel()(
+        elev, ny, nx, np.ascontiguousarray(origin, dtype=np.float64), float(resolution),
+        cc, cc.shape[0], g, p, n, float(max_tilt), att_out, f, flags,
+    )  # fmt: skip
+    if code != 0:
+        raise MemoryError("mmstab_polish: out of memory for its work arrays")
+    b = flags.astype(bool)
+    return att_out, f, b[:, 0], b[:, 1]

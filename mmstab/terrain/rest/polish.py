@@ -23,6 +23,13 @@ the minimum lets it slide down the face, and the contacts there may not hold the
 (μ < 0 at a settled rest): the robot would rock off the pose, which the plan's rock check
 (:mod:`mmstab.stability.rock`) judges. A row that does not end within :data:`MAX_ROUNDS`
 keeps the rounds' answer and stays unsettled.
+
+The C backend (``RestSettings.backend``) runs the same rounds in ``kernel.c``
+(``mmstab_polish``, 20-100 times faster); its step's minimax takes the pieces in one at a
+time, from the highest at d = 0, each time the one highest at the minimiser found so far,
+until none rises above them there: the minimiser of the few it took (at most 96; beyond,
+the row keeps the rounds' answer) is the whole function's. Both give the same rests to
+1e-8 rad (tested).
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
 from mmstab.terrain.rest.geometry import heights, jacobian, lift, rotations
+from mmstab.terrain.rest.kernel import polish_kernel
 from mmstab.terrain.rest.types import BoolArray, RestSettings
 
 #: Trust-region rounds per row before it is left unsettled.
@@ -217,12 +225,21 @@ def polish(
         settings: the solver's settings (``max_tilt``: beyond it the robot tips).
 
     Returns:
-        attitudes, lifts, converged, tips (copies; the rows polished).
+        attitudes, lifts, converged, tips: the arrays given, the rows polished written in
+        place (the solver's own arrays: no copy of the lifts, (N, K), for a few rows).
     """
     rows = np.flatnonzero(valid & ~converged & ~tips)
     if rows.size == 0:
         return att, f, converged, tips
-    att, f, converged, tips = att.copy(), f.copy(), converged.copy(), tips.copy()
+    if settings.backend == "c":  # the same rounds in C (kernel.c: mmstab_polish)
+        a, fr, reached, tipped = polish_kernel(
+            hm.elevation, hm.origin, hm.resolution, c, com[rows], p[rows], settings.max_tilt,
+            att[rows],
+        )  # fmt: skip
+        done = rows[reached]
+        att[done], f[done], converged[done] = a[reached], fr[reached], True
+        tips[done] = tipped[reached]
+        return att, f, converged, tips
     for i in rows:
         a, ended = lowest(hm, c, com[i], p[i], att[i])
         if not ended:
