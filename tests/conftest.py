@@ -153,3 +153,20 @@ def with_first_release_planner(problem):
     data = copy.deepcopy(problem.data)
     data["planner"].update(FIRST_RELEASE_PLANNER)
     return problem_from_dict(data, problem.path)
+
+
+def assert_same_numbers(got: Any, want: Any, rel: float = 1e-9, where: str = "") -> None:
+    """Two JSON-like trees equal, their floats to ``rel`` (a run on another processor rounds
+    its sums in another order: the last bits move, nothing else may)."""
+    if isinstance(want, dict):
+        assert isinstance(got, dict) and got.keys() == want.keys(), where
+        for k in want:
+            assert_same_numbers(got[k], want[k], rel, f"{where}.{k}")
+    elif isinstance(want, list):
+        assert isinstance(got, list) and len(got) == len(want), where
+        for i, (g, w) in enumerate(zip(got, want, strict=True)):
+            assert_same_numbers(g, w, rel, f"{where}[{i}]")
+    elif isinstance(want, float) and not isinstance(got, bool):
+        assert got == pytest.approx(want, rel=rel, abs=1e-300, nan_ok=True), where
+    else:
+        assert got == want, where
