@@ -40,8 +40,8 @@ class RockCheck:
 
     Args:
         robot: the robot (its mass, and its tool wrench: with one, no state rocks).
-        route: the route driven (its acceleration limits push the robot), or None: a push
-            of the route defaults' acceleration.
+        route: the route driven (its acceleration limits, else the route defaults', push
+            the robot), or None: no push (the robot's weight alone).
     """
 
     def __init__(self, robot: Robot, route: Any | None) -> None:

@@ -54,6 +54,20 @@ class KernelRests(NamedTuple):
     iterations: NDArray[np.int_]
 
 
+def _arrays(
+    elevation: NDArray[np.float64], c: NDArray[np.float64], com: NDArray[np.float64],
+    poses: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], ...]:  # fmt: skip
+    """The kernels' inputs as C-contiguous float64: the map (checked), candidates, CoMs, poses."""
+    elev = np.ascontiguousarray(elevation, dtype=np.float64)
+    ny, nx = elev.shape
+    if ny < 2 or nx < 2:
+        raise ValueError(f"the heightmap needs at least 2 x 2 cells, not {ny} x {nx}")
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    g = np.ascontiguousarray(np.broadcast_to(com, (p.shape[0], 3)), dtype=np.float64)
+    return elev, np.ascontiguousarray(c, dtype=np.float64), g, p
+
+
 def rest_kernel(
     elevation: NDArray[np.float64],
     origin: NDArray[np.float64],
@@ -85,15 +99,9 @@ def rest_kernel(
     Raises:
         MemoryError: the kernel could not allocate its work arrays.
     """
-    elev = np.ascontiguousarray(elevation, dtype=np.float64)
+    elev, cc, g, p = _arrays(elevation, c, com, poses)
     ny, nx = elev.shape
-    if ny < 2 or nx < 2:
-        raise ValueError(f"the heightmap needs at least 2 x 2 cells, not {ny} x {nx}")
-    cc = np.ascontiguousarray(c, dtype=np.float64)
-    K = cc.shape[0]
-    p = np.ascontiguousarray(poses, dtype=np.float64)
-    n = p.shape[0]
-    g = np.ascontiguousarray(np.broadcast_to(com, (n, 3)), dtype=np.float64)
+    K, n = cc.shape[0], p.shape[0]
     sub = np.ascontiguousarray(coarse, dtype=np.int64)
     att = np.empty((n, 2))
     f = np.empty((n, K))
@@ -152,12 +160,9 @@ def polish_kernel(
     Raises:
         MemoryError: the kernel could not allocate its work arrays.
     """
-    elev = np.ascontiguousarray(elevation, dtype=np.float64)
+    elev, cc, g, p = _arrays(elevation, c, com, poses)
     ny, nx = elev.shape
-    cc = np.ascontiguousarray(c, dtype=np.float64)
-    p = np.ascontiguousarray(poses, dtype=np.float64)
     n = p.shape[0]
-    g = np.ascontiguousarray(np.broadcast_to(com, (n, 3)), dtype=np.float64)
     att_out = np.array(att, dtype=np.float64, order="C")
     f = np.zeros((n, cc.shape[0]))
     flags = np.zeros((n, 2), dtype=np.uint8)

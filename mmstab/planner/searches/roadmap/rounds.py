@@ -348,15 +348,29 @@ class Rounds:
         the one μ turns down. None: no sequence (the caller says where).
         """
         path, total = best_sequence(value, motion, allowed, self.closed)
-        if self.one.terrain is None or not np.isfinite(total):
-            return path if np.isfinite(total) else None
+        if not np.isfinite(total):
+            return None
+        return self._dry(cand, value, mu, motion, allowed, start, path)[0]
+
+    def _dry(
+        self, cand: NDArray[np.intp], value: FloatArray, mu: FloatArray,
+        motion: list[FloatArray], allowed: list[NDArray[np.bool_]], start: FloatArray | None,
+        path: NDArray[np.intp],
+    ) -> tuple[NDArray[np.intp], bool]:  # fmt: skip
+        """From ``path``, the sequence chosen again (no moves) until the one μ holds along it.
+
+        Returns it and whether every round found a sequence (False: a guard, as only values
+        change; the last sequence found is returned).
+        """
+        if self.one.terrain is None:
+            return path, True
         while len(self.one.worse(cand, value, mu, path)):
             self.one.revalue(cand, value, mu, start)
             again, total = best_sequence(value, motion, allowed, self.closed)
-            if not np.isfinite(total):  # a guard, as in on_one_mu: the last sequence stands
-                return path
+            if not np.isfinite(total):
+                return path, False
             path = again
-        return path
+        return path, True
 
     def on_one_mu(self, got: Searched) -> Searched:
         """Search again while a chosen posture's one μ falls below its rank (:class:`OneMu`).
@@ -368,11 +382,10 @@ class Rounds:
             return got
         path = got.path
         while True:
-            while len(self.one.worse(got.cand, got.value, got.mu, path)):
-                self.one.revalue(got.cand, got.value, got.mu, got.start)
-                path, total = best_sequence(got.value, got.motion, got.allowed, self.closed)
-                if not np.isfinite(total):  # a guard: only values changed, none was dropped
-                    return got
+            path, found = self._dry(got.cand, got.value, got.mu, got.motion, got.allowed,
+                                    got.start, path)  # fmt: skip
+            if not found:  # the answer before stands
+                return got
             if np.array_equal(path, got.path):  # (its values updated in place)
                 return got
             path, nodes, moves = _choose(got.value, got.motion, got.allowed, self.pairs,
