@@ -12,13 +12,15 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_sim import RobotSim
-from mmstab.stability.static import contact_force_angle
+from mmstab.stability.static import contact_force_angle, padded_axis_angles
 from mmstab.terrain.base import GRAVITY_G
+from mmstab.terrain.polygon_batch import hulls_along_batch
 
 #: Wheels this close to the ground [m] count as support in the simulated μ.
 NEAR_GROUND = 0.001
@@ -84,6 +86,38 @@ def simulated_mu(points: FloatArray, com: FloatArray, mass: float) -> float:
     return contact_force_angle(points, com, mass * GRAVITY_G).mu
 
 
+def simulated_mus(points: list[FloatArray], coms: FloatArray, mass: float) -> FloatArray:
+    """:func:`simulated_mu` of many records at once (K,) [N rad].
+
+    The hulls of all contact sets at once (:func:`hulls_along_batch`); a set the batch does
+    not settle (a line, a close pair, a point on an edge) goes through :func:`simulated_mu`.
+
+    Args:
+        points: each record's contact points (n_k, 3) in G [m] (:func:`contact_points`).
+        coms: the overall CoMs in G (K, 3) [m].
+        mass: the robot's mass [kg].
+    """
+    k = len(points)
+    mu = np.full(k, np.nan)
+    if k == 0:
+        return mu
+    size = np.array([len(p) for p in points])
+    width = max(int(size.max()), 1)
+    padded = np.zeros((k, width, 3))
+    for i, p in enumerate(points):
+        padded[i, : len(p)] = p
+    mask = np.arange(width)[None, :] < size[:, None]
+    force = mass * GRAVITY_G
+    hulls = hulls_along_batch(padded, mask, force)
+    coms = np.asarray(coms, dtype=float)
+    ok = hulls.ok
+    theta = padded_axis_angles(hulls.vertices[ok], hulls.n_vertices[ok], coms[ok], force)
+    mu[ok] = np.min(theta, axis=1) * np.linalg.norm(force)
+    for i in np.flatnonzero(~ok):
+        mu[i] = simulated_mu(points[i], coms[i], mass)
+    return mu
+
+
 def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> FloatArray:
     """Angles between simulated chassis z axes and their resting ones on the terrain [rad].
 
@@ -99,17 +133,28 @@ def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> Fl
     return np.asarray(np.arccos(c))
 
 
-def beyond_no_return(support_B: FloatArray, G_T_B: FloatArray, com_G: FloatArray) -> bool:
+def footprint_ring(support_B: FloatArray) -> FloatArray:
+    """The tracks' footprint (n, 3) in B [m] (z = 0) as its hull's ring, CCW about z_B."""
+    pts = np.asarray(support_B, dtype=float)
+    return pts[ConvexHull(pts[:, :2]).vertices]
+
+
+def beyond_no_return(ring_B: FloatArray, G_T_B: FloatArray, com_G: FloatArray) -> bool:
     """Whether the body's attitude is past the point of no return: it overturns.
 
     The vertical through the simulated overall CoM ``com_G`` (3,) [m] leaves the tracks'
-    whole footprint ``support_B`` (n, 3) in B [m] (the largest support the chassis can
-    stand on) at the body's pose ``G_T_B`` (4, 4): μ of that footprint is ≤ 0, so gravity
-    turns the robot further over whatever ground carries it.
+    whole footprint (the largest support the chassis can stand on; ``ring_B``
+    (:func:`footprint_ring`), its ring in B's x-y plane, CCW about z_B [m]) at the body's
+    pose ``G_T_B`` (4, 4): μ of that footprint is ≤ 0, so gravity turns the robot further
+    over whatever ground carries it. A planar ring seen from above keeps its order (reversed
+    when z_B points down), so inside is the same side of every edge: no hull per check.
     """
-    points = support_B @ G_T_B[:3, :3].T + G_T_B[:3, 3]
-    mu = contact_force_angle(points, com_G, np.array([0.0, 0.0, -1.0])).mu
-    return bool(not mu > 0)
+    R = G_T_B[:3, :3]
+    p = (ring_B @ R.T + G_T_B[:3, 3])[:, :2]
+    edge = np.roll(p, -1, axis=0) - p
+    to_com = np.asarray(com_G, dtype=float)[:2] - p
+    cross = edge[:, 0] * to_com[:, 1] - edge[:, 1] * to_com[:, 0]
+    return not bool(np.all(np.sign(R[2, 2]) * cross > 0))
 
 
 def support_lost(t: FloatArray, mu: FloatArray, hold: float) -> tuple[int, int] | None:
@@ -170,7 +215,7 @@ class TipCheck:
 
     def __init__(self, problem: Problem, batch: int = 25):
         self.problem, self.batch = problem, batch
-        self.support_B = np.asarray(problem.robot.base.support_points(), dtype=float)
+        self.ring_B = footprint_ring(problem.robot.base.support_points())
         self.index: list[int] = []
         self.poses: list[FloatArray] = []
         self.frames: list[FloatArray] = []
@@ -197,7 +242,7 @@ class TipCheck:
         self.index.append(k)
         self.poses.append(pose)
         self.frames.append(G_T_B)
-        over = com_G is not None and beyond_no_return(self.support_B, G_T_B, com_G)
+        over = com_G is not None and beyond_no_return(self.ring_B, G_T_B, com_G)
         if len(self.index) - len(self.tilt) >= self.batch or last or over:
             new = tilts_off_rest(self.problem, np.array(self.poses[len(self.tilt) :]),
                                  np.array(self.frames[len(self.tilt) :]))  # fmt: skip
@@ -239,10 +284,16 @@ def check_records(
     """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
     mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     mass = float(sim.model.body_subtreemass[0])
-    for (i, value), (points, com, touches) in zip(
-        zip(checks.index, checks.tilt, strict=False), contact_records(sim, positions), strict=False
-    ):
-        tilt[i], mu_sim[i], arm[i] = value, simulated_mu(points, com, mass), touches
+    rows = list(zip(checks.index, checks.tilt, strict=False))
+    records = list(zip(rows, contact_records(sim, positions), strict=False))
+    if not records:
+        return mu_sim, tilt, arm
+    index = np.array([i for (i, _), _ in records])
+    tilt[index] = [value for (_, value), _ in records]
+    arm[index] = [touches for _, (_, _, touches) in records]
+    mu_sim[index] = simulated_mus(
+        [points for _, (points, _, _) in records], np.array([c for _, (_, c, _) in records]), mass
+    )
     return mu_sim, tilt, arm
 
 

@@ -120,6 +120,32 @@ def test_batched_equals_one_by_one(rough_terrain):
     assert (batch.gap >= -1e-9).all() and (batch.touching.sum(axis=1) >= 3).all()
 
 
+def test_a_large_batch_is_kept_and_answers_as_a_fresh_solve(robot, rough_terrain):
+    """A run asks the rests of the same samples several times: the terrain keeps the last
+    batches (read-only), keyed by the poses, the load and ``strict``."""
+    from mmstab.terrain.heightmap_terrain import _KEEP_BATCHES, _KEEP_ROWS
+
+    rng = np.random.default_rng(5)
+    poses = np.c_[rng.uniform(-0.9, 0.9, (_KEEP_ROWS, 2)), rng.uniform(-np.pi, np.pi, _KEEP_ROWS)]
+    terrain = HeightmapTerrain(rough_terrain.heightmap).with_robot(robot)
+    first = terrain.rest(poses)
+    assert terrain.rest(poses.copy()) is first  # equal poses, not the same array
+    assert not first.G_T_B.flags.writeable and not first.bearing.flags.writeable
+    fresh = HeightmapTerrain(rough_terrain.heightmap).with_robot(robot).rest(poses)
+    for a, b in zip(first, fresh, strict=True):
+        np.testing.assert_array_equal(a, b)
+    # another load, strictness or pose set is another batch, solved for itself
+    com = terrain.com_body + [0.05, 0.0, 0.0]
+    loaded = terrain.rest(poses, com_body=com)
+    assert loaded is not first and not np.allclose(loaded.pitch, first.pitch)
+    assert terrain.rest(poses, strict=False) is not first
+    moved = poses + [0.001, 0.0, 0.0]
+    assert terrain.rest(moved) is not terrain.rest(poses)  # the oldest went: only the last kept
+    assert len(terrain._kept_rests) == _KEEP_BATCHES
+    # small batches are solved each time (cheap, and a loop's buffers may be reused)
+    assert terrain.rest(poses[:10]) is not terrain.rest(poses[:10])
+
+
 def test_kerb_pitch_by_hand(robot):
     """Track bottom on the kerb's edge, rear idler on the ground below: solve by hand.
 

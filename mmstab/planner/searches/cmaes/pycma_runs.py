@@ -11,7 +11,6 @@ from __future__ import annotations
 import warnings
 from typing import Any, NamedTuple
 
-import cma
 import numpy as np
 from numpy.typing import NDArray
 
@@ -103,6 +102,8 @@ def solve_start(
         "verb_log": 0,
         "verb_disp": 0,
     }
+    import cma  # here, not at the top: pycma loads SciPy's stats and pyplot (0.7 s a process)
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pycma warns about unused/odd settings
         es = cma.CMAEvolutionStrategy(list(start_com), sigma0, opts)
