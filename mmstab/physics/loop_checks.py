@@ -113,8 +113,8 @@ def simulated_mus(points: list[FloatArray], coms: FloatArray, mass: float) -> Fl
     ok = hulls.ok
     theta = padded_axis_angles(hulls.vertices[ok], hulls.n_vertices[ok], coms[ok], force)
     mu[ok] = np.min(theta, axis=1) * np.linalg.norm(force)
-    for i in np.flatnonzero(~ok):
-        mu[i] = simulated_mu(points[i], coms[i], mass)
+    for j in np.flatnonzero(~ok):
+        mu[j] = simulated_mu(points[j], coms[j], mass)
     return mu
 
 

@@ -36,6 +36,7 @@ from mmstab.stability.static import (
     force_angle_batch,
     padded_axis_angles,
 )
+from mmstab.stability.support_kernel import support_mu_c
 from mmstab.terrain.base import GRAVITY_G, Terrain, as_poses
 from mmstab.terrain.polygon import support_vertices
 from mmstab.terrain.polygon_batch import hulls_along_batch
@@ -187,6 +188,13 @@ def support_on_rests(
     line[known] = rests.line_contact[at]
     rows = np.flatnonzero(known & np.isfinite(G_T_B[:, 2, 3]))
     force_G = mass * GRAVITY_G
+    # μ from the polygon alone (gravity, or a line): the C kernel, state by state
+    plain = rows[(wrench is None) | line[rows]]
+    kernel = support_mu_c(points, rests.bearing[index[plain]], G_T_B[plain], com_body[plain],
+                          force_G) if len(plain) else None  # fmt: skip
+    if kernel is not None:
+        mu[plain[kernel[1]]] = kernel[0][kernel[1]]
+        rows = np.setdiff1d(rows, plain[kernel[1]], assume_unique=True)
     R, t = G_T_B[rows, :3, :3], G_T_B[rows, :3, 3]  # the per-state code's products, stacked
     coms_G = (R @ com_body[rows][..., None])[..., 0] + t
     bearing = rests.bearing[index[rows]]  # each state's bearing candidates, first

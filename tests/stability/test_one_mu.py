@@ -203,7 +203,8 @@ def test_a_route_plan_reports_what_rest_gives_at_its_poses(tmp_path):
 def test_the_batched_hulls_give_the_per_state_mu(tmp_path, monkeypatch, wrench):
     """μ along many states (hulls wrapped all at once) is the per-state hull_along's to 1e-12.
 
-    With a tool wrench too (the dynamic measure on the batch's polygon, per state).
+    With a tool wrench too (the dynamic measure on the batch's polygon, per state). The C
+    kernel (gravity alone) is held off here and checked in the next test.
     """
     import dataclasses
 
@@ -223,6 +224,7 @@ def test_the_batched_hulls_give_the_per_state_mu(tmp_path, monkeypatch, wrench):
         answered.append(hulls.ok.mean())
         return hulls
 
+    monkeypatch.setattr(support, "support_mu_c", lambda *args: None)
     monkeypatch.setattr(support, "hulls_along_batch", spy)
     batched = loaded_support(robot, terrain, poses, robot.arm_com(q), q)
     assert answered[0] > 0.8  # the batch answers most states
@@ -239,3 +241,41 @@ def test_the_batched_hulls_give_the_per_state_mu(tmp_path, monkeypatch, wrench):
     if wrench is not None:  # the wrench's measure, not gravity's alone
         plain = loaded_support(problem.robot, terrain, poses, robot.arm_com(q), q).mu
         assert np.nanmax(np.abs(plain - batched.mu)) > 1.0
+
+
+@pytest.mark.parametrize("seed", [31, 32])
+def test_the_c_kernel_gives_the_numpy_batchs_and_the_per_state_mu(tmp_path, monkeypatch, seed):
+    """The loaded support's μ in C (``support_mu.c``) against the NumPy batch and the
+    per-state hull_along, on random user-like ground: states at kerbs and ditch rims
+    included, where the C kernel leaves lines and close pairs to the per-state path."""
+    import mmstab.stability.support as support
+    from mmstab.stability.support_kernel import support_mu_c
+    from mmstab.terrain.polygon_batch import hulls_along_batch
+
+    rng = np.random.default_rng(seed)
+    problem = ground_problem(rng, tmp_path)
+    robot, terrain = problem.robot, problem.terrain
+    poses, q = random_states(problem, rng, 300)
+    settled = []
+
+    def spy(*args):
+        out = support_mu_c(*args)
+        assert out is not None  # the C compiler is there (make setup)
+        settled.append(out[1].mean())
+        return out
+
+    monkeypatch.setattr(support, "support_mu_c", spy)
+    in_c = loaded_support(robot, terrain, poses, robot.arm_com(q)).mu
+    assert settled[0] > 0.9
+    monkeypatch.setattr(support, "support_mu_c", lambda *args: None)
+    in_numpy = loaded_support(robot, terrain, poses, robot.arm_com(q)).mu
+    np.testing.assert_allclose(in_c, in_numpy, rtol=0, atol=1e-9)
+
+    def none(*args, **kwargs):
+        hulls = hulls_along_batch(*args, **kwargs)
+        return hulls._replace(ok=np.zeros_like(hulls.ok))
+
+    monkeypatch.setattr(support, "hulls_along_batch", none)
+    single = loaded_support(robot, terrain, poses, robot.arm_com(q)).mu
+    np.testing.assert_allclose(in_c, single, rtol=0, atol=1e-9)
+    assert np.isfinite(in_c).sum() > 250 and (in_c < 0).sum() + (in_c > 0).sum() > 250
