@@ -293,19 +293,27 @@ class CollisionChecker:
         qa = np.atleast_2d(qa)
         R, p = self.shape_poses(qa, frames)
         codes = _value_codes(qa) if cull else None
+        groups: dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
         hit = np.zeros(len(qa), dtype=bool)
         for pair in self.pairs:
             todo = np.flatnonzero(~hit)
             if todo.size == 0:
                 break
             if codes is not None:
-                key = _row_keys(codes[todo], pair.columns)
-                _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-                reps = todo[first]
+                # the postures that agree on the pair's joints, grouped once per joint set
+                # over all rows (a pair has the same answer at each of a group's rows)
+                if pair.columns not in groups:
+                    key = _row_keys(codes, pair.columns)
+                    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+                    groups[pair.columns] = first, inverse.reshape(-1)
+                first, inverse = groups[pair.columns]
+                wanted = np.zeros(len(first), dtype=bool)
+                wanted[inverse[todo]] = True
+                reps = first[wanted]
                 near = self._may_touch(pair, p, reps)
-                rep_hit = np.zeros(len(reps), dtype=bool)
-                rep_hit[near] = self._fcl(pair, R, p, reps[near])
-                hit[todo] = rep_hit[inverse.reshape(-1)]
+                group_hit = np.zeros(len(first), dtype=bool)
+                group_hit[np.flatnonzero(wanted)[near]] = self._fcl(pair, R, p, reps[near])
+                hit[todo] = group_hit[inverse[todo]]
             else:
                 hit[todo] = self._fcl(pair, R, p, todo)
         return bool(hit[0]) if single else hit
