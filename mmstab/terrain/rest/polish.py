@@ -34,10 +34,10 @@ the row keeps the rounds' answer) is the whole function's. Both give the same re
 
 from __future__ import annotations
 
+from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
-from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
 from mmstab.terrain.heightmap import FloatArray, Heightmap
@@ -72,11 +72,12 @@ def energy(
 #: Pieces above which :func:`box_minimax` hands the programme to HiGHS (the vertices grow as
 #: the cube of the pieces; HiGHS costs about a millisecond a call whatever their number).
 MAX_PIECES = 32
-#: The index triples of m pieces, m <= MAX_PIECES.
-TRIPLES = {
-    m: np.array(list(combinations(range(m), 3)), dtype=int).reshape(-1, 3)
-    for m in range(MAX_PIECES + 1)
-}
+
+
+@lru_cache(maxsize=MAX_PIECES + 1)
+def triples(m: int) -> np.ndarray:
+    """The index triples of m pieces (C(m, 3), 3), m <= MAX_PIECES (made on first use)."""
+    return np.array(list(combinations(range(m), 3)), dtype=int).reshape(-1, 3)
 
 
 def upper_hull(J: FloatArray, a: FloatArray) -> BoolArray:
@@ -123,6 +124,8 @@ def box_minimax(
     a, J = a[keep], J[keep]
     m = len(a)
     if m > MAX_PIECES:
+        from scipy.optimize import linprog  # here: SciPy's optimize costs 0.1 s to import
+
         lp = linprog(
             [g[0], g[1], 1.0], A_ub=np.c_[J, -np.ones(m)], b_ub=-a,
             bounds=[(-delta, delta), (-delta, delta), (None, None)], method="highs",
@@ -143,7 +146,7 @@ def box_minimax(
                 d[:, other] = (c[ok] - n[ok, axis] * side) / n[ok, other]
                 points.append(d)
     if m > 2:
-        tri = TRIPLES[m]
+        tri = triples(m)
         A = np.stack([J[tri[:, 0]] - J[tri[:, 1]], J[tri[:, 0]] - J[tri[:, 2]]], axis=1)
         b = np.stack([a[tri[:, 1]] - a[tri[:, 0]], a[tri[:, 2]] - a[tri[:, 0]]], axis=1)
         det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
