@@ -275,7 +275,11 @@ class CollisionChecker:
 
     # ------------------------------------------------------------------------------ public
     def collides(
-        self, q: ArrayLike, cull: bool = True, frames: FloatArray | None = None
+        self,
+        q: ArrayLike,
+        cull: bool = True,
+        frames: FloatArray | None = None,
+        moving: int | None = None,
     ) -> NDArray[np.bool_] | bool:
         """Whether any checked pair of bodies intersects, for each posture.
 
@@ -284,6 +288,9 @@ class CollisionChecker:
             cull: skip pairs proven apart and reuse answers of identical relevant joints
                 (False: FCL on every pair of every posture, the reference for tests).
             frames: ``kinematics.link_frames(q)`` (N, 4, 4, 4) if already computed.
+            moving: the postures are collision-free ones (by this checker) moved in this
+                joint only: a pair whose answer does not depend on it keeps its free
+                answer and is not checked (a roadmap edge's interior postures).
 
         Returns:
             (N,) bool, or a bool for one posture; True = some pair collides.
@@ -295,7 +302,8 @@ class CollisionChecker:
         codes = _value_codes(qa) if cull else None
         groups: dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
         hit = np.zeros(len(qa), dtype=bool)
-        for pair in self.pairs:
+        pairs = self.pairs if moving is None else [p for p in self.pairs if moving in p.columns]
+        for pair in pairs:
             todo = np.flatnonzero(~hit)
             if todo.size == 0:
                 break

@@ -376,7 +376,7 @@ def load_or_build_roadmap(
                 if progress:
                     print(
                         f"mmstab: building the posture roadmap of the {list(ws.grid)} grid, "
-                        f"once per robot and grid (about a minute) -> {path}",
+                        f"once per robot and grid (seconds) -> {path}",
                         file=sys.stderr,
                     )
                 rm = build_roadmap(robot, ws, resolution, progress)

@@ -55,6 +55,9 @@ def free_moves(
 ) -> NDArray[np.bool_]:
     """Whether the moves q -> q + step e_j (N rows) are free at ``steps`` interior postures.
 
+    The rows are collision-free postures (V's nodes): only the pairs that joint j moves
+    relative to each other are checked.
+
     ``bar``: advanced by one per interior posture checked.
     """
     ok = np.ones(len(q), dtype=bool)
@@ -68,7 +71,7 @@ def free_moves(
         shifted[:, j] += step * s / (steps + 1)
         for c in range(0, len(rows), CHECK_CHUNK):
             part = rows[c : c + CHECK_CHUNK]
-            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK]), dtype=bool)
+            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK], moving=j), dtype=bool)
             ok[part[hit]] = False
     return ok
 

@@ -105,6 +105,20 @@ def test_culling_never_changes_the_answer(robot, checker, rng):
     np.testing.assert_array_equal(checker.collides(g), checker.collides(g, cull=False))
 
 
+@pytest.mark.parametrize("j", range(4))
+def test_a_free_posture_moved_in_one_joint_checks_only_the_pairs_it_moves(robot, checker, rng, j):
+    """``collides(moving=j)``: the roadmap's edge checks skip the pairs joint j does not move."""
+    q = random_postures(robot, rng, 3000)
+    free = q[~checker.collides(q, cull=False)]
+    moved = free.copy()
+    moved[:, j] += rng.uniform(-0.8, 0.8, len(free))
+    expected = checker.collides(moved, cull=False)
+    assert 10 < expected.sum() < 0.9 * len(expected)  # the moves do collide at times
+    np.testing.assert_array_equal(checker.collides(moved, moving=j), expected)
+    skipped = [p for p in checker.pairs if j not in p.columns]
+    assert skipped  # the turret moves no link against another, the wrist no link but itself
+
+
 def test_capsule_shape_follows_its_segment(robot, checker):
     q = np.array([[0.3, 0.4, -0.5, 0.6]])
     R, p = checker.shape_poses(q)
