@@ -288,9 +288,8 @@ class CollisionChecker:
             cull: skip pairs proven apart and reuse answers of identical relevant joints
                 (False: FCL on every pair of every posture, the reference for tests).
             frames: ``kinematics.link_frames(q)`` (N, 4, 4, 4) if already computed.
-            moving: the postures are collision-free ones (by this checker) moved in this
-                joint only: a pair whose answer does not depend on it keeps its free
-                answer and is not checked (a roadmap edge's interior postures).
+            moving: the postures are this checker's free ones moved in this joint only: the
+                pairs it does not move keep their free answer (a roadmap edge's interior).
 
         Returns:
             (N,) bool, or a bool for one posture; True = some pair collides.
@@ -302,21 +301,19 @@ class CollisionChecker:
         codes = _value_codes(qa) if cull else None
         groups: dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
         hit = np.zeros(len(qa), dtype=bool)
-        pairs = self.pairs if moving is None else [p for p in self.pairs if moving in p.columns]
+        pairs = [pr for pr in self.pairs if moving is None or moving in pr.columns]
         for pair in pairs:
             todo = np.flatnonzero(~hit)
             if todo.size == 0:
                 break
             if codes is not None:
-                # the postures that agree on the pair's joints, grouped once per joint set
-                # over all rows (a pair has the same answer at each of a group's rows)
+                # rows that agree on the pair's joints share its answer: grouped once per set
                 if pair.columns not in groups:
                     key = _row_keys(codes, pair.columns)
                     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
                     groups[pair.columns] = first, inverse.reshape(-1)
                 first, inverse = groups[pair.columns]
-                wanted = np.zeros(len(first), dtype=bool)
-                wanted[inverse[todo]] = True
+                wanted = np.bincount(inverse[todo], minlength=len(first)) > 0
                 reps = first[wanted]
                 near = self._may_touch(pair, p, reps)
                 group_hit = np.zeros(len(first), dtype=bool)
