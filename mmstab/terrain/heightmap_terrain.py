@@ -204,7 +204,11 @@ class HeightmapTerrain:
 
     @functools.cached_property
     def _kept_rests(self) -> dict[tuple[Any, ...], RestPoses]:
-        """The last :data:`_KEEP_BATCHES` large batches' rests, oldest first."""
+        """The rests of the last :data:`_KEEP_BATCHES` large batches solved, oldest first.
+
+        A batch of 18706 poses against 390 candidates holds about 75 MB (its ``gap`` and
+        flags); the terrain keeps two.
+        """
         return {}
 
     def G_T_M(self) -> FloatArray:
