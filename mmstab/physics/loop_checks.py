@@ -12,13 +12,12 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.physics.robot_sim import RobotSim
-from mmstab.stability.static import contact_force_angle, padded_axis_angles
+from mmstab.stability.static import base_polygon, contact_force_angle, padded_axis_angles
 from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.polygon_batch import hulls_along_batch
 
@@ -133,20 +132,14 @@ def tilts_off_rest(problem: Problem, poses: FloatArray, G_T_B: FloatArray) -> Fl
     return np.asarray(np.arccos(c))
 
 
-def footprint_ring(support_B: FloatArray) -> FloatArray:
-    """The tracks' footprint (n, 3) in B [m] (z = 0) as its hull's ring, CCW about z_B."""
-    pts = np.asarray(support_B, dtype=float)
-    return pts[ConvexHull(pts[:, :2]).vertices]
-
-
 def beyond_no_return(ring_B: FloatArray, G_T_B: FloatArray, com_G: FloatArray) -> bool:
     """Whether the body's attitude is past the point of no return: it overturns.
 
     The vertical through the simulated overall CoM ``com_G`` (3,) [m] leaves the tracks'
-    whole footprint (the largest support the chassis can stand on; ``ring_B``
-    (:func:`footprint_ring`), its ring in B's x-y plane, CCW about z_B [m]) at the body's
-    pose ``G_T_B`` (4, 4): μ of that footprint is ≤ 0, so gravity turns the robot further
-    over whatever ground carries it. A planar ring seen from above keeps its order (reversed
+    whole footprint (the largest support the chassis can stand on; ``ring_B``, its ring in
+    B's x-y plane, CCW about z_B [m]: :func:`~mmstab.stability.static.base_polygon`) at the
+    body's pose ``G_T_B`` (4, 4): μ of that footprint is ≤ 0, so gravity turns the robot
+    further over whatever ground carries it. A planar ring seen from above keeps its order (reversed
     when z_B points down), so inside is the same side of every edge: no hull per check.
     """
     R = G_T_B[:3, :3]
@@ -215,7 +208,7 @@ class TipCheck:
 
     def __init__(self, problem: Problem, batch: int = 25):
         self.problem, self.batch = problem, batch
-        self.ring_B = footprint_ring(problem.robot.base.support_points())
+        self.ring_B = base_polygon(problem.robot).vertices
         self.index: list[int] = []
         self.poses: list[FloatArray] = []
         self.frames: list[FloatArray] = []
@@ -284,16 +277,13 @@ def check_records(
     """(simulated μ, tilt off rest, arm on the ground) at the checks of a run of ``m`` periods."""
     mu_sim, tilt, arm = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     mass = float(sim.model.body_subtreemass[0])
-    rows = list(zip(checks.index, checks.tilt, strict=False))
-    records = list(zip(rows, contact_records(sim, positions), strict=False))
-    if not records:
+    rows = list(zip(checks.index, checks.tilt, contact_records(sim, positions), strict=False))
+    if not rows:
         return mu_sim, tilt, arm
-    index = np.array([i for (i, _), _ in records])
-    tilt[index] = [value for (_, value), _ in records]
-    arm[index] = [touches for _, (_, _, touches) in records]
-    mu_sim[index] = simulated_mus(
-        [points for _, (points, _, _) in records], np.array([c for _, (_, c, _) in records]), mass
-    )
+    index, values, found = zip(*rows, strict=True)
+    points, coms, touches = zip(*found, strict=True)
+    i = np.array(index)
+    tilt[i], arm[i], mu_sim[i] = values, touches, simulated_mus(list(points), np.array(coms), mass)
     return mu_sim, tilt, arm
 
 

@@ -180,6 +180,9 @@ class HeightmapTerrain:
             strict: raise for ground off the map or unknown (else NaN rows).
             com_body: the overall CoM in B, (3,) or (N, 3) [m] (``None``: the bound
                 robot's, :attr:`com_body`): each state rests under its own load.
+
+        A batch of ``_KEEP_ROWS`` poses or more is kept: the same poses under the same load
+        (and ``strict``) again give the same, read-only :class:`RestPoses`.
         """
         p = np.asarray(poses, dtype=float)
         key = None
