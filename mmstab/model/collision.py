@@ -96,11 +96,7 @@ def fcl_geometry(geometry: Geometry) -> fcl.CollisionGeometry:
     return fcl.Capsule(geometry.radius, geometry.length)
 
 
-def _transform(R: FloatArray, p: FloatArray) -> fcl.Transform:
-    return fcl.Transform(R, p)
-
-
-def _value_codes(q: FloatArray) -> NDArray[np.int64]:
+def value_codes(q: FloatArray) -> NDArray[np.int64]:
     """Per joint, the rank of each posture's value among the distinct values (N, 4)."""
     codes = np.empty(q.shape, dtype=np.int64)
     for j in range(q.shape[1]):
@@ -108,7 +104,7 @@ def _value_codes(q: FloatArray) -> NDArray[np.int64]:
     return codes
 
 
-def _row_keys(codes: NDArray[np.int64], columns: tuple[int, ...]) -> NDArray[np.int64]:
+def row_keys(codes: NDArray[np.int64], columns: tuple[int, ...]) -> NDArray[np.int64]:
     """One integer per row, equal exactly when the rows agree on ``columns``."""
     key = np.zeros(len(codes), dtype=np.int64)
     for j in columns:
@@ -153,7 +149,7 @@ class CollisionChecker:
         for name, box in self.base_boxes.items():
             T = box.frame_T_shape
             self._base_objs[name] = fcl.CollisionObject(
-                fcl_geometry(box), _transform(T[:3, :3], T[:3, 3])
+                fcl_geometry(box), fcl.Transform(T[:3, :3], T[:3, 3])
             )
         self._request = fcl.CollisionRequest()
         names = [link.name for link in robot.links]
@@ -199,9 +195,8 @@ class CollisionChecker:
                  for pr in self.pairs], dtype=np.int64,
             ),
         )  # fmt: skip
-        self._box_R = np.stack([self.base_boxes[b].frame_T_shape[:3, :3] for b in parts])
-        self._box_c = np.stack([self.base_boxes[b].frame_T_shape[:3, 3] for b in parts])
-        self._box_half = np.stack([np.asarray(self.base_boxes[b].size) / 2 for b in parts])
+        self._box_R, self._box_c = self._table.base_R, self._table.base_centre
+        self._box_half, self._part = self._table.base_half, {b: k for k, b in enumerate(parts)}
         self._gap_column = {
             pr.name: (pr.link * len(parts) + parts.index(pr.other))
             if isinstance(pr.other, str)
@@ -247,9 +242,9 @@ class CollisionChecker:
         centre = p[rows, pair.link]
         radius = self._link_radius[pair.link]
         if isinstance(pair.other, str):  # bounding sphere vs the base box itself
-            box = self.base_boxes[pair.other]
-            local = (centre - box.center) @ box.frame_T_shape[:3, :3]
-            outside = local - np.clip(local, -box.size / 2, box.size / 2)
+            b = self._part[pair.other]
+            local = (centre - self._box_c[b]) @ self._box_R[b]
+            outside = np.maximum(np.abs(local) - self._box_half[b], 0.0)
             return np.einsum("ij,ij->i", outside, outside) <= (radius + CULL_SLACK) ** 2
         reach = radius + self._link_radius[pair.other] + CULL_SLACK
         d = centre - p[rows, pair.other]
@@ -280,6 +275,7 @@ class CollisionChecker:
         cull: bool = True,
         frames: FloatArray | None = None,
         moving: int | None = None,
+        groups: dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]] | None = None,
     ) -> NDArray[np.bool_] | bool:
         """Whether any checked pair of bodies intersects, for each posture.
 
@@ -290,6 +286,8 @@ class CollisionChecker:
             frames: ``kinematics.link_frames(q)`` (N, 4, 4, 4) if already computed.
             moving: the postures are this checker's free ones moved in this joint only: the
                 pairs it does not move keep their free answer (a roadmap edge's interior).
+            groups: per pair's ``columns``, the rows' groups of equal values there, as
+                ``(first row, group of each row)`` (the caller knows them; else computed).
 
         Returns:
             (N,) bool, or a bool for one posture; True = some pair collides.
@@ -298,18 +296,19 @@ class CollisionChecker:
         single = qa.ndim == 1
         qa = np.atleast_2d(qa)
         R, p = self.shape_poses(qa, frames)
-        codes = _value_codes(qa) if cull else None
-        groups: dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
+        codes = None
+        groups = {} if groups is None else groups
         hit = np.zeros(len(qa), dtype=bool)
         pairs = [pr for pr in self.pairs if moving is None or moving in pr.columns]
         for pair in pairs:
             todo = np.flatnonzero(~hit)
             if todo.size == 0:
                 break
-            if codes is not None:
+            if cull:
                 # rows that agree on the pair's joints share its answer: grouped once per set
                 if pair.columns not in groups:
-                    key = _row_keys(codes, pair.columns)
+                    codes = value_codes(qa) if codes is None else codes
+                    key = row_keys(codes, pair.columns)
                     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
                     groups[pair.columns] = first, inverse.reshape(-1)
                 first, inverse = groups[pair.columns]

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from mmstab.model.collision import CollisionChecker
+from mmstab.model.collision import CollisionChecker, row_keys, value_codes
 from mmstab.model.plane_clearance import arm_ground_clearance
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.workspace.grid import JointGrid
@@ -61,6 +61,9 @@ def free_moves(
     ``bar``: advanced by one per interior posture checked.
     """
     ok = np.ones(len(q), dtype=bool)
+    # a move shifts every row's joint j alike, so the rows that agree on a pair's joints
+    # agree at every step: grouped once here, not once per step
+    groups = move_groups(checker, q, j)
     for s in range(1, steps + 1):
         if bar is not None:
             bar.update(1)
@@ -71,9 +74,40 @@ def free_moves(
         shifted[:, j] += step * s / (steps + 1)
         for c in range(0, len(rows), CHECK_CHUNK):
             part = rows[c : c + CHECK_CHUNK]
-            hit = np.asarray(checker.collides(shifted[c : c + CHECK_CHUNK], moving=j), dtype=bool)
+            batch = shifted[c : c + CHECK_CHUNK]
+            hit = checker.collides(batch, moving=j, groups=groups_of(groups, part))
+            hit = np.asarray(hit, dtype=bool)
             ok[part[hit]] = False
     return ok
+
+
+def move_groups(
+    checker: CollisionChecker, q: FloatArray, j: int
+) -> dict[tuple[int, ...], tuple[NDArray[np.intp], int]]:
+    """Per joint set of the pairs joint j moves: each row's group of equal values there."""
+    out: dict[tuple[int, ...], tuple[NDArray[np.intp], int]] = {}
+    codes = value_codes(q)
+    for columns in {pr.columns for pr in checker.pairs if j in pr.columns}:
+        _, inverse = np.unique(row_keys(codes, columns), return_inverse=True)
+        out[columns] = inverse.reshape(-1), int(inverse.max(initial=-1)) + 1
+    return out
+
+
+def groups_of(
+    groups: dict[tuple[int, ...], tuple[NDArray[np.intp], int]], part: NDArray[np.intp]
+) -> dict[tuple[int, ...], tuple[NDArray[np.intp], NDArray[np.intp]]]:
+    """:func:`move_groups` for the rows ``part``, as :meth:`CollisionChecker.collides` takes them.
+
+    ``(first row of each group, each row's group)``; a group absent from ``part`` keeps
+    ``len(part)`` as its first row (it is never asked for).
+    """
+    out = {}
+    for columns, (inverse, n) in groups.items():
+        inv = inverse[part]
+        first = np.full(n, len(part), dtype=np.intp)
+        np.minimum.at(first, inv, np.arange(len(part), dtype=np.intp))
+        out[columns] = first, inv
+    return out
 
 
 def node_arrays(robot: Robot, nodes_q: FloatArray) -> dict[str, FloatArray]:

@@ -119,6 +119,23 @@ def test_a_free_posture_moved_in_one_joint_checks_only_the_pairs_it_moves(robot,
     assert skipped  # the turret moves no link against another, the wrist no link but itself
 
 
+@pytest.mark.parametrize("j", range(4))
+def test_edge_moves_grouped_once_per_joint_are_fcl_on_every_pair(robot, checker, rng, j):
+    """``free_moves``: the rows' groups found once per joint give FCL's answer on every pair
+    at every interior posture of every edge, row by row."""
+    from mmstab.workspace.roadmap_checks import free_moves
+
+    g = grid_postures(joint_grid(robot, [7, 6, 6, 5]))
+    nodes = g[~checker.collides(g, cull=False)]
+    nodes = nodes[rng.permutation(len(nodes))]  # grouped rows out of grid order
+    step, steps = 1.5, 5
+    got = free_moves(checker, nodes, j, step, steps)
+    shifts = [nodes + np.eye(4)[j] * step * s / (steps + 1) for s in range(1, steps + 1)]
+    expected = ~np.any([checker.collides(q, cull=False) for q in shifts], axis=0)
+    assert 40 < (~expected).sum() < 0.3 * len(expected)  # some moves collide, most do not
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_capsule_shape_follows_its_segment(robot, checker):
     q = np.array([[0.3, 0.4, -0.5, 0.6]])
     R, p = checker.shape_poses(q)
