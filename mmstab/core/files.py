@@ -218,7 +218,8 @@ def validate(path: str | os.PathLike[str], data: dict[str, Any], schema: dict[st
     elif err.validator == "required":
         missing = [r for r in err.validator_value if r not in err.instance]
         field = _field_path([*err.absolute_path, missing[0]])
-        msg = "missing required key"
+        what = err.schema.get("properties", {}).get(missing[0], {}).get("description")
+        msg = "missing required key" + (f": {what}" if what else "")  # what it is, its unit
     elif _kinds(err):  # a mapping of no known ``type``: name the kinds, not the mapping
         field = _field_path([*err.absolute_path, "type"])
         msg = f"must be one of {', '.join(_kinds(err))}"

@@ -229,14 +229,21 @@ PROBLEM_SECTIONS: dict[str, dict[str, Any]] = {
 # apart by ``waypoints`` / ``file``.
 PATH_CIRCLE = obj(center=VEC2, radius=POS, start_angle=RAD, direction={"enum": ["ccw", "cw"]})
 _ROUTE_BASE = with_optional(
-    obj(speed=POS, turn_radius=NONNEG),  # speed on lines [m/s], corner arcs [m] (0: pivots)
+    obj(
+        speed={**POS, "description": "the reference speed on straight lines [m/s]"},
+        turn_radius={**NONNEG, "description": "the corners' arc radius [m]; 0 pivots on the spot"},
+    ),
     acceleration=POS,  # optional [m/s^2], default 0.3
     lateral_acceleration=POS,  # optional [m/s^2], default 0.3
 )
 #: waypoints in the map frame [m] (at least two: checked by the route builder, by name)
 PATH_ROUTE_WAYPOINTS = with_optional(
     {**_ROUTE_BASE, "required": [*_ROUTE_BASE["required"], "waypoints"]},
-    waypoints={"type": "array", "items": VEC2},
+    waypoints={
+        "type": "array",
+        "items": VEC2,
+        "description": "the route's corners [[x, y], ...] in the map frame [m]",
+    },
 )
 #: a CSV file of ``x,y[,yaw]`` lines, relative to the problem file
 PATH_ROUTE_FILE = with_optional(

@@ -237,6 +237,20 @@ def test_a_misspelt_key_is_named_with_the_closest_valid_key(tmp_path, capsys, ed
     assert line == f"mmstab: error: {path}: {field}: unknown key; did you mean '{closest}'?"
 
 
+@pytest.mark.parametrize(
+    "key,what",
+    [
+        ("turn_radius", "the corners' arc radius [m]; 0 pivots on the spot"),
+        ("speed", "the reference speed on straight lines [m/s]"),
+    ],
+)
+def test_a_missing_route_key_says_what_it_is_and_its_unit(tmp_path, capsys, key, what):
+    path = _route_problem(tmp_path, lambda p, r: p["path"].pop(key))
+    line = _refused(capsys, ["plan", path, "-o", str(tmp_path / "out")])
+    assert line == f"mmstab: error: {path}: path.{key}: missing required key: {what}"
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_misspelt_robot_key_is_named_with_the_closest_valid_key(tmp_path, capsys):
     path = write_problem(tmp_path, lambda p, r: r["arm"].update(stowd=r["arm"].pop("stowed")))
     line = _refused(capsys, ["rest", path, "--pose", "0", "0", "0"])
