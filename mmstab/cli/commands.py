@@ -200,19 +200,29 @@ def _pose_times(s: dict[str, Any]) -> str:
 
 
 def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
-    """The climb limit's verdict on the route's steps (docs/stability.md, "The climb limit")."""
-    steps = climb["steps"]
+    """The climb limit's verdict on the route's steps (docs/stability.md, "The climb limit").
+
+    One entry per step, where the front wheels meet it (the poses before and after it both
+    keep its limit, so the summary lists it twice).
+    """
+    steps: dict[int, list[dict[str, Any]]] = {}
+    for x in climb["steps"]:
+        steps.setdefault(x["met_from"], []).append(x)
     if not steps:
         return
-    where = ", ".join(f"{s[x['index']]:.2f} m ({100 * x['height']:.0f} cm)" for x in steps)
-    stalls = [f"{s[x['index']]:.2f} m" for x in steps if not x["planned_climbs"]]
+
+    def met(k: int) -> str:
+        return f"{s[k] + steps[k][0]['met_after_m']:.2f} m"
+
+    where = ", ".join(f"{met(k)} ({100 * xs[0]['height']:.0f} cm)" for k, xs in steps.items())
+    stalls = [met(k) for k, xs in steps.items() if not all(x["planned_climbs"] for x in xs)]
     verdict = (
         "the planned arm climbs them all"
         if not stalls
         else f"the planned arm may stall at {', '.join(stalls)} (it needs momentum there)"
     )
     stowed = "stalls" if climb["stowed_stalls"] else "climbs"
-    print(f"plan: steps at {where}: {verdict}; the stowed arm {stowed} (quasi-static)")
+    print(f"plan: steps met at s = {where}: {verdict}; the stowed arm {stowed} (quasi-static)")
 
 
 def _fig7(args: argparse.Namespace, problem: Any) -> int | None:

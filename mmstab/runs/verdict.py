@@ -432,9 +432,12 @@ def climb_verdict(
         closed: the path is a loop.
 
     Returns:
-        ``steps`` (each pose that runs into a step before the next: index, the step's
-        height [m] and edge angle [rad], whether the planned and the stowed arm climb it),
-        ``stalls`` (the planned arm cannot climb one), ``stowed_stalls``.
+        ``steps`` (each pose that keeps a step's climb limit: ``index``; ``met_from``, the
+        pose whose look-ahead meets the step (itself, or the pose before it, which drives
+        into it), and ``met_after_m``, how far from that pose the front wheel meets the
+        edge [m]; the step's ``height`` [m] and edge ``angle`` [rad]; whether the planned
+        and the stowed arm climb it), ``stalls`` (the planned arm cannot climb one),
+        ``stowed_stalls``.
     """
     from mmstab.planner.climbing import climb_plan
 
@@ -446,6 +449,8 @@ def climb_verdict(
     steps = [
         {
             "index": int(k),
+            "met_from": int(plan.source[k]),
+            "met_after_m": float(lim.ahead[plan.source[k]]),
             "height": float(lim.height[plan.source[k]]),
             "angle": float(lim.angle[plan.source[k]]),
             "planned_climbs": bool(planned[k]),

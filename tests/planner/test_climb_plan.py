@@ -32,6 +32,11 @@ def test_the_kerb_route_constrains_the_pose_before_the_kerb_and_the_next(kerb) -
     v = climb_verdict(kerb.robot, kerb.terrain, poses, plan.target_com, False)
     assert v["stalls"] is False and v["stowed_stalls"] is True
     assert [s["planned_climbs"] for s in v["steps"]] == [True, True]
+    # one step, met from the pose before it: the body there when the front wheels (axle
+    # 0.35 m ahead, rim 0.11 m) meet the face, 0.46 m ahead of the body, at x = 0.48-0.5 m
+    assert [s["met_from"] for s in v["steps"]] == [step[0], step[0]]
+    body_x = poses[step[0], 0] + v["steps"][0]["met_after_m"]
+    assert 0.48 - 0.46 - 0.02 < body_x < 0.50 - 0.46 + 0.02
     com = kerb.robot.overall_com(plan.target_com)
     assert np.all(c.climbs(com)) and np.all(com[c.constrained, 0] < 0.025)
 
