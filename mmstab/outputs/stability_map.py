@@ -78,7 +78,6 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
     import matplotlib.pyplot as plt
     from matplotlib.colors import TwoSlopeNorm
 
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6), constrained_layout=True)
     finite = np.concatenate([sm.worst[np.isfinite(sm.worst)], sm.best[np.isfinite(sm.best)]])
     vmax = float(np.max(finite)) if finite.size and np.max(finite) > 0 else 1.0
     lo = float(np.min(finite)) if finite.size else -1.0
@@ -88,6 +87,17 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
         sm.y[0] - (sm.y[1] - sm.y[0]) / 2 if sm.y.size > 1 else sm.y[0] - 0.5,
         sm.y[-1] + (sm.y[1] - sm.y[0]) / 2 if sm.y.size > 1 else sm.y[0] + 0.5,
     )
+    # a map wider than tall is drawn as three rows, else as three columns: each panel (and
+    # its colour bar, as tall as its slot) close to the map's own shape
+    aspect = (extent[1] - extent[0]) / max(extent[3] - extent[2], 1e-9)
+    rows = aspect > 2.0
+    if rows:
+        panel_h = min(max(8.5 / aspect, 1.6), 4.5)
+        fig, axes = plt.subplots(3, 1, figsize=(10.5, 3 * (panel_h + 0.8) + 0.5),
+                                 constrained_layout=True)  # fmt: skip
+    else:
+        panel_w = min(max(4.2 * aspect, 3.0), 5.0)
+        fig, axes = plt.subplots(1, 3, figsize=(3 * (panel_w + 1.4), 4.6), constrained_layout=True)
     for ax, field, heading, name in (
         (axes[0], sm.worst, sm.worst_heading, "worst"),
         (axes[1], sm.best, sm.best_heading, "best"),
@@ -99,8 +109,9 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
         step = max(1, max(field.shape) // 12)
         Xq, Yq = np.meshgrid(sm.x[::step], sm.y[::step])
         hq = heading[::step, ::step]
-        ax.quiver(Xq, Yq, np.cos(hq), np.sin(hq), color="k", alpha=0.6, scale=25, width=0.004)
-        ax.set_title(f"mu at the {name} heading per cell (arrows: that heading)")
+        ax.quiver(Xq, Yq, np.cos(hq), np.sin(hq), color="k", alpha=0.6, scale=35 if rows else 22,
+                  width=0.003 if rows else 0.005)  # fmt: skip
+        ax.set_title(f"mu at the {name} heading per cell (arrows: that heading)", fontsize=10)
         ax.set_xlabel("x_G [m]")
         ax.set_ylabel("y_G [m]")
         fig.colorbar(im, ax=ax, label="mu [N rad]")
@@ -110,7 +121,7 @@ def draw_stability_map(sm: StabilityMap, title: str) -> Any:
     im = axes[2].imshow(slip, origin="lower", extent=extent, cmap="RdYlGn", norm=norm)
     if np.nanmin(slip) < 0 < np.nanmax(slip) and slip.shape[0] > 1 and slip.shape[1] > 1:
         axes[2].contour(sm.x, sm.y, slip, levels=[0.0], colors="k", linewidths=1.0)
-    axes[2].set_title(f"slip margin at the worst heading (friction {sm.friction:g})")
+    axes[2].set_title(f"slip margin at the worst heading (friction {sm.friction:g})", fontsize=10)
     axes[2].set_xlabel("x_G [m]")
     axes[2].set_ylabel("y_G [m]")
     fig.colorbar(im, ax=axes[2], label="atan(friction) - tilt [deg]")
