@@ -167,6 +167,7 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
         f"{100 * v['base_error_max_m']:.1f} cm "
         f"(body origin {100 * v['base_origin_error_max_m']:.1f} cm)"
     )
+    place_line(v)
     if status is not None or v["plan"] != "accepted" or v["mujoco"] in ("holds", "stalls"):
         if v["mujoco"] == "stalls":
             print(
@@ -178,3 +179,19 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
     if v["mujoco"] == "touches the ground":  # an arm link on the ground: simulate's exit 5
         return EXIT_ARM_COLLISION
     return EXIT_UNSTABLE if v["mujoco"] == "tips" else EXIT_SLIDES
+
+
+def place_line(v: dict[str, Any]) -> None:
+    """``plan --verify``: where MuJoCo's event came against where the plan flags its limit."""
+    p = v.get("place")
+    if not p:
+        return
+    where = ", ".join(f"{a:.2f}-{b:.2f}" for a, b in p["flagged"])
+    if p["same_place"]:
+        said = f"where the plan flags it (s = {where} m)"
+    elif p["distance_m"] is None:
+        kinds = " or ".join(k.replace("_", "-") for k in p["limits"])
+        said = f"the plan flags no {kinds} anywhere"
+    else:
+        said = f"{p['distance_m']:.2f} m from where the plan flags it (s = {where} m)"
+    print(f"plan: MuJoCo {v['mujoco']} at s = {p['s_m']:.2f} m, {said}")

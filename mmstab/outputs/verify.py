@@ -25,6 +25,12 @@ PLAN_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "no plan": 6}
 OUTCOMES = ("tips", "leaves the map", "slides", "touches the ground", "stalls", "holds")
 #: The run summary's event of each outcome but ``holds`` (:data:`OUTCOMES`' order).
 EVENTS = ("tipped", "left_map", "slid", "arm_ground_contact", "stalled")
+#: The plan's limits (its summary's ``verdicts``) that name the place of each outcome.
+OUTCOME_LIMITS = {"tips": ("tip",), "slides": ("slide",), "stalls": ("step", "high_centred"),
+                  "touches the ground": ("arm_contact",)}  # fmt: skip
+#: An event this close to a stretch the plan flags for its limit is at the plan's place [m]
+#: (about the robot's length: the plan's stretches are where the body origin is).
+SAME_PLACE_M = 0.5
 
 
 def plan_verdict_of(summary: dict[str, Any]) -> str:
@@ -44,6 +50,33 @@ def outcome_of(s: dict[str, Any]) -> str:
     return "holds"
 
 
+def event_place(
+    verdicts: dict[str, Any], outcome: str, events: dict[str, Any]
+) -> dict[str, Any] | None:
+    """Where MuJoCo's event lies against the stretches the plan flags for the same limit.
+
+    Args:
+        verdicts: the plan summary's ``verdicts`` (each limit's ``where``: [start, end] [m]).
+        outcome: MuJoCo's outcome (:data:`OUTCOMES`).
+        events: the run's events (:data:`EVENTS`), placed (``s_m`` [m] along the route).
+
+    Returns:
+        None where the outcome has no limit or its event no place; else the event's
+        ``s_m``, the ``limits``, the plan's ``flagged`` stretches for them, ``distance_m`` from the
+        nearest (None: none flagged) and ``same_place`` (within :data:`SAME_PLACE_M`).
+    """
+    limits = OUTCOME_LIMITS.get(outcome)
+    event = events.get(EVENTS[OUTCOMES.index(outcome)]) if limits else None
+    if limits is None or event is None or "s_m" not in event:
+        return None
+    s = float(event["s_m"])
+    stretches = [w for k in limits for w in verdicts.get(k, {}).get("where", [])]
+    flagged = [[float(a), float(b)] for a, b in stretches]
+    d = min((max(a - s, s - b, 0.0) for a, b in flagged), default=None)
+    return {"s_m": s, "limits": list(limits), "flagged": flagged, "distance_m": d,
+            "same_place": d is not None and d <= SAME_PLACE_M}  # fmt: skip
+
+
 def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path) -> dict[str, Any]:
     """Run ``plan`` in MuJoCo and set its outcome beside the plan's verdict.
 
@@ -54,9 +87,10 @@ def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path)
         out: the folder for the run's ``summary.json`` and ``physics.png``.
 
     Returns:
-        ``plan`` (verdict), ``mujoco`` (outcome), ``agree``, the run's events, μ predicted
-        against simulated (median relative difference), and the base's largest errors at
-        the control point and the body origin [m].
+        ``plan`` (verdict), ``mujoco`` (outcome), ``agree``, the run's events, ``place``
+        (:func:`event_place`: MuJoCo's event against where the plan flags its limit), μ
+        predicted against simulated (median relative difference), and the base's largest
+        errors at the control point and the body origin [m].
     """
     from mmstab.outputs.simulate import loop_settings, place_events, simulate_run, summarize
     from mmstab.outputs.simulate_figure import write_run_figure
@@ -77,6 +111,7 @@ def verify_plan(problem: Problem, plan: Any, summary: dict[str, Any], out: Path)
         "mujoco": outcome,
         "agree": (verdict == "accepted") == (outcome == "holds"),
         "events": {k: sim[k] for k in EVENTS},
+        "place": event_place(summary["verdicts"], outcome, sim),
         "disagreement": sim["disagreement"],
         "mu_relative_difference_median": float(np.median(rel)) if ok.any() else None,
         "base_error_max_m": sim["base_error_max_m"],
