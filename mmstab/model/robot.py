@@ -380,6 +380,11 @@ def load_robot(path: str | os.PathLike[str]) -> Robot:
         path: the robot YAML file.
 
     Raises:
-        ConfigError: the file is missing, not YAML, or has a bad field.
+        ConfigError: the file is missing, not YAML, a problem file, or has a bad field.
     """
-    return robot_from_dict(read_yaml(path), path)
+    data = read_yaml(path)
+    if isinstance(data, dict) and "robot" in data and {"terrain", "path"} & set(data):
+        raise ConfigError(  # the usual slip: the problem handed where its robot is asked for
+            path, "robot", f"a problem file, not a robot file: its robot is {data['robot']!r}"
+        )
+    return robot_from_dict(data, path)

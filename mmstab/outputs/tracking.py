@@ -23,11 +23,11 @@ from mmstab.outputs.common import output_dir, route_corners, save_settings
 from mmstab.planner import Plan, RoutePlan
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.tracking import (
-    JOINT_NAMES,
-    STATE_NAMES,
     InitialArm,
     TrackingPlan,
     TrackingRun,
+    joint_names,
+    state_names,
     summarize,
 )
 from mmstab.runs.verdict import slip_verdict, turn_check
@@ -169,9 +169,9 @@ def _write_arrays(d: Path, plan: TrackingPlan, run: TrackingRun, keep: NDArray[n
         d / "run.npz",
         t=run.t[keep],
         state=run.state[keep],
-        state_names=np.array(STATE_NAMES),
+        state_names=np.array(state_names(run.state.shape[1] - 5)),
         qdot=applied[keep],
-        joint_names=np.array(JOINT_NAMES),
+        joint_names=np.array(joint_names(run.qdot.shape[1] - 2)),
         xi=run.xi[keep],
         xi_des=run.xi_des[keep],
         q_ref=run.q_ref[keep],
@@ -283,13 +283,14 @@ def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) ->
     ax_b.semilogy(run.t, positive(run.base_error), color="C0", label="base point [m]")
     ax_b.semilogy(run.t, positive(np.abs(run.heading_error)), color="C2", label="|heading| [rad]")
     ax_a.semilogy(run.t, positive(run.arm_com_error), color="C1", label="arm CoM [m]")
-    for j in range(4):
+    arm = run.posture_error.shape[1]  # the robot's arm joints
+    for j in range(arm):
         ax_q.semilogy(
             run.t,
             positive(np.abs(run.posture_error[:, j])),
             color=f"C{j + 2}",
             lw=0.9,
-            label=JOINT_NAMES[2 + j],
+            label=joint_names(arm)[2 + j],
         )
     ax_b.set(ylabel="error", title="(a) base: control point distance and heading")
     ax_a.set(ylabel="error [m]", title="(b) arm CoM distance")
@@ -315,12 +316,13 @@ def _fig11(d: Path, run: TrackingRun) -> None:
     fig, axes = new_figure(2, 2, figsize=(12, 6.5), width_ratios=[1.6, 1])
     t_q = run.t[:-1]  # q̇ holds over [t_k, t_k+1)
     zoom = t_q <= min(1.0, float(t_q[-1]))
-    groups = [(slice(2, 6), "(a) arm joints"), (slice(0, 2), "(b) tracks (sprockets)")]
+    names = joint_names(run.qdot.shape[1] - 2)  # the tracks, then the robot's arm joints
+    groups = [(slice(2, len(names)), "(a) arm joints"), (slice(0, 2), "(b) tracks (sprockets)")]
     for row, (cols, title) in enumerate(groups):
         for col, mask in enumerate((np.ones_like(zoom), zoom)):
             ax = axes[row, col]
-            for j in range(6)[cols]:
-                ax.plot(t_q[mask], run.qdot[mask, j], lw=1.0, color=f"C{j}", label=JOINT_NAMES[j])
+            for j in range(len(names))[cols]:
+                ax.plot(t_q[mask], run.qdot[mask, j], lw=1.0, color=f"C{j}", label=names[j])
             lim = float(np.max(run.qdot_limit[cols]))
             for sign in (1, -1):
                 ax.axhline(

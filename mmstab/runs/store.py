@@ -152,10 +152,10 @@ def load_run(directory: str | Path, problem: Any) -> Run:
             arrays = {k: np.asarray(data[k], dtype=float) for k in RUN_ARRAYS}
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise MmstabError(f"{npz}: cannot read the run ({exc})") from None
-    n = arrays["t"].size
+    n, joints = arrays["t"].size, problem.robot.arm_joints
     shapes = {
         "t": (n,),
-        "state": (n, 9),
+        "state": (n, 5 + joints),  # pose, sprockets, the arm's joints
         "mu_reconfigured": (n,),
         "mu_stowed": (n,),
         "mu_arm_removed": (n,),
@@ -171,7 +171,7 @@ def load_run(directory: str | Path, problem: Any) -> Run:
         directory=d,
         t=arrays["t"],
         poses=state[:, :3],
-        q=state[:, 5:9],
+        q=state[:, 5:],
         mu={
             "planned": arrays["mu_reconfigured"],
             "stowed": arrays["mu_stowed"],

@@ -68,11 +68,13 @@ def frame_indices(n_samples: int, max_frames: int | None) -> NDArray[np.intp]:
     return np.unique(picks)
 
 
-def _check_inputs(times: FloatArray, poses: FloatArray, q: FloatArray, mu: FloatArray) -> None:
+def _check_inputs(
+    times: FloatArray, poses: FloatArray, q: FloatArray, mu: FloatArray, joints: int
+) -> None:
     n = times.shape[0]
     if times.ndim != 1 or n < 1:
         raise ValueError(f"times must be (T,) with T >= 1, got {times.shape}")
-    for name, arr, shape in (("base_poses", poses, (n, 3)), ("q_arm", q, (n, 4))):
+    for name, arr, shape in (("base_poses", poses, (n, 3)), ("q_arm", q, (n, joints))):
         if arr.shape != shape:
             raise ValueError(f"{name} must be {shape}, got {arr.shape}")
     if mu.shape != (n,):
@@ -104,7 +106,7 @@ def render_animation(
         terrain: the ground the run is on.
         times: sample times (T,) [s].
         base_poses: base poses (T, 3) of (x, y, yaw) in the map frame M [m, m, rad].
-        q_arm: arm joint angles (T, 4) [rad].
+        q_arm: arm joint angles (T, n), one column per arm joint [rad].
         mu: force-angle stability margin (T,) [N rad] (``NaN`` = unknown, drawn grey).
         out_path: the GIF to write (atomically: temp file + rename); folders are created.
         fps: frames per second of the GIF [1/s].
@@ -128,7 +130,7 @@ def render_animation(
     poses = np.asarray(base_poses, dtype=float)
     q = np.asarray(q_arm, dtype=float)
     m = np.asarray(mu, dtype=float)
-    _check_inputs(t, poses, q, m)
+    _check_inputs(t, poses, q, m, robot.arm_joints)
     idx = frame_indices(len(t), max_frames)
     finite_mu = m[np.isfinite(m)]
     scale = mu_scale if mu_scale is not None else float(finite_mu.max(initial=0.0))

@@ -251,6 +251,18 @@ def test_a_missing_route_key_says_what_it_is_and_its_unit(tmp_path, capsys, key,
     assert not (tmp_path / "out").exists()
 
 
+def test_a_problem_handed_where_a_robot_file_is_asked_for_is_named(tmp_path, capsys):
+    """Before: 'path: unknown key' (the problem read as a robot file)."""
+    path = write_problem(tmp_path, lambda p, r: None)
+    robot = yaml.safe_load(Path(path).read_text())["robot"]
+    line = _refused(capsys, ["urdf", str(path), "-o", str(tmp_path / "r.urdf")])
+    assert line == (
+        f"mmstab: error: {path}: robot: a problem file, not a robot file: its robot is {robot!r}"
+    )
+    assert not (tmp_path / "r.urdf").exists()
+    load_robot(Path(path).parent / robot)  # the file it names is one
+
+
 def test_a_misspelt_robot_key_is_named_with_the_closest_valid_key(tmp_path, capsys):
     path = write_problem(tmp_path, lambda p, r: r["arm"].update(stowd=r["arm"].pop("stowed")))
     line = _refused(capsys, ["rest", path, "--pose", "0", "0", "0"])

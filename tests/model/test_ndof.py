@@ -253,3 +253,38 @@ def test_cli_runs_the_6dof_problem_end_to_end(tmp_path):
     run("codegen")
     header = (tmp_path / "results" / "codegen_6dof" / "box" / "controller_layout.h").read_text()
     assert "#define MMSTAB_N_ARM 6" in header
+
+
+def test_a_three_joint_arm_tracks_animates_and_follows_from_a_three_key_problem(tmp_path):
+    """Before: ``track`` stopped in its figures (index 3 is out of bounds for axis 1 with size
+    3), ``animation`` refused the stored run (state (T, 8), expected (T, 9)) and ``follow``
+    stopped at its first controller step."""
+    from mmstab.cli import main
+
+    robot = yaml.safe_load((ROOT / "problems" / "robots" / "cameleon.yaml").read_text())
+    robot["arm"]["links"] = robot["arm"]["links"][:3]  # no wrist
+    robot["arm"]["stowed"] = robot["arm"]["stowed"][:3]
+    (tmp_path / "r3.yaml").write_text(yaml.safe_dump(robot))
+    problem = {
+        "robot": "r3.yaml",
+        "terrain": {"slope": 0.1},
+        "path": {"waypoints": [[0.0, 0.0], [1.0, 0.0]], "speed": 0.3, "turn_radius": 0.0},
+        "animation": {"frames": 3, "fps": 2, "width": 160, "height": 120},
+    }
+    path = tmp_path / "p3.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    out = tmp_path / "track"
+    assert main(["track", str(path), "-o", str(out)]) == 0
+    with np.load(out / "run.npz") as run:
+        assert list(run["joint_names"]) == ["track_left", "track_right", "link0", "link1", "link2"]
+        assert run["qdot"].shape[1] == 5 and run["state"].shape[1] == 8
+        assert list(run["state_names"])[5:] == ["theta_0", "theta_1", "theta_2"]
+    assert all((out / f"fig{k}.png").stat().st_size > 0 for k in (9, 10, 11, 12))
+    assert main(["animation", str(path), "-o", str(out)]) == 0  # the stored run, 3 joints
+    assert (out / "animation.gif").stat().st_size > 0
+    # online (before: the arm integrated with the last 4 of q̇'s columns, a track's among them)
+    bag = tmp_path / "rec.mcap"
+    assert main(["record", str(path), "-o", str(bag)]) == 0
+    assert main(["follow", str(path), "--bag", str(bag), "-o", str(tmp_path / "follow")]) == 0
+    summary = json.loads((tmp_path / "follow" / "summary.json").read_text())
+    assert summary["updates"] > 10 and summary["qp_failures"] == 0

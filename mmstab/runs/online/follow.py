@@ -32,7 +32,6 @@ import numpy as np
 
 from mmstab.control.controller import ControllerSettings, build_controller
 from mmstab.control.controller.step import Controller
-from mmstab.control.layout import ARM_JOINTS
 from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
@@ -282,7 +281,7 @@ class Follower:
         xi_des = step_target(self.controller.settings, ref_pose, self.ground, com_body)
         state = np.concatenate([pose, [0.0, 0.0], q])
         result = self.controller.solve(state, xi_des, None, q_ref, None, self.ground[0])
-        self.q = q + result.qdot[-ARM_JOINTS:] * dt  # qdot: tracks, then the arm
+        self.q = q + result.qdot[2:] * dt  # qdot: the two tracks, then the arm's joints
         return result.qdot, int(result.status)
 
     def _covered_ahead(self, s: float, ks: list[int], changes: HorizonUpdate) -> float:

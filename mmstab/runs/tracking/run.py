@@ -83,7 +83,7 @@ class TrackingRun:
 
     Attributes:
         t: sample times (N+1,) [s].
-        state: states (N+1, 9): base pose in M [m, m, rad], sprockets and arm joints [rad].
+        state: states (N+1, 5 + n): base pose in M [m, m, rad], sprockets and arm joints [rad].
         qdot: joint speeds applied over each period (N, 6) [rad/s] (zero when it failed).
         status: the step's :class:`QPStatus` per period (N,).
         xi: task ξ in M (N+1, 6) [m, m, rad, m, m, m].
@@ -163,7 +163,7 @@ def task_batch(
     Args:
         model: the task kinematics.
         terrain: the ground (the local ground of each state's pose).
-        states: states (N, 9) [m, m, rad, rad...].
+        states: states (N, 5 + n) [m, m, rad, rad...].
 
     Returns:
         (ξ (N, 6) in M [m, m, rad, m, m, m], arm CoM in the body frame (N, 3) [m]).
