@@ -53,12 +53,15 @@ def hull_candidates(points: FloatArray, block: int = HULL_BLOCK) -> FloatArray:
     return np.vstack(keep)
 
 
-def convex_hull(points: ArrayLike, what: str) -> ConvexHull:
+def convex_hull(
+    points: ArrayLike, what: str, advice: str = "refine the workspace grid"
+) -> ConvexHull:
     """Convex hull of a 3-D cloud, or a clear error when the cloud is degenerate.
 
     Args:
         points: the cloud (N, 3) [m].
         what: what the cloud is, for the error message.
+        advice: what to do about a flat cloud, for the error message.
 
     Raises:
         MmstabError: fewer than 4 points, or all on a plane or line.
@@ -75,7 +78,7 @@ def convex_hull(points: ArrayLike, what: str) -> ConvexHull:
     if spread[-1] <= FLAT_TOL * spread[0]:
         raise MmstabError(
             f"{what}: the {n} points lie on a plane or a line, so their convex hull "
-            "has no volume; refine the workspace grid"
+            f"has no volume; {advice}"
         )
     try:
         return ConvexHull(pts)

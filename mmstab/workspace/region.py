@@ -178,7 +178,15 @@ def workspace_from_clouds(
     )
     if len(vc) == 0:
         raise MmstabError("no collision-free posture on the workspace grid: check the geometry")
-    hull_all = convex_hull(np.vstack([vc, ic]), "all arm CoMs")
+    # on a grid of 3 or more angles a joint, a flat cloud is the arm's, not the grid's
+    advice = (
+        "refine the workspace grid"
+        if min(grid) < 3
+        else "the arm's joints move its CoM in a plane (one joint: on a circle), and the "
+        "planner keeps the arm CoM within a volume: an arm of two joints or more about axes "
+        "that are not all parallel"
+    )
+    hull_all = convex_hull(np.vstack([vc, ic]), "all arm CoMs", advice)
     hs_all = halfspaces(hull_all)
     if len(ic):
         hs_bad = halfspaces(convex_hull(ic, "invalid (colliding) arm CoMs"))

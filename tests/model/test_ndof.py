@@ -288,3 +288,32 @@ def test_a_three_joint_arm_tracks_animates_and_follows_from_a_three_key_problem(
     assert main(["follow", str(path), "--bag", str(bag), "-o", str(tmp_path / "follow")]) == 0
     summary = json.loads((tmp_path / "follow" / "summary.json").read_text())
     assert summary["updates"] > 10 and summary["qp_failures"] == 0
+
+
+def test_a_one_joint_arm_is_refused_for_its_arm_not_its_grid(tmp_path, capsys):
+    """A turret alone moves the arm CoM on a circle: no grid gives it a volume (before: the
+    message said to refine the workspace grid). It still rests."""
+    from mmstab.cli import main
+
+    robot = yaml.safe_load((ROOT / "problems" / "robots" / "cameleon.yaml").read_text())
+    robot["arm"]["links"] = robot["arm"]["links"][:1]
+    robot["arm"]["stowed"] = robot["arm"]["stowed"][:1]
+    (tmp_path / "r1.yaml").write_text(yaml.safe_dump(robot))
+    path = tmp_path / "p1.yaml"
+    path.write_text(yaml.safe_dump({
+        "robot": "r1.yaml", "terrain": {"slope": 0.1},
+        "path": {"waypoints": [[0.0, 0.0], [1.0, 0.0]], "speed": 0.3, "turn_radius": 0.0},
+    }))  # fmt: skip
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the arm's joints move its CoM in a plane (one joint" in err[0]
+    assert "refine the workspace grid" not in err[0] and not (tmp_path / "out").exists()
+    assert main(["rest", str(path), "--pose", "0", "0", "0"]) == 0
+    # a grid of 2 angles a joint is flat for the grid's sake: refine it
+    from mmstab.core.files import MmstabError
+    from mmstab.workspace.region import workspace_from_clouds
+
+    q = np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0], [1.0, 1.0]])
+    com = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    with pytest.raises(MmstabError, match="no volume; refine the workspace grid$"):
+        workspace_from_clouds((2, 2), q, com, np.zeros((0, 2)), np.zeros((0, 3)), 0.0)
