@@ -26,7 +26,7 @@ from mmstab.terrain.base import DEFAULT_FRICTION, Terrain
 from mmstab.terrain.generators import Grid, generate
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
-from mmstab.terrain.io import load_heightmap
+from mmstab.terrain.io import MESH_SUFFIXES, load_heightmap
 from mmstab.terrain.ramp import Ramp
 from mmstab.terrain.recording import DEFAULT_TOPIC, is_recording, load_grid_map
 
@@ -140,6 +140,11 @@ def _file_heightmap(problem_path: Path, section: dict[str, Any]) -> Heightmap:
             raise ConfigError(problem_path, f"terrain.{key}", "only for a recording (.mcap, .bag)")
     if not target.is_file():
         raise ConfigError(problem_path, "terrain.file", f"no heightmap file at {target}")
+    if target.suffix.lower() in MESH_SUFFIXES and section.get("resolution") is None:
+        raise ConfigError(  # the key to add is the problem's, not the mesh's
+            problem_path, "terrain.resolution",
+            f"a mesh ({section['file']}) needs the cell size [m/cell] to rasterise it at",
+        )  # fmt: skip
     return load_heightmap(target, section.get("resolution"))
 
 

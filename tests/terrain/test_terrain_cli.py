@@ -143,6 +143,22 @@ def test_bad_terrain_sections(tmp_path, capsys, terrain, where):
     assert err.count("\n") == 0 and f"{path}: {where}" in err
 
 
+def test_a_mesh_without_a_cell_size_names_the_problems_key(tmp_path, capsys):
+    """Before: 'flat.stl: resolution: ...' (the key to add is the problem's)."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(6.0, 6.0, 0.2))
+    box.export(tmp_path / "flat.stl")
+    path = write_problem(tmp_path, {"file": "flat.stl"})
+    assert main(["rest", str(path), "--pose", "0", "0", "0"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"mmstab: error: {path}: terrain.resolution: a mesh (flat.stl) needs the cell size "
+        "[m/cell] to rasterise it at"
+    )
+    path = write_problem(tmp_path, {"file": "flat.stl", "resolution": 0.1})
+    assert main(["rest", str(path), "--pose", "0", "0", "0"]) == 0  # the box's top: flat
+
+
 @pytest.mark.slow
 def test_bad_files_and_poses_one_line_exit_2_nothing_written(tmp_path):
     import trimesh
