@@ -47,6 +47,7 @@ _EXPORTS: dict[str, str] = {
     "Ramp": "mmstab.terrain",
     "Heightmap": "mmstab.terrain",
     "HeightmapTerrain": "mmstab.terrain",
+    "load_heightmap": "mmstab.terrain.io",
     "roll_pitch": "mmstab.terrain",
     "global_com_functions": "mmstab.terrain",
     "CirclePath": "mmstab.paths.circle",
@@ -89,6 +90,7 @@ __all__ = [
     "flipper_ground_angle",
     "force_angle",
     "global_com_functions",
+    "load_heightmap",
     "load_problem",
     "load_robot",
     "plan",
@@ -124,6 +126,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
         global_com_functions,
         roll_pitch,
     )
+    from mmstab.terrain.io import load_heightmap
 
 
 def __getattr__(name: str) -> Any:

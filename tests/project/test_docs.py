@@ -17,7 +17,7 @@ BLOCK = re.compile(r"```python\n(.*?)```", re.S)
 @pytest.mark.slow
 def test_api_examples_run():
     blocks = BLOCK.findall((ROOT / "docs" / "api.md").read_text())
-    assert len(blocks) == 9
+    assert len(blocks) == 10
     env = {**os.environ, "MPLBACKEND": "Agg"}
     # one interpreter, each block in a namespace of its own (a name one block needs and
     # another defines fails): a process per block cost 1 s of imports each
