@@ -297,7 +297,7 @@ class CollisionChecker:
         qa = np.atleast_2d(qa)
         R, p = self.shape_poses(qa, frames)
         codes = None
-        groups = {} if groups is None else groups
+        groups = {} if groups is None else dict(groups)  # the caller's stays as given
         hit = np.zeros(len(qa), dtype=bool)
         pairs = [pr for pr in self.pairs if moving is None or moving in pr.columns]
         for pair in pairs:

@@ -123,7 +123,7 @@ def test_a_free_posture_moved_in_one_joint_checks_only_the_pairs_it_moves(robot,
 def test_edge_moves_grouped_once_per_joint_are_fcl_on_every_pair(robot, checker, rng, j):
     """``free_moves``: the rows' groups found once per joint give FCL's answer on every pair
     at every interior posture of every edge, row by row."""
-    from mmstab.workspace.roadmap_checks import free_moves
+    from mmstab.workspace.roadmap_checks import free_moves, groups_of, move_groups
 
     g = grid_postures(joint_grid(robot, [7, 6, 6, 5]))
     nodes = g[~checker.collides(g, cull=False)]
@@ -134,6 +134,12 @@ def test_edge_moves_grouped_once_per_joint_are_fcl_on_every_pair(robot, checker,
     expected = ~np.any([checker.collides(q, cull=False) for q in shifts], axis=0)
     assert 40 < (~expected).sum() < 0.3 * len(expected)  # some moves collide, most do not
     np.testing.assert_array_equal(got, expected)
+    # the groups handed in are the caller's: a call that groups other pairs adds none to them
+    part = np.arange(len(nodes))
+    given = groups_of(move_groups(checker, nodes, j), part)
+    keys = set(given)
+    np.testing.assert_array_equal(checker.collides(nodes, groups=given), np.zeros(len(nodes), bool))
+    assert set(given) == keys and {p.columns for p in checker.pairs} - keys
 
 
 def test_capsule_shape_follows_its_segment(robot, checker):
