@@ -270,6 +270,7 @@ def test_a_three_joint_arm_tracks_animates_and_follows_from_a_three_key_problem(
         "terrain": {"slope": 0.1},
         "path": {"waypoints": [[0.0, 0.0], [1.0, 0.0]], "speed": 0.3, "turn_radius": 0.0},
         "animation": {"frames": 3, "fps": 2, "width": 160, "height": 120},
+        "workspace": {"grid": [9, 9, 9]},  # V and its roadmap in a fraction of a second
     }
     path = tmp_path / "p3.yaml"
     path.write_text(yaml.safe_dump(problem))
