@@ -283,14 +283,14 @@ def _fig10(d: Path, run: TrackingRun, collision_intervals: list[list[float]]) ->
     ax_b.semilogy(run.t, positive(run.base_error), color="C0", label="base point [m]")
     ax_b.semilogy(run.t, positive(np.abs(run.heading_error)), color="C2", label="|heading| [rad]")
     ax_a.semilogy(run.t, positive(run.arm_com_error), color="C1", label="arm CoM [m]")
-    arm = run.posture_error.shape[1]  # the robot's arm joints
-    for j in range(arm):
+    arm = joint_names(run.posture_error.shape[1])[2:]  # the robot's arm joints
+    for j, name in enumerate(arm):
         ax_q.semilogy(
             run.t,
             positive(np.abs(run.posture_error[:, j])),
             color=f"C{j + 2}",
             lw=0.9,
-            label=joint_names(arm)[2 + j],
+            label=name,
         )
     ax_b.set(ylabel="error", title="(a) base: control point distance and heading")
     ax_a.set(ylabel="error [m]", title="(b) arm CoM distance")

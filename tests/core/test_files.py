@@ -6,7 +6,7 @@ import zipfile
 
 import numpy as np
 
-from mmstab.core.files import NPZ_LEVEL, write_npz
+from mmstab.core.files import write_npz
 
 
 def test_written_arrays_load_back_bit_for_bit(tmp_path):
@@ -38,4 +38,3 @@ def test_the_file_is_deflated(tmp_path):
         (info,) = z.infolist()
         assert info.compress_type == zipfile.ZIP_DEFLATED
         assert info.file_size > big.nbytes and info.compress_size < big.nbytes / 10
-    assert 1 <= NPZ_LEVEL <= 9
