@@ -36,7 +36,7 @@ _EXPORTS: dict[str, str] = {
     "ConfigError": "mmstab.core.files",
     "MmstabError": "mmstab.core.files",
     # model
-    "load_robot": "mmstab.model.robot",
+    "load_robot": "mmstab.app.api",
     "Robot": "mmstab.model.robot",
     "Payload": "mmstab.model.payload",
     "attach_payload": "mmstab.model.payload",
@@ -106,13 +106,13 @@ __all__ = [
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
     from mmstab.app import stability_along
-    from mmstab.app.api import PathPlan, Tracked, plan, track
+    from mmstab.app.api import PathPlan, Tracked, load_robot, plan, track
     from mmstab.app.settings import Settings
     from mmstab.control.loop import Controller
     from mmstab.core.files import ConfigError, MmstabError
     from mmstab.core.problem import Problem, load_problem
     from mmstab.model.payload import Payload, attach_payload
-    from mmstab.model.robot import Robot, flipper_ground_angle, load_robot, with_flipper_angle
+    from mmstab.model.robot import Robot, flipper_ground_angle, with_flipper_angle
     from mmstab.paths.circle import CirclePath
     from mmstab.paths.route import RoutePath, route_path
     from mmstab.stability.dynamic import robot_mu

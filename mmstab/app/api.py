@@ -12,6 +12,7 @@ with :meth:`mmstab.app.settings.Settings.from_problem`.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -26,7 +27,7 @@ from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath
 from mmstab.planner import Plan, RoutePlan
 from mmstab.planner.plan import plan_base_path, region_of
-from mmstab.runs.plan_verdicts import exit_status, lap_verdicts, route_verdicts
+from mmstab.runs.plan_verdicts import arm_path_check, exit_status, lap_verdicts, route_verdicts
 from mmstab.runs.time_law import with_time_law
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.support import stability_along
@@ -132,6 +133,27 @@ class PathPlan:
         return Scene(self.robot, self.terrain, self.path)
 
 
+def load_robot(path: str | os.PathLike[str]) -> Robot:
+    """A robot file, as a problem loads its robot (``mmstab.load_robot``).
+
+    The pairs in contact at every sampled posture are not checked, as a problem's robot
+    (:func:`mmstab.model.touching.with_touching_allowed`; ``robot.collision_allow`` lists
+    them, and the command line notes them on stderr): loaded without that, a user's robot
+    whose turret capsule meets its body at every angle had every posture colliding, so
+    ``mmstab.plan`` refused for arm contact what ``mmstab plan`` accepts.
+
+    Args:
+        path: the robot's YAML file (docs/robot.md).
+
+    Raises:
+        ConfigError: the file is not a valid robot description.
+    """
+    from mmstab.model.robot import load_robot as load_robot_file
+    from mmstab.model.touching import with_touching_allowed
+
+    return with_touching_allowed(load_robot_file(path))[0]
+
+
 def _objects(
     first: Robot | Problem, terrain: Terrain | None, path: BasePath | None
 ) -> tuple[Robot, Terrain, BasePath, Settings | None]:
@@ -226,7 +248,9 @@ def _lap_plan(
          "collision_free": bool(stage.collision_free[k])}
         for k, t in enumerate(stage.targets)
     ]  # fmt: skip
-    v = lap_verdicts(robot, terrain, path, poses, settings.verdicts, settings.controller.lap_time)
+    lap_time = settings.controller.lap_time
+    arm_path = arm_path_check(robot, stage, lap_time, settings.controller.dt)
+    v = lap_verdicts(robot, terrain, path, poses, settings.verdicts, lap_time, arm_path)
     s = path.length * np.asarray(stage.fractions, dtype=float)
     return PathPlan(
         robot, terrain, path, settings, s, np.asarray(stage.fractions, dtype=float),

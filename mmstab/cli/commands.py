@@ -16,6 +16,7 @@ from mmstab.cli.verdicts import (
     arm_collision_status,
     high_centred_warning,
     limits_line,
+    plan_contact_status,
     plan_status,
     slides_status,
     timing_line,
@@ -157,7 +158,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
     high_centred_warning(s["high_centred"])
-    return plan_status(s, args) or slides_status(s, args)
+    return plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
 
 
 def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
@@ -184,7 +185,7 @@ def _plan_route(args: argparse.Namespace, problem: Any) -> int | None:
     turn_slide_line("plan", s.get("turn_slide"))
     _climb_line(s["climb"], s["s"])
     high_centred_warning(s["high_centred"])
-    status = plan_status(s, args) or slides_status(s, args)
+    status = plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
     return verify_status(s.get("verify"), status)
 
 
@@ -240,7 +241,7 @@ def _fig8(args: argparse.Namespace, problem: Any) -> int | None:
     _announce(problem, "planner")
     s = run_fig8(problem, args.out)
     print(f"fig8: arm side per pose {s['sides']}")
-    return plan_status(s, args) or slides_status(s, args)
+    return plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
 
 
 def _codegen(args: argparse.Namespace, problem: Any) -> None:

@@ -21,12 +21,23 @@ _ALLOW_SLIDING = (
     },
 )
 
+_ALLOW_COLLISION = (
+    "--allow-collision",
+    {
+        "action": "store_true",
+        "help": "exit 0 (warning) when the arm touches the robot (plan: at a planned posture "
+        "or between two; track: or comes closer than the required clearance, "
+        "runs/verdict.py MIN_CLEARANCE)",
+    },
+)
+
 #: Options beyond ``problem``, ``--out`` and ``--force-size``, by command name.
 EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     "workspace": [("--force", {"action": "store_true", "help": "rebuild even if cached"})],
     "plan": [
         _ALLOW_UNSTABLE,
         _ALLOW_SLIDING,
+        _ALLOW_COLLISION,
         (
             "--verify",
             {
@@ -37,7 +48,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ),
     ],
     "fig7": [_ALLOW_UNSTABLE],
-    "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING],
+    "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING, _ALLOW_COLLISION],
     "animation": [_ALLOW_UNSTABLE],
     "track": [
         (
@@ -55,14 +66,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("--duration", {"type": float, "help": "simulated time [s] (default: the problem's)"}),
         _ALLOW_UNSTABLE,
         _ALLOW_SLIDING,
-        (
-            "--allow-collision",
-            {
-                "action": "store_true",
-                "help": "exit 0 (warning) when the tracked arm touches the robot or comes "
-                "closer than the required clearance (runs/verdict.py MIN_CLEARANCE)",
-            },
-        ),
+        _ALLOW_COLLISION,
     ],
     "codegen": [
         (

@@ -65,6 +65,28 @@ def slides_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
     return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
 
 
+def plan_contact_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """Report a plan whose arm touches the robot; exit status 5 unless ``--allow-collision``.
+
+    At a planned posture, or on the arm's path between two (``arm_path``: a pose-by-pose
+    search's posture reference, as ``mmstab track`` follows it).
+    """
+    contact = s["verdicts"]["arm_contact"]
+    if not contact["unsafe"]:
+        return None
+    spans = ", ".join(f"{a:.2f}" if a == b else f"{a:.2f}-{b:.2f}" for a, b in contact["where"][:4])
+    path = s.get("arm_path") or {}
+    pairs = ", ".join(list(path.get("reference", {}).get("pairs", {}))[:3])
+    line = f"the planned arm touches the robot at s = {spans} m" + (f" ({pairs})" if pairs else "")
+    if path:
+        line += (
+            f"; the path between the planned postures is not checked by planner.method "
+            f"{s['settings']['method']} (sequence and roadmap check it)"
+        )
+    return report("arm collision", line, "--allow-collision", args.allow_collision,
+                  EXIT_ARM_COLLISION)  # fmt: skip
+
+
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
     """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``."""
     from mmstab.runs.verdict import describe_arm_collision

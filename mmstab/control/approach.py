@@ -5,7 +5,9 @@ reference (:mod:`mmstab.control.posture`). Stepping the references there makes t
 saturated joint speeds, and on the default problem through a flipper, the body and a track.
 :class:`Approach` is a collision-free joint path instead, from the initial posture onto the
 lap's references over the first ``approach_time`` seconds, followed at a rest-to-rest time
-scaling; its CoM is the arm-CoM reference meanwhile, as on the lap.
+scaling; its CoM is the arm-CoM reference meanwhile, as on the lap. The approach is longer
+where its move needs it: a roadmap plan's pieces (:func:`approach_duration`), a straight
+move within the joint-speed limits (:func:`straight_approach_duration`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from mmstab.control.approach_path import (
     approach_duration,
     eased_polyline,
     roadmap_approach_knots,
+    straight_approach_duration,
     time_scaling,
 )
 from mmstab.control.posture import (
@@ -263,6 +266,10 @@ def arm_references(
         duration = settings.approach_time
         if move is not None:  # lengthened when the plan's first move needs it
             duration = approach_duration(robot, move, posture, duration, settings.lap_time)
+        else:  # lengthened when the straight move would pass the joint-speed limits
+            duration = straight_approach_duration(
+                robot, np.asarray(q0, dtype=float), posture, duration, settings.lap_time
+            )
         approach = build_approach(
             robot, q0, posture, duration, settings.lap_time, settings.dt, move=move
         )

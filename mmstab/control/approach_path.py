@@ -5,7 +5,8 @@ pieces (:func:`eased_polyline`), each rest to rest and given time by the square 
 time at the joint-speed limits (the same peak acceleration for all), the whole lengthened
 until no piece passes :data:`APPROACH_PEAK_SPEED` of the limits (:func:`approach_duration`).
 Other plans' approaches follow a spline at the quintic rest-to-rest scaling
-(:func:`time_scaling`).
+(:func:`time_scaling`), lengthened where the straight move would pass the joint-speed limits
+(:func:`straight_approach_duration`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.control.posture import PostureReference, piece_times
 from mmstab.control.reference import PathSample
+from mmstab.control.timing import JOINT_SPEED_SHARE
 from mmstab.model.robot import FloatArray, Robot
 
 #: Largest share of the joint-speed limits a roadmap plan's start-up move runs at (its
@@ -26,6 +28,8 @@ from mmstab.model.robot import FloatArray, Robot
 #: speed: at 0.5 random route pair 10's arm still came within 1.1 mm of the track, at 0.3
 #: it keeps 3 mm.
 APPROACH_PEAK_SPEED = 0.3
+#: Peak of the quintic rest-to-rest scaling's rate, max dσ/dτ (:func:`time_scaling`).
+QUINTIC_PEAK = 1.875
 #: Rounds of :func:`approach_duration`'s lengthening.
 APPROACH_ROUNDS = 8
 
@@ -123,6 +127,38 @@ def approach_duration(
     for _ in range(APPROACH_ROUNDS):
         _, q = roadmap_approach_knots(robot, move, posture, duration / lap_time)
         needed = move_duration(robot, q)
+        if needed <= duration * (1 + 1e-9):
+            break
+        duration = needed
+    return duration
+
+
+def straight_approach_duration(
+    robot: Robot, q0: FloatArray, posture: PostureReference, least: float, lap_time: float
+) -> float:
+    """A straight approach's time [s]: at least ``least`` [s], within the joint-speed limits.
+
+    The approach from ``q0`` ends on the lap's reference at s = T / lap_time, which moves
+    with T; the straight move is timed by the quintic scaling (peak rate 1.875 times the
+    mean), lengthened until no joint passes ``JOINT_SPEED_SHARE`` of its limit (the lap's
+    rule, :mod:`mmstab.control.timing`), at most :data:`APPROACH_ROUNDS` times. A user's
+    3-joint arm (1 rad/s joints) ran its 1.7 rad turret move in 1 s at 3 times its limit;
+    saturated, the arm lagged off the checked path and its forearm touched a flipper. The
+    shipped problems' approaches keep their ``approach_time``.
+
+    Args:
+        robot: the robot (joint-speed limits [rad/s]).
+        q0: the arm's initial posture (n,) [rad].
+        posture: the lap's posture reference.
+        least: ``controller.approach_time`` [s].
+        lap_time: the lap's time [s].
+    """
+    q0 = np.asarray(q0, dtype=float)
+    duration = least
+    for _ in range(APPROACH_ROUNDS):
+        q_end = posture(duration / lap_time).value[0]
+        at_limit = float((np.abs(q_end - q0) / robot.joint_velocity).max())
+        needed = QUINTIC_PEAK * at_limit / JOINT_SPEED_SHARE
         if needed <= duration * (1 + 1e-9):
             break
         duration = needed

@@ -8,7 +8,10 @@ arm-CoM task toward g_ref(s). Both come from the plan's postures:
    A roadmap plan (``planner: {method: roadmap}``) is followed on its checked moves
    instead: straight joint moves between their vertices, at rest at each
    (:func:`roadmap_knots`): a spline through them would leave the checked moves and, on
-   random routes, touched the body where the moves pass within millimetres of it.
+   random routes, touched the body where the moves pass within millimetres of it. A
+   sequence plan (``method: sequence``) checked the straight moves between its postures:
+   where its spline comes within ``MOVE_CLEARANCE`` of the robot, those moves are followed
+   the same way (a user's 3-joint arm: its spline cut through the body; ``interpolation``).
 2. **Its CoM is the CoM reference**: g_ref^B(s) = g_a^B(q_ref(s)), rate J_a q̇_ref
    (:meth:`PostureReference.com_body`). At the planned poses it is the planned CoM (to the
    IK's 10⁻⁴ m). Splining the planned CoMs instead (:func:`mmstab.control.reference.arm_reference`)
@@ -25,7 +28,8 @@ arm-CoM task toward g_ref(s). Both come from the plan's postures:
    with :class:`~mmstab.model.collision.CollisionChecker` and repairs each colliding stretch with a
    **via posture** at its middle s_m: a collision-free posture realising the plan's splined
    CoM at s_m, the one nearest the colliding posture among IPOPT solutions from a few seeds
-   (:class:`mmstab.workspace.ik.PostureSolver`); then it interpolates and checks again, until the
+   (:class:`mmstab.workspace.ik.PostureSolver`), else the free posture at s_m on the straight
+   joint move between the knots around it; then it interpolates and checks again, until the
    reference is free or no via posture is found. Nothing is hidden: the result keeps the check
    before and after and every via posture with the stretch it repairs; the tracking summary
    reports them.
@@ -146,6 +150,9 @@ class PostureReference:
             [m].
         spline: the knots' spline ``s -> PathSample``.
         robot: the robot.
+        interpolation: ``spline`` (cubic through the knots), ``moves`` (straight between
+            them, at rest at each: a roadmap plan's moves, or a sequence plan's checked moves
+            where its spline touched the robot).
     """
 
     fractions: FloatArray
@@ -156,6 +163,7 @@ class PostureReference:
     com_gap_max: float
     spline: Any
     robot: Robot
+    interpolation: str = "spline"
 
     def __call__(self, s: ArrayLike) -> PathSample:
         """q_ref and d q_ref / ds at path fractions s (N,)."""
@@ -208,6 +216,7 @@ class PostureReference:
         return {
             "samples_per_lap": self.check.samples,
             "planned_postures": int(self.fractions.size - len(self.via)),
+            "interpolation": self.interpolation,
             "com_gap_to_planned_com_spline_max_m": self.com_gap_max,
             "planned_interpolation": report(self.planned_check),
             "via_postures": [
@@ -244,6 +253,20 @@ def _via_posture(
         if d < best_d:
             best, best_d = q, d
     return best
+
+
+def _straight_via(
+    checker: CollisionChecker, ref: PostureReference, k: int, s_mid: float
+) -> FloatArray | None:
+    """The straight joint move between the knots about ``s_mid`` [-] at ``s_mid``, if free."""
+    f, q = ref.fractions, ref.postures
+    a, b = k - 1, k % len(f)
+    fa, fb = f[a], f[b] + (1.0 if k == len(f) else 0.0)
+    if k == 0:
+        a, fa = len(f) - 1, f[-1] - 1.0
+    u = (s_mid - fa) / (fb - fa)
+    mid = q[a] + u * (q[b] - q[a])
+    return None if checker.collides(mid) else mid
 
 
 def piece_times(robot: Robot, q: FloatArray) -> FloatArray:
@@ -301,6 +324,22 @@ def roadmap_knots(
     return f_all[unique], q_all[unique]
 
 
+def _keeps_clearance(checker: CollisionChecker, q: FloatArray) -> bool:
+    """Whether the sampled reference q (N, n) [rad] keeps ``MOVE_CLEARANCE`` from the robot."""
+    from mmstab.model.reach import sampled_reach
+    from mmstab.workspace.roadmap_checks import MOVE_CLEARANCE
+
+    reach = sampled_reach(checker.robot, q)
+    step = float((np.abs(np.diff(q, axis=0)) @ reach).max(initial=0.0))
+    return bool(checker.keeps_clearance(q, MOVE_CLEARANCE, max(step, 1e-9)))
+
+
+def straight_moves_checked(plan: Any) -> bool:
+    """Whether the plan checked the straight joint moves between its postures (``sequence``)."""
+    settings = getattr(plan, "settings", None)
+    return getattr(settings, "method", None) == "sequence" and not getattr(plan, "moves", ())
+
+
 def build_posture_reference(
     robot: Robot, plan: PosturePlan, samples: int, *, repair: bool = True
 ) -> PostureReference:
@@ -330,15 +369,23 @@ def build_posture_reference(
     s = np.arange(samples) / samples
     checker = CollisionChecker(robot)
 
-    def make(fractions: FloatArray, postures: FloatArray) -> tuple[PostureReference, Any, Any]:
+    def make(
+        fractions: FloatArray, postures: FloatArray, linear: bool = linear
+    ) -> tuple[PostureReference, Any, Any]:
         spline = posture_reference(fractions, postures, lo, hi, linear=linear)
         q = spline(s).value
         check, hit = sequence_collisions(checker, s, q)
         gap = float(np.linalg.norm(robot.arm_com(q) - com_body(s).value, axis=1).max())
-        ref = PostureReference(fractions, postures, (), check, check, gap, spline, robot)
+        kind = "moves" if linear else "spline"
+        ref = PostureReference(fractions, postures, (), check, check, gap, spline, robot, kind)
         return ref, q, hit
 
     ref, q_s, hit = make(fractions, postures)
+    if not linear and straight_moves_checked(plan) and not _keeps_clearance(checker, q_s):
+        # the plan checked the straight moves between its postures: follow them instead
+        spline_check = ref.check
+        ref = make(fractions, postures, True)[0]
+        return dataclasses.replace(ref, planned_check=spline_check)
     planned, via = ref.check, []
     solver = None
     for _ in range(MAX_REPAIR_ROUNDS if repair else 0):
@@ -358,6 +405,8 @@ def build_posture_reference(
             k = int(np.searchsorted(ref.fractions, s[mid]))
             seeds = [q_s[mid], ref.postures[k - 1], ref.postures[k % len(ref.postures)]]
             q = _via_posture(robot, solver, checker, com_body(s[mid]).value[0], seeds, q_s[mid])
+            if q is None:
+                q = _straight_via(checker, ref, k, s[mid])
             if q is not None:
                 pairs = tuple(checker.colliding_pairs(q_s[mid]))
                 added.append(ViaPosture(float(s[mid]), q, (interval[0], interval[1]), pairs))

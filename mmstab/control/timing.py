@@ -14,6 +14,9 @@ switch); accelerations are central differences over ``STEP`` [s]. The dynamic fo
 measure of those accelerations (:mod:`mmstab.stability.dynamic`, with the tool wrench of a
 payload) is μ_dyn; with the bodies at rest it is the static μ exactly.
 
+**The joint-speed limits.** A stretch whose reference asks a joint more than
+``JOINT_SPEED_SHARE`` of its speed limit is slowed to it first (:func:`joint_speed_factors`).
+
 **The law.** ``controller.dynamic_fraction`` f (default 0.5; null: off): along the reference
 μ_dyn ≥ f · μ_static wherever μ_static > 0 (the inertial forces may take at most 1 − f of the
 static margin). Time is stretched by a speed factor λ(τ) = dτ/dt ∈ (0, 1], base and arm
@@ -50,6 +53,11 @@ MIN_RAMP = 0.5
 MIN_FACTOR = 0.05
 #: Rounds of measuring the timed reference and slowing the stretches still below the bound.
 ROUNDS = 6
+#: Largest share of the joint-speed limits the timed reference asks of a joint: the
+#: controller keeps the rest to correct its errors. A sequence plan's turret swing of 5.4 rad
+#: between poses 3 s apart asked 2.7 times a 3-joint arm's limit; saturated, the arm lagged
+#: off the checked move into the body.
+JOINT_SPEED_SHARE = 0.8
 #: Bisection steps on a stretch's factor k (k within 2^-12 of the largest that meets the bound).
 BISECTION = 12
 
@@ -315,6 +323,24 @@ class Stretches:
         return np.array(sorted(out), dtype=np.intp)
 
 
+def joint_speed_factors(
+    robot: Robot, posture: Any, lap_time: float, stretches: Stretches
+) -> FloatArray:
+    """Per stretch the factor k ≤ 1 that keeps the arm within ``JOINT_SPEED_SHARE`` of its limits.
+
+    Args:
+        robot: the robot (joint-speed limits [rad/s]).
+        posture: the arm's posture reference ``s -> PathSample`` (dq/ds [rad]).
+        lap_time: the references' period [s].
+        stretches: the stretches over the checked samples.
+    """
+    rate = np.abs(posture(stretches.tau / lap_time).rate) / lap_time  # dq/dτ (N, n) [rad/s]
+    share = (rate / robot.joint_velocity).max(axis=1)
+    worst = np.zeros(len(stretches.spans))
+    np.maximum.at(worst, stretches.which, share)
+    return np.minimum(1.0, JOINT_SPEED_SHARE / np.maximum(worst, 1e-12))
+
+
 def timed_mu(robot: Robot, motion: ReferenceMotion, speed: FloatArray) -> FloatArray:
     """μ_dyn (N,) [N rad] of the reference timed by λ (N,) on the motion's grid.
 
@@ -357,10 +383,14 @@ def build_time_law(
     bound = np.where(static > 0, fraction * static, -np.inf)
     ends = np.unique(np.r_[0.0, np.asarray(fractions, dtype=float) * lap_time, lap_time])
     stretches = Stretches(ends, motion.tau, motion)
-    factors = np.ones(len(ends) - 1)
+    factors = joint_speed_factors(robot, posture, lap_time, stretches)
     v_max = float(np.linalg.norm(motion.velocity[:, 0, :2], axis=1).max())
     before = mu = timed_mu(robot, motion, np.ones(on.size))
     speed = np.ones_like(tau)
+    if np.any(factors < 1.0):  # the joint-speed limits first
+        speed = law_speed(tau, stretches.spans, factors, v_max)
+        speed[tau < window[0]] = 1.0
+        mu = timed_mu(robot, motion, speed[on])
     for rnd in range(ROUNDS):
         low = stretches.blamed(np.flatnonzero(mu < bound))
         if not low.size:

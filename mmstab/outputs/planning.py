@@ -19,7 +19,7 @@ from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, save_settings
 from mmstab.outputs.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, planning_region, solve_pose
-from mmstab.runs.plan_verdicts import lap_verdicts
+from mmstab.runs.plan_verdicts import arm_path_check, lap_verdicts
 from mmstab.runs.verdict import plan_verdict
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
@@ -170,6 +170,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     summary = plan_summary(problem, plan)
     settings = Settings.from_problem(problem)
     lap_time = settings.controller.lap_time  # a circle: one lap
+    arm_path = arm_path_check(problem.robot, plan, lap_time, settings.controller.dt)
     v = lap_verdicts(
         problem.robot,
         problem.terrain,
@@ -177,9 +178,12 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         summary["poses"],
         settings.verdicts,
         lap_time,
+        arm_path,
     )  # the verdicts mmstab.plan returns
-    for key in ("stability", "slip", "high_centred"):
+    for key in ("stability", "slip", "high_centred", "verdicts"):
         summary[key] = v[key]
+    if arm_path is not None:
+        summary["arm_path"] = v["arm_path"]
     quality = lap_quality(problem, planning_region(ws, settings.workspace.method), plan)
     for k, p in enumerate(summary["poses"]):
         for key, values in quality["per_pose"].items():

@@ -372,7 +372,8 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
     Args:
         summary: the route plan's ``summary.json`` (``stability``, ``slip``, ``climb``,
-            ``high_centred``, ``poses``, ``risk``).
+            ``high_centred``, ``poses``, ``risk``; a lap's ``arm_path``, where the arm's path
+            between the planned postures touches the robot, ``intervals_m``).
 
     Returns:
         For ``tip``, ``slide``, ``step``, ``high_centred`` and ``arm_contact``: ``verdict``
@@ -395,6 +396,7 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     hc = summary["high_centred"]
     hc_where = [[x["start_s"], x["end_s"]] for x in hc["stretches"]]
     contact = [[s[k], s[k]] for k, p in enumerate(summary["poses"]) if not p["collision_free"]]
+    contact += [list(x) for x in (summary.get("arm_path") or {}).get("intervals_m", [])]
     worst = [b["mu"] for b in stab["unstable_poses"]]
     worst += [x["worst"] for x in stab.get("stretches", [])]
     tip = (
@@ -412,5 +414,5 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
         "high_centred": {"verdict": "high_centred" if hc["high_centred"] else "holds",
                          "unsafe": False, "where": hc_where},
         "arm_contact": {"verdict": "collides" if contact else "holds", "unsafe": bool(contact),
-                        "where": contact},
+                        "where": merged(contact)},
     }  # fmt: skip

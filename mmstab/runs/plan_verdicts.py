@@ -6,7 +6,9 @@ planned poses, the lap's turns and its high-centred stretches) give the same rec
 ``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred`` and ``verdicts``
 (:func:`mmstab.runs.along.limit_verdicts`: tip, slide, step, high_centred, arm_contact).
 :func:`exit_status` is ``mmstab plan``'s exit status for them (``docs/cli.md``): 3 where a
-pose tips or falls below the margin, 4 where the tracks slide, else 0.
+pose tips or falls below the margin, 4 where the tracks slide, 5 where the arm touches the
+robot (at a planned posture, or between two on a plan whose moves the search did not check:
+:func:`arm_path_check`), else 0.
 """
 
 from __future__ import annotations
@@ -48,8 +50,42 @@ if TYPE_CHECKING:
     from mmstab.terrain.base import Terrain
 
 #: ``mmstab plan``'s exit status where a pose tips or is below the margin, where the tracks
-#: slide (:mod:`mmstab.cli.status`' ``EXIT_UNSTABLE``, ``EXIT_SLIDES``).
-EXIT_UNSTABLE, EXIT_SLIDES = 3, 4
+#: slide, where the arm touches the robot (:mod:`mmstab.cli.status`' ``EXIT_UNSTABLE``,
+#: ``EXIT_SLIDES``, ``EXIT_ARM_COLLISION``).
+EXIT_UNSTABLE, EXIT_SLIDES, EXIT_ARM_COLLISION = 3, 4, 5
+
+
+def arm_path_check(robot: Robot, plan: Any, lap_time: float, dt: float) -> dict[str, Any] | None:
+    """Where the arm's path between the planned postures touches the robot, as tracked.
+
+    A search that checks its moves (``roadmap``; ``sequence``, whose straight moves keep the
+    roadmap's clearance and are followed where the spline does not) needs no check: None.
+    A pose-by-pose search (``cmaes``, ``exhaustive``) checks its postures only: the arm's
+    posture reference between them (:func:`mmstab.control.posture.build_posture_reference`,
+    repaired with via postures, at every control period, as ``mmstab track`` builds it) is
+    checked here, so that ``plan`` and ``track`` give one answer on arm contact.
+
+    Args:
+        robot: the robot.
+        plan: the plan (``fractions``, ``target_com``, ``postures``, ``settings``).
+        lap_time: the path's time [s] (``controller.lap_time``).
+        dt: the control period [s] (``controller.dt``).
+
+    Returns:
+        The reference's report (:meth:`~mmstab.control.posture.PostureReference.summary`:
+        ``reference`` with ``colliding_samples``, ``intervals_fraction`` and ``pairs``,
+        the ``via_postures``), or None.
+    """
+    from mmstab.control.posture import (
+        build_posture_reference,
+        posture_samples,
+        straight_moves_checked,
+    )
+
+    if getattr(plan, "moves", ()) or straight_moves_checked(plan):
+        return None
+    reference = build_posture_reference(robot, plan, posture_samples(lap_time, dt))
+    return reference.summary(lap_time)
 
 
 def plan_along(robot: Robot, terrain: Terrain, route: BasePath, plan: RoutePlan) -> Along:
@@ -166,6 +202,7 @@ def lap_verdicts(
     poses: list[dict[str, Any]],
     settings: VerdictSettings,
     lap_time: float,
+    arm_path: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The verdicts of a closed path's plan (``mmstab plan`` on a circle).
 
@@ -178,10 +215,12 @@ def lap_verdicts(
             ``collision_free``.
         settings: the margin and the slide's limits.
         lap_time: one lap [s] (``controller.lap_time``).
+        arm_path: :func:`arm_path_check`'s report (None: the moves were checked).
 
     Returns:
         ``stability``, ``slip`` (the friction cone at the poses and the lap's turns),
-        ``climb``, ``high_centred`` (every few cm around the lap), ``slides`` and
+        ``climb``, ``high_centred`` (every few cm around the lap), ``slides``, ``arm_path``
+        (with ``arm_path``: its report and the touching stretches ``intervals_m`` [m]) and
         ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`; ``where`` in arc lengths
         from the lap's start [m]).
     """
@@ -198,6 +237,10 @@ def lap_verdicts(
     }
     s = [lap.length * float(p["fraction"]) for p in poses]
     out["slides"] = slide_stretches(out["slip"], s)
+    if arm_path is not None:
+        spans = arm_path["reference"]["intervals_fraction"]
+        out["arm_path"] = {**arm_path, "intervals_m": [[lap.length * a, lap.length * b]
+                                                       for a, b in spans]}  # fmt: skip
     out["verdicts"] = limit_verdicts({**out, "s": s, "poses": poses,
                                       "risk": {"slides": out["slides"]}})  # fmt: skip
     return out
@@ -207,12 +250,15 @@ def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
     """``mmstab plan``'s exit status for a plan's verdicts (no ``--allow-...`` option).
 
     3 where a pose tips or falls below the margin (or a climb overturns the robot: the
-    ``tip`` verdict), else 4 where the tracks slide, else 0.
+    ``tip`` verdict), else 4 where the tracks slide, else 5 where the arm touches the robot,
+    else 0.
     """
     if verdicts["tip"]["unsafe"]:
         return EXIT_UNSTABLE
     if verdicts["slide"]["unsafe"]:
         return EXIT_SLIDES
+    if verdicts["arm_contact"]["unsafe"]:
+        return EXIT_ARM_COLLISION
     return 0
 
 

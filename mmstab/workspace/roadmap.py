@@ -59,6 +59,26 @@ DEFAULT_RESOLUTION = 0.02
 CLEARANCE_STEP = 0.004
 
 
+def move_keeps_clearance(
+    checker: CollisionChecker, reach: FloatArray, qa: FloatArray, qb: FloatArray, clearance: float
+) -> bool:
+    """Whether the straight move qa -> qb (n,) [rad] keeps ``clearance`` [m] everywhere.
+
+    Checked at postures between which no arm point moves more than :data:`CLEARANCE_STEP`
+    (the bound Σ_j reach_j |Δq_j|, ``reach`` (n,) [m]), ends included: at least
+    ``clearance + CLEARANCE_STEP / 2`` at each bounds it by ``clearance`` between them
+    (clearance is 1-Lipschitz in point motion), so the move is also free.
+    """
+    d = np.asarray(qb, dtype=float) - qa
+    n = int(np.ceil(float(reach @ np.abs(d)) / CLEARANCE_STEP)) + 1
+    q = qa + np.linspace(0.0, 1.0, n + 1)[:, None] * d
+    need, stride = clearance + CLEARANCE_STEP / 2, COARSE_STRIDE
+    # every stride-th posture first: a move that fails is mostly rejected there
+    if not checker.keeps_clearance(q[::stride], need, CLEARANCE_STEP * stride):
+        return False
+    return checker.keeps_clearance(q, need, CLEARANCE_STEP)
+
+
 @dataclass(frozen=True, eq=False)
 class Roadmap:
     """The posture lattice graph.
@@ -171,14 +191,7 @@ class Roadmap:
         them bounds it by ``clearance`` between them (clearance is 1-Lipschitz in point
         motion), so the move is also free (:meth:`CollisionChecker.keeps_clearance`).
         """
-        d = np.asarray(qb, dtype=float) - qa
-        n = int(np.ceil(float(self.reach @ np.abs(d)) / CLEARANCE_STEP)) + 1
-        q = qa + np.linspace(0.0, 1.0, n + 1)[:, None] * d
-        need, stride = clearance + CLEARANCE_STEP / 2, COARSE_STRIDE
-        # every stride-th posture first: a move that fails is mostly rejected there
-        if not checker.keeps_clearance(q[::stride], need, CLEARANCE_STEP * stride):
-            return False
-        return checker.keeps_clearance(q, need, CLEARANCE_STEP)
+        return move_keeps_clearance(checker, self.reach, qa, qb, clearance)
 
     def shortcut(
         self, checker: CollisionChecker, q: ArrayLike, clearance: float = MOVE_CLEARANCE

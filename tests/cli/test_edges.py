@@ -89,6 +89,34 @@ def test_plan_on_a_steep_ramp_exits_3_naming_the_poses(tmp_path, capsys, monkeyp
     )
 
 
+def test_plan_exits_5_where_the_arm_path_between_postures_touches(tmp_path, capsys):
+    """The per-pose search's lap (``ramp_reliable.yaml``): every planned posture is free, but
+    the arm's path from pose 0 to 1 (and 9 to 0) crosses the left flipper and no via posture
+    repairs it. ``plan`` exited 0 and ``track`` 5 (the tracked upper arm on the flipper at
+    0.54-2.76 s and 28.0-29.8 s of the 30 s lap, docs/planner.md)."""
+    from conftest import PROBLEMS
+
+    from mmstab.runs.plan_verdicts import EXIT_ARM_COLLISION, exit_status
+
+    out = tmp_path / "plan"
+    assert main(["plan", str(PROBLEMS / "ramp_reliable.yaml"), "-o", str(out)]) == 5
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("mmstab: arm collision: the planned arm touches the robot at s = ")
+    assert "(upper_arm-flipper_left)" in line and "--allow-collision" in line
+    s = json.loads((out / "summary.json").read_text())
+    assert all(p["collision_free"] for p in s["poses"])
+    contact = s["verdicts"]["arm_contact"]
+    assert contact["verdict"] == "collides" and exit_status(s["verdicts"]) == EXIT_ARM_COLLISION
+    reference = s["arm_path"]["reference"]
+    assert s["arm_path"]["via_postures"] == [] and reference["colliding_samples"] > 3000
+    # the stretches, in metres of the lap and in seconds of the run: within the tracked ones
+    lap = 2 * math.pi * load_problem(PROBLEMS / "ramp_reliable.yaml").circle.radius
+    (a, b), (c, d) = contact["where"]
+    assert 0.0 < a < b < 0.1 * lap and 0.9 * lap < c < d < lap
+    seconds = [x * 30.0 for x in reference["intervals_fraction"][0]]
+    assert 0.54 <= seconds[0] < seconds[1] <= 2.76
+
+
 def test_planner_margin_sets_the_bar(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     path = write_problem(tmp_path, _small(slope=0.1))

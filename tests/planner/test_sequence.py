@@ -189,7 +189,7 @@ def test_a_move_dipping_below_the_plane_is_refused(coarse):  # noqa: F811
     assert low[0] < 0.0 < 0.02 <= low[1]
     check = MoveCheck(checker, robot, reach, 0.02)
     np.testing.assert_array_equal(check.refused(q[[0, 2]], q[[1, 1]]), [True, False])
-    assert not MoveCheck(checker, robot).refused(q[[0]], q[[1]]).any()  # no ground check
+    assert not MoveCheck(checker, robot, reach).refused(q[[0]], q[[1]]).any()  # no ground check
     # the search: pose 0 prefers a (value 1 against 0.5), pose 1 has b only
     graph = _Graph(
         cand=np.array([[0, 2], [1, 1]]),
@@ -199,7 +199,7 @@ def test_a_move_dipping_below_the_plane_is_refused(coarse):  # noqa: F811
         motion=[np.zeros((2, 2))],
         allowed=[np.ones((2, 2), dtype=bool)],
     )
-    path, _, forbidden = _search_lazily(graph, q, MoveCheck(checker, robot), closed=False)
+    path, _, forbidden = _search_lazily(graph, q, MoveCheck(checker, robot, reach), closed=False)
     assert path.tolist() == [0, 0]  # unchecked: a, through the ground
     graph.allowed[0][:] = True
     path, rounds, forbidden = _search_lazily(graph, q, check, closed=False)

@@ -1,0 +1,217 @@
+"""A user's 3-joint arm on a lap: the arm's path between planned postures, as tracked.
+
+The robot is written as docs/robot.md tells a user to write one (a 32 kg robot, 0.6 m
+tracks, flat 25 cm flippers, a 3-joint arm with 1-1.2 rad/s joints). Its postures are the
+ones the lap's searches chose on ``terrain: {slope: 0.2}`` and the default circle before
+these checks: ``method: sequence`` swung the turret 5.4 rad between two poses, a move that
+passes 0.2 mm from the body between two of the 24 postures it was checked at; the spline
+through its postures cut through the robot (1703 of 30000 samples); the run asked 2.7 times
+the turret's speed limit of it. ``method: cmaes``'s spline touched a track and no IK
+posture repaired it. ``plan`` exited 0 on both, ``track`` 5.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any, NamedTuple
+
+import numpy as np
+import pytest
+import yaml
+
+from mmstab import load_robot
+from mmstab.control.approach_path import QUINTIC_PEAK, straight_approach_duration
+from mmstab.control.posture import build_posture_reference
+from mmstab.control.timing import JOINT_SPEED_SHARE, build_time_law
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.reach import joint_reach
+from mmstab.paths.circle import CirclePath
+from mmstab.planner.searches.sequence import MoveCheck, segments_collide
+from mmstab.terrain import Ramp
+from mmstab.workspace.roadmap import MOVE_CLEARANCE
+
+SCOUT: dict[str, Any] = {
+    "name": "scout",
+    "note": "a small tracked robot with a 3-joint arm, written from docs/robot.md",
+    "base": {
+        "mass": 32.0,
+        "com": [0.0, 0.0, 0.08],
+        "body": {"size": [0.55, 0.32, 0.14], "center": [0.0, 0.0, 0.1]},
+        "tracks": {"length": 0.6, "width": 0.09, "height": 0.16, "separation": 0.42,
+                   "sprocket_radius": 0.08, "velocity_limit": 10.0},
+        "flippers": {"length": 0.25, "width": 0.06, "thickness": 0.05,
+                     "pivot": [0.3, 0.255, 0.08], "angle": 0.0},
+    },
+    "arm": {
+        "mount": {"xyz": [0.1, 0.0, 0.17], "rpy": [0, 0, 0]},
+        "links": [
+            {"name": "turret", "dh": {"a": 0.0, "alpha": 1.5708, "d": 0.12, "theta_offset": 0.0},
+             "mass": 2.0, "com": [0.0, -0.06, 0.0],
+             "geometry": {"type": "capsule", "radius": 0.05, "p0": [0, -0.12, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -3.1, "upper": 3.1, "velocity": 1.0}},
+            {"name": "upper", "dh": {"a": 0.35, "alpha": 0.0, "d": 0.0, "theta_offset": 0.0},
+             "mass": 2.5, "com": [-0.17, 0, 0],
+             "geometry": {"type": "capsule", "radius": 0.035, "p0": [-0.35, 0, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -0.2, "upper": 2.6, "velocity": 1.0}},
+            {"name": "fore", "dh": {"a": 0.3, "alpha": 0.0, "d": 0.0, "theta_offset": 0.0},
+             "mass": 1.5, "com": [-0.15, 0, 0],
+             "geometry": {"type": "capsule", "radius": 0.03, "p0": [-0.3, 0, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -2.6, "upper": 2.6, "velocity": 1.2}},
+        ],
+        "stowed": [0.0, 0.2, -0.3],
+    },
+}  # fmt: skip
+
+#: ``method: sequence``'s postures at the lap's 10 poses (grid postures of the 3-joint V).
+SEQUENCE = np.array([
+    [1.4826086956521736, -0.2, -0.21666666666666679],
+    [0.9434782608695653, -0.2, -0.21666666666666679],
+    [0.13478260869565206, -0.2, 0.0],
+    [-0.40434782608695663, -0.2, 0.0],
+    [-1.2130434782608697, -0.2, -0.21666666666666679],
+    [-1.7521739130434784, -0.2, -0.21666666666666679],
+    [-2.2913043478260873, -0.2, -0.21666666666666679],
+    [3.1, -0.2, 0.0],
+    [2.560869565217391, -0.2, 0.0],
+    [2.0217391304347827, -0.2, -0.21666666666666679],
+])  # fmt: skip
+#: ``method: cmaes``'s postures at the same poses.
+CMAES = np.array([
+    [1.731137710969185, -0.09365583087205248, -1.6559554477752392],
+    [1.6176049068912126, -0.14561422974720786, -1.044581788587757],
+    [1.7454109627030079, -0.19855220870912496, -1.5904998530986434],
+    [1.8988155988026258, -0.11943348842458439, -1.488098691195261],
+    [1.7539880548692437, -0.1905685421101264, -1.5683789305368647],
+    [1.9950416269276736, -0.16592332471434093, -1.291346070278605],
+    [1.941205903547437, -0.17869169092029444, -1.1639846450195297],
+    [2.2046220469283253, -0.1678406373830228, -1.0397026249135324],
+    [2.1619008357621765, -0.18922120357301542, -1.138041807261523],
+    [1.9245731379702515, -0.14273843229272307, -1.1721588216117402],
+])  # fmt: skip
+FRACTIONS = np.arange(10) / 10.0
+LAP_TIME = 30.0
+SAMPLES = 3000  # the reference checked every 10 ms (a run checks every control period)
+
+
+class LapPlan(NamedTuple):
+    """What the posture reference reads of a lap's plan."""
+
+    fractions: np.ndarray
+    target_com: np.ndarray
+    postures: np.ndarray
+    settings: Any
+
+
+def write_robot(folder, data: dict[str, Any]):
+    """The robot as a user's file, loaded as ``mmstab`` loads one (its allowed touches found)."""
+    path = folder / "scout.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return load_robot(path)
+
+
+@pytest.fixture(scope="module")
+def scout(tmp_path_factory):
+    return write_robot(tmp_path_factory.mktemp("scout"), SCOUT)
+
+
+def lap_plan(robot, postures: np.ndarray, method: str) -> LapPlan:
+    return LapPlan(FRACTIONS, robot.arm_com(postures), postures, SimpleNamespace(method=method))
+
+
+def fine_clearance(robot, qa: np.ndarray, qb: np.ndarray, n: int = 4000) -> float:
+    """The least FCL clearance [m] of the straight move qa -> qb at n + 1 postures."""
+    u = np.linspace(0.0, 1.0, n + 1)[:, None]
+    return float(CollisionChecker(robot).clearance(qa + u * (qb - qa)).min())
+
+
+def test_a_long_move_grazing_the_body_between_coarse_checks_is_refused(scout):
+    checker = CollisionChecker(scout)
+    qa, qb = SEQUENCE[[6]], SEQUENCE[[7]]  # the turret -2.29 -> 3.10 rad
+    assert not segments_collide(checker, qa, qb).any()  # the 24-posture sieve passes it
+    assert fine_clearance(scout, qa[0], qb[0]) < 0.5e-3  # it passes 0.2 mm from the body
+    reach = joint_reach(scout, SEQUENCE)
+    assert MoveCheck(checker, scout, reach).refused(qa, qb).tolist() == [True]
+    # a short move that keeps its distance is still allowed, and keeps it at every posture
+    qa, qb = SEQUENCE[[0]], SEQUENCE[[1]]
+    assert MoveCheck(checker, scout, reach).refused(qa, qb).tolist() == [False]
+    assert fine_clearance(scout, qa[0], qb[0]) >= MOVE_CLEARANCE
+
+
+def test_a_sequence_plan_is_followed_on_its_moves_where_its_spline_touches(scout):
+    spline = build_posture_reference(scout, lap_plan(scout, SEQUENCE, "cmaes"), SAMPLES,
+                                     repair=False)  # fmt: skip
+    assert spline.interpolation == "spline" and spline.check.colliding_samples > 100
+    ref = build_posture_reference(scout, lap_plan(scout, SEQUENCE, "sequence"), SAMPLES)
+    assert ref.interpolation == "moves" and ref.via == ()
+    assert ref.planned_check.colliding_samples == spline.check.colliding_samples
+    assert ref.check.colliding_samples == 0
+    # on the straight move between consecutive postures, at rest at each
+    s = np.array([0.6, 0.63, 0.65, 0.68, 0.7])
+    q = ref(s).value
+    u = (q[:, 0] - SEQUENCE[6, 0]) / (SEQUENCE[7, 0] - SEQUENCE[6, 0])
+    np.testing.assert_allclose(q, SEQUENCE[6] + u[:, None] * (SEQUENCE[7] - SEQUENCE[6]),
+                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(ref(s[[0, -1]]).rate, 0.0, atol=1e-9)
+    assert ref.summary(LAP_TIME)["interpolation"] == "moves"
+
+
+def test_a_spline_no_ik_posture_repairs_is_repaired_on_the_straight_move(scout):
+    ref = build_posture_reference(scout, lap_plan(scout, CMAES, "cmaes"), SAMPLES)
+    assert ref.planned_check.colliding_samples > 50 and ref.check.colliding_samples == 0
+    assert ref.interpolation == "spline" and len(ref.via) == 1
+    via = ref.via[0]
+    assert 0.2 < via.fraction < 0.3 and via.pairs == ("fore-track_left",)
+    u = (via.fraction - 0.2) / 0.1  # on the straight move from pose 2 to pose 3
+    np.testing.assert_allclose(via.posture, CMAES[2] + u * (CMAES[3] - CMAES[2]), atol=1e-12)
+    assert not CollisionChecker(scout).collides(via.posture)
+
+
+def test_the_time_law_keeps_the_joints_within_their_speed_limits(scout):
+    ref = build_posture_reference(scout, lap_plan(scout, SEQUENCE, "sequence"), SAMPLES)
+    lap = CirclePath(center=(0.0, 0.0), radius=1.5, start_angle=-np.pi / 2, direction="ccw")
+    terrain = Ramp(0.2)
+    rate = np.abs(ref(np.linspace(0.0, 1.0, 3001)).rate) / LAP_TIME / scout.joint_velocity
+    assert rate.max() > 2.5  # the turret's swing asks 2.7 times its limit at the lap's speed
+    law = build_time_law(scout, lap, terrain, ref, LAP_TIME, FRACTIONS, 0.5, (0.0, LAP_TIME))
+    slowed = np.flatnonzero(law.factors < 1.0)
+    assert slowed.tolist() == [6]  # the swing's stretch, 18-21 s
+    speed = np.interp(np.linspace(0.0, LAP_TIME, 3001), law.tau, law.speed)
+    timed = rate * speed[:, None]
+    assert timed.max() <= JOINT_SPEED_SHARE * (1 + 1e-3)
+    assert timed.max() >= 0.99 * JOINT_SPEED_SHARE  # and no slower than it needs
+    assert law.t[-1] - LAP_TIME > 3 * (1 / law.factors[6] - 1)  # the lap takes longer
+
+
+def test_a_straight_approach_keeps_the_joint_speed_limits(scout, tmp_path):
+    ref = build_posture_reference(scout, lap_plan(scout, CMAES, "cmaes"), SAMPLES)
+    q0 = scout.stowed
+    duration = straight_approach_duration(scout, q0, ref, 1.0, LAP_TIME)
+    q_end = ref(duration / LAP_TIME).value[0]
+    peak = QUINTIC_PEAK * np.abs(q_end - q0) / scout.joint_velocity / duration
+    assert 3.7 < duration < 4.1 and 0.9 * JOINT_SPEED_SHARE < peak.max() <= JOINT_SPEED_SHARE
+    # an approach within the limits keeps controller.approach_time
+    slow = SCOUT | {"arm": SCOUT["arm"] | {"links": [
+        link | {"limits": link["limits"] | {"velocity": 10.0}} for link in SCOUT["arm"]["links"]
+    ]}}  # fmt: skip
+    fast = write_robot(tmp_path, slow)
+    assert straight_approach_duration(fast, q0, ref, 1.0, LAP_TIME) == 1.0
+
+
+def test_the_api_loads_a_users_robot_as_a_problem_does(scout, tmp_path):
+    """Its turret capsule meets the body at every angle: ``mmstab.load_robot`` left that pair
+    checked, so every posture collided and ``mmstab.plan`` refused the lap for arm contact
+    that ``mmstab plan`` accepts."""
+    from mmstab.core.problem import load_problem
+    from mmstab.model.robot import load_robot as load_robot_file
+
+    write_robot(tmp_path, SCOUT)
+    problem = tmp_path / "lap.yaml"
+    problem.write_text(yaml.safe_dump({
+        "robot": "scout.yaml", "terrain": {"slope": 0.2},
+        "path": {"center": [0.0, 0.0], "radius": 1.5, "start_angle": -1.5708, "direction": "ccw"},
+    }))  # fmt: skip
+    allowed = load_problem(problem).robot.collision_allow
+    assert scout.collision_allow == allowed and len(allowed) == 1
+    assert not CollisionChecker(scout).collides(scout.stowed)
+    raw = load_robot_file(tmp_path / "scout.yaml")
+    assert raw.collision_allow == frozenset() and CollisionChecker(raw).collides(raw.stowed)
