@@ -38,7 +38,8 @@ from mmstab.control.posture import (
 from mmstab.control.reference import PathSample, StepReference, task_reference
 from mmstab.control.timing import TimeLaw, build_time_law
 from mmstab.core.masks import true_runs
-from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequence_collisions
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.collision_sequence import SequenceCollisions, sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.paths.base import BasePath
 from mmstab.terrain import Terrain

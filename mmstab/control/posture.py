@@ -56,7 +56,8 @@ from mmstab.control.reference import (
     posture_reference,
 )
 from mmstab.core.masks import true_runs
-from mmstab.model.collision import CollisionChecker, SequenceCollisions, sequence_collisions
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.collision_sequence import SequenceCollisions, sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.terrain import Terrain
 

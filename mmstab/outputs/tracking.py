@@ -222,7 +222,8 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
         pairs with the number of samples each, the minimum link clearance [m] and its time
         [s], and the verdict (:func:`mmstab.runs.verdict.arm_collision_verdict`).
     """
-    from mmstab.model.collision import CollisionChecker, sequence_collisions
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.model.collision_sequence import sequence_collisions
     from mmstab.runs.verdict import arm_collision_verdict
 
     checker = CollisionChecker(problem.robot)
