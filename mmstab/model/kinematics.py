@@ -123,7 +123,7 @@ class ArmKinematics:
         """
         qa = np.asarray(q, dtype=float)
         single = qa.ndim == 1
-        qa = np.atleast_2d(qa)
+        qa = np.ascontiguousarray(np.atleast_2d(qa))  # a transposed array: its trig too (C)
         if self._fast is None:
             sample = frames_c.sample_postures(len(self.links))
             key = b"".join(x.tobytes() for x in (self._dh_gain, self._dh_rest, self.mount_T))

@@ -40,6 +40,12 @@ SAVE_EVERY_S = 0.01
 BAG_RATE = 10.0
 
 
+#: Distance [m] below which the run's link clearances are measured exactly first: the least
+#: is below it in every shipped run (the turret sits 1 cm above the body), and measuring
+#: only the pairs that come that near takes a fifth of the time.
+CLEARANCE_CULL = 0.05
+
+
 def run_tracking(
     problem: Problem,
     out: str | Path | None = None,
@@ -228,7 +234,10 @@ def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[
 
     checker = CollisionChecker(problem.robot)
     report, _ = sequence_collisions(checker, t, q_arm)
-    clearance = checker.clearance(q_arm)
+    # exact below CLEARANCE_CULL: the least of them is the run's, else measured everywhere
+    clearance = checker.clearance(q_arm, cull_above=CLEARANCE_CULL)
+    if clearance.min() >= CLEARANCE_CULL:
+        clearance = checker.clearance(q_arm)
     k = int(np.argmin(clearance))
     return {
         "samples": report.samples,
