@@ -223,7 +223,8 @@ def _route_plan(
     # the turns that would slide slowed (mmstab.runs.time_law): the plan's path is that route
     stage = with_time_law(robot, terrain, path, stage, settings.verdicts)
     path = stage.route if stage.route is not None else path
-    v = route_verdicts(robot, terrain, path, stage, settings.verdicts)
+    arm_path = arm_path_check(robot, stage, path.lap_time, settings.controller.dt)
+    v = route_verdicts(robot, terrain, path, stage, settings.verdicts, arm_path=arm_path)
     return PathPlan(
         robot, terrain, path, settings, stage.s, stage.fractions, stage.poses,
         stage.target_com, stage.postures, stage.realised_com_error, stage.collision_free,

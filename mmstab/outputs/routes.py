@@ -38,8 +38,8 @@ from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, route_corners, save_settings
 from mmstab.planner import RoutePlan, RouteRisk, route_risk
 from mmstab.runs.along import Along
+from mmstab.runs.plan_verdicts import arm_path_check, route_verdicts
 from mmstab.runs.plan_verdicts import plan_along as robot_plan_along
-from mmstab.runs.plan_verdicts import route_verdicts
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.time_law import describe_time_law
 from mmstab.stability.static import mu_max
@@ -70,7 +70,8 @@ def route_summary(
     if route is None:
         raise MmstabError(f"{problem.path}: path: not a route")
     settings = Settings.from_problem(problem)
-    v = route_verdicts(robot, problem.terrain, route, plan, settings.verdicts, along)
+    arm_path = arm_path_check(robot, plan, route.lap_time, settings.controller.dt)
+    v = route_verdicts(robot, problem.terrain, route, plan, settings.verdicts, along, arm_path)
     mu_realised = v["mu_realised"]
     poses = [
         {
@@ -131,6 +132,7 @@ def route_summary(
         "high_centred": v["high_centred"],
         "along_path": v["along_path"],
         "verdicts": v["verdicts"],
+        **({"arm_path": v["arm_path"]} if "arm_path" in v else {}),
         "turn_slide": {
             "limit_m": plan.settings.turn_slide,
             "turns": [

@@ -112,6 +112,7 @@ def route_verdicts(
     plan: RoutePlan,
     settings: VerdictSettings,
     along: Along | None = None,
+    arm_path: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The verdicts of a route plan (``summary.json``'s records of ``mmstab plan``).
 
@@ -122,6 +123,7 @@ def route_verdicts(
         plan: its plan.
         settings: the margin and the slide's limits.
         along: :func:`plan_along`'s samples, if already made.
+        arm_path: :func:`arm_path_check`'s report (None: the moves were checked).
 
     Returns:
         ``mu_realised`` (K,) [N rad] (the realised postures' μ, one loaded batch),
@@ -190,6 +192,10 @@ def route_verdicts(
         "along_path": dense,
         "slides": slide_stretches(slip, plan.s),
     }
+    if arm_path is not None:  # the reference's fractions are the route's time fractions
+        spans = arm_path["reference"]["intervals_fraction"]
+        metres = [route.s_at([a, b]).tolist() for a, b in spans]
+        out["arm_path"] = arm_path | {"intervals_m": metres}
     out["verdicts"] = limit_verdicts({**out, "s": plan.s.tolist(), "poses": poses,
                                       "risk": {"slides": out["slides"]}})  # fmt: skip
     return out

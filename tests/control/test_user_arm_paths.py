@@ -215,3 +215,34 @@ def test_the_api_loads_a_users_robot_as_a_problem_does(scout, tmp_path):
     assert not CollisionChecker(scout).collides(scout.stowed)
     raw = load_robot_file(tmp_path / "scout.yaml")
     assert raw.collision_allow == frozenset() and CollisionChecker(raw).collides(raw.stowed)
+
+
+def test_a_route_names_where_its_arm_path_touches_in_metres(scout, tmp_path, monkeypatch):
+    """The route's posture reference runs on its time fraction u; the verdict is in metres."""
+    import mmstab
+    import mmstab.app.api as api
+    from mmstab.runs.plan_verdicts import EXIT_ARM_COLLISION
+
+    write_robot(tmp_path, SCOUT)
+    path = tmp_path / "route.yaml"
+    path.write_text(yaml.safe_dump({
+        "robot": "scout.yaml", "terrain": {"slope": 0.1},
+        "path": {"waypoints": [[0.0, 0.0], [1.5, 0.0]], "speed": 0.3, "turn_radius": 0.0},
+        "planner": {"method": "cmaes"}, "workspace": {"grid": [9, 9, 9]},
+    }))  # fmt: skip
+    problem = mmstab.load_problem(path)
+    plan = mmstab.plan(problem)
+    assert plan.exit_status == 0 and plan.verdicts["arm_contact"]["where"] == []
+    seen = {}
+
+    def touching(robot, stage, lap_time, dt):  # as if its reference touched over u in [0.25, 0.5]
+        seen["lap_time"] = lap_time
+        return {"reference": {"intervals_fraction": [[0.25, 0.5]], "pairs": {"fore-body": 9}}}
+
+    monkeypatch.setattr(api, "arm_path_check", touching)
+    plan = mmstab.plan(problem)
+    route = plan.path
+    assert seen["lap_time"] == route.lap_time  # the route's own time, as track runs it
+    ((a, b),) = plan.verdicts["arm_contact"]["where"]
+    assert (a, b) == pytest.approx(route.s_at([0.25, 0.5]).tolist(), abs=1e-12)
+    assert 0.0 < a < b < 1.5 and plan.exit_status == EXIT_ARM_COLLISION
