@@ -30,20 +30,13 @@ from mmstab.runs.tracking import (
     state_names,
     summarize,
 )
-from mmstab.runs.verdict import slip_verdict, turn_check
+from mmstab.runs.tracking.checks import saved_samples, tracked_checks
+from mmstab.runs.verdict_settings import VerdictSettings
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.viz.plotting import draw_base_topview, new_figure
 
-#: Sample spacing of the saved arrays (``run.npz``) [s].
-SAVE_EVERY_S = 0.01
 #: Sample rate of the run's recording (``run.mcap``) [Hz].
 BAG_RATE = 10.0
-
-
-#: Distance [m] below which the run's link clearances are measured exactly first: the least
-#: is below it in every shipped run (the turret sits 1 cm above the body), and measuring
-#: only the pairs that come that near takes a fifth of the time.
-CLEARANCE_CULL = 0.05
 
 
 def run_tracking(
@@ -119,20 +112,9 @@ def run_tracking(
 def run_checks(
     problem: Problem, run: TrackingRun
 ) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any]]:
-    """The verdicts beside ``run.tipped``: the saved samples, arm self-collision, slip.
-
-    Returns:
-        The indices of the samples kept (every ``SAVE_EVERY_S``), the arm self-collision
-        record (``summary.json``'s ``arm_self_collision``) and the slip verdict (``slip``),
-        both checked at those samples.
-    """
-    keep = _samples(run, SAVE_EVERY_S)
-    collisions = self_collisions(problem, run.t[keep], run.state[keep, 5:])
-    arm_com = problem.robot.arm_com(run.state[keep, 5:])
-    slip = slip_verdict(
-        problem.terrain, run.state[keep, :3], turn_check(problem, arm_com, run.t[keep])
-    )
-    return keep, collisions, slip
+    """The verdicts beside ``run.tipped`` of a problem's run (:func:`tracked_checks`)."""
+    settings = VerdictSettings.from_sections(problem.section("planner"), problem.section("physics"))
+    return tracked_checks(problem.robot, problem.terrain, settings, run)
 
 
 def track_verdict(problem: Problem, plan: Plan | RoutePlan | None = None) -> str:
@@ -196,59 +178,12 @@ def _write_arrays(d: Path, plan: TrackingPlan, run: TrackingRun, keep: NDArray[n
     )
 
 
-def _samples(run: TrackingRun, spacing: float) -> NDArray[np.int_]:
-    """Indices of the run's samples ``spacing`` [s] apart, the last one included."""
-    every = max(int(round(spacing / run.dt)), 1)
-    return np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
-
-
 def _write_bag(d: Path, problem: Problem, run: TrackingRun) -> None:
     """The run as ``run.mcap`` at ``BAG_RATE`` (:mod:`mmstab.runs.recording`; Foxglove, RViz)."""
-    k = _samples(run, 1.0 / BAG_RATE)
+    k = saved_samples(run, 1.0 / BAG_RATE)
     frames = frames_at(problem.terrain, problem.robot, run.t[k], run.state[k, :3],
                        run.state[k, 5:], run.mu.reconfigured[k])  # fmt: skip
     write_run(d / "run.mcap", problem.robot, frames, stowed_flat_mu(problem.robot))
-
-
-def self_collisions(problem: Problem, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
-    """Where the tracked arm intersects the base or itself.
-
-    Eq. 7 has no collision constraint: the posture task keeps the arm near the planner's
-    collision-free postures (and the posture reference is checked and repaired,
-    :mod:`mmstab.control.posture`); this checks what the arm actually did.
-
-    Args:
-        problem: the problem (robot geometry).
-        t: sample times (N,) [s].
-        q_arm: arm postures (N, 4) [rad].
-
-    Returns:
-        samples checked, colliding samples and share, the colliding time intervals [s]
-        (from the first colliding sample to the first free one after it), the colliding
-        pairs with the number of samples each, the minimum link clearance [m] and its time
-        [s], and the verdict (:func:`mmstab.runs.verdict.arm_collision_verdict`).
-    """
-    from mmstab.model.collision import CollisionChecker
-    from mmstab.model.collision_sequence import sequence_collisions
-    from mmstab.runs.verdict import arm_collision_verdict
-
-    checker = CollisionChecker(problem.robot)
-    report, _ = sequence_collisions(checker, t, q_arm)
-    # exact below CLEARANCE_CULL: the least of them is the run's, else measured everywhere
-    clearance = checker.clearance(q_arm, cull_above=CLEARANCE_CULL)
-    if clearance.min() >= CLEARANCE_CULL:
-        clearance = checker.clearance(q_arm)
-    k = int(np.argmin(clearance))
-    return {
-        "samples": report.samples,
-        "colliding_samples": report.colliding_samples,
-        "colliding_share": report.colliding_share,
-        "intervals_s": report.intervals,
-        "pairs": report.pairs,
-        "min_clearance_m": float(clearance[k]),
-        "min_clearance_time_s": float(np.asarray(t)[k]),
-        "verdict": arm_collision_verdict(report.colliding_samples, float(clearance[k])),
-    }
 
 
 # ------------------------------------------------------------------------------------ figures

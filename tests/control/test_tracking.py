@@ -462,9 +462,9 @@ def test_cli_track_end_to_end(tmp_path):
     assert "track:" in proc.stdout
 
 
-def test_self_collisions_reports_intervals_and_pairs(problem):
+def test_arm_collisions_reports_intervals_and_pairs(problem):
     from mmstab.model.collision import CollisionChecker
-    from mmstab.outputs.tracking import self_collisions
+    from mmstab.runs.tracking.checks import arm_collisions
 
     robot = problem.robot
     hit = np.array([2.25, -0.41, 0.5, 0.17])  # turret to the left-rear, upper arm down: hits
@@ -473,7 +473,7 @@ def test_self_collisions_reports_intervals_and_pairs(problem):
     assert pairs and not checker.collides(robot.stowed)
     q = np.array([robot.stowed, hit, hit, robot.stowed, robot.stowed])
     t = np.arange(5) * 0.01
-    out = self_collisions(problem, t, q)
+    out = arm_collisions(problem.robot, t, q)
     assert out["samples"] == 5 and out["colliding_samples"] == 2
     assert out["colliding_share"] == pytest.approx(0.4)
     assert out["intervals_s"] == [[0.01, 0.03]]

@@ -115,9 +115,9 @@ def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
     from conftest import write_problem
 
     from mmstab.core.problem import load_problem
-    from mmstab.outputs.tracking import self_collisions
     from mmstab.planner import plan_path
     from mmstab.runs.tracking import simulate, summarize
+    from mmstab.runs.tracking.checks import arm_collisions
     from mmstab.workspace import load_or_build_workspace
 
     path = write_problem(tmp_path, lambda p, r: p["workspace"].__setitem__("grid", COARSE))
@@ -129,7 +129,7 @@ def test_the_default_plan_is_tracked_without_collision_or_saturation(tmp_path):
     s = summarize(run)
     assert s["qp_failures"] == 0
     keep = np.arange(0, run.t.size, 10)  # every 10 ms, as the tracking experiment checks
-    assert self_collisions(problem, run.t[keep], run.state[keep, 5:])["colliding_samples"] == 0
+    assert arm_collisions(problem.robot, run.t[keep], run.state[keep, 5:])["colliding_samples"] == 0
     assert s["last_saturated_time_s"] is None or s["last_saturated_time_s"] <= 1.0  # approach
     assert s["after_transient"]["arm_com_error_max_m"] < 0.005
     assert s["after_transient"]["base_error_max_m"] < 0.005

@@ -134,8 +134,8 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     """Plan and track one pair; the numbers the checks need, and timings [s]."""
     from mmstab import app
     from mmstab.model.plane_clearance import arm_ground_clearance
-    from mmstab.outputs.tracking import self_collisions
     from mmstab.planner.searches.roadmap import NoPlanError
+    from mmstab.runs.tracking.checks import arm_collisions
 
     record: dict[str, Any] = {"pivots": pivots_of(problem)}
     assert problem.route is not None
@@ -168,7 +168,7 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     t0 = time.perf_counter()
     _, _, run = app.track(problem, plan, progress=False)
     record["track_seconds"] = time.perf_counter() - t0
-    collisions = self_collisions(problem, run.t, run.state[:, 5:])
+    collisions = arm_collisions(problem.robot, run.t, run.state[:, 5:])
     record |= {
         "duration_s": float(run.t[-1]),
         # the route's driving time, and the real time the arm's time law takes for it

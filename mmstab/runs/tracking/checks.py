@@ -1,0 +1,95 @@
+"""The verdicts of a tracked run beside its tip: the arm against the robot, the tracks' slide.
+
+``mmstab track`` and :func:`mmstab.track` judge a run by the same checks, at the run's saved
+samples (every :data:`SAVE_EVERY_S`): the arm's self-collision and least clearance
+(:func:`arm_collisions`) and the slip verdict of the base's poses and turns.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mmstab.model.collision import CollisionChecker
+from mmstab.model.collision_sequence import sequence_collisions
+from mmstab.model.robot import FloatArray, Robot
+from mmstab.runs.tracking.run import TrackingRun
+from mmstab.runs.verdict import arm_collision_verdict, robot_turn_check, slip_verdict
+from mmstab.runs.verdict_settings import VerdictSettings
+from mmstab.terrain import Terrain
+
+#: Sample spacing of the saved arrays (``run.npz``) and of the run's checks [s].
+SAVE_EVERY_S = 0.01
+#: Distance [m] below which the run's link clearances are measured exactly first: the least
+#: is below it in every shipped run (the turret sits 1 cm above the body), and measuring
+#: only the pairs that come that near takes a fifth of the time.
+CLEARANCE_CULL = 0.05
+
+
+def saved_samples(run: TrackingRun, spacing: float) -> NDArray[np.int_]:
+    """Indices of the run's samples ``spacing`` [s] apart, the last one included."""
+    every = max(int(round(spacing / run.dt)), 1)
+    return np.unique(np.r_[np.arange(0, run.t.size, every), run.t.size - 1])
+
+
+def tracked_checks(
+    robot: Robot, terrain: Terrain, settings: VerdictSettings, run: TrackingRun
+) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any]]:
+    """The verdicts beside ``run.tipped``: the saved samples, arm self-collision, slip.
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        settings: the slide's limits (``slip_distance``, ``slip_window``, ...).
+        run: the tracked run.
+
+    Returns:
+        The indices of the samples kept (every ``SAVE_EVERY_S``), the arm self-collision
+        record (``summary.json``'s ``arm_self_collision``) and the slip verdict (``slip``),
+        both checked at those samples.
+    """
+    keep = saved_samples(run, SAVE_EVERY_S)
+    collisions = arm_collisions(robot, run.t[keep], run.state[keep, 5:])
+    arm_com = robot.arm_com(run.state[keep, 5:])
+    turns = robot_turn_check(robot, settings, arm_com, run.t[keep])
+    slip = slip_verdict(terrain, run.state[keep, :3], turns)
+    return keep, collisions, slip
+
+
+def arm_collisions(robot: Robot, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
+    """Where the tracked arm intersects the base or itself.
+
+    Eq. 7 has no collision constraint: the posture task keeps the arm near the planner's
+    collision-free postures (and the posture reference is checked and repaired,
+    :mod:`mmstab.control.posture`); this checks what the arm actually did.
+
+    Args:
+        robot: the robot (its collision geometry).
+        t: sample times (N,) [s].
+        q_arm: arm postures (N, 4) [rad].
+
+    Returns:
+        samples checked, colliding samples and share, the colliding time intervals [s]
+        (from the first colliding sample to the first free one after it), the colliding
+        pairs with the number of samples each, the minimum link clearance [m] and its time
+        [s], and the verdict (:func:`mmstab.runs.verdict.arm_collision_verdict`).
+    """
+    checker = CollisionChecker(robot)
+    report, _ = sequence_collisions(checker, t, q_arm)
+    # exact below CLEARANCE_CULL: the least of them is the run's, else measured everywhere
+    clearance = checker.clearance(q_arm, cull_above=CLEARANCE_CULL)
+    if clearance.min() >= CLEARANCE_CULL:
+        clearance = checker.clearance(q_arm)
+    k = int(np.argmin(clearance))
+    return {
+        "samples": report.samples,
+        "colliding_samples": report.colliding_samples,
+        "colliding_share": report.colliding_share,
+        "intervals_s": report.intervals,
+        "pairs": report.pairs,
+        "min_clearance_m": float(clearance[k]),
+        "min_clearance_time_s": float(np.asarray(t)[k]),
+        "verdict": arm_collision_verdict(report.colliding_samples, float(clearance[k])),
+    }
