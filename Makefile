@@ -28,7 +28,7 @@ demo: setup fig3 fig5 fig6 fig7 fig8 plan-reliable tracking animation
 ## worker (its module fixtures built once); the 15 slowest tests listed (docs/testing.md)
 TEST_WORKERS ?= 2
 test: setup system ros
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=15
 
 ## ROS 2 for `mmstab node` (docs/node.md): the ros extra's wheels (rclpy, Fast DDS, the message
 ## and rosidl/CMake wheels), then the message packages no wheel carries (grid_map_msgs, tf2_msgs)

@@ -264,18 +264,53 @@ def _lap_plan(
 
 
 class Tracked(NamedTuple):
-    """A tracking run of a plan (:func:`track`).
+    """A tracking run of a plan (:func:`track`), judged as ``mmstab track`` judges it.
 
     Attributes:
         plan: the plan driven.
         run: the recorded run (``run.tipped``: where it would tip over, else None).
         settings: the controller's settings as run (a route's ``lap_time`` and
             ``duration`` are its own; the ``plugin`` asked for).
+        verdicts: per limit (``tip``, ``slide``, ``arm_contact``): ``verdict`` (``holds``,
+            ``tips``, ``slides``, ``collides``), ``unsafe``, and the record ``mmstab track``
+            writes for it (``tipped``, ``slip``, ``arm_self_collision``), checked at the
+            run's saved samples (:func:`mmstab.runs.tracking.checks.tracked_checks`).
     """
 
     plan: PathPlan
     run: TrackingRun
     settings: ControllerSettings
+    verdicts: dict[str, dict[str, Any]]
+
+    @property
+    def exit_status(self) -> int:
+        """``mmstab track``'s exit status: 3 tips, 4 slides, 5 the arm touches, else 0."""
+        for limit, status in (("tip", 3), ("slide", 4), ("arm_contact", 5)):
+            if self.verdicts[limit]["unsafe"]:
+                return status
+        return 0
+
+    @property
+    def accepted(self) -> bool:
+        """The run neither tips, slides nor touches the robot with its arm (exit status 0)."""
+        return self.exit_status == 0
+
+
+def run_verdicts(plan: PathPlan, run: TrackingRun) -> dict[str, dict[str, Any]]:
+    """A run's verdicts per limit (:attr:`Tracked.verdicts`)."""
+    from mmstab.runs.tracking.checks import tracked_checks
+
+    _, collisions, slip = tracked_checks(plan.robot, plan.terrain, plan.settings.verdicts, run)
+    tipped = None if run.tipped is None else run.tipped.summary()
+    touches = not collisions["verdict"]["safe"]
+    return {
+        "tip": {"verdict": "tips" if tipped else "holds", "unsafe": tipped is not None,
+                "tipped": tipped},
+        "slide": {"verdict": "slides" if slip["slides"] else "holds",
+                  "unsafe": bool(slip["slides"]), "slip": slip},
+        "arm_contact": {"verdict": "collides" if touches else "holds", "unsafe": touches,
+                        "arm_self_collision": collisions},
+    }  # fmt: skip
 
 
 def track_plan(
@@ -330,7 +365,7 @@ def track_plan(
         initial_arm=initial_arm,
         settings=controller,
     )
-    return Tracked(plan, run, controller)
+    return Tracked(plan, run, controller, run_verdicts(plan, run))
 
 
 def track(
@@ -346,7 +381,8 @@ def track(
 ) -> Any:
     """Drive a plan with the QP controller: :func:`track_plan` on a :class:`PathPlan`.
 
-    ``track(plan, ...)`` returns a :class:`Tracked` (plan, run, settings). The older form
+    ``track(plan, ...)`` returns a :class:`Tracked` (plan, run, settings, verdicts,
+    ``exit_status``, ``accepted``). The older form
     ``track(problem, arm_plan=None, ...)`` (:func:`mmstab.app.track`) still returns
     ``(problem, plan, run)``.
 

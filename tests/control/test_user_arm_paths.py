@@ -246,3 +246,29 @@ def test_a_route_names_where_its_arm_path_touches_in_metres(scout, tmp_path, mon
     ((a, b),) = plan.verdicts["arm_contact"]["where"]
     assert (a, b) == pytest.approx(route.s_at([0.25, 0.5]).tolist(), abs=1e-12)
     assert 0.0 < a < b < 1.5 and plan.exit_status == EXIT_ARM_COLLISION
+
+
+def test_the_api_plans_and_tracks_to_one_answer_on_arm_contact(scout, tmp_path):
+    """A per-pose lap on a coarse V: its arm's path touches a track between poses, which
+    ``mmstab.plan`` says (exit 5) and the tracked run confirms there, as ``mmstab track``
+    judges it (``Tracked.verdicts``, ``exit_status``)."""
+    import mmstab
+
+    write_robot(tmp_path, SCOUT)
+    path = tmp_path / "lap.yaml"
+    path.write_text(yaml.safe_dump({
+        "robot": "scout.yaml", "terrain": {"slope": 0.2},
+        "path": {"center": [0.0, 0.0], "radius": 1.5, "start_angle": -1.5708, "direction": "ccw"},
+        "planner": {"method": "cmaes"}, "workspace": {"grid": [9, 9, 9]},
+    }))  # fmt: skip
+    plan = mmstab.plan(mmstab.load_problem(path))
+    assert plan.exit_status == 5 and plan.unsafe == ("arm_contact",)
+    assert plan.collision_free.all()  # every planned posture is free: the path is not
+    (a, b), *_ = plan.verdicts["arm_contact"]["where"]
+    lap = 2 * np.pi * 1.5
+    t_a, t_b = LAP_TIME * a / lap, LAP_TIME * b / lap  # the lap's time there (no move slowed)
+    tracked = mmstab.track(plan, duration=t_b + 1.0)
+    assert tracked.exit_status == 5 and tracked.verdicts["tip"]["verdict"] == "holds"
+    record = tracked.verdicts["arm_contact"]["arm_self_collision"]
+    first, _ = record["intervals_s"][0]
+    assert t_a - 0.2 <= first <= t_b and not tracked.accepted

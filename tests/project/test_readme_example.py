@@ -22,9 +22,12 @@ def test_readme_example_runs_and_its_mu_is_the_stance(monkeypatch, capsys, tmp_p
     monkeypatch.chdir(ROOT)  # the example's paths are the repository's
     namespace: dict = {}
     exec(compile(readme_block(), "README.md", "exec"), namespace)
-    robot, ramp, plan, run, rest = (namespace[k] for k in ("robot", "ramp", "plan", "run", "rest"))
+    keys = ("robot", "ramp", "plan", "tracked", "rest")
+    robot, ramp, plan, tracked, rest = (namespace[k] for k in keys)
+    run = tracked.run
     printed = capsys.readouterr().out
-    assert "accepted True" in printed and "tipped: None" in printed
+    assert "accepted True" in printed and "run accepted True" in printed
+    assert tracked.exit_status == 0 and not any(v["unsafe"] for v in tracked.verdicts.values())
 
     # at rest on the 0.2 rad ramp, heading along its contour: the roll is the slope (analytic)
     assert abs(rest.roll - 0.2) < 1e-9 and abs(rest.pitch) < 1e-9 and rest.mu > 0
