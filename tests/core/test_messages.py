@@ -23,13 +23,15 @@ from mmstab.cli import main
 from mmstab.core.defaults import DEFAULT_SECTIONS, joint_defaults
 from mmstab.core.files import ConfigError
 from mmstab.core.notes import held_notes
-from mmstab.core.problem import problem_from_dict
+from mmstab.core.problem import load_problem, problem_from_dict
 from mmstab.core.sizes import WS_FULL_GRID_MAX
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.robot import LINK_EXTENT_TOL, link_extent_warnings, load_robot, robot_from_dict
 from mmstab.model.touching import TOUCHING_SAMPLES, touching_pairs, with_touching_allowed
 
 ROUTE = {"waypoints": [[0.0, 0.0], [1.5, 0.0]], "speed": 0.3, "turn_radius": 0.0}
+#: A coarse grid for the 5-joint arm's plan (its default is 14 x 17 x 15 x 15 x 8).
+GRID_5 = [8, 8, 8, 8, 4]
 
 
 def _refused(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
@@ -76,8 +78,17 @@ def write(tmp_path: Path, problem: dict, robot: dict, name: str = "p.yaml") -> P
 # ------------------------------------------------------------ a 5-joint arm, three keys
 def test_a_5_joint_arm_with_a_zero_length_wrist_plans_from_a_three_key_problem(tmp_path, capsys):
     """Before: 'controller.w_b' (a key the file does not have), then, with the four keys
-    sized by hand, 'no collision-free posture on the workspace grid'."""
-    path = write(tmp_path, {"terrain": {"slope": 0.1}, "path": ROUTE}, five_joint_robot())
+    sized by hand, 'no collision-free posture on the workspace grid'.
+
+    The three keys take the 5-joint defaults (checked on the loaded problem); the plan runs
+    on a coarse grid given as a fourth key, so that the test does not build the default
+    grid's V and roadmap (13 s on a fresh clone) for this arm alone."""
+    three = write(tmp_path, {"terrain": {"slope": 0.1}, "path": ROUTE}, five_joint_robot())
+    loaded = load_problem(three)
+    assert loaded.section("workspace")["grid"] == [14, 17, 15, 15, 8]
+    assert len(loaded.section("controller")["w_b"]) == 7
+    four = {"terrain": {"slope": 0.1}, "path": ROUTE, "workspace": {"grid": GRID_5}}
+    path = write(tmp_path, four, five_joint_robot(), "p4.yaml")
     robot = load_robot(tmp_path / "robots" / "r.yaml")
     # the forearm and the wrist touch at every posture: every grid posture "collided"
     raw = CollisionChecker(robot)
@@ -100,8 +111,7 @@ def test_a_5_joint_arm_with_a_zero_length_wrist_plans_from_a_three_key_problem(t
         assert raw.colliding_pairs(qk) == ["forearm-wrist"]
     assert min(p["mu_planned"] for p in summary["poses"]) > 0
     saved = yaml.safe_load((tmp_path / "out" / "problem.yaml").read_text())
-    assert saved["workspace"]["grid"] == [14, 17, 15, 15, 8]
-    assert len(saved["controller"]["w_b"]) == 7
+    assert saved["workspace"]["grid"] == GRID_5 and len(saved["controller"]["w_b"]) == 7
 
 
 def test_every_per_joint_mismatch_is_named_in_one_message(tmp_path, capsys):
