@@ -4,7 +4,8 @@
 and judges the plan as ``mmstab plan`` does: the one :class:`PathPlan` it returns carries
 the verdicts (tip, slide, step, high_centred, arm_contact) and ``accepted`` /
 ``exit_status`` (the command's exit status for the same inputs). ``mmstab.track(plan)``
-drives the plan with the QP controller and returns a :class:`Tracked`. Both also take a
+drives the plan with the QP controller and returns a :class:`Tracked`, judged as ``mmstab
+track`` judges it (``verdicts``, ``exit_status``). Both also take a
 loaded problem in place of the objects (``mmstab.plan(problem)``), reading its settings
 with :meth:`mmstab.app.settings.Settings.from_problem`.
 """
@@ -99,12 +100,12 @@ class PathPlan:
 
     @property
     def exit_status(self) -> int:
-        """``mmstab plan``'s exit status: 3 tips or below the margin, 4 slides, else 0."""
+        """``mmstab plan``'s exit status: 3 tips or under the margin, 4 slides, 5 arm contact."""
         return exit_status(self.verdicts)
 
     @property
     def accepted(self) -> bool:
-        """Every pose holds with the margin and the tracks do not slide (exit status 0)."""
+        """Every pose holds with the margin, nothing slides, the arm touches nothing (exit 0)."""
         return self.exit_status == 0
 
     @property
