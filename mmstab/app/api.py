@@ -275,7 +275,7 @@ class Tracked(NamedTuple):
         verdicts: per limit (``tip``, ``slide``, ``arm_contact``): ``verdict`` (``holds``,
             ``tips``, ``slides``, ``collides``), ``unsafe``, and the record ``mmstab track``
             writes for it (``tipped``, ``slip``, ``arm_self_collision``), checked at the
-            run's saved samples (:func:`mmstab.runs.tracking.checks.tracked_checks`).
+            run's saved samples (:func:`mmstab.runs.tracking.checks.run_verdicts`).
     """
 
     plan: PathPlan
@@ -286,32 +286,12 @@ class Tracked(NamedTuple):
     @property
     def exit_status(self) -> int:
         """``mmstab track``'s exit status: 3 tips, 4 slides, 5 the arm touches, else 0."""
-        for limit, status in (("tip", 3), ("slide", 4), ("arm_contact", 5)):
-            if self.verdicts[limit]["unsafe"]:
-                return status
-        return 0
+        return exit_status(self.verdicts)
 
     @property
     def accepted(self) -> bool:
         """The run neither tips, slides nor touches the robot with its arm (exit status 0)."""
         return self.exit_status == 0
-
-
-def run_verdicts(plan: PathPlan, run: TrackingRun) -> dict[str, dict[str, Any]]:
-    """A run's verdicts per limit (:attr:`Tracked.verdicts`)."""
-    from mmstab.runs.tracking.checks import tracked_checks
-
-    _, collisions, slip = tracked_checks(plan.robot, plan.terrain, plan.settings.verdicts, run)
-    tipped = None if run.tipped is None else run.tipped.summary()
-    touches = not collisions["verdict"]["safe"]
-    return {
-        "tip": {"verdict": "tips" if tipped else "holds", "unsafe": tipped is not None,
-                "tipped": tipped},
-        "slide": {"verdict": "slides" if slip["slides"] else "holds",
-                  "unsafe": bool(slip["slides"]), "slip": slip},
-        "arm_contact": {"verdict": "collides" if touches else "holds", "unsafe": touches,
-                        "arm_self_collision": collisions},
-    }  # fmt: skip
 
 
 def track_plan(
@@ -340,6 +320,7 @@ def track_plan(
             at the start.
     """
     from mmstab.runs.tracking import StepBackend
+    from mmstab.runs.tracking.checks import run_verdicts
     from mmstab.runs.tracking.simulation import settings_for_path, simulate
 
     if backend not in ("interpreted", "generated"):
@@ -366,7 +347,8 @@ def track_plan(
         initial_arm=initial_arm,
         settings=controller,
     )
-    return Tracked(plan, run, controller, run_verdicts(plan, run))
+    verdicts = run_verdicts(plan.robot, plan.terrain, plan.settings.verdicts, run)
+    return Tracked(plan, run, controller, verdicts)
 
 
 def track(

@@ -327,10 +327,10 @@ def roadmap_knots(
 
 def _keeps_clearance(checker: CollisionChecker, q: FloatArray) -> bool:
     """Whether the sampled reference q (N, n) [rad] keeps ``MOVE_CLEARANCE`` from the robot."""
-    from mmstab.model.reach import sampled_reach
+    from mmstab.model.reach import joint_reach
     from mmstab.workspace.roadmap_checks import MOVE_CLEARANCE
 
-    reach = sampled_reach(checker.robot, q)
+    reach = joint_reach(checker.robot, q)  # over every sample: a bound between them
     step = float((np.abs(np.diff(q, axis=0)) @ reach).max(initial=0.0))
     return bool(checker.keeps_clearance(q, MOVE_CLEARANCE, max(step, 1e-9)))
 

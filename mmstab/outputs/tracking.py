@@ -21,6 +21,7 @@ from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.outputs.common import output_dir, route_corners, save_settings
 from mmstab.planner import Plan, RoutePlan
+from mmstab.runs.plan_verdicts import exit_status
 from mmstab.runs.recording import frames_at, write_run
 from mmstab.runs.tracking import (
     InitialArm,
@@ -30,7 +31,7 @@ from mmstab.runs.tracking import (
     state_names,
     summarize,
 )
-from mmstab.runs.tracking.checks import saved_samples, tracked_checks
+from mmstab.runs.tracking.checks import run_verdicts, saved_samples, tracked_checks
 from mmstab.runs.verdict_settings import VerdictSettings
 from mmstab.stability.static import mu_max as stowed_flat_mu
 from mmstab.viz.plotting import draw_base_topview, new_figure
@@ -113,8 +114,12 @@ def run_checks(
     problem: Problem, run: TrackingRun
 ) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any]]:
     """The verdicts beside ``run.tipped`` of a problem's run (:func:`tracked_checks`)."""
-    settings = VerdictSettings.from_sections(problem.section("planner"), problem.section("physics"))
-    return tracked_checks(problem.robot, problem.terrain, settings, run)
+    return tracked_checks(problem.robot, problem.terrain, _verdict_settings(problem), run)
+
+
+def _verdict_settings(problem: Problem) -> VerdictSettings:
+    """The problem's slide limits (its ``planner:`` and ``physics:`` sections)."""
+    return VerdictSettings.from_sections(problem.section("planner"), problem.section("physics"))
 
 
 def track_verdict(problem: Problem, plan: Plan | RoutePlan | None = None) -> str:
@@ -138,12 +143,9 @@ def track_verdict(problem: Problem, plan: Plan | RoutePlan | None = None) -> str
     except UnstableError:
         return "tips"
     problem, _, run = track(problem, made, progress=False)
-    if run.tipped is not None:
-        return "tips"
-    _, collisions, slip = run_checks(problem, run)
-    if slip["slides"]:
-        return "slides"
-    return "accepted" if collisions["verdict"]["safe"] else "arm collision"
+    verdicts = run_verdicts(problem.robot, problem.terrain, _verdict_settings(problem), run)
+    status = exit_status(verdicts)
+    return next(k for k, v in TRACK_VERDICTS.items() if v == status)
 
 
 #: ``mmstab track``'s verdicts, and its exit status for each.

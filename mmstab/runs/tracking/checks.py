@@ -2,7 +2,9 @@
 
 ``mmstab track`` and :func:`mmstab.track` judge a run by the same checks, at the run's saved
 samples (every :data:`SAVE_EVERY_S`): the arm's self-collision and least clearance
-(:func:`arm_collisions`) and the slip verdict of the base's poses and turns.
+(:func:`arm_collisions`) and the slip verdict of the base's poses and turns; with the tip,
+one verdict per limit (:func:`run_verdicts`), whose exit status is ``mmstab plan``'s rule
+(:func:`mmstab.runs.plan_verdicts.exit_status`).
 """
 
 from __future__ import annotations
@@ -56,6 +58,33 @@ def tracked_checks(
     turns = robot_turn_check(robot, settings, arm_com, run.t[keep])
     slip = slip_verdict(terrain, run.state[keep, :3], turns)
     return keep, collisions, slip
+
+
+def run_verdicts(
+    robot: Robot, terrain: Terrain, settings: VerdictSettings, run: TrackingRun
+) -> dict[str, dict[str, Any]]:
+    """A run's verdict per limit: ``tip``, ``slide``, ``arm_contact``.
+
+    Each has ``verdict`` (``holds``, ``tips``, ``slides``, ``collides``), ``unsafe`` and the
+    record ``mmstab track`` writes for it (``tipped``, ``slip``, ``arm_self_collision``).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        settings: the slide's limits.
+        run: the tracked run.
+    """
+    _, collisions, slip = tracked_checks(robot, terrain, settings, run)
+    tipped = None if run.tipped is None else run.tipped.summary()
+    touches = not collisions["verdict"]["safe"]
+    return {
+        "tip": {"verdict": "tips" if tipped else "holds", "unsafe": tipped is not None,
+                "tipped": tipped},
+        "slide": {"verdict": "slides" if slip["slides"] else "holds",
+                  "unsafe": bool(slip["slides"]), "slip": slip},
+        "arm_contact": {"verdict": "collides" if touches else "holds", "unsafe": touches,
+                        "arm_self_collision": collisions},
+    }  # fmt: skip
 
 
 def arm_collisions(robot: Robot, t: FloatArray, q_arm: FloatArray) -> dict[str, Any]:
