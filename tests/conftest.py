@@ -63,6 +63,40 @@ for _folder in sorted(p for p in Path(__file__).resolve().parent.iterdir() if p.
 
 
 #: Marks of the tests that take seconds: their files go to the workers first.
+#: A user's robot as docs/robot.md tells one to write it: a 32 kg "scout" with 0.6 m tracks,
+#: flat 25 cm flippers and a 3-joint arm with 1-1.2 rad/s joints.
+SCOUT: dict[str, Any] = {
+    "name": "scout",
+    "note": "a small tracked robot with a 3-joint arm, written from docs/robot.md",
+    "base": {
+        "mass": 32.0,
+        "com": [0.0, 0.0, 0.08],
+        "body": {"size": [0.55, 0.32, 0.14], "center": [0.0, 0.0, 0.1]},
+        "tracks": {"length": 0.6, "width": 0.09, "height": 0.16, "separation": 0.42,
+                   "sprocket_radius": 0.08, "velocity_limit": 10.0},
+        "flippers": {"length": 0.25, "width": 0.06, "thickness": 0.05,
+                     "pivot": [0.3, 0.255, 0.08], "angle": 0.0},
+    },
+    "arm": {
+        "mount": {"xyz": [0.1, 0.0, 0.17], "rpy": [0, 0, 0]},
+        "links": [
+            {"name": "turret", "dh": {"a": 0.0, "alpha": 1.5708, "d": 0.12, "theta_offset": 0.0},
+             "mass": 2.0, "com": [0.0, -0.06, 0.0],
+             "geometry": {"type": "capsule", "radius": 0.05, "p0": [0, -0.12, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -3.1, "upper": 3.1, "velocity": 1.0}},
+            {"name": "upper", "dh": {"a": 0.35, "alpha": 0.0, "d": 0.0, "theta_offset": 0.0},
+             "mass": 2.5, "com": [-0.17, 0, 0],
+             "geometry": {"type": "capsule", "radius": 0.035, "p0": [-0.35, 0, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -0.2, "upper": 2.6, "velocity": 1.0}},
+            {"name": "fore", "dh": {"a": 0.3, "alpha": 0.0, "d": 0.0, "theta_offset": 0.0},
+             "mass": 1.5, "com": [-0.15, 0, 0],
+             "geometry": {"type": "capsule", "radius": 0.03, "p0": [-0.3, 0, 0], "p1": [0, 0, 0]},
+             "limits": {"lower": -2.6, "upper": 2.6, "velocity": 1.2}},
+        ],
+        "stowed": [0.0, 0.2, -0.3],
+    },
+}  # fmt: skip
+
 HEAVY_MARKS = ("mujoco", "slow", "dask", "browser", "ros")
 
 
