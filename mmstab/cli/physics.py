@@ -86,10 +86,22 @@ def _governor_lines(s: dict[str, Any]) -> None:
     if s["reference_wait_s"] > 0:
         print(f"simulate: the reference waited {s['reference_wait_s']:.2f} s for the base "
               "(physics.governor)")  # fmt: skip
-    if s["stalled"] is not None:
-        print(f"mmstab: warning: stalled: the base did not catch up with its reference, and "
-              f"the run ends at {s['stalled']['time_s']:.2f} s with the path unfinished",
+    stall = s["stalled"]
+    if stall is not None:
+        print(f"mmstab: warning: stalled{_stall_cause(stall)}: the base did not catch up with its "
+              f"reference, and the run ends at {stall['time_s']:.2f} s with the path unfinished",
               file=sys.stderr)  # fmt: skip
+
+
+def _stall_cause(stall: dict[str, Any]) -> str:
+    """`` (high-centred: the chassis on the ground ...)`` from a stall's record, or ``""``."""
+    if "cause" not in stall:
+        return ""
+    where = f" at s = {stall['s_m']:.2f} m" if stall.get("s_m") is not None else ""
+    parts = ", ".join(f"{k} {100 * v:.0f} %" for k, v in stall["touching"].items() if v > 0)
+    high = stall["cause"] == "high-centred"
+    held = "the chassis rests on the ground" if high else "on its tracks"
+    return f", {stall['cause']}{where} ({held}; touching in its last second: {parts or 'none'})"
 
 
 def _arm_ground_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:

@@ -175,7 +175,8 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
     events = {k: e for k, e in v["events"].items() if e is not None}
     when = (
         ", ".join(
-            f"{k} at {e.get('time_s', e.get('first_time_s')):.2f} s"
+            f"{k}{', ' + e['cause'] if 'cause' in e else ''} at "
+            f"{e.get('time_s', e.get('first_time_s')):.2f} s"
             + (f" (s = {e['s_m']:.2f} m)" if "s_m" in e else "")
             for k, e in events.items()
         )
@@ -192,9 +193,9 @@ def verify_status(verify: dict[str, Any] | None, status: int | None) -> int | No
     place_line(v)
     if status is not None or v["plan"] != "accepted" or v["mujoco"] in ("holds", "stalls"):
         if v["mujoco"] == "stalls":
-            print(
-                "mmstab: warning: the route stalls in MuJoCo (stuck, not unsafe)", file=sys.stderr
-            )
+            cause = v["events"]["stalled"].get("cause", "stuck")
+            print(f"mmstab: warning: the route stalls in MuJoCo ({cause}, not unsafe)",
+                  file=sys.stderr)  # fmt: skip
         return status
     line = f"mmstab accepted the route but in MuJoCo it {v['mujoco']} ({when}); see {v['run']}"
     print(f"mmstab: physics disagrees: {line}", file=sys.stderr)

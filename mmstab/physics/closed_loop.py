@@ -52,6 +52,7 @@ from mmstab.physics.loop_checks import (
     downhill_drift,
     predicted_path_slip,
     run_end,
+    stall_record,
 )
 from mmstab.physics.robot_model import ModelSettings
 from mmstab.physics.robot_sim import RobotSim, RobotState
@@ -159,6 +160,9 @@ class PhysicsRun:
             (:mod:`mmstab.physics.governor`; 0 when it never fell behind that far).
         stalled: time the run ended with its reference unfinished, having waited
             ``governor.wait_limit`` [s], or None.
+        stall: where it stalled, what held it (:func:`mmstab.physics.loop_checks.stall_record`:
+            ``cause``, ``high-centred`` or ``stuck``, and the parts ``touching`` the ground),
+            or None.
         tip_cause: ``support lost`` (MuJoCo's contacts' μ ≤ 0 for ``tip_hold``) or
             ``overturned`` (past the point of no return), None when it did not tip.
         body_G_T_B: the simulated body's pose in G (N+1, 4, 4) at every ``check_dt`` (NaN
@@ -194,6 +198,7 @@ class PhysicsRun:
     timing: dict[str, Any] | None = None
     reference_wait_s: float = 0.0
     stalled: float | None = None
+    stall: dict[str, Any] | None = None
     tip_cause: str | None = None
     disagreement: float | None = None
     body_G_T_B: FloatArray | None = None
@@ -343,6 +348,8 @@ def run_closed_loop(
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
     cut = end is not None and end[2] in ("tipped", "left_map")
+    stalled = not (clock.done or cut)
+    stall = stall_record(sim, positions, every * dt) if stalled else None
     return dataclasses.replace(
         run,
         tipped=float(t[end[1]]) if end and end[2] == "tipped" else None,
@@ -351,7 +358,8 @@ def run_closed_loop(
         cpu_seconds=cpu,
         timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
-        stalled=None if clock.done or cut else float(t[m - 1]),
+        stalled=float(t[m - 1]) if stalled else None,
+        stall=stall,
         tip_cause=cause,
         body_G_T_B=frames_at_checks(checks, m),
     )

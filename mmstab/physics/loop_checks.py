@@ -2,7 +2,8 @@
 
 The overturn and off-map checks and the tilt off the predicted rest (:class:`TipCheck`); the
 contact set the simulated μ is measured on, the μ itself and where it loses the support
-(:func:`support_lost`); whether the arm touches the ground.
+(:func:`support_lost`); whether the arm touches the ground; what touches it where a run stalls
+(:func:`stall_record`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,13 @@ from mmstab.terrain.polygon_batch import hulls_along_batch
 
 #: Wheels this close to the ground [m] count as support in the simulated μ.
 NEAR_GROUND = 0.001
+#: A stalled run's contacts are read over its last this long [s] (:func:`stall_record`).
+STALL_WINDOW = 1.0
+#: A chassis contact whose normal is within this of the vertical bears weight [rad].
+RESTING_ANGLE = float(np.radians(45.0))
+#: The robot's parts by their geoms' name prefixes (:mod:`mmstab.physics.robot_model`).
+PARTS = {"chassis": ("chassis",), "tracks": ("wheel_", "track_"), "flippers": ("flipper_",),
+         "arm": ("arm_", "payload")}  # fmt: skip
 
 
 def contact_points(sim: RobotSim, wheels: list[int]) -> FloatArray:
@@ -61,15 +69,65 @@ def contact_records(
         yield contact_points(sim, wheels), d.subtree_com[0].copy(), arm_touches_ground(sim)
 
 
-def arm_touches_ground(sim: RobotSim) -> bool:
-    """Whether an arm link's geom touches now (robot geoms collide with the ground only)."""
+def touching_geoms(sim: RobotSim) -> set[str]:
+    """The names of the geoms touching now (robot geoms collide with the ground only)."""
     d, m = sim.data, sim.model
     touching = d.contact.dist[: d.ncon] <= 0  # not the ones listed within the contact gap
     geoms = np.concatenate(
         [d.contact.geom1[: d.ncon][touching], d.contact.geom2[: d.ncon][touching]]
     )
-    arm = [g for g in set(geoms.tolist()) if str(m.geom(g).name).startswith("arm_")]
-    return bool(arm)
+    return {str(m.geom(g).name) for g in set(geoms.tolist())}
+
+
+def arm_touches_ground(sim: RobotSim) -> bool:
+    """Whether an arm link's geom touches the ground now."""
+    return any(name.startswith("arm_") for name in touching_geoms(sim))
+
+
+def touching_parts(sim: RobotSim) -> tuple[set[str], bool]:
+    """The robot's parts (:data:`PARTS`) touching the ground now, and whether the chassis rests.
+
+    The chassis rests on the ground where one of its contacts' normals is within
+    :data:`RESTING_ANGLE` of the vertical (it bears weight there, not a face it runs into).
+    """
+    d, m = sim.data, sim.model
+    names = touching_geoms(sim)
+    parts = {part for part, prefixes in PARTS.items() if any(n.startswith(prefixes) for n in names)}
+    rests = False
+    for i in np.flatnonzero(d.contact.dist[: d.ncon] <= 0):
+        pair = (m.geom(d.contact.geom1[i]).name, m.geom(d.contact.geom2[i]).name)
+        if "chassis" in pair and abs(d.contact.frame[i][2]) >= np.cos(RESTING_ANGLE):
+            rests = True
+    return parts, rests
+
+
+def stall_record(sim: RobotSim, positions: list[FloatArray], dt: float) -> dict[str, Any]:
+    """What held a stalled robot: the parts on the ground over its last :data:`STALL_WINDOW`.
+
+    Args:
+        sim: the simulation (its data are overwritten: after the run).
+        positions: ``qpos`` at the run's checks, ``dt`` [s] apart, the last one at the stall.
+        dt: the checks' spacing [s].
+
+    Returns:
+        ``touching``: per part (:data:`PARTS`), the share of those checks it touched the
+        ground at; ``chassis_resting``: the share the chassis rested on it at
+        (:func:`touching_parts`); ``cause``: ``high-centred`` where it rested at half of them or
+        more (it carries the robot, as the plan's high-centred limit says), else ``stuck``
+        (the tracks on the ground could not drive it on: a wall, a climb, a slope).
+    """
+    last = positions[-max(int(round(STALL_WINDOW / dt)), 1) :]
+    seen, rests = dict.fromkeys(PARTS, 0), 0
+    for qpos in last:
+        sim.data.qpos[:] = qpos
+        mujoco.mj_fwdPosition(sim.model, sim.data)
+        parts, chassis_rests = touching_parts(sim)
+        rests += chassis_rests
+        for part in parts:
+            seen[part] += 1
+    share = {part: seen[part] / len(last) for part in PARTS}
+    cause = "high-centred" if rests >= 0.5 * len(last) else "stuck"
+    return {"cause": cause, "touching": share, "chassis_resting": rests / len(last)}
 
 
 def simulated_mu(points: FloatArray, com: FloatArray, mass: float) -> float:

@@ -142,6 +142,10 @@ def test_weak_tracks_fall_behind_and_the_reference_waits_for_them(ramp) -> None:
     assert governed.reference_wait_s == pytest.approx(g.wait_limit, abs=0.01)
     assert governed.stalled == pytest.approx(governed.t[-1]) and governed.t[-1] < 4.0
     assert governed.tipped is None
+    # held on its tracks, not its chassis: stuck
+    assert governed.stall is not None and governed.stall["cause"] == "stuck"
+    assert governed.stall["touching"]["tracks"] == 1.0
+    assert governed.stall["chassis_resting"] == 0.0 and on_time.stall is None
 
 
 def test_the_governor_section_is_checked(tmp_path) -> None:
