@@ -317,7 +317,7 @@ atlas-rough: setup
 rough: setup
 	$(MMSTAB) plan problems/rough.yaml -o results/rough/plan --allow-unstable --allow-sliding
 	$(MMSTAB) track problems/rough.yaml -o results/rough --allow-unstable --allow-sliding
-	$(MMSTAB) animation problems/rough.yaml -o results/rough
+	$(MMSTAB) animation problems/rough.yaml -o results/rough --allow-sliding
 
 ## the ramp lap and the shipped routes in MuJoCo with the controller
 ## in the loop -> results/physics/ (the lap), results/physics/<route>_<arm>/. rough.yaml slides

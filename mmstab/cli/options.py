@@ -49,7 +49,7 @@ EXTRA_OPTIONS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     ],
     "fig7": [_ALLOW_UNSTABLE],
     "fig8": [_ALLOW_UNSTABLE, _ALLOW_SLIDING, _ALLOW_COLLISION],
-    "animation": [_ALLOW_UNSTABLE],
+    "animation": [_ALLOW_UNSTABLE, _ALLOW_SLIDING, _ALLOW_COLLISION],
     "track": [
         (
             "--plugin",

@@ -43,6 +43,19 @@ def stored_or_new_run(
     return load_run(directory, problem)
 
 
+def stored_verdicts(run: Run) -> dict[str, Any]:
+    """The stored run's slide and arm-contact records (``slip``, ``arm_self_collision``).
+
+    Those ``mmstab track`` wrote in its ``summary.json`` beside the run; none for a run
+    stored without its summary.
+    """
+    summary = run.directory / "summary.json"
+    if not summary.is_file():
+        return {}
+    s = json.loads(summary.read_text())
+    return {k: s[k] for k in ("slip", "arm_self_collision") if s.get(k) is not None}
+
+
 def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
     """The ``tipped`` record of a stored run, or None: its ``summary.json``'s.
 
@@ -85,7 +98,8 @@ def run_animation(
             that tips over is rendered up to that instant (``tipped`` in the summary).
 
     Returns:
-        What was rendered (also written to ``animation.json``).
+        What was rendered (also written to ``animation.json``), with the run's verdicts as
+        ``track`` wrote them (``tipped``, ``slip``, ``arm_self_collision``).
     """
     cfg = problem.section("animation")
     d = output_dir(out, "tracking")
@@ -113,6 +127,7 @@ def run_animation(
         "mu_min": float(np.min(run.mu["planned"])),
         "source": str(d / "run.npz"),
         "tipped": tipping_of(run, Settings.from_problem(problem).controller.dt),
+        **stored_verdicts(run),
     }
     write_json(d / "animation.json", summary)
     return summary

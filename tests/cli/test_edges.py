@@ -204,8 +204,21 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     # says it held renders without a tip, though its last μ is below 0
     s["tipped"] = None
     (out / "summary.json").write_text(json.dumps(s))
-    assert main(["animation", str(problem.path), "-o", str(out)]) == 0
+    assert s["slip"]["slides"]  # on that slope its tracks also slide: track's next verdict
+    capsys.readouterr()
+    assert main(["animation", str(problem.path), "-o", str(out)]) == 4
     assert json.loads((out / "animation.json").read_text())["tipped"] is None
+    assert "mmstab: slides: " in capsys.readouterr().err
+    assert main(["animation", str(problem.path), "-o", str(out), "--allow-sliding"]) == 0
+    # and an arm that touched the body, as track judged it (exit 5 unless accepted)
+    s["slip"]["slides"] = False
+    s["arm_self_collision"]["verdict"] |= {"safe": False, "colliding_samples": 2}
+    (out / "summary.json").write_text(json.dumps(s))
+    capsys.readouterr()
+    assert main(["animation", str(problem.path), "-o", str(out)]) == 5
+    err = capsys.readouterr().err
+    assert "mmstab: arm collision: the tracked arm touches the robot in 2 of" in err
+    assert main(["animation", str(problem.path), "-o", str(out), "--allow-collision"]) == 0
 
 
 def test_tipping_at_the_start_is_refused_before_building(tmp_path):
