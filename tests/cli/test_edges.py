@@ -209,7 +209,6 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     assert main(["animation", str(problem.path), "-o", str(out)]) == 4
     assert json.loads((out / "animation.json").read_text())["tipped"] is None
     assert "mmstab: slides: " in capsys.readouterr().err
-    assert main(["animation", str(problem.path), "-o", str(out), "--allow-sliding"]) == 0
     # and an arm that touched the body, as track judged it (exit 5 unless accepted)
     s["slip"]["slides"] = False
     s["arm_self_collision"]["verdict"] |= {"safe": False, "colliding_samples": 2}
