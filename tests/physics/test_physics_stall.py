@@ -35,9 +35,11 @@ def _user_ditch(folder) -> None:
     robot = copy.deepcopy(SCOUT)
     robot["base"]["flippers"]["length"] = 0.06
     (folder / "scout.yaml").write_text(yaml.safe_dump(robot))
+    # the reference gives up after 2 s of waiting (10 s by default): the same stall, sooner
     route = {"robot": "scout.yaml", "terrain": {"file": "ground.npz"},
              "path": {"waypoints": [[0.0, 0.0], [4.0, 0.0], [6.0, 1.5]], "speed": 0.25,
-                      "turn_radius": 0}}  # fmt: skip
+                      "turn_radius": 0},
+             "physics": {"governor": {"slow": 0.25, "stop": 0.5, "wait_limit": 2.0}}}  # fmt: skip
     (folder / "route.yaml").write_text(yaml.safe_dump(route))
 
 
