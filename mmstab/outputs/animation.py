@@ -46,14 +46,14 @@ def stored_or_new_run(
 def stored_verdicts(run: Run) -> dict[str, Any]:
     """The stored run's slide and arm-contact records (``slip``, ``arm_self_collision``).
 
-    Those ``mmstab track`` wrote in its ``summary.json`` beside the run; none for a run
-    stored without its summary.
+    Those ``mmstab track`` wrote in its ``summary.json`` beside the run, with its ``steps``
+    (the samples the slide record counts); none for a run stored without its summary.
     """
     summary = run.directory / "summary.json"
     if not summary.is_file():
         return {}
     s = json.loads(summary.read_text())
-    return {k: s[k] for k in ("slip", "arm_self_collision") if s.get(k) is not None}
+    return {k: s[k] for k in ("steps", "slip", "arm_self_collision") if s.get(k) is not None}
 
 
 def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:

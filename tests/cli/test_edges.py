@@ -208,7 +208,8 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     capsys.readouterr()
     assert main(["animation", str(problem.path), "-o", str(out)]) == 4
     assert json.loads((out / "animation.json").read_text())["tipped"] is None
-    assert "mmstab: slides: " in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "mmstab: slides: " in err and f" of {s['steps']} poses" in err  # the run's samples
     # and an arm that touched the body, as track judged it (exit 5 unless accepted)
     s["slip"]["slides"] = False
     s["arm_self_collision"]["verdict"] |= {"safe": False, "colliding_samples": 2}
