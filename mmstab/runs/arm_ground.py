@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.ground.under_arm import GroundUnderArm
-from mmstab.stability.rock import catch, rested_support
+from mmstab.stability.rock import catch, rested_supports
 from mmstab.stability.support import is_heightmap
 from mmstab.terrain.base import Terrain
 
@@ -138,8 +138,9 @@ def arm_ground_along(
         check |= np.asarray(rocked, dtype=bool)
     # the rocked attitudes: the rest turned over its weakest edge until caught
     rows, turned, turn = [], [], []
-    for r in np.flatnonzero(check & ok):
-        first = rested_support(ground, P[r], com_B[r])
+    candidates = np.flatnonzero(check & ok)
+    supports = rested_supports(ground, P[candidates], np.ascontiguousarray(com_B[candidates]))
+    for r, first in zip(candidates, supports, strict=True):
         if first is None:
             continue
         j = int(np.argmin(first.theta))

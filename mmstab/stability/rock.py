@@ -52,6 +52,9 @@ STEP = float(np.radians(0.1))
 MAX_ROCK = float(np.radians(30.0))
 #: Candidates this far outside an edge [m] are the ones its turn lowers onto the ground.
 BEYOND = 0.005
+#: The turn's steps are tried this many at a time, from the smallest, up to the first that
+#: meets the ground (each step's test is the same whichever batch it is in).
+CATCH_CHUNK = 16
 
 
 class Rock(NamedTuple):
@@ -98,16 +101,31 @@ def rested_support(ground: Terrain, pose: FloatArray, com_body: FloatArray) -> _
         ``T`` (G_T_B), ``poly`` (the ordered support vertices in G [m]), ``com_G`` [m] and
         ``theta`` (the edges' force angles [rad]).
     """
-    r = ground.rest(pose[None], strict=False, com_body=com_body[None])  # type: ignore[attr-defined]
-    T = r.G_T_B[0]
-    if r.tips_over[0] or not np.isfinite(T).all():
-        return None
-    bearing = r.bearing_G(ground.candidates.points, 0)  # type: ignore[attr-defined]
-    poly, line = support_vertices(bearing, GRAVITY_G)
-    if line or len(poly) < 3:
-        return None
-    com_G = T[:3, :3] @ com_body + T[:3, 3]
-    return _Support(T, poly, com_G, np.asarray(axis_angles(poly, com_G, GRAVITY_G)))
+    return rested_supports(ground, pose[None], com_body[None])[0]
+
+
+def rested_supports(
+    ground: Terrain, poses: FloatArray, com_body: FloatArray
+) -> list[_Support | None]:
+    """:func:`rested_support` of N states (N, 3) and CoMs (N, 3) [m], their rests in one batch.
+
+    The rest solves each pose alone (the batch's rests are the single rests, bit for bit).
+    """
+    r = ground.rest(poses, strict=False, com_body=com_body)  # type: ignore[attr-defined]
+    out: list[_Support | None] = []
+    for i in range(len(poses)):
+        T = r.G_T_B[i]
+        if r.tips_over[i] or not np.isfinite(T).all():
+            out.append(None)
+            continue
+        bearing = r.bearing_G(ground.candidates.points, i)  # type: ignore[attr-defined]
+        poly, line = support_vertices(bearing, GRAVITY_G)
+        if line or len(poly) < 3:
+            out.append(None)
+            continue
+        com_G = T[:3, :3] @ com_body[i] + T[:3, 3]
+        out.append(_Support(T, poly, com_G, np.asarray(axis_angles(poly, com_G, GRAVITY_G))))
+    return out
 
 
 def energy_margins(
@@ -204,14 +222,17 @@ def catch(ground: Terrain, T: ArrayLike, p0: ArrayLike, p1: ArrayLike) -> Catch 
     if len(rel) == 0:
         return None
     angles = np.arange(1, int(np.ceil(MAX_ROCK / STEP)) + 1) * STEP
-    Rs = np.stack([axis_rotation(axis, float(x)) for x in angles])  # (A, 3, 3)
-    Y = np.einsum("aij,kj->aki", Rs, rel) + p0
-    gap = Y[..., 2] - hm.sample(Y[..., :2]).height
-    met = np.flatnonzero((np.nan_to_num(gap, nan=np.inf) <= 0).any(axis=1))
-    if met.size == 0:
+    k, R = -1, np.eye(3)
+    for lo in range(0, len(angles), CATCH_CHUNK):  # most catches come within a few steps
+        Rs = np.stack([axis_rotation(axis, float(x)) for x in angles[lo : lo + CATCH_CHUNK]])
+        Y = np.einsum("aij,kj->aki", Rs, rel) + p0
+        gap = Y[..., 2] - hm.sample(Y[..., :2]).height
+        met = np.flatnonzero((np.nan_to_num(gap, nan=np.inf) <= 0).any(axis=1))
+        if met.size:
+            k, R = lo + int(met[0]), Rs[int(met[0])]
+            break
+    if k < 0:
         return None
-    k = int(met[0])
-    R = Rs[k]
     turned = np.eye(4)
     turned[:3, :3] = R @ T[:3, :3]
     turned[:3, 3] = R @ (T[:3, 3] - p0) + p0
@@ -330,8 +351,9 @@ def rock_over(
     holds = np.ones(n, dtype=bool)
     pushed = np.zeros(n, dtype=int)
     mu, turn, drop, barrier = (np.full(n, np.nan) for _ in range(4))
+    supports = rested_supports(ground, P, np.ascontiguousarray(com_B))
     for i in range(n):
-        first = rested_support(ground, P[i], com_B[i])
+        first = supports[i]
         if first is None:  # tips over (or a line) at rest already: no rock to find
             holds[i], mu[i] = False, -np.inf
             continue

@@ -13,10 +13,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mmstab.stability.rock import STEP, catch, energy_margin, rock, rock_over
+from mmstab.stability.rock import (
+    BEYOND,
+    MAX_ROCK,
+    STEP,
+    axis_rotation,
+    catch,
+    energy_margin,
+    rested_support,
+    rested_supports,
+    rock,
+    rock_over,
+)
 from mmstab.stability.static import axis_angles
 from mmstab.terrain import HeightmapTerrain
 from mmstab.terrain.base import GRAVITY_G
+from mmstab.terrain.generators import generate
 from mmstab.terrain.heightmap import Heightmap
 from mmstab.terrain.polygon import support_vertices
 from mmstab.terrain.rest import RestSettings
@@ -134,3 +146,53 @@ def test_a_balanced_diagonal_holds_the_push_a_track_edge_does_not(robot):
     # far from the edge nothing is pushed: it holds as μ says
     r = rock_over(robot, flat, np.zeros((1, 3)), arm_for(robot, 0.0)[None], PUSH, threshold, 0.0)
     assert r.holds[0] and r.pushed[0] == 0 and np.isnan(r.mu[0])
+
+
+def _first_turn(terrain, T, p0, p1):
+    """The turn that meets the ground, every step of it tried at once (no early stop)."""
+    axis = (p1 - p0) / np.linalg.norm(p1 - p0)
+    outward = np.cross(axis, [0.0, 0.0, 1.0])
+    X = terrain.candidates.points @ T[:3, :3].T + T[:3, 3]
+    rel = X[(X - p0) @ (outward / np.linalg.norm(outward)) > BEYOND] - p0
+    if not len(rel):
+        return None
+    angles = np.arange(1, int(np.ceil(MAX_ROCK / STEP)) + 1) * STEP
+    Rs = np.stack([axis_rotation(axis, float(x)) for x in angles])
+    Y = np.einsum("aij,kj->aki", Rs, rel) + p0
+    gap = Y[..., 2] - terrain.heightmap.sample(Y[..., :2]).height
+    met = np.flatnonzero((np.nan_to_num(gap, nan=np.inf) <= 0).any(axis=1))
+    return None if not met.size else float(angles[met[0]])
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_the_batched_rests_and_the_stepped_turns_are_the_one_at_a_time_ones(seed, robot):
+    """On user-like ground (bumps, a ditch, a kerb): the states' rests solved in one batch
+    are each state's own rest, bit for bit, and a turn about each support edge, tried a few
+    steps at a time up to the first that meets the ground, is the turn every step gives."""
+    from tests.stability.test_one_mu import user_ground
+
+    rng = np.random.default_rng(seed)
+    terrain = HeightmapTerrain(generate(user_ground(rng))).with_robot(robot)
+    n = 24
+    poses = np.c_[rng.uniform(-1.5, 1.5, (n, 2)), rng.uniform(-np.pi, np.pi, n)]
+    q = rng.uniform(robot.joint_lower, robot.joint_upper, (n, robot.arm_joints))
+    com_B = np.asarray(robot.overall_com(robot.arm_com(q)), dtype=float)
+    batch = rested_supports(terrain, poses, com_B)
+    turns = 0
+    for i in range(n):
+        single = rested_support(terrain, poses[i], com_B[i])
+        assert (single is None) == (batch[i] is None)
+        if single is None:
+            continue
+        for a, b in zip(single, batch[i], strict=True):
+            np.testing.assert_array_equal(a, b)
+        poly = single.poly
+        for j in range(len(poly)):
+            p0, p1 = poly[j], poly[(j + 1) % len(poly)]
+            caught, want = catch(terrain, single.T, p0, p1), _first_turn(terrain, single.T, p0, p1)
+            if want is None:  # nothing beyond the edge meets the ground: no catch
+                assert caught is None
+            elif caught is not None:  # (None: it is caught on a line, no support)
+                assert caught.angle == want
+                turns += 1
+    assert turns > 2 * n  # most edges turn onto a support
