@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 import os
 import sys
 
@@ -141,11 +142,15 @@ def random_postures(robot, rng: np.random.Generator, n: int) -> np.ndarray:
     return rng.uniform(robot.joint_lower, robot.joint_upper, size=(n, 4))
 
 
+@functools.cache
+def _default_files() -> tuple[dict[str, Any], dict[str, Any]]:
+    """The default problem and its robot as parsed once per process (copied for each use)."""
+    return yaml.safe_load(RAMP_YAML.read_text()), yaml.safe_load(ROBOT_YAML.read_text())
+
+
 def write_problem(tmp_path: Path, edit=None, name: str = "problem.yaml") -> Path:
     """Copy the default problem (and its robot) to tmp_path, apply ``edit(problem, robot)``."""
-    prob: dict[str, Any] = yaml.safe_load(RAMP_YAML.read_text())
-    rob: dict[str, Any] = yaml.safe_load(ROBOT_YAML.read_text())
-    prob, rob = copy.deepcopy(prob), copy.deepcopy(rob)
+    prob, rob = copy.deepcopy(_default_files())
     if edit is not None:
         edit(prob, rob)
     (tmp_path / "robots").mkdir(exist_ok=True)
