@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import io
 import math
 import warnings
@@ -73,8 +74,14 @@ class Case:
     npz: dict[str, Any] = field(default_factory=dict)
 
 
-def _load(rel: str) -> dict[str, Any]:
+@functools.cache
+def _parsed(rel: str) -> dict[str, Any]:
     return yaml.safe_load((ROOT / "problems" / rel).read_text())
+
+
+def _load(rel: str) -> dict[str, Any]:
+    """A shipped file's content, parsed once per process (a copy each call: cases edit it)."""
+    return copy.deepcopy(_parsed(rel))
 
 
 def _leaves(node: Any, trail: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
