@@ -43,20 +43,25 @@ def stored_or_new_run(
     return load_run(directory, problem)
 
 
-def stored_verdicts(run: Run) -> dict[str, Any]:
+def track_summary(run: Run) -> dict[str, Any] | None:
+    """The ``summary.json`` ``mmstab track`` wrote beside the stored run, or None (none)."""
+    summary = run.directory / "summary.json"
+    return json.loads(summary.read_text()) if summary.is_file() else None
+
+
+def stored_verdicts(summary: dict[str, Any] | None) -> dict[str, Any]:
     """The stored run's slide and arm-contact records (``slip``, ``arm_self_collision``).
 
-    Those ``mmstab track`` wrote in its ``summary.json`` beside the run, with its ``steps``
-    (the samples the slide record counts); none for a run stored without its summary.
+    Those of ``mmstab track``'s summary (:func:`track_summary`), with its ``steps`` (the
+    samples the slide record counts); none for a run stored without its summary.
     """
-    summary = run.directory / "summary.json"
-    if not summary.is_file():
+    if summary is None:
         return {}
-    s = json.loads(summary.read_text())
-    return {k: s[k] for k in ("steps", "slip", "arm_self_collision") if s.get(k) is not None}
+    keys = ("steps", "slip", "arm_self_collision")
+    return {k: summary[k] for k in keys if summary.get(k) is not None}
 
 
-def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
+def tipping_of(run: Run, dt: float, summary: dict[str, Any] | None = None) -> dict[str, Any] | None:
     """The ``tipped`` record of a stored run, or None: its ``summary.json``'s.
 
     The run's verdict is the tip rule's (:mod:`mmstab.runs.tip_rule`: μ < 0 held where no
@@ -66,10 +71,11 @@ def tipping_of(run: Run, dt: float) -> dict[str, Any] | None:
     Args:
         run: the stored run.
         dt: its control period [s] (the problem's ``controller.dt``).
+        summary: its :func:`track_summary`, if already read.
     """
-    summary = run.directory / "summary.json"
-    if summary.is_file():
-        record = json.loads(summary.read_text()).get("tipped")
+    summary = track_summary(run) if summary is None else summary
+    if summary is not None:
+        record = summary.get("tipped")
         return None if record is None else dict(record)
     mu = run.mu["planned"]
     if not mu[-1] < 0:
@@ -104,6 +110,7 @@ def run_animation(
     cfg = problem.section("animation")
     d = output_dir(out, "tracking")
     run = stored_or_new_run(problem, d, progress, allow_unstable)
+    track = track_summary(run)  # its verdicts, as `track` wrote them
     info = render_animation(
         problem.robot,
         problem.terrain,
@@ -126,8 +133,8 @@ def run_animation(
         "simulated_s": float(run.t[-1]),
         "mu_min": float(np.min(run.mu["planned"])),
         "source": str(d / "run.npz"),
-        "tipped": tipping_of(run, Settings.from_problem(problem).controller.dt),
-        **stored_verdicts(run),
+        "tipped": tipping_of(run, Settings.from_problem(problem).controller.dt, track),
+        **stored_verdicts(track),
     }
     write_json(d / "animation.json", summary)
     return summary

@@ -91,14 +91,13 @@ def touching_parts(sim: RobotSim) -> tuple[set[str], bool]:
     :data:`RESTING_ANGLE` of the vertical (it bears weight there, not a face it runs into).
     """
     d, m = sim.data, sim.model
-    names = touching_geoms(sim)
+    names, rests = set(), False
+    for i in np.flatnonzero(d.contact.dist[: d.ncon] <= 0):  # as touching_geoms
+        pair = {str(m.geom(d.contact.geom1[i]).name), str(m.geom(d.contact.geom2[i]).name)}
+        names |= pair
+        rests |= "chassis" in pair and abs(d.contact.frame[i][2]) >= np.cos(RESTING_ANGLE)
     parts = {part for part, prefixes in PARTS.items() if any(n.startswith(prefixes) for n in names)}
-    rests = False
-    for i in np.flatnonzero(d.contact.dist[: d.ncon] <= 0):
-        pair = (m.geom(d.contact.geom1[i]).name, m.geom(d.contact.geom2[i]).name)
-        if "chassis" in pair and abs(d.contact.frame[i][2]) >= np.cos(RESTING_ANGLE):
-            rests = True
-    return parts, rests
+    return parts, bool(rests)
 
 
 def stall_record(sim: RobotSim, positions: list[FloatArray], dt: float) -> dict[str, Any]:
