@@ -64,7 +64,6 @@ for _folder in sorted(p for p in Path(__file__).resolve().parent.iterdir() if p.
         sys.path.append(str(_folder))
 
 
-#: Marks of the tests that take seconds: their files go to the workers first.
 #: A user's robot as docs/robot.md tells one to write it: a 32 kg "scout" with 0.6 m tracks,
 #: flat 25 cm flippers and a 3-joint arm with 1-1.2 rad/s joints.
 SCOUT: dict[str, Any] = {
@@ -99,6 +98,7 @@ SCOUT: dict[str, Any] = {
     },
 }  # fmt: skip
 
+#: Marks of the tests that take seconds: their files go to the workers first.
 HEAVY_MARKS = ("mujoco", "slow", "dask", "browser", "ros")
 
 
