@@ -271,12 +271,7 @@ def _animation(args: argparse.Namespace, problem: Any) -> int | None:
     s = run_animation(problem, args.out, allow_unstable=args.allow_unstable)
     print(f"animation: {s['frames']} frames -> {s['gif']}")
     # the rendered run's verdicts, judged as ``track`` judged it
-    return tipped_status(s) or slides_status(s, args) or _run_contact_status(s, args)
-
-
-def _run_contact_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """``arm_collision_status`` for a run whose record may be missing (stored without summary)."""
-    return None if s.get("arm_self_collision") is None else arm_collision_status(s, args)
+    return tipped_status(s) or slides_status(s, args) or arm_collision_status(s, args)
 
 
 # (name, help, handler)

@@ -88,11 +88,14 @@ def plan_contact_status(s: dict[str, Any], args: argparse.Namespace) -> int | No
 
 
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``."""
+    """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``.
+
+    A summary without the record (a run stored without ``mmstab track``'s summary) has none.
+    """
     from mmstab.runs.verdict import describe_arm_collision
 
-    collision = summary["arm_self_collision"]
-    if collision["verdict"]["safe"]:
+    collision = summary.get("arm_self_collision")
+    if collision is None or collision["verdict"]["safe"]:
         return None
     line = describe_arm_collision(collision)
     allowed = args.allow_collision

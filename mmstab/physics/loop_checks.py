@@ -13,6 +13,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from numpy.typing import NDArray
 
 from mmstab.core.masks import true_runs
 from mmstab.core.problem import Problem
@@ -69,13 +70,16 @@ def contact_records(
         yield contact_points(sim, wheels), d.subtree_com[0].copy(), arm_touches_ground(sim)
 
 
+def touching_contacts(sim: RobotSim) -> NDArray[np.intp]:
+    """The contacts touching now: not the ones MuJoCo lists within the contact gap."""
+    return np.flatnonzero(sim.data.contact.dist[: sim.data.ncon] <= 0)
+
+
 def touching_geoms(sim: RobotSim) -> set[str]:
     """The names of the geoms touching now (robot geoms collide with the ground only)."""
     d, m = sim.data, sim.model
-    touching = d.contact.dist[: d.ncon] <= 0  # not the ones listed within the contact gap
-    geoms = np.concatenate(
-        [d.contact.geom1[: d.ncon][touching], d.contact.geom2[: d.ncon][touching]]
-    )
+    touching = touching_contacts(sim)
+    geoms = np.concatenate([d.contact.geom1[touching], d.contact.geom2[touching]])
     return {str(m.geom(g).name) for g in set(geoms.tolist())}
 
 
@@ -92,7 +96,7 @@ def touching_parts(sim: RobotSim) -> tuple[set[str], bool]:
     """
     d, m = sim.data, sim.model
     names, rests = set(), False
-    for i in np.flatnonzero(d.contact.dist[: d.ncon] <= 0):  # as touching_geoms
+    for i in touching_contacts(sim):
         pair = {str(m.geom(d.contact.geom1[i]).name), str(m.geom(d.contact.geom2[i]).name)}
         names |= pair
         rests |= "chassis" in pair and abs(d.contact.frame[i][2]) >= np.cos(RESTING_ANGLE)
