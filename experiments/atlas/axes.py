@@ -136,6 +136,15 @@ def variant_axis(
     variants = []
     for (ri, (rlabel, robot)), (fi, e) in itertools.product(enumerate(robots), enumerate(entries)):
         field = f"atlas.axes.flipper_angle[{fi}]"
+        if robot.base.flippers is None:  # a base without flippers: only its own angle
+            if e != "robot":
+                raise ConfigError(problem.path, field, f"robot {rlabel} has no flippers")
+            variants += [
+                Variant((ri, fi, pi), rlabel, labels[fi], math.nan, float(mass),
+                        attach_payload(robot, Payload(float(mass), payload_com)))
+                for pi, mass in enumerate(payloads)
+            ]  # fmt: skip
+            continue
         if e == "robot":
             angle = robot.base.flippers.angle
         elif e == "ground":
@@ -146,7 +155,9 @@ def variant_axis(
         else:
             angle = float(e)
         variant = with_flipper_angle(robot, angle)
-        low = float(variant.base.flippers.box("left").corners()[:, 2].min())
+        flippers = variant.base.flippers
+        assert flippers is not None  # the robot's have been set
+        low = float(flippers.box("left").corners()[:, 2].min())
         if low < -FLIPPER_CONTACT_TOL:
             raise ConfigError(
                 problem.path,

@@ -112,7 +112,8 @@ def run_levers(problem: Problem, out: str | Path | None = None) -> dict[str, Any
     write_text(d / "variants.md", variants_table(summary["variants"]))
     flip, flip_curves = run_flippers(problem, ws, settings)
     summary["flippers"] = flip
-    lim = problem.robot.base.flippers.limits
+    fl = problem.robot.base.flippers
+    lim = None if fl is None else fl.limits
     span = (lim.lower, lim.upper) if lim is not None else (-math.pi / 2, math.pi / 2)
     draw_flippers(flip_curves, flip, span, d / "flippers.png")
     summary["seconds"] = time.perf_counter() - t0

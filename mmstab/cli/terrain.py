@@ -98,7 +98,10 @@ def _rest(args: argparse.Namespace) -> None:
         _finite("--flipper", [args.flipper])
         _radians("--flipper", args.flipper)
     problem = _problem(args, REST_SECTIONS)
-    limits = problem.robot.base.flippers.limits
+    flippers = problem.robot.base.flippers
+    if args.flipper is not None and flippers is None:
+        raise MmstabError(f"--flipper: robot {problem.robot.name} has no flippers (base.flippers)")
+    limits = None if flippers is None else flippers.limits
     if args.flipper is not None and limits and not limits.lower <= args.flipper <= limits.upper:
         raise MmstabError(
             f"--flipper: {args.flipper} rad is outside base.flippers.limits "
@@ -112,8 +115,12 @@ def _rest(args: argparse.Namespace) -> None:
             "pose": dict(zip(("x_m", "y_m", "yaw_rad"), map(float, args.pose), strict=True)),
             "arm": "stowed" if q is None else "given",
             "arm_q_rad": (robot.stowed if q is None else q).tolist(),
-            "flipper_angle_rad": float(
-                robot.base.flippers.angle if args.flipper is None else args.flipper
+            "flipper_angle_rad": (
+                args.flipper
+                if args.flipper is not None  # none: a base without flippers
+                else None
+                if flippers is None
+                else flippers.angle
             ),
         }
         print(json.dumps({**st.to_json(), **echoed, "units": REST_UNITS}, allow_nan=True))

@@ -89,18 +89,21 @@ LINK = obj(
 ROBOT = obj(
     name={"type": "string", "minLength": 1},
     note={"type": "string"},
-    base=obj(
-        mass=KG,
-        com=VEC3_M,
-        body=obj(size=VEC3_M_POS, center=VEC3_M),
-        tracks=obj(
-            length=M_POS,
-            width=M_POS,
-            height=M_POS,
-            separation=M_POS,
-            sprocket_radius=M_POS,
-            velocity_limit=POS,
+    base=with_optional(
+        obj(
+            mass=KG,
+            com=VEC3_M,
+            body=obj(size=VEC3_M_POS, center=VEC3_M),
+            tracks=obj(
+                length=M_POS,
+                width=M_POS,
+                height=M_POS,
+                separation=M_POS,
+                sprocket_radius=M_POS,
+                velocity_limit=POS,
+            ),
         ),
+        # optional: a base without flippers (a plain tracked base) leaves the section out
         flippers=with_optional(
             obj(length=M_POS, width=M_POS, thickness=M_POS, pivot=VEC3_M, angle=RAD),
             # optional: the range [rad] and rate [rad/s] the planner may move them in

@@ -156,6 +156,7 @@ class CollisionChecker:
         every = [
             Pair(f"{names[i]}-{part}", i, part, tuple(range(i + 1)))
             for part in BASE_PARTS
+            if part in self.base_boxes  # a base without flippers has three parts
             for i in range(len(names))
         ] + [
             Pair(f"{names[i]}-{names[j]}", i, j, tuple(range(i + 1, j + 1)))

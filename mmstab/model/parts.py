@@ -176,23 +176,28 @@ BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_righ
 
 @dataclass(frozen=True)
 class Base:
-    """The tracked base: mass [kg], CoM [m] (body frame), and its collision parts."""
+    """The tracked base: mass [kg], CoM [m] (body frame), and its collision parts.
+
+    ``flippers`` is None for a base without them (the file leaves ``base.flippers`` out).
+    """
 
     mass: float
     com: FloatArray
     body: Box
     tracks: Tracks
-    flippers: Flippers
+    flippers: Flippers | None = None
 
     def collision_boxes(self) -> dict[str, Box]:
-        """The five base bodies by name, in the body frame."""
-        return {
+        """The base bodies by name, in the body frame (:data:`BASE_PARTS`' order)."""
+        boxes = {
             "body": self.body,
             "track_left": self.tracks.box("left"),
             "track_right": self.tracks.box("right"),
-            "flipper_left": self.flippers.box("left"),
-            "flipper_right": self.flippers.box("right"),
         }
+        if self.flippers is not None:
+            boxes["flipper_left"] = self.flippers.box("left")
+            boxes["flipper_right"] = self.flippers.box("right")
+        return boxes
 
     def support_points(self) -> FloatArray:
         """Ground contact points in the body frame, (n, 3) [m], z = 0.
@@ -203,8 +208,8 @@ class Base:
         t = self.tracks
         half_l, half_w = t.length / 2, t.separation / 2 + t.width / 2
         pts = [np.array([sx * half_l, sy * half_w, 0.0]) for sx in (1, -1) for sy in (1, -1)]
-        for side in ("left", "right"):
-            corners = self.flippers.box(side).corners()
+        for side in ("left", "right") if self.flippers is not None else ():
+            corners = self.flippers.box(side).corners()  # type: ignore[union-attr]
             low = corners[corners[:, 2] <= FLIPPER_CONTACT_TOL]
             pts.extend(np.array([c[0], c[1], 0.0]) for c in low)
         return np.array(pts)

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.core import schema
-from mmstab.core.files import ConfigError, check_order, read_yaml, validate
+from mmstab.core.files import ConfigError, MmstabError, check_order, read_yaml, validate
 from mmstab.core.hints import did_you_mean
 from mmstab.model.kinematics import ArmKinematics
 from mmstab.model.parts import (
@@ -203,35 +203,15 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
     for i, (qi, link) in enumerate(zip(stowed, links, strict=True)):
         if not link.lower <= qi <= link.upper:
             raise ConfigError(p, f"arm.stowed[{i}]", f"{qi} is outside the joint limits")
-    tr, fl = b["tracks"], b["flippers"]
-    limits = None
-    if "limits" in fl:
-        lim = fl["limits"]
-        check_order(p, "base.flippers.limits", lim["lower"], lim["upper"])
-        if not lim["lower"] <= fl["angle"] <= lim["upper"]:
-            raise ConfigError(p, "base.flippers.angle", "is outside base.flippers.limits")
-        limits = FlipperLimits(float(lim["lower"]), float(lim["upper"]), float(lim["rate"]))
     base = Base(
         mass=float(b["mass"]),
         com=np.array(b["com"], float),
         body=Box(
             size=np.array(b["body"]["size"], float), center=np.array(b["body"]["center"], float)
         ),
-        tracks=Tracks(**{k: float(v) for k, v in tr.items()}),
-        flippers=Flippers(
-            length=float(fl["length"]),
-            width=float(fl["width"]),
-            thickness=float(fl["thickness"]),
-            pivot=np.array(fl["pivot"], float),
-            angle=float(fl["angle"]),
-            limits=limits,
-        ),
+        tracks=Tracks(**{k: float(v) for k, v in b["tracks"].items()}),
+        flippers=None if "flippers" not in b else _flippers(p, b["flippers"]),
     )
-    lowest = min(base.flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
-    if lowest < -FLIPPER_CONTACT_TOL:
-        raise ConfigError(
-            p, "base.flippers.angle", f"flippers reach {-lowest:.3f} m below the ground; raise them"
-        )
     mount = data["arm"]["mount"]
     # The flipper limits change no cached artefact (V, generated code), so they are not hashed.
     hashed = [kv for kv in _flatten(data) if not kv[0].startswith(".base.flippers.limits")]
@@ -245,6 +225,37 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
         source_hash=digest,
         collision_allow=_allowed_pairs(p, data.get("collision", {}), [ln.name for ln in links]),
     )
+
+
+def _flippers(path: Path, fl: dict[str, Any]) -> Flippers:
+    """``base.flippers``: the flippers, their limits within range, not below the ground.
+
+    Raises:
+        ConfigError: limits out of order, the angle outside them, flippers below the ground.
+    """
+    limits = None
+    if "limits" in fl:
+        lim = fl["limits"]
+        check_order(path, "base.flippers.limits", lim["lower"], lim["upper"])
+        if not lim["lower"] <= fl["angle"] <= lim["upper"]:
+            raise ConfigError(path, "base.flippers.angle", "is outside base.flippers.limits")
+        limits = FlipperLimits(float(lim["lower"]), float(lim["upper"]), float(lim["rate"]))
+    flippers = Flippers(
+        length=float(fl["length"]),
+        width=float(fl["width"]),
+        thickness=float(fl["thickness"]),
+        pivot=np.array(fl["pivot"], float),
+        angle=float(fl["angle"]),
+        limits=limits,
+    )
+    lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
+    if lowest < -FLIPPER_CONTACT_TOL:
+        raise ConfigError(
+            path,
+            "base.flippers.angle",
+            f"flippers reach {-lowest:.3f} m below the ground; raise them",
+        )
+    return flippers
 
 
 def _allowed_pairs(
@@ -334,6 +345,10 @@ def with_flipper_angle(robot: Robot, angle: float) -> Robot:
     The hash follows the angle (as the file's would), so nothing cached for the file's
     flippers (collision checkers, resting-pose candidates) is reused for other ones.
     """
+    if robot.base.flippers is None:
+        raise MmstabError(
+            f"robot {robot.name}: has no flippers (base.flippers) to set at {angle} rad"
+        )
     if float(angle) == robot.base.flippers.angle:
         return robot
     flippers = dataclasses.replace(robot.base.flippers, angle=float(angle))
@@ -353,15 +368,18 @@ def flipper_ground_angle(robot: Robot) -> float:
     already touch.
 
     Raises:
-        ValueError: the flippers cannot reach the ground (not even pointing down).
+        ValueError: the flippers cannot reach the ground (not even pointing down), or the
+            robot has none.
     """
+    if robot.base.flippers is None:
+        raise ValueError(f"robot {robot.name}: has no flippers (base.flippers)")
+
+    flippers = robot.base.flippers
 
     def lowest(angle: float) -> float:
-        return float(
-            with_flipper_angle(robot, angle).base.flippers.box("left").corners()[:, 2].min()
-        )
+        return float(dataclasses.replace(flippers, angle=angle).box("left").corners()[:, 2].min())
 
-    hi = robot.base.flippers.angle
+    hi = flippers.angle
     if lowest(hi) <= FLIPPER_CONTACT_TOL:
         return hi
     lo = -np.pi / 2

@@ -8,7 +8,7 @@ Tree (all frames follow ``docs/design.md``, "Frames")::
         └── arm_joint_0 ─► arm_link_0 ─► arm_joint_1 ─► arm_link_1 ─► ... ─► arm_link_3
                               └── arm_frame_0 (fixed)        └── arm_frame_1 (fixed) ...
 
-**Base.** Each of the five base links has its frame at its collision box's centre and
+**Base.** Each of the base links has its frame at its collision box's centre and
 axes (``Box.frame_T_shape``) and carries a solid-box inertia. The base mass is spread
 over the five boxes in proportion to their volumes, and every box's CoM is shifted by
 one common offset ``delta = base.com - (volume centroid of the boxes)`` so that the
@@ -55,7 +55,8 @@ from mmstab.model.robot import ArmLink, Box, FloatArray, Geometry, Robot, homoge
 #: Joint effort limit written for every arm joint [N m]: a placeholder (no torque model).
 DEFAULT_EFFORT = 100.0
 
-#: Names of the five base links, in the order of ``Base.collision_boxes()``.
+#: Names of the base links, in the order of ``Base.collision_boxes()`` (a base without
+#: flippers has the first three).
 BASE_LINKS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
 
 _MATERIALS = {
@@ -170,10 +171,10 @@ def geometry_inertia(geometry: Geometry, mass: float) -> tuple[FloatArray, Float
 
 
 def base_link_inertias(robot: Robot) -> dict[str, Inertia]:
-    """The five base links' inertias, each in its link frame (at its box's pose).
+    """The base links' inertias, each in its link frame (at its box's pose).
 
     Masses in proportion to the boxes' volumes; CoMs at the box centres shifted by one
-    common offset, so that the five sum to ``base.mass`` at ``base.com`` exactly.
+    common offset, so that the links sum to ``base.mass`` at ``base.com`` exactly.
     """
     boxes = robot.base.collision_boxes()
     volumes = np.array([float(np.prod(b.size)) for b in boxes.values()])

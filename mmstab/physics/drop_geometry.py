@@ -8,13 +8,12 @@ robot's total at its overall CoM with the arm's links as point masses
 
 from __future__ import annotations
 
-import dataclasses
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.model.robot import Box, FloatArray, Robot
+from mmstab.model.robot import Box, FloatArray, Robot, with_flipper_angle
 
 
 class CollisionGeom(NamedTuple):
@@ -57,10 +56,10 @@ def collision_geoms(robot: Robot, flipper_angle: float | None = None) -> list[Co
         robot: the robot.
         flipper_angle: flipper angle [rad] (positive raises the tip); None = the robot's.
     """
+    if flipper_angle is not None:
+        robot = with_flipper_angle(robot, flipper_angle)
     base = robot.base
     flippers = base.flippers
-    if flipper_angle is not None:
-        flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
     t = base.tracks
     r = t.height / 2
     axis_y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z -> y
@@ -77,7 +76,8 @@ def collision_geoms(robot: Robot, flipper_angle: float | None = None) -> list[Co
                     pose_matrix(axis_y, c),
                 )
             )
-        geoms.append(_box_geom(f"flipper_{side}", flippers.box(side)))  # type: ignore[arg-type]
+        if flippers is not None:
+            geoms.append(_box_geom(f"flipper_{side}", flippers.box(side)))  # type: ignore[arg-type]
     geoms.append(_box_geom("chassis", base.body))
     return geoms
 

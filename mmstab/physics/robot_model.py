@@ -308,7 +308,7 @@ def _base_xml(robot: Robot, s: ModelSettings, payload: Payload | None) -> list[s
     ]
     for side in ("left", "right"):
         out += _track_xml(robot, side, parts[f"track_{side}"], s)
-    for side in ("left", "right"):
+    for side in ("left", "right") if "flipper_left" in boxes else ():
         box = boxes[f"flipper_{side}"]
         out += [
             f'<body name="flipper_{side}" {_frame(box.frame_T_shape)}>',

@@ -24,7 +24,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
-from mmstab.model.robot import FloatArray, Robot, flipper_ground_angle, with_flipper_angle
+from mmstab.model.robot import (
+    FlipperLimits,
+    FloatArray,
+    Robot,
+    flipper_ground_angle,
+    with_flipper_angle,
+)
 from mmstab.planner.pose import PoseTarget, solve_pose
 from mmstab.planner.regions import CoMRegion, as_region
 from mmstab.planner.searches.cmaes import start_coms
@@ -34,6 +40,17 @@ from mmstab.terrain import Terrain
 
 
 # --------------------------------------------------------------------------------- flippers
+def flipper_limits(robot: Robot) -> FlipperLimits:
+    """The robot's flipper limits, which ``planner.flipper_angles`` plans within.
+
+    Raises:
+        MmstabError: the robot has no flippers, or no ``base.flippers.limits``.
+    """
+    if robot.base.flippers is None or robot.base.flippers.limits is None:
+        raise MmstabError(f"robot {robot.name}: planner.flipper_angles needs base.flippers.limits")
+    return robot.base.flippers.limits
+
+
 def flipper_candidates(
     robot: Robot, count: int, previous: float, max_step: float = math.inf
 ) -> FloatArray:
@@ -46,9 +63,7 @@ def flipper_candidates(
     Raises:
         MmstabError: the robot has no flipper limits.
     """
-    lim = robot.base.flippers.limits
-    if lim is None:
-        raise MmstabError(f"robot {robot.name}: planner.flipper_angles needs base.flippers.limits")
+    lim = flipper_limits(robot)
     lo, hi = max(lim.lower, previous - max_step), min(lim.upper, previous + max_step)
     grid = [*np.linspace(lim.lower, lim.upper, count), flipper_ground_angle(robot), lo, hi]
     out = [previous, *(a for a in grid if lo - 1e-12 <= a <= hi + 1e-12)]
@@ -171,15 +186,13 @@ def solve_path_flippers(
     """
     if settings.flipper_angles < 1:
         raise MmstabError("planner.flipper_angles is 0: the flippers are not planned")
-    lim = robot.base.flippers.limits
-    if lim is None:
-        raise MmstabError(f"robot {robot.name}: planner.flipper_angles needs base.flippers.limits")
+    lim = flipper_limits(robot)
     pts = np.asarray(poses, dtype=float)
     region = as_region(region)
     rng = np.random.default_rng(settings.seed)
     mu_max = stowed_flat_mu(robot)
     starts = start_coms(robot, region, settings.starts) if settings.seeding == "starts" else None
-    previous_com, angle = robot.arm_com(robot.stowed), robot.base.flippers.angle
+    previous_com, angle = robot.arm_com(robot.stowed), robot.base.flippers.angle  # type: ignore[union-attr]
     out = []
     for pose in pts:
         ft = solve_pose_flippers(

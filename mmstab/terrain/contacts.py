@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from mmstab.core.files import MmstabError
 from mmstab.model.robot import Base, Flippers, rpy_matrix
 
 FloatArray = NDArray[np.float64]
@@ -151,6 +152,8 @@ def contact_candidates(
     """
     flippers = base.flippers
     if flipper_angle is not None:
+        if flippers is None:
+            raise MmstabError(f"flipper angle {flipper_angle} rad: the base has no flippers")
         flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
     t = base.tracks
     prof = track_profile(t.length, t.height, spacing, arc_step)
@@ -160,8 +163,8 @@ def contact_candidates(
         for y in _across(yc, t.width, spacing)[::-1]:  # the left edge first, as before
             parts.append(np.stack([prof[:, 0], np.full(len(prof), y), prof[:, 1]], axis=1))
             codes += [TRACK] * len(prof)
-    for side in ("left", "right"):
-        pts = flipper_edges(flippers, side, spacing)
+    for side in ("left", "right") if flippers is not None else ():
+        pts = flipper_edges(flippers, side, spacing)  # type: ignore[arg-type]
         parts.append(pts)
         codes += [FLIPPER] * len(pts)
     chassis = np.concatenate([chassis_outline(base, spacing), chassis_inside(base, spacing)])

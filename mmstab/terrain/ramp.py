@@ -114,13 +114,13 @@ class Ramp:
                 reach into the plane, which a rigid base on a plane cannot have.
         """
         from mmstab.core.files import MmstabError
-        from mmstab.model.robot import FLIPPER_CONTACT_TOL
+        from mmstab.model.robot import FLIPPER_CONTACT_TOL, with_flipper_angle
 
-        flippers = robot.base.flippers
         if flipper_angle is not None:
-            import dataclasses
-
-            flippers = dataclasses.replace(flippers, angle=float(flipper_angle))
+            robot = with_flipper_angle(robot, flipper_angle)
+        flippers = robot.base.flippers
+        if flippers is None:
+            return self
         lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
         if lowest < -FLIPPER_CONTACT_TOL:
             raise MmstabError(

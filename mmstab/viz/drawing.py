@@ -1,7 +1,7 @@
 """3-D drawing of the robot on the ground (matplotlib ``mplot3d``), from the collision geometry.
 
 Every body the collision checker knows is drawn from the same shapes
-(:mod:`mmstab.viz.meshes`: the five base boxes and the four arm links, capsules as low-poly
+(:mod:`mmstab.viz.meshes`: the base boxes and the four arm links, capsules as low-poly
 cylinders with caps), placed by ``G_T_B`` (the body frame's pose in G, e.g.
 ``Terrain.G_T_B(pose)``); without it the drawing is in B. The ground under it, paths on the
 ground and the axis limits are :mod:`mmstab.viz.ground`'s (re-exported here).

@@ -1,6 +1,6 @@
 """The robot's surfaces for drawing: polygons of its collision geometry, placed in G [m].
 
-The bodies the collision checker knows, as polygons: the five base boxes
+The bodies the collision checker knows, as polygons: the base boxes
 (``Base.collision_boxes()``) and the four arm links (box or capsule in their DH frame R_i,
 placed by ``ArmKinematics.link_frames``). Capsules are low-poly cylinders with low-poly
 hemispherical caps. Points are mapped to the drawing frame by ``G_T_B`` (the body frame's
@@ -87,7 +87,7 @@ def robot_meshes(
         G_T_B: pose of the body frame in the drawing frame (4x4); ``None`` = identity.
 
     Returns:
-        Body name -> list of polygons (k, 3): the five base bodies, then ``arm_link_0..3``.
+        Body name -> list of polygons (k, 3): the base bodies, then ``arm_link_0..3``.
     """
     T = np.eye(4) if G_T_B is None else np.asarray(G_T_B, dtype=float)
     out = {

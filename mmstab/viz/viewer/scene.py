@@ -4,7 +4,7 @@ Pure functions of a robot, a ground (:mod:`mmstab.viz.viewer.ground`) and a pose
 no browser, so each piece is testable on its own.
 
 - :func:`robot_body_meshes`: triangle meshes of the robot's nine collision bodies, each in
-  its own frame (the body frame B for the five base bodies, the DH frame R_i for arm link
+  its own frame (the body frame B for the base bodies, the DH frame R_i for arm link
   i), so a frame is posed by one transform per instant (``G_T_B``, ``B_T_R[i]``).
 - :func:`instant`: at one base pose and arm posture, the body pose, link frames, support
   polygon, overall CoM, its projection along gravity onto the support plane, the tip-over
@@ -73,7 +73,7 @@ def geometry_mesh(geometry: Geometry, sections: int = 24) -> trimesh.Trimesh:
 
 
 def robot_body_meshes(robot: Robot) -> list[BodyMesh]:
-    """The robot's nine collision bodies: the five base bodies, then the four arm links."""
+    """The robot's collision bodies: the base bodies, then the arm links."""
     out = []
     for name, box in robot.base.collision_boxes().items():
         rgb = BASE_RGB if name == "body" else TRACK_RGB
