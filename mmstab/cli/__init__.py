@@ -33,6 +33,7 @@ from mmstab.cli.commands import (
     Handler,
     _urdf,
     _urdf_out,
+    arm_from_urdf,
 )
 from mmstab.cli.node import add_node_commands
 from mmstab.cli.online import add_online_commands
@@ -112,6 +113,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("robot", help="robot YAML file (e.g. problems/robots/cameleon.yaml)")
     p.add_argument("-o", "--out", default=None, help="output file (default results/urdf/NAME.urdf)")
     p.set_defaults(handler=_urdf)
+    help_text = "the robot file's arm: section from a URDF's chain of revolute joints"
+    p = sub.add_parser("arm-from-urdf", help=help_text, description=help_text)
+    p.add_argument("urdf", help="URDF file of the arm (or of a robot that has it)")
+    p.add_argument("--base", required=True, help="the link the arm is mounted on")
+    p.add_argument("--tip", required=True, help="the arm's last link (its flange or tool)")
+    p.add_argument(
+        "--mount",
+        nargs=6,
+        type=float,
+        default=None,
+        metavar=("X", "Y", "Z", "ROLL", "PITCH", "YAW"),
+        help="the base link's pose in the body frame B [m, rad] (default: B)",
+    )
+    p.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="a folder holding the packages of package:// meshes (repeatable)",
+    )
+    p.add_argument("-o", "--out", default=None, help="output YAML file (default: stdout)")
+    p.set_defaults(handler=arm_from_urdf)
     from mmstab.viz.viewer.cli import add_view_command  # the browser viewer
 
     add_view_command(sub)

@@ -7,6 +7,7 @@ Their options are :mod:`mmstab.cli.options`'s, their exit-status verdicts
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -137,6 +138,45 @@ def _urdf(args: argparse.Namespace, problem: Any) -> None:
 
     robot = load_robot(args.robot)
     print(f"urdf: wrote {write_urdf(robot, _urdf_out(args, robot.name))}")
+
+
+def arm_from_urdf(args: argparse.Namespace) -> int:
+    """``mmstab arm-from-urdf``: the arm section as YAML, to a file or stdout; notes on stderr."""
+    import math
+
+    import numpy as np
+    import yaml
+
+    from mmstab.core.files import MmstabError, check_output_dir, write_text
+    from mmstab.model.robot import homogeneous, rpy_matrix
+    from mmstab.model.urdf_arm import arm_section, build_arm
+
+    mount = None
+    if args.mount is not None:
+        if not all(math.isfinite(v) for v in args.mount):
+            raise MmstabError(
+                "--mount: give six finite numbers (x, y, z [m], roll, pitch, yaw [rad])"
+            )
+        mount = homogeneous(rpy_matrix(np.array(args.mount[3:])), np.array(args.mount[:3]))
+    if args.out is not None:
+        if Path(args.out).is_dir():
+            raise MmstabError(f"output file {args.out}: is a folder")
+        check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
+    arm = build_arm(args.urdf, args.base, args.tip, args.package_dir)
+    header = (
+        f"# The arm of {args.urdf} from link {args.base} to link {args.tip}, written by\n"
+        "# mmstab arm-from-urdf: the robot file's arm: section (docs/robot.md). Check the\n"
+        "# mount (the base link's place on the body) and the stowed posture.\n"
+    )
+    section = {"arm": arm_section(arm, mount)}
+    text = header + yaml.safe_dump(section, sort_keys=False, default_flow_style=None)
+    for note in arm.notes:
+        print(f"mmstab: note: {args.urdf}: {note}", file=sys.stderr)
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        print(f"arm-from-urdf: {len(arm.rows)} joints -> {write_text(args.out, text)}")
+    return 0
 
 
 def _urdf_out(args: argparse.Namespace, name: str) -> str:

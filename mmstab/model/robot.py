@@ -303,30 +303,34 @@ def link_extent_warnings(robot: Robot, tol: float = LINK_EXTENT_TOL) -> list[str
 
     A link's DH segment runs, in its own (distal) frame R_i, from the previous joint's origin
     ``(-a, -d sin(alpha), -d cos(alpha))`` to R_i's origin; a capsule's ends, a box's centre
-    and the CoM are measured from it. A changed DH length (``dh.a``) that left the shape and
-    the CoM where they were is the usual cause.
+    and the CoM are measured from it across the two joint axes (z_{i-1}, ``(0, sin(alpha),
+    cos(alpha))`` in R_i, and z_i): a body offset along a joint's axis, as a UR arm's
+    shoulder offset, is where real links are. A changed DH length (``dh.a``) that left the
+    shape and the CoM where they were is the usual cause.
 
     Returns:
         One line per such link: ``arm.links[i] (name): ...`` with the distances [m].
     """
     out = []
     for i, link in enumerate(robot.links):
-        start = np.array([-link.a, -link.d * np.sin(link.alpha), -link.d * np.cos(link.alpha)])
-        end = np.zeros(3)
+        axes = np.array([[0.0, np.sin(link.alpha), np.cos(link.alpha)], [0.0, 0.0, 1.0]])
+        basis = np.linalg.svd(axes)[2][: np.linalg.matrix_rank(axes, tol=1e-9)]
+        across = np.eye(3) - basis.T @ basis  # drops the components along the joint axes
+        start, end = across @ np.array([-link.a, 0.0, 0.0]), np.zeros(3)
         g = link.geometry
         points = {"com": link.com}
         if isinstance(g, Capsule):
             points.update({"geometry.p0": g.p0, "geometry.p1": g.p1})
         else:
             points["geometry.center"] = g.center
-        far = {k: _segment_distance(v, start, end) for k, v in points.items()}
+        far = {k: _segment_distance(across @ v, start, end) for k, v in points.items()}
         far = {k: v for k, v in far.items() if v > tol}
         if far:
             length = float(np.hypot(link.a, link.d))
             what = ", ".join(f"{k} {v:.3f} m" for k, v in far.items())
             out.append(
                 f"arm.links[{i}] ({link.name}): {what} off its DH segment of {length:.3f} m "
-                f"(more than {tol} m: was dh.a or dh.d changed without them?)"
+                f"(more than {tol} m: was dh.a changed without them?)"
             )
     return out
 

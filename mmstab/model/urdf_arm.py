@@ -1,0 +1,574 @@
+"""An arm from URDF: a serial chain of revolute joints as the robot file's ``arm:`` section.
+
+An arm usually comes as URDF (its maker's description); mmstab describes it by standard DH
+rows (``docs/robot.md``). :func:`build_arm` reads the chain from a base link to a tip link
+and :func:`arm_section` writes the section: the mount, one DH row per joint, each link's
+mass, CoM and one collision shape, the joint limits, a stowed posture.
+
+**Frames.** At q = 0 each joint's axis is a line in the base link's frame (its joint frame's
+origin, its axis as URDF gives it: sign included). R_0 (the mount) has z along joint 1's
+axis, its origin at joint 1's origin and x along the base link's x made normal to z. R_i
+(i < n) has z along joint i+1's axis and x along the common normal from axis i to axis i+1,
+its origin where that normal meets axis i+1; where the two axes meet, x = z_{i-1} x z_i;
+where they are parallel, the normal passes through joint i+1's origin, which R_i takes (on
+one line, with R_{i-1}'s x). R_n takes the tip link's origin as a virtual axis parallel to
+joint n's: R_n sits at the tip link's origin. ``theta_offset`` is the angle from x_{i-1}
+to x_i at q = 0, so every joint keeps its URDF zero and sign.
+
+**Links.** Link i is joint i's child link with every link fixed to it (fixed joints,
+recursively): masses summed, the CoM mass-weighted, in R_i. Links further along moving
+joints that are not on the chain (a gripper's fingers) are left out, with a note. The
+collision shape: a URDF link with one box keeps it; otherwise the smallest capsule about an
+axis fitted to all its collision shapes' points (box corners, cylinder rims and spheres
+sampled with the sag added to the radius, mesh vertices) encloses them all. A link without
+collision shapes takes its visual ones.
+
+Checked against pinocchio reading the same file (``tests/model/test_urdf_arm.py``).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from mmstab.core.files import MmstabError
+from mmstab.core.hints import did_you_mean
+from mmstab.model.robot import FloatArray, homogeneous, rpy_matrix
+from mmstab.model.urdf import matrix_to_rpy
+
+#: Points per cylinder rim when a capsule is fitted (the radius gets the chord's sag).
+RIM_POINTS = 48
+#: Mass given to a link the file leaves without an inertial [kg] (noted).
+MASSLESS_KG = 1e-6
+MOVING = ("revolute", "continuous")
+Point = tuple[float, float]
+
+
+class Shape(NamedTuple):
+    """A URDF collision (or visual) shape: ``kind`` box / cylinder / sphere / mesh.
+
+    ``size``: box (x, y, z) [m]; cylinder (radius, length) [m]; sphere (radius,) [m];
+    ``points``: a mesh's vertices (scaled) in the shape's frame [m]; ``T``: the shape's frame
+    in the link frame (4, 4).
+    """
+
+    kind: str
+    size: FloatArray
+    T: FloatArray
+    points: FloatArray | None = None
+
+
+@dataclass
+class Link:
+    """A URDF link: mass [kg], CoM in the link frame [m], collision (or visual) shapes."""
+
+    name: str
+    mass: float = 0.0
+    com: FloatArray = field(default_factory=lambda: np.zeros(3))
+    shapes: list[Shape] = field(default_factory=list)
+
+
+class Joint(NamedTuple):
+    """A URDF joint: ``origin`` is the child frame in the parent's at q = 0 (4, 4)."""
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: FloatArray
+    axis: FloatArray
+    lower: float | None
+    upper: float | None
+    velocity: float | None
+    mimic: bool
+
+
+class ArmRow(NamedTuple):
+    """One joint of the arm as the robot file states it (``arm.links[i]``)."""
+
+    name: str
+    a: float
+    alpha: float
+    d: float
+    theta_offset: float
+    mass: float
+    com: FloatArray
+    geometry: dict[str, Any]
+    lower: float
+    upper: float
+    velocity: float
+
+
+class Arm(NamedTuple):
+    """The arm read from URDF: the mount R_0 in the base link (4, 4), rows, notes."""
+
+    base_T_R0: FloatArray
+    rows: tuple[ArmRow, ...]
+    notes: tuple[str, ...]
+
+
+# ------------------------------------------------------------------------------- reading
+def _floats(text: str | None, n: int, default: float = 0.0) -> FloatArray:
+    if text is None:
+        return np.full(n, default)
+    values = [float(v) for v in text.split()]
+    if len(values) != n:
+        raise ValueError(f"{text!r}: {n} numbers expected")
+    return np.array(values)
+
+
+def _origin(el: ET.Element | None) -> FloatArray:
+    if el is None:
+        return np.eye(4)
+    return homogeneous(rpy_matrix(_floats(el.get("rpy"), 3)), _floats(el.get("xyz"), 3))
+
+
+def _shape(el: ET.Element, where: str, mesh_file: Any) -> Shape:
+    geometry = el.find("geometry")
+    if geometry is None or len(geometry) == 0:
+        raise MmstabError(f"{where}: a shape without <geometry>")
+    g, T = geometry[0], _origin(el.find("origin"))
+    if g.tag == "box":
+        return Shape("box", _floats(g.get("size"), 3), T)
+    if g.tag == "cylinder":
+        return Shape(
+            "cylinder", np.array([float(g.get("radius", "")), float(g.get("length", ""))]), T
+        )
+    if g.tag == "sphere":
+        return Shape("sphere", np.array([float(g.get("radius", ""))]), T)
+    if g.tag == "mesh":
+        points = mesh_file(g.get("filename", ""), where) * _floats(g.get("scale"), 3, 1.0)
+        return Shape("mesh", np.zeros(0), T, points)
+    raise MmstabError(f"{where}: unknown geometry <{g.tag}>")
+
+
+def _link(el: ET.Element, where: str, mesh_file: Any) -> Link:
+    name = el.get("name", "")
+    link = Link(name)
+    inertial = el.find("inertial")
+    if inertial is not None and inertial.find("mass") is not None:
+        link.mass = float(inertial.find("mass").get("value", "0"))  # type: ignore[union-attr]
+        link.com = _origin(inertial.find("origin"))[:3, 3]
+    elements = el.findall("collision") or el.findall("visual")
+    link.shapes = [_shape(c, f"{where}: link {name}", mesh_file) for c in elements]
+    return link
+
+
+def _joint(el: ET.Element) -> Joint:
+    limit = el.find("limit")
+
+    def attr(key: str) -> float | None:
+        value = None if limit is None else limit.get(key)
+        return None if value is None else float(value)
+
+    axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None, 3)  # type: ignore[union-attr]
+    if not axis.any():
+        axis = np.array([1.0, 0.0, 0.0])  # URDF's default
+    return Joint(
+        name=el.get("name", ""),
+        kind=el.get("type", ""),
+        parent=el.find("parent").get("link", ""),  # type: ignore[union-attr]
+        child=el.find("child").get("link", ""),  # type: ignore[union-attr]
+        origin=_origin(el.find("origin")),
+        axis=axis / np.linalg.norm(axis),
+        lower=attr("lower"),
+        upper=attr("upper"),
+        velocity=attr("velocity"),
+        mimic=el.find("mimic") is not None,
+    )
+
+
+def mesh_reader(urdf: Path, package_dirs: Sequence[Path] = ()) -> Any:
+    """A function (filename, where) -> vertices (n, 3) [file units] of a URDF mesh.
+
+    ``package://pkg/path`` is looked for under each of ``package_dirs`` and the URDF's
+    folders upward (as ``pkg/path``, or ``path`` in a folder named ``pkg``); ``file://`` and
+    plain names are paths (relative to the URDF's folder).
+    """
+
+    def read(filename: str, where: str) -> FloatArray:
+        import trimesh
+
+        candidates: list[Path] = []
+        if filename.startswith("package://"):
+            pkg, _, rel = filename[len("package://") :].partition("/")
+            for folder in [*package_dirs, *urdf.resolve().parents]:
+                candidates += [Path(folder) / pkg / rel]
+                if Path(folder).name == pkg:
+                    candidates += [Path(folder) / rel]
+        else:
+            path = Path(filename.removeprefix("file://"))
+            candidates = [path if path.is_absolute() else urdf.parent / path]
+        found = next((c for c in candidates if c.is_file()), None)
+        if found is None:
+            raise MmstabError(f"{where}: mesh {filename} not found (--package-dir)")
+        try:
+            mesh = trimesh.load(found, force="mesh")
+            return np.array(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
+        except Exception as e:  # any reader's failure is the file's
+            raise MmstabError(f"{where}: mesh {found}: cannot be read ({e})") from None
+
+    return read
+
+
+def read_urdf(path: Path, mesh_file: Any) -> tuple[dict[str, Link], dict[str, Joint]]:
+    """The links by name and the joints by child link name of a URDF file.
+
+    Raises:
+        MmstabError: not a URDF file, or a malformed element (named).
+    """
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise MmstabError(f"{path}: not a readable URDF file ({e})") from None
+    if root.tag != "robot":
+        raise MmstabError(f"{path}: not a URDF file (root <{root.tag}>, not <robot>)")
+    try:
+        links = {el.get("name", ""): _link(el, str(path), mesh_file) for el in root.findall("link")}
+        joints = [_joint(el) for el in root.findall("joint")]
+    except (ValueError, AttributeError) as e:
+        raise MmstabError(f"{path}: a malformed link or joint ({e})") from None
+    return links, {j.child: j for j in joints}
+
+
+# ------------------------------------------------------------------------------ geometry
+def _dh_step(
+    o: FloatArray, x: FloatArray, z: FloatArray, p: FloatArray, w: FloatArray
+) -> tuple[FloatArray, FloatArray, tuple[float, float, float, float]]:
+    """Frame i (origin, x) from frame i-1 (o, x, z) and axis i+1 (point p, direction w).
+
+    Returns the origin, x axis and the DH row (a, alpha, d, theta) at q = 0.
+    """
+    cross = np.cross(z, w)
+    if np.linalg.norm(cross) > 1e-9:  # skew or meeting: the common normal
+        # closest points o + s z and p + t w of the two lines
+        r = p - o
+        A = np.array([[1.0, -z @ w], [z @ w, -1.0]])
+        s, t = np.linalg.solve(A, [r @ z, r @ w])
+        c1, c2 = o + s * z, p + t * w
+        gap = c2 - c1
+        if np.linalg.norm(gap) > 1e-9:
+            x_new = gap / np.linalg.norm(gap)
+        else:
+            x_new, c2 = cross / np.linalg.norm(cross), c1
+    else:  # parallel (or one line): the normal through p, so R_i sits at p
+        c1, c2 = o + ((p - o) @ z) * z, p
+        gap = c2 - c1
+        x_new = gap / np.linalg.norm(gap) if np.linalg.norm(gap) > 1e-9 else x
+    d = float((c1 - o) @ z)
+    a = float((c2 - c1) @ x_new)
+    theta = math.atan2(float(np.cross(x, x_new) @ z), float(x @ x_new))
+    alpha = math.atan2(float(np.cross(z, w) @ x_new), float(z @ w))
+    return c2, x_new, (a, alpha, d, theta)
+
+
+def _frame(o: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
+    return homogeneous(np.column_stack([x, np.cross(z, x), z]), o)
+
+
+def _shape_points(shape: Shape) -> tuple[FloatArray, float]:
+    """Points of a shape in its frame (n, 3) [m] and how far the shape reaches past them [m]."""
+    if shape.kind == "box":
+        h = shape.size / 2
+        return np.array(
+            [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+        ) * h, 0.0
+    if shape.kind == "cylinder":
+        r, length = shape.size
+        phi = np.linspace(0, 2 * np.pi, RIM_POINTS, endpoint=False)
+        rim = np.c_[r * np.cos(phi), r * np.sin(phi)]
+        pts = np.r_[
+            np.c_[rim, np.full(RIM_POINTS, -length / 2)],
+            np.c_[rim, np.full(RIM_POINTS, length / 2)],
+        ]
+        return pts, r * (1 - math.cos(math.pi / RIM_POINTS))
+    if shape.kind == "sphere":
+        import trimesh
+
+        ball = trimesh.creation.icosphere(subdivisions=2, radius=float(shape.size[0]))
+        inner = float(
+            np.min(np.abs(np.einsum("ij,ij->i", ball.face_normals, ball.triangles[:, 0])))
+        )
+        return np.asarray(ball.vertices), float(shape.size[0]) - inner
+    assert shape.points is not None
+    return shape.points, 0.0
+
+
+def _welzl(points: FloatArray) -> tuple[FloatArray, float]:
+    """The smallest circle holding a few 2-D points (n, 2): centre, radius (Welzl, in order)."""
+    pts = [(float(x), float(y)) for x, y in points]
+
+    def two(a: Point, b: Point) -> tuple[float, float, float]:
+        cx, cy = (a[0] + b[0]) / 2, (a[1] + b[1]) / 2
+        return cx, cy, math.hypot(a[0] - cx, a[1] - cy)
+
+    def three(a: Point, b: Point, c: Point) -> tuple[float, float, float]:
+        (ax, ay), (bx, by), (cx, cy) = a, b, c
+        d = 2 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
+        if abs(d) < 1e-18:  # collinear: the farthest pair's circle
+            return max((two(a, b), two(a, c), two(b, c)), key=lambda t: t[2])
+        a2, b2, c2 = ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy
+        ux = (a2 * (by - cy) + b2 * (cy - ay) + c2 * (ay - by)) / d
+        uy = (a2 * (cx - bx) + b2 * (ax - cx) + c2 * (bx - ax)) / d
+        return ux, uy, math.hypot(ax - ux, ay - uy)
+
+    def out(p: Point, c: tuple[float, float, float]) -> bool:
+        return math.hypot(p[0] - c[0], p[1] - c[1]) > c[2] * (1 + 1e-12) + 1e-15
+
+    c = (pts[0][0], pts[0][1], 0.0)
+    for i in range(1, len(pts)):
+        if out(pts[i], c):
+            c = (pts[i][0], pts[i][1], 0.0)
+            for j in range(i):
+                if out(pts[j], c):
+                    c = two(pts[i], pts[j])
+                    for k in range(j):
+                        if out(pts[k], c):
+                            c = three(pts[i], pts[j], pts[k])
+    return np.array(c[:2]), c[2]
+
+
+def _circle(points: FloatArray) -> tuple[FloatArray, float]:
+    """The smallest circle holding 2-D points (n, 2): centre, radius.
+
+    Welzl's circle of a support set, grown by the farthest point outside it until none is:
+    the circle then holds all points and is the least for a subset, so for all.
+    """
+    far = int(np.argmax(np.linalg.norm(points - points[0], axis=1)))
+    support = [points[0], points[far]]
+    while True:
+        centre, radius = _welzl(np.array(support))
+        gap = np.linalg.norm(points - centre, axis=1)
+        k = int(np.argmax(gap))
+        if gap[k] <= radius * (1 + 1e-12) + 1e-15:
+            return centre, radius
+        support.append(points[k])
+
+
+def _capsule_along(pts: FloatArray, u: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+    """The smallest capsule along direction u holding the points: volume, p0, p1 (radius last)."""
+    u = u / np.linalg.norm(u)
+    e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    flat = np.c_[pts @ e1, pts @ e2]
+    centre2, radius = _circle(flat)
+    t = pts @ u
+    rho = np.linalg.norm(flat - centre2, axis=1)
+    h = np.sqrt(np.maximum(radius**2 - rho**2, 0.0))
+    t0, t1 = float(np.min(t + h)), float(np.max(t - h))
+    if t0 > t1:
+        t0 = t1 = (t0 + t1) / 2
+    foot = centre2[0] * e1 + centre2[1] * e2
+    volume = np.pi * radius**2 * (t1 - t0) + 4 / 3 * np.pi * radius**3
+    return float(volume), np.r_[foot + t0 * u, radius], np.r_[foot + t1 * u, radius]
+
+
+def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> dict[str, Any]:
+    """A capsule that holds all the points: the least volume over axis directions.
+
+    Along a direction the capsule is exact (the smallest circle of the projected points,
+    the shortest segment); the direction is searched from the points' principal axes
+    (Nelder-Mead on two angles).
+
+    Args:
+        points: (n, 3) [m].
+        reach: how far the shapes reach past their points [m] (added to the radius).
+    """
+    import trimesh
+    from scipy.optimize import minimize
+
+    pts = np.asarray(points, dtype=float)
+    if np.ptp(pts, axis=0).max() < 1e-9:
+        return {"type": "capsule", "radius": reach, "p0": pts[0].tolist(), "p1": pts[0].tolist()}
+    try:
+        pts = np.asarray(trimesh.convex.convex_hull(pts).vertices, dtype=float)
+    except Exception:  # flat points: all of them
+        pass
+
+    def direction(angles: FloatArray) -> FloatArray:
+        th, ph = angles
+        return np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+
+    best = None
+    for axis in np.linalg.svd(pts - pts.mean(axis=0))[2]:
+        start = np.array([np.arccos(np.clip(axis[2], -1, 1)), np.arctan2(axis[1], axis[0])])
+        res = minimize(lambda a: _capsule_along(pts, direction(a))[0], start,
+                       method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-12})  # fmt: skip
+        found = _capsule_along(pts, direction(res.x))
+        if best is None or found[0] < best[0]:
+            best = found
+    assert best is not None
+    _, p0, p1 = best
+    return {
+        "type": "capsule",
+        "radius": float(p0[3]) + reach + 1e-9,
+        "p0": p0[:3].tolist(),
+        "p1": p1[:3].tolist(),
+    }
+
+
+def _geometry(shapes: list[tuple[Shape, FloatArray]]) -> dict[str, Any]:
+    """One collision shape in R_i for a link's shapes (each with its pose in R_i)."""
+    if len(shapes) == 1 and shapes[0][0].kind == "box":
+        shape, T = shapes[0]
+        return {"type": "box", "size": shape.size.tolist(), "center": T[:3, 3].tolist(),
+                "rpy": matrix_to_rpy(T[:3, :3]).tolist()}  # fmt: skip
+    clouds, reach = [], 0.0
+    for shape, T in shapes:
+        pts, r = _shape_points(shape)
+        clouds.append(pts @ T[:3, :3].T + T[:3, 3])
+        reach = max(reach, r)
+    return enclosing_capsule(np.concatenate(clouds), reach)
+
+
+# --------------------------------------------------------------------------------- chain
+def _chain(links: dict[str, Link], joints: dict[str, Joint], base: str, tip: str) -> list[Joint]:
+    for role, name in (("--base", base), ("--tip", tip)):
+        if name not in links:
+            raise MmstabError(f"{role}: no link {name!r}{did_you_mean(name, list(links))}")
+    chain, at = [], tip
+    while at != base:
+        if at not in joints:
+            raise MmstabError(f"--tip: link {tip!r} does not hang below --base {base!r}")
+        chain.append(joints[at])
+        at = joints[at].parent
+    return chain[::-1]
+
+
+def build_arm(
+    path: str | Path, base: str, tip: str, package_dirs: Sequence[str | Path] = ()
+) -> Arm:
+    """The arm of a URDF file from link ``base`` to link ``tip``, in DH (module docstring).
+
+    Raises:
+        MmstabError: a missing file or link (with the closest name), no chain between the
+            two, a joint on it that is not revolute, continuous or fixed, a mimic joint, a
+            joint without a velocity limit, a mesh that cannot be found or read.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MmstabError(f"{path}: no such URDF file")
+    links, joints = read_urdf(path, mesh_reader(path, [Path(p) for p in package_dirs]))
+    chain = _chain(links, joints, base, tip)
+    for j in chain:
+        if j.kind not in (*MOVING, "fixed"):
+            raise MmstabError(
+                f"{path}: joint {j.name} is {j.kind}: mmstab's arm has revolute joints only"
+            )
+        if j.kind in MOVING and j.mimic:
+            raise MmstabError(f"{path}: joint {j.name} mimics another: not an independent joint")
+        if j.kind in MOVING and j.velocity is None:
+            raise MmstabError(f"{path}: joint {j.name}: no <limit velocity=...> [rad/s]")
+    moving = [j for j in chain if j.kind in MOVING]
+    if not moving:
+        raise MmstabError(f"{path}: no revolute joint between {base} and {tip}")
+    # every link's pose in the base link at q = 0, along the chain and its fixed branches
+    pose = {base: np.eye(4)}
+    for j in chain:
+        pose[j.child] = pose[j.parent] @ j.origin
+    children: dict[str, list[Joint]] = {}
+    for j in joints.values():
+        children.setdefault(j.parent, []).append(j)
+    on_chain = {j.child for j in chain} | {base}
+    notes: list[str] = []
+
+    def group(first: str) -> list[str]:
+        """``first`` and the links fixed to it, not along the chain's next moving joint."""
+        out, todo = [], [first]
+        while todo:
+            name = todo.pop()
+            out.append(name)
+            for j in children.get(name, []):
+                if j.child in on_chain and j.kind in MOVING:
+                    continue
+                pose.setdefault(j.child, pose[name] @ j.origin)
+                if j.kind == "fixed":
+                    todo.append(j.child)
+                elif j.child not in on_chain:
+                    notes.append(
+                        f"link {j.child} (joint {j.name}, {j.kind}) left out: not on the chain"
+                    )
+        return out
+
+    # the joints' axes at q = 0 and the DH frames
+    axes = [(pose[j.child][:3, 3], pose[j.child][:3, :3] @ j.axis) for j in moving]
+    z0 = axes[0][1]
+    hint = np.array([1.0, 0.0, 0.0]) if abs(z0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x0 = hint - (hint @ z0) * z0
+    o, x, z = axes[0][0], x0 / np.linalg.norm(x0), z0
+    base_T_R0, rows = _frame(o, x, z), []
+    for i, j in enumerate(moving):
+        p, w = axes[i + 1] if i + 1 < len(moving) else (pose[tip][:3, 3], z)
+        o, x, (a, alpha, d, theta) = _dh_step(o, x, z, p, w)
+        z = w
+        R_i = _frame(o, x, z)
+        members = group(j.child)
+        mass = sum(links[m].mass for m in members)
+        coms = [pose[m][:3, :3] @ links[m].com + pose[m][:3, 3] for m in members]
+        if mass > 0:
+            com_base = sum(links[m].mass * c for m, c in zip(members, coms, strict=True)) / mass
+        else:
+            mass, com_base = MASSLESS_KG, R_i[:3, 3]
+            notes.append(f"link {j.child} has no mass: {MASSLESS_KG:g} kg at its frame's origin")
+        inv = np.linalg.inv(R_i)
+        com = (inv @ np.r_[com_base, 1.0])[:3]
+        shapes = [(s, inv @ pose[m] @ s.T) for m in members for s in links[m].shapes]
+        if shapes:
+            geometry = _geometry(shapes)
+        else:
+            geometry = {"type": "capsule", "radius": 0.01, "p0": com.tolist(), "p1": com.tolist()}
+            notes.append(f"link {j.child} has no shapes: a 1 cm sphere at its CoM")
+        lower, upper = (j.lower, j.upper) if j.kind == "revolute" else (-math.pi, math.pi)
+        rows.append(
+            ArmRow(
+                name=j.child, a=a, alpha=alpha, d=d, theta_offset=theta, mass=float(mass),
+                com=com, geometry=geometry,
+                lower=float(lower if lower is not None else -math.pi),
+                upper=float(upper if upper is not None else math.pi),
+                velocity=float(j.velocity),  # type: ignore[arg-type]
+            )
+        )  # fmt: skip
+    return Arm(base_T_R0, tuple(rows), tuple(notes))
+
+
+def _clean(v: ArrayLike) -> list[float]:
+    """Numbers for the file: 1e-12 and below as 0, 12 significant digits."""
+    return [0.0 if abs(x) < 1e-12 else float(f"{x:.12g}") for x in np.ravel(np.asarray(v, float))]
+
+
+def arm_section(arm: Arm, B_T_base: ArrayLike | None = None) -> dict[str, Any]:
+    """The robot file's ``arm:`` section of an imported arm.
+
+    Args:
+        arm: :func:`build_arm`'s answer.
+        B_T_base: the URDF base link's pose in the body frame B (4, 4) [m]; None: B itself.
+    """
+    B_T_R0 = (np.eye(4) if B_T_base is None else np.asarray(B_T_base, float)) @ arm.base_T_R0
+    links = []
+    for r in arm.rows:
+        g = dict(r.geometry)
+        for key in ("size", "center", "rpy", "p0", "p1"):
+            if key in g:
+                g[key] = _clean(g[key])
+        if "radius" in g:
+            g["radius"] = float(f"{g['radius']:.12g}")
+        a, alpha, d, theta = _clean([r.a, r.alpha, r.d, r.theta_offset])
+        links.append({
+            "name": r.name, "dh": {"a": a, "alpha": alpha, "d": d, "theta_offset": theta},
+            "mass": float(f"{r.mass:.12g}"), "com": _clean(r.com), "geometry": g,
+            "limits": {"lower": r.lower, "upper": r.upper, "velocity": r.velocity},
+        })  # fmt: skip
+    stowed = [float(np.clip(0.0, r.lower, r.upper)) for r in arm.rows]
+    return {
+        "mount": {"xyz": _clean(B_T_R0[:3, 3]), "rpy": _clean(matrix_to_rpy(B_T_R0[:3, :3]))},
+        "links": links,
+        "stowed": stowed,
+    }
