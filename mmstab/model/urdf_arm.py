@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.files import MmstabError
 from mmstab.core.hints import did_you_mean
-from mmstab.model.robot import FloatArray, homogeneous, rpy_matrix
+from mmstab.model.robot import ArmLink, Box, Capsule, FloatArray, Geometry, homogeneous, rpy_matrix
 from mmstab.model.urdf import matrix_to_rpy
 
 #: Points per cylinder rim when a capsule is fitted (the radius gets the chord's sag).
@@ -90,27 +90,11 @@ class Joint(NamedTuple):
     mimic: bool
 
 
-class ArmRow(NamedTuple):
-    """One joint of the arm as the robot file states it (``arm.links[i]``)."""
-
-    name: str
-    a: float
-    alpha: float
-    d: float
-    theta_offset: float
-    mass: float
-    com: FloatArray
-    geometry: dict[str, Any]
-    lower: float
-    upper: float
-    velocity: float
-
-
 class Arm(NamedTuple):
     """The arm read from URDF: the mount R_0 in the base link (4, 4), rows, notes."""
 
     base_T_R0: FloatArray
-    rows: tuple[ArmRow, ...]
+    rows: tuple[ArmLink, ...]
     notes: tuple[str, ...]
 
 
@@ -371,7 +355,7 @@ def _capsule_along(pts: FloatArray, u: FloatArray) -> tuple[float, FloatArray, F
     return float(volume), np.r_[foot + t0 * u, radius], np.r_[foot + t1 * u, radius]
 
 
-def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> dict[str, Any]:
+def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> Capsule:
     """A capsule that holds all the points: the least volume over axis directions.
 
     Along a direction the capsule is exact (the smallest circle of the projected points,
@@ -387,7 +371,7 @@ def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> dict[str, Any]:
 
     pts = np.asarray(points, dtype=float)
     if np.ptp(pts, axis=0).max() < 1e-9:
-        return {"type": "capsule", "radius": reach, "p0": pts[0].tolist(), "p1": pts[0].tolist()}
+        return Capsule(reach + 1e-9, pts[0].copy(), pts[0].copy())
     try:
         pts = np.asarray(trimesh.convex.convex_hull(pts).vertices, dtype=float)
     except Exception:  # flat points: all of them
@@ -407,20 +391,14 @@ def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> dict[str, Any]:
             best = found
     assert best is not None
     _, p0, p1 = best
-    return {
-        "type": "capsule",
-        "radius": float(p0[3]) + reach + 1e-9,
-        "p0": p0[:3].tolist(),
-        "p1": p1[:3].tolist(),
-    }
+    return Capsule(float(p0[3]) + reach + 1e-9, p0[:3], p1[:3])
 
 
-def _geometry(shapes: list[tuple[Shape, FloatArray]]) -> dict[str, Any]:
+def _geometry(shapes: list[tuple[Shape, FloatArray]]) -> Geometry:
     """One collision shape in R_i for a link's shapes (each with its pose in R_i)."""
     if len(shapes) == 1 and shapes[0][0].kind == "box":
         shape, T = shapes[0]
-        return {"type": "box", "size": shape.size.tolist(), "center": T[:3, 3].tolist(),
-                "rpy": matrix_to_rpy(T[:3, :3]).tolist()}  # fmt: skip
+        return Box(shape.size.copy(), T[:3, 3].copy(), matrix_to_rpy(T[:3, :3]))
     clouds, reach = [], 0.0
     for shape, T in shapes:
         pts, r = _shape_points(shape)
@@ -524,11 +502,11 @@ def build_arm(
         if shapes:
             geometry = _geometry(shapes)
         else:
-            geometry = {"type": "capsule", "radius": 0.01, "p0": com.tolist(), "p1": com.tolist()}
+            geometry = Capsule(0.01, com.copy(), com.copy())
             notes.append(f"link {j.child} has no shapes: a 1 cm sphere at its CoM")
         lower, upper = (j.lower, j.upper) if j.kind == "revolute" else (-math.pi, math.pi)
         rows.append(
-            ArmRow(
+            ArmLink(
                 name=j.child, a=a, alpha=alpha, d=d, theta_offset=theta, mass=float(mass),
                 com=com, geometry=geometry,
                 lower=float(lower if lower is not None else -math.pi),
@@ -554,12 +532,14 @@ def arm_section(arm: Arm, B_T_base: ArrayLike | None = None) -> dict[str, Any]:
     B_T_R0 = (np.eye(4) if B_T_base is None else np.asarray(B_T_base, float)) @ arm.base_T_R0
     links = []
     for r in arm.rows:
-        g = dict(r.geometry)
-        for key in ("size", "center", "rpy", "p0", "p1"):
-            if key in g:
-                g[key] = _clean(g[key])
-        if "radius" in g:
-            g["radius"] = float(f"{g['radius']:.12g}")
+        shape = r.geometry
+        g: dict[str, Any]
+        if isinstance(shape, Box):
+            g = {"type": "box", "size": _clean(shape.size), "center": _clean(shape.center),
+                 "rpy": _clean(shape.rpy)}  # fmt: skip
+        else:
+            g = {"type": "capsule", "radius": float(f"{shape.radius:.12g}"),
+                 "p0": _clean(shape.p0), "p1": _clean(shape.p1)}  # fmt: skip
         a, alpha, d, theta = _clean([r.a, r.alpha, r.d, r.theta_offset])
         links.append({
             "name": r.name, "dh": {"a": a, "alpha": alpha, "d": d, "theta_offset": theta},

@@ -240,8 +240,8 @@ def test_the_capsule_is_the_least_one_for_points_on_a_capsule(rng):
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)
     pts = np.r_[a + t * (b - a) + r * radial, a + r * u[:500], b + r * u[500:1000]]
     cap = enclosing_capsule(pts)
-    assert r <= cap["radius"] <= r + 1e-3
-    ends = sorted([cap["p0"], cap["p1"]])
+    assert r <= cap.radius <= r + 1e-3
+    ends = sorted([cap.p0.tolist(), cap.p1.tolist()])
     np.testing.assert_allclose(ends, sorted([a.tolist(), b.tolist()]), atol=2e-3)
 
 
