@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -49,6 +49,8 @@ RIM_POINTS = 48
 MASSLESS_KG = 1e-6
 MOVING = ("revolute", "continuous")
 Point = tuple[float, float]
+#: (URDF mesh filename, where it is named) -> the mesh's vertices (n, 3).
+MeshReader = Callable[[str, str], FloatArray]
 
 
 class Shape(NamedTuple):
@@ -114,7 +116,7 @@ def _origin(el: ET.Element | None) -> FloatArray:
     return homogeneous(rpy_matrix(_floats(el.get("rpy"), 3)), _floats(el.get("xyz"), 3))
 
 
-def _shape(el: ET.Element, where: str, mesh_file: Any) -> Shape:
+def _shape(el: ET.Element, where: str, mesh_file: MeshReader) -> Shape:
     geometry = el.find("geometry")
     if geometry is None or len(geometry) == 0:
         raise MmstabError(f"{where}: a shape without <geometry>")
@@ -133,7 +135,7 @@ def _shape(el: ET.Element, where: str, mesh_file: Any) -> Shape:
     raise MmstabError(f"{where}: unknown geometry <{g.tag}>")
 
 
-def _link(el: ET.Element, where: str, mesh_file: Any) -> Link:
+def _link(el: ET.Element, where: str, mesh_file: MeshReader) -> Link:
     name = el.get("name", "")
     link = Link(name)
     inertial = el.find("inertial")
@@ -169,7 +171,7 @@ def _joint(el: ET.Element) -> Joint:
     )
 
 
-def mesh_reader(urdf: Path, package_dirs: Sequence[Path] = ()) -> Any:
+def mesh_reader(urdf: Path, package_dirs: Sequence[Path] = ()) -> MeshReader:
     """A function (filename, where) -> vertices (n, 3) [file units] of a URDF mesh.
 
     ``package://pkg/path`` is looked for under each of ``package_dirs`` and the URDF's
@@ -202,7 +204,7 @@ def mesh_reader(urdf: Path, package_dirs: Sequence[Path] = ()) -> Any:
     return read
 
 
-def read_urdf(path: Path, mesh_file: Any) -> tuple[dict[str, Link], dict[str, Joint]]:
+def read_urdf(path: Path, mesh_file: MeshReader) -> tuple[dict[str, Link], dict[str, Joint]]:
     """The links by name and the joints by child link name of a URDF file.
 
     Raises:
