@@ -110,6 +110,9 @@ ROBOT = obj(
             # (planner.flipper_angles); not part of the description's hash (no cache uses it)
             limits=obj(lower=RAD, upper=RAD, rate=POS),
         ),
+        # optional: a rear pair, hinged at pivot (the left one), angle 0 pointing backward;
+        # it stays at its angle (the planner and --flipper move the front pair)
+        rear_flippers=obj(length=M_POS, width=M_POS, thickness=M_POS, pivot=VEC3_M, angle=RAD),
     ),
     arm=obj(
         mount=obj(xyz=VEC3_M, rpy=VEC3_RAD),

@@ -148,8 +148,9 @@ class Flippers:
     """Two coupled flippers; ``pivot`` is the left one's hinge [m], mirrored for the right.
 
     ``angle`` [rad] turns the flipper about the body's y axis at the hinge: 0 points it
-    straight forward, positive raises its tip. ``limits`` (optional in the file): the
-    range ``(lower, upper)`` [rad] and rate [rad/s] the planner may move them in.
+    straight forward (the rear pair, ``rear``: straight backward), positive raises its tip.
+    ``limits`` (optional in the file, front pair): the range ``(lower, upper)`` [rad] and
+    rate [rad/s] the planner may move them in.
     """
 
     length: float
@@ -158,27 +159,31 @@ class Flippers:
     pivot: FloatArray
     angle: float
     limits: FlipperLimits | None = None
+    rear: bool = False
 
     def box(self, side: Literal["left", "right"]) -> Box:
         """Collision box of one flipper in the body frame."""
         pivot = self.pivot * np.array([1.0, 1.0 if side == "left" else -1.0, 1.0])
-        direction = np.array([np.cos(self.angle), 0.0, np.sin(self.angle)])
+        ahead = -1.0 if self.rear else 1.0
+        direction = np.array([ahead * np.cos(self.angle), 0.0, np.sin(self.angle)])
         return Box(
             size=np.array([self.length, self.width, self.thickness]),
             center=pivot + direction * self.length / 2,
-            rpy=np.array([0.0, -self.angle, 0.0]),
+            rpy=np.array([0.0, -ahead * self.angle, 0.0]),
         )
 
 
 #: The base parts' names (:meth:`Base.collision_boxes`), in the collision checker's order.
-BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
+BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right",
+              "flipper_rear_left", "flipper_rear_right")  # fmt: skip
 
 
 @dataclass(frozen=True)
 class Base:
     """The tracked base: mass [kg], CoM [m] (body frame), and its collision parts.
 
-    ``flippers`` is None for a base without them (the file leaves ``base.flippers`` out).
+    ``flippers`` is None for a base without them (the file leaves ``base.flippers`` out);
+    ``rear_flippers``, a rear pair (``base.rear_flippers``), None for most.
     """
 
     mass: float
@@ -186,6 +191,12 @@ class Base:
     body: Box
     tracks: Tracks
     flippers: Flippers | None = None
+    rear_flippers: Flippers | None = None
+
+    def flipper_pairs(self) -> dict[str, Flippers]:
+        """The flipper pairs it has, by their parts' name prefix (``flipper``, ``flipper_rear``)."""
+        pairs = {"flipper": self.flippers, "flipper_rear": self.rear_flippers}
+        return {k: v for k, v in pairs.items() if v is not None}
 
     def collision_boxes(self) -> dict[str, Box]:
         """The base bodies by name, in the body frame (:data:`BASE_PARTS`' order)."""
@@ -194,9 +205,9 @@ class Base:
             "track_left": self.tracks.box("left"),
             "track_right": self.tracks.box("right"),
         }
-        if self.flippers is not None:
-            boxes["flipper_left"] = self.flippers.box("left")
-            boxes["flipper_right"] = self.flippers.box("right")
+        for prefix, pair in self.flipper_pairs().items():
+            boxes[f"{prefix}_left"] = pair.box("left")
+            boxes[f"{prefix}_right"] = pair.box("right")
         return boxes
 
     def support_points(self) -> FloatArray:
@@ -208,8 +219,9 @@ class Base:
         t = self.tracks
         half_l, half_w = t.length / 2, t.separation / 2 + t.width / 2
         pts = [np.array([sx * half_l, sy * half_w, 0.0]) for sx in (1, -1) for sy in (1, -1)]
-        for side in ("left", "right") if self.flippers is not None else ():
-            corners = self.flippers.box(side).corners()  # type: ignore[union-attr]
-            low = corners[corners[:, 2] <= FLIPPER_CONTACT_TOL]
-            pts.extend(np.array([c[0], c[1], 0.0]) for c in low)
+        for pair in self.flipper_pairs().values():
+            for side in ("left", "right"):
+                corners = pair.box(side).corners()
+                low = corners[corners[:, 2] <= FLIPPER_CONTACT_TOL]
+                pts.extend(np.array([c[0], c[1], 0.0]) for c in low)
         return np.array(pts)

@@ -211,6 +211,9 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
         ),
         tracks=Tracks(**{k: float(v) for k, v in b["tracks"].items()}),
         flippers=None if "flippers" not in b else _flippers(p, b["flippers"]),
+        rear_flippers=None
+        if "rear_flippers" not in b
+        else _flippers(p, b["rear_flippers"], "base.rear_flippers"),
     )
     mount = data["arm"]["mount"]
     # The flipper limits change no cached artefact (V, generated code), so they are not hashed.
@@ -227,8 +230,8 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
     )
 
 
-def _flippers(path: Path, fl: dict[str, Any]) -> Flippers:
-    """``base.flippers``: the flippers, their limits within range, not below the ground.
+def _flippers(path: Path, fl: dict[str, Any], key: str = "base.flippers") -> Flippers:
+    """A flipper pair (``key``: ``base.flippers`` or ``base.rear_flippers``), not below ground.
 
     Raises:
         ConfigError: limits out of order, the angle outside them, flippers below the ground.
@@ -236,9 +239,9 @@ def _flippers(path: Path, fl: dict[str, Any]) -> Flippers:
     limits = None
     if "limits" in fl:
         lim = fl["limits"]
-        check_order(path, "base.flippers.limits", lim["lower"], lim["upper"])
+        check_order(path, f"{key}.limits", lim["lower"], lim["upper"])
         if not lim["lower"] <= fl["angle"] <= lim["upper"]:
-            raise ConfigError(path, "base.flippers.angle", "is outside base.flippers.limits")
+            raise ConfigError(path, f"{key}.angle", f"is outside {key}.limits")
         limits = FlipperLimits(float(lim["lower"]), float(lim["upper"]), float(lim["rate"]))
     flippers = Flippers(
         length=float(fl["length"]),
@@ -247,12 +250,13 @@ def _flippers(path: Path, fl: dict[str, Any]) -> Flippers:
         pivot=np.array(fl["pivot"], float),
         angle=float(fl["angle"]),
         limits=limits,
+        rear=key == "base.rear_flippers",
     )
     lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
     if lowest < -FLIPPER_CONTACT_TOL:
         raise ConfigError(
             path,
-            "base.flippers.angle",
+            f"{key}.angle",
             f"flippers reach {-lowest:.3f} m below the ground; raise them",
         )
     return flippers

@@ -56,7 +56,7 @@ from mmstab.model.robot import ArmLink, Box, FloatArray, Geometry, Robot, homoge
 DEFAULT_EFFORT = 100.0
 
 #: Names of the base links, in the order of ``Base.collision_boxes()`` (a base without
-#: flippers has the first three).
+#: flippers has the first three; a rear pair adds ``flipper_rear_left/right``).
 BASE_LINKS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
 
 _MATERIALS = {

@@ -59,7 +59,6 @@ def collision_geoms(robot: Robot, flipper_angle: float | None = None) -> list[Co
     if flipper_angle is not None:
         robot = with_flipper_angle(robot, flipper_angle)
     base = robot.base
-    flippers = base.flippers
     t = base.tracks
     r = t.height / 2
     axis_y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z -> y
@@ -76,8 +75,8 @@ def collision_geoms(robot: Robot, flipper_angle: float | None = None) -> list[Co
                     pose_matrix(axis_y, c),
                 )
             )
-        if flippers is not None:
-            geoms.append(_box_geom(f"flipper_{side}", flippers.box(side)))  # type: ignore[arg-type]
+        for prefix, pair in base.flipper_pairs().items():
+            geoms.append(_box_geom(f"{prefix}_{side}", pair.box(side)))  # type: ignore[arg-type]
     geoms.append(_box_geom("chassis", base.body))
     return geoms
 

@@ -5,7 +5,7 @@ Tree (frames as in ``docs/design.md``, "Frames"; the body frame B is MuJoCo's bo
     base (free joint; carries the chassis box "body")
     ├── track_left, track_right       welded at the track boxes' poses
     │   └── wheel_<side>_NN           road wheels: [drop,] suspension slides (z), hinge (y)
-    ├── flipper_left, flipper_right   welded at the flippers' angle
+    ├── flipper_left, flipper_right   welded at the flippers' angle (a rear pair too)
     └── arm_<link 0> ─ … ─ arm_<link 3> [─ payload]
         hinge joints with position servos; each body's frame IS mmstab's DH frame R_i
 
@@ -308,12 +308,12 @@ def _base_xml(robot: Robot, s: ModelSettings, payload: Payload | None) -> list[s
     ]
     for side in ("left", "right"):
         out += _track_xml(robot, side, parts[f"track_{side}"], s)
-    for side in ("left", "right") if "flipper_left" in boxes else ():
-        box = boxes[f"flipper_{side}"]
+    for name in (n for n in boxes if n.startswith("flipper_")):
+        box = boxes[name]
         out += [
-            f'<body name="flipper_{side}" {_frame(box.frame_T_shape)}>',
-            f"  {_inertial_xml(parts[f'flipper_{side}'])}",
-            f'  <geom name="flipper_{side}" type="box" size="{_f(box.size / 2)}"/>',
+            f'<body name="{name}" {_frame(box.frame_T_shape)}>',
+            f"  {_inertial_xml(parts[name])}",
+            f'  <geom name="{name}" type="box" size="{_f(box.size / 2)}"/>',
             "</body>",
         ]
     return out + _arm_xml(robot, payload, s.arm_armature)

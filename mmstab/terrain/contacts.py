@@ -10,7 +10,7 @@ z up. The candidates are the points of the base that can touch the ground:
   straight down to straight ahead/behind), on rows across the belt at most ``spacing``
   apart, both track edges (y = centre +- width/2) included.
 * **flippers**: the box of :meth:`mmstab.model.robot.Flippers.box` at the flipper angle; points
-  along its two lower long edges.
+  along its two lower long edges (the rear pair's at its own angle).
 * **chassis**: the bottom face of ``base.body`` (z = centre_z - size_z/2): its corners,
   points along its edges and a grid inside it, all at most ``spacing`` apart.
 
@@ -163,10 +163,12 @@ def contact_candidates(
         for y in _across(yc, t.width, spacing)[::-1]:  # the left edge first, as before
             parts.append(np.stack([prof[:, 0], np.full(len(prof), y), prof[:, 1]], axis=1))
             codes += [TRACK] * len(prof)
-    for side in ("left", "right") if flippers is not None else ():
-        pts = flipper_edges(flippers, side, spacing)  # type: ignore[arg-type]
-        parts.append(pts)
-        codes += [FLIPPER] * len(pts)
+    pairs = [f for f in (flippers, base.rear_flippers) if f is not None]  # the rear pair last
+    for pair in pairs:
+        for side in ("left", "right"):
+            pts = flipper_edges(pair, side, spacing)
+            parts.append(pts)
+            codes += [FLIPPER] * len(pts)
     chassis = np.concatenate([chassis_outline(base, spacing), chassis_inside(base, spacing)])
     parts.append(chassis)
     codes += [CHASSIS] * len(chassis)

@@ -118,15 +118,13 @@ class Ramp:
 
         if flipper_angle is not None:
             robot = with_flipper_angle(robot, flipper_angle)
-        flippers = robot.base.flippers
-        if flippers is None:
-            return self
-        lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
-        if lowest < -FLIPPER_CONTACT_TOL:
-            raise MmstabError(
-                f"flipper angle {flippers.angle:g} rad: the flippers reach {-lowest:.3f} m "
-                "into the ramp; raise them"
-            )
+        for prefix, pair in robot.base.flipper_pairs().items():
+            lowest = min(pair.box(s).corners()[:, 2].min() for s in ("left", "right"))
+            if lowest < -FLIPPER_CONTACT_TOL:
+                raise MmstabError(
+                    f"flipper angle {pair.angle:g} rad: the {prefix.replace('_', ' ')}s reach "
+                    f"{-lowest:.3f} m into the ramp; raise them"
+                )
         return self
 
     def support(self, robot: Robot, pose: ArrayLike) -> Support:
