@@ -152,23 +152,29 @@ def test_a_flipper_section_with_a_wrong_key_still_names_it(tmp_path):
         robot_from_dict(data, Path(tmp_path / "typo.yaml"))
 
 
-@pytest.mark.mujoco
-def test_the_mujoco_robot_has_no_flipper_bodies_and_the_descriptions_mass(plain):
+def mujoco_model_of(robot, q: np.ndarray) -> tuple[set[str], float, np.ndarray]:
+    """MuJoCo's whole robot on a ramp at posture q: its geoms' names, mass and CoM in B."""
     mujoco = pytest.importorskip("mujoco")
     from test_physics_robot import mujoco_composite
 
     from mmstab.physics.robot_model import build_robot_mjcf
 
-    q = np.array([0.4, 0.9, -0.7])
     model = mujoco.MjModel.from_xml_string(
-        build_robot_mjcf(plain, Ramp(0.2), pose=(0.1, 0.2, 0.5), arm_q=q)
+        build_robot_mjcf(robot, Ramp(0.2), pose=(0.1, 0.2, 0.5), arm_q=q)
     )
     geom = mujoco.mjtObj.mjOBJ_GEOM
-    names = [mujoco.mj_id2name(model, geom, i) or "" for i in range(model.ngeom)]
-    assert not any("flipper" in n for n in names) and "chassis" in names
+    names = {mujoco.mj_id2name(model, geom, i) or "" for i in range(model.ngeom)}
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     mujoco.mj_forward(model, data)
     mass, com, _ = mujoco_composite(model, data)
+    return names, mass, com
+
+
+@pytest.mark.mujoco
+def test_the_mujoco_robot_has_no_flipper_bodies_and_the_descriptions_mass(plain):
+    q = np.array([0.4, 0.9, -0.7])
+    names, mass, com = mujoco_model_of(plain, q)
+    assert not any("flipper" in n for n in names) and "chassis" in names
     assert mass == pytest.approx(plain.total_mass, abs=1e-9)
     np.testing.assert_allclose(com, plain.overall_com(plain.arm_com(q)), atol=1e-9)

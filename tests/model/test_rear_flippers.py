@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from conftest import SCOUT
 from test_one_mu import user_ground
+from test_plain_base import mujoco_model_of
 
 from mmstab.core.files import ConfigError, MmstabError
 from mmstab.model.collision import CollisionChecker
@@ -94,23 +95,10 @@ def test_rear_flippers_below_the_ground_and_their_angle_set_are_refused():
 
 @pytest.mark.mujoco
 def test_the_mujoco_robot_has_the_rear_pair_and_the_descriptions_mass():
-    mujoco = pytest.importorskip("mujoco")
-    from test_physics_robot import mujoco_composite
-
-    from mmstab.physics.robot_model import build_robot_mjcf
-
     two = robot_from_dict(turned(front()), "b.yaml")
     q = np.array([0.4, 0.9, -0.7])
-    model = mujoco.MjModel.from_xml_string(
-        build_robot_mjcf(two, Ramp(0.2), pose=(0.1, 0.2, 0.5), arm_q=q)
-    )
-    geom = mujoco.mjtObj.mjOBJ_GEOM
-    names = {mujoco.mj_id2name(model, geom, i) for i in range(model.ngeom)}
+    names, mass, com = mujoco_model_of(two, q)
     assert {"flipper_rear_left", "flipper_rear_right"} <= names
     assert not {"flipper_left", "flipper_right"} & names
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    mujoco.mj_forward(model, data)
-    mass, com, _ = mujoco_composite(model, data)
     assert mass == pytest.approx(two.total_mass, abs=1e-9)
     np.testing.assert_allclose(com, two.overall_com(two.arm_com(q)), atol=1e-9)
