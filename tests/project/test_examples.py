@@ -15,6 +15,7 @@ EXPECTED = {
     "plan_route.py": "below 450 N rad with the arm stowed only",
     "track_route.py": "tipped at: None",
     "controller_loop.py": "arm CoM error 0.00 mm",
+    "your_robot.py": "least mu reaching forward",
 }
 
 
