@@ -101,72 +101,103 @@ class Arm(NamedTuple):
 
 
 # ------------------------------------------------------------------------------- reading
-def _floats(text: str | None, n: int, default: float = 0.0) -> FloatArray:
+def _floats(text: str | None, n: int, default: float = 0.0, what: str = "") -> FloatArray:
+    """``n`` finite numbers from attribute ``what``'s text (``default`` each where absent)."""
     if text is None:
         return np.full(n, default)
-    values = [float(v) for v in text.split()]
-    if len(values) != n:
-        raise ValueError(f"{text!r}: {n} numbers expected")
-    return np.array(values)
+    try:
+        values = np.array([float(v) for v in text.split()])
+    except ValueError:
+        values = np.zeros(0)
+    if len(values) != n or not np.isfinite(values).all():
+        raise ValueError(f"{what}: {text!r} is not {n} finite number{'s' if n > 1 else ''}")
+    return values
+
+
+def _number(el: ET.Element | None, key: str, what: str, minimum: float | None = None) -> float:
+    """A finite number attribute (above ``minimum`` where given); ``what`` names it."""
+    text = None if el is None else el.get(key)
+    if text is None:
+        raise ValueError(f"{what}: missing")
+    value = float(_floats(text, 1, what=what)[0])
+    if minimum is not None and not value > minimum:
+        raise ValueError(f"{what}: {value:g} is not above {minimum:g}")
+    return value
 
 
 def _origin(el: ET.Element | None) -> FloatArray:
     if el is None:
         return np.eye(4)
-    return homogeneous(rpy_matrix(_floats(el.get("rpy"), 3)), _floats(el.get("xyz"), 3))
+    rpy = _floats(el.get("rpy"), 3, what=f"<{el.tag} rpy>")
+    return homogeneous(rpy_matrix(rpy), _floats(el.get("xyz"), 3, what=f"<{el.tag} xyz>"))
 
 
-def _shape(el: ET.Element, where: str, mesh_file: MeshReader) -> Shape:
+def _shape(el: ET.Element, mesh_file: MeshReader, where: str) -> Shape:
     geometry = el.find("geometry")
     if geometry is None or len(geometry) == 0:
-        raise MmstabError(f"{where}: a shape without <geometry>")
+        raise ValueError("a shape without <geometry>")
     g, T = geometry[0], _origin(el.find("origin"))
     if g.tag == "box":
-        return Shape("box", _floats(g.get("size"), 3), T)
+        size = _floats(g.get("size"), 3, what="<box size>")
+        if not (size > 0).all():
+            raise ValueError(f"<box size>: {g.get('size')!r} is not three lengths above 0")
+        return Shape("box", size, T)
     if g.tag == "cylinder":
-        return Shape(
-            "cylinder", np.array([float(g.get("radius", "")), float(g.get("length", ""))]), T
-        )
+        radius = _number(g, "radius", "<cylinder radius>", 0.0)
+        length = _number(g, "length", "<cylinder length>", 0.0)
+        return Shape("cylinder", np.array([radius, length]), T)
     if g.tag == "sphere":
-        return Shape("sphere", np.array([float(g.get("radius", ""))]), T)
+        return Shape("sphere", np.array([_number(g, "radius", "<sphere radius>", 0.0)]), T)
     if g.tag == "mesh":
-        points = mesh_file(g.get("filename", ""), where) * _floats(g.get("scale"), 3, 1.0)
+        scale = _floats(g.get("scale"), 3, 1.0, "<mesh scale>")
+        points = mesh_file(g.get("filename", ""), where) * scale
         return Shape("mesh", np.zeros(0), T, points)
-    raise MmstabError(f"{where}: unknown geometry <{g.tag}>")
+    raise ValueError(f"unknown geometry <{g.tag}>")
 
 
-def _link(el: ET.Element, where: str, mesh_file: MeshReader) -> Link:
-    name = el.get("name", "")
-    link = Link(name)
+def _link(el: ET.Element, mesh_file: MeshReader, where: str) -> Link:
+    link = Link(el.get("name", ""))
     inertial = el.find("inertial")
     if inertial is not None and inertial.find("mass") is not None:
-        link.mass = float(inertial.find("mass").get("value", "0"))  # type: ignore[union-attr]
+        link.mass = _number(inertial.find("mass"), "value", "<mass value>")
+        if link.mass < 0:
+            raise ValueError(f"<mass value>: {link.mass:g} is below 0")
         link.com = _origin(inertial.find("origin"))[:3, 3]
     elements = el.findall("collision") or el.findall("visual")
-    link.shapes = [_shape(c, f"{where}: link {name}", mesh_file) for c in elements]
+    link.shapes = [_shape(c, mesh_file, where) for c in elements]
     return link
 
 
 def _joint(el: ET.Element) -> Joint:
     limit = el.find("limit")
 
-    def attr(key: str) -> float | None:
-        value = None if limit is None else limit.get(key)
-        return None if value is None else float(value)
+    def attr(key: str, minimum: float | None = None) -> float | None:
+        if limit is None or limit.get(key) is None:
+            return None
+        return _number(limit, key, f"<limit {key}>", minimum)
 
-    axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None, 3)  # type: ignore[union-attr]
-    if not axis.any():
+    axis_el = el.find("axis")
+    axis = _floats(None if axis_el is None else axis_el.get("xyz"), 3, what="<axis xyz>")
+    if axis_el is None:
         axis = np.array([1.0, 0.0, 0.0])  # URDF's default
+    if not np.linalg.norm(axis) > 0:
+        raise ValueError("<axis xyz> is the zero vector")
+    lower, upper = attr("lower"), attr("upper")
+    if lower is not None and upper is not None and lower > upper:
+        raise ValueError(f"<limit>: lower {lower:g} is above upper {upper:g}")
+    parent, child = el.find("parent"), el.find("child")
+    if parent is None or child is None:
+        raise ValueError("no <parent> or no <child>")
     return Joint(
         name=el.get("name", ""),
         kind=el.get("type", ""),
-        parent=el.find("parent").get("link", ""),  # type: ignore[union-attr]
-        child=el.find("child").get("link", ""),  # type: ignore[union-attr]
+        parent=parent.get("link", ""),
+        child=child.get("link", ""),
         origin=_origin(el.find("origin")),
         axis=axis / np.linalg.norm(axis),
-        lower=attr("lower"),
-        upper=attr("upper"),
-        velocity=attr("velocity"),
+        lower=lower,
+        upper=upper,
+        velocity=attr("velocity", 0.0),
         mimic=el.find("mimic") is not None,
     )
 
@@ -216,11 +247,26 @@ def read_urdf(path: Path, mesh_file: MeshReader) -> tuple[dict[str, Link], dict[
         raise MmstabError(f"{path}: not a readable URDF file ({e})") from None
     if root.tag != "robot":
         raise MmstabError(f"{path}: not a URDF file (root <{root.tag}>, not <robot>)")
-    try:
-        links = {el.get("name", ""): _link(el, str(path), mesh_file) for el in root.findall("link")}
-        joints = [_joint(el) for el in root.findall("joint")]
-    except (ValueError, AttributeError) as e:
-        raise MmstabError(f"{path}: a malformed link or joint ({e})") from None
+    links: dict[str, Link] = {}
+    for el in root.findall("link"):
+        where = f"{path}: link {el.get('name', '')}"
+        try:
+            links[el.get("name", "")] = _link(el, mesh_file, where)
+        except ValueError as e:
+            raise MmstabError(f"{where}: {e}") from None
+    joints = []
+    for el in root.findall("joint"):
+        try:
+            joints.append(_joint(el))
+        except ValueError as e:
+            raise MmstabError(f"{path}: joint {el.get('name', '')}: {e}") from None
+        for role in ("parent", "child"):
+            name = getattr(joints[-1], role)
+            if name not in links:
+                raise MmstabError(
+                    f"{path}: joint {joints[-1].name}: {role} {name!r} is no link of the file"
+                    f"{did_you_mean(name, list(links))}"
+                )
     return links, {j.child: j for j in joints}
 
 
@@ -441,7 +487,7 @@ def build_arm(
     for j in chain:
         if j.kind not in (*MOVING, "fixed"):
             raise MmstabError(
-                f"{path}: joint {j.name} is {j.kind}: mmstab's arm has revolute joints only"
+                f"{path}: joint {j.name} is {j.kind!r}: mmstab's arm has revolute joints only"
             )
         if j.kind in MOVING and j.mimic:
             raise MmstabError(f"{path}: joint {j.name} mimics another: not an independent joint")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -270,7 +271,7 @@ def test_the_command_writes_a_section_a_robot_file_takes(tmp_path, capsys):
     [
         (None, ["--tip", "tol"], "--tip: no link 'tol'; did you mean 'tool'?"),
         (None, ["--tip", "base_link", "--base", "tool"], "does not hang below --base"),
-        (("finger", "tool"), ["--tip", "finger"], "joint finger is prismatic"),
+        (("finger", "tool"), ["--tip", "finger"], "joint finger is 'prismatic'"),
         (("arm_pkg", "no_pkg"), [], "mesh package://no_pkg/meshes/link.stl not found"),
         (('velocity="2.0"', ""), [], "joint j0: no <limit velocity=...> [rad/s]"),
         (("<robot", "<rob"), [], "not a readable URDF file"),
@@ -358,3 +359,35 @@ def test_a_ur5_gives_its_published_flange_and_no_off_segment_link(tmp_path, rng)
     np.testing.assert_allclose(flange, [ur5_flange(qi) for qi in q], rtol=0, atol=1e-9)
     # its links sit off their DH segments only along the joint axes (shoulder, elbow offsets)
     assert link_extent_warnings(robot) == []
+
+
+#: What a mutation writes into one attribute of a URDF.
+MUTATIONS = ("", "abc", "nan", "1e309", "0 0", "-1")
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_a_mutated_urdf_gives_a_loadable_arm_or_one_line(seed, tmp_path, capsys):
+    """One attribute replaced (and sometimes an element dropped) in a drawn URDF or the UR5:
+    exit 0 with a section a robot file takes, or exit 2 with one line naming the file."""
+    rng = np.random.default_rng([2026, seed])
+    if seed % 2:
+        path, tip = random_arm_urdf(np.random.default_rng(seed % 5), tmp_path)[0], "tool"
+    else:
+        path, tip = ur5_urdf(tmp_path), "tool0"
+    text = path.read_text()
+    attrs = list(re.finditer(r'(\w+)="([^"]*)"', text))
+    m = attrs[rng.integers(len(attrs))]
+    text = text[: m.start(2)] + MUTATIONS[rng.integers(len(MUTATIONS))] + text[m.end(2) :]
+    if rng.random() < 0.3:
+        tags = list(re.finditer(r"<(origin|axis|limit|mass|geometry|parent|child)[^>]*/>", text))
+        t = tags[rng.integers(len(tags))]
+        text = text[: t.start()] + text[t.end() :]
+    path.write_text(text)
+    out = tmp_path / "arm.yaml"
+    status = main(["arm-from-urdf", str(path), "--base", "base_link", "--tip", tip, "-o", str(out)])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "note:" not in ln]
+    if status == 0:
+        robot_with_arm(yaml.safe_load(out.read_text())["arm"])  # loads, or raises
+    else:
+        assert status == 2 and len(err) == 1 and str(path) in err[0], err
+        assert not out.exists()
