@@ -21,9 +21,10 @@ from conftest import SCOUT
 
 from mmstab.cli import main
 from mmstab.core.files import MmstabError
+from mmstab.model.enclosing import enclosing_capsule
 from mmstab.model.robot import load_robot, robot_from_dict
 from mmstab.model.urdf import write_urdf
-from mmstab.model.urdf_arm import arm_section, build_arm, enclosing_capsule
+from mmstab.model.urdf_arm import arm_section, build_arm
 
 pin = pytest.importorskip("pinocchio")
 trimesh = pytest.importorskip("trimesh")
@@ -264,6 +265,20 @@ def test_the_command_writes_a_section_a_robot_file_takes(tmp_path, capsys):
     c, s = math.cos(0.5), math.sin(0.5)
     turned = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ alone.arm_com(q) + [0.1, 0, 0.2]
     np.testing.assert_allclose(loaded.arm_com(q), turned, atol=1e-9)
+
+
+def test_meshes_of_a_package_elsewhere_are_found_with_package_dir(tmp_path, capsys):
+    urdf_dir, packages = tmp_path / "robot", tmp_path / "src"
+    urdf_dir.mkdir()
+    packages.mkdir()
+    path, _ = random_arm_urdf(np.random.default_rng(3), urdf_dir)
+    beside = arm_section(build_arm(path, "base_link", "tool"))  # the package beside the URDF
+    (urdf_dir / "arm_pkg").rename(packages / "arm_pkg")
+    argv = ["arm-from-urdf", str(path), "--base", "base_link", "--tip", "tool"]
+    assert main(argv) == 2
+    assert "mesh package://arm_pkg/meshes/link.stl not found" in capsys.readouterr().err
+    assert main([*argv, "--package-dir", str(packages)]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["arm"] == beside
 
 
 @pytest.mark.parametrize(
