@@ -116,8 +116,17 @@ def build_parser() -> argparse.ArgumentParser:
     help_text = "the robot file's arm: section from a URDF's chain of revolute joints"
     p = sub.add_parser("arm-from-urdf", help=help_text, description=help_text)
     p.add_argument("urdf", help="URDF file of the arm (or of a robot that has it)")
-    p.add_argument("--base", required=True, help="the link the arm is mounted on")
-    p.add_argument("--tip", required=True, help="the arm's last link (its flange or tool)")
+    p.add_argument(
+        "--base",
+        default=None,
+        help="the link the arm is mounted on (default: the file's root link)",
+    )
+    p.add_argument(
+        "--tip",
+        default=None,
+        help="the arm's last link, its flange or tool "
+        "(default: the one leaf below the most revolute joints)",
+    )
     p.add_argument(
         "--mount",
         nargs=6,

@@ -164,7 +164,7 @@ def arm_from_urdf(args: argparse.Namespace) -> int:
         check_output_dir(Path(args.out).parent, f"output file {args.out}: folder")
     arm = build_arm(args.urdf, args.base, args.tip, args.package_dir)
     header = (
-        f"# The arm of {args.urdf} from link {args.base} to link {args.tip}, written by\n"
+        f"# The arm of {args.urdf} from link {arm.base} to link {arm.tip}, written by\n"
         "# mmstab arm-from-urdf: the robot file's arm: section (docs/robot.md). Check the\n"
         "# mount (the base link's place on the body) and the stowed posture.\n"
     )

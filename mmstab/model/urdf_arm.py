@@ -93,11 +93,16 @@ class Joint(NamedTuple):
 
 
 class Arm(NamedTuple):
-    """The arm read from URDF: the mount R_0 in the base link (4, 4), rows, notes."""
+    """The arm read from URDF: the mount R_0 in the base link (4, 4), rows, notes, links.
+
+    ``base`` and ``tip``: the links it was read between (found where not given).
+    """
 
     base_T_R0: FloatArray
     rows: tuple[ArmLink, ...]
     notes: tuple[str, ...]
+    base: str = ""
+    tip: str = ""
 
 
 # ------------------------------------------------------------------------------- reading
@@ -347,23 +352,63 @@ def _geometry(shapes: list[tuple[Shape, FloatArray]]) -> Geometry:
 
 
 # --------------------------------------------------------------------------------- chain
-def _chain(links: dict[str, Link], joints: dict[str, Joint], base: str, tip: str) -> list[Joint]:
-    for role, name in (("--base", base), ("--tip", tip)):
-        if name not in links:
-            raise MmstabError(f"{role}: no link {name!r}{did_you_mean(name, list(links))}")
-    chain, at = [], tip
+def _path_up(joints: dict[str, Joint], tip: str, base: str) -> list[Joint] | None:
+    """The joints from ``base`` down to ``tip``, or None where ``tip`` is not below it."""
+    chain: list[Joint] = []
+    at = tip
     while at != base:
-        if at not in joints:
-            raise MmstabError(f"--tip: link {tip!r} does not hang below --base {base!r}")
+        if at not in joints or len(chain) > len(joints):  # the root, or a loop
+            return None
         chain.append(joints[at])
         at = joints[at].parent
     return chain[::-1]
 
 
+def _chain(
+    links: dict[str, Link], joints: dict[str, Joint], base: str | None, tip: str | None
+) -> list[Joint]:
+    """The joints from ``base`` to ``tip``; without them, the file's root and its one tip.
+
+    The tip, when not given, is the leaf link below the most revolute joints, reached through
+    revolute, continuous and fixed joints only (a gripper's prismatic finger is no tip).
+    """
+    for role, name in (("--base", base), ("--tip", tip)):
+        if name is not None and name not in links:
+            raise MmstabError(f"{role}: no link {name!r}{did_you_mean(name, list(links))}")
+    if base is None:
+        roots = sorted(n for n in links if n not in joints)
+        if len(roots) != 1:
+            raise MmstabError(f"--base: the file has {len(roots)} root links; give one")
+        base = roots[0]
+    if tip is None:
+        parents = {j.parent for j in joints.values()}
+        paths = {n: _path_up(joints, n, base) for n in links if n not in parents}
+        arms = {n: c for n, c in paths.items()
+                if c and all(j.kind in (*MOVING, "fixed") and not j.mimic for j in c)}  # fmt: skip
+        most = max((sum(j.kind in MOVING for j in c) for c in arms.values()), default=0)
+        tips = sorted(n for n, c in arms.items() if sum(j.kind in MOVING for j in c) == most)
+        if most == 0 or len(tips) != 1:
+            listed = ", ".join(tips) or "none"
+            raise MmstabError(
+                f"--tip: no single tip below {base!r} (candidates: {listed}); give one"
+            )
+        tip = tips[0]
+    chain = _path_up(joints, tip, base)
+    if chain is None:
+        raise MmstabError(f"--tip: link {tip!r} does not hang below --base {base!r}")
+    return chain
+
+
 def build_arm(
-    path: str | Path, base: str, tip: str, package_dirs: Sequence[str | Path] = ()
+    path: str | Path,
+    base: str | None = None,
+    tip: str | None = None,
+    package_dirs: Sequence[str | Path] = (),
 ) -> Arm:
     """The arm of a URDF file from link ``base`` to link ``tip``, in DH (module docstring).
+
+    Without ``base``, the file's root link; without ``tip``, the one leaf link below the most
+    revolute joints (refused, listing them, where several tie).
 
     Raises:
         MmstabError: a missing file or link (with the closest name), no chain between the
@@ -375,6 +420,9 @@ def build_arm(
         raise MmstabError(f"{path}: no such URDF file")
     links, joints = read_urdf(path, mesh_reader(path, [Path(p) for p in package_dirs]))
     chain = _chain(links, joints, base, tip)
+    if not chain:
+        raise MmstabError(f"{path}: no joint between {base} and {tip}")
+    base, tip = chain[0].parent, chain[-1].child  # found, where not given
     for j in chain:
         if j.kind not in (*MOVING, "fixed"):
             raise MmstabError(
@@ -453,7 +501,7 @@ def build_arm(
                 velocity=float(j.velocity),  # type: ignore[arg-type]
             )
         )  # fmt: skip
-    return Arm(base_T_R0, tuple(rows), tuple(notes))
+    return Arm(base_T_R0, tuple(rows), tuple(notes), chain[0].parent, chain[-1].child)
 
 
 def _clean(v: ArrayLike) -> list[float]:
