@@ -18,10 +18,10 @@ to x_i at q = 0, so every joint keeps its URDF zero and sign.
 **Links.** Link i is joint i's child link with every link fixed to it (fixed joints,
 recursively): masses summed, the CoM mass-weighted, in R_i. Links further along moving
 joints that are not on the chain (a gripper's fingers) are left out, with a note. The
-collision shape: a URDF link with one box keeps it; otherwise the smallest capsule about an
-axis fitted to all its collision shapes' points (box corners, cylinder rims and spheres
-sampled with the sag added to the radius, mesh vertices) encloses them all. A link without
-collision shapes takes its visual ones.
+collision shape: a URDF link with one box keeps it; otherwise the least-volume capsule
+(:mod:`mmstab.model.enclosing`) holding all its collision shapes' points (box corners,
+cylinder rims and spheres sampled with the sag added to the radius, mesh vertices). A link
+without collision shapes takes its visual ones.
 
 Checked against pinocchio reading the same file (``tests/model/test_urdf_arm.py``).
 """
