@@ -157,7 +157,7 @@ def variant_axis(
         variant = with_flipper_angle(robot, angle)
         flippers = variant.base.flippers
         assert flippers is not None  # the robot's have been set
-        low = float(flippers.box("left").corners()[:, 2].min())
+        low = flippers.lowest()
         if low < -FLIPPER_CONTACT_TOL:
             raise ConfigError(
                 problem.path,

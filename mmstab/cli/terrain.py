@@ -115,13 +115,10 @@ def _rest(args: argparse.Namespace) -> None:
             "pose": dict(zip(("x_m", "y_m", "yaw_rad"), map(float, args.pose), strict=True)),
             "arm": "stowed" if q is None else "given",
             "arm_q_rad": (robot.stowed if q is None else q).tolist(),
-            "flipper_angle_rad": (
-                args.flipper
-                if args.flipper is not None  # none: a base without flippers
-                else None
-                if flippers is None
-                else flippers.angle
-            ),
+            # the file's angle; none for a base without flippers
+            "flipper_angle_rad": args.flipper
+            if args.flipper is not None
+            else getattr(flippers, "angle", None),
         }
         print(json.dumps({**st.to_json(), **echoed, "units": REST_UNITS}, allow_nan=True))
         return

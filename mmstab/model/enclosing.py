@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from mmstab.model.robot import Capsule, FloatArray
+from mmstab.model.urdf import axis_to_z_rotation
 
 Point = tuple[float, float]
 
@@ -70,12 +71,10 @@ def _circle(points: FloatArray) -> tuple[FloatArray, float]:
         support.append(points[k])
 
 
-def _capsule_along(pts: FloatArray, u: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-    """The smallest capsule along direction u holding the points: volume, p0, p1 (radius last)."""
-    u = u / np.linalg.norm(u)
-    e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
+def _capsule_along(pts: FloatArray, u: FloatArray) -> tuple[float, Capsule]:
+    """The smallest capsule along direction u holding the points, and its volume [m^3]."""
+    R = axis_to_z_rotation(u)
+    e1, e2, u = R[:, 0], R[:, 1], R[:, 2]
     flat = np.c_[pts @ e1, pts @ e2]
     centre2, radius = _circle(flat)
     t = pts @ u
@@ -86,7 +85,7 @@ def _capsule_along(pts: FloatArray, u: FloatArray) -> tuple[float, FloatArray, F
         t0 = t1 = (t0 + t1) / 2
     foot = centre2[0] * e1 + centre2[1] * e2
     volume = np.pi * radius**2 * (t1 - t0) + 4 / 3 * np.pi * radius**3
-    return float(volume), np.r_[foot + t0 * u, radius], np.r_[foot + t1 * u, radius]
+    return float(volume), Capsule(float(radius), foot + t0 * u, foot + t1 * u)
 
 
 def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> Capsule:
@@ -124,5 +123,5 @@ def enclosing_capsule(points: FloatArray, reach: float = 0.0) -> Capsule:
         if best is None or found[0] < best[0]:
             best = found
     assert best is not None
-    _, p0, p1 = best
-    return Capsule(float(p0[3]) + reach + 1e-9, p0[:3], p1[:3])
+    capsule = best[1]
+    return Capsule(capsule.radius + reach + 1e-9, capsule.p0, capsule.p1)

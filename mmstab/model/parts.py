@@ -172,6 +172,10 @@ class Flippers:
             rpy=np.array([0.0, -ahead * self.angle, 0.0]),
         )
 
+    def lowest(self) -> float:
+        """The height of the pair's lowest corner above the tracks' bottom (z = 0 in B) [m]."""
+        return float(min(self.box(s).corners()[:, 2].min() for s in ("left", "right")))
+
 
 #: The base parts' names (:meth:`Base.collision_boxes`), in the collision checker's order.
 BASE_PARTS = ("body", "track_left", "track_right", "flipper_left", "flipper_right",

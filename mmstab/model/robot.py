@@ -213,7 +213,7 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
         flippers=None if "flippers" not in b else _flippers(p, b["flippers"]),
         rear_flippers=None
         if "rear_flippers" not in b
-        else _flippers(p, b["rear_flippers"], "base.rear_flippers"),
+        else _flippers(p, b["rear_flippers"], rear=True),
     )
     mount = data["arm"]["mount"]
     # The flipper limits change no cached artefact (V, generated code), so they are not hashed.
@@ -230,12 +230,13 @@ def robot_from_dict(data: dict[str, Any], path: str | os.PathLike[str] = "<robot
     )
 
 
-def _flippers(path: Path, fl: dict[str, Any], key: str = "base.flippers") -> Flippers:
-    """A flipper pair (``key``: ``base.flippers`` or ``base.rear_flippers``), not below ground.
+def _flippers(path: Path, fl: dict[str, Any], rear: bool = False) -> Flippers:
+    """A flipper pair (``base.flippers``, or ``base.rear_flippers``: ``rear``), not below ground.
 
     Raises:
         ConfigError: limits out of order, the angle outside them, flippers below the ground.
     """
+    key = "base.rear_flippers" if rear else "base.flippers"
     limits = None
     if "limits" in fl:
         lim = fl["limits"]
@@ -250,9 +251,9 @@ def _flippers(path: Path, fl: dict[str, Any], key: str = "base.flippers") -> Fli
         pivot=np.array(fl["pivot"], float),
         angle=float(fl["angle"]),
         limits=limits,
-        rear=key == "base.rear_flippers",
+        rear=rear,
     )
-    lowest = min(flippers.box(s).corners()[:, 2].min() for s in ("left", "right"))
+    lowest = flippers.lowest()
     if lowest < -FLIPPER_CONTACT_TOL:
         raise ConfigError(
             path,
@@ -385,7 +386,7 @@ def flipper_ground_angle(robot: Robot) -> float:
     flippers = robot.base.flippers
 
     def lowest(angle: float) -> float:
-        return float(dataclasses.replace(flippers, angle=angle).box("left").corners()[:, 2].min())
+        return dataclasses.replace(flippers, angle=angle).lowest()
 
     hi = flippers.angle
     if lowest(hi) <= FLIPPER_CONTACT_TOL:

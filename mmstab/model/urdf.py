@@ -10,7 +10,7 @@ Tree (all frames follow ``docs/design.md``, "Frames")::
 
 **Base.** Each of the base links has its frame at its collision box's centre and
 axes (``Box.frame_T_shape``) and carries a solid-box inertia. The base mass is spread
-over the five boxes in proportion to their volumes, and every box's CoM is shifted by
+over the boxes in proportion to their volumes, and every box's CoM is shifted by
 one common offset ``delta = base.com - (volume centroid of the boxes)`` so that the
 base as a whole has exactly ``base.mass`` at ``base.com`` (the offset is a few cm for
 the Cameleon); each box keeps its solid-box inertia about its (shifted) CoM.

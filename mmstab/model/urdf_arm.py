@@ -57,13 +57,13 @@ class Shape(NamedTuple):
     """A URDF collision (or visual) shape: ``kind`` box / cylinder / sphere / mesh.
 
     ``size``: box (x, y, z) [m]; cylinder (radius, length) [m]; sphere (radius,) [m];
-    ``points``: a mesh's vertices (scaled) in the shape's frame [m]; ``T``: the shape's frame
-    in the link frame (4, 4).
+    ``points``: a mesh's vertices (scaled) in the shape's frame [m]; ``link_T_shape``: the
+    shape's frame in the link frame (4, 4).
     """
 
     kind: str
     size: FloatArray
-    T: FloatArray
+    link_T_shape: FloatArray
     points: FloatArray | None = None
 
 
@@ -485,7 +485,7 @@ def build_arm(
             notes.append(f"link {j.child} has no mass: {MASSLESS_KG:g} kg at its frame's origin")
         inv = np.linalg.inv(R_i)
         com = (inv @ np.r_[com_base, 1.0])[:3]
-        shapes = [(s, inv @ pose[m] @ s.T) for m in members for s in links[m].shapes]
+        shapes = [(s, inv @ pose[m] @ s.link_T_shape) for m in members for s in links[m].shapes]
         if shapes:
             geometry = _geometry(shapes)
         else:

@@ -119,7 +119,7 @@ class Ramp:
         if flipper_angle is not None:
             robot = with_flipper_angle(robot, flipper_angle)
         for prefix, pair in robot.base.flipper_pairs().items():
-            lowest = min(pair.box(s).corners()[:, 2].min() for s in ("left", "right"))
+            lowest = pair.lowest()
             if lowest < -FLIPPER_CONTACT_TOL:
                 raise MmstabError(
                     f"flipper angle {pair.angle:g} rad: the {prefix.replace('_', ' ')}s reach "

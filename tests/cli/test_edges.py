@@ -218,6 +218,7 @@ def test_track_command_exits_3_when_the_robot_tips(tipping, capsys, monkeypatch)
     assert main(["animation", str(problem.path), "-o", str(out)]) == 5
     err = capsys.readouterr().err
     assert "mmstab: arm collision: the tracked arm touches the robot in 2 of" in err
+    assert main(["animation", str(problem.path), "-o", str(out), "--allow-collision"]) == 0
 
 
 def test_tipping_at_the_start_is_refused_before_building(tmp_path):

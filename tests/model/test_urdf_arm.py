@@ -22,7 +22,7 @@ from conftest import SCOUT
 from mmstab.cli import main
 from mmstab.core.files import MmstabError
 from mmstab.model.enclosing import enclosing_capsule
-from mmstab.model.robot import load_robot, robot_from_dict
+from mmstab.model.robot import link_extent_warnings, load_robot, robot_from_dict, rpy_matrix
 from mmstab.model.urdf import write_urdf
 from mmstab.model.urdf_arm import arm_section, build_arm
 
@@ -161,8 +161,6 @@ def inside(points: np.ndarray, geometry, B_T_R: np.ndarray) -> np.ndarray:
     """How far each point (in B) lies outside the link's shape (<= 0: inside) [m]."""
     local = (points - B_T_R[:3, 3]) @ B_T_R[:3, :3]
     if geometry.kind == "box":
-        from mmstab.model.robot import rpy_matrix
-
         p = (local - geometry.center) @ rpy_matrix(geometry.rpy)
         return np.max(np.abs(p) - geometry.size / 2, axis=1)
     a, b = geometry.p0, geometry.p1
@@ -201,8 +199,6 @@ def test_a_drawn_arm_puts_its_mass_and_shapes_where_pinocchio_does(seed, tmp_pat
             i = len(arm.rows) - 1 if name == "tool" else int(name[1:])
             oMf = data.oMf[model.getFrameId(name)]
             for kind, size, xyz, rpy in shapes:
-                from mmstab.model.robot import rpy_matrix
-
                 pts = shape_points(rng, kind, size, mesh) @ rpy_matrix(rpy).T + xyz
                 world = pts @ oMf.rotation.T + oMf.translation
                 gap = inside(world, robot.links[i].geometry, frames[k, i])
@@ -215,8 +211,8 @@ def test_a_drawn_arm_puts_its_mass_and_shapes_where_pinocchio_does(seed, tmp_pat
 def test_mmstabs_own_export_comes_back(robot, rng, tmp_path):
     """The Cameleon through ``mmstab urdf`` and back: the same DH rows, masses and shapes."""
     path = write_urdf(robot, tmp_path / "c.urdf")
-    back = robot_with_arm(arm_section(build_arm(path, "base_link", "arm_frame_3"),
-                                      robot.mount_T @ np.linalg.inv(robot.mount_T)))  # fmt: skip
+    # base_link is the body frame B: the section's mount is the export's arm_mount
+    back = robot_with_arm(arm_section(build_arm(path, "base_link", "arm_frame_3")))
     q = rng.uniform(robot.joint_lower, robot.joint_upper, (200, 4))
     np.testing.assert_allclose(back.kinematics.link_frames(q), robot.kinematics.link_frames(q),
                                rtol=0, atol=1e-9)  # fmt: skip
@@ -323,7 +319,7 @@ def test_bad_input_is_one_line_and_nothing_written(tmp_path, capsys, edit, args,
     assert not out.exists()
 
 
-def test_the_shipped_cameleon_urdf_gives_the_shipped_arm(tmp_path):
+def test_a_chain_without_a_revolute_joint_is_refused(tmp_path):
     robot = load_robot(ROOT / "problems" / "robots" / "cameleon.yaml")
     path = write_urdf(robot, tmp_path / "c.urdf")
     with pytest.raises(MmstabError, match="no revolute joint"):
@@ -384,8 +380,6 @@ def ur5_flange(q: np.ndarray) -> np.ndarray:
 
 
 def test_a_ur5_gives_its_published_flange_and_no_off_segment_link(tmp_path, rng):
-    from mmstab.model.robot import link_extent_warnings
-
     arm = build_arm(ur5_urdf(tmp_path), "base_link", "tool0")
     robot = robot_with_arm(arm_section(arm))
     q = rng.uniform(-np.pi, np.pi, (100, 6))
