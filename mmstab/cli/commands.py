@@ -147,7 +147,7 @@ def arm_from_urdf(args: argparse.Namespace) -> int:
     import numpy as np
     import yaml
 
-    from mmstab.core.files import MmstabError, check_output_dir, write_text
+    from mmstab.core.files import MmstabError, check_output_dir, refuse_degrees, write_text
     from mmstab.model.robot import homogeneous, rpy_matrix
     from mmstab.model.urdf_arm import arm_section, build_arm
 
@@ -157,6 +157,8 @@ def arm_from_urdf(args: argparse.Namespace) -> int:
             raise MmstabError(
                 "--mount: give six finite numbers (x, y, z [m], roll, pitch, yaw [rad])"
             )
+        for name, angle in zip(("roll", "pitch", "yaw"), args.mount[3:], strict=True):
+            refuse_degrees(f"--mount: {name}", angle)
         mount = homogeneous(rpy_matrix(np.array(args.mount[3:])), np.array(args.mount[:3]))
     if args.out is not None:
         if Path(args.out).is_dir():

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.cli.commands import _problem
+from mmstab.core.files import refuse_degrees
 
 
 # ------------------------------------------------- terrain: rest, maps, export
@@ -27,7 +28,7 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
     if q.shape != (n,) or not np.isfinite(q).all():
         raise MmstabError(f"--arm: expected 'stowed' or {n} finite angles [rad], got {arm}")
     for i, qi in enumerate(q):
-        _radians(f"--arm: joint {i}", float(qi))
+        refuse_degrees(f"--arm: joint {i}", float(qi))
     bad = np.flatnonzero((q < robot.joint_lower) | (q > robot.joint_upper))
     if bad.size:
         i = int(bad[0])
@@ -36,20 +37,6 @@ def _arm_posture(robot: Any, arm: list[str] | None) -> Any:
             f"[{robot.joint_lower[i]}, {robot.joint_upper[i]}]"
         )
     return q
-
-
-def _radians(name: str, value: float) -> None:
-    """Refuse an angle of ``|value| > 2 pi`` given where radians are expected, as degrees."""
-    import math
-
-    from mmstab.core.files import MmstabError
-    from mmstab.core.hints import DEGREES_LIKELY
-
-    if abs(value) > DEGREES_LIKELY:
-        raise MmstabError(
-            f"{name}: {value:g} looks like degrees; the unit is radians "
-            f"({value:g} deg = {math.radians(value):.4g} rad)"
-        )
 
 
 #: The sections ``mmstab rest`` and ``terrain export`` use: the others are not checked beyond
@@ -93,10 +80,10 @@ def _rest(args: argparse.Namespace) -> None:
     from mmstab.stability.stance import stance
 
     _finite("--pose", args.pose)
-    _radians("--pose YAW", args.pose[2])
+    refuse_degrees("--pose YAW", args.pose[2])
     if args.flipper is not None:
         _finite("--flipper", [args.flipper])
-        _radians("--flipper", args.flipper)
+        refuse_degrees("--flipper", args.flipper)
     problem = _problem(args, REST_SECTIONS)
     flippers = problem.robot.base.flippers
     if args.flipper is not None and flippers is None:

@@ -20,7 +20,13 @@ import jsonschema
 import numpy as np
 import yaml
 
-from mmstab.core.hints import degrees_given, did_you_mean, unit_hint, unknown_keys
+from mmstab.core.hints import (
+    DEGREES_LIKELY,
+    degrees_given,
+    did_you_mean,
+    unit_hint,
+    unknown_keys,
+)
 
 
 class MmstabError(Exception):
@@ -37,6 +43,23 @@ class PlanningError(MmstabError):
     """The planner gave up or no plan exists: not bad input, not a verdict (exit status 6)."""
 
     exit_status = 6
+
+
+def refuse_degrees(name: str, value: float) -> None:
+    """Refuse an option's angle of ``|value| > 2 pi`` given where radians are expected.
+
+    Args:
+        name: the option as the user wrote it (``--flipper``, ``--mount: yaw``).
+        value: the angle given [rad].
+
+    Raises:
+        MmstabError: naming the option, the unit and the value in radians.
+    """
+    if abs(value) > DEGREES_LIKELY:
+        raise MmstabError(
+            f"{name}: {value:g} looks like degrees; the unit is radians "
+            f"({value:g} deg = {math.radians(value):.4g} rad)"
+        )
 
 
 class ConfigError(MmstabError):

@@ -305,6 +305,7 @@ def test_meshes_of_a_package_elsewhere_are_found_with_package_dir(tmp_path, caps
         (("arm_pkg", "no_pkg"), [], "mesh package://no_pkg/meshes/link.stl not found"),
         (('velocity="2.0"', ""), [], "joint j0: no <limit velocity=...> [rad/s]"),
         (("<robot", "<rob"), [], "not a readable URDF file"),
+        (None, ["--mount", "0", "0", "0.3", "0", "0", "90"], "--mount: yaw: 90 looks like degrees"),
     ],
 )
 def test_bad_input_is_one_line_and_nothing_written(tmp_path, capsys, edit, args, message):
