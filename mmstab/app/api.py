@@ -147,12 +147,12 @@ def load_robot(path: str | os.PathLike[str]) -> Robot:
         path: the robot's YAML file (docs/robot.md).
 
     Raises:
-        ConfigError: the file is not a valid robot description.
+        ConfigError: the file is not a valid robot description, or its stowed arm touches
+            the robot or reaches below the ground.
     """
-    from mmstab.model.robot import load_robot as load_robot_file
-    from mmstab.model.touching import with_touching_allowed
+    from mmstab.model.touching import load_checked_robot
 
-    return with_touching_allowed(load_robot_file(path))[0]
+    return load_checked_robot(path)[0]
 
 
 def _objects(

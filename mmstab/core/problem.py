@@ -21,8 +21,8 @@ from mmstab.core.notes import note
 from mmstab.core.setting_checks import check_arm_joints, check_problem
 from mmstab.core.sizes import Estimate, estimates, refusal
 from mmstab.model.payload import attach_payload, payload_from_section
-from mmstab.model.robot import Robot, link_extent_warnings, load_robot
-from mmstab.model.touching import TOUCHING_SAMPLES, with_touching_allowed
+from mmstab.model.robot import Robot, link_extent_warnings
+from mmstab.model.touching import TOUCHING_SAMPLES, load_checked_robot
 from mmstab.paths.base import BasePath
 from mmstab.paths.circle import CirclePath
 from mmstab.paths.route import RoutePath, is_route, route_path_from_section
@@ -203,7 +203,7 @@ def problem_from_dict(
     if not robot_path.is_file():
         raise ConfigError(p, "robot", f"no robot description at {robot_path}")
     check_section(p, data["terrain"])  # before the size bounds read terrain.generate
-    robot, touching = with_touching_allowed(load_robot(robot_path))
+    robot, touching = load_checked_robot(robot_path)
     described = robot  # the file's (a payload moves the last link's CoM)
     # the per-joint keys the file leaves out, for the robot's joint count (before the sizes)
     data = with_defaults(given, robot.arm_joints)

@@ -5,17 +5,23 @@ capsules on either side meet at its joint whatever the angles: checked, such a p
 every posture "collide". :func:`with_touching_allowed` adds the pairs in contact at every
 one of :data:`TOUCHING_SAMPLES` sampled postures to the robot's ``collision_allow``, so no
 checker built from it checks them (``mmstab.core.problem`` does it for a problem's robot and
-notes the pairs on stderr).
+notes the pairs on stderr). :func:`load_checked_robot` is that loader: it also refuses a
+stowed posture that puts the arm into the robot or below the tracks' ground plane.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
+from pathlib import Path
 
 import numpy as np
 
+from mmstab.core.files import ConfigError
 from mmstab.model.collision import CollisionChecker
-from mmstab.model.robot import Robot
+from mmstab.model.parts import FLIPPER_CONTACT_TOL
+from mmstab.model.plane_clearance import arm_ground_clearance
+from mmstab.model.robot import Robot, load_robot
 
 #: Postures :func:`touching_pairs` draws, uniformly within the joint limits (the stowed one is
 #: added) [-]; MoveIt's setup assistant samples 10000 by default.
@@ -61,3 +67,38 @@ def with_touching_allowed(robot: Robot) -> tuple[Robot, tuple[tuple[str, str], .
         return robot, found
     allow = robot.collision_allow | {frozenset(pr) for pr in found}
     return dataclasses.replace(robot, collision_allow=frozenset(allow)), found
+
+
+def load_checked_robot(
+    path: str | os.PathLike[str],
+) -> tuple[Robot, tuple[tuple[str, str], ...]]:
+    """A robot file as a problem loads it: always-touching pairs allowed, the stowed arm clear.
+
+    The stowed posture starts every plan and ends every approach: an arm stowed into the
+    base, or below the plane the tracks rest on (z_B = 0, the ground on any plane, as for
+    the flippers), made the roadmap refuse its start posture without saying why.
+
+    Args:
+        path: the robot's YAML file (docs/robot.md).
+
+    Returns:
+        The robot (:func:`with_touching_allowed`) and the pairs that function allowed.
+
+    Raises:
+        ConfigError: the file is invalid, or ``arm.stowed`` touches a checked pair or
+            reaches below the ground.
+    """
+    robot, found = with_touching_allowed(load_robot(path))
+    hits = CollisionChecker(robot).colliding_pairs(robot.stowed)
+    if hits:
+        raise ConfigError(
+            Path(path), "arm.stowed", f"the stowed arm touches the robot ({', '.join(hits)}); "
+            "stow it clear, or allow the pair under collision.allow"
+        )  # fmt: skip
+    low = float(arm_ground_clearance(robot, robot.stowed)[0])
+    if low < -FLIPPER_CONTACT_TOL:
+        raise ConfigError(
+            Path(path), "arm.stowed", f"the stowed arm reaches {-low:.3f} m below the ground "
+            "(the tracks' plane z_B = 0); raise it"
+        )  # fmt: skip
+    return robot, found

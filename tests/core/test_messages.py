@@ -193,6 +193,37 @@ def test_no_shipped_robot_has_a_touching_pair_or_an_off_segment_link():
         assert link_extent_warnings(robot) == [], path
 
 
+@pytest.mark.parametrize(
+    ("stowed", "message"),
+    [
+        # the upper arm lowered 0.8 rad from the mount 0.12 m ahead: through the body's top
+        ([0.0, -0.8, 0.0, 0.0], "the stowed arm touches the robot (upper_arm-body); stow it "
+         "clear, or allow the pair under collision.allow"),
+        # held forward, the forearm hanging: clear of the base, 0.45 m into the ground
+        ([0.0, 0.0, -1.57, 0.0], "the stowed arm reaches 0.450 m below the ground (the "
+         "tracks' plane z_B = 0); raise it"),
+    ],
+)  # fmt: skip
+def test_a_stowed_arm_in_the_base_or_the_ground_is_refused(tmp_path, capsys, stowed, message):
+    """Before: ``mmstab plan`` on a route stopped with 'roadmap: the posture [...] rad reaches
+    no node' (no file, no field, no cause); ``mmstab.load_robot`` took the robot."""
+    import mmstab
+
+    data = cameleon()
+    data["arm"]["stowed"] = stowed
+    path = write(tmp_path, {"terrain": {"slope": 0.1}, "path": ROUTE}, data)
+    robot_file = tmp_path / "robots" / "r.yaml"
+    line = _refused(capsys, ["plan", path, "-o", tmp_path / "out"])
+    assert line == f"mmstab: error: {robot_file}: arm.stowed: {message}"
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ConfigError, match="arm.stowed: the stowed arm"):
+        mmstab.load_robot(robot_file)
+    # the same posture is a plan's to reach, not the file's: checked the way the planner does
+    robot = with_touching_allowed(load_robot(ROBOT_YAML))[0]
+    hits = CollisionChecker(robot).colliding_pairs(np.array(stowed))
+    assert (hits == ["upper_arm-body"]) == ("touches" in message)
+
+
 def test_a_link_shape_left_behind_by_a_changed_dh_length_is_warned(tmp_path, capsys):
     """Before: silent. The forearm's capsule starts 0.44 m behind its joint; at a = 0.30 m
     it sticks out 0.14 m behind the elbow (its CoM, 0.23 m back and 2 cm up, stays 0.02 m
