@@ -190,9 +190,9 @@ def along_route(
     The loop's μ (``mu_min``) is each covered map's state (the odometry pose, the arm's
     posture then) on that map; ``mu_planned_min`` only the planned poses' (``planner.spacing``
     apart). Here the same states rest on the problem's own terrain (one state, one μ: the
-    difference is the map's), and the offline plan is taken at the same poses as its dense
-    verdicts take it (the arm in the two planned postures it moves between, the worse
-    counts; ``offline_plan``, when its postures are kept). None: no covered map.
+    difference is the map's), and the offline plan is taken at the same poses with the arm in
+    the two planned postures it moves between (the worse counts; ``offline_plan``, when its
+    postures are kept). None: no covered map.
 
     Args:
         problem: the followed problem (its terrain: the true ground).

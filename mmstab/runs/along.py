@@ -3,8 +3,10 @@
 The planner places poses ``planner.spacing`` apart (0.5 m by default); a ditch's edge or a
 kerb lies between two of them. :func:`dense_verdicts` rests the robot along the path every
 ``spacing`` of arc length (the map's cell, at most :data:`SPACING`, below the tracks'
-contact spacing) with the arm in each of the two planned postures it moves between (the
-worse of the two counts), and checks there what the tracking run and the robot meet:
+contact spacing) with the arm in each of the two planned postures it moves between and,
+given, where its posture reference has it (the move ``mmstab track`` commands, which may
+swing the arm's CoM beyond both postures it joins); the worst counts. It checks there what
+the tracking run and the robot meet:
 
 - **tip**: mmstab's one μ (:mod:`mmstab.stability.support`) at or below the plan's margin
   plus what the route's own accelerations take off it (:func:`acceleration_margin`), unless
@@ -45,9 +47,11 @@ class Along(NamedTuple):
     Attributes:
         s: arc length of each sample (N,) [m].
         poses: (N, 3) of (x, y, yaw) in M [m, m, rad].
-        mu: the worse μ of the two postures (N,) [N rad] (NaN: off the map).
-        tilt: the larger support tilt of the two (N,) [rad].
-        high_centred: (N,) the chassis carries load in either posture.
+        mu: the worst μ of the arm's CoMs (N,) [N rad] (NaN: off the map).
+        tilt: the largest support tilt of them (N,) [rad].
+        high_centred: (N,) the chassis carries load with any of them.
+        arm_com: the arm CoMs checked at each sample, body frame (P, N, 3) [m]: the
+            planned postures before and after it, and the posture reference's if given.
     """
 
     s: FloatArray
@@ -55,6 +59,7 @@ class Along(NamedTuple):
     mu: FloatArray
     tilt: FloatArray
     high_centred: np.ndarray
+    arm_com: FloatArray
 
 
 def acceleration_margin(mass: float, acceleration: float) -> float:
@@ -110,6 +115,7 @@ def along_path(
     s: ArrayLike,
     s_plan: ArrayLike,
     arm_com_plan: ArrayLike,
+    arm_com_reference: ArrayLike | None = None,
 ) -> Along:
     """Rest the robot at path samples with the planned arm before and after each.
 
@@ -120,22 +126,27 @@ def along_path(
         s: their arc lengths (N,) [m].
         s_plan: the planned poses' arc lengths (K,) [m], increasing.
         arm_com_plan: the planned arm CoM at each planned pose, body frame (K, 3) [m].
+        arm_com_reference: the arm CoM of the posture reference at each sample, body
+            frame (N, 3) [m] (:func:`mmstab.runs.climb_out.reference_arm_coms`), checked
+            too; None: the two postures only.
     """
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     arm = np.asarray(arm_com_plan, dtype=float)
     before, after = bracket(s_plan, s)
-    both = loaded_support(
-        robot, terrain, np.vstack([P, P]), np.vstack([arm[before], arm[after]]), strict=False
-    )
-    n = len(P)
-    tilt = slip_limit(np.nan_to_num(both.gravity_body), 1.0).tilt
-    tilt = np.where(np.isfinite(both.gravity_body).all(axis=1), tilt, np.nan)
+    sets = [arm[before], arm[after]]
+    if arm_com_reference is not None:
+        sets.append(np.asarray(arm_com_reference, dtype=float).reshape(len(P), 3))
+    k, n = len(sets), len(P)
+    every = loaded_support(robot, terrain, np.vstack([P] * k), np.vstack(sets), strict=False)
+    tilt = slip_limit(np.nan_to_num(every.gravity_body), 1.0).tilt
+    tilt = np.where(np.isfinite(every.gravity_body).all(axis=1), tilt, np.nan)
     return Along(
         s=np.asarray(s, dtype=float),
         poses=P,
-        mu=np.fmin(both.mu[:n], both.mu[n:]),
-        tilt=np.fmax(tilt[:n], tilt[n:]),
-        high_centred=both.high_centred[:n] | both.high_centred[n:],
+        mu=np.fmin.reduce(every.mu.reshape(k, n), axis=0),
+        tilt=np.fmax.reduce(tilt.reshape(k, n), axis=0),
+        high_centred=np.asarray(every.high_centred).reshape(k, n).any(axis=0),
+        arm_com=np.stack(sets),
     )
 
 
@@ -144,12 +155,12 @@ class Rocks(NamedTuple):
 
     Attributes:
         checked: (N,) μ at or below the threshold: pushed across its weak edges.
-        holds: (N,) checked, and both postures rock onto a support that holds.
-        mu: (N,) the lower μ of the pushed CoM on the caught supports [N rad] (NaN where
+        holds: (N,) checked, and every arm CoM of the sample rocks onto a support that holds.
+        mu: (N,) the lowest μ of the pushed CoM on the caught supports [N rad] (NaN where
             not checked or nothing pushed; -inf where it tips).
-        rock: (N,) the larger turn to a catch [rad].
-        drop: (N,) the larger work of a rock (the CoM's fall under the tilted net force) [m].
-        barrier: (N,) the lower energy stability margin of a caught support [m].
+        rock: (N,) the largest turn to a catch [rad].
+        drop: (N,) the largest work of a rock (the CoM's fall under the tilted net force) [m].
+        barrier: (N,) the lowest energy stability margin of a caught support [m].
     """
 
     checked: np.ndarray
@@ -164,13 +175,11 @@ def rock_samples(
     robot: Robot,
     terrain: Terrain,
     along: Along,
-    s_plan: ArrayLike,
-    arm_com_plan: ArrayLike,
     threshold: float,
     margin: float,
     acceleration: float,
 ) -> Rocks:
-    """Push the samples at or below ``threshold`` across their weak edges (both postures).
+    """Push the samples at or below ``threshold`` across their weak edges (every arm CoM).
 
     On a heightmap only: on a plane every bottom-run contact bears, the support is the
     tracks' rectangle and a push across its edge is a tip (nothing is checked).
@@ -178,9 +187,7 @@ def rock_samples(
     Args:
         robot: the robot.
         terrain: the ground.
-        along: the samples (:func:`along_path`).
-        s_plan: the planned poses' arc lengths (K,) [m].
-        arm_com_plan: the planned arm CoM at each planned pose, body frame (K, 3) [m].
+        along: the samples (:func:`along_path`), with the arm CoMs checked at each.
         threshold: μ at or below this [N rad] is checked (the margin plus
             :func:`acceleration_margin`).
         margin: the pushed μ on the caught support must exceed this [N rad].
@@ -194,17 +201,15 @@ def rock_samples(
     idx = np.flatnonzero(checked)
     if idx.size == 0:
         return out
-    arm = np.asarray(arm_com_plan, dtype=float)
-    before, after = bracket(s_plan, along.s[idx])
+    k, m = len(along.arm_com), idx.size
     push = acceleration / float(np.linalg.norm(GRAVITY_G))
-    poses, arms = np.vstack([along.poses[idx]] * 2), np.vstack([arm[before], arm[after]])
+    poses, arms = np.vstack([along.poses[idx]] * k), along.arm_com[:, idx].reshape(k * m, 3)
     r = rock_over(robot, terrain, poses, arms, push, threshold, margin)
-    m = idx.size
-    out.holds[idx] = r.holds[:m] & r.holds[m:]
-    out.mu[idx] = np.fmin(r.mu[:m], r.mu[m:])
-    out.rock[idx] = np.fmax(r.rock[:m], r.rock[m:])
-    out.drop[idx] = np.fmax(r.drop[:m], r.drop[m:])
-    out.barrier[idx] = np.fmin(r.barrier[:m], r.barrier[m:])
+    out.holds[idx] = np.asarray(r.holds).reshape(k, m).all(axis=0)
+    out.mu[idx] = np.fmin.reduce(np.reshape(r.mu, (k, m)), axis=0)
+    out.rock[idx] = np.fmax.reduce(np.reshape(r.rock, (k, m)), axis=0)
+    out.drop[idx] = np.fmax.reduce(np.reshape(r.drop, (k, m)), axis=0)
+    out.barrier[idx] = np.fmin.reduce(np.reshape(r.barrier, (k, m)), axis=0)
     return out
 
 

@@ -29,8 +29,8 @@ if TYPE_CHECKING:
 LISTED_PITCH = float(np.radians(5.0))
 
 
-def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:
-    """The overall CoM in B (N, 3) [m] of the arm's posture reference at arc lengths s (N,) [m].
+def reference_arm_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:
+    """The arm CoM in B (N, 3) [m] of the arm's posture reference at arc lengths s (N,) [m].
 
     The reference is the plan's (its roadmap moves between the postures, no via postures);
     a posture the plan did not realise (NaN) holds its target CoM.
@@ -43,10 +43,18 @@ def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> F
 
         arm = np.asarray(planned_com(robot, q, plan.target_com))
         k = np.clip(np.searchsorted(plan.s, np.asarray(s, dtype=float)), 0, len(q) - 1)
-        return np.asarray(robot.overall_com(arm[k]))
+        return arm[k]
     reference = build_posture_reference(robot, plan, 2, repair=False)
     f = np.clip(np.asarray(route.fraction_of_s(np.asarray(s, dtype=float))), 0.0, 1.0 - 1e-12)
-    return np.asarray(robot.overall_com(robot.arm_com(reference(f).value)))
+    return np.atleast_2d(np.asarray(robot.arm_com(reference(f).value), dtype=float))
+
+
+def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:
+    """The overall CoM in B (N, 3) [m] of the arm's posture reference at arc lengths s (N,) [m].
+
+    :func:`reference_arm_coms` with the base's mass.
+    """
+    return np.asarray(robot.overall_com(reference_arm_coms(robot, plan, route, s)))
 
 
 def climb_out_verdict(

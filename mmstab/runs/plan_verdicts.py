@@ -1,9 +1,9 @@
 """A plan's verdicts, one per limit: what ``mmstab plan`` reports and exits on.
 
 :func:`route_verdicts` (a route: at the planned poses and every few cm between them, the
-arm in the postures it moves between) and :func:`lap_verdicts` (a circle's lap: at the
-planned poses, the lap's turns and its high-centred stretches) give the same records:
-``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred`` and ``verdicts``
+arm in the postures it moves between and on its moves) and :func:`lap_verdicts` (a circle's
+lap: at the planned poses, the lap's turns and its high-centred stretches) give the same
+records: ``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred`` and ``verdicts``
 (:func:`mmstab.runs.along.limit_verdicts`: tip, slide, step, high_centred, arm_contact).
 :func:`exit_status` is ``mmstab plan``'s exit status for them (``docs/cli.md``): 3 where a
 pose tips or falls below the margin, 4 where the tracks slide, 5 where the arm touches the
@@ -31,7 +31,7 @@ from mmstab.runs.along import (
     rock_samples,
     sample_spacing,
 )
-from mmstab.runs.climb_out import climb_out_verdict
+from mmstab.runs.climb_out import climb_out_verdict, reference_arm_coms
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
 from mmstab.runs.verdict import (
     climb_verdict,
@@ -88,13 +88,19 @@ def arm_path_check(robot: Robot, plan: Any, lap_time: float, dt: float) -> dict[
     return reference.summary(lap_time)
 
 
-def plan_along(robot: Robot, terrain: Terrain, route: BasePath, plan: RoutePlan) -> Along:
-    """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`)."""
+def plan_along(robot: Robot, terrain: Terrain, route: RoutePath, plan: RoutePlan) -> Along:
+    """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`).
+
+    At each sample the arm is in the two planned postures it moves between and where its
+    posture reference has it (:func:`mmstab.runs.climb_out.reference_arm_coms`): a move
+    that swings the arm's CoM beyond both postures is what ``mmstab track`` drives through.
+    """
     from mmstab.planner.along_route import planned_com
 
     poses, s = path_samples(route, sample_spacing(terrain))
     planned = planned_com(robot, plan.postures, plan.target_com)
-    return along_path(robot, terrain, poses, s, plan.s, planned)
+    moving = reference_arm_coms(robot, plan, route, s)
+    return along_path(robot, terrain, poses, s, plan.s, planned, moving)
 
 
 def route_acceleration(route: RoutePath) -> float:
@@ -146,17 +152,14 @@ def route_verdicts(
     ]
     slip["turns"] = turning
     slip["slides"] = bool(slip["slides"]) or bool(turning["sliding_turns"])
-    # between the planned poses: every few cm, the arm in the postures it moves between
+    # between the planned poses: every few cm, the arm in the postures it moves between and
+    # on its way between them
     along = plan_along(robot, terrain, route, plan) if along is None else along
     acceleration = route_acceleration(route)
     accelerating = acceleration_margin(robot.total_mass, acceleration)
     # where μ is low about an edge inside the footprint, the push rocks it onto the next one
-    from mmstab.planner.along_route import planned_com
-
     threshold = settings.margin + accelerating
-    planned = planned_com(robot, plan.postures, plan.target_com)
-    rocks = rock_samples(robot, terrain, along, plan.s, planned, threshold, settings.margin,
-                         acceleration)  # fmt: skip
+    rocks = rock_samples(robot, terrain, along, threshold, settings.margin, acceleration)
     timing = None  # the cone's passes priced at the time law (the same samples)
     if len(times) == len(along.s):
         timing = ConeTiming(times, settings.slip_distance, settings.slip_window)

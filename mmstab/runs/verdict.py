@@ -160,7 +160,8 @@ def describe_plan_verdict(verdict: Mapping[str, Any], total: int) -> str:
         threshold = verdict.get("along_threshold", verdict["margin"])
         parts.append(
             f"along the path (every {100 * verdict['spacing_m']:.0f} cm, the arm in its planned "
-            f"postures) mu <= {threshold:.3g} N rad (the margin {verdict['margin']:g} plus "
+            f"postures and on its moves) mu <= {threshold:.3g} N rad "
+            f"(the margin {verdict['margin']:g} plus "
             f"{verdict.get('acceleration_margin', 0.0):.3g} for the route's accelerations) "
             f"at {named}"
         )

@@ -86,6 +86,37 @@ def test_a_ditch_between_two_planned_poses_is_found(robot):
     assert 0.0 not in [x["start_s"] for x in slide["stretches"]]
 
 
+def test_the_arms_move_between_two_postures_is_checked(robot):
+    """Both planned postures stowed; on the move between them the arm's CoM swings 0.5 m out
+    downhill (a roadmap move through the side, as ``mmstab track`` commands it): there μ is the
+    state's own, far below both postures', and the tip verdict binds on those samples only."""
+    from mmstab.runs.along import rock_samples
+
+    terrain = HeightmapTerrain(ditch_ground(np.random.default_rng(7))).with_robot(robot)
+    stowed = robot.arm_com(robot.stowed)
+    s = np.arange(0.0, 1.6 + 1e-9, 0.05)
+    poses = np.c_[-3.6 + s, np.full_like(s, -0.8), np.zeros_like(s)]  # before the ditch
+    swing = (s > 0.5) & (s < 1.0)
+    reference = np.tile(stowed, (len(s), 1))
+    reference[swing] += [0.0, -0.5, 0.0]  # -y is downhill on the 15 deg side slope
+    postures = along_path(robot, terrain, poses, s, np.array([0.0, 1.6]), np.tile(stowed, (2, 1)))
+    moving = along_path(robot, terrain, poses, s, np.array([0.0, 1.6]), np.tile(stowed, (2, 1)),
+                        reference)  # fmt: skip
+    assert postures.arm_com.shape == (2, len(s), 3) and moving.arm_com.shape == (3, len(s), 3)
+    np.testing.assert_array_equal(moving.mu[~swing], postures.mu[~swing])
+    own = loaded_support(robot, terrain, poses[swing], reference[swing]).mu
+    np.testing.assert_allclose(moving.mu[swing], own, rtol=0, atol=1e-9)
+    assert (own < postures.mu[swing] - 100).all()
+    margin = float(np.max(own)) + 10.0  # between the swing's μ and the postures'
+    assert margin < float(np.min(postures.mu))
+    assert not dense_verdicts(terrain, postures, margin)["tip"]["binds"]
+    (stretch,) = dense_verdicts(terrain, moving, margin)["tip"]["stretches"]
+    assert (stretch["start_s"], stretch["end_s"]) == (s[swing][0], s[swing][-1])
+    # the rock check pushes every arm CoM of a low sample: the swing's too
+    rocks = rock_samples(robot, terrain, moving, margin, 0.0, 1.0)
+    assert rocks.checked.tolist() == swing.tolist()
+
+
 def test_the_ditchs_nose_down_sample_is_priced_at_the_time_law(robot):
     """At friction 0.7 one sample (s = 0.70 m) pitches 40.6 deg nose down: beyond the cone
     (35.0 deg) by 5.6 deg, 1.17 m/s^2 of excess. Passed at 0.25 m/s it costs 2.3 cm while on it
@@ -372,10 +403,13 @@ def test_a_physics_event_is_placed_on_the_route():
 
 @pytest.mark.slow
 def test_the_users_ditch_rocks_between_the_poses(tmp_path):
-    """problems/ditch.yaml: the poses straddle the ditch; the dense check finds μ low there
-    (26 N rad) but above what the route's accelerations need, so no tip (MuJoCo crosses
-    without tipping); its one sample beyond the friction cone (s = 3.15 m, 37.7 deg against
-    35.0) is passed in 0.2 s at 0.25 m/s: 1.8 cm within the window, under 5 cm: the plan holds."""
+    """problems/ditch.yaml: the poses straddle the ditch; the dense check finds μ low where the
+    arm's move between two poses swings its CoM 0.30 m behind B as the robot climbs out
+    (s = 3.65 m: 10.5 N rad; the two postures there 77.5 and 301.0), below what the route's
+    accelerations need (17.6), but the push rocks it onto a support that holds, so no tip
+    (MuJoCo crosses without tipping); its one sample beyond the friction cone (s = 3.15 m,
+    37.7 deg against 35.0) is passed in 0.2 s at 0.25 m/s: 1.8 cm within the window, under
+    5 cm: the plan holds."""
     import json
     import subprocess
     import sys
@@ -400,11 +434,13 @@ def test_the_users_ditch_rocks_between_the_poses(tmp_path):
     a = 9.81 * (np.sin(passed["worst"]) - 0.7 * np.cos(passed["worst"]))  # 0.56 m/s^2
     assert 0.5 * a * 0.2**2 < passed["slide_m"] < 0.05
     # the ditch's low μ: between the poses (every planning pose is well clear: the poses miss
-    # it), above what the accelerations need (17.6 N rad) with the postures planned for a
-    # 12 deg attitude margin, so nothing to rock over (with 3 deg it was 7.9 N rad, a rock)
-    assert s["along_path"]["tip"]["rocks"] == []
+    # it), on the arm's move, below what the accelerations need: a rock that holds
     threshold = s["stability"]["along_threshold"]
-    assert threshold < s["along_path"]["mu_min"] < 100 < 400 < min(s["mu_planned"])
+    (rock,) = s["along_path"]["tip"]["rocks"]
+    assert rock["start_s"] == rock["end_s"] == pytest.approx(3.65, abs=0.01)
+    assert rock["worst"] == s["along_path"]["mu_min"] == pytest.approx(10.48, abs=0.01)
+    assert 0 < rock["worst"] < threshold < rock["mu_rocked"]
+    assert s["along_path"]["tip"]["stretches"] == [] and 400 < min(s["mu_planned"])
     planner = load_problem(ROOT / "problems" / "ditch.yaml").section("planner")
     assert planner["attitude_margin"] == 0.21
 
@@ -436,7 +472,7 @@ def test_a_low_mu_about_a_diagonal_rocks_a_low_mu_at_a_track_edge_tips(robot):
         s = np.array([0.0, 0.05])
         poses = np.zeros((2, 3))
         along = along_path(robot, terrain, poses, s, s, np.tile(arm, (2, 1)))
-        rocks = rock_samples(robot, terrain, along, s, np.tile(arm, (2, 1)), 60.0, 0.0, 1.0)
+        rocks = rock_samples(robot, terrain, along, 60.0, 0.0, 1.0)
         return along, rocks, dense_verdicts(terrain, along, 0.0, 60.0, rocks)["tip"]
 
     along, rocks, tip = verdict(0.2 * X * Y, arm_for(0.038), 0.0)
