@@ -401,8 +401,27 @@ def test_a_physics_event_is_placed_on_the_route():
     assert summary["slid"]["s_m"] == pytest.approx(1.7 + np.pi / 2 * 0.3 + 0.3, abs=0.01)
 
 
+@pytest.fixture(scope="module")
+def users_ditch(tmp_path_factory):
+    """``mmstab plan problems/ditch.yaml --verify`` once: (exit status, stderr, summary)."""
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    out = tmp_path_factory.mktemp("ditch")
+    r = subprocess.run(
+        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
+         "-o", str(out), "--verify"],
+        capture_output=True, text=True, cwd=ROOT, timeout=900,
+    )  # fmt: skip
+    return r.returncode, r.stderr, json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.mujoco
 @pytest.mark.slow
-def test_the_users_ditch_rocks_between_the_poses(tmp_path):
+def test_the_users_ditch_rocks_between_the_poses(users_ditch):
     """problems/ditch.yaml: the poses straddle the ditch; the dense check finds μ low where the
     arm's move between two poses swings its CoM 0.30 m behind B as the robot climbs out
     (s = 3.65 m: 10.5 N rad; the two postures there 77.5 and 301.0), below what the route's
@@ -410,21 +429,12 @@ def test_the_users_ditch_rocks_between_the_poses(tmp_path):
     (MuJoCo crosses without tipping); its one sample beyond the friction cone (s = 3.15 m,
     37.7 deg against 35.0) is passed in 0.2 s at 0.25 m/s: 1.8 cm within the window, under
     5 cm: the plan holds."""
-    import json
-    import subprocess
-    import sys
-
     from conftest import ROOT
 
     from mmstab.core.problem import load_problem
 
-    r = subprocess.run(
-        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
-         "-o", str(tmp_path)],
-        capture_output=True, text=True, cwd=ROOT, timeout=600,
-    )  # fmt: skip
-    assert r.returncode == 0, r.stderr  # holds
-    s = json.loads((tmp_path / "summary.json").read_text())
+    _, _, s = users_ditch
+    assert s["verify"]["plan"] == "accepted"  # the plan's own verdicts: it holds (exit 0)
     assert s["verdicts"]["tip"]["verdict"] == "holds"
     assert s["verdicts"]["slide"]["verdict"] == "holds"
     (passed,) = s["along_path"]["slide"]["passed"]
@@ -506,7 +516,7 @@ def test_a_routes_cone_check_at_its_planned_poses_counts_at_its_ends_only():
 
 @pytest.mark.mujoco
 @pytest.mark.slow
-def test_the_users_ditch_in_mujoco_on_the_support_mmstab_assumes(tmp_path):
+def test_the_users_ditch_in_mujoco_on_the_support_mmstab_assumes(users_ditch):
     """problems/ditch.yaml with --verify: the plan accepts it, and MuJoCo's robot, its wheels
     free to drop the terrain's compliance (the support mmstab's μ counts), neither tips nor
     slides, its μ within 5 % of mmstab's. Climbing out of the ditch it pitches and rolls up
@@ -515,28 +525,17 @@ def test_the_users_ditch_in_mujoco_on_the_support_mmstab_assumes(tmp_path):
     processor's rounding (it does on some, 0.1 % of the checks). The test holds what does
     not: no tip nor slide, and an arm contact, if any, only where the body is past the
     disagreement angle off its predicted rest, and --verify then says so (exit 5)."""
-    import json
-    import subprocess
-    import sys
-
-    from conftest import ROOT
-
-    r = subprocess.run(
-        [sys.executable, "-m", "mmstab", "plan", str(ROOT / "problems" / "ditch.yaml"),
-         "-o", str(tmp_path), "--verify"],
-        capture_output=True, text=True, cwd=ROOT, timeout=900,
-    )  # fmt: skip
-    s = json.loads((tmp_path / "summary.json").read_text())
+    returncode, stderr, s = users_ditch
     v = s["verify"]
     assert v["plan"] == "accepted" and v["mujoco"] in ("holds", "touches the ground")
     events = v["events"]
     assert all(events[e] is None for e in ("tipped", "slid", "left_map", "stalled"))
     contact = events["arm_ground_contact"]
     if contact is None:
-        assert r.returncode == 0 and v["agree"], r.stderr
+        assert returncode == 0 and v["agree"], stderr
     else:
         angle = s["verify"]["disagreement"]["tilt_off_rest_max_rad"]
         assert contact["tilt_off_rest_rad"] > 0.35 and angle > 0.35  # physics.disagreement_angle
         assert contact["fraction_of_checks"] < 0.01
-        assert r.returncode == 5 and not v["agree"] and "touches the ground" in r.stderr
+        assert returncode == 5 and not v["agree"] and "touches the ground" in stderr
     assert v["mu_relative_difference_median"] < 0.05
