@@ -98,6 +98,79 @@ SCOUT: dict[str, Any] = {
     },
 }  # fmt: skip
 
+
+def random_robot(rng: np.random.Generator) -> dict[str, Any]:
+    """A robot file's mapping drawn at random: a user's robot the tests did not write.
+
+    SCOUT's layout scaled by 0.6-1.8, a base of 10-150 kg with its CoM anywhere over the
+    tracks' middle, no flippers, a front pair or both pairs (0.1-0.8 rad up), and an arm of
+    3-6 joints (a turret, then links of 0.05-0.45 m about parallel or crossed axes, 0.5-4 kg,
+    0.8-2 rad/s) on top of the body; its stowed posture is the first drawn that keeps the arm
+    clear of the base and 2 cm above the tracks' plane, as a user would choose it.
+    """
+    from mmstab.model.collision import CollisionChecker
+    from mmstab.model.plane_clearance import arm_ground_clearance
+    from mmstab.model.robot import robot_from_dict
+    from mmstab.model.touching import with_touching_allowed
+
+    r = copy.deepcopy(SCOUT)
+    r["name"] = "drawn"
+    scale = rng.uniform(0.6, 1.8)
+    length, separation = 0.6 * scale * rng.uniform(0.8, 1.2), 0.42 * scale * rng.uniform(0.7, 1.3)
+    width, height = 0.09 * scale, 0.16 * scale * rng.uniform(0.8, 1.3)
+    body_h = height * rng.uniform(0.6, 1.0)
+    top = height * 0.35 + body_h
+    r["base"] = {
+        "mass": float(rng.uniform(10, 150)),
+        "com": [float(rng.uniform(-0.05, 0.05) * scale), float(rng.uniform(-0.02, 0.02)),
+                float(height * rng.uniform(0.4, 0.8))],
+        "body": {"size": [float(length * rng.uniform(0.8, 1.05)), float(separation - width - 0.01),
+                          float(body_h)], "center": [0.0, 0.0, float(top - body_h / 2)]},
+        "tracks": {"length": float(length), "width": float(width), "height": float(height),
+                   "separation": float(separation), "sprocket_radius": float(height / 2),
+                   "velocity_limit": 10.0},
+    }  # fmt: skip
+    pair = {"length": float(0.25 * scale), "width": float(0.06 * scale),
+            "thickness": float(0.05 * scale),
+            "pivot": [float(length / 2), float((separation + width) / 2 + 0.035 * scale),
+                      float(height / 2)]}  # fmt: skip
+    pairs = int(rng.integers(0, 3))
+    if pairs >= 1:
+        r["base"]["flippers"] = {**pair, "angle": float(rng.uniform(0.1, 0.8))}
+    if pairs == 2:
+        rear = [-pair["pivot"][0], *pair["pivot"][1:]]
+        r["base"]["rear_flippers"] = {**pair, "pivot": rear, "angle": float(rng.uniform(0.1, 0.8))}
+    n = int(rng.integers(3, 7))
+    links = []
+    for i in range(n):
+        a = 0.0 if i == 0 else float(rng.uniform(0.05, 0.45) * scale)
+        alpha = 1.5708 if i == 0 else float(rng.choice([0.0, 1.5708, -1.5708]))
+        d = float(rng.uniform(0.05, 0.15) * scale) if i == 0 else 0.0
+        p0 = [-a, 0.0, 0.0] if a > 0 else [0.0, 0.0, -d]
+        links.append({
+            "name": f"link{i}", "dh": {"a": a, "alpha": alpha, "d": d, "theta_offset": 0.0},
+            "mass": float(rng.uniform(0.5, 4.0)), "com": [p0[0] / 2, 0.0, p0[2] / 2],
+            "geometry": {"type": "capsule", "radius": float(rng.uniform(0.02, 0.05)),
+                         "p0": p0, "p1": [0.0, 0.0, 0.0]},
+            "limits": {"lower": -3.0 if i == 0 else -2.5, "upper": 3.0 if i == 0 else 2.5,
+                       "velocity": float(rng.uniform(0.8, 2.0))},
+        })  # fmt: skip
+    r["arm"] = {
+        "mount": {"xyz": [float(rng.uniform(-0.2, 0.2) * scale), 0.0, float(top + 0.01)],
+                  "rpy": [0.0, 0.0, float(rng.uniform(-0.3, 0.3))]},
+        "links": links,
+        "stowed": [0.0] * n,
+    }  # fmt: skip
+    robot = with_touching_allowed(robot_from_dict(r))[0]
+    checker = CollisionChecker(robot)
+    for _ in range(2000):
+        q = np.r_[0.0, rng.uniform(-2.0, 2.0, n - 1)]
+        if not checker.colliding_pairs(q) and arm_ground_clearance(robot, q)[0] > 0.02:
+            r["arm"]["stowed"] = [float(v) for v in q]
+            return r
+    raise AssertionError("no clear stowed posture drawn")
+
+
 #: Marks of the tests that take seconds: their files go to the workers first.
 HEAVY_MARKS = ("mujoco", "slow", "dask", "browser", "ros")
 

@@ -55,10 +55,10 @@ def user_ground(rng: np.random.Generator, size: float = 8.0) -> dict:
     }
 
 
-def ground_problem(rng: np.random.Generator, tmp: Path):
+def ground_problem(rng: np.random.Generator, tmp: Path, robot: Path = ROBOT):
     """A problem on a random user-like ground (robot, terrain, a short route)."""
     data = {
-        "robot": str(ROBOT),
+        "robot": str(robot),
         "terrain": {"generate": user_ground(rng)},
         "path": {"waypoints": [[-1.5, -0.5], [1.5, 0.5]], "speed": 0.25, "turn_radius": 0.0},
     }
@@ -75,10 +75,19 @@ def random_states(problem, rng: np.random.Generator, n: int):
     return poses, q
 
 
-@pytest.mark.parametrize("seed", [11, 12, 13])
-def test_rest_track_and_the_batched_mu_agree_on_random_ground(seed, tmp_path):
+@pytest.mark.parametrize(("seed", "drawn"), [(11, False), (12, False), (13, False), (21, True),
+                                            (22, True), (28, True)])  # fmt: skip
+def test_rest_track_and_the_batched_mu_agree_on_random_ground(seed, drawn, tmp_path):
+    """The Cameleon, and robots drawn at random (``conftest.random_robot``: no, one or two
+    flipper pairs, 3-6 joints)."""
     rng = np.random.default_rng(seed)
-    problem = ground_problem(rng, tmp_path)
+    robot_file = ROBOT
+    if drawn:
+        from conftest import random_robot
+
+        robot_file = tmp_path / "drawn.yaml"
+        robot_file.write_text(yaml.safe_dump(random_robot(rng)))
+    problem = ground_problem(rng, tmp_path, robot_file)
     robot, terrain = problem.robot, problem.terrain
     poses, q = random_states(problem, rng, 12)
     batched = posture_mu(robot, terrain, poses, q)
