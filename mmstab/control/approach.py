@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.control.approach_path import (
     approach_duration,
+    approach_outlasts,
     eased_polyline,
     roadmap_approach_knots,
     straight_approach_duration,
@@ -38,6 +39,7 @@ from mmstab.control.posture import (
 from mmstab.control.reference import PathSample, StepReference, task_reference
 from mmstab.control.timing import TimeLaw, build_time_law
 from mmstab.core.masks import true_runs
+from mmstab.core.notes import note
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.collision_sequence import SequenceCollisions, sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
@@ -274,6 +276,8 @@ def arm_references(
         approach = build_approach(
             robot, q0, posture, duration, settings.lap_time, settings.dt, move=move
         )
+        if (outlasts := approach_outlasts(duration, settings.lap_time)) is not None:
+            note(f"mmstab: note: {outlasts}")
     fraction = getattr(settings, "dynamic_fraction", None)
     if ground is None or fraction is None:
         return ArmReferences(posture, approach)

@@ -133,6 +133,24 @@ def approach_duration(
     return duration
 
 
+def approach_outlasts(duration: float, lap_time: float) -> str | None:
+    """A note where the approach [s] lasts the whole lap or route [s] or more, else None.
+
+    A roadmap plan's approach is lengthened until it meets the lap where the lap's arm has
+    got to (:func:`approach_duration`); a plan that keeps moving the arm faster than the
+    approach's pieces (each at rest at its knots, at most :data:`APPROACH_PEAK_SPEED` of
+    the limits) is never caught, and the arm follows the approach, not the plan.
+    """
+    if duration < lap_time:
+        return None
+    return (
+        f"the arm's start-up approach takes {duration:.0f} s, as long as the whole path as "
+        f"driven ({lap_time:.0f} s) or longer: the plan moves the arm faster than the "
+        f"approach (at most {APPROACH_PEAK_SPEED:g} of its joints' speed limits) can catch "
+        "it, so the arm follows the approach, not the plan (docs/tracking.md, Approach)"
+    )
+
+
 def straight_approach_duration(
     robot: Robot, q0: FloatArray, posture: PostureReference, least: float, lap_time: float
 ) -> float:

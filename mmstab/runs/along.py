@@ -145,7 +145,7 @@ def along_path(
         poses=P,
         mu=np.fmin.reduce(every.mu.reshape(k, n), axis=0),
         tilt=np.fmax.reduce(tilt.reshape(k, n), axis=0),
-        high_centred=np.asarray(every.high_centred).reshape(k, n).any(axis=0),
+        high_centred=np.asarray(np.asarray(every.high_centred).reshape(k, n).any(axis=0)),
         arm_com=np.stack(sets),
     )
 

@@ -78,3 +78,26 @@ def test_the_move_alone_sets_the_time_when_the_lap_stands_still(robot):
     assert move_duration(robot, move) == pytest.approx(expected, rel=1e-12)
     assert approach_duration(robot, move, lap, 0.1, 30.0) == pytest.approx(expected, rel=1e-12)
     assert approach_duration(robot, move, lap, 5.0, 30.0) == 5.0  # approach_time is a floor
+
+
+def test_a_lap_that_keeps_the_arm_moving_is_not_caught_and_the_run_says_so(robot):
+    """The lap swings the elbow 3.8 rad every 0.6 s (half its speed limit) all along: the
+    approach, at rest at each knot and at most 0.3 of the limit, never meets it. Lengthened
+    to the lap's time or more, it is noted (the arm follows the approach, not the plan); a
+    lap whose arm stands still is caught within seconds, and nothing is noted."""
+    from mmstab.control.approach_path import approach_outlasts
+
+    lap_time = 30.0
+    swing = 0.5 * robot.joint_velocity[2] * 0.6  # [rad] per 0.6 s piece
+    fractions = np.linspace(0.0, 1.0, 51)  # a knot every 0.6 s
+    lap_q = np.tile(robot.stowed, (51, 1))
+    lap_q[1::2, 2] -= swing
+    move = np.array([robot.stowed, robot.stowed + [0.0, 0.0, -0.3, 0.0]])
+    duration = approach_duration(robot, move, Lap(fractions, lap_q), 1.0, lap_time)
+    assert duration >= lap_time
+    said = approach_outlasts(duration, lap_time)
+    assert said is not None and f"takes {duration:.0f} s" in said
+    assert "follows the approach, not the plan" in said
+    still = Lap(np.array([0.0, 1.0]), np.vstack([move[-1], move[-1]]))
+    caught = approach_duration(robot, move, still, 1.0, lap_time)
+    assert caught < 5.0 and approach_outlasts(caught, lap_time) is None
