@@ -138,3 +138,26 @@ def test_the_moves_between_chosen_nodes_stay_above_the_plane(robot, small):
     # a lattice step between two nodes above 2 cm may dip a few mm below them
     assert low_on >= 0.02 - 0.005
     assert low_off < 0.0  # without the check the arm moves through the ground
+
+
+def test_no_plan_names_the_clearance_and_the_tilt_it_was_kept_through():
+    """A robot drawn at random (a 4-joint arm, 1.0-1.7 m of links on a low mount) found no
+    plan at a pose of a 5.7 deg bumpy route: only the 12 deg attitude margin bound (without
+    it the route planned). Before, the error named the clearance and not the margin."""
+    from mmstab.core.defaults import DEFAULT_SECTIONS
+    from mmstab.planner.searches.roadmap.rounds import _no_plan
+
+    settings = PlannerSettings.from_section(DEFAULT_SECTIONS["planner"])
+    value = np.zeros((3, 4))
+    value[1] = -np.inf  # no node of pose 1 is stable
+    allowed = [np.ones((4, 4), dtype=bool)] * 2
+    poses = np.array([[0.0, 0.0, 0.0], [0.5, -0.25, np.pi / 2], [1.0, 0.0, 0.0]])
+    tilted = settings._replace(ground_clearance=0.05, attitude_margin=0.21, turret_window=None)
+    e = _no_plan(value, allowed, poses, tilted)
+    assert e.args[0] == (
+        "planner: no plan on the posture roadmap: at pose 1 (x 0.50 m, y -0.25 m, heading "
+        "90 deg) no stable posture reachable from the arm's start with the arm 0.05 m above "
+        "the ground through 12 deg of body tilt (planner.attitude_margin 0.21 rad)"
+    )
+    plane = _no_plan(value, allowed, poses, tilted._replace(attitude_margin=None)).args[0]
+    assert plane.endswith("with the arm 0.05 m above the ground")

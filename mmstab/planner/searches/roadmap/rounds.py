@@ -138,12 +138,16 @@ def _no_plan(
     """The error naming the first pose no allowed sequence reaches."""
     k = _first_dead_pose(value, allowed)
     x, y, h = np.asarray(poses, dtype=float)[k]
-    ground = settings.ground_clearance
+    ground, margin = settings.ground_clearance, settings.attitude_margin
+    tilted = "" if not margin else (
+        f" through {np.degrees(margin):.0f} deg of body tilt (planner.attitude_margin "
+        f"{margin:g} rad)"
+    )  # fmt: skip
     return NoPlanError(
         f"planner: no plan on the posture roadmap: at pose {k} (x {x:.2f} m, y {y:.2f} m, "
         f"heading {np.degrees(h):.0f} deg) no stable posture reachable from the arm's start"
         + (" within the turret window" if settings.turret_window is not None else "")
-        + ("" if ground is None else f" with the arm {ground:g} m above the ground"),
+        + ("" if ground is None else f" with the arm {ground:g} m above the ground{tilted}"),
         k,
     )
 
