@@ -105,13 +105,14 @@ def random_robot(rng: np.random.Generator) -> dict[str, Any]:
     SCOUT's layout scaled by 0.6-1.8, a base of 10-150 kg with its CoM anywhere over the
     tracks' middle, no flippers, a front pair or both pairs (0.1-0.8 rad up), and an arm of
     3-6 joints (a turret, then links of 0.05-0.45 m about parallel or crossed axes, 0.5-4 kg,
-    0.8-2 rad/s) on top of the body; its stowed posture is the first drawn that keeps the arm
-    clear of the base and 2 cm above the tracks' plane, as a user would choose it.
+    0.8-2 rad/s) on top of the body; its stowed posture is the first drawn that the robot
+    file's loader takes (clear of the base and above the tracks' plane), as a user would
+    choose it.
     """
-    from mmstab.model.collision import CollisionChecker
-    from mmstab.model.plane_clearance import arm_ground_clearance
+    import dataclasses
+
     from mmstab.model.robot import robot_from_dict
-    from mmstab.model.touching import with_touching_allowed
+    from mmstab.model.touching import stowed_refusal, with_touching_allowed
 
     r = copy.deepcopy(SCOUT)
     r["name"] = "drawn"
@@ -162,10 +163,9 @@ def random_robot(rng: np.random.Generator) -> dict[str, Any]:
         "stowed": [0.0] * n,
     }  # fmt: skip
     robot = with_touching_allowed(robot_from_dict(r))[0]
-    checker = CollisionChecker(robot)
     for _ in range(2000):
         q = np.r_[0.0, rng.uniform(-2.0, 2.0, n - 1)]
-        if not checker.colliding_pairs(q) and arm_ground_clearance(robot, q)[0] > 0.02:
+        if stowed_refusal(dataclasses.replace(robot, stowed=q)) is None:
             r["arm"]["stowed"] = [float(v) for v in q]
             return r
     raise AssertionError("no clear stowed posture drawn")

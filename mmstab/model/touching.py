@@ -89,16 +89,29 @@ def load_checked_robot(
             reaches below the ground.
     """
     robot, found = with_touching_allowed(load_robot(path))
+    why = stowed_refusal(robot)
+    if why is not None:
+        raise ConfigError(Path(path), "arm.stowed", why)
+    return robot, found
+
+
+def stowed_refusal(robot: Robot) -> str | None:
+    """Why ``robot.stowed`` cannot be a robot file's stowed posture, or None.
+
+    The arm touches a checked pair (``collision_allow`` as given: pass the robot of
+    :func:`with_touching_allowed`), or reaches below the tracks' plane z_B = 0 by more than
+    the flippers' tolerance.
+    """
     hits = CollisionChecker(robot).colliding_pairs(robot.stowed)
     if hits:
-        raise ConfigError(
-            Path(path), "arm.stowed", f"the stowed arm touches the robot ({', '.join(hits)}); "
-            "stow it clear, or allow the pair under collision.allow"
-        )  # fmt: skip
+        return (
+            f"the stowed arm touches the robot ({', '.join(hits)}); stow it clear, or allow "
+            "the pair under collision.allow"
+        )
     low = float(arm_ground_clearance(robot, robot.stowed)[0])
     if low < -FLIPPER_CONTACT_TOL:
-        raise ConfigError(
-            Path(path), "arm.stowed", f"the stowed arm reaches {-low:.3f} m below the ground "
-            "(the tracks' plane z_B = 0); raise it"
-        )  # fmt: skip
-    return robot, found
+        return (
+            f"the stowed arm reaches {-low:.3f} m below the ground (the tracks' plane "
+            "z_B = 0); raise it"
+        )
+    return None

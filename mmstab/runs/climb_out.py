@@ -35,8 +35,6 @@ def reference_arm_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) 
     The reference is the plan's (its roadmap moves between the postures, no via postures);
     a posture the plan did not realise (NaN) holds its target CoM.
     """
-    from mmstab.control.posture import build_posture_reference
-
     q = np.asarray(plan.postures, dtype=float)
     if not np.isfinite(q).all():
         from mmstab.planner.along_route import planned_com
@@ -44,9 +42,10 @@ def reference_arm_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) 
         arm = np.asarray(planned_com(robot, q, plan.target_com))
         k = np.clip(np.searchsorted(plan.s, np.asarray(s, dtype=float)), 0, len(q) - 1)
         return arm[k]
-    reference = build_posture_reference(robot, plan, 2, repair=False)
-    f = np.clip(np.asarray(route.fraction_of_s(np.asarray(s, dtype=float))), 0.0, 1.0 - 1e-12)
-    return np.atleast_2d(np.asarray(robot.arm_com(reference(f).value), dtype=float))
+    from mmstab.runs.arm_ground import reference_postures
+
+    moving = reference_postures(robot, plan, route, s)
+    return np.atleast_2d(np.asarray(robot.arm_com(moving), dtype=float))
 
 
 def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:

@@ -163,8 +163,8 @@ def contact_candidates(
         for y in _across(yc, t.width, spacing)[::-1]:  # the left edge first, as before
             parts.append(np.stack([prof[:, 0], np.full(len(prof), y), prof[:, 1]], axis=1))
             codes += [TRACK] * len(prof)
-    pairs = [f for f in (flippers, base.rear_flippers) if f is not None]  # the rear pair last
-    for pair in pairs:
+    # the front pair at the angle asked, then the rear pair
+    for pair in dataclasses.replace(base, flippers=flippers).flipper_pairs().values():
         for side in ("left", "right"):
             pts = flipper_edges(pair, side, spacing)
             parts.append(pts)
