@@ -7,7 +7,9 @@ saturated joint speeds, and on the default problem through a flipper, the body a
 lap's references over the first ``approach_time`` seconds, followed at a rest-to-rest time
 scaling; its CoM is the arm-CoM reference meanwhile, as on the lap. The approach is longer
 where its move needs it: a roadmap plan's pieces (:func:`approach_duration`), a straight
-move within the joint-speed limits (:func:`straight_approach_duration`).
+move within the joint-speed limits (:func:`straight_approach_duration`). The arm must be
+on the lap by the plan's second pose: an approach that needs longer meets the lap there, and
+the base waits at the path's start for the difference (:attr:`ArmReferences.hold`).
 """
 
 from __future__ import annotations
@@ -19,8 +21,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mmstab.control.approach_path import (
+    ApproachTime,
     approach_duration,
-    approach_outlasts,
+    base_wait_note,
     eased_polyline,
     roadmap_approach_knots,
     straight_approach_duration,
@@ -82,13 +85,13 @@ class Approach:
     """The arm's start-up reference: from the initial posture onto the lap's references.
 
     Over t ∈ [0, duration] the posture reference follows a path A(u) from the initial arm
-    posture to q_ref(s_a) (s_a = duration / lap_time), at the rest-to-rest time scaling
-    u = σ(t / duration) (:func:`time_scaling`); A is a natural cubic spline through its knots
-    (initial posture, via postures, end), straight when there are no via postures. As on the
-    lap, the arm-CoM reference is the CoM of that posture, g_a^B(A(u)), so the CoM task and the
-    posture task ask for the same motion, and it meets the lap's at t = duration. The path is
-    checked at every control period and repaired with via postures (:func:`nearest_free`)
-    where it collides.
+    posture to q_ref(s_a) (s_a = (duration − base_wait) / lap_time), at the rest-to-rest
+    time scaling u = σ(t / duration) (:func:`time_scaling`); A is a natural cubic spline
+    through its knots (initial posture, via postures, end), straight when there are no via
+    postures. As on the lap, the arm-CoM reference is the CoM of that posture, g_a^B(A(u)),
+    so the CoM task and the posture task ask for the same motion, and it meets the lap's at
+    t = duration. The path is checked at every control period and repaired with via
+    postures (:func:`nearest_free`) where it collides.
 
     Attributes:
         duration: its length [s].
@@ -101,6 +104,9 @@ class Approach:
         robot: the robot (arm-CoM kinematics, joint limits).
         eased: A is an :func:`eased_polyline` (a roadmap plan's checked moves, at rest at
             each knot), followed at u = t / duration.
+        base_wait: the base waits at the path's start for the approach's first
+            ``base_wait`` [s], then drives: A ends on the lap at
+            s_a = (duration − base_wait) / lap_time.
     """
 
     duration: float
@@ -112,6 +118,7 @@ class Approach:
     path: Any
     robot: Robot
     eased: bool = False
+    base_wait: float = 0.0
 
     def posture(self, t: ArrayLike) -> PathSample:
         """q_ref (N, 4) [rad] and its rate (N, 4) [rad/s] at times t (N,) [s]."""
@@ -132,6 +139,7 @@ class Approach:
         """The report for ``summary.json``."""
         return {
             "duration_s": self.duration,
+            "base_wait_s": self.base_wait,
             "start_posture": self.postures[0].tolist(),
             "end_posture": self.postures[-1].tolist(),
             "straight_path": self.planned_check._asdict(),
@@ -153,6 +161,7 @@ def build_approach(
     *,
     step: float = 0.05,
     move: FloatArray | None = None,
+    base_wait: float = 0.0,
 ) -> Approach:
     """The start-up reference from the arm posture ``q0`` onto the lap's references.
 
@@ -169,6 +178,8 @@ def build_approach(
         dt: control period [s]: the path is checked at every one.
         step: resolution of the via-posture search [rad] (:func:`nearest_free`).
         move: the plan's move from ``q0`` (n, 4) [rad], starting at ``q0``.
+        base_wait: the base's wait at the path's start [s] (:class:`ApproachTime`): the
+            approach ends on the lap at s = (duration − base_wait) / lap_time.
 
     Raises:
         ValueError: a duration that is not positive.
@@ -177,11 +188,12 @@ def build_approach(
 
     if not duration > 0:
         raise ValueError(f"the approach needs a positive duration, got {duration}")
-    q_end = posture(duration / lap_time).value[0]
+    s_end = (duration - base_wait) / lap_time
+    q_end = posture(s_end).value[0]
     knots, postures = np.array([0.0, 1.0]), np.vstack([np.asarray(q0, dtype=float), q_end])
     eased = move is not None and np.allclose(move[0], q0, atol=1e-9)
     if eased and move is not None:
-        knots, postures = roadmap_approach_knots(robot, move, posture, duration / lap_time)
+        knots, postures = roadmap_approach_knots(robot, move, posture, s_end)
     t = np.arange(int(np.floor(duration / dt)) + 1) * dt
     checker = CollisionChecker(robot)
     unchecked = SequenceCollisions(0, 0, 0.0, [], {})
@@ -191,7 +203,9 @@ def build_approach(
             path = eased_polyline(knots, postures)
         else:
             path = CubicSpline(knots, postures, bc_type="natural")
-        return Approach(duration, knots, postures, (), unchecked, unchecked, path, robot, eased)
+        return Approach(
+            duration, knots, postures, (), unchecked, unchecked, path, robot, eased, base_wait
+        )
 
     approach = make(knots, postures)
     planned, hit = sequence_collisions(checker, t, approach.posture(t).value)
@@ -233,9 +247,42 @@ class ArmReferences(NamedTuple):
     approach: Approach | None
     timing: TimeLaw | None = None
 
+    @property
+    def hold(self) -> float:
+        """Real time [s] the base waits at the path's start while the arm unfolds (0: none)."""
+        return 0.0 if self.approach is None else self.approach.base_wait
+
+    @property
+    def retimed(self) -> bool:
+        """Whether the references' nominal time differs from the real time."""
+        return self.hold > 0 or bool(self.timing and self.timing.slows)
+
+    def nominal(self, t: ArrayLike) -> PathSample:
+        """Nominal times τ (N,) [s] of the references at real times t (N,) [s], and dτ/dt.
+
+        τ stays 0 while the base waits (:attr:`hold`), then follows the time law (or τ = t)
+        from the end of the wait.
+        """
+        moving = np.atleast_1d(np.asarray(t, dtype=float)) - self.hold
+        if self.timing is not None and self.timing.slows:
+            tau, speed = self.timing.nominal(np.maximum(moving, 0.0))
+        else:
+            tau, speed = np.maximum(moving, 0.0), np.ones_like(moving)
+        return PathSample(tau, np.where(moving >= 0, speed, 0.0))
+
     def real_time(self, nominal: float) -> float:
         """The real time [s] a run needs to reach the nominal time [s] of its references."""
-        return self.timing.real_time(nominal) if self.timing and self.timing.slows else nominal
+        moving = self.timing.real_time(nominal) if self.timing and self.timing.slows else nominal
+        return self.hold + moving
+
+    def timing_summary(self, run_end: float) -> dict[str, Any] | None:
+        """The time law's report for a run that ended at real time ``run_end`` [s].
+
+        The wait is left out (the approach's report has it); None without a time law.
+        """
+        if self.timing is None:
+            return None
+        return self.timing.summary(max(run_end - self.hold, 0.0))
 
 
 def arm_references(
@@ -266,22 +313,26 @@ def arm_references(
     moves: tuple[FloatArray, ...] = tuple(getattr(plan, "moves", ()))
     move = moves[0] if moves and len(moves) == len(plan.postures) else None
     if settings.approach_time > 0:
-        duration = settings.approach_time
+        least, lap_time = settings.approach_time, settings.lap_time
+        fractions = np.asarray(plan.fractions, dtype=float)
+        latest = fractions[1] * lap_time if fractions.size > 1 else lap_time  # 2nd pose
+        timed: ApproachTime
         if move is not None:  # lengthened when the plan's first move needs it
-            duration = approach_duration(robot, move, posture, duration, settings.lap_time)
+            timed = approach_duration(robot, move, posture, least, lap_time, latest)
         else:  # lengthened when the straight move would pass the joint-speed limits
-            duration = straight_approach_duration(
-                robot, np.asarray(q0, dtype=float), posture, duration, settings.lap_time
-            )
+            q0 = np.asarray(q0, dtype=float)
+            timed = straight_approach_duration(robot, q0, posture, least, lap_time, latest)
         approach = build_approach(
-            robot, q0, posture, duration, settings.lap_time, settings.dt, move=move
-        )
-        if (outlasts := approach_outlasts(duration, settings.lap_time)) is not None:
-            note(f"mmstab: note: {outlasts}")
+            robot, q0, posture, timed.duration, lap_time, settings.dt, move=move,
+            base_wait=timed.base_wait,
+        )  # fmt: skip
+        if (waits := base_wait_note(timed)) is not None:
+            note(f"mmstab: note: {waits}")
     fraction = getattr(settings, "dynamic_fraction", None)
     if ground is None or fraction is None:
         return ArmReferences(posture, approach)
-    window = (0.0 if approach is None else approach.duration, settings.duration)
+    start = 0.0 if approach is None else approach.duration - approach.base_wait
+    window = (start, settings.duration)
     law = build_time_law(
         robot, *ground, posture, settings.lap_time, plan.fractions, fraction, window
     )
@@ -341,7 +392,7 @@ def run_reference(
         arm.posture,
         np.asarray(t, dtype=float),
         arm.approach,
-        arm.timing.nominal if arm.timing is not None and arm.timing.slows else None,
+        arm.nominal if arm.retimed else None,
     )
     body = settings.arm_com_frame == "body"
     return RunReference(arm, step, body_frame_reference(robot, step) if body else step)

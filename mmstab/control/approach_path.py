@@ -7,11 +7,19 @@ until no piece passes :data:`APPROACH_PEAK_SPEED` of the limits (:func:`approach
 Other plans' approaches follow a spline at the quintic rest-to-rest scaling
 (:func:`time_scaling`), lengthened where the straight move would pass the joint-speed limits
 (:func:`straight_approach_duration`).
+
+The base drives while the arm approaches, for ``controller.approach_time`` or, when the
+move needs longer, until the base reaches the plan's second pose at the latest: by then the
+arm must be on the plan, whose poses were checked with the plan's arm. An approach that
+needs longer, or cannot catch the lap at all (a lap that keeps moving its arm faster than
+the approach), takes the plan's first move alone, onto the first posture, while the base
+waits at the path's start (:class:`ApproachTime` ``base_wait``): the move was checked
+there, and the lap then starts from its first posture.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -32,6 +40,10 @@ APPROACH_PEAK_SPEED = 0.3
 QUINTIC_PEAK = 1.875
 #: Rounds of :func:`approach_duration`'s lengthening.
 APPROACH_ROUNDS = 8
+#: The lengthening has caught the lap when its last round added less than this share [-]:
+#: it converges geometrically (random laps: within 3e-4 after the rounds), while a lap that
+#: keeps its arm moving faster than the approach grows it by a factor each round.
+CAUGHT = 0.01
 
 
 def time_scaling(tau: ArrayLike) -> PathSample:
@@ -105,16 +117,62 @@ def roadmap_approach_knots(
     return tau / tau[-1], q
 
 
+class ApproachTime(NamedTuple):
+    """How long a run's start-up approach lasts, and how long the base waits meanwhile.
+
+    The approach takes ``duration`` [s] of real time; the base waits at the path's start
+    for the first ``base_wait`` [s] of it, then drives, so the approach meets the lap at the
+    nominal time ``duration - base_wait`` [s].
+
+    Attributes:
+        duration: the approach's length [s].
+        base_wait: the base's wait at the start [s] (0: it drives all along).
+    """
+
+    duration: float
+    base_wait: float = 0.0
+
+    @property
+    def meets(self) -> float:
+        """The nominal time [s] at which the approach meets the lap."""
+        return self.duration - self.base_wait
+
+
+def _met_on_the_move(duration: float, previous: float, least: float, latest: float) -> bool:
+    """Whether a lengthened approach [s] meets the lap in time, the base driving meanwhile.
+
+    ``previous`` is its length before the last round [s]; ``least`` the user's
+    ``approach_time`` [s], which the base always drives through; ``latest`` when the base
+    reaches the plan's second pose [s].
+    """
+    if duration > previous * (1 + CAUGHT):
+        return False  # still lengthening: the lap's arm keeps ahead of the approach
+    return duration <= least * (1 + 1e-9) or duration <= latest
+
+
+def _waiting(duration: float) -> ApproachTime:
+    """An approach of ``duration`` [s] onto the lap's start, the base waiting all along."""
+    return ApproachTime(duration, duration)
+
+
 def approach_duration(
-    robot: Robot, move: FloatArray, posture: PostureReference, least: float, lap_time: float
-) -> float:
+    robot: Robot,
+    move: FloatArray,
+    posture: PostureReference,
+    least: float,
+    lap_time: float,
+    latest: float | None = None,
+) -> ApproachTime:
     """A roadmap plan's approach time [s]: at least ``least`` [s], long enough for its pieces.
 
     The approach runs the plan's first move and the lap's checked moves up to where it meets
     the lap (:func:`roadmap_approach_knots`), so the pieces to time depend on the time: it is
     lengthened until every piece, the lap's too, keeps :data:`APPROACH_PEAK_SPEED`
-    (:func:`move_duration`), at most :data:`APPROACH_ROUNDS` times (a lap that moves its arm
-    faster than that all along would lengthen it without end).
+    (:func:`move_duration`), at most :data:`APPROACH_ROUNDS` times. A lap that moves its arm
+    faster than that all along would lengthen it without end. Where the lengthening has
+    not caught the lap (:data:`CAUGHT`), or catches it only after ``latest`` (and after
+    ``least``), the approach is the plan's first move alone, onto the lap's start, and the
+    base waits at the start meanwhile (:class:`ApproachTime`).
 
     Args:
         robot: the robot (joint-speed limits [rad/s]).
@@ -122,44 +180,52 @@ def approach_duration(
         posture: the lap's posture reference.
         least: ``controller.approach_time`` [s].
         lap_time: the lap's time [s].
+        latest: when the base reaches the plan's second pose [s] (None: the lap's end).
     """
-    duration = max(least, move_duration(robot, move))
+    latest = lap_time if latest is None else min(latest, lap_time)
+    duration = previous = max(least, move_duration(robot, move))
     for _ in range(APPROACH_ROUNDS):
         _, q = roadmap_approach_knots(robot, move, posture, duration / lap_time)
         needed = move_duration(robot, q)
         if needed <= duration * (1 + 1e-9):
+            previous = duration
             break
-        duration = needed
-    return duration
+        previous, duration = duration, needed
+    if _met_on_the_move(duration, previous, least, latest):
+        return ApproachTime(duration)
+    _, q = roadmap_approach_knots(robot, move, posture, 0.0)
+    return _waiting(max(least, move_duration(robot, q)))
 
 
-def approach_outlasts(duration: float, lap_time: float) -> str | None:
-    """A note where the approach [s] lasts the whole lap or route [s] or more, else None.
-
-    A roadmap plan's approach is lengthened until it meets the lap where the lap's arm has
-    got to (:func:`approach_duration`); a plan that keeps moving the arm faster than the
-    approach's pieces (each at rest at its knots, at most :data:`APPROACH_PEAK_SPEED` of
-    the limits) is never caught, and the arm follows the approach, not the plan.
-    """
-    if duration < lap_time:
+def base_wait_note(approach: ApproachTime) -> str | None:
+    """The note a run gives when its base waits at the start for the arm, else None."""
+    if approach.base_wait <= 0:
         return None
     return (
-        f"the arm's start-up approach takes {duration:.0f} s, as long as the whole path as "
-        f"driven ({lap_time:.0f} s) or longer: the plan moves the arm faster than the "
-        f"approach (at most {APPROACH_PEAK_SPEED:g} of its joints' speed limits) can catch "
-        "it, so the arm follows the approach, not the plan (docs/tracking.md, Approach)"
+        f"the base waits {approach.base_wait:.1f} s at the path's start while the arm "
+        "unfolds onto the plan's first posture: on the move, the start-up approach (at "
+        f"most {APPROACH_PEAK_SPEED:g} of the joints' speed limits, or the straight move's "
+        f"{JOINT_SPEED_SHARE:g}) would not bring the arm onto the plan before the base "
+        "reached the plan's second pose (docs/tracking.md, Approach)"
     )
 
 
 def straight_approach_duration(
-    robot: Robot, q0: FloatArray, posture: PostureReference, least: float, lap_time: float
-) -> float:
+    robot: Robot,
+    q0: FloatArray,
+    posture: PostureReference,
+    least: float,
+    lap_time: float,
+    latest: float | None = None,
+) -> ApproachTime:
     """A straight approach's time [s]: at least ``least`` [s], within the joint-speed limits.
 
     The approach from ``q0`` ends on the lap's reference at s = T / lap_time, which moves
     with T; the straight move is timed by the quintic scaling (peak rate 1.875 times the
     mean), lengthened until no joint passes ``JOINT_SPEED_SHARE`` of its limit (the lap's
-    rule, :mod:`mmstab.control.timing`), at most :data:`APPROACH_ROUNDS` times. A user's
+    rule, :mod:`mmstab.control.timing`), at most :data:`APPROACH_ROUNDS` times; where that
+    has not caught the lap, or catches it only after ``latest``, it ends on the lap's start
+    and the base waits meanwhile, as in :func:`approach_duration`. A user's
     3-joint arm (1 rad/s joints) ran its 1.7 rad turret move in 1 s at 3 times its limit;
     saturated, the arm lagged off the checked path and its forearm touched a flipper. The
     shipped problems' approaches keep their ``approach_time``.
@@ -170,14 +236,22 @@ def straight_approach_duration(
         posture: the lap's posture reference.
         least: ``controller.approach_time`` [s].
         lap_time: the lap's time [s].
+        latest: when the base reaches the plan's second pose [s] (None: the lap's end).
     """
     q0 = np.asarray(q0, dtype=float)
-    duration = least
+    latest = lap_time if latest is None else min(latest, lap_time)
+
+    def needed(s_end: float) -> float:
+        at_limit = float((np.abs(posture(s_end).value[0] - q0) / robot.joint_velocity).max())
+        return QUINTIC_PEAK * at_limit / JOINT_SPEED_SHARE
+
+    duration = previous = least
     for _ in range(APPROACH_ROUNDS):
-        q_end = posture(duration / lap_time).value[0]
-        at_limit = float((np.abs(q_end - q0) / robot.joint_velocity).max())
-        needed = QUINTIC_PEAK * at_limit / JOINT_SPEED_SHARE
-        if needed <= duration * (1 + 1e-9):
+        more = needed(duration / lap_time)
+        if more <= duration * (1 + 1e-9):
+            previous = duration
             break
-        duration = needed
-    return duration
+        previous, duration = duration, more
+    if _met_on_the_move(duration, previous, least, latest):
+        return ApproachTime(duration)
+    return _waiting(max(least, needed(0.0)))

@@ -72,7 +72,11 @@ def circle_pose(circle: BasePath, s: ArrayLike) -> PathSample:
 
 
 def place_on_path(
-    circle: BasePath, terrain: Terrain, s: ArrayLike, point_body: PathSample
+    circle: BasePath,
+    terrain: Terrain,
+    s: ArrayLike,
+    point_body: PathSample,
+    pose_speed: ArrayLike | None = None,
 ) -> PathSample:
     """Body points placed in M with the reference base pose, and their rate d/ds.
 
@@ -81,11 +85,15 @@ def place_on_path(
         terrain: the ground (gives the local ground of each reference pose).
         s: path fractions (N,) [-].
         point_body: points in B (N, 3) [m] and their rates d/ds (N, 3) [m].
+        pose_speed: the base pose's share of the rate (N,) [-] (0 where the base waits
+            while the point moves); None: 1.
 
     Returns:
         The placed points (N, 3) [m] and d/ds = ∂place/∂pose · pose' + M_R_B · p' (N, 3) [m].
     """
     pose, dpose = circle_pose(circle, s)
+    if pose_speed is not None:
+        dpose = dpose * np.asarray(pose_speed, dtype=float)[:, None]
     placed = place_local(pose, terrain.local_ground(pose), point_body.value)
     rate = np.einsum("nij,nj->ni", placed.d_pose, dpose)
     rate += np.einsum("nij,nj->ni", placed.d_point, point_body.rate)
@@ -347,10 +355,10 @@ def task_reference(
         t: times (N,) [s].
         approach: the arm's start-up reference; for t < ``approach.duration`` it replaces the
             arm-CoM rows (its body-frame CoM placed with the reference base pose) and the
-            posture reference.
-        timing: the time law (:class:`mmstab.control.timing.TimeLaw` ``.nominal``): real
-            times t -> nominal times τ [s] and dτ/dt [-]; the references are taken at τ and
-            their rates scaled by dτ/dt. None: τ = t.
+            posture reference (at real times t).
+        timing: real times t -> nominal times τ [s] and dτ/dt [-] (the time law, a wait at
+            the start: :meth:`mmstab.control.approach.ArmReferences.nominal`); the
+            references are taken at τ and their rates scaled by dτ/dt. None: τ = t.
 
     Returns:
         ξ_des (N, 6), ξ̇_ref (N, 6) [m/s, rad/s], q_ref (N, 4) [rad], q̇_ref (N, 4) [rad/s],
@@ -369,7 +377,8 @@ def task_reference(
     )
     if approach is not None and np.any(early := t < approach.duration):
         g_B, dg_B = approach.com_body(t[early])
-        placed = place_on_path(circle, terrain, s[early], PathSample(g_B, dg_B * lap_time))
+        point = PathSample(g_B, dg_B * lap_time)
+        placed = place_on_path(circle, terrain, s[early], point, speed[early])
         ref.xi_des[early, 3:], ref.xi_dot_ref[early, 3:] = placed.value, placed.rate / lap_time
         ref.q_ref[early], ref.q_dot_ref[early] = approach.posture(t[early])
     return ref

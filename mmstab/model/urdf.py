@@ -55,10 +55,6 @@ from mmstab.model.robot import ArmLink, Box, FloatArray, Geometry, Robot, homoge
 #: Joint effort limit written for every arm joint [N m]: a placeholder (no torque model).
 DEFAULT_EFFORT = 100.0
 
-#: Names of the base links, in the order of ``Base.collision_boxes()`` (a base without
-#: flippers has the first three; a rear pair adds ``flipper_rear_left/right``).
-BASE_LINKS = ("body", "track_left", "track_right", "flipper_left", "flipper_right")
-
 _MATERIALS = {
     "body": (0.55, 0.58, 0.50, 1.0),
     "track": (0.15, 0.15, 0.15, 1.0),

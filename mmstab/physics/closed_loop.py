@@ -343,8 +343,7 @@ def run_closed_loop(
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     m = (checks.end[0] if checks.end else k) + 1
     m, mu_sim, tilt, arm, end, cause = run_end(sim, checks, positions, m, t, loop.tip_hold)
-    law = arm_refs.timing if arm_refs.timing is not None and arm_refs.timing.slows else None
-    tau = clock_t if law is None else law.nominal(clock_t).value  # the references' nominal [s]
+    tau = arm_refs.nominal(clock_t).value if arm_refs.retimed else clock_t  # references' [s]
     run = _finish(problem, ctrl_settings, loop, t[:m], states[:m], qdots[: m - 1],
                   status[: m - 1], ref_map[:m], mu_sim, tilt, None, wall, dt, tau[:m])  # fmt: skip
     cut = end is not None and end[2] in ("tipped", "left_map")
@@ -356,7 +355,7 @@ def run_closed_loop(
         left_map=float(t[end[1]]) if end and end[2] == "left_map" else None,
         arm_ground=arm,
         cpu_seconds=cpu,
-        timing=None if refs.arm.timing is None else refs.arm.timing.summary(float(clock_t[m - 1])),
+        timing=refs.arm.timing_summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
         stalled=float(t[m - 1]) if stalled else None,
         stall=stall,

@@ -14,7 +14,6 @@ from conftest import ROBOT_YAML, ROOT, random_postures, write_problem
 
 from mmstab.model.robot import Box, Capsule, rpy_matrix
 from mmstab.model.urdf import (
-    BASE_LINKS,
     DEFAULT_EFFORT,
     default_file_mode,
     matrix_to_rpy,
@@ -60,7 +59,7 @@ def test_urdf_is_well_formed_and_every_reference_is_defined(urdf_text, robot):
     materials = {m.get("name") for m in root.findall("material")}
     used = {m.get("name") for m in root.iter("material") if m.find("color") is None}
     assert used and used <= materials
-    assert set(BASE_LINKS) <= set(links)
+    assert set(robot.base.collision_boxes()) <= set(links)  # a link per base part
     revolute = [j for j in joints if j.get("type") == "revolute"]
     assert [j.get("name") for j in revolute] == [f"arm_joint_{i}" for i in range(4)]
     for i, (j, link) in enumerate(zip(revolute, robot.links, strict=True)):

@@ -297,6 +297,7 @@ def test_plan_and_track_a_route_with_a_pivot_from_the_cli(tmp_path):
     if slowed:
         assert slowed[0]["start_s"] == pytest.approx(s0) and slowed[0]["end_t_s"] > t1
         t0, t1 = slowed[0]["start_t_s"], slowed[0]["end_t_s"]
+    t0, t1 = np.array([t0, t1]) + t["approach"]["base_wait_s"]  # the wait at the start
     inside = (run["t"] > t0 + 0.2) & (run["t"] < t1 - 0.2)
     assert np.abs(run["state"][inside, :2] - [-0.2, -0.3]).max() < 1e-3
     left, right = run["qdot"][inside, 0], run["qdot"][inside, 1]

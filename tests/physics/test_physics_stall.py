@@ -1,10 +1,10 @@
 """What holds a robot that stalls in MuJoCo: its chassis on the ground, or its tracks.
 
 The ground is a user's map written with NumPy (a 12° slope, egg-box bumps, a 12 cm deep and
-0.5 m wide ditch across the route), the robot the user's scout with 6 cm flippers. Its 0.6 m
-tracks dip nose first into the ditch; the uphill track's front climbs the far rim, the
-downhill one's stays at the wall, the robot yaws 19° and its chassis (3 cm above the tracks'
-bottom, 0.55 m long) comes down on both rims with the tracks hanging between.
+0.5 m wide ditch across the route), the robot the user's scout with 6 cm flippers (its
+slow joints: the base waits at the start while the arm unfolds). Its 0.6 m tracks dip nose
+first into the ditch and its chassis (3 cm above the tracks' bottom, 0.55 m long) comes
+down on the rims with the tracks hanging between.
 """
 
 from __future__ import annotations
@@ -55,5 +55,8 @@ def test_a_robot_high_centred_on_a_ditch_stalls_high_centred(tmp_path, capsys) -
     assert stall["touching"]["arm"] == 0.0
     err = capsys.readouterr().err
     assert f"stalled, high-centred at s = {stall['s_m']:.2f} m" in err
-    # the yaw that put it there also moved it downhill: reported first, a slide
-    assert status == 4
+    # the arm on its plan, the robot does not slide downhill on the way; a stall alone is a
+    # warning, not an unsafe verdict (docs/cli.md)
+    summary = json.loads((out / "summary.json").read_text())
+    assert not summary["slid"] and summary["downhill_drift_max_m"] < 0.05
+    assert "the base waits" in err and status == 0

@@ -35,6 +35,7 @@ import yaml
 from conftest import ROOT
 
 from experiments.random_routes import random_route
+from mmstab.control.approach import ArmReferences
 from mmstab.core.problem import Problem, load_problem
 from mmstab.paths import Pivot
 from mmstab.runs.verdict import MIN_CLEARANCE
@@ -171,10 +172,11 @@ def check_pair(problem: Problem, cache_dir: Path | None = None) -> dict[str, Any
     collisions = arm_collisions(problem.robot, run.t, run.state[:, 5:])
     record |= {
         "duration_s": float(run.t[-1]),
-        # the route's driving time, and the real time the arm's time law takes for it
-        "route_duration_s": problem.route.duration
-        if run.timing is None or not run.timing.slows
-        else run.timing.real_time(problem.route.duration),
+        # the real time the run takes for the route's driving time: the base's wait at the
+        # start for the arm (if any) and the arm's time law
+        "route_duration_s": ArmReferences(run.posture, run.approach, run.timing).real_time(
+            problem.route.duration
+        ),
         "qp_failures": len(run.failures),
         "tipped": run.tipped is not None,
         "colliding_samples": collisions["colliding_samples"],

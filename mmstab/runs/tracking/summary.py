@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from mmstab.control.approach import ArmReferences
 from mmstab.model.robot import FloatArray
 from mmstab.runs.tracking.run import TRANSIENT_FRACTION, TrackingRun, joint_names
 
@@ -87,6 +88,8 @@ def summarize(run: TrackingRun) -> dict[str, Any]:
         "initial_arm": run.initial_arm,
         "posture_reference": run.posture.summary(run.lap_time),
         "approach": None if run.approach is None else run.approach.summary(),
-        "arm_timing": None if run.timing is None else run.timing.summary(float(run.t[-1])),
+        "arm_timing": ArmReferences(run.posture, run.approach, run.timing).timing_summary(
+            float(run.t[-1])
+        ),
         "tipped": None if run.tipped is None else run.tipped.summary(),
     }
