@@ -8,8 +8,8 @@ lap's references over the first ``approach_time`` seconds, followed at a rest-to
 scaling; its CoM is the arm-CoM reference meanwhile, as on the lap. The approach is longer
 where its move needs it: a roadmap plan's pieces (:func:`approach_duration`), a straight
 move within the joint-speed limits (:func:`straight_approach_duration`). The arm must be
-on the lap by the plan's second pose: an approach that needs longer meets the lap there, and
-the base waits at the path's start for the difference (:attr:`ArmReferences.hold`).
+on the lap by the plan's second pose: an approach that would need longer is the plan's first
+move alone, and the base waits at the path's start meanwhile (:attr:`ArmReferences.hold`).
 """
 
 from __future__ import annotations
