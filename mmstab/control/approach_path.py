@@ -19,6 +19,7 @@ there, and the lap then starts from its first posture.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -138,21 +139,40 @@ class ApproachTime(NamedTuple):
         return self.duration - self.base_wait
 
 
-def _met_on_the_move(duration: float, previous: float, least: float, latest: float) -> bool:
-    """Whether a lengthened approach [s] meets the lap in time, the base driving meanwhile.
+def _timed(
+    needed: Callable[[float], float],
+    first: float,
+    least: float,
+    lap_time: float,
+    latest: float | None,
+) -> ApproachTime:
+    """An approach's time, lengthened until it needs no more, else the base's wait.
 
-    ``previous`` is its length before the last round [s]; ``least`` the user's
-    ``approach_time`` [s], which the base always drives through; ``latest`` when the base
-    reaches the plan's second pose [s].
+    Args:
+        needed: the time [s] an approach that meets the lap at fraction s needs.
+        first: the time [s] to start lengthening from.
+        least: ``controller.approach_time`` [s]: the base always drives through it.
+        lap_time: the lap's time [s].
+        latest: when the base reaches the plan's second pose [s] (None: the lap's end).
+
+    Returns:
+        The lengthened approach when it caught the lap (its last round added less than
+        :data:`CAUGHT`) by ``latest`` or within ``least``; else the approach onto the lap's
+        start (``needed(0)``, at least ``least``), the base waiting all along.
     """
-    if duration > previous * (1 + CAUGHT):
-        return False  # still lengthening: the lap's arm keeps ahead of the approach
-    return duration <= least * (1 + 1e-9) or duration <= latest
-
-
-def _waiting(duration: float) -> ApproachTime:
-    """An approach of ``duration`` [s] onto the lap's start, the base waiting all along."""
-    return ApproachTime(duration, duration)
+    latest = lap_time if latest is None else min(latest, lap_time)
+    duration = previous = first
+    for _ in range(APPROACH_ROUNDS):
+        more = needed(duration / lap_time)
+        if more <= duration * (1 + 1e-9):
+            previous = duration
+            break
+        previous, duration = duration, more
+    caught = duration <= previous * (1 + CAUGHT)  # else the lap's arm keeps ahead
+    if caught and (duration <= least * (1 + 1e-9) or duration <= latest):
+        return ApproachTime(duration)
+    waiting = max(least, needed(0.0))
+    return ApproachTime(waiting, waiting)
 
 
 def approach_duration(
@@ -182,19 +202,11 @@ def approach_duration(
         lap_time: the lap's time [s].
         latest: when the base reaches the plan's second pose [s] (None: the lap's end).
     """
-    latest = lap_time if latest is None else min(latest, lap_time)
-    duration = previous = max(least, move_duration(robot, move))
-    for _ in range(APPROACH_ROUNDS):
-        _, q = roadmap_approach_knots(robot, move, posture, duration / lap_time)
-        needed = move_duration(robot, q)
-        if needed <= duration * (1 + 1e-9):
-            previous = duration
-            break
-        previous, duration = duration, needed
-    if _met_on_the_move(duration, previous, least, latest):
-        return ApproachTime(duration)
-    _, q = roadmap_approach_knots(robot, move, posture, 0.0)
-    return _waiting(max(least, move_duration(robot, q)))
+
+    def needed(s_end: float) -> float:
+        return move_duration(robot, roadmap_approach_knots(robot, move, posture, s_end)[1])
+
+    return _timed(needed, max(least, move_duration(robot, move)), least, lap_time, latest)
 
 
 def base_wait_note(approach: ApproachTime) -> str | None:
@@ -239,19 +251,9 @@ def straight_approach_duration(
         latest: when the base reaches the plan's second pose [s] (None: the lap's end).
     """
     q0 = np.asarray(q0, dtype=float)
-    latest = lap_time if latest is None else min(latest, lap_time)
 
     def needed(s_end: float) -> float:
         at_limit = float((np.abs(posture(s_end).value[0] - q0) / robot.joint_velocity).max())
         return QUINTIC_PEAK * at_limit / JOINT_SPEED_SHARE
 
-    duration = previous = least
-    for _ in range(APPROACH_ROUNDS):
-        more = needed(duration / lap_time)
-        if more <= duration * (1 + 1e-9):
-            previous = duration
-            break
-        previous, duration = duration, more
-    if _met_on_the_move(duration, previous, least, latest):
-        return ApproachTime(duration)
-    return _waiting(max(least, needed(0.0)))
+    return _timed(needed, least, least, lap_time, latest)
