@@ -243,7 +243,7 @@ def _pose_times(s: dict[str, Any]) -> str:
 
 
 def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
-    """The climb limit's verdict on the route's steps (docs/stability.md, "The climb limit").
+    """The climb limit's verdict on the route's steps (docs/climbing.md, "The climb limit").
 
     One entry per step, where the front wheels meet it (the poses before and after it both
     keep its limit, so the summary lists it twice).

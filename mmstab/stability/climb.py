@@ -16,7 +16,7 @@ with both tractions at their limit gives the condition (the robot climbs iff)::
     D = a (sin θ + μ cos θ) + h (cos θ − μ sin θ),   a = x_E − x_r,
 
 linear in the overall CoM, so in the arm's CoM: a half-plane the planner can keep the
-CoM in (``docs/stability.md``, "The climb limit"). The step and θ come from the map: the
+CoM in (``docs/climbing.md``, "The climb limit"). The step and θ come from the map: the
 front wheel is rolled forward over the ground ahead (:func:`step_profile`) and the most
 horizontal normal it meets is the step's. On level ground the condition reads
 ``x_c − x_r ≤ μ D / ((1 + μ²) cos θ)``: at the shipped 10 cm kerb (its face 78.7° steep
