@@ -99,6 +99,21 @@ SCOUT: dict[str, Any] = {
 }  # fmt: skip
 
 
+def ditch_ground(rng: np.random.Generator, slope_deg: float = 15.0, bump_m: float = 0.06) -> Any:
+    """A user's 10 m map: a side slope (uphill +y), a 0.6 m wide, 20 cm deep ditch across
+    x = 0, six seeded bumps of ``bump_m`` (a :class:`mmstab.terrain.heightmap.Heightmap`)."""
+    from mmstab.terrain.heightmap import Heightmap
+
+    res = 0.05
+    x = np.arange(-5, 5 + 1e-9, res)
+    X, Y = np.meshgrid(x, x)
+    z = np.tan(np.radians(slope_deg)) * Y - 0.20 * (np.abs(X) < 0.3)
+    for _ in range(6):
+        cx, cy = rng.uniform(-4, 4, 2)
+        z += bump_m * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * 0.3**2))
+    return Heightmap.build(z, res, [x[0], x[0]], "ditch")
+
+
 def random_robot(rng: np.random.Generator) -> dict[str, Any]:
     """A robot file's mapping drawn at random: a user's robot the tests did not write.
 

@@ -215,6 +215,7 @@ def plan(
         stage = stage._replace(fixed_seconds=stage.fixed_seconds + time.perf_counter() - t0)
         assert isinstance(path_, RoutePath)
         return _route_plan(robot_, terrain_, path_, settings, stage)
+    assert isinstance(path_, CirclePath)
     return _lap_plan(robot_, terrain_, path_, settings, stage)
 
 
@@ -236,7 +237,7 @@ def _route_plan(
 
 
 def _lap_plan(
-    robot: Robot, terrain: Terrain, path: BasePath, settings: Settings, stage: Plan
+    robot: Robot, terrain: Terrain, path: CirclePath, settings: Settings, stage: Plan
 ) -> PathPlan:
     postures = np.asarray(stage.postures, dtype=float)
     mu = stability_along(robot, terrain, stage.poses, robot.arm_com(postures))
@@ -252,7 +253,7 @@ def _lap_plan(
     ]  # fmt: skip
     lap_time = settings.controller.lap_time
     arm_path = arm_path_check(robot, stage, lap_time, settings.controller.dt)
-    v = lap_verdicts(robot, terrain, path, poses, settings.verdicts, lap_time, arm_path)
+    v = lap_verdicts(robot, terrain, path, stage, poses, settings.verdicts, lap_time, arm_path)
     s = path.length * np.asarray(stage.fractions, dtype=float)
     return PathPlan(
         robot, terrain, path, settings, s, np.asarray(stage.fractions, dtype=float),

@@ -199,6 +199,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"CoM error {p['realised_com_error_m'] * 1e3:.2f} mm "
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
+    limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
     high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
 

@@ -174,13 +174,14 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     v = lap_verdicts(
         problem.robot,
         problem.terrain,
-        problem.base_path,
+        problem.circle,
+        plan,
         summary["poses"],
         settings.verdicts,
         lap_time,
         arm_path,
     )  # the verdicts mmstab.plan returns
-    for key in ("stability", "slip", "high_centred", "verdicts"):
+    for key in ("stability", "slip", "high_centred", "along_path", "verdicts"):
         summary[key] = v[key]
     if arm_path is not None:
         summary["arm_path"] = v["arm_path"]

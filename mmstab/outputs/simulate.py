@@ -29,6 +29,7 @@ from mmstab.outputs.simulate_figure import write_run_figure, write_run_gif
 from mmstab.physics.closed_loop import LoopSettings, PhysicsRun, run_closed_loop
 from mmstab.physics.governor import GovernorSettings
 from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.runs.plan_verdicts import high_centred_along, path_along
 from mmstab.runs.tracking.simulation import settings_for_path
 from mmstab.stability.drive import resolve_turn_ratio
 from mmstab.stability.support import is_heightmap
@@ -140,9 +141,13 @@ def run_simulate(
     summary["model"] = {"wheel": loop.wheel, "timestep_s": loop.timestep}
     summary["drive"] = {"turn_ratio": resolve_turn_ratio(problem.robot, loop.turn_ratio),
                         "setting": loop.turn_ratio}  # fmt: skip
-    summary["high_centred"] = high_centred_verdict(
-        problem.terrain, *path_samples(problem.base_path)
-    )
+    if loop.arm == "planned":  # the plan's own record: the path rested with the planned arm
+        along = path_along(problem.robot, problem.terrain, problem.base_path, arm_plan)
+        summary["high_centred"] = high_centred_along(along)
+    else:
+        summary["high_centred"] = high_centred_verdict(
+            problem.terrain, *path_samples(problem.base_path)
+        )
     place_events(summary, run, problem.base_path)
     write_run_figure(d / "physics.png", problem, run, loop)
     if gif:

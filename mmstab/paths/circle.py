@@ -46,6 +46,10 @@ class CirclePath(NamedTuple):
         """A lap: it ends where it starts."""
         return True
 
+    def fraction_of_s(self, s: ArrayLike) -> FloatArray:
+        """Time fraction of the lap at arc lengths ``s`` [m]: a lap is driven at one speed."""
+        return np.asarray(np.asarray(s, dtype=float) / self.length)
+
     def pose_rate(self, s: ArrayLike) -> PathSample:
         """Base poses (x, y, heading) at fractions ``s`` and their derivative d/ds (N, 3)."""
         s = np.atleast_1d(np.asarray(s, dtype=float))

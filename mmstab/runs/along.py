@@ -1,4 +1,4 @@
-"""The route's verdicts between its planned poses: every few centimetres, not every half metre.
+"""A path's verdicts between its planned poses: every few centimetres, not every half metre.
 
 The planner places poses ``planner.spacing`` apart (0.5 m by default); a ditch's edge or a
 kerb lies between two of them. :func:`dense_verdicts` rests the robot along the path every
@@ -19,12 +19,14 @@ the tracking run and the robot meet:
   that exceeds the slip distance (a stop on it, the route's ends included, always does);
 - **high-centred**: the chassis among the loaded contacts (a warning: stuck, not unsafe).
 
-Each failing stretch says where (arc lengths [m]), which limit and by how much.
+Each failing stretch says where (arc lengths [m]), which limit and by how much. A circle's
+lap is checked the same way (:class:`LapStage`: its plan as a route's is read); it closes on
+its first pose.
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -35,6 +37,10 @@ from mmstab.stability.rock import rock_over
 from mmstab.stability.slip import cone_slide, slip_limit, terrain_friction
 from mmstab.stability.support import is_heightmap, loaded_support
 from mmstab.terrain.base import GRAVITY_G, Terrain
+
+if TYPE_CHECKING:
+    from mmstab.paths.circle import CirclePath
+    from mmstab.planner import Plan, PlannerSettings
 
 #: Largest arc length between two checked samples [m] (the maps' cells are 2-5 cm; the
 #: tracks' road wheels about 10 cm apart).
@@ -60,6 +66,33 @@ class Along(NamedTuple):
     tilt: FloatArray
     high_centred: np.ndarray
     arm_com: FloatArray
+
+
+class LapStage(NamedTuple):
+    """A lap's plan as the dense checks read a route's (:func:`lap_stage`).
+
+    Attributes:
+        s: arc length of each planned pose from the lap's start (K,) [m].
+        fractions: the lap's (time) fraction of each (K,) [-].
+        target_com: the planned arm CoMs, body frame (K, 3) [m].
+        postures: the postures realising them (K, n) [rad].
+        moves: the arm's path into each posture (the roadmap's), else empty.
+        settings: the planner's settings.
+    """
+
+    s: FloatArray
+    fractions: FloatArray
+    target_com: FloatArray
+    postures: FloatArray
+    moves: tuple[FloatArray, ...]
+    settings: PlannerSettings
+
+
+def lap_stage(plan: Plan, lap: CirclePath) -> LapStage:
+    """The lap's plan with its poses' arc lengths [m] (a lap is driven at one speed)."""
+    fractions = np.asarray(plan.fractions, dtype=float)
+    return LapStage(lap.length * fractions, fractions, np.asarray(plan.target_com, dtype=float),
+                    np.asarray(plan.postures, dtype=float), plan.moves, plan.settings)  # fmt: skip
 
 
 def acceleration_margin(mass: float, acceleration: float) -> float:
@@ -101,11 +134,17 @@ def path_timing(route: Any, spacing: float) -> tuple[FloatArray, FloatArray, Flo
     return route.poses(n), s, np.asarray(route.fraction_of_s(s)) * route.lap_time
 
 
-def bracket(s_plan: ArrayLike, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the planned poses before and after each arc length ``s`` [m]."""
+def bracket(s_plan: ArrayLike, s: ArrayLike, closed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the planned poses before and after each arc length ``s`` [m].
+
+    On a ``closed`` path (a lap) the pose after the last is the first: the lap closes.
+    """
     sp = np.asarray(s_plan, dtype=float)
-    before = np.clip(np.searchsorted(sp, np.asarray(s, float), side="right") - 1, 0, len(sp) - 1)
-    return before, np.minimum(before + 1, len(sp) - 1)
+    last = len(sp) - 1
+    before = np.clip(np.searchsorted(sp, np.asarray(s, float), side="right") - 1, 0, last)
+    if closed:
+        return before, np.where(before == last, 0, before + 1)
+    return before, np.minimum(before + 1, last)
 
 
 def along_path(
@@ -116,6 +155,7 @@ def along_path(
     s_plan: ArrayLike,
     arm_com_plan: ArrayLike,
     arm_com_reference: ArrayLike | None = None,
+    closed: bool = False,
 ) -> Along:
     """Rest the robot at path samples with the planned arm before and after each.
 
@@ -129,10 +169,11 @@ def along_path(
         arm_com_reference: the arm CoM of the posture reference at each sample, body
             frame (N, 3) [m] (:func:`mmstab.runs.climb_out.reference_arm_coms`), checked
             too; None: the two postures only.
+        closed: the path is a lap: past its last planned pose the arm moves into the first's.
     """
     P = np.atleast_2d(np.asarray(poses, dtype=float))
     arm = np.asarray(arm_com_plan, dtype=float)
-    before, after = bracket(s_plan, s)
+    before, after = bracket(s_plan, s, closed)
     sets = [arm[before], arm[after]]
     if arm_com_reference is not None:
         sets.append(np.asarray(arm_com_reference, dtype=float).reshape(len(P), 3))

@@ -43,8 +43,10 @@ from mmstab.stability.support import is_heightmap
 from mmstab.terrain.base import Terrain
 
 if TYPE_CHECKING:
+    from mmstab.paths.circle import CirclePath
     from mmstab.paths.route import RoutePath
     from mmstab.planner import RoutePlan
+    from mmstab.runs.along import LapStage
 
 
 #: A rest that turns more than this between neighbouring samples is a flip [rad] (3 deg
@@ -84,10 +86,13 @@ def _turns(z: FloatArray) -> FloatArray:
     return out
 
 
-def reference_postures(robot: Robot, plan: RoutePlan, route: RoutePath, s: ArrayLike) -> FloatArray:
+def reference_postures(
+    robot: Robot, plan: RoutePlan | LapStage, route: RoutePath | CirclePath, s: ArrayLike
+) -> FloatArray:
     """The arm's posture reference at arc lengths s (N,) [m]: postures (N, n) [rad].
 
-    The plan's postures joined by its moves along the route's time law
+    The plan's postures joined by its moves along the path's time law (a route's, or a
+    lap's one speed)
     (:func:`mmstab.control.posture.build_posture_reference`, as
     :func:`mmstab.runs.climb_out.reference_coms`); None where a posture is not realised.
     """
@@ -212,13 +217,13 @@ def arm_ground_verdict(arm: ArmGround, s: ArrayLike, flip: float) -> dict[str, A
 def arm_ground_record(
     robot: Robot,
     terrain: Terrain,
-    route: RoutePath,
-    plan: RoutePlan,
+    route: RoutePath | CirclePath,
+    plan: RoutePlan | LapStage,
     poses: ArrayLike,
     s: ArrayLike,
     rocked: ArrayLike | None = None,
 ) -> dict[str, Any]:
-    """The arm against the ground along a route plan (``summary.json``'s ``arm_ground``).
+    """The arm against the ground along a plan, route or lap (``summary.json``'s ``arm_ground``).
 
     Two postures of the arm at each sample: the plan's posture reference there
     (``reference``, :func:`reference_postures`) and the two planned postures it moves
@@ -229,7 +234,7 @@ def arm_ground_record(
     Args:
         robot: the robot.
         terrain: the ground.
-        route: the route planned.
+        route: the route or lap planned.
         plan: its plan (``s``, ``postures``, ``fractions``, ``moves``).
         poses: the path's samples (N, 3) in M [m, m, rad], in driving order.
         s: their arc lengths (N,) [m].
@@ -244,7 +249,7 @@ def arm_ground_record(
     s_m = np.asarray(s, dtype=float)
     ref = arm_ground_along(robot, terrain, poses, reference_postures(robot, plan, route, s_m),
                            FLIP, rocked)  # fmt: skip
-    before, after = bracket(plan.s, s_m)
+    before, after = bracket(plan.s, s_m, route.closed)
     a, b = (arm_ground_along(robot, terrain, poses, q[k], FLIP, rocked) for k in (before, after))
     worse = ArmGround(
         np.fmin(a.rest, b.rest),

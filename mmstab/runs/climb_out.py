@@ -1,13 +1,13 @@
-"""A route's climbs with the rear down, checked with the arm where its reference has it.
+"""A path's climbs with the rear down, checked with the arm where its reference has it.
 
 :mod:`mmstab.stability.climb_out` follows the pivoted attitude along the path's samples;
 here the CoM at each sample is the one of the arm's posture reference at that arc length
 (:func:`mmstab.control.posture.build_posture_reference`: the plan's postures joined by its
-roadmap moves, timed by the route's time law, which the arm's time law stretches with the
-base so that the two stay paired): what the closed loop commands there. A move that swings
-the arm over the rear puts the CoM behind both postures it joins (route 4 of
-``make validate-routes``: 7.4 cm behind, while the robot climbs a ditch's far wall), which
-the postures alone do not see.
+roadmap moves, timed by the path's time law (a route's profile, a lap's one speed), which
+the arm's time law stretches with the base so that the two stay paired): what the closed
+loop commands there. A move that swings the arm over the rear puts the CoM behind both
+postures it joins (route 4 of ``make validate-routes``: 7.4 cm behind, while the robot
+climbs a ditch's far wall), which the postures alone do not see.
 """
 
 from __future__ import annotations
@@ -21,15 +21,19 @@ from mmstab.stability.climb_out import climb_out, pivot_rest
 
 if TYPE_CHECKING:
     from mmstab.model.robot import FloatArray, Robot
+    from mmstab.paths.circle import CirclePath
     from mmstab.paths.route import RoutePath
     from mmstab.planner import RoutePlan
+    from mmstab.runs.along import LapStage
     from mmstab.terrain.base import Terrain
 
 #: Climbs whose pitch stays below this are the belly on a bump, not listed [rad].
 LISTED_PITCH = float(np.radians(5.0))
 
 
-def reference_arm_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:
+def reference_arm_coms(
+    robot: Robot, plan: RoutePlan | LapStage, route: RoutePath | CirclePath, s: Any
+) -> FloatArray:
     """The arm CoM in B (N, 3) [m] of the arm's posture reference at arc lengths s (N,) [m].
 
     The reference is the plan's (its roadmap moves between the postures, no via postures);
@@ -48,7 +52,9 @@ def reference_arm_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) 
     return np.atleast_2d(np.asarray(robot.arm_com(moving), dtype=float))
 
 
-def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> FloatArray:
+def reference_coms(
+    robot: Robot, plan: RoutePlan | LapStage, route: RoutePath | CirclePath, s: Any
+) -> FloatArray:
     """The overall CoM in B (N, 3) [m] of the arm's posture reference at arc lengths s (N,) [m].
 
     :func:`reference_arm_coms` with the base's mass.
@@ -57,17 +63,22 @@ def reference_coms(robot: Robot, plan: RoutePlan, route: RoutePath, s: Any) -> F
 
 
 def climb_out_verdict(
-    robot: Robot, terrain: Terrain, route: RoutePath, poses: Any, s: Any, plan: RoutePlan
+    robot: Robot,
+    terrain: Terrain,
+    route: RoutePath | CirclePath,
+    poses: Any,
+    s: Any,
+    plan: RoutePlan | LapStage,
 ) -> dict[str, Any]:
-    """Where a route's climbs overturn the robot (:mod:`mmstab.stability.climb_out`).
+    """Where a path's climbs overturn the robot (:mod:`mmstab.stability.climb_out`).
 
     Args:
         robot: the robot.
         terrain: the ground.
-        route: the route (its time law places the arm's reference).
+        route: the route or lap (its time law places the arm's reference).
         poses: the path's samples (x [m], y [m], heading [rad]) (N, 3) in M, in driving order.
         s: their arc lengths (N,) [m].
-        plan: the route's plan (postures, moves, fractions).
+        plan: its plan (``s``, postures, moves, fractions).
 
     Returns:
         ``overturns`` (any sample does), ``climbs`` (stretches climbing with the rear down

@@ -1,8 +1,9 @@
 """A plan's verdicts, one per limit: what ``mmstab plan`` reports and exits on.
 
-:func:`route_verdicts` (a route: at the planned poses and every few cm between them, the
-arm in the postures it moves between and on its moves) and :func:`lap_verdicts` (a circle's
-lap: at the planned poses, the lap's turns and its high-centred stretches) give the same
+:func:`route_verdicts` (a route) and :func:`lap_verdicts` (a circle's lap) check the same
+way: at the planned poses and every few cm between them (:mod:`mmstab.runs.along`), the
+arm in the postures it moves between and on its moves, priced at the path's time law (a
+route's speed profile; a lap's one speed, from rest at its start). They give the same
 records: ``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred`` and ``verdicts``
 (:func:`mmstab.runs.along.limit_verdicts`: tip, slide, step, high_centred, arm_contact).
 :func:`exit_status` is ``mmstab plan``'s exit status for them (``docs/cli.md``): 3 where a
@@ -22,17 +23,19 @@ from mmstab.paths.route import ROUTE_DEFAULTS, RoutePath
 from mmstab.runs.along import (
     Along,
     ConeTiming,
+    LapStage,
     acceleration_margin,
     along_path,
     bracket,
     dense_verdicts,
+    lap_stage,
     limit_verdicts,
     path_timing,
     rock_samples,
     sample_spacing,
 )
 from mmstab.runs.climb_out import climb_out_verdict, reference_arm_coms
-from mmstab.runs.high_centred import high_centred_verdict, path_samples
+from mmstab.runs.high_centred import path_samples
 from mmstab.runs.verdict import (
     climb_verdict,
     plan_verdict,
@@ -45,8 +48,8 @@ from mmstab.stability.support import loaded_mu
 
 if TYPE_CHECKING:
     from mmstab.model.robot import Robot
-    from mmstab.paths.base import BasePath
-    from mmstab.planner import RoutePlan
+    from mmstab.paths.circle import CirclePath
+    from mmstab.planner import Plan, RoutePlan
     from mmstab.terrain.base import Terrain
 
 #: ``mmstab plan``'s exit status where a pose tips or is below the margin, where the tracks
@@ -88,6 +91,16 @@ def arm_path_check(robot: Robot, plan: Any, lap_time: float, dt: float) -> dict[
     return reference.summary(lap_time)
 
 
+def lap_acceleration(lap: CirclePath, lap_time: float) -> float:
+    """The lap's largest acceleration [m/s^2].
+
+    Its centripetal one at its one speed, at least the route defaults' (the start from
+    rest, where the controller sets the rate).
+    """
+    speed = lap.length / lap_time
+    return max(speed**2 / lap.radius, *ROUTE_DEFAULTS.values())
+
+
 def plan_along(robot: Robot, terrain: Terrain, route: RoutePath, plan: RoutePlan) -> Along:
     """The route rested every few cm with the planned arm (:func:`mmstab.runs.along.along_path`).
 
@@ -101,6 +114,44 @@ def plan_along(robot: Robot, terrain: Terrain, route: RoutePath, plan: RoutePlan
     planned = planned_com(robot, plan.postures, plan.target_com)
     moving = reference_arm_coms(robot, plan, route, s)
     return along_path(robot, terrain, poses, s, plan.s, planned, moving)
+
+
+def lap_along(robot: Robot, terrain: Terrain, lap: CirclePath, stage: LapStage) -> Along:
+    """The lap rested every few cm with the planned arm (:func:`plan_along`'s, closed).
+
+    Past the last planned pose the arm moves into the first pose's posture: the lap closes.
+    """
+    from mmstab.planner.along_route import planned_com
+
+    poses, s = path_samples(lap, sample_spacing(terrain))
+    planned = planned_com(robot, stage.postures, stage.target_com)
+    moving = reference_arm_coms(robot, stage, lap, s)
+    return along_path(robot, terrain, poses, s, stage.s, planned, moving, closed=True)
+
+
+def path_along(robot: Robot, terrain: Terrain, path: Any, plan: Any) -> Along:
+    """:func:`plan_along` of a route's plan, :func:`lap_along` of a circle's."""
+    if getattr(path, "closed", False):
+        return lap_along(robot, terrain, path, lap_stage(plan, path))
+    return plan_along(robot, terrain, path, plan)
+
+
+def high_centred_along(along: Along) -> dict[str, Any]:
+    """``summary.json``'s ``high_centred``: where the dense samples' chassis rests on the ground.
+
+    Returns:
+        ``high_centred`` (any sample is), ``samples``, ``spacing_m`` and ``stretches`` (arc
+        lengths [m]), with the planned arm (:func:`mmstab.runs.along.along_path`).
+    """
+    s = along.s
+    return {
+        "high_centred": bool(along.high_centred.any()),
+        "samples": int(len(s)),
+        "spacing_m": float(np.median(np.diff(s))) if len(s) > 1 else 0.0,
+        "criterion": "the chassis does not rest on the ground along the path (planned arm)",
+        "stretches": [{"start_s": float(s[a]), "end_s": float(s[b - 1])}
+                      for a, b in true_runs(along.high_centred)],
+    }  # fmt: skip
 
 
 def route_acceleration(route: RoutePath) -> float:
@@ -144,7 +195,7 @@ def route_verdicts(
     # (a pivot's slide falls in the second the pivot takes, :func:`path_timing`)
     dense_poses, dense_s, times = path_timing(route, sample_spacing(terrain))
     dense_com = np.asarray(plan.target_com)[bracket(plan.s, dense_s)[0]]
-    slip = passed_poses(slip_verdict(terrain, plan.poses), len(plan.s))
+    slip = passed_poses(slip_verdict(terrain, plan.poses), (0, len(plan.s) - 1))
     turning = turn_slip(terrain, dense_poses, robot_turn_check(robot, settings, dense_com, times))
     turning["sliding_turns"] = [
         x | {"start_s": float(dense_s[x["first"]]), "end_s": float(dense_s[x["last"]])}
@@ -185,13 +236,7 @@ def route_verdicts(
         "stability": stability,
         "slip": slip,
         "climb": climb_verdict(robot, terrain, plan.poses, plan.target_com, False),
-        "high_centred": {
-            "high_centred": dense["high_centred"]["binds"],
-            "samples": dense["samples"],
-            "spacing_m": dense["spacing_m"],
-            "criterion": "the chassis does not rest on the ground along the path (planned arm)",
-            "stretches": dense["high_centred"]["stretches"],
-        },
+        "high_centred": high_centred_along(along),
         "along_path": dense,
         "slides": slide_stretches(slip, plan.s),
     }
@@ -207,7 +252,8 @@ def route_verdicts(
 def lap_verdicts(
     robot: Robot,
     terrain: Terrain,
-    lap: BasePath,
+    lap: CirclePath,
+    plan: Plan,
     poses: list[dict[str, Any]],
     settings: VerdictSettings,
     lap_time: float,
@@ -215,10 +261,15 @@ def lap_verdicts(
 ) -> dict[str, Any]:
     """The verdicts of a closed path's plan (``mmstab plan`` on a circle).
 
+    Checked as a route's (:func:`route_verdicts`): at the planned poses and every few cm
+    around the lap, the arm in the postures it moves between and on its moves; the lap is
+    driven at one speed from rest at its start (where the run waits for the arm).
+
     Args:
         robot: the robot.
         terrain: the ground.
         lap: the closed path.
+        plan: the lap's plan (its postures, moves and fractions).
         poses: per planned pose: ``pose`` (3,) [m, m, rad], ``fraction`` of the lap,
             ``target_com`` (3,) body frame [m], ``mu_planned``, ``mu_realised`` [N rad],
             ``collision_free``.
@@ -227,24 +278,47 @@ def lap_verdicts(
         arm_path: :func:`arm_path_check`'s report (None: the moves were checked).
 
     Returns:
-        ``stability``, ``slip`` (the friction cone at the poses and the lap's turns),
-        ``climb``, ``high_centred`` (every few cm around the lap), ``slides``, ``arm_path``
-        (with ``arm_path``: its report and the touching stretches ``intervals_m`` [m]) and
+        ``stability`` (with ``climb_out``), ``slip`` (the friction cone at the lap's start,
+        around the lap at its time law, and the lap's turns), ``climb``, ``high_centred``,
+        ``along_path`` (the dense samples' verdicts), ``slides``, ``arm_path`` (with
+        ``arm_path``: its report and the touching stretches ``intervals_m`` [m]) and
         ``verdicts`` (:func:`mmstab.runs.along.limit_verdicts`; ``where`` in arc lengths
         from the lap's start [m]).
     """
+    stage = lap_stage(plan, lap)
     coms = [p["target_com"] for p in poses]
     times = [lap_time * p["fraction"] for p in poses]
-    period = lap_time if lap.closed else None
-    turns = robot_turn_check(robot, settings, coms, times, period)
-    pose_xy = [p["pose"] for p in poses]
+    turns = robot_turn_check(robot, settings, coms, times, lap_time)
+    pose_xy = np.asarray([p["pose"] for p in poses], dtype=float)
+    # the cone at the start, where the robot rests; elsewhere priced along the lap
+    slip = passed_poses(slip_verdict(terrain, pose_xy, turns), (0,))
+    slip["slides"] = slip["slides"] or bool(slip.get("turns", {}).get("sliding_turns"))
+    along = lap_along(robot, terrain, lap, stage)
+    acceleration = lap_acceleration(lap, lap_time)
+    accelerating = acceleration_margin(robot.total_mass, acceleration)
+    threshold = settings.margin + accelerating
+    rocks = rock_samples(robot, terrain, along, threshold, settings.margin, acceleration)
+    timing = ConeTiming(lap_time * along.s / lap.length, settings.slip_distance,
+                        settings.slip_window)  # fmt: skip
+    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
+    if settings.arm_over_crests:
+        from mmstab.runs.arm_ground import arm_ground_record
+
+        dense["arm_ground"] = arm_ground_record(robot, terrain, lap, stage, along.poses,
+                                                along.s, rocks.checked)  # fmt: skip
+    slip = with_stretches(slip, dense, "slide", "slides")
+    stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
+    stability["climb_out"] = climb_out_verdict(robot, terrain, lap, along.poses, along.s, stage)
+    if stability["climb_out"]["overturns"]:
+        stability["stable"] = False
     out: dict[str, Any] = {
-        "stability": plan_verdict(poses, settings.margin),
-        "slip": slip_verdict(terrain, pose_xy, turns),
-        "high_centred": high_centred_verdict(terrain, *path_samples(lap)),
-        "climb": climb_verdict(robot, terrain, np.asarray(pose_xy), np.asarray(coms), True),
+        "stability": stability,
+        "slip": slip,
+        "high_centred": high_centred_along(along),
+        "climb": climb_verdict(robot, terrain, pose_xy, np.asarray(coms), True),
+        "along_path": dense,
     }
-    s = [lap.length * float(p["fraction"]) for p in poses]
+    s = stage.s.tolist()
     out["slides"] = slide_stretches(out["slip"], s)
     if arm_path is not None:
         spans = arm_path["reference"]["intervals_fraction"]
@@ -271,16 +345,20 @@ def exit_status(verdicts: dict[str, dict[str, Any]]) -> int:
     return 0
 
 
-def passed_poses(slip: dict[str, Any], count: int) -> dict[str, Any]:
-    """A route's cone check at its planned poses: the ends only (the robot rests there).
+def passed_poses(slip: dict[str, Any], rests: Any) -> dict[str, Any]:
+    """A path's cone check at its planned poses where the robot rests (a route's ends).
 
     The path passes its other planned poses at its time law; the dense samples price the
     supports beyond the cone there (:func:`mmstab.stability.slip.cone_slide`). Those poses
     move to ``passed_poses`` (index, pose, tilt [rad]).
+
+    Args:
+        slip: the cone's verdict at the planned poses (``sliding_poses``).
+        rests: the indices of the planned poses the robot rests at.
     """
     out = dict(slip)
     bad = out.get("sliding_poses", [])
-    ends = {0, count - 1}
+    ends = set(rests)
     out["sliding_poses"] = [b for b in bad if b["index"] in ends]
     out["passed_poses"] = [b for b in bad if b["index"] not in ends]
     out["slides"] = bool(out["sliding_poses"])

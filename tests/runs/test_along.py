@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ditch_ground
 
 from mmstab.runs.along import (
     acceleration_margin,
@@ -40,18 +41,6 @@ def test_bracket_names_the_poses_before_and_after():
     before, after = bracket([0.0, 0.5, 1.0], [0.0, 0.2, 0.5, 0.7, 1.0])
     assert before.tolist() == [0, 0, 1, 1, 2]
     assert after.tolist() == [1, 1, 2, 2, 2]
-
-
-def ditch_ground(rng: np.random.Generator) -> Heightmap:
-    """The user's map: 15 deg side slope (uphill +y), a 0.6 m ditch across x = 0, bumps."""
-    res = 0.05
-    x = np.arange(-5, 5 + 1e-9, res)
-    X, Y = np.meshgrid(x, x)
-    z = np.tan(np.radians(15)) * Y - 0.20 * (np.abs(X) < 0.3)
-    for _ in range(6):
-        cx, cy = rng.uniform(-4, 4, 2)
-        z += 0.06 * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * 0.3**2))
-    return Heightmap.build(z, res, [x[0], x[0]], "ditch")
 
 
 def test_a_ditch_between_two_planned_poses_is_found(robot):
@@ -507,10 +496,10 @@ def test_a_routes_cone_check_at_its_planned_poses_counts_at_its_ends_only():
     from mmstab.runs.plan_verdicts import passed_poses
 
     bad = [{"index": k, "pose": [0.0, 0.0, 0.0], "tilt": 0.7} for k in (1, 2)]
-    inner = passed_poses({"slides": True, "sliding_poses": bad}, 4)
+    inner = passed_poses({"slides": True, "sliding_poses": bad}, (0, 3))
     assert not inner["slides"] and inner["sliding_poses"] == []
     assert [b["index"] for b in inner["passed_poses"]] == [1, 2]
-    ends = passed_poses({"slides": True, "sliding_poses": [*bad, {**bad[0], "index": 3}]}, 4)
+    ends = passed_poses({"slides": True, "sliding_poses": [*bad, {**bad[0], "index": 3}]}, (0, 3))
     assert ends["slides"] and [b["index"] for b in ends["sliding_poses"]] == [3]
 
 

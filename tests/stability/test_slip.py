@@ -170,7 +170,15 @@ def test_plan_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, mo
 
     s = json.loads((out / "summary.json").read_text())
     assert s["stability"]["stable"] and s["slip"]["slides"]
-    assert len(s["slip"]["sliding_poses"]) == len(s["poses"]) == 4
+    # the lap starts at rest on its first pose; it passes the others, and every sample
+    # around the lap is beyond the cone: one stretch, the whole lap
+    assert [b["index"] for b in s["slip"]["sliding_poses"]] == [0] and len(s["poses"]) == 4
+    assert [b["index"] for b in s["slip"]["passed_poses"]] == [1, 2, 3]
+    (lap,) = s["slip"]["stretches"]
+    dense = s["along_path"]
+    assert lap["start_s"] == 0.0 and lap["worst"] == pytest.approx(0.35, abs=1e-9)
+    assert lap["end_s"] == pytest.approx(dense["spacing_m"] * (dense["samples"] - 1))
+    assert lap["slide_m"] is None  # at rest on it at the start: it never stops
     assert s["slip"]["tilt_max"] == pytest.approx(0.35, abs=1e-12)
     assert main(["plan", str(path), "-o", str(out), "--allow-sliding"]) == 0
     assert "mmstab: warning: the tracks would slide" in capsys.readouterr().err
