@@ -209,6 +209,7 @@ def summarize(run: PhysicsRun, loop: LoopSettings) -> dict[str, Any]:
         "real_time_factor_cpu": float(run.t[-1] / run.cpu_seconds) if run.cpu_seconds else None,
         "arm_timing": run.timing,
         "reference_wait_s": run.reference_wait_s,
+        "approach": {"base_wait_s": run.base_wait_s},  # as ``mmstab track``'s summary
         "stalled": None if run.stalled is None else {"time_s": run.stalled, **(run.stall or {})},
     }
 

@@ -158,6 +158,8 @@ class PhysicsRun:
             None when ``controller.dynamic_fraction`` is null.
         reference_wait_s: how long the reference waited for the base in all [s]
             (:mod:`mmstab.physics.governor`; 0 when it never fell behind that far).
+        base_wait_s: how long the base waited at the path's start for the arm to unfold
+            onto the plan's first posture [s] (:attr:`mmstab.control.approach.ArmReferences.hold`).
         stalled: time the run ended with its reference unfinished, having waited
             ``governor.wait_limit`` [s], or None.
         stall: where it stalled, what held it (:func:`mmstab.physics.loop_checks.stall_record`:
@@ -197,6 +199,7 @@ class PhysicsRun:
     base_origin_error: FloatArray | None = None
     timing: dict[str, Any] | None = None
     reference_wait_s: float = 0.0
+    base_wait_s: float = 0.0
     stalled: float | None = None
     stall: dict[str, Any] | None = None
     tip_cause: str | None = None
@@ -357,6 +360,7 @@ def run_closed_loop(
         cpu_seconds=cpu,
         timing=refs.arm.timing_summary(float(clock_t[m - 1])),
         reference_wait_s=float(t[m - 1] - clock_t[m - 1]),
+        base_wait_s=float(refs.arm.hold),
         stalled=float(t[m - 1]) if stalled else None,
         stall=stall,
         tip_cause=cause,
