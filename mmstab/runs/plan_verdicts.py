@@ -319,7 +319,7 @@ def lap_verdicts(
         "along_path": dense,
     }
     s = stage.s.tolist()
-    out["slides"] = slide_stretches(out["slip"], s)
+    out["slides"] = slide_stretches(out["slip"], s, lap.length)
     if arm_path is not None:
         spans = arm_path["reference"]["intervals_fraction"]
         out["arm_path"] = {**arm_path, "intervals_m": [[lap.length * a, lap.length * b]
@@ -391,11 +391,14 @@ def with_stretches(
     return out
 
 
-def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
+def slide_stretches(
+    slip: dict[str, Any], s: Any, length: float | None = None
+) -> list[dict[str, float]]:
     """Where the tracks slide, in arc lengths [m]: at the planned poses, between them, in turns.
 
     Each with the worst tilt [rad] where the support's tilt is the reason (``tilt_max``) or
-    the turn's slide within the window [m] (``slide_m``).
+    the turn's slide within the window [m] (``slide_m``). ``length``: a closed path's [m]; a
+    turn across its start is two stretches, to ``length`` and from 0.
     """
     s_m = np.asarray(s, dtype=float)
     mask = np.zeros(s_m.size, dtype=bool)
@@ -416,4 +419,9 @@ def slide_stretches(slip: dict[str, Any], s: Any) -> list[dict[str, float]]:
          "slide_m": t["slide_in_window_m"], "turn_rad": t["turn_rad"]}
         for t in slip.get("turns", {}).get("sliding_turns", [])
     ]  # fmt: skip
+    if length is not None:  # a lap's turn across its start: to the lap's end, from 0
+        wraps = [x for x in out if x["end_s"] < x["start_s"]]
+        out = [x for x in out if x["end_s"] >= x["start_s"]]
+        out += [x | {"end_s": float(length)} for x in wraps]
+        out += [x | {"start_s": 0.0} for x in wraps if x["end_s"] > 0.0]
     return sorted(out, key=lambda x: x["start_s"])

@@ -10,7 +10,7 @@ from mmstab.paths.circle import CirclePath
 from mmstab.planner import Plan, PlannerSettings
 from mmstab.runs.along import along_path, bracket
 from mmstab.runs.high_centred import path_samples
-from mmstab.runs.plan_verdicts import lap_acceleration, lap_verdicts
+from mmstab.runs.plan_verdicts import lap_acceleration, lap_verdicts, slide_stretches
 from mmstab.runs.verdict_settings import VerdictSettings
 from mmstab.stability.stance import stance
 from mmstab.stability.support import loaded_mu
@@ -92,3 +92,14 @@ def test_a_ditch_the_laps_planned_poses_step_over_is_found(robot, problem):
     for a, b in tip["where"]:
         assert any(c.min() - 0.5 <= a and b <= c.max() + 0.5 for c in crossings)
     assert {"tip", "slide", "high_centred", "arm_contact"} <= set(v["verdicts"])
+
+
+def test_a_laps_turn_across_its_start_is_named_to_the_end_and_from_zero():
+    s = [0.0, 1.0, 2.0, 3.0]
+    turn = {"slide_in_window_m": 0.08, "turn_rad": 0.5}
+    slip = {"sliding_poses": [], "turns": {"sliding_turns": [
+        {**turn, "first": 2, "last": 0}, {**turn, "first": 3, "last": 1}]}}  # fmt: skip
+    got = [(x["start_s"], x["end_s"]) for x in slide_stretches(slip, s, 4.0)]
+    assert got == [(0.0, 1.0), (2.0, 4.0), (3.0, 4.0)]
+    route = [(x["start_s"], x["end_s"]) for x in slide_stretches(slip, s)]
+    assert route == [(2.0, 0.0), (3.0, 1.0)]  # a route has no start to cross
