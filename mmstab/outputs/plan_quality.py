@@ -122,10 +122,29 @@ def lap_quality(
     }
 
 
-def draw_lap_quality(quality: dict[str, Any], path: str | Path, title: str) -> Path:
-    """The figure: planned and reference mu at the plan's poses over the dense curves."""
+def draw_lap_quality(
+    quality: dict[str, Any],
+    path: str | Path,
+    title: str,
+    along: tuple[Any, Any] | None = None,
+    verdicts: dict[str, dict[str, Any]] | None = None,
+) -> Path:
+    """The figure: planned and reference mu at the plan's poses over the dense curves.
+
+    Args:
+        quality: :func:`lap_quality`'s report.
+        path: the PNG to write.
+        title: the figure's title.
+        along: (lap fractions, μ [N rad]) every few cm with the planned arm (the worse of
+            the postures the arm moves between, :func:`mmstab.runs.plan_verdicts.lap_along`).
+        verdicts: the plan's verdicts, their ``where`` in lap fractions: marked over the plot.
+    """
+    from mmstab.outputs.routes import mark_verdicts
+
     fig, ax = new_figure(figsize=(8, 4.2))
     d, p = quality["dense"], quality["per_pose"]
+    if along is not None:
+        ax.plot(*along, "-", lw=0.8, color="C3", alpha=0.5, label="planned arm, every few cm")
     ax.plot(d["fraction"], d["mu_best_valid"], "k--", lw=1, label="best, all collision-free CoMs")
     ax.plot(d["fraction"], d["mu_best_in_V"], "C0-", label="best in V (grid samples)")
     if d.get("mu_best_above_ground") is not None:
@@ -142,6 +161,8 @@ def draw_lap_quality(quality: dict[str, Any], path: str | Path, title: str) -> P
         label="Eq. 6 optimum in V (exhaustive)",
     )
     ax.plot(p["fraction"], p["mu_planned"], "x", color="C3", ms=8, label="planned (Eq. 6)")
+    if verdicts is not None:
+        mark_verdicts(ax, verdicts)
     ax.set(xlabel="path fraction", ylabel="mu [N rad]", title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))

@@ -19,7 +19,8 @@ from mmstab.core.problem import Problem
 from mmstab.outputs.common import output_dir, save_settings
 from mmstab.outputs.plan_quality import draw_lap_quality, lap_quality
 from mmstab.planner import Plan, planning_region, solve_pose
-from mmstab.runs.plan_verdicts import arm_path_check, lap_verdicts
+from mmstab.runs.along import lap_stage
+from mmstab.runs.plan_verdicts import arm_path_check, lap_along, lap_verdicts
 from mmstab.runs.verdict import plan_verdict
 from mmstab.stability.dynamic import robot_mu
 from mmstab.stability.static import mu_max
@@ -171,16 +172,19 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
     settings = Settings.from_problem(problem)
     lap_time = settings.controller.lap_time  # a circle: one lap
     arm_path = arm_path_check(problem.robot, plan, lap_time, settings.controller.dt)
+    lap = problem.circle
+    along = lap_along(problem.robot, problem.terrain, lap, lap_stage(plan, lap))
     v = lap_verdicts(
         problem.robot,
         problem.terrain,
-        problem.circle,
+        lap,
         plan,
         summary["poses"],
         settings.verdicts,
         lap_time,
         arm_path,
-    )  # the verdicts mmstab.plan returns
+        along,
+    )  # as mmstab.plan's; fmt: skip
     for key in ("stability", "slip", "high_centred", "along_path", "verdicts"):
         summary[key] = v[key]
     if arm_path is not None:
@@ -196,7 +200,10 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         d / "fig8_mu.png",
         f"planned vs best-achievable mu along the lap ({plan.settings.method}, "
         f"{plan.settings.seeding if plan.settings.method == 'cmaes' else 'all samples'})",
-    )
+        (along.s / lap.length, along.mu),
+        {k: {**x, "where": [[a / lap.length, b / lap.length] for a, b in x["where"]]}
+         for k, x in v["verdicts"].items()},
+    )  # fmt: skip
     fig = new_figure(figsize=(11, 5))[0]
     fig.clf()
     ax = fig.add_subplot(1, 2, 1, projection="3d")

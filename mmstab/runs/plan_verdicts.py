@@ -258,6 +258,7 @@ def lap_verdicts(
     settings: VerdictSettings,
     lap_time: float,
     arm_path: dict[str, Any] | None = None,
+    along: Along | None = None,
 ) -> dict[str, Any]:
     """The verdicts of a closed path's plan (``mmstab plan`` on a circle).
 
@@ -276,6 +277,7 @@ def lap_verdicts(
         settings: the margin and the slide's limits.
         lap_time: one lap [s] (``controller.lap_time``).
         arm_path: :func:`arm_path_check`'s report (None: the moves were checked).
+        along: :func:`lap_along`'s samples, if already made.
 
     Returns:
         ``stability`` (with ``climb_out``), ``slip`` (the friction cone at the lap's start,
@@ -293,7 +295,7 @@ def lap_verdicts(
     # the cone at the start, where the robot rests; elsewhere priced along the lap
     slip = passed_poses(slip_verdict(terrain, pose_xy, turns), (0,))
     slip["slides"] = slip["slides"] or bool(slip.get("turns", {}).get("sliding_turns"))
-    along = lap_along(robot, terrain, lap, stage)
+    along = lap_along(robot, terrain, lap, stage) if along is None else along
     acceleration = lap_acceleration(lap, lap_time)
     accelerating = acceleration_margin(robot.total_mass, acceleration)
     threshold = settings.margin + accelerating
