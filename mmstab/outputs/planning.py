@@ -184,7 +184,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         lap_time,
         arm_path,
         along,
-    )  # as mmstab.plan's; fmt: skip
+    )  # the verdicts mmstab.plan returns
     for key in ("stability", "slip", "high_centred", "along_path", "verdicts"):
         summary[key] = v[key]
     if arm_path is not None:
