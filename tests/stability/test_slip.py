@@ -164,7 +164,11 @@ def test_plan_where_the_tracks_slide_exits_4_unless_allowed(tmp_path, capsys, mo
     path = write_problem(tmp_path, edit)
     out = tmp_path / "plan"
     assert main(["plan", str(path), "-o", str(out)]) == 4
-    err = [x for x in capsys.readouterr().err.splitlines() if x.startswith("mmstab:")]
+    said = capsys.readouterr()
+    err = [x for x in said.err.splitlines() if x.startswith("mmstab:")]
+    # the lap's one verdict per limit, as a route's: the whole lap slides
+    (line,) = [x for x in said.out.splitlines() if x.startswith("plan: verdicts along")]
+    assert "(every 5 cm): tip: holds; slide: slides at s = 0.00-" in line
     assert len(err) == 1 and err[0].startswith("mmstab: slides: ") and "--allow-sliding" in err[0]
     import json
 
