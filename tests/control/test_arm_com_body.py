@@ -121,6 +121,34 @@ def test_a_kinematic_run_in_b_tracks_as_the_run_in_m(problem, settings):
     assert np.abs(b.state[:, 5:] - m.state[:, 5:]).max() > 1e-4  # yet not the same controller
 
 
+def test_a_base_behind_its_reference_moves_the_arm_in_m_and_not_in_b(problem, settings):
+    """The base 20 cm behind its reference as the lap drives on (0.31 m/s), the arm on its
+    posture reference: the tracks' command reaches their speed limit, and in M the CoM row
+    takes the rest from the arm, off the posture the plan checked (dem.yaml's arm, so
+    tracked, grazed a bump in MuJoCo with its base that far behind); in B the arm holds its
+    posture and the base rows alone take the error back."""
+    robot = problem.robot
+    q = np.asarray(posture_plan(robot).postures[0], dtype=float)
+    reference = np.r_[0.0, 0.0, 0.0, 0.0, 0.0, q]
+    behind = reference.copy()
+    behind[0] -= 0.2  # heading 0: 20 cm behind along the path
+    speed = 2 * np.pi * 1.5 / 30.0  # the lap's [m/s]
+    arm = {}
+    for frame, cs in settings.items():
+        ctrl = build_controller(robot, cs)
+        xi = ctrl.model.task(reference)  # the reference state's task, in the frame's rows
+        rate = np.r_[speed, 0.0, 0.0, speed if frame == "map" else 0.0, 0.0, 0.0]
+        r = ctrl.solve(behind, xi, rate, q_ref=q, q_dot_ref=np.zeros(len(q)))
+        assert r.success
+        arm[frame] = r.qdot[2:]
+        limit = robot.base.tracks.velocity_limit  # [rad/s]
+        np.testing.assert_allclose(r.qdot[:2], [limit, limit], rtol=1e-6)  # at the limit
+    assert np.abs(arm["body"]).max() < 1e-6  # the posture the plan checked, held
+    assert np.abs(arm["map"]).max() > 0.5  # reaching [rad/s]
+    J = np.asarray(robot.kinematics.f_arm_com_jac(q))  # d g_a^B / d q (3, n)
+    assert (J @ arm["map"])[0] > 0.05  # the CoM pushed forward, toward the map point [m/s]
+
+
 @pytest.mark.slow
 def test_the_generated_c_of_the_body_variant_equals_the_interpreted_step(
     problem, settings, rng, tmp_path
