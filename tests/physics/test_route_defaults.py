@@ -48,7 +48,7 @@ def test_the_arm_com_frame_defaults_to_body_and_the_ramp_keeps_map():
     for f in sorted((ROOT / "problems").glob("*.yaml")):
         raw = yaml.safe_load(f.read_text())
         if "controller" in raw:
-            frame = "body" if f.name == "rough.yaml" else "map"
+            frame = "body" if f.name in ("rough.yaml", "dem.yaml") else "map"
             assert raw["controller"]["arm_com_frame"] == frame, f.name
 
 
