@@ -206,31 +206,16 @@ def route_verdicts(
     # between the planned poses: every few cm, the arm in the postures it moves between and
     # on its way between them
     along = plan_along(robot, terrain, route, plan) if along is None else along
-    acceleration = route_acceleration(route)
-    accelerating = acceleration_margin(robot.total_mass, acceleration)
-    # where μ is low about an edge inside the footprint, the push rocks it onto the next one
-    threshold = settings.margin + accelerating
-    rocks = rock_samples(robot, terrain, along, threshold, settings.margin, acceleration)
-    timing = None  # the cone's passes priced at the time law (the same samples)
-    if len(times) == len(along.s):
-        timing = ConeTiming(times, settings.slip_distance, settings.slip_window)
-    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
-    if settings.arm_over_crests:  # the arm against the ground at the rests and over crests
-        from mmstab.runs.arm_ground import arm_ground_record
-
-        dense["arm_ground"] = arm_ground_record(robot, terrain, route, plan, along.poses,
-                                                along.s, rocks.checked)  # fmt: skip
-    slip = with_stretches(slip, dense, "slide", "slides")
     poses = [
         {"pose": plan.poses[k], "mu_planned": float(plan.mu_planned[k]),
          "mu_realised": float(mu_realised[k]), "collision_free": bool(plan.collision_free[k])}
         for k in range(len(plan.s))
     ]  # fmt: skip
-    stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
-    # climbs with the rear down, the arm on its posture reference (runs.climb_out)
-    stability["climb_out"] = climb_out_verdict(robot, terrain, route, along.poses, along.s, plan)
-    if stability["climb_out"]["overturns"]:
-        stability["stable"] = False
+    passes = times if len(times) == len(along.s) else None  # the same samples
+    dense, slip, stability = along_records(
+        robot, terrain, route, plan, along, route_acceleration(route), passes, settings, slip,
+        poses,
+    )  # fmt: skip
     out: dict[str, Any] = {
         "mu_realised": mu_realised,
         "stability": stability,
@@ -247,6 +232,57 @@ def route_verdicts(
     out["verdicts"] = limit_verdicts({**out, "s": plan.s.tolist(), "poses": poses,
                                       "risk": {"slides": out["slides"]}})  # fmt: skip
     return out
+
+
+def along_records(
+    robot: Robot,
+    terrain: Terrain,
+    path: RoutePath | CirclePath,
+    stage: RoutePlan | LapStage,
+    along: Along,
+    acceleration: float,
+    times: Any,
+    settings: VerdictSettings,
+    slip: dict[str, Any],
+    poses: list[dict[str, Any]],
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """A plan's checks every few cm, route or lap: (``along_path``, ``slip``, ``stability``).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        path: the route or lap.
+        stage: its plan (postures, moves, ``s``).
+        along: the path's samples (:func:`plan_along`, :func:`lap_along`).
+        acceleration: the path's largest acceleration [m/s^2] (the tip margin's share, the
+            rocks' push).
+        times: when the path reaches each sample (N,) [s] (the cone's passes priced at the
+            time law); None: every pass beyond the cone slides.
+        settings: the margin and the slide's limits.
+        slip: the planned poses' slide verdict, given the dense stretches here.
+        poses: the planned poses' records (``pose``, ``mu_planned``, ``mu_realised``,
+            ``collision_free``): the tip verdict at them, given the stretches here.
+    """
+    accelerating = acceleration_margin(robot.total_mass, acceleration)
+    # where μ is low about an edge inside the footprint, the push rocks it onto the next one
+    threshold = settings.margin + accelerating
+    rocks = rock_samples(robot, terrain, along, threshold, settings.margin, acceleration)
+    timing = None
+    if times is not None:
+        timing = ConeTiming(np.asarray(times), settings.slip_distance, settings.slip_window)
+    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
+    if settings.arm_over_crests:  # the arm against the ground at the rests and over crests
+        from mmstab.runs.arm_ground import arm_ground_record
+
+        dense["arm_ground"] = arm_ground_record(robot, terrain, path, stage, along.poses,
+                                                along.s, rocks.checked)  # fmt: skip
+    slip = with_stretches(slip, dense, "slide", "slides")
+    stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
+    # climbs with the rear down, the arm on its posture reference (runs.climb_out)
+    stability["climb_out"] = climb_out_verdict(robot, terrain, path, along.poses, along.s, stage)
+    if stability["climb_out"]["overturns"]:
+        stability["stable"] = False
+    return dense, slip, stability
 
 
 def lap_verdicts(
@@ -296,23 +332,11 @@ def lap_verdicts(
     slip = passed_poses(slip_verdict(terrain, pose_xy, turns), (0,))
     slip["slides"] = slip["slides"] or bool(slip.get("turns", {}).get("sliding_turns"))
     along = lap_along(robot, terrain, lap, stage) if along is None else along
-    acceleration = lap_acceleration(lap, lap_time)
-    accelerating = acceleration_margin(robot.total_mass, acceleration)
-    threshold = settings.margin + accelerating
-    rocks = rock_samples(robot, terrain, along, threshold, settings.margin, acceleration)
-    timing = ConeTiming(lap_time * along.s / lap.length, settings.slip_distance,
-                        settings.slip_window)  # fmt: skip
-    dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
-    if settings.arm_over_crests:
-        from mmstab.runs.arm_ground import arm_ground_record
-
-        dense["arm_ground"] = arm_ground_record(robot, terrain, lap, stage, along.poses,
-                                                along.s, rocks.checked)  # fmt: skip
-    slip = with_stretches(slip, dense, "slide", "slides")
-    stability = with_stretches(plan_verdict(poses, settings.margin), dense, "tip", "stable")
-    stability["climb_out"] = climb_out_verdict(robot, terrain, lap, along.poses, along.s, stage)
-    if stability["climb_out"]["overturns"]:
-        stability["stable"] = False
+    passes = lap_time * along.s / lap.length  # one speed
+    dense, slip, stability = along_records(
+        robot, terrain, lap, stage, along, lap_acceleration(lap, lap_time), passes, settings,
+        slip, poses,
+    )  # fmt: skip
     out: dict[str, Any] = {
         "stability": stability,
         "slip": slip,
