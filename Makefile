@@ -332,7 +332,7 @@ physics: setup
 	$(MMSTAB) simulate problems/rough.yaml -o results/physics/rough_stowed --arm stowed --allow-sliding
 	-$(MMSTAB) simulate problems/kerb.yaml -o results/physics/kerb_planned
 	$(MMSTAB) simulate problems/rough.yaml -o results/physics/rough_planned --allow-sliding
-	$(MMSTAB) simulate problems/dem.yaml -o results/physics/dem_planned --allow-sliding
+	$(MMSTAB) simulate problems/dem.yaml -o results/physics/dem_planned
 
 ## real-time factor of the MuJoCo model and the closed loop (one core) -> results/bench/physics.json
 bench-physics: setup

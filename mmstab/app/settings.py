@@ -94,7 +94,8 @@ class Settings:
 
         The robot's joint count sets the per-joint keys (``controller.w_b``,
         ``posture_gain``, ``posture_weight``, ``workspace.grid``); a route plans with
-        ``method: roadmap``; a route over a heightmap keeps the arm 5 cm above the ground
+        ``method: roadmap``, as does a circle over a heightmap; a path over a heightmap keeps
+        the arm 5 cm above the ground
         (:func:`mmstab.core.defaults.with_defaults`). None: the default robot, a plane, a
         circle (``Settings()``).
         """

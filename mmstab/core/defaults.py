@@ -144,19 +144,21 @@ SECTION_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 
-#: ``planner.method`` of a route problem that names none: the posture roadmap (the arm's
-#: moves collision-free and above the ground by construction, no round limit; docs/routes.md).
-#: A circle keeps the first release's ``cmaes`` (:data:`SECTION_DEFAULTS`).
+#: ``planner.method`` of a route problem, or a circle over a heightmap, that names none: the
+#: posture roadmap (the arm's moves collision-free and above the ground by construction, no
+#: round limit; docs/routes.md). A circle on a plane keeps the first release's ``cmaes``
+#: (:data:`SECTION_DEFAULTS`): over a heightmap ``cmaes`` knows the support plane only, and a
+#: seeded 1.8 m lap it planned ran its arm into the ground in MuJoCo.
 ROUTE_METHOD = "roadmap"
 
-#: ``planner`` keys of a route over a heightmap (``terrain.generate`` or ``terrain.file``) that
-#: names none: the arm 5 cm above the ground under it [m] through a 12 deg tilt of the body
-#: [rad]. With 2 cm and no margin the arm touched the ground in MuJoCo on 9 of the tests' first
-#: 12 seeded random routes (docs/physics.md, "seeded random pairs"); with 3 deg
-#: (``kerb.yaml``'s) on none of those, but on one accepted route of ``make validate-routes``
-#: the forearm touched a bump while the body rocked 0.21 rad off its predicted rest; with
-#: 12 deg no accepted route fails there (docs/validation.md). A plane keeps
-#: :data:`SECTION_DEFAULTS`'s.
+#: ``planner`` keys of a path (route or circle) over a heightmap (``terrain.generate`` or
+#: ``terrain.file``) that names none: the arm 5 cm above the ground under it [m] through a
+#: 12 deg tilt of the body [rad]. With 2 cm and no margin the arm touched the ground in MuJoCo
+#: on 9 of the tests' first 12 seeded random routes (docs/physics.md, "seeded random pairs");
+#: with 3 deg (``kerb.yaml``'s) on none of those, but on one accepted route of
+#: ``make validate-routes`` the forearm touched a bump while the body rocked 0.21 rad off its
+#: predicted rest; with 12 deg no accepted route fails there (docs/validation.md). A plane
+#: keeps :data:`SECTION_DEFAULTS`'s.
 HEIGHTMAP_ROUTE_PLANNER: dict[str, Any] = {"ground_clearance": 0.05, "attitude_margin": 0.21}
 
 
@@ -211,8 +213,9 @@ PER_JOINT_KEYS = (
 def with_defaults(data: dict[str, Any], arm_joints: int | None = None) -> dict[str, Any]:
     """A copy of a problem mapping with the omitted sections and keys filled in.
 
-    Precedence: the file's keys, then :data:`SECTION_DEFAULTS` (:data:`ROUTE_METHOD` for a
-    route's ``planner.method``, :data:`HEIGHTMAP_ROUTE_PLANNER` on a route over a heightmap),
+    Precedence: the file's keys, then :data:`SECTION_DEFAULTS` (:data:`ROUTE_METHOD` for the
+    ``planner.method`` of a route or of a circle over a heightmap,
+    :data:`HEIGHTMAP_ROUTE_PLANNER` on any path over a heightmap),
     then the default problem's values (:data:`DEFAULT_SECTIONS`) for a section or key left out.
     With ``arm_joints`` (the robot's joint count), a per-joint key left out
     (:data:`PER_JOINT_KEYS`) takes :func:`joint_defaults`' value for that many joints.
@@ -221,9 +224,9 @@ def with_defaults(data: dict[str, Any], arm_joints: int | None = None) -> dict[s
     path, planner, terrain = data.get("path"), data.get("planner"), data.get("terrain")
     route = isinstance(path, dict) and ("waypoints" in path or "file" in path)
     named = planner if isinstance(planner, dict) else {}
-    route_method = route and "method" not in named
     heightmap = isinstance(terrain, dict) and ("generate" in terrain or "file" in terrain)
-    if route and heightmap and isinstance(planner, (dict, type(None))):
+    route_method = (route or heightmap) and "method" not in named
+    if heightmap and isinstance(planner, (dict, type(None))):
         out["planner"] = {**HEIGHTMAP_ROUTE_PLANNER, **named}
     for name in dict.fromkeys([*DEFAULT_SECTIONS, *SECTION_DEFAULTS]):  # an order (a set has none)
         given = out.get(name, {})

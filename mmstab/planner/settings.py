@@ -67,13 +67,14 @@ class PlannerSettings(NamedTuple):
         ground_clearance: ``method: roadmap`` and ``method: sequence``: least height of
             the arm's lowest point above the support plane z_B = 0 that a chosen posture
             and the moves between them keep [m]; None: not checked (``cmaes`` and
-            ``exhaustive`` do not check it). A file that names none: 0.02, on a route over
-            a heightmap 0.05 (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`).
-        attitude_margin: ``method: roadmap`` on a route over terrain: the arm keeps
+            ``exhaustive`` do not check it). A file that names none: 0.02, on a path
+            (route or circle) over a heightmap 0.05
+            (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`).
+        attitude_margin: ``method: roadmap`` on a path over terrain: the arm keeps
             ``ground_clearance`` through the body's tilts (pitch, roll) of up to this
             [rad] about its origin, at the planned poses and the moves' ends
             (:func:`mmstab.model.plane_clearance.tilted_height`); None: off (a file that names
-            none: off, on a route over a heightmap 0.21: 12 deg).
+            none: off, on a path over a heightmap 0.21: 12 deg).
         flipper_angles: flipper angles searched per pose over the robot's flipper limits
             (``mmstab.planner.levers``); 0 (the default): the flippers stay at the file's angle.
         turn_slide: ``method: roadmap`` on a route: the slide [m] the skid-steer model may

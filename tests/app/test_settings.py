@@ -50,6 +50,10 @@ def test_defaults_follow_the_path_and_the_terrain():
     assert d.planner.ground_clearance == 0.05 and d.planner.attitude_margin == 0.21
     ramp = load_problem(RAMP_YAML)
     assert Settings.defaults(ramp.robot, ramp.terrain, ramp.base_path) == Settings()
+    # a circle over the map plans as a route there; on the ramp's plane as the paper does
+    lap = Settings.defaults(kerb.robot, kerb.terrain, ramp.base_path).planner
+    assert (lap.method, lap.ground_clearance, lap.attitude_margin) == ("roadmap", 0.05, 0.21)
+    assert Settings.defaults(kerb.robot, ramp.terrain, ramp.base_path).planner.method == "cmaes"
 
 
 def test_old_problem_files_load_into_settings():

@@ -219,7 +219,9 @@ def test_sections_a_command_does_not_read_are_optional(tmp_path):
         **minimal,
         "path": yaml.safe_load((ROOT / "problems" / "ramp.yaml").read_text())["path"],
     }
-    path.write_text(yaml.safe_dump(circle))
+    path.write_text(yaml.safe_dump(circle))  # over rough.yaml's map: as a route there
+    assert load_problem(path).section("planner")["method"] == "roadmap"
+    path.write_text(yaml.safe_dump({**circle, "terrain": {"slope": 0.2}}))
     assert load_problem(path).section("planner")["method"] == "cmaes"  # the first release's
     minimal["planner"]["margn"] = 1.0
     path.write_text(yaml.safe_dump(minimal))

@@ -1,7 +1,8 @@
 """The defaults that keep a route's arm off the ground in MuJoCo (docs/physics.md).
 
-``controller.arm_com_frame`` defaults to ``body``; a route over a heightmap that names no
-``planner.ground_clearance`` / ``planner.attitude_margin`` gets 0.05 m / 0.21 rad (12 deg)
+``controller.arm_com_frame`` defaults to ``body``; a path (route or circle) over a heightmap
+that names no ``planner.ground_clearance`` / ``planner.attitude_margin`` gets 0.05 m / 0.21
+rad (12 deg), and the roadmap search where it names none
 (:data:`mmstab.core.defaults.HEIGHTMAP_ROUTE_PLANNER`); the shipped problems name what
 their committed numbers were made with. The MuJoCo test runs two of the tests' seeded
 random routes (``tests/runs/test_random_routes.py``, coarse grid) whole: with the defaults of
@@ -61,11 +62,17 @@ def test_a_route_over_a_heightmap_keeps_the_arm_higher():
     # what the file names wins, null (off) included
     named = _planner(HEIGHTMAP, ROUTE, {"ground_clearance": 0.08, "attitude_margin": None})
     assert (named["ground_clearance"], named["attitude_margin"]) == (0.08, None)
-    # a plane, or a circle over a heightmap, keeps 0.02 m and no margin
+    # a circle over a heightmap plans as a route there: the roadmap checks the map under the
+    # arm (cmaes knows the support plane only), unless the file names its search
     circle = {"radius": 1.0, "center": [0.0, 0.0]}
-    for terrain, path in (({"slope": 0.2}, ROUTE), (HEIGHTMAP, circle)):
-        p = _planner(terrain, path)
-        assert (p["ground_clearance"], p["attitude_margin"]) == (0.02, None)
+    lap = _planner(HEIGHTMAP, circle)
+    assert (lap["ground_clearance"], lap["attitude_margin"]) == (0.05, 0.21)
+    assert lap["method"] == "roadmap"
+    assert _planner({"file": "dem.tif"}, circle, {"method": "cmaes"})["method"] == "cmaes"
+    # a plane keeps 0.02 m and no margin; a circle there the paper's cmaes
+    for path, method in ((ROUTE, "roadmap"), (circle, "cmaes")):
+        p = _planner({"slope": 0.2}, path)
+        assert (p["ground_clearance"], p["attitude_margin"], p["method"]) == (0.02, None, method)
     # rough.yaml plans as its committed runs did: no margin
     rough = load_problem(ROOT / "problems" / "rough.yaml").section("planner")
     assert (rough["ground_clearance"], rough["attitude_margin"]) == (0.05, None)
