@@ -319,3 +319,32 @@ def assert_same_numbers(got: Any, want: Any, rel: float = 1e-9, where: str = "")
         assert got == pytest.approx(want, rel=rel, abs=1e-300, nan_ok=True), where
     else:
         assert got == want, where
+
+
+def summary_keys(tree: Any, depth: int = 4, where: str = "") -> tuple[set[str], set[str]]:
+    """The key paths of a summary's nested mappings, ``depth`` levels down, and those of
+    them whose value is None (an event that did not happen: ``stalled``, ``slid``): their
+    sub-keys come and go with the run."""
+    keys: set[str] = set()
+    none: set[str] = set()
+    if isinstance(tree, dict) and depth > 0:
+        for k, v in tree.items():
+            keys.add(f"{where}/{k}")
+            if v is None:
+                none.add(f"{where}/{k}")
+            sub, sub_none = summary_keys(v, depth - 1, f"{where}/{k}")
+            keys |= sub
+            none |= sub_none
+    return keys, none
+
+
+def assert_committed_has_the_keys(fresh: dict[str, Any], committed: str) -> None:
+    """A committed summary (``results/...``) has the keys the code writes now, and no others:
+    a result folder older than its command fails here (rerun its ``make`` target)."""
+    import json
+
+    a, a_none = summary_keys(json.loads((ROOT / committed).read_text()))
+    b, b_none = summary_keys(fresh)
+    events = a_none | b_none
+    a, b = ({k for k in x if not any(k.startswith(e + "/") for e in events)} for x in (a, b))
+    assert a == b, f"{committed}: only committed {sorted(a - b)}, only written {sorted(b - a)}"

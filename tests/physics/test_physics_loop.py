@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, assert_committed_has_the_keys
 
 import mmstab
 from mmstab import app
@@ -138,6 +138,7 @@ def test_cli_simulate(tmp_path: Path) -> None:
     assert s["path_slip_predicted_fraction"] == 0.0
     assert s["high_centred"]["high_centred"] is False and s["high_centred"]["samples"] > 100
     assert "high-centred" not in r.stderr
+    assert_committed_has_the_keys(s, "results/physics/summary.json")  # `make physics`'s lap
 
 
 def _ramp_arm_in_the_ground(tmp_path: Path) -> Path:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT
+from conftest import ROOT, assert_committed_has_the_keys
 
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import load_problem, problem_from_dict
@@ -259,6 +259,7 @@ def test_plan_and_track_a_terrain_route_from_the_cli(tmp_path):
     assert len(s["mu_planned"]) == len(s["s"]) == 4
     assert all(p >= q for p, q in zip(s["mu_planned"], s["mu_stowed"], strict=True))
     assert (tmp_path / "plan" / "route_mu.png").stat().st_size > 10_000
+    assert_committed_has_the_keys(s, "results/rough/plan/summary.json")
     out = _cli(["track", str(problem), "-o", "track"], tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
     t = json.loads((tmp_path / "track" / "summary.json").read_text())
@@ -272,6 +273,7 @@ def test_plan_and_track_a_terrain_route_from_the_cli(tmp_path):
     assert t["after_transient"]["arm_com_error_max_m"] < 2e-2
     assert t["mu_min"]["reconfigured"] > 0
     assert all(t["qdot_max_abs"][j] <= t["qdot_limit"][j] + 1e-9 for j in t["qdot_limit"])
+    assert_committed_has_the_keys(t, "results/rough/summary.json")
 
 
 def test_a_bad_route_exits_2_with_one_line_and_writes_nothing(tmp_path):
