@@ -200,6 +200,7 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
     limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
+    _climb_line(s["climb"], [p["fraction"] * problem.circle.length for p in s["poses"]])
     high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
 
@@ -244,7 +245,7 @@ def _pose_times(s: dict[str, Any]) -> str:
 
 
 def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
-    """The climb limit's verdict on the route's steps (docs/climbing.md, "The climb limit").
+    """The climb limit's verdict on the path's steps (docs/climbing.md, "The climb limit").
 
     One entry per step, where the front wheels meet it (the poses before and after it both
     keep its limit, so the summary lists it twice).
@@ -258,6 +259,7 @@ def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
     def met(k: int) -> str:
         return f"{s[k] + steps[k][0]['met_after_m']:.2f} m"
 
+    steps = dict(sorted(steps.items(), key=lambda kv: s[kv[0]]))  # a lap's last pose meets first
     where = ", ".join(f"{met(k)} ({100 * xs[0]['height']:.0f} cm)" for k, xs in steps.items())
     stalls = [met(k) for k, xs in steps.items() if not all(x["planned_climbs"] for x in xs)]
     verdict = (

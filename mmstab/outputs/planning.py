@@ -185,7 +185,7 @@ def run_fig8(problem: Problem, out: str | Path | None = None) -> dict[str, Any]:
         arm_path,
         along,
     )  # the verdicts mmstab.plan returns
-    for key in ("stability", "slip", "high_centred", "along_path", "verdicts"):
+    for key in ("stability", "slip", "climb", "high_centred", "along_path", "verdicts"):
         summary[key] = v[key]
     if arm_path is not None:
         summary["arm_path"] = v["arm_path"]

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import write_problem
+from conftest import assert_committed_has_the_keys, write_problem
 
 from experiments.__main__ import build_parser as experiments_parser
 from mmstab.cli import build_parser, main
@@ -87,6 +87,10 @@ def test_plan_on_a_steep_ramp_exits_3_naming_the_poses(tmp_path, capsys, monkeyp
         for x in capsys.readouterr().err.splitlines()
         if x.startswith("mmstab:")
     )
+    # a lap's summary has every limit's record (the step's climb too), as `make plan`'s has
+    lap = json.loads((out / "summary.json").read_text())
+    assert lap["climb"]["steps"] == [] and set(lap["verdicts"]) >= {"step", "high_centred"}
+    assert_committed_has_the_keys(lap, "results/plan/summary.json")
 
 
 def test_plan_exits_5_where_the_arm_path_between_postures_touches(tmp_path, capsys):
