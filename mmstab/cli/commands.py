@@ -200,7 +200,8 @@ def _plan(args: argparse.Namespace, problem: Any) -> int | None:
             f"{'collision-free' if p['collision_free'] else 'COLLIDES'}"
         )
     limits_line("plan", s["verdicts"], s["along_path"]["spacing_m"])
-    _climb_line(s["climb"], [p["fraction"] * problem.circle.length for p in s["poses"]])
+    lap = problem.circle.length
+    _climb_line(s["climb"], [p["fraction"] * lap for p in s["poses"]], lap)
     high_centred_warning(s["high_centred"])
     return plan_status(s, args) or slides_status(s, args) or plan_contact_status(s, args)
 
@@ -244,11 +245,12 @@ def _pose_times(s: dict[str, Any]) -> str:
     return f"{s['ms_per_pose']:.1f} ms per pose (the whole-route search / poses){fixed}"
 
 
-def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
+def _climb_line(climb: dict[str, Any], s: list[float], lap: float | None = None) -> None:
     """The climb limit's verdict on the path's steps (docs/climbing.md, "The climb limit").
 
     One entry per step, where the front wheels meet it (the poses before and after it both
-    keep its limit, so the summary lists it twice).
+    keep its limit, so the summary lists it twice). ``lap``: a lap's length [m]: a step met
+    past its end is met that far into the next lap.
     """
     steps: dict[int, list[dict[str, Any]]] = {}
     for x in climb["steps"]:
@@ -256,10 +258,14 @@ def _climb_line(climb: dict[str, Any], s: list[float]) -> None:
     if not steps:
         return
 
-    def met(k: int) -> str:
-        return f"{s[k] + steps[k][0]['met_after_m']:.2f} m"
+    def at(k: int) -> float:
+        x = s[k] + steps[k][0]["met_after_m"]
+        return x % lap if lap else x
 
-    steps = dict(sorted(steps.items(), key=lambda kv: s[kv[0]]))  # a lap's last pose meets first
+    def met(k: int) -> str:
+        return f"{at(k):.2f} m"
+
+    steps = dict(sorted(steps.items(), key=lambda kv: at(kv[0])))  # in path order
     where = ", ".join(f"{met(k)} ({100 * xs[0]['height']:.0f} cm)" for k, xs in steps.items())
     stalls = [met(k) for k, xs in steps.items() if not all(x["planned_climbs"] for x in xs)]
     verdict = (

@@ -131,7 +131,7 @@ def lap_along(robot: Robot, terrain: Terrain, lap: CirclePath, stage: LapStage) 
 
 def path_along(robot: Robot, terrain: Terrain, path: Any, plan: Any) -> Along:
     """:func:`plan_along` of a route's plan, :func:`lap_along` of a circle's."""
-    if getattr(path, "closed", False):
+    if path.closed:
         return lap_along(robot, terrain, path, lap_stage(plan, path))
     return plan_along(robot, terrain, path, plan)
 
@@ -332,7 +332,7 @@ def lap_verdicts(
     slip = passed_poses(slip_verdict(terrain, pose_xy, turns), (0,))
     slip["slides"] = slip["slides"] or bool(slip.get("turns", {}).get("sliding_turns"))
     along = lap_along(robot, terrain, lap, stage) if along is None else along
-    passes = lap_time * along.s / lap.length  # one speed
+    passes = lap_time * lap.fraction_of_s(along.s)  # one speed
     dense, slip, stability = along_records(
         robot, terrain, lap, stage, along, lap_acceleration(lap, lap_time), passes, settings,
         slip, poses,
