@@ -199,6 +199,8 @@ def run_route(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         "plan_mu_min": float(min(s["mu_planned"])),
         "plan_high_centred": bool(s["high_centred"]["high_centred"]),
         "plan_climb_stalls": [x for x in s["climb"]["steps"] if not x["planned_climbs"]] != [],
+        # the arm in the ground on its reference at rest (a refusal of its own, after tip and slide)
+        "plan_arm_in_ground": bool(s["along_path"]["arm_in_ground"]["contact"]),
         "plan_slides": s["risk"]["slides"],
     }
     loop = loop_settings(problem)
@@ -381,6 +383,11 @@ def summarize_routes(
             c: sum((r["events"]["tipped"] or {}).get("cause") == c for r in sim)
             for c in ("support lost", "overturned")
         },  # fmt: skip
+        # routes whose arm touches the ground in MuJoCo, and those whose plan has it there
+        "arm_ground_contact": {
+            "mujoco": [r["route"] for r in sim if r["events"]["arm_ground_contact"] is not None],
+            "plan": [r["route"] for r in records if r.get("plan_arm_in_ground")],
+        },
         "bars": bars(records, settings["bars"]),
         **({"track": track_agreement(records)} if settings.get("track", False) else {}),
         "seconds": seconds,

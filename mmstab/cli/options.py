@@ -26,8 +26,8 @@ _ALLOW_COLLISION = (
     {
         "action": "store_true",
         "help": "exit 0 (warning) when the arm touches the robot (plan: at a planned posture "
-        "or between two; track: or comes closer than the required clearance, "
-        "runs/verdict.py MIN_CLEARANCE)",
+        "or between two, or the ground on its posture reference at rest; track: or comes "
+        "closer than the required clearance, runs/verdict.py MIN_CLEARANCE)",
     },
 )
 

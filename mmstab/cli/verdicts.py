@@ -66,16 +66,37 @@ def slides_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
 
 
 def plan_contact_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report a plan whose arm touches the robot; exit status 5 unless ``--allow-collision``.
+    """Report a plan whose arm touches the robot or the ground; exit status 5 unless allowed.
 
-    At a planned posture, or on the arm's path between two (``arm_path``: a pose-by-pose
-    search's posture reference, as ``mmstab track`` follows it).
+    The robot: at a planned posture, or on the arm's path between two (``arm_path``: a
+    pose-by-pose search's posture reference, as ``mmstab track`` follows it). The ground:
+    the arm on its posture reference at a dense sample's rest (``along_path.arm_in_ground``).
+    ``--allow-collision`` allows both.
     """
     contact = s["verdicts"]["arm_contact"]
     if not contact["unsafe"]:
         return None
-    spans = ", ".join(f"{a:.2f}" if a == b else f"{a:.2f}-{b:.2f}" for a, b in contact["where"][:4])
+    in_ground = (s.get("along_path") or {}).get("arm_in_ground") or {}
+    ground = [[x["start_s"], x["end_s"]] for x in in_ground.get("stretches", [])]
+    # the spans apart from the ground's are the robot's (merged spans: one that meets the
+    # ground's is told as the ground's)
+    robot = [w for w in contact["where"] if not any(w[0] <= b and a <= w[1] for a, b in ground)]
+    lines = []
+    if ground:
+        spans = ", ".join(f"{a:.2f}" if a == b else f"{a:.2f}-{b:.2f}" for a, b in ground[:4])
+        deepest = max(x["by"] for x in in_ground["stretches"])
+        lines.append(f"the arm on its posture reference is in the ground at rest at s = {spans} m "
+                     f"(up to {100 * deepest:.1f} cm in)")  # fmt: skip
     path = s.get("arm_path") or {}
+    if robot or path or not ground:
+        lines.append(robot_contact_line(s, robot or contact["where"], path))
+    return report("arm collision", "; ".join(lines), "--allow-collision", args.allow_collision,
+                  EXIT_ARM_COLLISION)  # fmt: skip
+
+
+def robot_contact_line(s: dict[str, Any], where: list[list[float]], path: dict[str, Any]) -> str:
+    """Where the planned arm touches the robot (``where``: arc-length spans [m])."""
+    spans = ", ".join(f"{a:.2f}" if a == b else f"{a:.2f}-{b:.2f}" for a, b in where[:4])
     pairs = ", ".join(list(path.get("reference", {}).get("pairs", {}))[:3])
     line = f"the planned arm touches the robot at s = {spans} m" + (f" ({pairs})" if pairs else "")
     if path:
@@ -83,8 +104,7 @@ def plan_contact_status(s: dict[str, Any], args: argparse.Namespace) -> int | No
             f"; the path between the planned postures is not checked by planner.method "
             f"{s['settings']['method']} (sequence and roadmap check it)"
         )
-    return report("arm collision", line, "--allow-collision", args.allow_collision,
-                  EXIT_ARM_COLLISION)  # fmt: skip
+    return line
 
 
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:

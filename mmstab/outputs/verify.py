@@ -1,6 +1,7 @@
 """A plan checked in physics: ``mmstab plan --verify`` runs the route in MuJoCo after planning.
 
-mmstab's verdict on the plan (accepted, or refused: it tips below the margin, or it slides)
+mmstab's verdict on the plan (accepted, or refused: it tips below the margin, it slides, or
+the arm touches the robot or the ground)
 is set beside MuJoCo's outcome of the same plan run with the controller in the loop (it
 holds, tips, leaves the map, slides, touches the ground with the arm or stalls:
 :mod:`mmstab.physics.closed_loop`), and the two agree when an accepted plan holds and a
@@ -20,7 +21,7 @@ from mmstab.core.files import write_json
 from mmstab.core.problem import Problem
 
 #: mmstab plan's verdicts and their exit statuses.
-PLAN_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "no plan": 6}
+PLAN_VERDICTS = {"accepted": 0, "tips": 3, "slides": 4, "arm contact": 5, "no plan": 6}
 #: MuJoCo's outcomes, the first event of a run that counts, in this order.
 OUTCOMES = ("tips", "leaves the map", "slides", "touches the ground", "stalls", "holds")
 #: The run summary's event of each outcome but ``holds`` (:data:`OUTCOMES`' order).
@@ -34,11 +35,16 @@ SAME_PLACE_M = 0.5
 
 
 def plan_verdict_of(summary: dict[str, Any]) -> str:
-    """``mmstab plan``'s verdict of a route plan's summary: its stability, then its slip."""
+    """``mmstab plan``'s verdict of a route plan's summary: its stability, its slip, its arm.
+
+    In the order of the exit statuses (:func:`mmstab.runs.plan_verdicts.exit_status`).
+    """
     if not summary["stability"]["stable"]:
         return "tips"
     if summary["slip"]["slides"]:
         return "slides"
+    if summary["verdicts"]["arm_contact"]["unsafe"]:
+        return "arm contact"
     return "accepted"
 
 

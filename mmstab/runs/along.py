@@ -419,7 +419,8 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     Args:
         summary: the route plan's ``summary.json`` (``stability``, ``slip``, ``climb``,
             ``high_centred``, ``poses``, ``risk``; a lap's ``arm_path``, where the arm's path
-            between the planned postures touches the robot, ``intervals_m``).
+            between the planned postures touches the robot, ``intervals_m``; ``along_path``'s
+            ``arm_in_ground``, where the arm on its reference is in the ground at rest).
 
     Returns:
         For ``tip``, ``slide``, ``step``, ``high_centred`` and ``arm_contact``: ``verdict``
@@ -443,6 +444,8 @@ def limit_verdicts(summary: dict[str, Any]) -> dict[str, dict[str, Any]]:
     hc_where = [[x["start_s"], x["end_s"]] for x in hc["stretches"]]
     contact = [[s[k], s[k]] for k, p in enumerate(summary["poses"]) if not p["collision_free"]]
     contact += [list(x) for x in (summary.get("arm_path") or {}).get("intervals_m", [])]
+    in_ground = (summary.get("along_path") or {}).get("arm_in_ground") or {}
+    contact += [[x["start_s"], x["end_s"]] for x in in_ground.get("stretches", [])]
     worst = [b["mu"] for b in stab["unstable_poses"]]
     worst += [x["worst"] for x in stab.get("stretches", [])]
     tip = (

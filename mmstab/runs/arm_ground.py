@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike
 
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
+from mmstab.planner.ground.arm_pieces import SURFACE_STEP, ArmSurface, arm_surface
 from mmstab.planner.ground.under_arm import GroundUnderArm
 from mmstab.stability.rock import catch, rested_supports
 from mmstab.stability.support import is_heightmap
@@ -260,4 +261,135 @@ def arm_ground_record(
     return {
         "reference": arm_ground_verdict(ref, s_m, FLIP),
         "planned": arm_ground_verdict(worse, s_m, FLIP),
+    }
+
+
+def arm_heights(
+    robot: Robot,
+    terrain: Terrain,
+    G_T_B: ArrayLike,
+    postures: ArrayLike,
+    surface: ArmSurface | None = None,
+) -> FloatArray:
+    """The arm's least height above the ground at N body poses (N,) [m] (< 0: in it).
+
+    Each point of the arm's surface (:func:`mmstab.planner.ground.arm_pieces.arm_surface`)
+    against the ground vertically under it (G's z less the map's bilinear height there):
+    exact but for the surface's sampling (a few mm), where :class:`GroundUnderArm`'s
+    measure is a lower bound (a piece's lowest point against the highest ground within a
+    square about it, which on a slope is several cm below the arm). On a heightmap only
+    (elsewhere every value is NaN: the planner's plane check is exact there).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        G_T_B: the body's poses in G (N, 4, 4) [m] (NaN rows: not known, NaN out).
+        postures: the arm's posture at each (N, n) [rad].
+        surface: the arm's surface points (default :func:`arm_surface`'s).
+
+    Returns:
+        The least height per pose [m]; NaN where the arm is over an unknown cell. Beyond
+        the map's edge the edge's ground is taken (as :class:`GroundUnderArm` takes it).
+    """
+    T = np.asarray(G_T_B, dtype=float).reshape(-1, 4, 4)
+    q = np.atleast_2d(np.asarray(postures, dtype=float))
+    out = np.full(len(T), np.nan)
+    ok = np.isfinite(T).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
+    if not ok.any() or not is_heightmap(terrain):
+        return out
+    surface = arm_surface(robot) if surface is None else surface
+    hm = terrain.heightmap  # type: ignore[attr-defined]
+    x0, x1, y0, y1 = hm.bounds
+    frames = T[ok, None] @ robot.kinematics.link_frames(q[ok])  # (n, links, 4, 4) in G
+    least, known = np.full(int(ok.sum()), np.inf), np.ones(int(ok.sum()), dtype=bool)
+    for i in np.unique(surface.link):  # one product per link: (n, 3) @ (3, points)
+        pts = surface.points[surface.link == i].T
+        R, t = frames[:, i, :3, :3], frames[:, i, :3, 3]
+        x, y, z = (R[:, r] @ pts + t[:, r, None] for r in range(3))
+        # beyond the map's edge the edge's ground, as the planner's check takes it
+        x, y = np.clip(x, x0, x1), np.clip(y, y0, y1)
+        ground, _, _, valid = hm.sample_rows(x, y, slopes=False)
+        least = np.minimum(least, np.where(valid, (z - ground).min(axis=1), np.inf))
+        known &= valid
+    out[ok] = np.where(known, least, np.nan)
+    return out
+
+
+def arm_heights_at_rest(
+    robot: Robot, terrain: Terrain, poses: ArrayLike, postures: ArrayLike
+) -> FloatArray:
+    """The arm's least height above the ground at the rests of base poses (N,) [m].
+
+    Each pose rested under the arm's CoM in its posture (:func:`arm_heights`; NaN where the
+    pose has no rest or the arm is over an unknown cell, or off a heightmap).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        poses: base poses (N, 3) of (x, y, yaw) in M [m, m, rad].
+        postures: the arm's posture at each (N, n) [rad].
+    """
+    P = np.atleast_2d(np.asarray(poses, dtype=float))
+    q = np.atleast_2d(np.asarray(postures, dtype=float))
+    if not is_heightmap(terrain):
+        return np.full(len(P), np.nan)
+    ground = terrain
+    if getattr(terrain, "robot", None) is not robot:
+        ground = terrain.with_robot(robot, getattr(terrain, "flipper_angle", None))
+    com_B = np.atleast_2d(np.asarray(robot.overall_com(robot.arm_com(q)), dtype=float))
+    G_T_B = ground.rest(P, strict=False, com_body=com_B).G_T_B  # type: ignore[attr-defined]
+    return arm_heights(robot, ground, G_T_B, q)
+
+
+def arm_in_ground_record(
+    robot: Robot,
+    terrain: Terrain,
+    route: RoutePath | CirclePath,
+    plan: RoutePlan | LapStage,
+    poses: ArrayLike,
+    s: ArrayLike,
+) -> dict[str, Any] | None:
+    """Where the arm on its posture reference is in the ground at rest along a plan.
+
+    At every dense sample of the path (``summary.json``'s ``along_path.arm_in_ground``):
+    the body at the sample's rest under the arm's CoM there, the arm on the plan's posture
+    reference (:func:`reference_postures`, what ``track`` and ``simulate`` follow), its
+    least height above the ground by :func:`arm_heights`. The planner keeps the arm
+    ``planner.ground_clearance`` up at its poses (a bound, :class:`GroundUnderArm`);
+    between them the ground changes under an arm moving from one planned posture to the
+    next (a lap's poses 0.7 m apart over a ditch: 11 cm in the ground). A stretch in the
+    ground is an arm contact: the plan's ``arm_contact`` verdict (exit status 5).
+
+    Args:
+        robot: the robot.
+        terrain: the ground.
+        route: the route or lap planned.
+        plan: its plan (``s``, ``postures``, ``fractions``, ``moves``).
+        poses: the path's samples (N, 3) of (x, y, yaw) in M [m, m, rad], in driving order.
+        s: their arc lengths (N,) [m].
+
+    Returns:
+        None off a heightmap; else ``contact`` (bool), ``height_min_m`` (the least height
+        [m], None: none known), ``at_s`` (where [m]), ``unknown_samples`` (the arm over an
+        unknown cell, or no rest), ``surface_step_m`` and ``stretches`` in the ground:
+        ``start_s``, ``end_s``, ``at_s`` [m] and ``by`` how far in [m].
+    """
+    if not is_heightmap(terrain):
+        return None
+    s_m = np.asarray(s, dtype=float)
+    h = arm_heights_at_rest(robot, terrain, poses, reference_postures(robot, plan, route, s_m))
+    known = np.isfinite(h)
+    stretches = []
+    for a, b in true_runs(known & (h < 0.0)):
+        k = a + int(np.argmin(h[a:b]))
+        stretches.append({"start_s": float(s_m[a]), "end_s": float(s_m[b - 1]),
+                          "at_s": float(s_m[k]), "by": float(-h[k])})  # fmt: skip
+    k = int(np.nanargmin(h)) if known.any() else None
+    return {
+        "contact": bool(stretches),
+        "height_min_m": None if k is None else float(h[k]),
+        "at_s": None if k is None else float(s_m[k]),
+        "unknown_samples": int((~known).sum()),
+        "surface_step_m": SURFACE_STEP,
+        "stretches": stretches,
     }

@@ -9,7 +9,8 @@ records: ``stability`` (tip), ``slip`` (slide), ``climb`` (step), ``high_centred
 :func:`exit_status` is ``mmstab plan``'s exit status for them (``docs/cli.md``): 3 where a
 pose tips or falls below the margin, 4 where the tracks slide, 5 where the arm touches the
 robot (at a planned posture, or between two on a plan whose moves the search did not check:
-:func:`arm_path_check`), else 0.
+:func:`arm_path_check`) or, on its posture reference at a dense sample's rest, the ground
+(:func:`mmstab.runs.arm_ground.arm_in_ground_record`), else 0.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from mmstab.runs.along import (
     rock_samples,
     sample_spacing,
 )
+from mmstab.runs.arm_ground import arm_in_ground_record
 from mmstab.runs.climb_out import climb_out_verdict, reference_arm_coms
 from mmstab.runs.high_centred import path_samples
 from mmstab.runs.verdict import (
@@ -271,6 +273,10 @@ def along_records(
     if times is not None:
         timing = ConeTiming(np.asarray(times), settings.slip_distance, settings.slip_window)
     dense = dense_verdicts(terrain, along, settings.margin, accelerating, rocks, timing)
+    # the arm on its posture reference at the rests (a heightmap's): in the ground is a contact
+    in_ground = arm_in_ground_record(robot, terrain, path, stage, along.poses, along.s)
+    if in_ground is not None:
+        dense["arm_in_ground"] = in_ground
     if settings.arm_over_crests:  # the arm against the ground at the rests and over crests
         from mmstab.runs.arm_ground import arm_ground_record
 

@@ -9,6 +9,7 @@ from conftest import ditch_ground
 from mmstab.paths.circle import CirclePath
 from mmstab.planner import Plan, PlannerSettings
 from mmstab.runs.along import along_path, bracket
+from mmstab.runs.arm_ground import arm_heights
 from mmstab.runs.high_centred import path_samples
 from mmstab.runs.plan_verdicts import lap_acceleration, lap_verdicts, slide_stretches
 from mmstab.runs.verdict_settings import VerdictSettings
@@ -92,6 +93,22 @@ def test_a_ditch_the_laps_planned_poses_step_over_is_found(robot, problem):
     for a, b in tip["where"]:
         assert any(c.min() - 0.5 <= a and b <= c.max() + 0.5 for c in crossings)
     assert {"tip", "slide", "high_centred", "arm_contact"} <= set(v["verdicts"])
+    # the arm: the stowed arm is 22 cm above the support plane and clears the slope and its
+    # bumps; where the rest pitches nose-down into the ditch (35 deg as the CoM passes its
+    # rim) it meets the far wall: the arm's stretches in the ground lie on a crossing and are
+    # the arm-contact verdict's
+    arm = dense["arm_in_ground"]
+    assert arm["contact"] and arm["unknown_samples"] == 0
+    for x in arm["stretches"]:
+        assert any(c.min() - 0.5 <= x["start_s"] and x["end_s"] <= c.max() + 0.5
+                   for c in crossings)  # fmt: skip
+    outside = np.abs(poses[:, 0]) > 1.0
+    T = terrain.rest(poses[outside], strict=False).G_T_B
+    away = arm_heights(robot, terrain, T, np.tile(stowed, (outside.sum(), 1)))
+    assert away.min() > 0.1  # bumps of 5 cm under an arm 22 cm up
+    contact = v["verdicts"]["arm_contact"]
+    assert contact["unsafe"] and contact["where"] == [[x["start_s"], x["end_s"]]
+                                                      for x in arm["stretches"]]  # fmt: skip
 
 
 def test_a_laps_turn_across_its_start_is_named_to_the_end_and_from_zero():
