@@ -108,16 +108,28 @@ def robot_contact_line(s: dict[str, Any], where: list[list[float]], path: dict[s
 
 
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
-    """Report a run whose arm touched the robot; exit status 5 unless ``--allow-collision``.
+    """Report a run whose arm touched the robot or the ground; exit 5 unless allowed.
 
-    A summary without the record (a run stored without ``mmstab track``'s summary) has none.
+    The robot: ``arm_self_collision``; the ground at the tracked rests (a heightmap's):
+    ``arm_in_ground``. A summary without the records (a run stored without ``mmstab track``'s
+    summary) has none. ``--allow-collision`` allows both.
     """
     from mmstab.runs.verdict import describe_arm_collision
 
     collision = summary.get("arm_self_collision")
-    if collision is None or collision["verdict"]["safe"]:
+    in_ground = summary.get("arm_in_ground") or {}
+    lines = []
+    if collision is not None and not collision["verdict"]["safe"]:
+        lines.append(describe_arm_collision(collision))
+    if in_ground.get("contact"):
+        spans_s = in_ground["intervals_s"]
+        spans = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f}" for x in spans_s[:4])
+        deepest = max(x["by"] for x in spans_s)
+        lines.append(f"the tracked arm is in the ground at the tracked rest at t = {spans} s "
+                     f"(up to {100 * deepest:.1f} cm in)")  # fmt: skip
+    if not lines:
         return None
-    line = describe_arm_collision(collision)
+    line = "; ".join(lines)
     allowed = args.allow_collision
     return report("arm collision", line, "--allow-collision", allowed, EXIT_ARM_COLLISION)
 

@@ -50,14 +50,15 @@ def track_summary(run: Run) -> dict[str, Any] | None:
 
 
 def stored_verdicts(summary: dict[str, Any] | None) -> dict[str, Any]:
-    """The stored run's slide and arm-contact records (``slip``, ``arm_self_collision``).
+    """The stored run's slide and arm-contact records (``slip``, the arm's ``arm_*``).
 
-    Those of ``mmstab track``'s summary (:func:`track_summary`), with its ``steps`` (the
-    samples the slide record counts); none for a run stored without its summary.
+    ``arm_self_collision`` and ``arm_in_ground``: those of ``mmstab track``'s summary
+    (:func:`track_summary`), with its ``steps`` (the samples the slide record counts); none
+    for a run stored without its summary.
     """
     if summary is None:
         return {}
-    keys = ("steps", "slip", "arm_self_collision")
+    keys = ("steps", "slip", "arm_self_collision", "arm_in_ground")
     return {k: summary[k] for k in keys if summary.get(k) is not None}
 
 

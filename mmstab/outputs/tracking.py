@@ -85,7 +85,7 @@ def run_tracking(
         allow_unstable=allow_unstable,
     )
     d = output_dir(out, "tracking")
-    keep, collisions, slip = run_checks(problem, run)
+    keep, collisions, slip, in_ground = run_checks(problem, run)
     _fig9(d, problem, run)
     _fig10(d, run, collisions["intervals_s"])
     _fig11(d, run)
@@ -95,6 +95,8 @@ def run_tracking(
     summary = summarize(run)
     summary["plan_poses"] = int(np.asarray(plan.fractions).size)
     summary["arm_self_collision"] = collisions
+    if in_ground is not None:  # a heightmap's: the arm against the ground at the rests
+        summary["arm_in_ground"] = in_ground
     summary |= {"slip": slip} | route_corners(problem)
     save_settings(
         d,
@@ -112,7 +114,7 @@ def run_tracking(
 
 def run_checks(
     problem: Problem, run: TrackingRun
-) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any]]:
+) -> tuple[NDArray[np.int_], dict[str, Any], dict[str, Any], dict[str, Any] | None]:
     """The verdicts beside ``run.tipped`` of a problem's run (:func:`tracked_checks`)."""
     return tracked_checks(problem.robot, problem.terrain, _verdict_settings(problem), run)
 

@@ -29,6 +29,7 @@ from mmstab.planner import (
     stretches,
 )
 from mmstab.planner.fitness import pose_fitness
+from mmstab.runs.arm_ground import arm_heights_at_rest
 from mmstab.stability.static import mu_max
 
 ROUGH = ROOT / "problems" / "rough.yaml"
@@ -273,6 +274,13 @@ def test_plan_and_track_a_terrain_route_from_the_cli(tmp_path):
     assert t["after_transient"]["arm_com_error_max_m"] < 2e-2
     assert t["mu_min"]["reconfigured"] > 0
     assert all(t["qdot_max_abs"][j] <= t["qdot_limit"][j] + 1e-9 for j in t["qdot_limit"])
+    # the tracked arm against the ground at the tracked rests, every 0.05 s: at run.npz's
+    # 0.01 s samples, measured again, its least height is no higher and within 5 mm
+    g = t["arm_in_ground"]
+    assert not g["contact"] and g["unknown_samples"] == 0 and g["samples"] > 100
+    run, p = np.load(tmp_path / "track" / "run.npz"), load_problem(problem)
+    h = arm_heights_at_rest(p.robot, p.terrain, run["state"][:, :3], run["state"][:, 5:])
+    assert h.min() <= g["height_min_m"] + 1e-12 and g["height_min_m"] - h.min() < 0.005
     assert_committed_has_the_keys(t, "results/rough/summary.json")
 
 

@@ -158,3 +158,17 @@ def test_the_arm_in_the_ground_is_an_arm_contact_with_exit_status_5(capsys):
     assert plan_contact_status(s, argparse.Namespace(allow_collision=True)) is None
     clear = plan_summary([])
     assert exit_status(limit_verdicts(clear)) == 0
+
+
+def test_a_tracked_arm_in_the_ground_exits_5_and_says_when(capsys):
+    from mmstab.cli.verdicts import arm_collision_status
+
+    safe = {"verdict": {"safe": True}}
+    ground = {"contact": True, "intervals_s": [{"start_s": 4.1, "end_s": 4.35, "by": 0.062}]}
+    s = {"arm_self_collision": safe, "arm_in_ground": ground}
+    assert arm_collision_status(s, argparse.Namespace(allow_collision=False)) == EXIT_ARM_COLLISION
+    err = capsys.readouterr().err
+    assert "in the ground at the tracked rest at t = 4.10-4.35 s (up to 6.2 cm in)" in err
+    clear = {"arm_self_collision": safe, "arm_in_ground": {**ground, "contact": False}}
+    assert arm_collision_status(clear, argparse.Namespace(allow_collision=False)) is None
+    assert arm_collision_status({"arm_self_collision": safe}, argparse.Namespace()) is None
