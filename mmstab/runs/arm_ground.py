@@ -30,11 +30,15 @@ without a contact (``docs/stability.md``).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, NamedTuple
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
+from mmstab.core.files import MmstabError
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.ground.arm_pieces import SURFACE_STEP, ArmSurface, arm_surface
@@ -264,12 +268,29 @@ def arm_ground_record(
     }
 
 
+#: The C twin of :func:`arm_heights`' NumPy path (``arm_heights.c``).
+SOURCE = Path(__file__).with_name("arm_heights.c")
+
+
+@lru_cache(maxsize=1)
+def _kernel() -> Any:
+    """The compiled ``mmstab_arm_heights``, or None (no C compiler: the NumPy path runs)."""
+    try:
+        return kernel_function(SOURCE, "mmstab_arm_heights", [
+            LONG, LONG, DOUBLES, LONG, LONGS, DOUBLES, DOUBLES, LONG, LONG, DOUBLES, DOUBLE,
+            DOUBLES, DOUBLES, BYTES,
+        ])  # fmt: skip
+    except (MmstabError, OSError):
+        return None
+
+
 def arm_heights(
     robot: Robot,
     terrain: Terrain,
     G_T_B: ArrayLike,
     postures: ArrayLike,
     surface: ArmSurface | None = None,
+    backend: Literal["c", "numpy"] = "c",
 ) -> FloatArray:
     """The arm's least height above the ground at N body poses (N,) [m] (< 0: in it).
 
@@ -286,6 +307,8 @@ def arm_heights(
         G_T_B: the body's poses in G (N, 4, 4) [m] (NaN rows: not known, NaN out).
         postures: the arm's posture at each (N, n) [rad].
         surface: the arm's surface points (default :func:`arm_surface`'s).
+        backend: ``c`` (``arm_heights.c``, where a C compiler is at hand) or ``numpy``, its
+            twin operation for operation (the same values to rounding).
 
     Returns:
         The least height per pose [m]; NaN where the arm is over an unknown cell. Beyond
@@ -301,6 +324,19 @@ def arm_heights(
     hm = terrain.heightmap  # type: ignore[attr-defined]
     x0, x1, y0, y1 = hm.bounds
     frames = T[ok, None] @ robot.kinematics.link_frames(q[ok])  # (n, links, 4, 4) in G
+    f = _kernel() if backend == "c" else None
+    if f is not None:
+        m = int(ok.sum())
+        least_c, known_c = np.empty(m), np.empty(m, dtype=np.uint8)
+        elev = np.ascontiguousarray(hm.elevation, dtype=np.float64)
+        f(m, frames.shape[1], np.ascontiguousarray(frames), len(surface.link),
+          np.ascontiguousarray(surface.link, dtype=np.int64),
+          np.ascontiguousarray(surface.points, dtype=np.float64), elev, elev.shape[0],
+          elev.shape[1], np.ascontiguousarray(hm.origin, dtype=np.float64),
+          float(hm.resolution), np.asarray([x0, x1, y0, y1], dtype=np.float64), least_c,
+          known_c)  # fmt: skip
+        out[ok] = np.where(known_c.astype(bool), least_c, np.nan)
+        return out
     least, known = np.full(int(ok.sum()), np.inf), np.ones(int(ok.sum()), dtype=bool)
     for i in np.unique(surface.link):  # one product per link: (n, 3) @ (3, points)
         pts = surface.points[surface.link == i].T

@@ -109,6 +109,25 @@ def test_in_the_ground_where_fcl_finds_the_arm_on_the_map_of_a_ditch(robot, rng)
     assert agree > 50
 
 
+def test_the_c_kernel_is_its_numpy_twin(robot, rng):
+    # seeded ditch maps with unknown cells, rested poses (one off the map), random postures
+    for _ in range(2):
+        hm = ditch_ground(rng, slope_deg=float(rng.uniform(0, 15)), bump_m=0.08)
+        z = np.array(hm.elevation, dtype=float)
+        z[rng.integers(0, z.shape[0], 40), rng.integers(0, z.shape[1], 40)] = np.nan
+        hm = Heightmap.build(z, hm.resolution, hm.origin, "holes")
+        terrain = HeightmapTerrain(hm).with_robot(robot)
+        xy = rng.uniform(-4.8, 4.8, (60, 2))
+        poses = np.c_[xy, rng.uniform(-3, 3, 60)]
+        poses[0] = [9.0, 0.0, 0.0]
+        T = terrain.rest(poses, strict=False).G_T_B
+        q = random_postures(robot, rng, 60)
+        c = arm_heights(robot, terrain, T, q, backend="c")
+        twin = arm_heights(robot, terrain, T, q, backend="numpy")
+        np.testing.assert_allclose(c, twin, rtol=0, atol=1e-12)  # NaN where NaN
+        assert np.isnan(c).sum() > 1 and np.isfinite(c).sum() > 30
+
+
 def test_batched_is_each_pose_alone(robot, rng):
     hm = ditch_ground(rng)
     terrain = HeightmapTerrain(hm).with_robot(robot)
