@@ -1,7 +1,14 @@
 """The ground under the arm between the planned poses, at the attitudes the body takes there.
 
-The planner keeps the arm ``planner.ground_clearance`` above the ground at each planned
-pose, at the pose's predicted rest and through tilts of ``planner.attitude_margin``
+**The verdict** (:func:`arm_in_ground_record`, every route and lap on a heightmap): at every
+dense sample, the body at its rest, the arm on the plan's posture reference, its least
+height above the ground from points on its surface (:func:`arm_heights`, in C with its NumPy
+twin); below the ground is the plan's ``arm_contact`` (exit 5). ``mmstab track`` measures
+its tracked arm the same way (:func:`mmstab.runs.tracking.checks.arm_in_ground_run`).
+
+**The crests' record** (``physics.arm_over_crests``, opt-in). The planner keeps the arm
+``planner.ground_clearance`` above the ground at each planned pose, at the pose's
+predicted rest and through tilts of ``planner.attitude_margin``
 (:mod:`mmstab.planner.ground.under_arm`). Between the poses, over a bump's crest, the
 quasi-static rest flips from one support to the other (rear down to front down, or across
 a diagonal) within a few centimetres of travel; the robot does not jump between the two
