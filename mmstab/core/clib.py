@@ -129,3 +129,11 @@ def kernel_function(source: Path, name: str, argtypes: Sequence[Any]) -> Any:
     fn.restype = ctypes.c_int
     fn.argtypes = list(argtypes)
     return fn
+
+
+def optional_kernel(source: Path, name: str, argtypes: Sequence[Any]) -> Any:
+    """:func:`kernel_function`, or None where it cannot be built (the caller's NumPy path runs)."""
+    try:
+        return kernel_function(source, name, argtypes)
+    except (MmstabError, OSError):
+        return None

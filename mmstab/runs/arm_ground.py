@@ -44,8 +44,7 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
-from mmstab.core.files import MmstabError
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, optional_kernel
 from mmstab.core.masks import true_runs
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.planner.ground.arm_pieces import SURFACE_STEP, ArmSurface, arm_surface
@@ -96,6 +95,17 @@ def _turns(z: FloatArray) -> FloatArray:
     out[1:] = step
     out[:-1] = np.fmax(out[:-1], step)
     return out
+
+
+def in_ground_runs(h: ArrayLike) -> list[tuple[int, int, int]]:
+    """Each run of samples with the arm in the ground (height h < 0 [m], known).
+
+    Returns:
+        (first, end, deepest) sample indices of each run (``end`` exclusive).
+    """
+    h = np.asarray(h, dtype=float)
+    runs = true_runs(np.isfinite(h) & (h < 0.0))
+    return [(int(a), int(b), int(a + np.argmin(h[a:b]))) for a, b in runs]
 
 
 def reference_postures(
@@ -195,14 +205,12 @@ def arm_ground_verdict(arm: ArmGround, s: ArrayLike, flip: float) -> dict[str, A
     """
     s_m = np.asarray(s, dtype=float)
     h = arm.height
-    below = np.isfinite(h) & (h < 0.0)
 
     def least(x: FloatArray) -> float | None:
         return float(np.nanmin(x)) if np.isfinite(x).any() else None
 
     stretches = []
-    for a, b in true_runs(below):
-        k = a + int(np.nanargmin(h[a:b]))
+    for a, b, k in in_ground_runs(h):
         at_rest = bool(arm.rest[k] <= arm.rocked[k]) or not np.isfinite(arm.rocked[k])
         stretches.append(
             {
@@ -282,13 +290,10 @@ SOURCE = Path(__file__).with_name("arm_heights.c")
 @lru_cache(maxsize=1)
 def _kernel() -> Any:
     """The compiled ``mmstab_arm_heights``, or None (no C compiler: the NumPy path runs)."""
-    try:
-        return kernel_function(SOURCE, "mmstab_arm_heights", [
-            LONG, LONG, DOUBLES, LONG, LONGS, DOUBLES, DOUBLES, LONG, LONG, DOUBLES, DOUBLE,
-            DOUBLES, DOUBLES, BYTES,
-        ])  # fmt: skip
-    except (MmstabError, OSError):
-        return None
+    return optional_kernel(SOURCE, "mmstab_arm_heights", [
+        LONG, LONG, DOUBLES, LONG, LONGS, DOUBLES, DOUBLES, LONG, LONG, DOUBLES, DOUBLE,
+        DOUBLES, DOUBLES, BYTES,
+    ])  # fmt: skip
 
 
 def arm_heights(
@@ -422,11 +427,9 @@ def arm_in_ground_record(
     s_m = np.asarray(s, dtype=float)
     h = arm_heights_at_rest(robot, terrain, poses, reference_postures(robot, plan, route, s_m))
     known = np.isfinite(h)
-    stretches = []
-    for a, b in true_runs(known & (h < 0.0)):
-        k = a + int(np.argmin(h[a:b]))
-        stretches.append({"start_s": float(s_m[a]), "end_s": float(s_m[b - 1]),
-                          "at_s": float(s_m[k]), "by": float(-h[k])})  # fmt: skip
+    stretches = [{"start_s": float(s_m[a]), "end_s": float(s_m[b - 1]),
+                  "at_s": float(s_m[k]), "by": float(-h[k])}
+                 for a, b, k in in_ground_runs(h)]  # fmt: skip
     k = int(np.nanargmin(h)) if known.any() else None
     return {
         "contact": bool(stretches),

@@ -34,8 +34,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, kernel_function
-from mmstab.core.files import MmstabError
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, LONGS, optional_kernel
 from mmstab.model.robot import FloatArray, Robot
 from mmstab.stability.slip import slip_limit
 
@@ -272,13 +271,10 @@ def skid_twist(
 @lru_cache(maxsize=1)
 def _kernel() -> Any:
     """The compiled ``mmstab_skid_twist`` (``skid.c``), or None (no C compiler)."""
-    try:
-        return kernel_function(KERNEL_SOURCE, "mmstab_skid_twist", [
-            LONG, LONG, DOUBLES, DOUBLES, LONGS, DOUBLE, DOUBLES, DOUBLES, DOUBLES, DOUBLES,
-            DOUBLES, BYTES, BYTES, DOUBLE, DOUBLES, LONG, DOUBLE, LONG, LONG, DOUBLE, BYTES,
-        ])  # fmt: skip
-    except (MmstabError, OSError):
-        return None
+    return optional_kernel(KERNEL_SOURCE, "mmstab_skid_twist", [
+        LONG, LONG, DOUBLES, DOUBLES, LONGS, DOUBLE, DOUBLES, DOUBLES, DOUBLES, DOUBLES,
+        DOUBLES, BYTES, BYTES, DOUBLE, DOUBLES, LONG, DOUBLE, LONG, LONG, DOUBLE, BYTES,
+    ])  # fmt: skip
 
 
 def _newton_c(

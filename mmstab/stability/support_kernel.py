@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, kernel_function
-from mmstab.core.files import MmstabError
+from mmstab.core.clib import BYTES, DOUBLE, DOUBLES, LONG, optional_kernel
 from mmstab.terrain.polygon import MIN_EDGE, plane_axes
 
 SOURCE = Path(__file__).with_name("support_mu.c")  #: the kernel's C source
@@ -31,13 +30,10 @@ FloatArray = NDArray[np.float64]
 @lru_cache(maxsize=1)
 def _kernel() -> Any:
     """The compiled ``mmstab_support_mu``, or None (no C compiler)."""
-    try:
-        return kernel_function(SOURCE, "mmstab_support_mu", [
-            LONG, LONG, DOUBLES, BYTES, DOUBLES, DOUBLES, DOUBLES, DOUBLES, DOUBLES, DOUBLE,
-            DOUBLES, BYTES,
-        ])  # fmt: skip
-    except (MmstabError, OSError):
-        return None
+    return optional_kernel(SOURCE, "mmstab_support_mu", [
+        LONG, LONG, DOUBLES, BYTES, DOUBLES, DOUBLES, DOUBLES, DOUBLES, DOUBLES, DOUBLE,
+        DOUBLES, BYTES,
+    ])  # fmt: skip
 
 
 def support_mu_c(

@@ -15,11 +15,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mmstab.core.masks import true_runs
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.collision_sequence import sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.runs.arm_ground import arm_heights_at_rest
+from mmstab.runs.arm_ground import arm_heights_at_rest, in_ground_runs
 from mmstab.runs.tracking.run import TrackingRun
 from mmstab.runs.verdict import arm_collision_verdict, robot_turn_check, slip_verdict
 from mmstab.runs.verdict_settings import VerdictSettings
@@ -160,9 +159,8 @@ def arm_in_ground_run(robot: Robot, terrain: Terrain, run: TrackingRun) -> dict[
     h = arm_heights_at_rest(robot, terrain, run.state[k, :3], run.state[k, 5:])
     t = run.t[k]
     known = np.isfinite(h)
-    runs = true_runs(known & (h < 0.0))
-    intervals = [{"start_s": float(t[a]), "end_s": float(t[b - 1]),
-                  "by": float(-np.min(h[a:b]))} for a, b in runs]  # fmt: skip
+    intervals = [{"start_s": float(t[a]), "end_s": float(t[b - 1]), "by": float(-h[k])}
+                 for a, b, k in in_ground_runs(h)]  # fmt: skip
     j = int(np.nanargmin(h)) if known.any() else None
     return {
         "contact": bool(intervals),
