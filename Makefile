@@ -342,7 +342,7 @@ bench-physics: setup
 .PHONY: online bench-online
 online: setup
 	$(MMSTAB) record problems/rough.yaml -o results/online/rough.mcap
-	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding
+	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding --allow-collision
 	$(PY) -m mmstab.viz.viewer.snapshot problems/rough.yaml results/online results/online/viewer.png 0.45 3.0
 
 ## end-to-end latency of mmstab node over ROS 2 (map stamp -> answer) -> results/bench/node.json

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from mmstab.cli.status import EXIT_SLIDES, EXIT_UNSTABLE
+from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
 from mmstab.cli.verdicts import report
 
 
@@ -72,12 +72,20 @@ def _follow(args: argparse.Namespace) -> int | None:
             f"where the map agrees: mu differs by {100 * rel['median']:.2f} % (median), "
             f"{100 * rel['max']:.2f} % (most); offline {1e3 * off['seconds_per_pose']:.1f} ms/pose"
         )
+    return follow_status(s, args)
+
+
+def follow_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
+    """``mmstab follow``'s verdicts on stderr and its exit status (None: 0).
+
+    As ``plan``'s: 3 tips, else 4 slides, else 5 the arm in the map's ground; each accepted by
+    its ``--allow-...`` option (then a warning).
+    """
+    status = None
     if s["tipped"] is not None:
         t = s["tipped"]
         line = f"the robot tips over on its map at {t['time_s']:.2f} s (s = {t['s_m']:.2f} m)"
         status = report("unstable", line, "--allow-unstable", args.allow_unstable, EXIT_UNSTABLE)
-        if status is not None:
-            return status
     if s["slides"] is not None:
         v = s["slides"]
         line = (
@@ -85,8 +93,17 @@ def _follow(args: argparse.Namespace) -> int | None:
             f"{v['s_m']:.2f} m): tilt {math.degrees(v['tilt_rad']):.2f} deg beyond "
             f"{math.degrees(v['critical_tilt_rad']):.2f} deg = atan(friction {s['friction']:g})"
         )
-        return report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
-    return None
+        found = report("slides", line, "--allow-sliding", args.allow_sliding, EXIT_SLIDES)
+        status = status or found
+    ground = s.get("arm_in_ground")
+    if ground is not None and ground["contact"]:
+        when = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f}" for x in ground["intervals_s"])
+        deep = max(x["by"] for x in ground["intervals_s"])
+        line = f"the arm is in its map's ground at t = {when} s (up to {100 * deep:.1f} cm in)"
+        found = report("arm collision", line, "--allow-collision", args.allow_collision,
+                       EXIT_ARM_COLLISION)  # fmt: skip
+        status = status or found
+    return status
 
 
 def add_online_commands(sub: Any) -> None:
@@ -112,4 +129,7 @@ def add_online_commands(sub: Any) -> None:
     p.add_argument("--limit", type=int, default=None, help="follow only the first N maps")
     p.add_argument("--allow-unstable", action="store_true", help="exit 0 even if the robot tips")
     p.add_argument("--allow-sliding", action="store_true", help="exit 0 even if the tracks slide")
+    p.add_argument(
+        "--allow-collision", action="store_true", help="exit 0 even if the arm is in the ground"
+    )
     p.set_defaults(handler=_follow)

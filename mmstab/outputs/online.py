@@ -31,6 +31,7 @@ from mmstab.outputs.common import save_settings
 from mmstab.planner.along_route import solve_route
 from mmstab.planner.fitness import support_polygons_at
 from mmstab.planner.plan import problem_region
+from mmstab.runs.arm_ground import arm_heights_at_rest, in_ground_in_time
 from mmstab.runs.online.follow import FollowSettings
 from mmstab.runs.online.horizon import angle_between
 from mmstab.runs.online.run import FollowRun, follow_recording, run_frames, summarize
@@ -231,6 +232,20 @@ def along_summary(a: AlongRoute) -> dict[str, Any]:
     return out
 
 
+def arm_in_ground_true(problem: Problem, run: FollowRun) -> dict[str, Any]:
+    """The run's ``arm_in_ground`` with each covered map's state rested on the true ground.
+
+    The loop measures the arm at the state's rest on its map; the map's noise and unknown
+    cells move that rest (a rigid base rocks onto other contacts within centimetres), so the
+    same states on the problem's own terrain say what the ground did
+    (:func:`mmstab.runs.arm_ground.in_ground_in_time`).
+    """
+    st = [x for x in run.steps if x.covered]
+    poses, q = np.array([x.pose for x in st]), np.array([x.q for x in st])
+    h = arm_heights_at_rest(problem.robot, problem.terrain, poses, q)
+    return in_ground_in_time(h, np.array([x.time for x in st]))
+
+
 def run_follow(
     problem: Problem,
     recording: str | os.PathLike[str],
@@ -263,6 +278,8 @@ def run_follow(
         summary["offline"]["wall_seconds"] = time.perf_counter() - t1
     along = along_states(problem, run, offline)
     summary["along_route"] = None if along is None else along_summary(along)
+    if along is not None:  # the arm as the loop had it, at the same states' true rests
+        summary["along_route"]["arm_in_ground"] = arm_in_ground_true(problem, run)
     if offline is not None:
         _figure(out / "online.png", run, offline, along)
         _snapshot(out / "online_map.png", problem, run, recording)

@@ -108,6 +108,34 @@ def in_ground_runs(h: ArrayLike) -> list[tuple[int, int, int]]:
     return [(int(a), int(b), int(a + np.argmin(h[a:b]))) for a, b in runs]
 
 
+def in_ground_in_time(h: ArrayLike, t: ArrayLike) -> dict[str, Any]:
+    """A run's record of the arm in the ground (``track``'s and ``follow``'s ``arm_in_ground``).
+
+    Args:
+        h: the arm's least height above the ground at the run's samples (N,) [m] (< 0: in
+            it; NaN: unknown).
+        t: their times (N,) [s].
+
+    Returns:
+        ``contact`` (bool), ``samples`` (N), ``height_min_m`` and its ``at_time_s`` [s]
+        (None: none known), ``unknown_samples`` and ``intervals_s`` in the ground:
+        ``start_s``, ``end_s`` [s] (its first and last samples) and ``by`` how far in [m].
+    """
+    h, t = np.asarray(h, dtype=float), np.asarray(t, dtype=float)
+    known = np.isfinite(h)
+    intervals = [{"start_s": float(t[a]), "end_s": float(t[b - 1]), "by": float(-h[k])}
+                 for a, b, k in in_ground_runs(h)]  # fmt: skip
+    j = int(np.nanargmin(h)) if known.any() else None
+    return {
+        "contact": bool(intervals),
+        "samples": len(h),
+        "height_min_m": None if j is None else float(h[j]),
+        "at_time_s": None if j is None else float(t[j]),
+        "unknown_samples": int((~known).sum()),
+        "intervals_s": intervals,
+    }
+
+
 def reference_postures(
     robot: Robot, plan: RoutePlan | LapStage, route: RoutePath | CirclePath, s: ArrayLike
 ) -> FloatArray:

@@ -161,14 +161,20 @@ def test_map_fault_times() -> None:
 
 
 def test_verdict_levels() -> None:
-    v = {x.name: x.level for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, None, False)}
+    v = {x.name: x.level for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, None, False, 0.1)}
     assert v == dict.fromkeys(VERDICTS, OK)
-    v = {x.name: x.level for x in verdicts(True, -1.0, 0.0, 0.7, 0.7, True, True)}
-    assert v == {"tip": ERROR, "slide": ERROR, "step": ERROR, "high-centred": ERROR, "coverage": OK}
+    v = {x.name: x.level for x in verdicts(True, -1.0, 0.0, 0.7, 0.7, True, True, -0.02)}
+    assert v == {"tip": ERROR, "slide": ERROR, "step": ERROR, "high-centred": ERROR,
+                 "arm-contact": ERROR, "coverage": OK}  # fmt: skip
     # atan(0.7) = 34.99 deg: a tilt of 35.0 deg slides, 34.9 does not
-    assert verdicts(True, 1.0, 0.0, np.radians(35.0), 0.7, None, False)[1].level == ERROR
-    assert verdicts(True, 1.0, 0.0, np.radians(34.9), 0.7, None, False)[1].level == OK
-    v = {x.name: x.level for x in verdicts(False, float("nan"), 0.0, np.nan, 0.7, None, False)}
+    assert verdicts(True, 1.0, 0.0, np.radians(35.0), 0.7, None, False, 0.1)[1].level == ERROR
+    assert verdicts(True, 1.0, 0.0, np.radians(34.9), 0.7, None, False, 0.1)[1].level == OK
+    v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, None, False, -0.034)}
+    assert v["arm-contact"].message == "the arm 3.4 cm in the ground"
+    v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, None, False, np.nan)}
+    assert v["arm-contact"].level == WARN and "not mapped" in v["arm-contact"].message
+    none = verdicts(False, float("nan"), 0.0, np.nan, 0.7, None, False, np.nan)
+    v = {x.name: x.level for x in none}
     assert v["coverage"] == ERROR and all(v[n] == STALE for n in VERDICTS[:-1])
 
 
@@ -223,7 +229,7 @@ def test_the_foxglove_view_serves_the_answers(recorded: tuple[mmstab.Problem, Pa
 
 
 def test_unmapped_ground_ahead_is_a_warning() -> None:
-    v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, UNMAPPED, False)}
+    v = {x.name: x for x in verdicts(True, 100.0, 0.0, 0.1, 0.7, UNMAPPED, False, 0.1)}
     assert v["step"].level == WARN and "not mapped" in v["step"].message
 
 

@@ -373,7 +373,9 @@ def test_a_sample_without_a_pose_writes_no_transform(tmp_path: Path) -> None:
 def test_follow_where_occluded_ground_is_under_the_robot(tmp_path: Path) -> None:
     """Route 18 of make validate-routes, recorded with its seeded occluded patches: the robot
     stands on unknown cells at some maps (once under its own arm's CoM where the batch's
-    stowed CoM was covered). follow answers through them: exit 0, those maps not covered."""
+    stowed CoM was covered). follow answers through them: exit 0, those maps not covered.
+    The arm is led along its planned moves from the stowed posture: straight at the first
+    planned posture it swung its turret with the arm low, 10.8 cm into the ground (exit 5)."""
     sys.path.insert(0, str(ROOT))
     from experiments.validate_routes import load_settings, route_problem
 
@@ -389,6 +391,8 @@ def test_follow_where_occluded_ground_is_under_the_robot(tmp_path: Path) -> None
     summary = json.loads((tmp_path / "f" / "summary.json").read_text())
     assert 0 < summary["robot_not_covered_updates"] < summary["updates"]
     assert summary["tipped"] is None and summary["qp_failures"] == 0
+    ground = summary["arm_in_ground"]
+    assert ground["contact"] is False and ground["height_min_m"] > 0.05
 
 
 @pytest.mark.slow

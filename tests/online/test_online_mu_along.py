@@ -11,6 +11,7 @@ from test_online import problem_file
 import mmstab
 from mmstab.outputs.online import OfflinePlan, along_route
 from mmstab.outputs.recording import record_route
+from mmstab.runs.arm_ground import arm_heights_at_rest
 from mmstab.runs.online.run import follow_recording, summarize
 from mmstab.stability.support import loaded_mu
 
@@ -33,6 +34,12 @@ def test_a_state_on_a_clean_map_has_its_true_grounds_mu_and_the_lowest_is_placed
     mu_true = loaded_mu(robot, problem.terrain, poses, robot.arm_com(q), q)
     mu_map = np.array([x.mu for x in st])
     assert len(st) == 81 and np.abs(mu_map - mu_true).max() < 1e-3  # N rad
+    # and one measure of the arm against the ground: the map's at the state's rest on it is
+    # the true ground's (float32 cells), the arm led along its planned moves clear of it
+    h_true = arm_heights_at_rest(robot, problem.terrain, poses, q)
+    h_map = np.array([x.arm_height for x in st])
+    assert np.abs(h_map - h_true).max() < 1e-3  # m
+    assert s["arm_in_ground"]["contact"] is False and h_true.min() > 0.02
     at = s["mu_min_at"]
     assert run.steps[at["map"]].mu == s["mu_min"] == mu_map.min()
     k0, k1 = at["between_poses"]

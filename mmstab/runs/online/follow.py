@@ -36,10 +36,12 @@ from mmstab.core.files import MmstabError
 from mmstab.core.problem import Problem
 from mmstab.model.robot import FloatArray
 from mmstab.paths.route import DEFAULT_SPACING, RoutePath, route_samples
+from mmstab.planner.ground.arm_pieces import arm_surface
 from mmstab.planner.plan import problem_region
 from mmstab.planner.settings import PlannerSettings
+from mmstab.runs.arm_ground import arm_heights
 from mmstab.runs.online.horizon import HorizonPlanner, HorizonUpdate, Rested, rested_rows
-from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
+from mmstab.runs.online.roadmap_horizon import RoadmapHorizon, pursue
 from mmstab.runs.online.stream import MapUpdate
 from mmstab.runs.tip_rule import RockCheck
 from mmstab.stability.slip import support_tilt, terrain_friction
@@ -47,6 +49,16 @@ from mmstab.stability.support import state_load, support_on_rests
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
 from mmstab.workspace import Workspace
 
+#: The arm is led along the roadmap's checked moves, from its posture at the start through
+#: each planned pose's in turn: the posture reference this far ahead of the arm on them
+#: [rad], no further than the plan has it at the robot's progress, and the arm-CoM target
+#: that posture's. A reference that jumps to the plan's posture at the progress while the
+#: arm lags (the start, a long move) is cut across in the arm-CoM task: the turret stays,
+#: the shoulder and elbow fold, the arm went up to 22 cm into the ground on the seeded
+#: validation routes.
+WAY_AHEAD = 0.2
+#: The arm has made a move within this of its end [rad] (norm over the joints).
+WAY_TOL = 0.05
 #: Arc-length step of the route's samples for the progress search [m].
 PROGRESS_STEP = 0.01
 #: How far behind / ahead of the last progress the next one is searched [m].
@@ -117,6 +129,10 @@ class FollowStep(NamedTuple):
         rocks: μ < 0 here, and the robot pushed by the route's acceleration rocks onto a
             support of this map that holds it: not tipping (:mod:`mmstab.runs.tip_rule`);
             computed after the timed part, only where μ < 0.
+        arm_height: the arm's least height above the map's ground, the body at ``G_T_B``
+            and the arm at ``q`` [m] (< 0: in the ground; NaN: not covered, or the arm over
+            an unknown cell); :func:`mmstab.runs.arm_ground.arm_heights`, the measure
+            ``plan`` and ``track`` take; computed after the timed part.
     """
 
     time: float
@@ -140,6 +156,7 @@ class FollowStep(NamedTuple):
     q_ref: FloatArray | None = None
     flags: tuple[str, ...] = ()
     rocks: bool = False
+    arm_height: float = math.nan
 
 
 class Follower:
@@ -158,6 +175,7 @@ class Follower:
         self.robot = problem.robot
         self.friction = terrain_friction(problem.terrain)
         self.rock = RockCheck(self.robot, route)  # the runs' tip rule
+        self.arm_surface = arm_surface(self.robot)  # the arm against the ground, once
         self.s_fine = np.arange(0.0, route.length + PROGRESS_STEP, PROGRESS_STEP)
         # the route's poses there (the reference pose at a progress: as sampled alone)
         self.pose_fine = route.route.sample(np.minimum(self.s_fine, route.length)).pose
@@ -173,6 +191,8 @@ class Follower:
         self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
         #: the loop thread's processor time of the last update's timed part [s]
         self.cpu_time = 0.0
+        #: the planned pose whose move the arm is on, the move's nodes, the way made on it [rad]
+        self.way: tuple[int, tuple[int | None, int], float] | None = None
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
@@ -224,6 +244,9 @@ class Follower:
                 self.ground = rested.ground[i : i + 1]
                 break
         target, q_ref, mu_planned = self.horizon.reference(s, self._spacing())
+        way = self._way(q, s)
+        if way is not None:
+            q_ref, target = way, np.asarray(self.robot.arm_com(way), dtype=float)
         com_target = arm_com if target is None else target  # None: hold the arm's CoM
         qdot, status = self._step(pose, ref_pose, q, com_target, q_ref, u.time)
         latency, cpu = time.perf_counter() - t0, time.thread_time() - cpu0
@@ -237,18 +260,52 @@ class Follower:
         self.cpu_time = cpu
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
         flags: tuple[str, ...] = ()
+        arm_height = math.nan
         # for the run's recording, outside the timed update; the state under its own CoM may
         # rest on an unknown cell where the bound robot's CoM did not (its row NaN above)
         if covered and np.isfinite(rests.G_T_B[len(P)]).all():
             support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
             G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
+            h = arm_heights(self.robot, terrain, G_T_B[None], q[None], self.arm_surface)
+            arm_height = float(h[0])
         rocks = covered and mu < 0 and bool(self.rock.holds(terrain, pose[None], arm_com[None])[0])
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
             tilt, g_now, u.joints is not None, None if q_ref is None else np.array(q_ref), flags,
-            rocks,
+            rocks, arm_height,
         )  # fmt: skip
+
+    def _way(self, q: FloatArray, s: float) -> FloatArray | None:
+        """The posture reference along the planned moves (:data:`WAY_AHEAD`; None: no plan).
+
+        A roadmap horizon's move into each planned pose is checked against the robot and the
+        ground (:meth:`RoadmapHorizon.move`); the arm is led along the moves in turn
+        (:func:`pursue`), up to where the plan has it at progress ``s`` [m].
+        """
+        h = self.horizon
+        if not isinstance(h, RoadmapHorizon) or not h.plans:
+            return None
+        at = h.schedule(s, self._spacing())
+        if at is None:
+            return None
+        k_now, share = at
+        if self.way is None or self.way[0] not in h.plans or self.way[0] > k_now:
+            self.way = (min(k for k in h.plans if k <= k_now), h.move_key(k_now), 0.0)
+        for _ in range(len(h.plans)):
+            k, key, made = self.way
+            if h.move_key(k) != key:  # re-planned: the new move, from its nearest point
+                key, made = h.move_key(k), 0.0
+            path = h.move(k)
+            cap = share if k == k_now else 1.0
+            total = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+            q_ref, made = pursue(path, q, made, WAY_AHEAD, cap * total)
+            self.way = (k, key, made)
+            later = [j for j in h.plans if k < j <= k_now]
+            if not later or float(np.linalg.norm(q - path[-1])) > WAY_TOL:
+                return q_ref
+            self.way = (min(later), h.move_key(min(later)), 0.0)
+        return q_ref
 
     def _spacing(self) -> float:
         grid = self.horizon.s_grid

@@ -23,9 +23,10 @@ answer ends it (:class:`ReasonLog`).
 The verdicts of a fresh answer (:func:`verdicts`): ``tip`` (μ below the margin: ERROR),
 ``slide`` (the support tilts beyond atan(friction): ERROR), ``step`` (the tracks cannot
 climb the step ahead with this arm: ERROR; the ground ahead not on the map: WARN),
-``high-centred`` (the chassis touches the ground: ERROR) and ``coverage`` (the map does not
-cover the robot's footprint: ERROR, and then the four measures are STALE: the map cannot
-say).
+``high-centred`` (the chassis touches the ground: ERROR), ``arm-contact`` (the arm, as it is
+now at the robot's rest on the map, in the map's ground: ERROR; over an unknown cell: WARN)
+and ``coverage`` (the map does not cover the robot's footprint: ERROR, and then the five
+measures are STALE: the map cannot say).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ OK, WARN, ERROR, STALE = 0, 1, 2, 3
 #: ``stalls`` of :func:`verdicts` when the ground ahead is not on the map.
 UNMAPPED = "unmapped"
 #: The verdicts every answer carries, in order.
-VERDICTS = ("tip", "slide", "step", "high-centred", "coverage")
+VERDICTS = ("tip", "slide", "step", "high-centred", "arm-contact", "coverage")
 
 
 class GuardSettings(NamedTuple):
@@ -86,6 +87,7 @@ def verdicts(
     friction: float,
     stalls: bool | str | None,
     high_centred: bool,
+    arm_height: float,
 ) -> list[Verdict]:
     """The verdicts of a fresh answer (module text).
 
@@ -98,6 +100,8 @@ def verdicts(
         stalls: the tracks cannot climb the step ahead with this arm (None: no step ahead;
             :data:`UNMAPPED`: the ground ahead is not on the map, a WARN).
         high_centred: the rested chassis touches the ground.
+        arm_height: the arm's least height above the map's ground [m] (< 0: in it; NaN:
+            over an unknown cell).
     """
     if not covered or not math.isfinite(mu):
         why = "the map does not cover the robot's footprint"
@@ -133,6 +137,16 @@ def verdicts(
         if high_centred
         else Verdict("high-centred", OK, "on its tracks")
     )
+    if not math.isfinite(arm_height):
+        out.append(Verdict("arm-contact", WARN, "the ground under the arm is not mapped"))
+    elif arm_height < 0.0:
+        out.append(
+            Verdict("arm-contact", ERROR, f"the arm {100 * -arm_height:.1f} cm in the ground")
+        )
+    else:
+        out.append(
+            Verdict("arm-contact", OK, f"the arm {100 * arm_height:.1f} cm above the ground")
+        )
     out.append(Verdict("coverage", OK, "covered"))
     return out
 

@@ -283,7 +283,7 @@ class LiveFollower:
             scene = self.scene(step)
         v = verdicts(
             step.covered, step.mu, self.margin, step.tilt, self.follower.friction, stalls,
-            "high_centred" in step.flags,
+            "high_centred" in step.flags, step.arm_height,
         )  # fmt: skip
         return LiveAnswer(stamp, frame, step, v, None, scene, heightmap=grid.heightmap)
 

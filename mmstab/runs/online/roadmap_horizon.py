@@ -522,19 +522,38 @@ class RoadmapHorizon:
         Between planned poses k - 1 and k the posture runs along the roadmap move into k, by
         the share of the way from ``s_{k-1}`` to ``s_k``; the CoM and μ are interpolated.
         """
-        ks = sorted(k for k in self.plans if abs(self.plans[k].s - s) <= 2 * spacing)
-        if not ks:
+        at = self.schedule(s, spacing)
+        if at is None:
             return None, None, float("nan")
-        ahead = [k for k in ks if self.plans[k].s >= s]
-        k = ahead[0] if ahead else ks[-1]
+        k, share = at
         p = self.plans[k]
         prev = self.plans.get(k - 1)
-        if prev is None or s >= p.s:
+        if prev is None or share >= 1.0:
             return p.target_com, p.q, p.mu
-        share = float(np.clip((s - prev.s) / max(p.s - prev.s, 1e-9), 0.0, 1.0))
         q_ref = along(self.move(k), share)
         com = prev.target_com + share * (p.target_com - prev.target_com)
         return com, q_ref, prev.mu + share * (p.mu - prev.mu)
+
+    def schedule(self, s: float, spacing: float) -> tuple[int, float] | None:
+        """Where the plan has the arm at ``s`` [m] (None: no plan near ``s``).
+
+        Returns:
+            The planned pose k whose move the arm is on, and the share of that move made (1:
+            on pose k's posture).
+        """
+        ks = sorted(k for k in self.plans if abs(self.plans[k].s - s) <= 2 * spacing)
+        if not ks:
+            return None
+        ahead = [k for k in ks if self.plans[k].s >= s]
+        k = ahead[0] if ahead else ks[-1]
+        p, prev = self.plans[k], self.plans.get(k - 1)
+        if prev is None or s >= p.s:
+            return k, 1.0
+        return k, float(np.clip((s - prev.s) / max(p.s - prev.s, 1e-9), 0.0, 1.0))
+
+    def move_key(self, k: int) -> tuple[int | None, int]:
+        """The nodes pose ``k``'s move joins (None: from the arm's posture then)."""
+        return self.nodes.get(k - 1), self.nodes[k]
 
 
 def along(path: FloatArray, share: float) -> FloatArray:
@@ -550,3 +569,32 @@ def along(path: FloatArray, share: float) -> FloatArray:
     i = int(np.clip(np.searchsorted(cum, d, side="right") - 1, 0, len(seg) - 1))
     t = (d - cum[i]) / seg[i] if seg[i] > 0 else 0.0
     return path[i] + t * (path[i + 1] - path[i])
+
+
+def pursue(
+    path: FloatArray, q: FloatArray, reached: float, ahead: float, cap: float = np.inf
+) -> tuple[FloatArray, float]:
+    """A point ``ahead`` along a polyline (n, d) beyond the arm's posture ``q`` (d,) on it.
+
+    ``q`` is projected onto the polyline no earlier than arc length ``reached`` (the way
+    made so far: the arm does not go back); the point is ``ahead`` further on, no further
+    than arc length ``cap`` nor the polyline's end. Arc lengths in the polyline's units
+    (rad for postures).
+
+    Returns:
+        The point (d,) and the new ``reached``.
+    """
+    if len(path) == 1:
+        return path[0].copy(), 0.0
+    seg = np.diff(path, axis=0)
+    length = np.linalg.norm(seg, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(length)])
+    total = float(cum[-1])
+    if total <= 0.0:
+        return path[-1].copy(), 0.0
+    t = np.clip(np.einsum("ij,ij->i", q - path[:-1], seg) / np.maximum(length**2, 1e-18), 0, 1)
+    foot = path[:-1] + t[:, None] * seg
+    dist = np.where(cum[1:] >= reached, np.linalg.norm(foot - q, axis=1), np.inf)
+    i = int(np.argmin(dist))
+    made = max(float(cum[i] + t[i] * length[i]), reached)
+    return along(path, min(made + ahead, cap, total) / total), made

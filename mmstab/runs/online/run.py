@@ -3,8 +3,8 @@
 The run is the loop's answers (:class:`~mmstab.runs.online.follow.FollowStep` per map) and
 the horizon's last plan of every route pose it planned. :func:`summarize` gives the latency
 percentiles, how often the horizon re-planned, what the maps did not cover, μ along the way
-and the tip-over verdict; :func:`run_frames` the run as a recording's frames
-(:mod:`mmstab.runs.recording`).
+and the tip-over, slip and arm-in-ground verdicts; :func:`run_frames` the run as a
+recording's frames (:mod:`mmstab.runs.recording`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import numpy as np
 from mmstab.core.files import ConfigError
 from mmstab.core.problem import Problem
 from mmstab.planner.plan import unfreeze_long_lived
+from mmstab.runs.arm_ground import in_ground_in_time
 from mmstab.runs.online.follow import FollowSettings, FollowStep, build_follower
 from mmstab.runs.online.horizon import HorizonPose
 from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
@@ -118,7 +119,8 @@ def summarize(run: FollowRun) -> dict[str, Any]:
     """The run's numbers (module text); everything but ``latency_ms`` is deterministic.
 
     ``slides``: the first map on which the robot's support tilts beyond atan(friction) (the
-    slip limit, :mod:`mmstab.stability.slip`), or None.
+    slip limit, :mod:`mmstab.stability.slip`), or None. ``arm_in_ground``:
+    :func:`arm_in_ground`.
     """
     st = run.steps
     if not st:
@@ -166,7 +168,19 @@ def summarize(run: FollowRun) -> dict[str, Any]:
             "critical_tilt_rad": critical,
             "maps": len(sliding),
         },
+        "arm_in_ground": arm_in_ground(st),
     }
+
+
+def arm_in_ground(steps: list[FollowStep]) -> dict[str, Any]:
+    """Where the arm, as it was at a map, was in that map's ground at the robot's rest there.
+
+    ``track``'s record (:func:`mmstab.runs.arm_ground.in_ground_in_time`) over the covered
+    maps' states (``samples``: those maps).
+    """
+    st = [x for x in steps if x.covered]
+    h = np.array([x.arm_height for x in st], dtype=float)
+    return in_ground_in_time(h, np.array([x.time for x in st], dtype=float))
 
 
 def _lowest(run: FollowRun) -> dict[str, Any]:

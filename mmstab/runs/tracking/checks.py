@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from mmstab.model.collision import CollisionChecker
 from mmstab.model.collision_sequence import sequence_collisions
 from mmstab.model.robot import FloatArray, Robot
-from mmstab.runs.arm_ground import arm_heights_at_rest, in_ground_runs
+from mmstab.runs.arm_ground import arm_heights_at_rest, in_ground_in_time
 from mmstab.runs.tracking.run import TrackingRun
 from mmstab.runs.verdict import arm_collision_verdict, robot_turn_check, slip_verdict
 from mmstab.runs.verdict_settings import VerdictSettings
@@ -148,25 +148,10 @@ def arm_in_ground_run(robot: Robot, terrain: Terrain, run: TrackingRun) -> dict[
         run: the tracked run.
 
     Returns:
-        None off a heightmap; else ``contact``, ``samples``, ``height_min_m`` and its
-        ``at_time_s`` [s] (None: none known), ``unknown_samples`` and ``intervals_s`` in
-        the ground: ``start_s``, ``end_s`` [s] (its first and last samples) and ``by`` how
-        far in [m].
+        None off a heightmap; else :func:`mmstab.runs.arm_ground.in_ground_in_time`'s record.
     """
     if not is_heightmap(terrain):
         return None
     k = saved_samples(run, GROUND_EVERY_S)
     h = arm_heights_at_rest(robot, terrain, run.state[k, :3], run.state[k, 5:])
-    t = run.t[k]
-    known = np.isfinite(h)
-    intervals = [{"start_s": float(t[a]), "end_s": float(t[b - 1]), "by": float(-h[k])}
-                 for a, b, k in in_ground_runs(h)]  # fmt: skip
-    j = int(np.nanargmin(h)) if known.any() else None
-    return {
-        "contact": bool(intervals),
-        "samples": int(len(k)),
-        "height_min_m": None if j is None else float(h[j]),
-        "at_time_s": None if j is None else float(t[j]),
-        "unknown_samples": int((~known).sum()),
-        "intervals_s": intervals,
-    }
+    return in_ground_in_time(h, run.t[k])
