@@ -345,6 +345,12 @@ online: setup
 	$(MMSTAB) follow problems/rough.yaml --bag results/online/rough.mcap -o results/online --allow-sliding --allow-collision
 	$(PY) -m mmstab.viz.viewer.snapshot problems/rough.yaml results/online results/online/viewer.png 0.45 3.0
 
+## the 48 routes of make validate-routes recorded and followed online: the arm against the map's
+## ground and the route's own -> results/online_routes/summary.json (docs/online.md)
+.PHONY: online-routes
+online-routes: setup
+	$(PY) -m experiments.online_routes problems/online_routes.yaml
+
 ## end-to-end latency of mmstab node over ROS 2 (map stamp -> answer) -> results/bench/node.json
 .PHONY: bench-node
 bench-node: ros
