@@ -14,8 +14,8 @@ follow``) and publishes, each stamped with the map's stamp:
   ``control_rate`` [Hz] between maps; zeros while the answer is stale;
 * ``diagnostics_topic`` (``diagnostic_msgs/DiagnosticArray``): ``mmstab: stability`` (μ,
   planned μ, tilt, progress, the posture and command, the update's latency) and one status
-  per verdict (tip, slide, step, high-centred, coverage), all STALE with the reason when the
-  inputs are not fresh (:mod:`mmstab.runs.online.guard`);
+  per verdict (tip, slide, step, high-centred, arm-contact, coverage), all STALE with the
+  reason when the inputs are not fresh (:mod:`mmstab.runs.online.guard`);
 * ``markers_topic`` (``visualization_msgs/MarkerArray``): the support polygon coloured by μ,
   the CoM, its projection on the support and the tip axis.
 
