@@ -94,3 +94,40 @@ def test_follow_exits_5_for_the_arm_in_the_ground_after_a_tip(capsys) -> None:
     assert follow_status(summary(False, True), args) is None
     assert "warning" in capsys.readouterr().err
     assert follow_status(summary(False, False), args) is None
+
+
+def test_a_move_the_arm_cannot_start_is_passed_over_once() -> None:
+    """The arm's posture at a chain's start reaches no roadmap node: the step takes the plan's
+    own reference (None) instead of failing, does not try that move again, and leads the arm
+    along the next planned pose's move."""
+    from mmstab.core.files import MmstabError
+    from mmstab.runs.online.follow import Follower
+    from mmstab.runs.online.roadmap_horizon import RoadmapHorizon
+
+    tried: list[int] = []
+
+    class Horizon(RoadmapHorizon):
+        def __init__(self) -> None:  # only what the way reads
+            self.plans = {0: None, 1: None}  # type: ignore[dict-item]
+            self.s_grid = np.array([0.0, 0.5])
+
+        def schedule(self, s: float, spacing: float) -> tuple[int, float]:
+            return 1, 0.5
+
+        def move_key(self, k: int) -> tuple[int | None, int]:
+            return (None, 7) if k == 0 else (7, 9)
+
+        def move(self, k: int) -> np.ndarray:
+            tried.append(k)
+            if k == 0:
+                raise MmstabError("roadmap: the posture [3.8, -0.2, 0.9, 2.2] rad reaches no node")
+            return np.array([[0.0, 0, 0, 0], [1.0, 0, 0, 0]])
+
+    f = object.__new__(Follower)
+    f.horizon, f.way, f.no_way = Horizon(), None, set()
+    q = np.array([0.1, 0.0, 0.0, 0.0])
+    assert f._way(q, 0.25) is None and tried == [0]
+    got = f._way(q, 0.25)  # move 1, from the arm's nearest point, up to half of it
+    assert tried == [0, 1] and np.allclose(got, [0.3, 0, 0, 0])
+    f._way(q, 0.25)
+    assert 0 not in tried[2:]

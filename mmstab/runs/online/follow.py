@@ -193,6 +193,8 @@ class Follower:
         self.cpu_time = 0.0
         #: the planned pose whose move the arm is on, the move's nodes, the way made on it [rad]
         self.way: tuple[int, tuple[int | None, int], float] | None = None
+        #: moves that could not be made (the arm's posture reached no roadmap node)
+        self.no_way: set[tuple[int, tuple[int | None, int]]] = set()
 
     def progress(self, xy: FloatArray) -> float:
         """Arc length [m] of the route point nearest ``xy``, near the last progress."""
@@ -281,7 +283,10 @@ class Follower:
 
         A roadmap horizon's move into each planned pose is checked against the robot and the
         ground (:meth:`RoadmapHorizon.move`); the arm is led along the moves in turn
-        (:func:`pursue`), up to where the plan has it at progress ``s`` [m].
+        (:func:`pursue`), up to where the plan has it at progress ``s`` [m]. Where the arm's
+        posture at a chain's start reaches no roadmap node (no checked move from it), that
+        move is passed over: the plan's posture at ``s`` is the reference until the next
+        planned pose's move.
         """
         h = self.horizon
         if not isinstance(h, RoadmapHorizon) or not h.plans:
@@ -291,12 +296,20 @@ class Follower:
             return None
         k_now, share = at
         if self.way is None or self.way[0] not in h.plans or self.way[0] > k_now:
-            self.way = (min(k for k in h.plans if k <= k_now), h.move_key(k_now), 0.0)
+            ks = [k for k in h.plans if k <= k_now and (k, h.move_key(k)) not in self.no_way]
+            if not ks:
+                return None
+            self.way = (min(ks), h.move_key(min(ks)), 0.0)
         for _ in range(len(h.plans)):
             k, key, made = self.way
             if h.move_key(k) != key:  # re-planned: the new move, from its nearest point
                 key, made = h.move_key(k), 0.0
-            path = h.move(k)
+            try:
+                path = h.move(k)
+            except MmstabError:  # the arm's posture then reaches no node: not tried again
+                self.no_way.add((k, key))
+                self.way = None
+                return None
             cap = share if k == k_now else 1.0
             total = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
             q_ref, made = pursue(path, q, made, WAY_AHEAD, cap * total)
