@@ -95,6 +95,7 @@ def summarize_routes(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "routes": len(records),
         "arm_in_ground": [r["route"] for r in records if r["arm_in_ground"]["contact"]],
+        "arm_in_ground_routes": sum(r["arm_in_ground"]["contact"] for r in records),
         "arm_in_ground_true": [r["route"] for r in records if r["arm_in_ground_true"]["contact"]],
         "deepest_m": max(
             (x["by"] for r in records for x in r["arm_in_ground"]["intervals_s"]), default=None

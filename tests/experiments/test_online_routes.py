@@ -41,7 +41,9 @@ def record(k: int, ground: bool, true: bool, agree: int, known: int, by: float) 
 def test_the_summary_by_hand() -> None:
     got = summarize_routes([record(3, True, True, 90, 100, 0.05), record(7, False, True, 48, 50, 0),
                             record(9, True, False, 10, 10, 0.12)])  # fmt: skip
-    assert got["routes"] == 3 and got["arm_in_ground"] == [3, 9]
+    assert (
+        got["routes"] == 3 and got["arm_in_ground"] == [3, 9] and got["arm_in_ground_routes"] == 2
+    )
     assert got["arm_in_ground_true"] == [3, 7] and got["tipped"] == [7]
     assert got["deepest_m"] == 0.12 and got["verdict_agree_share"] == pytest.approx(148 / 160)
 
