@@ -54,8 +54,9 @@ def route_online(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
     """Route k recorded and followed (the pool's job): its record."""
     from experiments.validate_routes import ground_record, route_problem
     from mmstab.core.problem import load_problem
+    from mmstab.outputs.online import arm_heights_covered
     from mmstab.outputs.recording import record_route
-    from mmstab.runs.arm_ground import arm_heights_at_rest, in_ground_in_time
+    from mmstab.runs.arm_ground import in_ground_in_time
     from mmstab.runs.online.run import follow_recording, summarize
 
     settings, k, out = task
@@ -68,17 +69,13 @@ def route_online(task: tuple[dict[str, Any], int, str]) -> dict[str, Any]:
         record_route(problem, recording)
         run = follow_recording(problem, recording)
     s = summarize(run)
-    covered = [x for x in run.steps if x.covered]
-    t = np.array([x.time for x in covered])
-    h_map = np.array([x.arm_height for x in covered])
-    poses, q = np.array([x.pose for x in covered]), np.array([x.q for x in covered])
-    h_true = arm_heights_at_rest(problem.robot, problem.terrain, poses, q)
+    t, h_map, h_true = arm_heights_covered(problem, run)
     known = np.isfinite(h_map) & np.isfinite(h_true)
     return {
         "route": k,
         **ground_record(data),
         "maps": len(run.steps),
-        "covered_maps": len(covered),
+        "covered_maps": len(t),
         "arm_in_ground": s["arm_in_ground"],
         "arm_in_ground_true": in_ground_in_time(h_true, t),
         "verdict_known_maps": int(known.sum()),

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mmstab.cli.status import EXIT_ARM_COLLISION, EXIT_SLIDES, EXIT_UNSTABLE
-from mmstab.cli.verdicts import report
+from mmstab.cli.verdicts import in_ground_line, report
 
 
 def _problem(args: argparse.Namespace) -> Any:
@@ -97,9 +97,7 @@ def follow_status(s: dict[str, Any], args: argparse.Namespace) -> int | None:
         status = status or found
     ground = s.get("arm_in_ground")
     if ground is not None and ground["contact"]:
-        when = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f}" for x in ground["intervals_s"])
-        deep = max(x["by"] for x in ground["intervals_s"])
-        line = f"the arm is in its map's ground at t = {when} s (up to {100 * deep:.1f} cm in)"
+        line = in_ground_line(ground, "the arm is in its map's ground")
         found = report("arm collision", line, "--allow-collision", args.allow_collision,
                        EXIT_ARM_COLLISION)  # fmt: skip
         status = status or found

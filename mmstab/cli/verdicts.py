@@ -107,6 +107,18 @@ def robot_contact_line(s: dict[str, Any], where: list[list[float]], path: dict[s
     return line
 
 
+def in_ground_line(record: dict[str, Any], what: str) -> str:
+    """``what`` at its first four times in the ground, and how far in at most.
+
+    From a run's ``arm_in_ground`` (:func:`mmstab.runs.arm_ground.in_ground_in_time`:
+    ``track``'s and ``follow``'s).
+    """
+    spans_s = record["intervals_s"]
+    spans = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f}" for x in spans_s[:4])
+    deepest = max(x["by"] for x in spans_s)
+    return f"{what} at t = {spans} s (up to {100 * deepest:.1f} cm in)"
+
+
 def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> int | None:
     """Report a run whose arm touched the robot or the ground; exit 5 unless allowed.
 
@@ -122,11 +134,9 @@ def arm_collision_status(summary: dict[str, Any], args: argparse.Namespace) -> i
     if collision is not None and not collision["verdict"]["safe"]:
         lines.append(describe_arm_collision(collision))
     if in_ground.get("contact"):
-        spans_s = in_ground["intervals_s"]
-        spans = ", ".join(f"{x['start_s']:.2f}-{x['end_s']:.2f}" for x in spans_s[:4])
-        deepest = max(x["by"] for x in spans_s)
-        lines.append(f"the tracked arm is in the ground at the tracked rest at t = {spans} s "
-                     f"(up to {100 * deepest:.1f} cm in)")  # fmt: skip
+        lines.append(
+            in_ground_line(in_ground, "the tracked arm is in the ground at the tracked rest")
+        )
     if not lines:
         return None
     line = "; ".join(lines)

@@ -232,18 +232,24 @@ def along_summary(a: AlongRoute) -> dict[str, Any]:
     return out
 
 
-def arm_in_ground_true(problem: Problem, run: FollowRun) -> dict[str, Any]:
-    """The run's ``arm_in_ground`` with each covered map's state rested on the true ground.
+def arm_heights_covered(problem: Problem, run: FollowRun) -> tuple[np.ndarray, ...]:
+    """The covered maps' times [s] and the arm's least heights there [m], on two grounds.
 
-    The loop measures the arm at the state's rest on its map; the map's noise and unknown
-    cells move that rest (a rigid base rocks onto other contacts within centimetres), so the
-    same states on the problem's own terrain say what the ground did
-    (:func:`mmstab.runs.arm_ground.in_ground_in_time`).
+    On the map, as the loop measured them, and with each state rested on the problem's own
+    terrain (the true ground). The map's noise and unknown cells move the state's rest (a
+    rigid base rocks onto other contacts within centimetres); the true ground's says what the
+    ground did.
     """
     st = [x for x in run.steps if x.covered]
     poses, q = np.array([x.pose for x in st]), np.array([x.q for x in st])
-    h = arm_heights_at_rest(problem.robot, problem.terrain, poses, q)
-    return in_ground_in_time(h, np.array([x.time for x in st]))
+    h_true = arm_heights_at_rest(problem.robot, problem.terrain, poses, q)
+    return np.array([x.time for x in st]), np.array([x.arm_height for x in st]), h_true
+
+
+def arm_in_ground_true(problem: Problem, run: FollowRun) -> dict[str, Any]:
+    """The run's ``arm_in_ground`` on the true ground (:func:`arm_heights_covered`)."""
+    t, _, h_true = arm_heights_covered(problem, run)
+    return in_ground_in_time(h_true, t)
 
 
 def run_follow(
