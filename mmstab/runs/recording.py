@@ -70,12 +70,19 @@ def frames_at(
         poses: base poses (x, y, yaw) (N, 3) in the terrain's map frame.
         q: arm postures (N, n) [rad].
         mu: μ (N,) [N rad].
+
+    Each state's body pose and support polygon are its own rest's, under its overall CoM
+    (:meth:`Terrain.support`): the support its μ is computed on.
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
-    polygons = [terrain.support(robot, p).polygon_G for p in poses]
-    G_T_B = np.asarray(terrain.G_T_B(poses)).reshape(-1, 4, 4)
-    return RunFrames(np.asarray(t, dtype=float), G_T_B, np.asarray(q, dtype=float),
-                     np.asarray(mu, dtype=float), polygons)  # fmt: skip
+    q = np.asarray(q, dtype=float)
+    # each state rests under its own CoM: the body and polygon drawn are those of its μ
+    com = np.asarray(robot.overall_com(robot.arm_com(q)), dtype=float).reshape(-1, 3)
+    stands = [terrain.support(robot, p, com_body=c if np.isfinite(c).all() else None)
+              for p, c in zip(poses, com, strict=True)]  # fmt: skip
+    G_T_B = np.array([s.G_T_B for s in stands]).reshape(-1, 4, 4)
+    return RunFrames(np.asarray(t, dtype=float), G_T_B, q, np.asarray(mu, dtype=float),
+                     [s.polygon_G for s in stands])  # fmt: skip
 
 
 def joint_names(robot: Robot) -> list[str]:

@@ -121,8 +121,13 @@ class Terrain(Protocol):
         """
         ...
 
-    def support(self, robot: Robot, pose: ArrayLike) -> Support:
-        """How ``robot``'s base stands at one pose (its contacts from its description)."""
+    def support(self, robot: Robot, pose: ArrayLike, com_body: ArrayLike | None = None) -> Support:
+        """How ``robot``'s base stands at one pose (its contacts from its description).
+
+        ``com_body``: the overall CoM in B (3,) [m] whose load the base rests under (``None``:
+        the bound robot's); where the rest depends on the load (a heightmap), a state's
+        support is its own CoM's, the one its μ is computed on.
+        """
         ...
 
     def surface_G(self, x: ArrayLike, y: ArrayLike) -> FloatArray:

@@ -272,17 +272,15 @@ class HeightmapTerrain:
         )
 
     # ---------------------------------------------------------------------- support
-    def support(self, robot: Robot, pose: ArrayLike) -> Support:
-        """How ``robot`` stands at one pose: resting pose, contacts, polygon, flags."""
+    def support(self, robot: Robot, pose: ArrayLike, com_body: ArrayLike | None = None) -> Support:
+        """How ``robot`` stands at one pose: resting pose, contacts, polygon, flags.
+
+        ``com_body``: the overall CoM in B (3,) [m] the base rests under (``None``: the
+        bound robot's, :attr:`com_body`).
+        """
         terrain = self if robot is self.robot else self.with_robot(robot, self.flipper_angle)
-        r = terrain.rest(np.asarray(pose, dtype=float))
-        contacts = r.contacts_G(terrain.candidates.points, 0)
-        bearing = r.bearing_G(terrain.candidates.points, 0)
-        poly, line = support_vertices(bearing, GRAVITY_G)
-        flags = r.flags(0)
-        if line and "line_contact" not in flags:
-            flags = (*flags, "line_contact")
-        return Support(r.G_T_B[0], contacts, poly, flags, bearing)
+        r = terrain.rest(np.asarray(pose, dtype=float), com_body=com_body)
+        return rest_support(r, 0, terrain.candidates.points)
 
     # ---------------------------------------------------------------------- drawing
     def draw(
@@ -303,3 +301,20 @@ class HeightmapTerrain:
         return ax3d.plot_surface(
             X, Y, Z, cmap=cmap, alpha=alpha, linewidth=0, antialiased=False, rstride=1, cstride=1
         )
+
+
+def rest_support(rests: RestPoses, k: int, points_body: FloatArray) -> Support:
+    """Row ``k`` of batched rests as a :class:`Support` (the one :meth:`support` returns).
+
+    Args:
+        rests: rests solved on a heightmap (:meth:`HeightmapTerrain.rest`).
+        k: the row.
+        points_body: the contact candidates they were solved against, in B (n, 3) [m].
+    """
+    contacts = rests.contacts_G(points_body, k)
+    bearing = rests.bearing_G(points_body, k)
+    poly, line = support_vertices(bearing, GRAVITY_G)
+    flags = rests.flags(k)
+    if line and "line_contact" not in flags:
+        flags = (*flags, "line_contact")
+    return Support(rests.G_T_B[k], contacts, poly, flags, bearing)

@@ -127,8 +127,11 @@ class Ramp:
                 )
         return self
 
-    def support(self, robot: Robot, pose: ArrayLike) -> Support:
-        """Every contact of the base touches the plane; the polygon is their hull, CCW about z_B."""
+    def support(self, robot: Robot, pose: ArrayLike, com_body: ArrayLike | None = None) -> Support:
+        """Every contact of the base touches the plane; the polygon is their hull, CCW about z_B.
+
+        Whatever the load (``com_body`` is not needed): the body lies on the plane.
+        """
         T = self.G_T_B(np.asarray(pose, dtype=float).reshape(3))
         pts = np.asarray(robot.base.support_points(), dtype=float)
         to_G = lambda p: p @ T[:3, :3].T + T[:3, 3]  # noqa: E731

@@ -83,3 +83,36 @@ def test_the_step_targets_placement_is_place_locals_to_the_bit() -> None:
         place_two(np.array([1.0, 2.0, np.pi / 2]), np.array([0.3, 0.0, 0.0]), np.eye(3)[:2]),
         [[1.0, 3.0, 0.3], [0.0, 2.0, 0.3]], atol=1e-15,
     )  # fmt: skip
+
+
+def test_the_steps_support_is_the_states_own_support_alone(robot):
+    """Follower.update takes the state's support (body pose, polygon, flags) from its row of
+    the map's batch: the same as the terrain's support of that state alone, bitwise."""
+    from mmstab.terrain.heightmap_terrain import rest_support
+
+    rng = np.random.default_rng(7)
+    x, y = np.meshgrid(np.arange(120) * 0.05, np.arange(100) * 0.05)
+    z = 0.08 * np.sin(1.3 * x) * np.cos(0.9 * y) + rng.normal(0.0, 0.01, x.shape)
+    terrain = HeightmapTerrain(Heightmap.build(z, 0.05, [0.0, 0.0])).with_robot(robot)
+    n = 20
+    poses = np.column_stack(
+        [rng.uniform(0.8, 5.2, n), rng.uniform(0.8, 4.2, n), rng.uniform(-np.pi, np.pi, n)]
+    )
+    q = np.array(robot.stowed) + rng.uniform(-1.0, 1.0, (n, len(robot.stowed)))
+    com = np.asarray(robot.overall_com(robot.arm_com(q)))
+    others = poses[rng.permutation(n)] + [0.1, -0.1, 0.2]
+    batch = terrain.rest(
+        np.vstack([others, poses]), strict=False,
+        com_body=np.vstack([np.broadcast_to(terrain.com_body, (n, 3)), com]),
+    )  # fmt: skip
+    moved = 0
+    for i in range(n):
+        got = rest_support(batch, n + i, terrain.candidates.points)
+        alone = terrain.with_robot(robot, arm_q=q[i]).support(robot, poses[i])
+        np.testing.assert_array_equal(got.G_T_B, alone.G_T_B)
+        np.testing.assert_array_equal(got.polygon_G, alone.polygon_G)
+        assert got.flags == alone.flags
+        by_com = terrain.support(robot, poses[i], com_body=com[i])
+        np.testing.assert_array_equal(by_com.polygon_G, alone.polygon_G)
+        moved += not np.allclose(terrain.support(robot, poses[i]).G_T_B, alone.G_T_B, atol=1e-6)
+    assert moved > 0  # the arm moved some rests: the stowed arm's support is another

@@ -173,6 +173,38 @@ def test_arm_removed_and_nan_postures(tmp_path):
     ]
 
 
+@pytest.mark.parametrize("seed", [41, 42])
+def test_the_viewer_and_the_recordings_show_the_support_mu_is_computed_on(seed, tmp_path):
+    """The viewer's picture of a state and a run's recorded frames rest the base under that
+    state's own CoM: their μ is the one μ, the polygon's least force angle gives it, the body
+    pose is ``rest``'s (the stowed arm's rest is another on this ground)."""
+    from mmstab.runs.recording import frames_at
+    from mmstab.viz.viewer.scene import instant
+
+    rng = np.random.default_rng(seed)
+    problem = ground_problem(rng, tmp_path)
+    robot, terrain = problem.robot, problem.terrain
+    poses, q = random_states(problem, rng, 20)
+    want = posture_mu(robot, terrain, poses, q)
+    frames = frames_at(terrain, robot, np.arange(20.0), poses, q, want)
+    weight = robot.total_mass * 9.81
+    moved = 0
+    for i, (pose, qi) in enumerate(zip(poses, q, strict=True)):
+        now, rest = instant(robot, terrain, pose, qi), stance(robot, terrain, pose, arm=qi)
+        assert now.mu == pytest.approx(want[i], abs=TOL)
+        assert now.angles.min() * weight == pytest.approx(want[i], abs=TOL)
+        np.testing.assert_allclose(now.G_T_B, rest.G_T_B, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(frames.G_T_B[i], rest.G_T_B, rtol=0, atol=1e-12)
+        assert {tuple(p) for p in np.round(frames.polygons[i], 9)} == {
+            tuple(p) for p in np.round(now.polygon_G, 9)
+        }
+        moved += not np.allclose(stance(robot, terrain, pose).G_T_B, rest.G_T_B, atol=1e-6)
+    assert moved > 0
+    removed = instant(robot, terrain, poses[0], None)  # the arm removed: the base's own rest
+    assert removed.mu == pytest.approx(loaded_support(robot, terrain, poses[0], None).mu[0])
+    assert removed.angles.min() * robot.base.mass * 9.81 == pytest.approx(removed.mu, abs=TOL)
+
+
 @pytest.mark.slow
 def test_a_route_plan_reports_what_rest_gives_at_its_poses(tmp_path):
     """The plan's μ at each pose with its posture is ``mmstab rest``'s for that state."""

@@ -221,6 +221,10 @@ class Bare:
     def gravity_body(self, poses):
         return self.ground.gravity_body(poses)
 
+    @property
+    def kind(self):
+        return self.ground.kind
+
 
 class ClockwiseSupport(Bare):
     """A terrain that reports its support polygon clockwise (seen from above)."""
@@ -229,7 +233,7 @@ class ClockwiseSupport(Bare):
         super().__init__(ground)
         self.robot = robot
 
-    def support(self, robot, pose):
+    def support(self, robot, pose, com_body=None):
         from mmstab.stability.static import base_polygon
         from mmstab.terrain import Support
 
@@ -247,6 +251,10 @@ def test_terrain_support_polygon_in_either_order_gives_the_same_picture(problem,
         q = rng.uniform(problem.robot.joint_lower, problem.robot.joint_upper)
         a, b = instant(problem.robot, bare, pose, q), instant(problem.robot, cw, pose, q)
         assert a.mu > 0 and b.mu == pytest.approx(a.mu, rel=1e-12)
+        # the polygon turned to the same order: the same force angles, the least one μ
+        np.testing.assert_allclose(np.sort(b.angles), np.sort(a.angles), atol=1e-12)
+        weight = problem.robot.total_mass * np.linalg.norm(b.gravity_G)
+        assert b.angles.min() * weight == pytest.approx(b.mu, rel=1e-9)
         np.testing.assert_allclose(b.com_projection_G, a.com_projection_G, atol=1e-12)
         assert {tuple(np.round(p, 9)) for p in b.axis_G} == {
             tuple(np.round(p, 9)) for p in a.axis_G

@@ -23,6 +23,8 @@ from numpy.typing import ArrayLike
 from mmstab.model.robot import Box, Capsule, FloatArray, Geometry, Robot
 from mmstab.model.urdf import axis_to_z_rotation
 from mmstab.stability.static import axis_angles
+from mmstab.stability.support import loaded_support
+from mmstab.terrain.base import GRAVITY_G
 from mmstab.viz.viewer.ground import LINE_LIFT, Ground, resting_poses, transform
 
 #: Colours (RGB 0-255) of the base body, tracks/flippers and arm links.
@@ -102,7 +104,8 @@ class Instant(NamedTuple):
         axis: index j of the closest tip-over axis (polygon vertex j to j + 1).
         axis_G: that axis's end points (2, 3) [m].
         angles: signed force angles theta_j of every axis (n,) [rad].
-        mu: force-angle measure min_j theta_j |f_r| [N rad].
+        mu: the state's one μ [N rad] (:func:`~mmstab.stability.support.loaded_support`;
+            min_j theta_j |f_r| without a tool wrench).
     """
 
     pose: FloatArray
@@ -133,10 +136,14 @@ def arm_posture(robot: Robot, mode: str, q: ArrayLike) -> FloatArray | None:
 def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) -> Instant:
     """The stability picture at one base pose and arm posture.
 
-    The resting pose and the support polygon come from the ground's
-    ``support(robot, pose)`` (on a heightmap: the contacts that touch). μ is the
-    force-angle measure (:func:`mmstab.stability.static.axis_angles`) of that polygon with the
-    overall CoM and f_r = m g, gravity from ``ground.gravity_body``.
+    The state's own support: the base rested under this state's overall CoM
+    (``ground.support(robot, pose, com_body)``; on a heightmap the arm's CoM moves the rest
+    and decides which contacts carry the load), the polygon the hull of the contacts that
+    carry it. μ is mmstab's one μ of the state
+    (:func:`mmstab.stability.support.loaded_support`: what plan, rest and track report); the
+    angles are the force angles (:func:`mmstab.stability.static.axis_angles`) of that
+    polygon for the overall CoM under f_r = m g, the smallest of which, times |f_r|, is μ
+    (a tool's wrench, where the robot has one, enters μ only).
 
     Args:
         robot: the robot.
@@ -145,20 +152,22 @@ def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) 
         q: arm joint angles (4,) [rad]; ``None`` = the arm removed.
     """
     p = np.asarray(pose, dtype=float).reshape(3)
-    stand = ground.support(robot, p)
-    G_T_B, polygon_G = np.asarray(stand.G_T_B, float), np.asarray(stand.polygon_G, float)
-    gravity_G = G_T_B[:3, :3] @ np.asarray(ground.gravity_body(p[None]), dtype=float).reshape(3)
     if q is None:
-        qa, B_T_R = None, None
+        qa, B_T_R, arm_com = None, None, None
         mass, com_B = robot.base.mass, np.asarray(robot.base.com, dtype=float)
     else:
         qa = np.asarray(q, dtype=float).reshape(4)
         B_T_R = robot.kinematics.link_frames(qa)
-        mass, com_B = robot.total_mass, robot.overall_com(robot.arm_com(qa))
+        arm_com = np.asarray(robot.arm_com(qa), dtype=float)
+        mass, com_B = robot.total_mass, np.asarray(robot.overall_com(arm_com), dtype=float)
+    stand = ground.support(robot, p, com_body=com_B)
+    G_T_B, polygon_G = np.asarray(stand.G_T_B, float), np.asarray(stand.polygon_G, float)
+    gravity_G = np.asarray(GRAVITY_G, dtype=float)
     com_G = transform(G_T_B, com_B)
     polygon_G, normal = oriented_polygon(polygon_G, com_G)
     angles = np.atleast_1d(np.asarray(axis_angles(polygon_G, com_G, mass * gravity_G), float))
     j = int(np.argmin(angles))
+    loaded = loaded_support(robot, ground, p, arm_com, None if qa is None else qa[None])
     # the CoM moved along gravity until it meets the support plane (through the centroid)
     along = float(normal @ gravity_G)
     centre = polygon_G.mean(axis=0)
@@ -175,7 +184,7 @@ def instant(robot: Robot, ground: Ground, pose: ArrayLike, q: ArrayLike | None) 
         axis=j,
         axis_G=polygon_G[[j, (j + 1) % len(polygon_G)]],
         angles=angles,
-        mu=float(angles[j] * mass * np.linalg.norm(gravity_G)),
+        mu=float(loaded.mu[0]),
     )
 
 
