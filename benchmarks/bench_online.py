@@ -5,18 +5,22 @@ Usage: ``python benchmarks/bench_online.py [PROBLEM.yaml] [--recording FILE] [--
 ``results/bench/online.json``. ``--validation-route K``: route K of ``make validate-routes``
 (user-like ground: ditches, kerbs, bumps) instead of a problem file. The recording
 (``mmstab record``, written if missing) is followed ``repeats`` times on one core (the
-process pinned to one CPU, BLAS threads 1); per map: the update's wall time (rest of the
-robot, its reference and the horizon on the map, re-plan of the poses whose ground changed,
-one controller step). Beside it, in the same run, the offline warm-started planner on the
-same route poses on the problem's own terrain (its per-pose search time, the resting pose
-included), and the whole offline plan per pose. Medians over the repeats of each percentile.
+process pinned to one CPU, BLAS threads 1); per map: the wall time from the map to its
+answer (rest of the robot, its reference and the horizon on the map, re-plan of the poses
+whose ground changed, one controller step: the command; then the verdicts: the support's
+flags, the arm's height, the rock check), to the command alone (``command_latency_ms``),
+and the spare time's work after the answer (the queued re-plans' steps and the moves ahead,
+``spare_ms``; ``busy_ms``: answer and spare time, the loop's time per map). Beside it, in
+the same run, the offline warm-started planner on the same route poses on the problem's own
+terrain (its per-pose search time, the resting pose included), and the whole offline plan
+per pose. Medians over the repeats of each percentile.
 
-The slow maps: per repeat, the slowest 1 % of the updates (p99 is the least of them),
+The slow maps: per repeat, the slowest 1 % of the answers (p99 is the least of them),
 each with what it did: the map's index (the first sets the horizon up), the poses whose
-re-plan it triggered and the poses it left uncovered, the steps of queued re-plans it ran
-in its spare time and the steps it ran to land re-plans due on it
-(:mod:`mmstab.runs.online.replan_jobs`), the arm's moves it computed for the reference, the
-steps of the moves ahead, and the garbage collector's time within it (``gc.callbacks``
+re-plan it triggered and the poses it left uncovered, the steps it ran to land re-plans
+due on it (:mod:`mmstab.runs.online.replan_jobs`; the spare time's steps and moves ahead
+run after the answer, so ``job_steps`` and ``ahead_steps`` count none), the arm's moves it
+computed for the reference, and the garbage collector's time within it (``gc.callbacks``
 around ``Follower.update``); a cause per map, the first that applies: ``first map``,
 ``re-plan at once`` (a re-plan computed on its map: a pose near the robot without a valid
 plan), ``landing`` (a re-plan due on the map not computed yet), ``move`` (a move the
@@ -62,6 +66,7 @@ GC_TOTAL, GC_PER_UPDATE = [0.0, 0.0], []  # [total, the running pass's start]
 WORK: dict[str, int] = {}
 WORK_PER_UPDATE: list[dict[str, int]] = []
 CPU_PER_UPDATE: list[float] = []  # the loop thread's processor time per update [s]
+SPARE_PER_UPDATE: list[float] = []  # the spare time's wall time after each answer [s]
 KINDS = ("job_steps", "landing_steps", "at_once", "moves", "ahead_steps")
 
 
@@ -83,6 +88,17 @@ def _timed_update(update):
         GC_PER_UPDATE.append(GC_TOTAL[0] - before)
         WORK_PER_UPDATE.append({k: WORK.get(k, 0) for k in KINDS})
         return step
+
+    return wrapped
+
+
+def _timed_spare(spare):
+    """``Follower.spare`` that records its wall time per map."""
+
+    def wrapped(self):
+        seconds = spare(self)
+        SPARE_PER_UPDATE.append(seconds)
+        return seconds
 
     return wrapped
 
@@ -236,13 +252,19 @@ def main() -> None:
     ws = load_or_build_workspace(problem)
     gc.callbacks.append(_gc_clock)
     Follower.update = _timed_update(Follower.update)  # type: ignore[method-assign]
+    Follower.spare = _timed_spare(Follower.spare)  # type: ignore[method-assign]
     _counted()
     runs, offline_pose, offline_total, slow, rest, cpu, cpu_rest, first = ([] for _ in range(8))
+    spare, busy = [], []
     for _ in range(args.repeats):
         GC_PER_UPDATE.clear()
         WORK_PER_UPDATE.clear()
         CPU_PER_UPDATE.clear()
+        SPARE_PER_UPDATE.clear()
         run = follow_recording(problem, rec, ws)
+        answer = np.array([x.latency for x in run.steps])
+        spare.append(latency_stats(np.array(SPARE_PER_UPDATE)))
+        busy.append(latency_stats(answer + np.array(SPARE_PER_UPDATE)))
         cpu.append(latency_stats(np.array(CPU_PER_UPDATE)))
         cpu_rest.append(latency_stats(np.array(CPU_PER_UPDATE[1:])))
         runs.append(summarize(run))
@@ -254,15 +276,21 @@ def main() -> None:
         offline_total.append((time.perf_counter() - t0) / len(off.s))
         offline_pose.append(float(np.median(off.search_seconds)))
     lat = [r["latency_ms"] for r in runs]
+    command = [r["command_latency_ms"] for r in runs]
+
+    def median_of(stats: list[dict[str, float]]) -> dict[str, float]:
+        return {k: statistics.median(x[k] for x in stats) for k in ("p50", "p99", "max", "mean")}
+
     result = {
         "problem": name,
         "attitude_margin": problem.section("planner")["attitude_margin"],
         "recording": str(rec),
         "updates": runs[0]["updates"],
         "replanned_poses": runs[0]["replanned_poses"],
-        "online_latency_ms": {
-            k: statistics.median(x[k] for x in lat) for k in ("p50", "p99", "max", "mean")
-        },
+        "online_latency_ms": median_of(lat),  # from the map to the answer
+        "command_latency_ms": median_of(command),
+        "spare_ms": median_of(spare),  # after the answer
+        "busy_ms": median_of(busy),  # answer and spare time: the loop's time per map
         "startup_excluded": {
             "first_map_ms": 1e3 * statistics.median(first),
             "latency_ms": {
@@ -308,6 +336,11 @@ def main() -> None:
     )
     y = result["online_cpu_ms"]
     print(f"online CPU: p50 {y['p50']:.2f}, p99 {y['p99']:.2f}, max {y['max']:.1f} ms per map")
+    c, b = result["command_latency_ms"], result["busy_ms"]
+    print(
+        f"online: to the command p50 {c['p50']:.2f}, p99 {c['p99']:.2f} ms; with the spare "
+        f"time after the answer p50 {b['p50']:.2f}, p99 {b['p99']:.2f} ms per map"
+    )
 
 
 if __name__ == "__main__":

@@ -5,8 +5,9 @@ Usage: ``python benchmarks/bench_online_routes.py [--routes N] [--out FILE]``; w
 ``problems/validate_routes.yaml``, routes 0 .. N-1): each route is recorded as
 ``mmstab record`` records it (seeded noise and occluded patches) and followed once, as
 ``mmstab follow`` follows it, on one core (the process pinned to one CPU, BLAS threads 1).
-Per route: the update's wall time per map without the first (the horizon's set-up, before
-the robot moves), its p50, p99 and max [ms]; over the routes: their median, 90th
+Per route: the wall time from each map to its answer (the command and the verdicts; the
+spare time's re-plans after it excluded) without the first map (the horizon's set-up,
+before the robot moves), its p50, p99 and max [ms]; over the routes: their median, 90th
 percentile and max, and the routes whose p99 passes the 10 ms target. ``bench_online.py``
 gives one route's slow maps with their causes (``--validation-route K``).
 """

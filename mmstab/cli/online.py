@@ -55,8 +55,9 @@ def _follow(args: argparse.Namespace) -> int | None:
     lat = s["latency_ms"]
     print(
         f"follow: {s['updates']} maps ({s['skipped_maps']} before odometry) over "
-        f"{s['progress_m'][1] - s['progress_m'][0]:.2f} m of the route; latency p50 "
-        f"{lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, max {lat['max']:.1f} ms"
+        f"{s['progress_m'][1] - s['progress_m'][0]:.2f} m of the route; map to answer p50 "
+        f"{lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms, max {lat['max']:.1f} ms (to the "
+        f"command p99 {s['command_latency_ms']['p99']:.2f} ms)"
     )
     print(
         f"follow: {s['replanned_poses']} pose plans on {s['updates_with_replan']} maps; robot "

@@ -1,15 +1,17 @@
 """mmstab's own C, compiled on first use into a cached shared library.
 
-Eight stages carry hand-written C: the controller's box QP solver (``controller/boxqp.c``),
+Hand-written C, stage by stage: the controller's box QP solver (``controller/boxqp.c``),
 the resting pose of the base on a heightmap and its polish (``terrain/rest/kernel.c``), the
 arm's link frames and link shapes' poses (``model/frames.c``: BLAS's products, checked bit
 for bit against NumPy's before use), the bounds on the arm's collision distances
 (``model/collision_distance.c``), A* over the posture roadmap
-(``planner/searches/roadmap/astar.c``), the ground under the arm
+(``planner/searches/roadmap/astar.c``), the turns' slide priced on a grid of CoMs
+(``planner/turning.c``), the ground under the arm
 (``planner/ground/kernel.c``: at a route's poses offline, on each live map online), the
-skid-steer model's Newton loop (``stability/skid.c``) and the loaded support's μ of many
-states (``stability/support_mu.c``). Each
-is compiled once per source text and compile command with the system compiler and kept in
+skid-steer model's Newton loop (``stability/skid.c``), the loaded support's μ of many
+states (``stability/support_mu.c``), the climb limit's wheel rolled over the ground ahead
+(``stability/climb_rolls.c``) and the arm's height above the ground (``runs/arm_heights.c``).
+Each is compiled once per source text and compile command with the system compiler and kept in
 the cache folder; the file name carries a hash of both, so an edited source is never
 confused with an old build, and the library is written atomically (compiled next to it,
 renamed).

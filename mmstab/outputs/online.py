@@ -352,7 +352,7 @@ def _figure(path: Path, run: FollowRun, offline: OfflinePlan, along: AlongRoute 
     b.hist(lat, bins=40)
     b.axvline(np.percentile(lat, 50), color="k", lw=1, label=f"p50 {np.percentile(lat, 50):.1f} ms")
     b.axvline(np.percentile(lat, 99), color="r", lw=1, label=f"p99 {np.percentile(lat, 99):.1f} ms")
-    b.set(xlabel="latency per map [ms]", ylabel="maps", title="rest + re-plan + controller step")
+    b.set(xlabel="map to answer [ms]", ylabel="maps", title="rest, re-plan, step, verdicts")
     b.legend(fontsize=7)
     fig.tight_layout()
     write_figure(path, fig)

@@ -36,6 +36,8 @@ from mmstab.runs.online.live import LiveAnswer, LiveFollower
 from mmstab.runs.online.rosenv import stamp_of
 from mmstab.runs.online.run import follow_recording
 from mmstab.runs.recording import joint_names
+from mmstab.stability.static import axis_angles
+from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.gridmap import GRIDMAP, ros_time, typestore
 from mmstab.terrain.recording import messages
 
@@ -81,6 +83,7 @@ def feed(
             layer = msg.data[0]
             msg.data[0] = dataclasses.replace(layer, data=layer.data[:-7])
         out += live.on_map(msg, now)
+        live.spare()  # after the answers, as the node does
     out += live.flush(now + GUARD.odom_wait)  # the last map's wait is over
     return out
 
@@ -101,6 +104,13 @@ def test_the_live_loop_gives_follows_answers(recorded: tuple[mmstab.Problem, Pat
         # the CoM's projection lies below it, on the support's plane (body z through it)
         assert a.scene.com_ground[2] < a.scene.com[2]
         assert np.allclose(a.scene.com_ground[:2], a.scene.com[:2])
+        # the tip axis: the edge of this support whose force angle under m g is the least,
+        # and that angle times m g is the answer's μ (the scene is μ's own support)
+        poly, weight = a.scene.polygon, problem.robot.total_mass * GRAVITY_G
+        theta = axis_angles(poly, a.scene.com, weight)
+        j = int(np.argmin(theta))
+        np.testing.assert_array_equal(a.scene.tip_axis, poly[[j, (j + 1) % len(poly)]])
+        assert theta[j] * np.linalg.norm(weight) == pytest.approx(a.step.mu, rel=1e-9)
 
 
 @pytest.mark.parametrize(

@@ -419,7 +419,7 @@ def test_cli_record_then_follow(tmp_path: Path) -> None:
     )
     r = run("follow", str(p), "--bag", str(bag), "-o", str(out), "--limit", "20", "--allow-sliding")
     assert r.returncode == 0, r.stderr
-    assert s["updates"] == 20 and "latency p50" in r.stdout
+    assert s["updates"] == 20 and "map to answer p50" in r.stdout
     with (out / "online.mcap").open("rb") as fh:
         channels = {c.topic for c in make_reader(fh).get_summary().channels.values()}
     assert channels == set(TOPICS)

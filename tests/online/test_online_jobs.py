@@ -142,3 +142,37 @@ def test_deferred_re_plans_plan_as_re_planning_at_once(
         a = np.array([getattr(x, name) for x in later.steps])
         b = np.array([getattr(x, name) for x in slow.steps])
         assert np.array_equal(a, b, equal_nan=True), name
+
+
+def test_the_spare_time_work_waits_for_the_answer(
+    seeded: tuple[mmstab.Problem, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The queued re-plans' steps and the moves ahead run after each map's answer
+    (``Follower.spare``), never inside ``Follower.update``; a second ``spare`` does nothing."""
+    problem, path = seeded
+    inside, where = [False], {"update": 0, "spare": 0}
+    update, spare, advance = Follower.update, Follower.spare, Jobs.advance
+
+    def in_update(self: Follower, u: object) -> object:
+        inside[0] = True
+        try:
+            return update(self, u)  # type: ignore[arg-type]
+        finally:
+            inside[0] = False
+
+    def counted(self: Jobs, until: float) -> None:
+        where["update" if inside[0] else "spare"] += 1
+        advance(self, until)
+
+    def twice(self: Follower) -> float:
+        seconds = spare(self)
+        assert spare(self) == 0.0  # the map's spare time is spent
+        return seconds
+
+    monkeypatch.setattr(Follower, "update", in_update)
+    monkeypatch.setattr(Follower, "spare", twice)
+    monkeypatch.setattr(Jobs, "advance", counted)
+    run = follow_recording(problem, path, limit=60)
+    assert len(run.steps) == 60
+    assert where["update"] == 0 and where["spare"] > 0
+    assert all(x.command_latency <= x.latency for x in run.steps)

@@ -54,8 +54,9 @@ def _profile(rng: np.random.Generator, n: int, r: float, kind: int) -> np.ndarra
     return np.asarray(z)
 
 
+@pytest.mark.parametrize("backend", ["c", "numpy"])
 @pytest.mark.parametrize("seed", range(6))
-def test_worst_contact_equals_every_roll(seed: int) -> None:
+def test_worst_contact_equals_every_roll(seed: int, backend: str) -> None:
     rng = np.random.default_rng(4100 + seed)
     lifted = 0
     for trial in range(60):
@@ -64,7 +65,7 @@ def test_worst_contact_equals_every_roll(seed: int) -> None:
         n = len(np.arange(SAMPLE_STEP, r + lookahead + 1e-12, SAMPLE_STEP))
         rolls = int(np.floor(lookahead / SAMPLE_STEP + 1e-9)) + 1
         z = _profile(rng, n, r, trial % 6)
-        fast, whole = _worst_contact(z, rolls, r), _every_roll(z, rolls, r)
+        fast, whole = _worst_contact(z, rolls, r, backend), _every_roll(z, rolls, r)
         np.testing.assert_equal(fast, whole)  # the same floats (NaN where the whole is NaN)
         lifted += fast[0] < 1.0
         marked = _lifted_rolls(z, rolls, r, int(np.ceil(r / SAMPLE_STEP)))

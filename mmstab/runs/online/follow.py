@@ -14,11 +14,16 @@ Per map (:meth:`Follower.update`), on that map alone:
    planned arm CoM interpolated between the horizon's poses, their postures as the posture
    task), the controller period set to the time since the last map; the arm's joint speeds
    are the command, and the arm's posture advances by them (the follower's own integration:
-   a recording carries no joint states).
+   a recording carries no joint states);
+5. **verdicts**: the state's support on the map (its flags: high-centred), the arm's
+   height above the map's ground, the rock check where μ < 0: with μ and the tilt, the
+   answer. The work that can wait (queued re-plans, moves ahead) runs after the answer, in
+   the map's spare time (:meth:`Follower.spare`).
 
 Deterministic: the planner's generator is seeded (``planner.seed``) and no decision depends
-on the clock, so the same recording gives the same commands and μ; only ``latency`` [s]
-(wall time of the update, map decoding excluded) differs between runs.
+on the clock, so the same recording gives the same commands and μ; only the latencies [s]
+(wall time from the map to the command and to the answer, map decoding excluded) differ
+between runs.
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ from mmstab.runs.online.stream import MapUpdate
 from mmstab.runs.tip_rule import RockCheck
 from mmstab.stability.slip import support_tilt, terrain_friction
 from mmstab.stability.support import state_load, support_on_rests
-from mmstab.terrain.heightmap_terrain import HeightmapTerrain
+from mmstab.terrain.heightmap_terrain import HeightmapTerrain, rest_support
 from mmstab.workspace import Workspace
 
 #: The arm is led along the roadmap's checked moves, from its posture at the start through
@@ -113,10 +118,11 @@ class FollowStep(NamedTuple):
         replanned: horizon poses re-planned on this map.
         uncovered: horizon poses the map does not cover.
         covered_ahead: the route planned on this map ahead of the robot [m].
-        latency: wall time of the update [s] (the command's callback excluded: the spare
-            time's re-plan steps after it included).
-        G_T_B: the resting pose on the map (4, 4) (NaN when not covered); computed after
-            the timed part, for the recording of the run.
+        latency: wall time from the map to the answer [s]: the command and the verdicts
+            (μ, tilt, the support's flags, the arm's height, the rock check; the command's
+            callback excluded, the spare time's work after the answer too, :meth:`Follower.spare`).
+        G_T_B: the state's resting pose on the map, under its own CoM (4, 4) (NaN when not
+            covered): the rest its μ is computed on.
         polygon: the support polygon in the map frame (m, 3) [m] (empty when not covered).
         tilt: the support's tilt on the map (gravity against -z_B) [rad] (NaN when not
             covered); the tracks slide beyond atan(friction) (:mod:`mmstab.stability.slip`).
@@ -124,15 +130,16 @@ class FollowStep(NamedTuple):
             not covered).
         measured: ``q`` is the recording's joint state (else the loop's own integration).
         q_ref: the planned posture the step steered toward [rad] (None: none planned yet).
-        flags: the resting pose's flags on the map (``high_centred``, ``line_contact``, ...);
-            computed after the timed part (empty when not covered).
+        flags: the resting pose's flags on the map (``high_centred``, ``line_contact``, ...)
+            (empty when not covered).
         rocks: μ < 0 here, and the robot pushed by the route's acceleration rocks onto a
             support of this map that holds it: not tipping (:mod:`mmstab.runs.tip_rule`);
-            computed after the timed part, only where μ < 0.
+            computed only where μ < 0.
         arm_height: the arm's least height above the map's ground, the body at ``G_T_B``
             and the arm at ``q`` [m] (< 0: in the ground; NaN: not covered, or the arm over
             an unknown cell); :func:`mmstab.runs.arm_ground.arm_heights`, the measure
-            ``plan`` and ``track`` take; computed after the timed part.
+            ``plan`` and ``track`` take.
+        command_latency: wall time from the map to the command [s] (part of ``latency``).
     """
 
     time: float
@@ -157,6 +164,7 @@ class FollowStep(NamedTuple):
     flags: tuple[str, ...] = ()
     rocks: bool = False
     arm_height: float = math.nan
+    command_latency: float = math.nan
 
 
 class Follower:
@@ -186,11 +194,13 @@ class Follower:
         self.period = float(controller.params.dt)
         self.ground = np.zeros((1, 3))  # local ground (z, roll, pitch) last used [m, rad, rad]
         #: called with the command (tracks, arm) [rad/s] and the planned posture [rad] (None:
-        #: none yet) as soon as the step has them, before the answer's untimed extras (the
+        #: none yet) as soon as the step has them, before the answer's verdicts (the
         #: live node publishes the command there: mmstab.runs.online.node)
         self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
-        #: the loop thread's processor time of the last update's timed part [s]
+        #: the loop thread's processor time of the last update's answer [s] (as ``latency``)
         self.cpu_time = 0.0
+        #: the last update's processor time for its spare time's work [s] (None: none)
+        self._spare_left: float | None = None
         #: the planned pose whose move the arm is on, the move's nodes, the way made on it [rad]
         self.way: tuple[int, tuple[int | None, int], float] | None = None
         #: moves that could not be made (the arm's posture reached no roadmap node)
@@ -251,32 +261,49 @@ class Follower:
             q_ref, target = way, np.asarray(self.robot.arm_com(way), dtype=float)
         com_target = arm_com if target is None else target  # None: hold the arm's CoM
         qdot, status = self._step(pose, ref_pose, q, com_target, q_ref, u.time)
-        latency, cpu = time.perf_counter() - t0, time.thread_time() - cpu0
-        if self.on_command is not None:  # out before the spare time's work (not timed)
-            self.on_command(qdot, None if q_ref is None else np.array(q_ref))
-        if isinstance(self.horizon, RoadmapHorizon):  # the queued re-plans, the moves ahead
+        command_latency = time.perf_counter() - t0
+        # the spare time's work runs after the answer (:meth:`spare`), within its budget (no
+        # budget: the re-plans are computed on their maps, only the moves ahead are left)
+        if isinstance(self.horizon, RoadmapHorizon):
+            self._spare_left = self.horizon.jobs.budget or 0.0
+        callback, callback_cpu = 0.0, 0.0
+        if self.on_command is not None:  # out at once, before the verdicts (not timed)
             t1, cpu1 = time.perf_counter(), time.thread_time()
-            self.horizon.spare(cpu0 + (self.horizon.jobs.budget or 0.0))
-            latency += time.perf_counter() - t1
-            cpu += time.thread_time() - cpu1
-        self.cpu_time = cpu
+            self.on_command(qdot, None if q_ref is None else np.array(q_ref))
+            callback, callback_cpu = time.perf_counter() - t1, time.thread_time() - cpu1
         G_T_B, polygon = np.full((4, 4), np.nan), np.zeros((0, 3))
         flags: tuple[str, ...] = ()
         arm_height = math.nan
-        # for the run's recording, outside the timed update; the state under its own CoM may
-        # rest on an unknown cell where the bound robot's CoM did not (its row NaN above)
+        # the state under its own CoM may rest on an unknown cell where the bound robot's
+        # CoM did not (its row NaN above); its support is the rest its μ was computed on
         if covered and np.isfinite(rests.G_T_B[len(P)]).all():
-            support = terrain.with_robot(self.robot, arm_q=q).support(self.robot, pose)
+            support = rest_support(rests, len(P), terrain.candidates.points)
             G_T_B, polygon, flags = support.G_T_B, support.polygon_G, tuple(support.flags)
             h = arm_heights(self.robot, terrain, G_T_B[None], q[None], self.arm_surface)
             arm_height = float(h[0])
         rocks = covered and mu < 0 and bool(self.rock.holds(terrain, pose[None], arm_com[None])[0])
+        latency = time.perf_counter() - t0 - callback
+        self.cpu_time = time.thread_time() - cpu0 - callback_cpu
         return FollowStep(
             u.time, s, pose, covered, mu, mu_planned, q, qdot, status, len(changes.replanned),
             len(changes.uncovered), self._covered_ahead(s, ks, changes), latency, G_T_B, polygon,
             tilt, g_now, u.joints is not None, None if q_ref is None else np.array(q_ref), flags,
-            rocks, arm_height,
+            rocks, arm_height, command_latency,
         )  # fmt: skip
+
+    def spare(self) -> float:
+        """The last map's spare time, after its answer: the queued re-plans, the moves ahead.
+
+        Within its budget (``replan_jobs.SPARE_BUDGET`` of processor time; one re-plan step
+        at least): what the answer does not wait for. Runs once per :meth:`update` (again:
+        nothing). Returns its wall time [s].
+        """
+        left, self._spare_left = self._spare_left, None
+        if left is None or not isinstance(self.horizon, RoadmapHorizon):
+            return 0.0
+        t0 = time.perf_counter()
+        self.horizon.spare(time.thread_time() + left)
+        return time.perf_counter() - t0
 
     def _way(self, q: FloatArray, s: float) -> FloatArray | None:
         """The posture reference along the planned moves (:data:`WAY_AHEAD`; None: no plan).

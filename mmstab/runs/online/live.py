@@ -45,7 +45,8 @@ from mmstab.runs.online.guard import (
 from mmstab.runs.online.rosenv import stamp_of
 from mmstab.runs.online.stream import JointReading, MapUpdate, Odometry, joints_of, odometry_of
 from mmstab.stability.climb import climb_limit
-from mmstab.stability.static import base_polygon, robot_force_angle
+from mmstab.stability.static import axis_angles
+from mmstab.terrain.base import GRAVITY_G
 from mmstab.terrain.gridmap import from_message
 from mmstab.terrain.heightmap import Heightmap, OffMapError
 from mmstab.terrain.heightmap_terrain import HeightmapTerrain
@@ -61,7 +62,8 @@ class Scene(NamedTuple):
         polygon: the support polygon's vertices (m, 3).
         com: the overall CoM (3,).
         com_ground: the CoM projected along gravity onto the support's plane (3,).
-        tip_axis: the polygon edge of the smallest force angle, its two ends (2, 3).
+        tip_axis: the polygon edge of the smallest force angle, its two ends (2, 3) (a line
+            support: its ends; none: (0, 3)).
     """
 
     polygon: FloatArray
@@ -181,6 +183,13 @@ class LiveFollower:
         self.last_stamp = stamp
         self.pending.append((msg, stamp, now + self.guard.odom_wait))
         return self.poll(now)
+
+    def spare(self) -> float:
+        """The last answered map's spare time (:meth:`Follower.spare`), once its answer is out.
+
+        Returns its wall time [s] (0 when there is nothing to do).
+        """
+        return self.follower.spare()
 
     def _ready(self, stamp: float) -> bool:
         """The odometry (and joint state) of the map's stamp have arrived."""
@@ -305,7 +314,12 @@ class LiveFollower:
         return not bool(np.asarray(lim.climbs(com[None]))[0])
 
     def scene(self, step: FollowStep) -> Scene:
-        """The support polygon, CoM, its projection and the tip axis in the map frame."""
+        """The support polygon, CoM, its projection and the tip axis in the map frame.
+
+        All of the state's own support (its rest under its overall CoM, the contacts that
+        carry the load): the tip axis is that polygon's edge of the smallest force angle
+        under m g, the edge that sets the step's μ.
+        """
         robot = self.robot
         arm_com = np.asarray(robot.arm_com(step.q), dtype=float)
         com_body = np.asarray(robot.overall_com(arm_com), dtype=float).reshape(3)
@@ -316,11 +330,12 @@ class LiveFollower:
         n = T[:3, 2]
         drop = float(np.dot(com - centre, n) / n[2]) if abs(n[2]) > 1e-9 else 0.0
         ground = com - np.array([0.0, 0.0, drop])
-        fa = robot_force_angle(robot, step.gravity_body, arm_com)
-        j = int(np.argmin(np.asarray(fa.angles).reshape(-1)))
-        v = base_polygon(robot).vertices
-        ends = np.array([v[j], v[(j + 1) % len(v)]])
-        axis = ends @ T[:3, :3].T + T[:3, 3]
+        if len(poly) >= 3:
+            theta = axis_angles(poly, com, robot.total_mass * GRAVITY_G)
+            j = int(np.argmin(theta))
+            axis = poly[[j, (j + 1) % len(poly)]]
+        else:  # a line (its two ends) or no support
+            axis = poly[:2].copy()
         return Scene(poly, com, ground, axis)
 
 

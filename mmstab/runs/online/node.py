@@ -13,11 +13,16 @@ follow``) and publishes, each stamped with the map's stamp:
   (tracks left, right, then the arm's joints) [rad/s], on every answer and again at
   ``control_rate`` [Hz] between maps; zeros while the answer is stale;
 * ``diagnostics_topic`` (``diagnostic_msgs/DiagnosticArray``): ``mmstab: stability`` (μ,
-  planned μ, tilt, progress, the posture and command, the update's latency) and one status
-  per verdict (tip, slide, step, high-centred, arm-contact, coverage), all STALE with the
-  reason when the inputs are not fresh (:mod:`mmstab.runs.online.guard`);
+  planned μ, tilt, progress, the posture and command, the loop's map-to-answer latency) and
+  one status per verdict (tip, slide, step, high-centred, arm-contact, coverage), all STALE
+  with the reason when the inputs are not fresh (:mod:`mmstab.runs.online.guard`);
 * ``markers_topic`` (``visualization_msgs/MarkerArray``): the support polygon coloured by μ,
-  the CoM, its projection on the support and the tip axis.
+  the CoM, its projection on the support and the tip axis (all of the state's own support,
+  the one its μ is computed on).
+
+The queued re-plans and the moves ahead run after the answer is published (the map's
+spare time, :meth:`~mmstab.runs.online.follow.Follower.spare`): the answer waits for
+nothing it does not need.
 
 Run through :func:`~mmstab.runs.online.rosenv.ensure_ros_env` (the CLI does), as rclpy
 needs its libraries set before the process starts.
@@ -25,6 +30,7 @@ needs its libraries set before the process starts.
 
 from __future__ import annotations
 
+import gc
 import re
 import time
 from typing import Any
@@ -32,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from mmstab.core.problem import Problem
+from mmstab.planner.plan import unfreeze_long_lived
 from mmstab.runs.online.follow import FollowSettings, build_follower
 from mmstab.runs.online.guard import VERDICTS, GuardSettings
 from mmstab.runs.online.live import LiveAnswer, LiveFollower
@@ -99,6 +106,10 @@ class MmstabNode:
         self._publishers()
         self._subscriptions()
         node.create_timer(1.0 / float(values["control_rate"]), self._tick)
+        # the set-up's objects (V, the roadmap, CasADi's) out of the collector's full passes,
+        # as in ``follow``: one pass over them takes tens of ms of a map's answer
+        gc.collect()
+        gc.freeze()
         node.get_logger().info(
             f"answering maps on {self.topics.map_topic} (odometry {self.topics.odom_topic}"
             + (f", joints {self.topics.joints_topic}" if self.topics.joints_topic else "")
@@ -155,6 +166,14 @@ class MmstabNode:
             self.node.get_logger().error(why)
             answers = [self.live._stale(time.time(), "", why)]
         self._emit(answers)
+        if any(a.step is not None for a in answers):  # the re-plans wait for the answer
+            self._guarded_spare()
+
+    def _guarded_spare(self) -> None:
+        try:
+            self.live.spare()
+        except Exception as e:  # as an update's error: logged, the next map answers anew
+            self.node.get_logger().error(f"error in the spare time: {type(e).__name__}: {e}")
 
     def _tick(self) -> None:
         now = time.time()
@@ -246,6 +265,7 @@ class MmstabNode:
                 kv("q", " ".join(repr(float(x)) for x in st.q)),
                 kv("qdot", " ".join(repr(float(x)) for x in st.qdot)),
                 kv("latency_ms", f"{st.latency * 1e3:.3f}"),
+                kv("cpu_ms", f"{self.live.follower.cpu_time * 1e3:.3f}"),
                 kv("command_published", f"{self.step_published:.9f}"),
                 kv("map_received", f"{self.map_received:.9f}"),
             ]
@@ -317,3 +337,4 @@ class MmstabNode:
             self.node.destroy_node()
             if rclpy.ok():
                 rclpy.shutdown()
+            unfreeze_long_lived()

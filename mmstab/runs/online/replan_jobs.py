@@ -11,8 +11,8 @@ So a re-plan is a :class:`Job`:
   nothing runs concurrently), on the data of the map that triggered it (the map, its rests,
   its ground under the arm, the arm's posture) and after the re-plans triggered before it,
   so it computes what re-planning at once would (the same candidates, the same choices);
-  every map gives the queued jobs its spare time after its step, up to :data:`UPDATE_BUDGET`
-  from its start (one step at least; a step may run past it);
+  every map gives the queued jobs its spare time after its answer, :data:`SPARE_BUDGET`
+  (one step at least; a step may run past it);
 - it **lands** (its answers become the plans the step reads and every map checks) on a
   fixed map: :data:`LAND_AFTER` maps after its trigger, or earlier when the robot comes
   near one of its poses whose last landed plan the map made invalid (a new pose, its
@@ -36,13 +36,15 @@ from typing import Generic, TypeVar
 
 from greenlet import greenlet
 
-#: An update's time [s] after which it starts no step of the queued re-plans: the loop's
-#: processor time (:func:`time.thread_time`, so that other processes on its core do not
-#: starve the re-plans), from the map's arrival at the loop; one step at least per map, and
-#: a step may run past it. 6 ms: with the arm kept clear through 12 deg of body tilt (a
-#: heightmap route's default) a step runs up to ~4 ms, and at 7 ms the rough route's p99
-#: was 10.7 ms (6 ms: 9.1-9.6; without the margin 8.0 -> 7.2).
-UPDATE_BUDGET = 0.006
+#: Each map's spare time, after its answer [s]: the loop's processor time
+#: (:func:`time.thread_time`, so that other processes on its core do not starve the
+#: re-plans) in which the queued re-plans' steps run, then the moves ahead; one step at
+#: least per map, and a step may run past it (up to ~4 ms with the arm kept clear through
+#: 12 deg of body tilt). The answer does not wait for it; a re-plan not computed by the map
+#: it lands on is computed there, before the answer. 10 ms on the rough route, one core:
+#: with 6 ms the 12 deg margin's re-plans were still running when they landed (p99 from
+#: map to answer 25 ms; 12 ms: 6.5 ms), the loop's time per map up to 18 ms at p99.
+SPARE_BUDGET = 0.010
 #: Maps after its trigger on which a deferred re-plan lands.
 LAND_AFTER = 8
 #: The horizon's first poses (the one behind the robot, the next two ahead): a re-plan of
@@ -95,10 +97,10 @@ class Jobs(Generic[T]):
     """The queued re-plans, computed in order (module text).
 
     Args:
-        budget: :data:`UPDATE_BUDGET` [s]; None: every job is computed and lands at once.
+        budget: :data:`SPARE_BUDGET` [s]; None: every job is computed and lands at once.
     """
 
-    def __init__(self, budget: float | None = UPDATE_BUDGET) -> None:
+    def __init__(self, budget: float | None = SPARE_BUDGET) -> None:
         self.budget = budget
         self.queue: list[Job[T]] = []
         self.steps = 0  # steps run, over the run

@@ -88,6 +88,7 @@ def follow_recording(
     try:
         for u in itertools.chain(first, updates):
             steps.append(follower.update(u))
+            follower.spare()  # after the answer, as the node does
             if limit is not None and len(steps) >= limit:
                 break
     finally:
@@ -116,7 +117,10 @@ def _stats(values: np.ndarray, scale: float = 1.0) -> dict[str, float]:
 
 
 def summarize(run: FollowRun) -> dict[str, Any]:
-    """The run's numbers (module text); everything but ``latency_ms`` is deterministic.
+    """The run's numbers (module text); everything but the latencies is deterministic.
+
+    ``latency_ms``: from each map to its answer (the command and the verdicts);
+    ``command_latency_ms``: to the command alone.
 
     ``slides``: the first map on which the robot's support tilts beyond atan(friction) (the
     slip limit, :mod:`mmstab.stability.slip`), or None. ``arm_in_ground``:
@@ -142,6 +146,7 @@ def summarize(run: FollowRun) -> dict[str, Any]:
         "time_s": [st[0].time, st[-1].time],
         "progress_m": [st[0].s, st[-1].s],
         "latency_ms": _stats(np.array([x.latency for x in st]), 1e3),
+        "command_latency_ms": _stats(np.array([x.command_latency for x in st]), 1e3),
         "arm_posture": "measured" if any(x.measured for x in st) else "integrated",
         "replanned_poses": int(sum(x.replanned for x in st)),
         "updates_with_replan": int(sum(x.replanned > 0 for x in st)),
