@@ -199,8 +199,8 @@ class Follower:
         self.on_command: Callable[[FloatArray, FloatArray | None], None] | None = None
         #: the loop thread's processor time of the last update's answer [s] (as ``latency``)
         self.cpu_time = 0.0
-        #: the last update's processor time for its spare time's work [s] (None: none)
-        self._spare_left: float | None = None
+        #: the last update's spare time is still to run (:meth:`spare`)
+        self._spare_due = False
         #: the planned pose whose move the arm is on, the move's nodes, the way made on it [rad]
         self.way: tuple[int, tuple[int | None, int], float] | None = None
         #: moves that could not be made (the arm's posture reached no roadmap node)
@@ -262,10 +262,7 @@ class Follower:
         com_target = arm_com if target is None else target  # None: hold the arm's CoM
         qdot, status = self._step(pose, ref_pose, q, com_target, q_ref, u.time)
         command_latency = time.perf_counter() - t0
-        # the spare time's work runs after the answer (:meth:`spare`), within its budget (no
-        # budget: the re-plans are computed on their maps, only the moves ahead are left)
-        if isinstance(self.horizon, RoadmapHorizon):
-            self._spare_left = self.horizon.jobs.budget or 0.0
+        self._spare_due = True  # the spare time's work runs after the answer (:meth:`spare`)
         callback, callback_cpu = 0.0, 0.0
         if self.on_command is not None:  # out at once, before the verdicts (not timed)
             t1, cpu1 = time.perf_counter(), time.thread_time()
@@ -298,11 +295,12 @@ class Follower:
         at least): what the answer does not wait for. Runs once per :meth:`update` (again:
         nothing). Returns its wall time [s].
         """
-        left, self._spare_left = self._spare_left, None
-        if left is None or not isinstance(self.horizon, RoadmapHorizon):
+        due, self._spare_due = self._spare_due, False
+        if not due or not isinstance(self.horizon, RoadmapHorizon):
             return 0.0
         t0 = time.perf_counter()
-        self.horizon.spare(time.thread_time() + left)
+        # no budget: the re-plans are computed on their maps, only the moves ahead are left
+        self.horizon.spare(time.thread_time() + (self.horizon.jobs.budget or 0.0))
         return time.perf_counter() - t0
 
     def _way(self, q: FloatArray, s: float) -> FloatArray | None:
